@@ -1,0 +1,3 @@
+//! Analysis computed from the model: steady state (equilibrium) with validity flags.
+
+pub mod steady;

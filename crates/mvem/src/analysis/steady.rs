@@ -1,0 +1,392 @@
+//! Steady state (equilibrium) f(x, u) = 0 at constant inputs.
+//!
+//! The actuator states equal the saturated commands at equilibrium, so the solve is over the
+//! remaining states (5 for the 8-state model) in scaled variables (state / typical magnitude),
+//! residuals scaled the same way (units 1/s). Method: damped Newton with a finite-difference
+//! Jacobian and a backtracking line search that keeps the iterate inside the integrator limits;
+//! if that fails or lands on an unstable equilibrium, a settling simulation (40 s, then 200 s)
+//! from the guess provides a new start, as the reference procedure does.
+//!
+//! A converged equilibrium is always checked: [`SteadyState::flags`] lists every active guard
+//! saturation of the authors' implementation, lambda_O < 1, integrator limits, an unstable
+//! linearization, and the model regimes (choked EGR, no EGR flow, linear c_m branch).
+//! [`SteadyState::physically_valid`] is false when any invalidating flag is present.
+
+use crate::model::{Drive, Guard, Model, ModelInput, Signals};
+use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+use nalgebra::{DMatrix, DVector};
+
+/// A converged equilibrium.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteadyState<const N: usize> {
+    /// Inputs as given.
+    pub drive: Drive,
+    /// Equilibrium state.
+    pub x: [f64; N],
+    /// Signals at the equilibrium.
+    pub signals: Signals,
+    /// Max |dx_i / scale_i| at the solution [1/s].
+    pub residual: f64,
+    /// Newton iterations used (total over attempts).
+    pub iterations: usize,
+    /// Whether a settling simulation was needed.
+    pub settled: bool,
+    /// Eigenvalues (re, im) of the Jacobian of the solved (non-actuator) states [1/s].
+    pub eigenvalues: Vec<(f64, f64)>,
+    /// Flags: guard saturations, lambda_O<1, integrator limits, `unstable`, regimes.
+    pub flags: Vec<String>,
+    /// Whether any flag invalidates the point as a physical equilibrium.
+    invalid: bool,
+}
+
+impl<const N: usize> SteadyState<N> {
+    /// No invalidating flag: no guard saturation of the authors' implementation is active,
+    /// lambda_O >= 1, no state at an integrator limit and the equilibrium is stable.
+    pub fn physically_valid(&self) -> bool {
+        !self.invalid
+    }
+}
+
+/// Why no equilibrium was returned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SteadyError {
+    /// An input is NaN or infinite.
+    #[error("input {name} = {value} is not finite")]
+    NonFiniteInput {
+        /// Input name.
+        name: &'static str,
+        /// Value.
+        value: f64,
+    },
+    /// Neither Newton nor the settling simulations reached the tolerance.
+    #[error("no equilibrium found at n_e={} rpm, u_delta={} mg, u_egr={} %, u_vgt={} %: {reason} (best residual {residual:.3e} 1/s at {state})", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
+    NoConvergence {
+        /// Inputs.
+        drive: Drive,
+        /// Best scaled residual [1/s].
+        residual: f64,
+        /// Best state, formatted.
+        state: String,
+        /// What failed.
+        reason: String,
+    },
+}
+
+/// Options of the steady-state solver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SteadyOptions {
+    /// Convergence: max scaled residual [1/s].
+    pub tol: f64,
+    /// Newton iteration limit per attempt.
+    pub max_iter: usize,
+    /// Allow the settling-simulation fallback.
+    pub settle: bool,
+}
+
+impl Default for SteadyOptions {
+    fn default() -> Self {
+        Self {
+            tol: 1e-10,
+            max_iter: 60,
+            settle: true,
+        }
+    }
+}
+
+/// Steady state at `d` from the model's initial guess (see the module documentation).
+pub fn steady_state<const N: usize, M: Model<N>>(
+    m: &M,
+    d: &Drive,
+) -> Result<SteadyState<N>, SteadyError> {
+    steady_state_with(m, d, None, &SteadyOptions::default())
+}
+
+/// Steady state at `d` starting from `guess` (e.g. a neighbouring operating point).
+pub fn steady_state_with<const N: usize, M: Model<N>>(
+    m: &M,
+    d: &Drive,
+    guess: Option<&[f64; N]>,
+    opts: &SteadyOptions,
+) -> Result<SteadyState<N>, SteadyError> {
+    for (name, v) in Drive::NAMES.iter().zip(d.to_array()) {
+        if !v.is_finite() {
+            return Err(SteadyError::NonFiniteInput { name, value: v });
+        }
+    }
+    let fixed = m.actuator_state_values(d);
+    let mut x0 = guess.copied().unwrap_or_else(|| m.initial_guess(d));
+    for (i, v) in &fixed {
+        x0[*i] = *v;
+    }
+    let solver = Newton::new(m, d, &fixed);
+    let mut iterations = 0;
+    let mut best: Option<([f64; N], f64)> = None;
+    let mut reason = String::from("Newton did not converge");
+
+    let attempt = |start: [f64; N],
+                   settled: bool,
+                   iterations: &mut usize,
+                   best: &mut Option<([f64; N], f64)>,
+                   reason: &mut String|
+     -> Option<SteadyState<N>> {
+        let r = solver.solve(start, opts);
+        *iterations += r.iterations;
+        if best.as_ref().is_none_or(|b| r.residual < b.1) {
+            *best = Some((r.x, r.residual));
+        }
+        if r.residual <= opts.tol {
+            let ss = solver.finish(r.x, r.residual, *iterations, settled);
+            if ss.eigenvalues.iter().all(|e| e.0 < 0.0) || !opts.settle {
+                return Some(ss);
+            }
+            *reason = "Newton converged to an unstable equilibrium".into();
+        } else if let Some(why) = r.why {
+            *reason = why;
+        }
+        None
+    };
+
+    if let Some(ss) = attempt(x0, false, &mut iterations, &mut best, &mut reason) {
+        return Ok(ss);
+    }
+    if opts.settle {
+        let sched = InputSchedule::constant(*d);
+        let sim_opts = SimOptions {
+            rtol: 1e-6,
+            atol: 1e-8,
+            dt_out: 1e9,
+            ..SimOptions::default()
+        };
+        let mut start = x0;
+        for dur in [40.0, 200.0] {
+            match simulate(m, &sched, 0.0, dur, Start::State(start), &sim_opts) {
+                Ok(sol) => {
+                    let names = m.state_names();
+                    let last = sol.len() - 1;
+                    for (i, n) in names.iter().enumerate() {
+                        start[i] = sol.get(n).map(|c| c[last]).unwrap_or(start[i]);
+                    }
+                    for (i, v) in &fixed {
+                        start[*i] = *v;
+                    }
+                    if let Some(ss) = attempt(start, true, &mut iterations, &mut best, &mut reason)
+                    {
+                        return Ok(ss);
+                    }
+                }
+                Err(e) => {
+                    reason = format!("settling simulation failed: {e}");
+                    break;
+                }
+            }
+        }
+    }
+    let (bx, br) = best.unwrap_or((x0, f64::INFINITY));
+    let names = m.state_names();
+    let state = names
+        .iter()
+        .zip(bx.iter())
+        .map(|(n, v)| format!("{n}={v:.6e}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    Err(SteadyError::NoConvergence {
+        drive: *d,
+        residual: br,
+        state: format!("[{state}]"),
+        reason,
+    })
+}
+
+struct NewtonResult<const N: usize> {
+    x: [f64; N],
+    residual: f64,
+    iterations: usize,
+    why: Option<String>,
+}
+
+struct Newton<'a, const N: usize, M: Model<N>> {
+    m: &'a M,
+    u: ModelInput,
+    free: Vec<usize>,
+    scale: [f64; N],
+    bounds: [(f64, f64); N],
+}
+
+impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
+    fn new(m: &'a M, d: &Drive, fixed: &[(usize, f64)]) -> Self {
+        let free = (0..N)
+            .filter(|i| !fixed.iter().any(|f| f.0 == *i))
+            .collect();
+        Self {
+            m,
+            u: ModelInput::constant(*d),
+            free,
+            scale: m.state_scales(),
+            bounds: m.state_bounds(),
+        }
+    }
+
+    fn memory(&self) -> crate::components::cylinder::SeligerIterate {
+        crate::components::cylinder::SeligerIterate {
+            x_r: 0.0,
+            t_1: self.m.params().intake_manifold.t_im,
+        }
+    }
+
+    /// Scaled residual of the free states.
+    fn residual(&self, x: &[f64; N]) -> DVector<f64> {
+        let ev = self.m.eval(x, &self.u, self.memory());
+        DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().map(|&i| ev.dx[i] / self.scale[i]),
+        )
+    }
+
+    fn jacobian(&self, x: &[f64; N], r0: &DVector<f64>) -> DMatrix<f64> {
+        let n = self.free.len();
+        let mut j = DMatrix::zeros(n, n);
+        for (c, &i) in self.free.iter().enumerate() {
+            let mut xp = *x;
+            let mut h = 1e-7 * (x[i].abs() / self.scale[i]).max(1.0);
+            // step inward if at an upper bound
+            if (x[i] + h * self.scale[i]) > self.bounds[i].1 {
+                h = -h;
+            }
+            xp[i] += h * self.scale[i];
+            let rp = self.residual(&xp);
+            for r in 0..n {
+                j[(r, c)] = (rp[r] - r0[r]) / h;
+            }
+        }
+        j
+    }
+
+    fn solve(&self, mut x: [f64; N], opts: &SteadyOptions) -> NewtonResult<N> {
+        let mut r = self.residual(&x);
+        let norm = |v: &DVector<f64>| v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        let mut res = norm(&r);
+        if !res.is_finite() {
+            return NewtonResult {
+                x,
+                residual: f64::INFINITY,
+                iterations: 0,
+                why: Some("non-finite residual at the start".into()),
+            };
+        }
+        for it in 0..opts.max_iter {
+            if res <= opts.tol * 0.01 {
+                return NewtonResult {
+                    x,
+                    residual: res,
+                    iterations: it,
+                    why: None,
+                };
+            }
+            let j = self.jacobian(&x, &r);
+            let Some(dz) = j.lu().solve(&(-&r)) else {
+                return NewtonResult {
+                    x,
+                    residual: res,
+                    iterations: it,
+                    why: Some("singular Jacobian (a guard saturation may freeze a state)".into()),
+                };
+            };
+            // step length: keep inside the limits (at most to 99 % of the way to a bound)
+            let mut alpha: f64 = 1.0;
+            for (c, &i) in self.free.iter().enumerate() {
+                let step = dz[c] * self.scale[i];
+                let (lo, hi) = self.bounds[i];
+                if step < 0.0 && lo.is_finite() {
+                    alpha = alpha.min(0.99 * (x[i] - lo) / -step);
+                } else if step > 0.0 && hi.is_finite() {
+                    alpha = alpha.min(0.99 * (hi - x[i]) / step);
+                }
+                // without integrator limits (paper semantics) keep positive states positive
+                if step < 0.0 && !lo.is_finite() && x[i] > 0.0 {
+                    alpha = alpha.min(0.9 * x[i] / -step);
+                }
+            }
+            let f0 = r.norm_squared();
+            let mut accepted = false;
+            for _ in 0..30 {
+                let mut xn = x;
+                for (c, &i) in self.free.iter().enumerate() {
+                    xn[i] += alpha * dz[c] * self.scale[i];
+                }
+                let rn = self.residual(&xn);
+                let fnn = rn.norm_squared();
+                if fnn.is_finite() && fnn <= (1.0 - 1e-4 * alpha) * f0 {
+                    let small_step = dz.iter().all(|v| (alpha * v).abs() < 1e-14);
+                    x = xn;
+                    r = rn;
+                    res = norm(&r);
+                    accepted = true;
+                    if small_step && res <= opts.tol {
+                        return NewtonResult {
+                            x,
+                            residual: res,
+                            iterations: it + 1,
+                            why: None,
+                        };
+                    }
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            if !accepted {
+                return NewtonResult {
+                    x,
+                    residual: res,
+                    iterations: it + 1,
+                    why: Some("line search failed (no descent direction)".into()),
+                };
+            }
+        }
+        NewtonResult {
+            x,
+            residual: res,
+            iterations: opts.max_iter,
+            why: Some(format!("iteration limit {} reached", opts.max_iter)),
+        }
+    }
+
+    fn finish(
+        &self,
+        x: [f64; N],
+        residual: f64,
+        iterations: usize,
+        settled: bool,
+    ) -> SteadyState<N> {
+        let ev = self.m.eval(&x, &self.u, self.memory());
+        let r0 = self.residual(&x);
+        let j = self.jacobian(&x, &r0);
+        let eigenvalues: Vec<(f64, f64)> = j
+            .complex_eigenvalues()
+            .iter()
+            .map(|c| (c.re, c.im))
+            .collect();
+        let mut flags: Vec<String> = Vec::new();
+        let mut invalid = false;
+        for g in Guard::ALL {
+            if ev.signals.has(*g) {
+                flags.push(g.label().to_string());
+                invalid |= g.invalidates();
+            }
+        }
+        if eigenvalues.iter().any(|e| e.0 >= 0.0) {
+            flags.push("unstable".into());
+            invalid = true;
+        }
+        SteadyState {
+            drive: self.u.now,
+            x,
+            signals: ev.signals,
+            residual,
+            iterations,
+            settled,
+            eigenvalues,
+            flags,
+            invalid,
+        }
+    }
+}

@@ -1,0 +1,245 @@
+//! Assembled model variants behind one interface.
+//!
+//! A model is `dx/dt = f(x, u(t), u_egr(t - tau_degr), u_vgt(t - tau_dvgt))` (eq. (2)) plus
+//! every algebraic signal, computed by one function, [`Model::eval`]. The 8-state model of the
+//! paper (sections 3-7) is [`Engine8`]; the section-9 extensions implement the same trait.
+
+mod engine8;
+mod signals;
+
+pub use engine8::{ix, Engine8, STATE_NAMES_8};
+pub use signals::{Guard, Signals};
+
+use crate::components::cylinder::SeligerIterate;
+use crate::components::Semantics;
+use crate::params::Params;
+use serde::{Deserialize, Serialize};
+
+/// The four model inputs in the paper's user units (eqs (2)-(3)).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Drive {
+    /// Engine speed n_e [rpm] (a measured disturbance).
+    pub n_e_rpm: f64,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    pub u_delta_mg: f64,
+    /// EGR valve command u_egr [%] (0 closed, 100 open).
+    pub u_egr_pct: f64,
+    /// VGT command u_vgt [%] (0 closed, 100 open).
+    pub u_vgt_pct: f64,
+}
+
+impl Drive {
+    /// A constant operating point.
+    pub fn new(n_e_rpm: f64, u_delta_mg: f64, u_egr_pct: f64, u_vgt_pct: f64) -> Self {
+        Self {
+            n_e_rpm,
+            u_delta_mg,
+            u_egr_pct,
+            u_vgt_pct,
+        }
+    }
+
+    /// Values in the order (n_e, u_delta, u_egr, u_vgt).
+    pub fn to_array(self) -> [f64; 4] {
+        [
+            self.n_e_rpm,
+            self.u_delta_mg,
+            self.u_egr_pct,
+            self.u_vgt_pct,
+        ]
+    }
+
+    /// From (n_e, u_delta, u_egr, u_vgt).
+    pub fn from_array(a: [f64; 4]) -> Self {
+        Self::new(a[0], a[1], a[2], a[3])
+    }
+
+    /// Input names in [`Drive::to_array`] order.
+    pub const NAMES: [&'static str; 4] = ["n_e", "u_delta", "u_egr", "u_vgt"];
+}
+
+/// What one model evaluation sees of the inputs: the current values and the actuator commands
+/// delayed by the transport delays tau_degr and tau_dvgt (eqs (40)-(41), (57)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelInput {
+    /// Inputs at time t.
+    pub now: Drive,
+    /// EGR command at t - tau_degr [%].
+    pub u_egr_delayed: f64,
+    /// VGT command at t - tau_dvgt [%].
+    pub u_vgt_delayed: f64,
+}
+
+impl ModelInput {
+    /// Constant inputs (no history): the delayed commands equal the current ones.
+    pub fn constant(d: Drive) -> Self {
+        Self {
+            now: d,
+            u_egr_delayed: d.u_egr_pct,
+            u_vgt_delayed: d.u_vgt_pct,
+        }
+    }
+}
+
+/// How the cylinder-out temperature fixed point (eq. (24)) is solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CylinderTemp {
+    /// Iterate to a relative change <= 1e-12 from (x_r, T_1) = (0, T_im) at every evaluation:
+    /// a pure function of state and inputs (default; what steady-state solvers, linearization and
+    /// FMUs need; the reference data use it).
+    #[default]
+    Converged,
+    /// The authors' Simulink semantics: one iteration per evaluation from the (x_r, T_1) held
+    /// since the last accepted solver step (Memory blocks, item 17); results depend on the step
+    /// sequence, as in Simulink.
+    OneIteration,
+}
+
+/// Whether the actuator dynamics are used (the authors' switch, item 6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Actuators {
+    /// The valve positions are the actuator model outputs (eqs (39)-(41), (57)).
+    #[default]
+    Dynamic,
+    /// The saturated, undelayed commands pass straight through; the actuator states are still
+    /// integrated, as in the authors' implementation.
+    Bypass,
+}
+
+/// Model options (all enums, defaults = the authors' implementation with converged T_e).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct ModelOptions {
+    /// Authors' implementation or the paper's plain equations.
+    pub semantics: Semantics,
+    /// Cylinder-out temperature solution.
+    pub cylinder_temp: CylinderTemp,
+    /// Actuator dynamics on or bypassed.
+    pub actuators: Actuators,
+}
+
+/// Result of one model evaluation.
+#[derive(Debug, Clone, Copy)]
+pub struct Evaluation<const N: usize> {
+    /// State derivatives dx/dt (units of the state per second).
+    pub dx: [f64; N],
+    /// All algebraic signals.
+    pub signals: Signals,
+    /// The cylinder-temperature iterate to hold after an accepted step (one-iteration mode;
+    /// the fixed point itself in converged mode).
+    pub memory_next: SeligerIterate,
+}
+
+/// A mean-value engine model with `N` states.
+pub trait Model<const N: usize>: Send + Sync {
+    /// State names (reference-data names: `p_im`, `p_em`, `X_Oim`, ...).
+    fn state_names(&self) -> [&'static str; N];
+    /// Typical magnitudes of the states (used for scaling in solvers and error norms).
+    fn state_scales(&self) -> [f64; N];
+    /// Parameters.
+    fn params(&self) -> &Params;
+    /// Options.
+    fn options(&self) -> &ModelOptions;
+    /// Lower and upper integrator limits of each state (infinite where none).
+    fn state_bounds(&self) -> [(f64, f64); N];
+    /// Evaluate derivatives and signals at state `x` and inputs `u`, with the cylinder
+    /// temperature memory `memory` (used only in [`CylinderTemp::OneIteration`]).
+    fn eval(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Evaluation<N>;
+    /// Indices of the states that are actuator states (set to the saturated commands at steady state).
+    fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)>;
+    /// Initial guess for the steady state at `d`, for iterative solvers.
+    fn initial_guess(&self, d: &Drive) -> [f64; N];
+    /// The same model with other options.
+    fn with_options(&self, opts: ModelOptions) -> Self
+    where
+        Self: Sized;
+
+    /// The converged cylinder-temperature fixed point (x_r, T_1) at `x`, `u` (the initial
+    /// memory of a one-iteration simulation).
+    fn cylinder_fixed_point(&self, x: &[f64; N], u: &ModelInput) -> SeligerIterate
+    where
+        Self: Sized,
+    {
+        let mut o = *self.options();
+        o.cylinder_temp = CylinderTemp::Converged;
+        let start = SeligerIterate {
+            x_r: 0.0,
+            t_1: self.params().intake_manifold.t_im,
+        };
+        self.with_options(o).eval(x, u, start).memory_next
+    }
+}
+
+/// Input saturations of the authors' implementation (items 1-4), returned with guard bits.
+pub fn saturate_inputs(d: &Drive, sem: Semantics) -> (Drive, u32) {
+    if !sem.authors() {
+        return (*d, 0);
+    }
+    let mut g = 0;
+    let mut clamp = |v: f64, lo: f64, hi: f64, bit: Guard| {
+        if v < lo || v > hi {
+            g |= bit as u32;
+        }
+        v.clamp(lo, hi)
+    };
+    let out = Drive::new(
+        clamp(d.n_e_rpm, 500.0, 2000.0, Guard::InputNe),
+        clamp(d.u_delta_mg, 1.0, 250.0, Guard::InputUDelta),
+        clamp(d.u_egr_pct, 0.0, 100.0, Guard::InputUEgr),
+        clamp(d.u_vgt_pct, 20.0, 100.0, Guard::InputUVgt),
+    );
+    (out, g)
+}
+
+/// Authors' saturation of a delayed EGR command (item 3, applied before the delay).
+#[inline]
+pub fn saturate_u_egr(u: f64, sem: Semantics) -> f64 {
+    if sem.authors() {
+        u.clamp(0.0, 100.0)
+    } else {
+        u
+    }
+}
+
+/// Authors' saturation of a delayed VGT command (item 4, applied before the delay).
+#[inline]
+pub fn saturate_u_vgt(u: f64, sem: Semantics) -> f64 {
+    if sem.authors() {
+        u.clamp(20.0, 100.0)
+    } else {
+        u
+    }
+}
+
+/// Limited-integrator emulation (items 9-12, 37): clip each state into its bounds before use.
+/// Returns the clipped state and whether any state was outside or on a bound.
+#[inline]
+pub fn clip_state<const N: usize>(x: &[f64; N], bounds: &[(f64, f64); N]) -> [f64; N] {
+    let mut y = *x;
+    for i in 0..N {
+        y[i] = y[i].clamp(bounds[i].0, bounds[i].1);
+    }
+    y
+}
+
+/// Limited-integrator emulation: zero each derivative that points outward at or beyond its bound.
+/// Returns whether any state is at a limit.
+#[inline]
+pub fn limit_derivatives<const N: usize>(
+    x: &[f64; N],
+    dx: &mut [f64; N],
+    bounds: &[(f64, f64); N],
+) -> bool {
+    let mut at = false;
+    for i in 0..N {
+        let (lo, hi) = bounds[i];
+        if (x[i] <= lo && dx[i] < 0.0) || (x[i] >= hi && dx[i] > 0.0) {
+            dx[i] = 0.0;
+            at = true;
+        } else if x[i] <= lo || x[i] >= hi {
+            at = true;
+        }
+    }
+    at
+}

@@ -1,0 +1,280 @@
+//! Parameter validation: every problem is collected and reported with the field it concerns.
+
+use super::Params;
+use std::fmt;
+
+/// One problem found in a parameter set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamIssue {
+    /// Dotted field path as in the TOML file, e.g. `intake_manifold.v_im`.
+    pub field: String,
+    /// The offending value (NaN where the problem concerns several values).
+    pub value: f64,
+    /// The violated constraint, e.g. "must be > 0".
+    pub constraint: String,
+}
+
+impl fmt::Display for ParamIssue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} = {}: {}", self.field, self.value, self.constraint)
+    }
+}
+
+/// All problems of a parameter set (non-empty when returned as an error).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamIssues(pub Vec<ParamIssue>);
+
+impl fmt::Display for ParamIssues {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} invalid parameter(s):", self.0.len())?;
+        for i in &self.0 {
+            write!(f, "\n  - {i}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for ParamIssues {}
+
+struct Checker {
+    issues: Vec<ParamIssue>,
+}
+
+impl Checker {
+    fn push(&mut self, field: &str, value: f64, constraint: &str) {
+        self.issues.push(ParamIssue {
+            field: field.to_string(),
+            value,
+            constraint: constraint.to_string(),
+        });
+    }
+    /// Finite; returns whether it was.
+    fn finite(&mut self, field: &str, v: f64) -> bool {
+        if v.is_finite() {
+            true
+        } else {
+            self.push(field, v, "must be finite");
+            false
+        }
+    }
+    fn positive(&mut self, field: &str, v: f64) {
+        if self.finite(field, v) && v <= 0.0 {
+            self.push(field, v, "must be > 0");
+        }
+    }
+    fn nonneg(&mut self, field: &str, v: f64) {
+        if self.finite(field, v) && v < 0.0 {
+            self.push(field, v, "must be >= 0");
+        }
+    }
+    fn open_range(&mut self, field: &str, v: f64, lo: f64, hi: f64) {
+        if self.finite(field, v) && !(v > lo && v < hi) {
+            self.push(field, v, &format!("must lie in ({lo}, {hi})"));
+        }
+    }
+    fn closed_range(&mut self, field: &str, v: f64, lo: f64, hi: f64) {
+        if self.finite(field, v) && !(lo..=hi).contains(&v) {
+            self.push(field, v, &format!("must lie in [{lo}, {hi}]"));
+        }
+    }
+    fn array(&mut self, field: &str, v: &[f64]) {
+        for (i, x) in v.iter().enumerate() {
+            self.finite(&format!("{field}[{i}]"), *x);
+        }
+    }
+}
+
+impl Params {
+    /// Check every parameter; return all problems, each naming its field and constraint.
+    ///
+    /// Checks: all values finite; volumes, inertia, gas properties, radii, areas, time
+    /// constants, heating value, displacement positive; delays non-negative; ratios of specific
+    /// heats > 1 and consistent with c_p/c_V; 0 < Pi_egropt < 1; 0 < X_Oc <= 1; compression
+    /// ratio > 1; efficiencies in (0, 1]; Q_c symmetric positive semidefinite (eq. (65)); K_egr >= 1.
+    pub fn validate(&self) -> Result<(), ParamIssues> {
+        let mut c = Checker { issues: Vec::new() };
+        let g = &self.gas;
+        for (n, v) in [
+            ("gas.c_pa", g.c_pa),
+            ("gas.c_pe", g.c_pe),
+            ("gas.c_va", g.c_va),
+            ("gas.c_ve", g.c_ve),
+            ("gas.r_a", g.r_a),
+            ("gas.r_e", g.r_e),
+        ] {
+            c.positive(n, v);
+        }
+        for (n, v) in [("gas.gamma_a", g.gamma_a), ("gas.gamma_e", g.gamma_e)] {
+            if c.finite(n, v) && v <= 1.0 {
+                c.push(n, v, "ratio of specific heats must be > 1");
+            }
+        }
+        c.positive("ambient.p_amb", self.ambient.p_amb);
+        c.positive("ambient.t_amb", self.ambient.t_amb);
+        c.positive("intake_manifold.v_im", self.intake_manifold.v_im);
+        c.positive("intake_manifold.t_im", self.intake_manifold.t_im);
+        if c.finite("intake_manifold.x_oc", self.intake_manifold.x_oc)
+            && !(self.intake_manifold.x_oc > 0.0 && self.intake_manifold.x_oc <= 1.0)
+        {
+            c.push(
+                "intake_manifold.x_oc",
+                self.intake_manifold.x_oc,
+                "must lie in (0, 1]",
+            );
+        }
+        c.positive("exhaust_manifold.v_em", self.exhaust_manifold.v_em);
+
+        let cy = &self.cylinder;
+        c.positive("cylinder.v_d", cy.v_d);
+        c.positive("cylinder.n_cyl", cy.n_cyl);
+        if c.finite("cylinder.r_c", cy.r_c) && cy.r_c <= 1.0 {
+            c.push("cylinder.r_c", cy.r_c, "compression ratio must be > 1");
+        }
+        c.positive("cylinder.q_hv", cy.q_hv);
+        c.positive("cylinder.afs", cy.afs);
+        c.array("cylinder.c_vol", &cy.c_vol);
+        c.positive("cylinder.eta_sc", cy.eta_sc);
+        c.closed_range("cylinder.x_cv", cy.x_cv, 0.0, 1.0);
+        if c.finite("cylinder.gamma_c", cy.gamma_c) && cy.gamma_c <= 1.0 {
+            c.push("cylinder.gamma_c", cy.gamma_c, "must be > 1");
+        }
+        c.open_range("cylinder.eta_igch", cy.eta_igch, 0.0, 1.0 + 1e-12);
+        c.array("cylinder.c_fric", &cy.c_fric);
+
+        let ep = &self.exhaust_pipe;
+        c.positive("exhaust_pipe.t_w", ep.t_w);
+        c.nonneg("exhaust_pipe.h_tot", ep.h_tot);
+        c.positive("exhaust_pipe.d_pipe", ep.d_pipe);
+        c.positive("exhaust_pipe.l_pipe", ep.l_pipe);
+        c.positive("exhaust_pipe.n_pipe", ep.n_pipe);
+
+        let e = &self.egr_valve;
+        c.positive("egr_valve.a_egrmax", e.a_egrmax);
+        c.open_range("egr_valve.pi_egropt", e.pi_egropt, 0.0, 1.0);
+        c.array("egr_valve.c_egr", &e.c_egr);
+        if e.c_egr[0].is_finite() && e.c_egr[0] >= 0.0 {
+            c.push(
+                "egr_valve.c_egr[0]",
+                e.c_egr[0],
+                "c_egr1 must be < 0 (eq. (38) has its maximum at -c_egr2/(2 c_egr1))",
+            );
+        }
+
+        let ea = &self.egr_actuator;
+        c.positive("egr_actuator.tau_egr1", ea.tau_egr1);
+        c.positive("egr_actuator.tau_egr2", ea.tau_egr2);
+        c.nonneg("egr_actuator.tau_degr", ea.tau_degr);
+        c.finite("egr_actuator.k_egr", ea.k_egr);
+
+        let t = &self.turbine;
+        c.positive("turbine.a_vgtmax", t.a_vgtmax);
+        c.positive("turbine.k_t", t.k_t);
+        c.finite("turbine.c_f1", t.c_f1);
+        c.finite("turbine.c_f2", t.c_f2);
+        c.finite("turbine.c_vgt2", t.c_vgt2);
+        if c.finite("turbine.c_vgt1", t.c_vgt1) && t.c_vgt1 == 0.0 {
+            c.push("turbine.c_vgt1", t.c_vgt1, "must be != 0 (eq. (56))");
+        }
+        c.positive("turbine.r_t", t.r_t);
+        c.open_range("turbine.eta_tmmax", t.eta_tmmax, 0.0, 1.0 + 1e-12);
+        c.positive("turbine.bsr_opt", t.bsr_opt);
+        c.array("turbine.c_m", &t.c_m);
+        c.nonneg("turbine.c_m[2]", t.c_m[2]);
+        c.finite("turbine.w_tlin", t.w_tlin);
+        c.finite("turbine.c_mlin", t.c_mlin);
+        if t.w_tlin.is_finite() && t.c_m[1].is_finite() && t.w_tlin <= t.c_m[1] {
+            c.push(
+                "turbine.w_tlin",
+                t.w_tlin,
+                "must be > c_m[1] (c_m2) for the linear c_m branch",
+            );
+        }
+
+        c.positive("vgt_actuator.tau_vgt", self.vgt_actuator.tau_vgt);
+        c.nonneg("vgt_actuator.tau_dvgt", self.vgt_actuator.tau_dvgt);
+
+        let k = &self.compressor;
+        c.positive("compressor.r_c", k.r_c);
+        c.finite("compressor.c_psi2", k.c_psi2);
+        c.finite("compressor.c_phi2", k.c_phi2);
+        c.array("compressor.c_wpsi", &k.c_wpsi);
+        c.array("compressor.c_wphi", &k.c_wphi);
+        c.open_range("compressor.eta_cmax", k.eta_cmax, 0.0, 1.0 + 1e-12);
+        c.finite("compressor.w_copt", k.w_copt);
+        c.finite("compressor.pi_copt", k.pi_copt);
+        c.positive("compressor.c_pi", k.c_pi);
+        let q = k.q_c;
+        let q_ok = [q[0][0], q[0][1], q[1][0], q[1][1]]
+            .iter()
+            .enumerate()
+            .all(|(i, v)| c.finite(&format!("compressor.q_c[{}][{}]", i / 2, i % 2), *v));
+        if q_ok {
+            if (q[0][1] - q[1][0]).abs() > 1e-12 * (q[0][1].abs() + q[1][0].abs() + 1e-300) {
+                c.push(
+                    "compressor.q_c[1][0]",
+                    q[1][0],
+                    &format!("Q_c must be symmetric (q_c[0][1] = {})", q[0][1]),
+                );
+            }
+            let det = q[0][0] * q[1][1] - q[0][1] * q[0][1];
+            let tol = 1e-12 * (q[0][0].abs() * q[1][1].abs()).max(1e-300);
+            if q[0][0] < 0.0 || q[1][1] < 0.0 || det < -tol {
+                c.push(
+                    "compressor.q_c",
+                    det,
+                    "Q_c must be positive semidefinite: a1 >= 0, a2 >= 0, a1*a2 - a3^2 >= 0 (value: the determinant)",
+                );
+            }
+        }
+        c.positive("turbo.j_t", self.turbo.j_t);
+
+        let i = &self.initial;
+        c.positive("initial.p_im", i.p_im);
+        c.positive("initial.p_em", i.p_em);
+        c.positive("initial.omega_t", i.omega_t);
+        c.closed_range("initial.x_r", i.x_r, 0.0, 1.0);
+        c.positive("initial.t_1", i.t_1);
+        c.finite("initial.u_egr", i.u_egr);
+        c.finite("initial.u_vgt", i.u_vgt);
+
+        c.positive("intercooler.v_ic", self.intercooler.v_ic);
+        c.nonneg("intercooler.k_ic", self.intercooler.k_ic);
+
+        if c.issues.is_empty() {
+            Ok(())
+        } else {
+            Err(ParamIssues(c.issues))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn published_set_is_valid() {
+        Params::published().validate().unwrap();
+    }
+
+    #[test]
+    fn every_problem_is_reported_with_its_field() {
+        let mut p = Params::published();
+        p.intake_manifold.v_im = -1.0;
+        p.turbo.j_t = f64::NAN;
+        p.compressor.q_c = [[1.0, 2.0], [2.0, 1.0]];
+        let e = p.validate().unwrap_err();
+        let fields: Vec<&str> = e.0.iter().map(|i| i.field.as_str()).collect();
+        assert_eq!(
+            fields,
+            ["intake_manifold.v_im", "compressor.q_c", "turbo.j_t"]
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("intake_manifold.v_im = -1: must be > 0"),
+            "{msg}"
+        );
+        assert!(msg.contains("positive semidefinite"), "{msg}");
+        assert!(msg.contains("turbo.j_t = NaN: must be finite"), "{msg}");
+    }
+}
