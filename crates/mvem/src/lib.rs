@@ -30,6 +30,9 @@
 //! assert!(ss.signals.w_c > 0.2 && ss.physically_valid());
 //! ```
 
+// Index loops over small fixed-size state arrays read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 pub mod analysis;
 pub mod components;
 pub mod error;

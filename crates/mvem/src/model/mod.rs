@@ -4,8 +4,11 @@
 //! every algebraic signal, computed by one function, [`Model::eval`]. The 8-state model of the
 //! paper (sections 3-7) is [`Engine8`]; the section-9 extensions implement the same trait.
 
+mod any;
 mod engine8;
 mod signals;
+
+pub use any::{AnyModel, ModelError, ModelOrder};
 
 pub use engine8::{ix, Engine8, STATE_NAMES_8};
 pub use signals::{Guard, Signals};

@@ -76,7 +76,7 @@ impl SimOptions {
         if !(self.dt_out.is_finite() && self.dt_out > 0.0) {
             return bad("dt", self.dt_out, "output interval must be finite and > 0");
         }
-        if !(self.h_max > 0.0) {
+        if self.h_max.is_nan() || self.h_max <= 0.0 {
             return bad("h_max", self.h_max, "must be > 0");
         }
         Ok(())
@@ -252,8 +252,10 @@ impl Solution {
     }
 }
 
-/// The inputs of the model over time plus the delays: evaluates [`ModelInput`] for a segment.
-struct Inputs<'a> {
+/// The inputs of the model over time plus the delays: evaluates [`ModelInput`] for one
+/// integration segment `[a, b]` between consecutive stop times, always from inside the segment
+/// (so a step at `a` or `b` is seen from the correct side).
+pub struct SegmentInputs<'a> {
     sched: &'a InputSchedule,
     tau_egr: f64,
     tau_vgt: f64,
@@ -263,7 +265,25 @@ struct Inputs<'a> {
     b: f64,
 }
 
-impl Inputs<'_> {
+impl<'a> SegmentInputs<'a> {
+    /// Inputs of `model` driven by `sched` on the segment `[a, b]`.
+    pub fn new<const N: usize, M: Model<N>>(
+        model: &M,
+        sched: &'a InputSchedule,
+        a: f64,
+        b: f64,
+    ) -> Self {
+        let p = model.params();
+        Self {
+            sched,
+            tau_egr: p.egr_actuator.tau_degr,
+            tau_vgt: p.vgt_actuator.tau_dvgt,
+            hints: [0; 6],
+            a,
+            b,
+        }
+    }
+
     #[inline]
     fn delta(t: f64) -> f64 {
         1e-12 * t.abs().max(1.0)
@@ -282,8 +302,9 @@ impl Inputs<'_> {
             .value_hint(ch, tq, Side::Right, &mut self.hints[hint])
     }
 
+    /// Model inputs at `t` in the segment: current values and delayed actuator commands.
     #[inline]
-    fn at(&mut self, t: f64) -> ModelInput {
+    pub fn at(&mut self, t: f64) -> ModelInput {
         let now = crate::model::Drive::new(
             self.value(0, 0, t, 0.0),
             self.value(1, 1, t, 0.0),
@@ -308,9 +329,10 @@ pub enum Start<const N: usize> {
     State([f64; N]),
 }
 
-/// Sorted stop times in (t0, t_end): every breakpoint of every channel, shifted by the delay
-/// of the path it feeds.
-fn stop_times<const N: usize, M: Model<N>>(
+/// Sorted stop times in (t0, t_end) with a flag for jumps: every breakpoint of every channel,
+/// shifted by the delay of the path it feeds (n_e, u_delta: none; u_egr: tau_degr, u_vgt:
+/// tau_dvgt, plus no shift when the actuators are bypassed).
+pub fn stop_times<const N: usize, M: Model<N>>(
     m: &M,
     sched: &InputSchedule,
     t0: f64,
@@ -337,14 +359,14 @@ fn stop_times<const N: usize, M: Model<N>>(
         add(3, &[tv]);
     }
     v.retain(|(t, _)| {
-        *t > t0 + Inputs::delta(t0) * 10.0 && *t < t_end - Inputs::delta(t_end) * 10.0
+        *t > t0 + SegmentInputs::delta(t0) * 10.0 && *t < t_end - SegmentInputs::delta(t_end) * 10.0
     });
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
     // merge stops closer than the input evaluation margin
     let mut out: Vec<(f64, bool)> = Vec::with_capacity(v.len());
     for (t, jump) in v {
         match out.last_mut() {
-            Some(last) if t - last.0 <= 10.0 * Inputs::delta(t) => last.1 |= jump,
+            Some(last) if t - last.0 <= 10.0 * SegmentInputs::delta(t) => last.1 |= jump,
             _ => out.push((t, jump)),
         }
     }
@@ -462,20 +484,17 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         Ok(me)
     }
 
-    fn inputs(&self, a: f64, b: f64) -> Inputs<'a> {
-        let p = self.model.params();
-        Inputs {
-            sched: self.sched,
-            tau_egr: p.egr_actuator.tau_degr,
-            tau_vgt: p.vgt_actuator.tau_dvgt,
-            hints: [0; 6],
-            a,
-            b,
-        }
+    fn inputs(&self, a: f64, b: f64) -> SegmentInputs<'a> {
+        SegmentInputs::new(self.model, self.sched, a, b)
     }
 
     #[inline]
-    fn rhs(&mut self, inp: &mut Inputs, t: f64, y: &[f64; N]) -> Result<Evaluation<N>, SimError> {
+    fn rhs(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        y: &[f64; N],
+    ) -> Result<Evaluation<N>, SimError> {
         self.stats.rhs_evals += 1;
         let u = inp.at(t);
         let ev = self.model.eval(y, &u, self.memory);
@@ -497,7 +516,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         Ok(ev)
     }
 
-    fn output(&mut self, inp: &mut Inputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
+    fn output(&mut self, inp: &mut SegmentInputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
         let u = inp.at(t);
         let ev = self.model.eval(y, &u, self.memory);
         sol.push(t, y, &ev.signals);
@@ -541,7 +560,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             let y = self.y;
             let t = self.t;
             self.output(&mut inp, sol, t, &y);
-            while self.out_time(self.next_out) <= t_end + Inputs::delta(t_end) {
+            while self.out_time(self.next_out) <= t_end + SegmentInputs::delta(t_end) {
                 self.next_out += 1;
             }
         }
@@ -550,7 +569,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
 
     fn initial_step(
         &mut self,
-        inp: &mut Inputs,
+        inp: &mut SegmentInputs,
         f0: &[f64; N],
         span: f64,
     ) -> Result<f64, SimError> {
@@ -581,11 +600,16 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     }
 
     /// Integrate one segment up to `b` (inputs smooth inside).
-    fn segment(&mut self, inp: &mut Inputs, b: f64, sol: &mut Solution) -> Result<(), SimError> {
+    fn segment(
+        &mut self,
+        inp: &mut SegmentInputs,
+        b: f64,
+        sol: &mut Solution,
+    ) -> Result<(), SimError> {
         let one_iter = self.model.options().cylinder_temp == CylinderTemp::OneIteration;
         // Output samples at the segment start (e.g. t0, or a breakpoint on the output grid).
-        while self.out_time(self.next_out) < b - Inputs::delta(b)
-            && self.out_time(self.next_out) <= self.t + Inputs::delta(self.t)
+        while self.out_time(self.next_out) < b - SegmentInputs::delta(b)
+            && self.out_time(self.next_out) <= self.t + SegmentInputs::delta(self.t)
         {
             let (t, y) = (self.t, self.y);
             self.output(inp, sol, t, &y);
@@ -682,7 +706,9 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                 // outputs in [t, t_new) (t_new itself belongs to the next segment or the end)
                 loop {
                     let to = self.out_time(self.next_out);
-                    if to >= t_new - Inputs::delta(t_new) || to >= b - Inputs::delta(b) {
+                    if to >= t_new - SegmentInputs::delta(t_new)
+                        || to >= b - SegmentInputs::delta(b)
+                    {
                         break;
                     }
                     let theta = ((to - t) / h).clamp(0.0, 1.0);
