@@ -17,6 +17,13 @@ pub fn pi_c(p_out: f64, p_amb: f64, sem: Semantics) -> f64 {
     }
 }
 
+/// Isentropic temperature-ratio term Pi_c^(1 - 1/gamma_a) - 1 [-] shared by eqs (58), (60),
+/// (61) and (66); computed once per evaluation.
+#[inline]
+pub fn isentropic_term(pi_c: f64, gamma_a: f64) -> f64 {
+    pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0
+}
+
 /// Signals of the compressor flow model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CompressorFlow {
@@ -36,21 +43,20 @@ pub struct CompressorFlow {
 /// ```
 /// c_Psi1, c_Phi1 are quadratics in omega_t [rad/s] (eqs (69)-(70)). The authors clamp
 /// c_Psi1 >= 0, c_Phi1 >= 0.1 (item 25), Phi_c >= 0 (item 27) and W_c >= 1e-4 kg/s (item 28).
+/// `isentropic` = Pi_c^(1 - 1/gamma_a) - 1 ([`isentropic_term`]).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn flow(
     c: &Compressor,
     c_pa: f64,
     r_a: f64,
-    gamma_a: f64,
     t_amb: f64,
     p_amb: f64,
-    pi_c: f64,
+    isentropic: f64,
     omega_t: f64,
     sem: Semantics,
 ) -> CompressorFlow {
-    let psi_c = 2.0 * c_pa * t_amb * (pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0)
-        / (c.r_c * c.r_c * omega_t * omega_t); // eq. (66)
+    let psi_c = 2.0 * c_pa * t_amb * isentropic / (c.r_c * c.r_c * omega_t * omega_t); // eq. (66)
     let mut c_psi1 = poly2(&c.c_wpsi, omega_t); // eq. (69)
     let mut c_phi1 = poly2(&c.c_wphi, omega_t); // eq. (70)
     if sem.authors() {
@@ -96,15 +102,8 @@ pub struct CompressorPower {
 /// Outlet temperature and power, eqs (58)-(61): T_c = T_amb + T_amb (Pi_c^(1-1/gamma_a) - 1)/eta_c,
 /// P_c = W_c c_pa (T_c - T_amb).
 #[inline]
-pub fn power(
-    c_pa: f64,
-    gamma_a: f64,
-    t_amb: f64,
-    pi_c: f64,
-    w_c: f64,
-    eta_c: f64,
-) -> CompressorPower {
-    let dt = t_amb * (pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0) / eta_c; // eq. (58)
+pub fn power(c_pa: f64, t_amb: f64, isentropic: f64, w_c: f64, eta_c: f64) -> CompressorPower {
+    let dt = t_amb * isentropic / eta_c; // eq. (58)
     CompressorPower {
         t_c: t_amb + dt,
         p_c: w_c * c_pa * dt, // eq. (61)
@@ -132,7 +131,7 @@ mod tests {
     #[test]
     fn power_by_hand() {
         // T_amb = 300, Pi_c = 2, gamma = 1.4: 2^(0.285714) = 1.219014; dT = 300*0.219014/0.7 = 93.863
-        let pw = power(1011.0, 1.4, 300.0, 2.0, 0.3, 0.7);
+        let pw = power(1011.0, 300.0, isentropic_term(2.0, 1.4), 0.3, 0.7);
         let dt = 300.0 * (2f64.powf(1.0 - 1.0 / 1.4) - 1.0) / 0.7;
         assert!((dt - 93.863).abs() < 1e-3);
         assert!((pw.t_c - 300.0 - dt).abs() < 1e-12 && (pw.p_c - 0.3 * 1011.0 * dt).abs() < 1e-9);
@@ -151,10 +150,9 @@ mod tests {
             c,
             g.c_pa,
             g.r_a,
-            g.gamma_a,
             298.0,
             1.0e5,
-            1.0,
+            isentropic_term(1.0, g.gamma_a),
             w,
             Semantics::Authors,
         );
@@ -166,10 +164,9 @@ mod tests {
             c,
             g.c_pa,
             g.r_a,
-            g.gamma_a,
             298.0,
             1.0e5,
-            4.0,
+            isentropic_term(4.0, g.gamma_a),
             2000.0,
             Semantics::Authors,
         );

@@ -5,7 +5,7 @@ use super::{
     clip_state, limit_derivatives, saturate_inputs, saturate_u_egr, saturate_u_vgt, Actuators,
     CylinderTemp, Drive, Evaluation, Guard, Model, ModelInput, ModelOptions, Signals,
 };
-use crate::components::cylinder::{self, SeligerInputs, SeligerIterate};
+use crate::components::cylinder::{self, CylinderConsts, SeligerInputs, SeligerIterate};
 use crate::components::{compressor, egr, manifold, poly2, turbine, turbo};
 use crate::params::{ParamIssues, Params};
 
@@ -35,6 +35,7 @@ pub struct Engine8 {
     p: Params,
     opts: ModelOptions,
     bounds: [(f64, f64); 8],
+    cc: CylinderConsts,
 }
 
 /// State names of the 8-state model (reference-data names).
@@ -54,7 +55,13 @@ impl Engine8 {
     pub fn new(p: Params, opts: ModelOptions) -> Result<Self, ParamIssues> {
         p.validate()?;
         let bounds = state_bounds_8(&p, &opts);
-        Ok(Self { p, opts, bounds })
+        let cc = CylinderConsts::new(&p.gas, &p.cylinder);
+        Ok(Self {
+            p,
+            opts,
+            bounds,
+            cc,
+        })
     }
 
     /// The published parameters with default options (authors' implementation, converged T_e).
@@ -100,6 +107,7 @@ impl Model<8> for Engine8 {
             p: self.p.clone(),
             opts,
             bounds,
+            cc: self.cc,
         }
     }
 
@@ -191,14 +199,14 @@ impl Model<8> for Engine8 {
         };
         let (t_e, used, memory_next) = match self.opts.cylinder_temp {
             CylinderTemp::Converged => {
-                let fp = cylinder::cylinder_out_temp_converged(gas, cyl, &s, sem);
+                let fp = cylinder::cylinder_out_temp_converged(gas, cyl, &self.cc, &s, sem);
                 if !fp.converged {
                     guards |= Guard::FixedPointNotConverged as u32;
                 }
                 (fp.t_e, fp.at, fp.at)
             }
             CylinderTemp::OneIteration => {
-                let st = cylinder::cylinder_out_temp_step(gas, cyl, &s, memory, sem);
+                let st = cylinder::cylinder_out_temp_step(gas, cyl, &self.cc, &s, memory, sem);
                 (st.t_e, memory, st.next)
             }
         };
@@ -218,20 +226,13 @@ impl Model<8> for Engine8 {
         // Compressor, eqs (58)-(72).
         let cp = &p.compressor;
         let pi_c = compressor::pi_c(p_im, p_amb, sem);
+        let isentropic = compressor::isentropic_term(pi_c, gas.gamma_a);
         let cf = compressor::flow(
-            cp,
-            gas.c_pa,
-            gas.r_a,
-            gas.gamma_a,
-            t_amb,
-            p_amb,
-            pi_c,
-            omega_t,
-            sem,
+            cp, gas.c_pa, gas.r_a, t_amb, p_amb, isentropic, omega_t, sem,
         );
         let w_c = cf.w_c;
         let eta_c = compressor::efficiency(cp, w_c, pi_c, sem);
-        let cpow = compressor::power(gas.c_pa, gas.gamma_a, t_amb, pi_c, w_c, eta_c);
+        let cpow = compressor::power(gas.c_pa, t_amb, isentropic, w_c, eta_c);
 
         // State equations: manifolds (6), (9); turbo (42); actuators (40), (41), (57).
         let im = manifold::intake(
@@ -265,7 +266,16 @@ impl Model<8> for Engine8 {
             guards |= Guard::StateLimit as u32;
         }
 
-        let m_e = cylinder::torque(cyl, d.u_delta_mg, d.n_e_rpm, p_im, p_em, lambda_o, sem);
+        let m_e = cylinder::torque(
+            cyl,
+            &self.cc,
+            d.u_delta_mg,
+            d.n_e_rpm,
+            p_im,
+            p_em,
+            lambda_o,
+            sem,
+        );
         let x_egr = manifold::egr_fraction(w_egr, w_c, authors);
 
         // Guard and regime flags (reporting only; they do not change the values).

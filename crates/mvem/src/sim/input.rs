@@ -246,6 +246,47 @@ impl InputSchedule {
         }
     }
 
+    /// The linear piece that gives `channel`'s value at `t` (from `side` at steps): returns
+    /// `(t_lo, t_hi, t_ref, v_ref, slope)`, valid for t_lo <= t <= t_hi, value = v_ref + slope (t - t_ref).
+    pub fn piece(
+        &self,
+        channel: usize,
+        t: f64,
+        side: Side,
+        hint: &mut usize,
+    ) -> (f64, f64, f64, f64, f64) {
+        let n = self.times.len();
+        match self.interval(t, side, hint) {
+            None => (
+                f64::NEG_INFINITY,
+                self.times[0],
+                self.times[0],
+                self.rows[0][channel],
+                0.0,
+            ),
+            Some(i) if i + 1 >= n => (
+                self.times[n - 1],
+                f64::INFINITY,
+                self.times[n - 1],
+                self.rows[n - 1][channel],
+                0.0,
+            ),
+            Some(i) => {
+                let (t0, t1) = (self.times[i], self.times[i + 1]);
+                let (v0, v1) = (self.rows[i][channel], self.rows[i + 1][channel]);
+                if t1 == t0 {
+                    let v = match side {
+                        Side::Left => v0,
+                        Side::Right => v1,
+                    };
+                    (t0, t0, t0, v, 0.0)
+                } else {
+                    (t0, t1, t0, v0, (v1 - v0) / (t1 - t0))
+                }
+            }
+        }
+    }
+
     /// All four inputs at `t` (right-continuous).
     pub fn at(&self, t: f64) -> Drive {
         let mut h = 0;
