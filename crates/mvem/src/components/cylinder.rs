@@ -299,6 +299,7 @@ pub fn exhaust_temp_drop(
 /// M_fric = V_d 1e5 (c_fric1 n^2 + c_fric2 n + c_fric3) / (4 pi),  n = n_e / 1000
 /// ```
 /// The authors scale eta_igch by min(lambda_O, 1) (item 15).
+#[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn torque(
     cyl: &Cylinder,

@@ -10,7 +10,9 @@
 //!
 //! A W-method: its order does not depend on J being the exact Jacobian, so a lagged
 //! finite-difference Jacobian is reused over several steps (and the non-autonomous f_t term may
-//! be omitted). Order 3, embedded order 2, L-stable, stiffly accurate.
+//! be omitted). Order 3, embedded order 2, L-stable, stiffly accurate. Coefficients as published
+//! (to 17 digits).
+#![allow(clippy::excessive_precision)]
 
 pub(crate) const GAMMA: f64 = 0.435_866_521_508_459;
 
