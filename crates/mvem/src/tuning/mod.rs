@@ -8,3 +8,4 @@
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
 
 pub mod lsq;
+pub mod varpro;
