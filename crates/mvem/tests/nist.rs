@@ -718,7 +718,7 @@ are those of that vector. `–`: not applicable.
 | Default | `LsqOptions::default()`: forward differences, `ftol = xtol = gtol = 1e-8`, at most `200 (n + 1)` evaluations |
 | SE | digits of NIST's certified standard deviations from `LsqResult::stats()` (Analytic runs) |
 | RSS | digits of the certified residual sum of squares (Analytic runs) |
-| evals | residual evaluations, Analytic runs and Varpro runs (the latter over the nonlinear parameters only) |
+| evals | residual evaluations (Jacobian evaluations not counted), Analytic runs and Varpro runs (the latter over the nonlinear parameters only) |
 
 ";
 
@@ -731,7 +731,7 @@ const DOC_NOTES: &str = "
   asserted minimums are 6 digits for those columns, 4 for Forward and 3 for Default.
 - Forward differences carry about 8 correct Jacobian digits; on ill-conditioned problems with a
   non-zero residual (Lanczos3, Bennett5 S2) this moves the stationary point the solver converges
-  to, and fewer digits remain (about 4.5). Use central differences when accuracy matters.
+  to, and fewer digits remain (4.4 to 5.2). Use central differences when accuracy matters.
 - Default tolerances (`1e-8`) stop earlier by design (3 to 9 digits). Three S1 runs stop at the
   default evaluation limit before converging: MGH17, MGH10 and Bennett5 (the Analytic column
   shows they need about 250 to 1400 evaluations); the test requires them to end with

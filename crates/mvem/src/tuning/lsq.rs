@@ -55,7 +55,8 @@
 //!   the relative change of the residual norm that moving to that bound can make, so the measure
 //!   vanishes at a KKT point with active bounds.
 //! - `max_evaluations`: every call of the residual function counts, including those of the
-//!   finite-difference Jacobian.
+//!   finite-difference Jacobian. The limit is checked before each trial step; a Jacobian in
+//!   progress is completed, so the count can exceed the limit by up to `2 n`.
 //!
 //! # Jacobian
 //!
