@@ -40,5 +40,6 @@ pub mod io;
 pub mod model;
 pub mod params;
 pub mod sim;
+pub mod tuning;
 
 pub use error::Error;
