@@ -756,7 +756,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             };
             let err = trial.err;
             let order = self.opts.method.order() as f64;
-            if !(err <= 1.0) {
+            if err.is_nan() || err > 1.0 {
                 self.stats.rejected += 1;
                 let fac = if err.is_finite() {
                     (0.9 * err.powf(-1.0 / order)).max(0.2)
