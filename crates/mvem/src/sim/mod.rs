@@ -30,7 +30,8 @@ pub struct SimOptions {
     /// Relative tolerance (default 1e-6).
     pub rtol: f64,
     /// Absolute tolerance, relative to each state's scale (1e5 Pa for pressures, 0.1 for oxygen
-    /// fractions, 1e4 rad/s for omega_t, 100 % for actuator states); default 1e-8.
+    /// fractions, 1e4 rad/s for omega_t, 100 % for actuator states); default 1e-6 (0.1 Pa,
+    /// 1e-7, 0.01 rad/s, 1e-4 %).
     pub atol: f64,
     /// Output interval [s] (default 0.01); the end time is always output.
     pub dt_out: f64,
@@ -72,7 +73,7 @@ impl Default for SimOptions {
     fn default() -> Self {
         Self {
             rtol: 1e-6,
-            atol: 1e-8,
+            atol: 1e-6,
             dt_out: 0.01,
             h_max: f64::INFINITY,
             stop_at_breakpoints: true,
