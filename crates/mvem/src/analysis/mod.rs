@@ -1,3 +1,5 @@
-//! Analysis computed from the model: steady state (equilibrium) with validity flags.
+//! Analysis computed from the model: steady state (equilibrium) with validity flags, step-response
+//! metrics.
 
 pub mod steady;
+pub mod step;

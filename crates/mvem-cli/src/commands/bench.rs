@@ -1,0 +1,191 @@
+//! `mvem bench`: simulation speed and accuracy on the WHTC drive cycle (or any input CSV), and
+//! the cost of one model evaluation.
+
+use crate::common::{self, ModelArgs, SolverArgs};
+use anyhow::{Context, Result};
+use mvem::model::{Model, ModelInput};
+use mvem::sim::{simulate, InputSchedule, SimOptions, SimStats, Solution, Start};
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `mvem bench`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  mvem bench
+  mvem bench --rtol 1e-8 --repeat 3
+  mvem bench --inputs my_cycle.csv --dt 0.01 --evals 100000
+
+Prints wall time (min and median over the repeats), solver statistics, the real-time factor
+(simulated seconds per wall second), the time of one model evaluation, and the deviation from a
+tight (rtol 1e-10) reference run of p_im, p_em (scaled by 1e5 Pa), X_Oim, X_Oem (by 0.1) and
+omega_t (by 1e4 rad/s) over the output samples.")]
+pub struct Args {
+    /// Input CSV [default: the built-in WHTC cycle, 1800 s at 10 Hz]
+    #[arg(long, value_name = "FILE.csv")]
+    pub inputs: Option<PathBuf>,
+    /// Number of timed runs.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
+    /// Number of model evaluations timed.
+    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub evals: u64,
+    /// Skip the rtol 1e-10 accuracy reference run.
+    #[arg(long)]
+    pub no_reference: bool,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// Scales of the accuracy comparison: (state, scale).
+const COMPARE: [(&str, f64); 5] = [
+    ("p_im", 1e5),
+    ("p_em", 1e5),
+    ("X_Oim", 0.1),
+    ("X_Oem", 0.1),
+    ("omega_t", 1e4),
+];
+
+/// Run `mvem bench`.
+pub fn run(a: &Args) -> Result<()> {
+    let opts = a.solver.options(0.1)?;
+    let model = a.model.build()?;
+    let (sched, source) = match &a.inputs {
+        Some(p) => (common::load_inputs(p)?, p.display().to_string()),
+        None => (common::whtc_schedule()?, common::WHTC_NAME.to_string()),
+    };
+    let (t0, t_end) = (sched.t_first(), sched.t_last());
+    if t_end <= t0 {
+        return Err(common::usage(format!(
+            "{source}: the inputs span no time (first and last row at {t0} s)"
+        )));
+    }
+    println!(
+        "mvem bench: {source}, t = {t0} .. {t_end} s, rtol {:e}, atol {:e}, output every {} s",
+        opts.rtol, opts.atol, opts.dt_out
+    );
+    mvem::dispatch!(&model, m => bench(m, a, &sched, t0, t_end, &opts))
+}
+
+fn timed<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let s = Instant::now();
+    let v = f();
+    (v, s.elapsed().as_secs_f64())
+}
+
+fn bench<const N: usize, M: Model<N>>(
+    m: &M,
+    a: &Args,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    opts: &SimOptions,
+) -> Result<()> {
+    // The start is computed once; the timed runs measure the integration only.
+    let x0 = mvem::analysis::steady::steady_state(m, &sched.at(t0))
+        .context("steady state at the first inputs")?
+        .x;
+    let mut walls = Vec::new();
+    let mut last: Option<Solution> = None;
+    for i in 0..a.repeat {
+        let msg = format!("run {}/{}", i + 1, a.repeat);
+        let (sol, w) = common::with_spinner(&msg, || {
+            timed(|| simulate(m, sched, t0, t_end, Start::State(x0), opts))
+        });
+        walls.push(w);
+        last = Some(sol.context("simulation failed")?);
+    }
+    let sol = last.context("no run")?;
+    walls.sort_by(f64::total_cmp);
+    let (min, median) = (walls[0], median(&walls));
+    let st: SimStats = sol.stats;
+    println!("\nSimulation ({} runs)", a.repeat);
+    println!(
+        "  wall time          min {}, median {}",
+        common::fmt_duration(min),
+        common::fmt_duration(median)
+    );
+    println!(
+        "  steps              {} accepted, {} rejected",
+        st.steps, st.rejected
+    );
+    println!("  RHS evaluations    {}", st.rhs_evals);
+    println!("  breakpoints        {}", st.breakpoints);
+    println!("  output samples     {}", st.outputs);
+    println!(
+        "  real-time factor   {:.0} (simulated s per wall s, median run)",
+        (t_end - t0) / median
+    );
+
+    // One model evaluation at a state in the middle of the run.
+    let mid = sol.len() / 2;
+    let tm = sol.t()[mid];
+    let names = m.state_names();
+    let mut x = [0.0; N];
+    for (i, n) in names.iter().enumerate() {
+        x[i] = sol.get(n).context("state column")?[mid];
+    }
+    let p = m.params();
+    let mut u = ModelInput::constant(sched.at(tm));
+    u.u_egr_delayed = sched.at(tm - p.egr_actuator.tau_degr).u_egr_pct;
+    u.u_vgt_delayed = sched.at(tm - p.vgt_actuator.tau_dvgt).u_vgt_pct;
+    let mem = m.cylinder_fixed_point(&x, &u);
+    let ((), w) = common::with_spinner("timing model evaluations", || {
+        timed(|| {
+            for _ in 0..a.evals {
+                black_box(m.eval(black_box(&x), black_box(&u), black_box(mem)));
+            }
+        })
+    });
+    println!(
+        "\nModel evaluation (state at t = {tm} s, {} calls): {} per call",
+        a.evals,
+        common::fmt_duration(w / a.evals as f64)
+    );
+
+    if a.no_reference {
+        return Ok(());
+    }
+    let ref_opts = SimOptions {
+        rtol: 1e-10,
+        atol: 1e-12,
+        ..opts.clone()
+    };
+    let (reference, w) = common::with_spinner("reference run (rtol 1e-10)", || {
+        timed(|| simulate(m, sched, t0, t_end, Start::State(x0), &ref_opts))
+    });
+    let reference = reference.context("reference simulation (rtol 1e-10) failed")?;
+    println!(
+        "\nAccuracy against rtol 1e-10 (reference run {}, {} steps): max |deviation| / scale over {} samples",
+        common::fmt_duration(w),
+        reference.stats.steps,
+        sol.len()
+    );
+    for (name, scale) in COMPARE {
+        let (Some(y), Some(r)) = (sol.get(name), reference.get(name)) else {
+            continue;
+        };
+        let (mut worst, mut at) = (0.0f64, t0);
+        for i in 0..y.len().min(r.len()) {
+            let e = (y[i] - r[i]).abs() / scale;
+            if e > worst {
+                worst = e;
+                at = sol.t()[i];
+            }
+        }
+        println!("  {name:<8} {worst:.2e}  (scale {scale:e}, at t = {at} s)");
+    }
+    Ok(())
+}
+
+fn median(sorted: &[f64]) -> f64 {
+    let n = sorted.len();
+    if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    }
+}

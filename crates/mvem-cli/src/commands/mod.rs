@@ -1,0 +1,7 @@
+//! One module per subcommand; each has an `Args` struct (clap) and a `run` function.
+
+pub mod bench;
+pub mod demo;
+pub mod params;
+pub mod simulate;
+pub mod steady;

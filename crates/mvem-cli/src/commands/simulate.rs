@@ -1,0 +1,266 @@
+//! `mvem simulate`: simulate an input CSV or a built-in scenario and write every state and
+//! signal to a CSV file (optionally a figure).
+
+use crate::common::{self, ModelArgs, Scenario, SolverArgs};
+use crate::plot::{self, Figure, Panel, Series};
+use anyhow::{Context, Result};
+use mvem::model::Model;
+use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `mvem simulate`.
+#[derive(Debug, clap::Args)]
+#[command(
+    group(clap::ArgGroup::new("source").required(true).args(["inputs", "scenario"])),
+    after_help = "\
+Examples:
+  mvem simulate --scenario vgt-step-nmp --out step.csv --plot step.png
+  mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.csv --dt 0.1
+  mvem simulate --inputs my.csv --out my_out.csv --params my_params.toml --rtol 1e-8
+
+Input CSV header (any column order): time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct
+Rows are interpolated linearly; two rows with the same time are a step."
+)]
+pub struct Args {
+    /// Input time series (CSV: time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct).
+    #[arg(long, value_name = "FILE.csv")]
+    pub inputs: Option<PathBuf>,
+    /// A built-in scenario instead of --inputs.
+    #[arg(long, value_enum)]
+    pub scenario: Option<Scenario>,
+    /// Output CSV: a `t` column, every state and every signal.
+    #[arg(long, value_name = "OUT.csv")]
+    pub out: PathBuf,
+    /// End time [s] [default: the last input row, or the scenario's end]
+    #[arg(long, value_name = "S")]
+    pub t_end: Option<f64>,
+    /// Also draw a figure of the main signals (.svg or .png).
+    #[arg(long, value_name = "OUT.svg|png")]
+    pub plot: Option<PathBuf>,
+    /// Start from this state (JSON object: state name -> value) instead of the steady state
+    /// at the first inputs.
+    #[arg(long, value_name = "FILE.json")]
+    pub initial_state: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+}
+
+/// Run `mvem simulate`.
+pub fn run(a: &Args) -> Result<()> {
+    // Everything that can be checked is checked before the (possibly long) simulation.
+    common::check_output_path(&a.out, "--out")?;
+    if let Some(p) = &a.plot {
+        plot::Format::of(p)?;
+        common::check_output_path(p, "--plot")?;
+    }
+    let opts = a.solver.options(0.01)?;
+    let model = a.model.build()?;
+    let (sched, default_end, source) = match (&a.inputs, a.scenario) {
+        (Some(path), _) => {
+            let s = common::load_inputs(path)?;
+            let end = s.t_last();
+            (s, end, path.display().to_string())
+        }
+        (None, Some(sc)) => {
+            let (s, end) = sc.schedule()?;
+            (s, end, format!("scenario {}", sc.name()))
+        }
+        (None, None) => return Err(common::usage("give --inputs FILE or --scenario NAME")),
+    };
+    let t0 = sched.t_first();
+    let t_end = a.t_end.unwrap_or(default_end);
+    if !(t_end.is_finite() && t_end > t0) {
+        return Err(common::usage(format!(
+            "end time {t_end} s must be after the first input time {t0} s{}",
+            if a.t_end.is_none() {
+                " (the inputs have a single time; give --t-end)"
+            } else {
+                ""
+            }
+        )));
+    }
+    let initial = match &a.initial_state {
+        Some(p) => Some(read_initial_state(p)?),
+        None => None,
+    };
+
+    let started = Instant::now();
+    let msg = format!("simulating {source} from {t0} s to {t_end} s");
+    let sol = common::with_spinner(
+        &msg,
+        || mvem::dispatch!(&model, m => run_model(m, &sched, t0, t_end, initial.as_ref(), a.initial_state.as_deref(), &opts)),
+    )?;
+    let wall = started.elapsed().as_secs_f64();
+
+    // Render the figure before writing anything, so that a failure leaves no file behind.
+    let figure = match &a.plot {
+        Some(p) => Some((
+            p,
+            plot::render(&solution_figure(&sol), plot::Format::of(p)?)?,
+        )),
+        None => None,
+    };
+    mvem::io::output::write_solution_csv(&sol, &a.out)
+        .with_context(|| format!("cannot write {}", a.out.display()))?;
+    if let Some((p, bytes)) = figure {
+        mvem::io::output::write_atomic(p, &bytes)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+
+    let st = sol.stats;
+    eprintln!(
+        "simulated {source}, t = {t0} .. {t_end} s, in {} wall time: {} steps ({} rejected), {} RHS evaluations, {} input breakpoints",
+        common::fmt_duration(wall),
+        st.steps,
+        st.rejected,
+        st.rhs_evals,
+        st.breakpoints
+    );
+    eprintln!(
+        "wrote {} samples x {} columns to {}{}",
+        sol.len(),
+        sol.names.len(),
+        a.out.display(),
+        a.plot
+            .as_ref()
+            .map(|p| format!(" and a figure to {}", p.display()))
+            .unwrap_or_default()
+    );
+    let guards: Vec<&str> = mvem::model::Guard::ALL
+        .iter()
+        .filter(|g| sol.guards_seen & (**g as u32) != 0 && g.invalidates())
+        .map(|g| g.label())
+        .collect();
+    if !guards.is_empty() {
+        eprintln!(
+            "note: saturations of the authors' implementation were active at some samples: {}",
+            guards.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Read `--initial-state`: a JSON object of state name -> value.
+fn read_initial_state(path: &Path) -> Result<BTreeMap<String, f64>> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| common::usage(format!("{}: {e}", path.display())))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        common::usage(format!(
+            "{}, line {}, column {}: {e}",
+            path.display(),
+            e.line(),
+            e.column()
+        ))
+    })?;
+    let obj = v.as_object().ok_or_else(|| {
+        common::usage(format!(
+            "{}: expected a JSON object of state name -> value",
+            path.display()
+        ))
+    })?;
+    let mut out = BTreeMap::new();
+    for (k, v) in obj {
+        let x = v.as_f64().ok_or_else(|| {
+            common::usage(format!(
+                "{}: field {k}: {v} is not a number",
+                path.display()
+            ))
+        })?;
+        out.insert(k.clone(), x);
+    }
+    Ok(out)
+}
+
+/// The state vector of model `m` from named values (every state required, no unknown names).
+pub fn state_from_map<const N: usize, M: Model<N>>(
+    m: &M,
+    values: &BTreeMap<String, f64>,
+    source: &Path,
+) -> Result<[f64; N]> {
+    let names = m.state_names();
+    let src = source.display();
+    if let Some(k) = values.keys().find(|k| !names.contains(&k.as_str())) {
+        return Err(common::usage(format!(
+            "{src}: field {k}: unknown state (the states are {})",
+            names.join(", ")
+        )));
+    }
+    let mut x = [0.0; N];
+    for (i, n) in names.iter().enumerate() {
+        let v = *values
+            .get(*n)
+            .ok_or_else(|| common::usage(format!("{src}: field {n}: missing state")))?;
+        if !v.is_finite() {
+            return Err(common::usage(format!(
+                "{src}: field {n}: {v} is not finite"
+            )));
+        }
+        x[i] = v;
+    }
+    Ok(x)
+}
+
+fn run_model<const N: usize, M: Model<N>>(
+    m: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    initial: Option<&BTreeMap<String, f64>>,
+    initial_path: Option<&Path>,
+    opts: &SimOptions,
+) -> Result<Solution> {
+    let start = match initial {
+        Some(map) => Start::State(state_from_map(
+            m,
+            map,
+            initial_path.unwrap_or(Path::new("initial state")),
+        )?),
+        None => Start::SteadyState,
+    };
+    Ok(simulate(m, sched, t0, t_end, start, opts).context("simulation failed")?)
+}
+
+/// The main signals of a simulation: actuators, pressures, flows, turbo speed, lambda_O.
+pub fn solution_figure(sol: &Solution) -> Figure {
+    let t = sol.t();
+    let col = |n: &str| sol.get(n).map(|c| c.to_vec()).unwrap_or_default();
+    let scaled = |n: &str, k: f64| col(n).iter().map(|v| v * k).collect::<Vec<f64>>();
+    let x = "t [s]";
+    let mut f = Figure::new(1);
+    f.panel_size = (1100, 270);
+    f.panels.push(
+        Panel::new(x, "position [%]")
+            .title("Actuators: commands (dashed) and positions")
+            .with(Series::dashed("u_vgt command", t, &col("u_vgt"), 0))
+            .with(Series::line("u_vgt position", t, &col("u_vgt_actual"), 0))
+            .with(Series::dashed("u_egr command", t, &col("u_egr"), 1))
+            .with(Series::line("u_egr position", t, &col("u_egr_actual"), 1)),
+    );
+    f.panels.push(
+        Panel::new(x, "pressure [kPa]")
+            .title("Manifold pressures")
+            .with(Series::line("p_im", t, &scaled("p_im", 1e-3), 0))
+            .with(Series::line("p_em", t, &scaled("p_em", 1e-3), 1)),
+    );
+    f.panels.push(
+        Panel::new(x, "mass flow [kg/s]")
+            .title("Compressor and EGR mass flows")
+            .with(Series::line("W_c", t, &col("W_c"), 0))
+            .with(Series::line("W_egr", t, &col("W_egr"), 1)),
+    );
+    f.panels.push(
+        Panel::new(x, "n_t [krpm]")
+            .title("Turbocharger speed")
+            .with(Series::line("n_t", t, &scaled("n_t", 1e-3), 2)),
+    );
+    f.panels.push(
+        Panel::new(x, "lambda_O [-]")
+            .title("Oxygen-to-fuel ratio")
+            .with(Series::line("lambda_O", t, &col("lambda_O"), 3)),
+    );
+    f
+}

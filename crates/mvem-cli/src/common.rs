@@ -1,0 +1,386 @@
+//! Shared argument groups (model, solver), built-in scenarios, error classes and small helpers
+//! of the subcommands.
+
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use mvem::components::Semantics;
+use mvem::io::csv_inputs;
+use mvem::model::{Actuators, AnyModel, CylinderTemp, Drive, ModelOptions, ModelOrder};
+use mvem::params::Params;
+use mvem::sim::{InputSchedule, SimOptions};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+// ---------------------------------------------------------------------------------------------
+// Errors and exit codes
+
+/// Exit code of a successful run.
+pub const EXIT_OK: u8 = 0;
+/// Exit code of a runtime failure (solver, no equilibrium, `--strict` check failed).
+pub const EXIT_RUNTIME: u8 = 1;
+/// Exit code of a usage or input-file error (bad option, bad CSV, bad parameters).
+pub const EXIT_USAGE: u8 = 2;
+
+/// A usage or input error found by the CLI itself (exit code 2).
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl fmt::Display for UsageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// A usage error as an [`anyhow::Error`].
+pub fn usage(msg: impl Into<String>) -> anyhow::Error {
+    UsageError(msg.into()).into()
+}
+
+/// Exit code for an error: 2 if anything in its chain is a usage or input-file problem,
+/// 1 otherwise (a runtime failure).
+pub fn exit_code(e: &anyhow::Error) -> u8 {
+    use mvem::sim::SimError;
+    let input = e.chain().any(|c| {
+        c.is::<UsageError>()
+            || c.is::<mvem::io::IoError>()
+            || c.is::<mvem::params::ParamIssues>()
+            || c.is::<mvem::model::ModelError>()
+            || c.is::<mvem::sim::ScheduleError>()
+            || matches!(
+                c.downcast_ref::<SimError>(),
+                Some(SimError::BadOption { .. } | SimError::BadInterval { .. })
+            )
+            || matches!(
+                c.downcast_ref::<mvem::analysis::steady::SteadyError>(),
+                Some(mvem::analysis::steady::SteadyError::NonFiniteInput { .. })
+            )
+    });
+    if input {
+        EXIT_USAGE
+    } else {
+        EXIT_RUNTIME
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Model arguments
+
+/// `--model`: number of states.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ModelArg {
+    /// The paper's 8-state model (sections 3-7).
+    #[value(name = "8")]
+    Eight,
+    /// 10 states: adiabatic manifolds (section 9.1).
+    #[value(name = "10")]
+    Ten,
+    /// 12 states: plus the volume before the intercooler (section 9.2).
+    #[value(name = "12")]
+    Twelve,
+}
+
+/// `--semantics`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SemanticsArg {
+    /// The authors' Simulink implementation (saturations, switches, integrator limits).
+    Authors,
+    /// The paper's plain equations.
+    Paper,
+}
+
+/// `--cylinder-temp`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CylinderTempArg {
+    /// Solve the cylinder-out temperature fixed point to convergence at every evaluation.
+    Converged,
+    /// One iteration per evaluation, held between steps (the authors' Simulink Memory blocks).
+    OneIteration,
+}
+
+/// `--actuators`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ActuatorsArg {
+    /// Actuator dynamics and transport delays on.
+    Dynamic,
+    /// Commands pass straight through to the valve positions.
+    Bypass,
+}
+
+/// Parameter set and model variant (shared by every command that builds a model).
+#[derive(Debug, Clone, clap::Args)]
+pub struct ModelArgs {
+    /// Parameter file: TOML, nested JSON, or the authors' flat JSON
+    /// [default: the built-in published set]
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// Model variant (number of states).
+    #[arg(long, value_enum, default_value = "8")]
+    pub model: ModelArg,
+    /// Equations: the authors' implementation or the paper's plain equations.
+    #[arg(long, value_enum, default_value = "authors")]
+    pub semantics: SemanticsArg,
+    /// Cylinder-out temperature fixed point (eq. (24)).
+    #[arg(long = "cylinder-temp", value_enum, default_value = "converged")]
+    pub cylinder_temp: CylinderTempArg,
+    /// Actuator dynamics (eqs (39)-(41), (57)) or bypass.
+    #[arg(long, value_enum, default_value = "dynamic")]
+    pub actuators: ActuatorsArg,
+}
+
+impl ModelArgs {
+    /// The parameters: the file given with `--params` (validated) or the published set.
+    pub fn load_params(&self) -> Result<Params> {
+        match &self.params {
+            None => Ok(Params::published()),
+            Some(p) => Ok(mvem::io::params::load_params(p)
+                .with_context(|| format!("cannot use parameter file {}", p.display()))?),
+        }
+    }
+
+    /// Model options from the flags.
+    pub fn options(&self) -> ModelOptions {
+        ModelOptions {
+            semantics: match self.semantics {
+                SemanticsArg::Authors => Semantics::Authors,
+                SemanticsArg::Paper => Semantics::Paper,
+            },
+            cylinder_temp: match self.cylinder_temp {
+                CylinderTempArg::Converged => CylinderTemp::Converged,
+                CylinderTempArg::OneIteration => CylinderTemp::OneIteration,
+            },
+            actuators: match self.actuators {
+                ActuatorsArg::Dynamic => Actuators::Dynamic,
+                ActuatorsArg::Bypass => Actuators::Bypass,
+            },
+        }
+    }
+
+    /// The model variant.
+    pub fn order(&self) -> ModelOrder {
+        match self.model {
+            ModelArg::Eight => ModelOrder::Eight,
+            ModelArg::Ten => ModelOrder::Ten,
+            ModelArg::Twelve => ModelOrder::Twelve,
+        }
+    }
+
+    /// Build the model (parameters loaded and validated).
+    pub fn build(&self) -> Result<AnyModel> {
+        let p = self.load_params()?;
+        Ok(AnyModel::new(self.order(), p, self.options()).context("cannot build the model")?)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Solver arguments
+
+/// Integration tolerances and output interval (shared by `simulate`, `demo`, `bench`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct SolverArgs {
+    /// Relative tolerance of the integrator, in (0, 1) [default: 1e-6]
+    #[arg(long, value_name = "R")]
+    pub rtol: Option<f64>,
+    /// Absolute tolerance, relative to each state's typical magnitude (1e5 Pa, 0.1, 1e4 rad/s,
+    /// 100 %) [default: rtol / 100]
+    #[arg(long, value_name = "A")]
+    pub atol: Option<f64>,
+    /// Output interval [s] (the end time is always written) [default: 0.01; bench: 0.1]
+    #[arg(long, value_name = "S")]
+    pub dt: Option<f64>,
+}
+
+impl SolverArgs {
+    /// Options with `default_dt` when `--dt` is not given; checked (the message names the option).
+    pub fn options(&self, default_dt: f64) -> Result<SimOptions> {
+        let rtol = self.rtol.unwrap_or(1e-6);
+        let o = SimOptions {
+            rtol,
+            atol: self.atol.unwrap_or(rtol * 1e-2),
+            dt_out: self.dt.unwrap_or(default_dt),
+            ..SimOptions::default()
+        };
+        o.validate().map_err(|e| match e {
+            mvem::sim::SimError::BadOption {
+                field,
+                value,
+                constraint,
+            } => usage(format!("invalid option --{field} {value}: {constraint}")),
+            other => usage(other.to_string()),
+        })?;
+        Ok(o)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scenarios
+
+/// Built-in input scenarios.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Scenario {
+    /// n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 -> 65 % at t = 1 s, 0..8 s
+    /// (non-minimum-phase W_c, negative DC gain).
+    VgtStepNmp,
+    /// As vgt-step-nmp but u_vgt 30 -> 25 % (overshoot, positive DC gain).
+    VgtStepOvershoot,
+    /// The WHTC drive cycle, 10 Hz inputs, 0..1800 s (data/whtc_inputs_10hz.csv).
+    Whtc,
+}
+
+/// The WHTC inputs (built in).
+pub const WHTC_CSV: &str = include_str!("../../../data/whtc_inputs_10hz.csv");
+
+/// Name used for the built-in WHTC inputs in messages.
+pub const WHTC_NAME: &str = "<built-in data/whtc_inputs_10hz.csv>";
+
+impl Scenario {
+    /// Operating point, u_vgt before and after, step time [s], end time [s] of a VGT step.
+    pub fn vgt_step(self) -> Option<(Drive, f64, f64, f64)> {
+        let base = |u_vgt| Drive::new(1500.0, 110.0, 80.0, u_vgt);
+        match self {
+            Scenario::VgtStepNmp => Some((base(75.0), 65.0, 1.0, 8.0)),
+            Scenario::VgtStepOvershoot => Some((base(30.0), 25.0, 1.0, 8.0)),
+            Scenario::Whtc => None,
+        }
+    }
+
+    /// The input schedule and the end time [s].
+    pub fn schedule(self) -> Result<(InputSchedule, f64)> {
+        match self.vgt_step() {
+            Some((d, to, t_step, t_end)) => {
+                Ok((InputSchedule::steps(d, &[(t_step, 3, to)])?, t_end))
+            }
+            None => {
+                let s = whtc_schedule()?;
+                let t_end = s.t_last();
+                Ok((s, t_end))
+            }
+        }
+    }
+
+    /// The name on the command line.
+    pub fn name(self) -> String {
+        self.to_possible_value()
+            .map(|v| v.get_name().to_string())
+            .unwrap_or_default()
+    }
+}
+
+/// The built-in WHTC input schedule.
+pub fn whtc_schedule() -> Result<InputSchedule> {
+    Ok(csv_inputs::parse_inputs_csv(
+        WHTC_CSV,
+        Path::new(WHTC_NAME),
+    )?)
+}
+
+/// Load an input CSV and warn once per channel (on stderr) about values outside the
+/// authors' input saturation ranges.
+pub fn load_inputs(path: &Path) -> Result<InputSchedule> {
+    let s = csv_inputs::load_inputs_csv(path)?;
+    warn_ranges(&s, &path.display().to_string());
+    Ok(s)
+}
+
+/// Print the range warnings of a schedule, once per channel.
+pub fn warn_ranges(s: &InputSchedule, source: &str) {
+    for w in csv_inputs::range_warnings(s) {
+        eprintln!("warning: {source}: {w}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+/// Check up front that an output file can be created where asked (its directory exists), so
+/// that no computation is wasted on an impossible write.
+pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
+    if path.as_os_str().is_empty() {
+        return Err(usage(format!("{what}: empty file name")));
+    }
+    if path.is_dir() {
+        return Err(usage(format!("{what} {}: is a directory", path.display())));
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(usage(format!(
+            "{what} {}: directory {} does not exist",
+            path.display(),
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+/// Unit of a state or signal column, for tables and axis labels.
+pub fn unit(name: &str) -> &'static str {
+    match name {
+        "t" => "s",
+        "p_im" | "p_em" | "p_c" => "Pa",
+        "X_Oim" | "X_Oem" | "X_Oe" | "x_r" | "x_egr" | "lambda_O" | "eta_c" | "eta_tm" | "BSR"
+        | "Pi_c" | "Pi_t" | "eta_vol" | "Pi_egr" => "-",
+        "omega_t" => "rad/s",
+        "u_egr1" | "u_egr2" | "u_vgt_act" | "u_egr" | "u_vgt" | "u_egr_actual" | "u_vgt_actual" => {
+            "%"
+        }
+        "n_e" | "n_t" => "rpm",
+        "u_delta" => "mg/cycle",
+        "W_c" | "W_egr" | "W_t" | "W_ei" | "W_eo" | "W_f" | "W_ic" => "kg/s",
+        "T_e" | "T_em" | "T_c" | "T_1" | "T_im" | "T_ic" => "K",
+        "M_e" => "Nm",
+        "P_c" | "P_t_eta_m" => "W",
+        _ => "",
+    }
+}
+
+/// A value with 8 significant digits, plain for magnitudes in [1e-3, 1e7), scientific otherwise.
+pub fn fmt_value(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() {
+        format!("{v}")
+    } else if (1e-3..1e7).contains(&a) {
+        let dec = (7 - a.log10().floor() as i32).clamp(0, 10) as usize;
+        format!("{v:.dec$}")
+    } else {
+        format!("{v:.7e}")
+    }
+}
+
+/// Seconds as a short human string.
+pub fn fmt_duration(s: f64) -> String {
+    if s < 1e-3 {
+        format!("{:.1} us", s * 1e6)
+    } else if s < 1.0 {
+        format!("{:.2} ms", s * 1e3)
+    } else {
+        format!("{s:.3} s")
+    }
+}
+
+/// Whether stderr is an interactive terminal (progress display only then).
+pub fn stderr_is_terminal() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal()
+}
+
+/// A spinner on stderr showing the elapsed time while `f` runs (only on a terminal; the
+/// result never depends on it).
+pub fn with_spinner<T>(msg: &str, f: impl FnOnce() -> T) -> T {
+    if !stderr_is_terminal() {
+        return f();
+    }
+    let pb = indicatif::ProgressBar::new_spinner();
+    pb.set_draw_target(indicatif::ProgressDrawTarget::stderr());
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {msg} [{elapsed}]") {
+        pb.set_style(style);
+    }
+    pb.set_message(msg.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(100));
+    let out = f();
+    pb.finish_and_clear();
+    out
+}
