@@ -1,3 +1,5 @@
-//! Analysis computed from the model: steady state (equilibrium) with validity flags.
+//! Analysis computed from the model: steady state (equilibrium) with validity flags; the
+//! section-9 extension comparison and the cylinder-out temperature study.
 
+pub mod extensions;
 pub mod steady;
