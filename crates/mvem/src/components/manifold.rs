@@ -1,5 +1,6 @@
 //! Intake and exhaust manifolds: isothermal control volumes with pressure and oxygen mass
-//! fraction states (section 3, eqs (6)-(9)).
+//! fraction states (section 3, eqs (6)-(9)), and the adiabatic control volume with a temperature
+//! state of the section-9 extensions (eqs (80), (81), (85)).
 
 /// Time derivatives of one isothermal control volume (eqs (6) and (9)).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,6 +74,46 @@ pub fn egr_fraction(w_egr: f64, w_c: f64, authors: bool) -> f64 {
     }
 }
 
+/// Time derivatives of one adiabatic control volume (section 9, eqs (80), (81), (85)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdiabaticDerivatives {
+    /// dp/dt [Pa/s].
+    pub dp: f64,
+    /// dT/dt [K/s].
+    pub dt: f64,
+}
+
+/// Adiabatic control volume (the section-9 extensions, eqs (80), (81), (85)): mass and
+/// internal-energy balance of an ideal gas with constant properties, no heat transfer:
+/// ```text
+/// dT/dt = R T / (p V c_v) [ c_v W_in (T_in - T) + R (T_in W_in - T W_out) ]
+/// dp/dt = R T / V (W_in - W_out) + p / T dT/dt
+/// ```
+/// The in-flows enter with their own temperatures, given as `w_in` = sum of W_in [kg/s] and
+/// `wt_in` = sum of W_in T_in [kg K/s] (so that several in-flows with different temperatures
+/// can enter); the out-flows `w_out` [kg/s] leave at the volume temperature `t` [K]. With
+/// c_p = c_v + R these are d(pV/(RT))/dt = W_in - W_out and d(c_v pV/R)/dt =
+/// c_p (T_in W_in - T W_out). Pressure in Pa, volume in m^3, gas constants in J/(kg K).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub fn adiabatic(
+    r: f64,
+    c_v: f64,
+    v: f64,
+    p: f64,
+    t: f64,
+    w_in: f64,
+    wt_in: f64,
+    w_out: f64,
+) -> AdiabaticDerivatives {
+    let k = r * t / v;
+    let dt = k / (p * c_v) * (c_v * (wt_in - t * w_in) + r * (wt_in - t * w_out)); // eqs (80), (81), (85)
+    AdiabaticDerivatives {
+        dp: k * (w_in - w_out) + p / t * dt, // eqs (80), (81), (85)
+        dt,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -92,5 +133,20 @@ mod tests {
         assert_eq!(egr_fraction(0.1, 0.3, true), 0.25);
         assert_eq!(egr_fraction(10.0, 0.1, true), 0.9);
         assert!(egr_fraction(10.0, 0.1, false) > 0.9);
+    }
+
+    #[test]
+    fn adiabatic_hand_values() {
+        // Steady in-flow = out-flow at T_in = T: no change at all.
+        let d = adiabatic(287.0, 724.0, 0.02, 2.0e5, 320.0, 0.3, 0.3 * 320.0, 0.3);
+        assert_eq!((d.dp, d.dt), (0.0, 0.0));
+        // Filling a closed volume (no out-flow) with gas at T_in = T: the compression heats it,
+        // dT/dt = R T/(p V c_v) R T W = 8.61e6/(1e5*724) * 287*30 = 1023.93 K/s.
+        let d = adiabatic(287.0, 724.0, 0.01, 1.0e5, 300.0, 0.1, 30.0, 0.0);
+        let dt = 8.61e6 / (1.0e5 * 724.0) * (287.0 * 30.0);
+        assert!((d.dt - dt).abs() < 1e-9 * dt, "{} vs {dt}", d.dt);
+        // ... and dp/dt = gamma R T W / V (adiabatic filling): (724+287)/724 * 8.61e6 * 0.1.
+        let dp = (724.0 + 287.0) / 724.0 * 8.61e6 * 0.1;
+        assert!((d.dp - dp).abs() < 1e-9 * dp, "{} vs {dp}", d.dp);
     }
 }

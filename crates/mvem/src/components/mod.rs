@@ -9,6 +9,7 @@
 pub mod compressor;
 pub mod cylinder;
 pub mod egr;
+pub mod intercooler;
 pub mod manifold;
 pub mod turbine;
 pub mod turbo;

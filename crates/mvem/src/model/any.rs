@@ -5,7 +5,7 @@
 //! methods here) to call the generic code. Results are returned in dimension-independent form
 //! (named columns / named values).
 
-use super::{Engine8, ModelOptions};
+use super::{Engine10, Engine12, Engine8, ModelOptions};
 use crate::params::{ParamIssues, Params};
 use serde::{Deserialize, Serialize};
 
@@ -47,6 +47,10 @@ impl ModelOrder {
 pub enum AnyModel {
     /// The 8-state model.
     Eight(Engine8),
+    /// The 10-state model (section 9.1).
+    Ten(Engine10),
+    /// The 12-state model (section 9.2).
+    Twelve(Engine12),
 }
 
 /// Why a model could not be built.
@@ -65,7 +69,8 @@ impl AnyModel {
     pub fn new(order: ModelOrder, p: Params, opts: ModelOptions) -> Result<Self, ModelError> {
         match order {
             ModelOrder::Eight => Ok(AnyModel::Eight(Engine8::new(p, opts)?)),
-            other => Err(ModelError::Unavailable(other.states())),
+            ModelOrder::Ten => Ok(AnyModel::Ten(Engine10::new(p, opts)?)),
+            ModelOrder::Twelve => Ok(AnyModel::Twelve(Engine12::new(p, opts)?)),
         }
     }
 
@@ -73,6 +78,8 @@ impl AnyModel {
     pub fn order(&self) -> ModelOrder {
         match self {
             AnyModel::Eight(_) => ModelOrder::Eight,
+            AnyModel::Ten(_) => ModelOrder::Ten,
+            AnyModel::Twelve(_) => ModelOrder::Twelve,
         }
     }
 }
@@ -84,6 +91,8 @@ macro_rules! dispatch {
     ($any:expr, $m:ident => $body:expr) => {
         match $any {
             $crate::model::AnyModel::Eight($m) => $body,
+            $crate::model::AnyModel::Ten($m) => $body,
+            $crate::model::AnyModel::Twelve($m) => $body,
         }
     };
 }

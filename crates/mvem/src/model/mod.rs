@@ -5,11 +5,16 @@
 //! paper (sections 3-7) is [`Engine8`]; the section-9 extensions implement the same trait.
 
 mod any;
+mod common;
+mod engine10;
+mod engine12;
 mod engine8;
 mod signals;
 
 pub use any::{AnyModel, ModelError, ModelOrder};
 
+pub use engine10::{ix as ix10, Engine10, STATE_NAMES_10};
+pub use engine12::{ix as ix12, Engine12, STATE_NAMES_12};
 pub use engine8::{ix, Engine8, STATE_NAMES_8};
 pub use signals::{Guard, Signals};
 

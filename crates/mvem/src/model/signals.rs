@@ -103,6 +103,9 @@ signals! {
     p_c_out => "p_c",
     /// Intercooler mass flow W_ic [kg/s] (= W_c in the 8- and 10-state models, eq. (82)).
     w_ic => "W_ic",
+    /// Temperature of the flow into the exhaust manifold T_em,in [K]: the value of eq. (25)
+    /// (= T_em in the 8-state model; the inflow temperature of eq. (81) in the 10/12-state models).
+    t_em_in => "T_em_in",
 }
 
 macro_rules! guards {

@@ -1,0 +1,612 @@
+//! The paper's section-9 comparison of the model extensions, and the cylinder-out temperature
+//! study of section 4.2.3, as plain-data functions for reports and front ends.
+//!
+//! - [`compare_vgt_steps`]: simulate VGT steps (by default the two of Figs 11-14: n_e =
+//!   1500 rpm, u_delta = 110 mg, u_egr = 80 %, u_vgt 75 -> 65 % and 30 -> 25 % at t = 1 s) with
+//!   each model order (8, 10, 12 states) and return the time series, the stationary differences
+//!   to the first order (steady states before and after the step) and the W_c features the
+//!   paper discusses: non-minimum-phase dip, overshoot, and the sign reversal of the DC gain
+//!   between the two steps ([`sign_reversal`]).
+//! - [`cylinder_temp_study`]: simulate an input schedule (the paper uses the ETC; mvem ships
+//!   the WHTC, `data/whtc_inputs_10hz.csv`) with the converged cylinder-out temperature and with
+//!   one fixed-point iteration per accepted step (Fig. 2), and return the relative error of T_e.
+//!
+//! The response features use the definitions of the reference data (`tests/reference/README.md`):
+//! NMP = the response's extremum opposite to its final direction exceeds 0.5 % of the final
+//! change and occurs before the first 0.5 % move in the final direction; overshoot = the largest
+//! excursion beyond the final value, in % of |final change|. The final value is the root-solved
+//! steady state at the new input.
+
+use crate::analysis::steady::{steady_state, SteadyError};
+use crate::model::{
+    AnyModel, CylinderTemp, Drive, Engine10, Engine12, Engine8, Model, ModelOptions, ModelOrder,
+};
+use crate::params::{ParamIssues, Params};
+use crate::sim::{simulate, InputSchedule, ScheduleError, SimError, SimOptions, Start};
+use serde::{Deserialize, Serialize};
+
+/// A step in the VGT command from a steady state.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VgtStep {
+    /// Engine speed n_e [rpm].
+    pub n_e_rpm: f64,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    pub u_delta_mg: f64,
+    /// EGR command u_egr [%].
+    pub u_egr_pct: f64,
+    /// VGT command before the step [%].
+    pub u_vgt_from: f64,
+    /// VGT command after the step [%].
+    pub u_vgt_to: f64,
+    /// Step time [s] (the simulation starts at 0 from the steady state).
+    pub t_step: f64,
+    /// End of the simulation [s].
+    pub t_end: f64,
+}
+
+impl VgtStep {
+    /// The two steps of the paper's Figs 11-14 (the authors' runSimEngine demonstration):
+    /// (1500 rpm, 110 mg, 80 %), u_vgt 75 -> 65 % (NMP, negative DC gain in W_c) and
+    /// 30 -> 25 % (overshoot, positive DC gain), at t = 1 s, simulated to 8 s.
+    pub fn paper_cases() -> [VgtStep; 2] {
+        let c = |from, to| VgtStep {
+            n_e_rpm: 1500.0,
+            u_delta_mg: 110.0,
+            u_egr_pct: 80.0,
+            u_vgt_from: from,
+            u_vgt_to: to,
+            t_step: 1.0,
+            t_end: 8.0,
+        };
+        [c(75.0, 65.0), c(30.0, 25.0)]
+    }
+
+    /// Inputs before the step.
+    pub fn before(&self) -> Drive {
+        Drive::new(
+            self.n_e_rpm,
+            self.u_delta_mg,
+            self.u_egr_pct,
+            self.u_vgt_from,
+        )
+    }
+
+    /// Inputs after the step.
+    pub fn after(&self) -> Drive {
+        Drive::new(self.n_e_rpm, self.u_delta_mg, self.u_egr_pct, self.u_vgt_to)
+    }
+
+    /// A short label, e.g. `u_vgt 75->65 % at 1500 rpm, 110 mg, u_egr 80 %`.
+    pub fn label(&self) -> String {
+        format!(
+            "u_vgt {}->{} % at {} rpm, {} mg, u_egr {} %",
+            self.u_vgt_from, self.u_vgt_to, self.n_e_rpm, self.u_delta_mg, self.u_egr_pct
+        )
+    }
+
+    fn check(&self) -> Result<(), ExtensionError> {
+        let fields = [
+            ("n_e_rpm", self.n_e_rpm),
+            ("u_delta_mg", self.u_delta_mg),
+            ("u_egr_pct", self.u_egr_pct),
+            ("u_vgt_from", self.u_vgt_from),
+            ("u_vgt_to", self.u_vgt_to),
+            ("t_step", self.t_step),
+            ("t_end", self.t_end),
+        ];
+        for (field, value) in fields {
+            if !value.is_finite() {
+                return Err(ExtensionError::BadStep {
+                    field,
+                    value,
+                    constraint: "must be finite",
+                });
+            }
+        }
+        if !(self.t_step > 0.0 && self.t_step < self.t_end) {
+            return Err(ExtensionError::BadStep {
+                field: "t_step",
+                value: self.t_step,
+                constraint: "must lie in (0, t_end)",
+            });
+        }
+        if self.u_vgt_from == self.u_vgt_to {
+            return Err(ExtensionError::BadStep {
+                field: "u_vgt_to",
+                value: self.u_vgt_to,
+                constraint: "must differ from u_vgt_from",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Signals compared by [`compare_vgt_steps`] by default (names of [`crate::sim::Solution`]
+/// columns; `T_im`, `T_em`, `p_c` are states of the extensions and signals of the 8-state model).
+pub const COMPARED_SIGNALS: &[&str] = &[
+    "p_im", "p_em", "p_c", "T_im", "T_em", "W_c", "W_ic", "W_egr", "n_t", "x_egr", "lambda_O",
+    "M_e", "T_e",
+];
+
+/// Options of [`compare_vgt_steps`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CompareOptions {
+    /// Model orders to simulate; stationary differences are relative to the first.
+    pub orders: Vec<ModelOrder>,
+    /// Relative tolerance of the simulations (atol = rtol / 100 of each state's scale).
+    pub rtol: f64,
+    /// Output interval [s].
+    pub dt_out: f64,
+    /// Signals to return and compare (Solution column names).
+    pub signals: Vec<String>,
+}
+
+impl Default for CompareOptions {
+    fn default() -> Self {
+        Self {
+            orders: vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
+            rtol: 1e-8,
+            dt_out: 0.01,
+            signals: COMPARED_SIGNALS.iter().map(|s| s.to_string()).collect(),
+        }
+    }
+}
+
+/// Features of one signal's step response (definitions in the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ResponseFeatures {
+    /// Steady-state value before the step.
+    pub initial: f64,
+    /// Steady-state value at the new input.
+    pub final_value: f64,
+    /// DC gain: (final - initial) / (u_vgt_to - u_vgt_from) [signal unit per %].
+    pub dc_gain: f64,
+    /// Non-minimum-phase behaviour: an initial move opposite to the final change larger than
+    /// 0.5 % of |final change| before the first 0.5 % move in the final direction.
+    pub nmp: bool,
+    /// Size of that opposite move as a fraction of |final change| [-] (0 if none).
+    pub nmp_extent: f64,
+    /// Time of the opposite extremum after the step [s] (NaN if none).
+    pub nmp_time: f64,
+    /// Largest excursion beyond the final value, in % of |final change| (0 if none).
+    pub overshoot_pct: f64,
+}
+
+/// Features of a sampled response `y` at times `t`, for a step at `t_step` from the steady
+/// value `initial` to the steady value `final_value`; `du` is the input change (for the DC
+/// gain). Samples before `t_step` are ignored.
+pub fn response_features(
+    t: &[f64],
+    y: &[f64],
+    t_step: f64,
+    initial: f64,
+    final_value: f64,
+    du: f64,
+) -> ResponseFeatures {
+    let change = final_value - initial;
+    let dir = change.signum();
+    let mag = change.abs();
+    let thr = 0.005 * mag;
+    let mut opp = (0.0f64, f64::NAN); // (largest opposite move, time)
+    let mut moved = false;
+    let mut over = 0.0f64;
+    for (&ti, &yi) in t.iter().zip(y) {
+        if ti < t_step {
+            continue;
+        }
+        let along = dir * (yi - initial);
+        if !moved {
+            if along >= thr {
+                moved = true;
+            } else if -along > opp.0 {
+                opp = (-along, ti - t_step);
+            }
+        }
+        over = over.max(dir * (yi - final_value));
+    }
+    let nmp = mag > 0.0 && opp.0 > thr;
+    ResponseFeatures {
+        initial,
+        final_value,
+        dc_gain: change / du,
+        nmp,
+        nmp_extent: if mag > 0.0 && opp.0 > 0.0 {
+            opp.0 / mag
+        } else {
+            0.0
+        },
+        nmp_time: if opp.0 > 0.0 { opp.1 } else { f64::NAN },
+        overshoot_pct: if mag > 0.0 { 100.0 * over / mag } else { 0.0 },
+    }
+}
+
+/// One model order's response to one step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepResponse {
+    /// Model order.
+    pub order: ModelOrder,
+    /// Output times [s].
+    pub t: Vec<f64>,
+    /// (signal name, samples), in [`CompareOptions::signals`] order.
+    pub series: Vec<(String, Vec<f64>)>,
+    /// (signal name, value) at the steady state before the step.
+    pub steady_before: Vec<(String, f64)>,
+    /// (signal name, value) at the steady state at the new input.
+    pub steady_after: Vec<(String, f64)>,
+    /// Features of the compressor flow W_c response.
+    pub w_c: ResponseFeatures,
+    /// Accepted integration steps.
+    pub steps: usize,
+}
+
+impl StepResponse {
+    /// Samples of a signal by name.
+    pub fn series(&self, name: &str) -> Option<&[f64]> {
+        self.series
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+}
+
+/// Stationary difference of one signal between a model order and the reference order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StationaryDifference {
+    /// Model order.
+    pub order: ModelOrder,
+    /// Signal name.
+    pub signal: String,
+    /// (value - reference) / |reference| before the step [-] (absolute if the reference is 0).
+    pub before: f64,
+    /// The same at the steady state after the step [-].
+    pub after: f64,
+}
+
+/// All model orders' responses to one step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepComparison {
+    /// The step.
+    pub step: VgtStep,
+    /// One response per model order, in [`CompareOptions::orders`] order.
+    pub responses: Vec<StepResponse>,
+    /// Stationary differences of every order after the first to the first, per signal.
+    pub stationary: Vec<StationaryDifference>,
+}
+
+impl StepComparison {
+    /// The response of `order`.
+    pub fn response(&self, order: ModelOrder) -> Option<&StepResponse> {
+        self.responses.iter().find(|r| r.order == order)
+    }
+}
+
+/// Why a comparison could not be made (naming the model order and case).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExtensionError {
+    /// Invalid parameters.
+    #[error(transparent)]
+    Params(#[from] ParamIssues),
+    /// A step definition is invalid.
+    #[error("VGT step: {field} = {value}: {constraint}")]
+    BadStep {
+        /// Field name.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Constraint.
+        constraint: &'static str,
+    },
+    /// An option is invalid.
+    #[error("option {field} = {value}: {constraint}")]
+    BadOption {
+        /// Field name.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Constraint.
+        constraint: &'static str,
+    },
+    /// The input schedule could not be built.
+    #[error(transparent)]
+    Schedule(#[from] ScheduleError),
+    /// A steady state was not found.
+    #[error("{order:?}-state model, {case}: {source}")]
+    Steady {
+        /// Model order.
+        order: ModelOrder,
+        /// Which case.
+        case: String,
+        /// Cause.
+        source: SteadyError,
+    },
+    /// A simulation failed.
+    #[error("{order:?}-state model, {case}: {source}")]
+    Sim {
+        /// Model order.
+        order: ModelOrder,
+        /// Which case.
+        case: String,
+        /// Cause.
+        source: SimError,
+    },
+}
+
+/// Build the model variant `order`.
+pub fn build_model(
+    order: ModelOrder,
+    p: &Params,
+    opts: ModelOptions,
+) -> Result<AnyModel, ParamIssues> {
+    Ok(match order {
+        ModelOrder::Eight => AnyModel::Eight(Engine8::new(p.clone(), opts)?),
+        ModelOrder::Ten => AnyModel::Ten(Engine10::new(p.clone(), opts)?),
+        ModelOrder::Twelve => AnyModel::Twelve(Engine12::new(p.clone(), opts)?),
+    })
+}
+
+fn named_signal(
+    names: &[&'static str],
+    x: &[f64],
+    s: &crate::model::Signals,
+    name: &str,
+) -> Option<f64> {
+    // Same precedence as Solution columns: states first, then signals.
+    names
+        .iter()
+        .position(|n| *n == name)
+        .map(|i| x[i])
+        .or_else(|| s.get(name))
+}
+
+fn run_step<const N: usize, M: Model<N>>(
+    m: &M,
+    order: ModelOrder,
+    step: &VgtStep,
+    co: &CompareOptions,
+) -> Result<StepResponse, ExtensionError> {
+    let case = step.label();
+    let steady = |d: Drive| {
+        steady_state(m, &d).map_err(|source| ExtensionError::Steady {
+            order,
+            case: case.clone(),
+            source,
+        })
+    };
+    let before = steady(step.before())?;
+    let after = steady(step.after())?;
+    let sched = InputSchedule::steps(step.before(), &[(step.t_step, 3, step.u_vgt_to)])?;
+    let sim_opts = SimOptions {
+        rtol: co.rtol,
+        atol: co.rtol * 1e-2,
+        dt_out: co.dt_out,
+        ..SimOptions::default()
+    };
+    let sol = simulate(
+        m,
+        &sched,
+        0.0,
+        step.t_end,
+        Start::State(before.x),
+        &sim_opts,
+    )
+    .map_err(|source| ExtensionError::Sim {
+        order,
+        case: case.clone(),
+        source,
+    })?;
+    let names = m.state_names();
+    let pick = |x: &[f64], s: &crate::model::Signals| -> Vec<(String, f64)> {
+        co.signals
+            .iter()
+            .map(|n| (n.clone(), named_signal(&names, x, s, n).unwrap_or(f64::NAN)))
+            .collect()
+    };
+    let series = co
+        .signals
+        .iter()
+        .map(|n| {
+            let v = sol
+                .get(n)
+                .map(|c| c.to_vec())
+                .unwrap_or_else(|| vec![f64::NAN; sol.len()]);
+            (n.clone(), v)
+        })
+        .collect();
+    let w_c = response_features(
+        sol.t(),
+        sol.get("W_c").unwrap_or(&[]),
+        step.t_step,
+        before.signals.w_c,
+        after.signals.w_c,
+        step.u_vgt_to - step.u_vgt_from,
+    );
+    Ok(StepResponse {
+        order,
+        t: sol.t().to_vec(),
+        series,
+        steady_before: pick(&before.x, &before.signals),
+        steady_after: pick(&after.x, &after.signals),
+        w_c,
+        steps: sol.stats.steps,
+    })
+}
+
+fn rel_diff(v: f64, r: f64) -> f64 {
+    if r == 0.0 {
+        v - r
+    } else {
+        (v - r) / r.abs()
+    }
+}
+
+/// Simulate each step with each model order in `co.orders` (from the steady state, with the
+/// parameters `p` and options `opts`) and compare (see the module documentation).
+pub fn compare_vgt_steps(
+    p: &Params,
+    opts: ModelOptions,
+    steps: &[VgtStep],
+    co: &CompareOptions,
+) -> Result<Vec<StepComparison>, ExtensionError> {
+    if !(co.rtol.is_finite() && co.rtol >= 1e-12 && co.rtol < 1.0) {
+        return Err(ExtensionError::BadOption {
+            field: "rtol",
+            value: co.rtol,
+            constraint: "must lie in [1e-12, 1)",
+        });
+    }
+    if co.orders.is_empty() {
+        return Err(ExtensionError::BadOption {
+            field: "orders",
+            value: 0.0,
+            constraint: "at least one model order",
+        });
+    }
+    let models = co
+        .orders
+        .iter()
+        .map(|&o| build_model(o, p, opts))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut out = Vec::with_capacity(steps.len());
+    for step in steps {
+        step.check()?;
+        let mut responses = Vec::with_capacity(models.len());
+        for (any, &order) in models.iter().zip(&co.orders) {
+            let r = crate::dispatch!(any, m => run_step(m, order, step, co))?;
+            responses.push(r);
+        }
+        let mut stationary = Vec::new();
+        let reference = &responses[0];
+        for r in &responses[1..] {
+            for (k, name) in co.signals.iter().enumerate() {
+                stationary.push(StationaryDifference {
+                    order: r.order,
+                    signal: name.clone(),
+                    before: rel_diff(r.steady_before[k].1, reference.steady_before[k].1),
+                    after: rel_diff(r.steady_after[k].1, reference.steady_after[k].1),
+                });
+            }
+        }
+        out.push(StepComparison {
+            step: *step,
+            responses,
+            stationary,
+        });
+    }
+    Ok(out)
+}
+
+/// Whether the DC gain of W_c from u_vgt changes sign between the cases of `cases` for model
+/// `order` (the paper's sign reversal, Figs 9-10, 12, 14): `Some(true)` if both signs occur,
+/// `Some(false)` if not, `None` if `order` has fewer than two responses.
+pub fn sign_reversal(cases: &[StepComparison], order: ModelOrder) -> Option<bool> {
+    let gains: Vec<f64> = cases
+        .iter()
+        .filter_map(|c| c.response(order))
+        .map(|r| r.w_c.dc_gain)
+        .collect();
+    if gains.len() < 2 {
+        return None;
+    }
+    Some(gains.iter().any(|g| *g > 0.0) && gains.iter().any(|g| *g < 0.0))
+}
+
+/// Options of [`cylinder_temp_study`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CylinderTempOptions {
+    /// Relative tolerance of both simulations (atol = rtol / 100 of each state's scale). The
+    /// one-iteration result depends on the accepted step sequence and hence on it.
+    pub rtol: f64,
+    /// Output interval [s] (errors are evaluated at these samples).
+    pub dt_out: f64,
+}
+
+impl Default for CylinderTempOptions {
+    fn default() -> Self {
+        Self {
+            rtol: 1e-6,
+            dt_out: 0.1,
+        }
+    }
+}
+
+/// Result of [`cylinder_temp_study`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CylinderTempStudy {
+    /// Relative tolerance used.
+    pub rtol: f64,
+    /// Absolute tolerance used (times each state's scale).
+    pub atol: f64,
+    /// Output times [s].
+    pub t: Vec<f64>,
+    /// T_e [K] with the converged fixed point.
+    pub t_e_converged: Vec<f64>,
+    /// T_e [K] with one iteration per accepted step.
+    pub t_e_one_iteration: Vec<f64>,
+    /// Relative error (one iteration - converged) / converged [-] at each sample.
+    pub rel_error: Vec<f64>,
+    /// Maximum |relative error| [-].
+    pub max_abs_rel_error: f64,
+    /// Time of the maximum [s].
+    pub t_max: f64,
+    /// Mean |relative error| over the samples [-].
+    pub mean_abs_rel_error: f64,
+    /// Accepted steps of the converged run.
+    pub steps_converged: usize,
+    /// Accepted steps of the one-iteration run.
+    pub steps_one_iteration: usize,
+}
+
+/// Simulate `sched` on `[t0, t_end]` with `m` twice, with [`CylinderTemp::Converged`] and
+/// [`CylinderTemp::OneIteration`] (the authors' memory held from the last accepted step),
+/// both from the (converged) steady state at the first inputs, and compare T_e (paper
+/// section 4.2.3, Fig. 2: max 0.15 % on the ETC).
+pub fn cylinder_temp_study<const N: usize, M: Model<N>>(
+    m: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    co: &CylinderTempOptions,
+) -> Result<CylinderTempStudy, SimError> {
+    let mut o = *m.options();
+    o.cylinder_temp = CylinderTemp::Converged;
+    let conv = m.with_options(o);
+    o.cylinder_temp = CylinderTemp::OneIteration;
+    let one = m.with_options(o);
+    let d0 = sched.at(t0);
+    let x0 = steady_state(&conv, &d0)
+        .map_err(|e| SimError::Initial(e.to_string()))?
+        .x;
+    let sim_opts = SimOptions {
+        rtol: co.rtol,
+        atol: co.rtol * 1e-2,
+        dt_out: co.dt_out,
+        ..SimOptions::default()
+    };
+    let a = simulate(&conv, sched, t0, t_end, Start::State(x0), &sim_opts)?;
+    let b = simulate(&one, sched, t0, t_end, Start::State(x0), &sim_opts)?;
+    let ta = a.get("T_e").unwrap_or(&[]);
+    let tb = b.get("T_e").unwrap_or(&[]);
+    let n = ta.len().min(tb.len());
+    let rel_error: Vec<f64> = (0..n).map(|i| (tb[i] - ta[i]) / ta[i]).collect();
+    let (mut max, mut t_max, mut sum) = (0.0f64, f64::NAN, 0.0);
+    for (i, e) in rel_error.iter().enumerate() {
+        if e.abs() > max {
+            max = e.abs();
+            t_max = a.t()[i];
+        }
+        sum += e.abs();
+    }
+    Ok(CylinderTempStudy {
+        rtol: sim_opts.rtol,
+        atol: sim_opts.atol,
+        t: a.t()[..n].to_vec(),
+        t_e_converged: ta[..n].to_vec(),
+        t_e_one_iteration: tb[..n].to_vec(),
+        rel_error,
+        max_abs_rel_error: max,
+        t_max,
+        mean_abs_rel_error: if n > 0 { sum / n as f64 } else { f64::NAN },
+        steps_converged: a.stats.steps,
+        steps_one_iteration: b.stats.steps,
+    })
+}

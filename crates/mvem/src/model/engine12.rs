@@ -1,0 +1,397 @@
+//! The 12-state extension of section 9.2: the 10-state model plus an adiabatic control volume
+//! between the compressor and the intercooler and a pressure drop over the intercooler.
+//! States (eq. (84)):
+//! `x = (p_im, p_em, p_c, T_im, T_em, T_ic, X_Oim, X_Oem, omega_t, u_egr1, u_egr2, u_vgt)`.
+//!
+//! - Control volume before the intercooler (eq. (85)), volume `intercooler.v_ic`: the
+//!   compressor flow W_c enters at the compressor outlet temperature T_c (eq. (58)), W_ic leaves
+//!   at the state T_ic. The compressor sees Pi_c = p_c / p_amb (eq. (87)).
+//! - Intercooler flow W_ic (eq. (86)), restriction `intercooler.k_ic`, see
+//!   [`intercooler::w_ic`]. The intake manifold (eq. (80)) gets W_ic instead of W_c, entering at
+//!   the cooling temperature T_im,in = `intake_manifold.t_im` (ideal cooling, the pressure drop
+//!   is the only non-ideality).
+//! - Back flow (p_c < p_im, which the paper's square root leaves undefined): W_ic is signed
+//!   (the same restriction flown backwards with the intake manifold's density), so the model
+//!   stays finite and continuous through W_ic = 0. The flows are taken upwind: reversed gas
+//!   leaves the intake manifold at T_im and with its oxygen fraction unchanged, and enters the
+//!   volume before the intercooler cooled to T_im,in (the cooler is ideal in both directions).
+//!   The composition of that volume is not a state of the paper's model; it is taken as air
+//!   (X_Oc) throughout, so back flow of EGR gas is not tracked. With the authors' W_c >= 1e-4
+//!   kg/s, back flow occurs only in brief transients where the compressor flow collapses.
+//! - Everything else, including the temperature floors of the authors' semantics (T >= T_amb/2;
+//!   p_c has the limits of p_im, item 9), is as in [`Engine10`].
+//!
+//! `k_ic` must be > 0 (k_ic -> 0 is the 10-state model, where p_c = p_im algebraically).
+
+use super::common::{self, Ports};
+use super::engine10::{self, temperature_bounds, Engine10};
+use super::{
+    clip_state, limit_derivatives, Drive, Evaluation, Guard, Model, ModelInput, ModelOptions,
+};
+use crate::components::cylinder::SeligerIterate;
+use crate::components::{intercooler, manifold};
+use crate::params::{ParamIssue, ParamIssues, Params};
+
+/// State indices of [`Engine12`].
+pub mod ix {
+    /// Intake manifold pressure p_im [Pa].
+    pub const P_IM: usize = 0;
+    /// Exhaust manifold pressure p_em [Pa].
+    pub const P_EM: usize = 1;
+    /// Pressure before the intercooler (compressor outlet) p_c [Pa].
+    pub const P_C: usize = 2;
+    /// Intake manifold temperature T_im [K].
+    pub const T_IM: usize = 3;
+    /// Exhaust manifold temperature T_em [K].
+    pub const T_EM: usize = 4;
+    /// Temperature before the intercooler T_ic [K].
+    pub const T_IC: usize = 5;
+    /// Intake manifold oxygen mass fraction X_Oim [-].
+    pub const X_OIM: usize = 6;
+    /// Exhaust manifold oxygen mass fraction X_Oem [-].
+    pub const X_OEM: usize = 7;
+    /// Turbo speed omega_t [rad/s].
+    pub const OMEGA_T: usize = 8;
+    /// EGR actuator state u_egr1 [%].
+    pub const U_EGR1: usize = 9;
+    /// EGR actuator state u_egr2 [%].
+    pub const U_EGR2: usize = 10;
+    /// VGT actuator state [%].
+    pub const U_VGT: usize = 11;
+}
+
+/// State names of the 12-state model.
+pub const STATE_NAMES_12: [&str; 12] = [
+    "p_im",
+    "p_em",
+    "p_c",
+    "T_im",
+    "T_em",
+    "T_ic",
+    "X_Oim",
+    "X_Oem",
+    "omega_t",
+    "u_egr1",
+    "u_egr2",
+    "u_vgt_act",
+];
+
+/// Where each 10-state index sits in the 12-state vector.
+const FROM_10: [usize; 10] = [
+    ix::P_IM,
+    ix::P_EM,
+    ix::T_IM,
+    ix::T_EM,
+    ix::X_OIM,
+    ix::X_OEM,
+    ix::OMEGA_T,
+    ix::U_EGR1,
+    ix::U_EGR2,
+    ix::U_VGT,
+];
+
+/// The 12-state model of section 9.2 (temperature states, control volume before the
+/// intercooler, intercooler pressure drop).
+#[derive(Debug, Clone)]
+pub struct Engine12 {
+    /// The 10-state model with the same parameters and options (its limits, guesses).
+    base: Engine10,
+    bounds: [(f64, f64); 12],
+}
+
+fn state_bounds_12(base: &Engine10) -> [(f64, f64); 12] {
+    let b10 = base.state_bounds();
+    let mut b = [temperature_bounds(base.params(), base.options()); 12];
+    for (i10, &i) in FROM_10.iter().enumerate() {
+        b[i] = b10[i10];
+    }
+    b[ix::P_C] = b10[engine10::ix::P_IM];
+    b
+}
+
+impl Engine12 {
+    /// Build the model from validated parameters (every parameter problem is reported);
+    /// additionally `intercooler.k_ic` must be > 0.
+    pub fn new(p: Params, opts: ModelOptions) -> Result<Self, ParamIssues> {
+        let k_ic = p.intercooler.k_ic;
+        let base = Engine10::new(p, opts)?;
+        if k_ic <= 0.0 {
+            return Err(ParamIssues(vec![ParamIssue {
+                field: "intercooler.k_ic".into(),
+                value: k_ic,
+                constraint: "must be > 0 for the 12-state model (k_ic = 0, no pressure drop, \
+                             is the 10-state model)"
+                    .into(),
+            }]));
+        }
+        let bounds = state_bounds_12(&base);
+        Ok(Self { base, bounds })
+    }
+
+    /// The published parameters (with the default intercooler of `docs/extensions.md`) and
+    /// default options.
+    pub fn published() -> Self {
+        Self::new(Params::published(), ModelOptions::default())
+            .expect("published parameters are valid")
+    }
+
+    /// The 12-state vector of a 10-state vector `x10` with the intercooler-volume states
+    /// `p_c` [Pa] and `t_ic` [K].
+    pub fn from_10_state(x10: &[f64; 10], p_c: f64, t_ic: f64) -> [f64; 12] {
+        let mut x = [0.0; 12];
+        for (i10, &i) in FROM_10.iter().enumerate() {
+            x[i] = x10[i10];
+        }
+        x[ix::P_C] = p_c;
+        x[ix::T_IC] = t_ic;
+        x
+    }
+
+    /// The 10 states shared with [`Engine10`].
+    pub fn to_10_state(x: &[f64; 12]) -> [f64; 10] {
+        std::array::from_fn(|i10| x[FROM_10[i10]])
+    }
+}
+
+impl Model<12> for Engine12 {
+    fn state_names(&self) -> [&'static str; 12] {
+        STATE_NAMES_12
+    }
+
+    fn state_scales(&self) -> [f64; 12] {
+        let s10 = self.base.state_scales();
+        let mut s = [0.0; 12];
+        for (i10, &i) in FROM_10.iter().enumerate() {
+            s[i] = s10[i10];
+        }
+        s[ix::P_C] = s10[engine10::ix::P_IM];
+        s[ix::T_IC] = s10[engine10::ix::T_IM];
+        s
+    }
+
+    fn with_options(&self, opts: ModelOptions) -> Self {
+        let base = self.base.with_options(opts);
+        let bounds = state_bounds_12(&base);
+        Self { base, bounds }
+    }
+
+    fn params(&self) -> &Params {
+        self.base.params()
+    }
+
+    fn options(&self) -> &ModelOptions {
+        self.base.options()
+    }
+
+    fn state_bounds(&self) -> [(f64, f64); 12] {
+        self.bounds
+    }
+
+    fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)> {
+        self.base
+            .actuator_state_values(d)
+            .into_iter()
+            .map(|(i10, v)| (FROM_10[i10], v))
+            .collect()
+    }
+
+    /// The 10-state guess; T_ic = the compressor outlet temperature T_c there and p_c = p_im
+    /// plus the pressure drop (eq. (86)) that carries W_ei - W_egr (the intercooler flow at any
+    /// equilibrium).
+    fn initial_guess(&self, d: &Drive) -> [f64; 12] {
+        let p = self.params();
+        let x10 = self.base.initial_guess(d);
+        let p_im = x10[engine10::ix::P_IM];
+        let mut x = Self::from_10_state(&x10, p_im, p.ambient.t_amb);
+        let memory = SeligerIterate {
+            x_r: 0.0,
+            t_1: p.intake_manifold.t_im,
+        };
+        let s = self.eval(&x, &ModelInput::constant(*d), memory).signals;
+        let (t_ic, w) = (s.t_c, s.w_ei - s.w_egr);
+        if t_ic.is_finite() && t_ic > 0.0 && w.is_finite() && w > 0.0 {
+            x[ix::T_IC] = t_ic;
+            x[ix::P_C] = p_im + intercooler::pressure_drop(&p.intercooler, w, t_ic, p_im);
+        }
+        x
+    }
+
+    #[inline]
+    fn eval(&self, x_raw: &[f64; 12], u: &ModelInput, memory: SeligerIterate) -> Evaluation<12> {
+        let p = self.params();
+        let opts = self.options();
+        let gas = &p.gas;
+        let t_im_in = p.intake_manifold.t_im; // eq. (80): constant inflow temperature
+
+        // States, clipped into the integrator limits (items 9-12, 37; temperature floors).
+        let x = clip_state(x_raw, &self.bounds);
+        let [p_im, p_em, p_c, t_im, t_em, t_ic, x_oim, x_oem, omega_t, u_egr1, u_egr2, u_vgt] = x;
+
+        // Intercooler flow, eq. (86) (signed, see the module documentation).
+        let w_ic = intercooler::w_ic(&p.intercooler, p_c, t_ic, p_im, t_im);
+        let (w_ic_fwd, w_ic_back) = (w_ic.max(0.0), (-w_ic).max(0.0));
+
+        // Everything but the control volumes; the compressor sees p_c (eq. (87)).
+        let ports = Ports {
+            p_im,
+            p_em,
+            x_oim,
+            omega_t,
+            u_egr1,
+            u_egr2,
+            u_vgt,
+            t_im,
+            t_em: Some(t_em),
+            p_c: Some(p_c),
+            w_ic: Some(w_ic),
+        };
+        let sh = common::evaluate(p, &self.base.base.cc, opts, &ports, u, memory);
+        let mut signals = sh.signals;
+        let sg = &signals;
+
+        // Control volume before the intercooler, eq. (85): in W_c at T_c, out W_ic at T_ic.
+        let ic = manifold::adiabatic(
+            gas.r_a,
+            gas.c_va,
+            p.intercooler.v_ic,
+            p_c,
+            t_ic,
+            sg.w_c + w_ic_back,
+            sg.t_c * sg.w_c + t_im_in * w_ic_back,
+            w_ic_fwd,
+        );
+        // Intake manifold, eq. (80) with W_ic from eq. (86).
+        let w_in_im = w_ic_fwd + sg.w_egr;
+        let im = manifold::adiabatic(
+            gas.r_a,
+            gas.c_va,
+            p.intake_manifold.v_im,
+            p_im,
+            t_im,
+            w_in_im,
+            t_im_in * w_in_im,
+            sg.w_ei + w_ic_back,
+        );
+        // Exhaust manifold, eq. (81).
+        let em = manifold::adiabatic(
+            gas.r_e,
+            gas.c_ve,
+            p.exhaust_manifold.v_em,
+            p_em,
+            t_em,
+            sg.w_eo,
+            sg.t_em_in * sg.w_eo,
+            sg.w_t + sg.w_egr,
+        );
+        // Oxygen mass fractions, eq. (83) with W_ic (out-flows do not change a mass fraction).
+        let o_im = manifold::intake(
+            gas.r_a,
+            t_im,
+            p.intake_manifold.v_im,
+            p_im,
+            x_oim,
+            x_oem,
+            p.intake_manifold.x_oc,
+            w_ic_fwd,
+            sg.w_egr,
+            sg.w_ei,
+        );
+        let o_em = manifold::exhaust(
+            gas.r_e,
+            t_em,
+            p.exhaust_manifold.v_em,
+            p_em,
+            x_oem,
+            sh.x_oe,
+            sg.w_eo,
+            sg.w_t,
+            sg.w_egr,
+        );
+        let mut dx = [
+            im.dp,
+            em.dp,
+            ic.dp,
+            im.dt,
+            em.dt,
+            ic.dt,
+            o_im.dx_o,
+            o_em.dx_o,
+            sh.d_omega_t,
+            sh.d_u_egr1,
+            sh.d_u_egr2,
+            sh.d_u_vgt,
+        ];
+        if opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds) {
+            signals.guards |= Guard::StateLimit as u32;
+        }
+        Evaluation {
+            dx,
+            signals,
+            memory_next: sh.memory_next,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_maps_round_trip() {
+        let x10 = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0];
+        let x = Engine12::from_10_state(&x10, 3e5, 400.0);
+        assert_eq!(Engine12::to_10_state(&x), x10);
+        for (i10, name) in engine10::STATE_NAMES_10.iter().enumerate() {
+            assert_eq!(STATE_NAMES_12[FROM_10[i10]], *name);
+        }
+        let m = Engine12::published();
+        let b = m.state_bounds();
+        assert_eq!(b[ix::P_C], b[ix::P_IM]);
+        assert_eq!(b[ix::T_IC], b[ix::T_IM]);
+        assert!(b[ix::T_IC].0 > 100.0 && b[ix::T_IC].1 == f64::INFINITY);
+    }
+
+    #[test]
+    fn k_ic_zero_is_rejected_with_its_field() {
+        let mut p = Params::published();
+        p.intercooler.k_ic = 0.0;
+        let e = Engine12::new(p, ModelOptions::default()).unwrap_err();
+        assert_eq!(e.0.len(), 1);
+        assert_eq!(e.0[0].field, "intercooler.k_ic");
+        assert!(e.to_string().contains("10-state"), "{e}");
+    }
+
+    #[test]
+    fn back_flow_is_finite_continuous_and_upwind() {
+        // Around p_c = p_im the derivatives stay finite and continuous; reversed flow leaves
+        // the intake manifold at T_im without changing X_Oim.
+        let m = Engine12::published();
+        let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let mut x = m.initial_guess(&d);
+        let u = ModelInput::constant(d);
+        let mem = SeligerIterate {
+            x_r: 0.0,
+            t_1: 300.0,
+        };
+        let p_im = x[ix::P_IM];
+        let mut prev: Option<[f64; 12]> = None;
+        for k in -20..=20 {
+            x[ix::P_C] = p_im + k as f64 * 0.01;
+            let ev = m.eval(&x, &u, mem);
+            assert!(ev.dx.iter().all(|v| v.is_finite()));
+            assert_eq!(ev.signals.w_ic.signum(), if k >= 0 { 1.0 } else { -1.0 });
+            if let Some(pr) = prev {
+                for i in 0..12 {
+                    let scale = m.state_scales()[i];
+                    // |dW_ic/dp| ~ 1/sqrt(dp): over 0.01 Pa the change stays small
+                    assert!(
+                        (ev.dx[i] - pr[i]).abs() / scale < 0.2,
+                        "{} jumps",
+                        STATE_NAMES_12[i]
+                    );
+                }
+            }
+            prev = Some(ev.dx);
+        }
+    }
+}
