@@ -1,6 +1,10 @@
-//! Analysis computed from the model: steady state (equilibrium) with validity flags, step-response
-//! metrics, the section-9 extension comparison and the cylinder-out temperature study.
+//! Analysis computed from the model: steady state (equilibrium) with validity flags,
+//! linearization, poles and transmission zeros, operating maps, step-response metrics, the
+//! section-9 extension comparison and the cylinder-out temperature study.
 
 pub mod extensions;
+pub mod linearize;
+pub mod map;
 pub mod steady;
 pub mod step;
+pub mod zeros;

@@ -1,0 +1,1015 @@
+//! Linearization `dx = A dx + B du`, `dy = C dx + D du` of a model at an operating point.
+//!
+//! Inputs, in column order, are `(u_delta, u_egr, u_vgt, n_e)` in user units (mg/cycle/cylinder,
+//! %, %, rpm) — the reference procedure of the implementation notes (§4, "Linearization").
+//! The transport delays tau_degr and tau_dvgt act on inputs only and have no states, so the
+//! linear model is that of the **undelayed** system: perturbing `u_egr` moves the current and
+//! the delayed command together. A delayed channel's linear response is the undelayed one
+//! shifted by the delay; optionally the delays are replaced by Padé approximants of order 1-3
+//! as extra states ([`LinearizeOptions::pade_order`]).
+//!
+//! Outputs are any state name (exact rows of C) or any [`Signals::NAMES`] entry; the default
+//! set is [`DEFAULT_OUTPUTS`] (p_im, p_em, W_c, n_t, x_egr, lambda_O, M_e).
+//!
+//! ## Derivatives
+//! Central differences on [`Model::eval`], Richardson-extrapolated: with `D(h)` the central
+//! difference at step `h` and steps `h, 2h, ..., 2^L h`, the table
+//! `R_{k,j} = (4^j R_{k,j-1} - R_{k+1,j-1}) / (4^j - 1)` removes the error terms `h^2 .. h^(2L)`,
+//! so `L = 1` (the default, 4 evaluations per direction) is exact for quartic functions and has
+//! an `O(h^4)` truncation error. The step is `h = rel_step * max(|v|, scale)` rounded to a power
+//! of two, with `scale` the state scale of the model or the input scale ([`INPUT_SCALES`]); the
+//! denominators use the exactly representable differences of the perturbed values.
+//! The default `rel_step = 1e-4` balances the truncation error `(h/scale)^4 ~ 1e-16` against
+//! the evaluation noise (the converged cylinder-temperature fixed point, relative 1e-12
+//! tolerance, contributes ~1e-14) divided by `h/scale`: measured entry accuracy is ~1e-9
+//! relative (see the tests).
+//!
+//! ## Kinks
+//! The authors' implementation has many `min`/`max`/switch blocks (input saturations,
+//! integrator limits, `Pi_c >= 1`, the c_m linear branch, ...). Where the operating point sits
+//! on or within the difference stencil of such a kink, a central difference is the average of
+//! two one-sided slopes, not a derivative. Two independent checks find it:
+//!
+//! 1. a [`crate::model::Guard`] bit (every saturation of the implementation has one) differs
+//!    between the stencil points of a direction;
+//! 2. the one-sided slopes are inconsistent. With `S(h) = (f(h) - 2 f(0) + f(-h)) / h` (the
+//!    difference of the one-sided slopes), a smooth function has `T1 = |S(2h) - 2 S(h)| =
+//!    O(h^3)` and `T2 = |D(h) - D(2h)| = O(h^2)`, while a slope jump `J` at a distance `c < h`
+//!    gives `T1 = J |3c - 2h| / (2h)` and `T2 = J c / (4h)`: never both small. An entry is
+//!    flagged when `T1 > kink_tol * ref` or `T2 > 100 kink_tol * ref`, `ref` being the row's
+//!    largest scaled entry ([`LinearizeOptions::kink_tol`], default 1e-6; smooth points score
+//!    below 0.1 of that, see [`LinearModel::kink_score`]). This also catches the kinks without
+//!    a guard bit (e.g. `max(omega_t, c_m2)` in item 33).
+//!
+//! A flagged direction is differenced again with steps h/16 and h/256: a kink at a distance
+//! from the point (or strong curvature, e.g. near Pi_c = 1 where the compressor efficiency has
+//! a root singularity) then leaves the stencil and the direction is accepted. What remains is
+//! a kink at (within 2h/256 of) the operating point. With [`LinearizeOptions::strict`]
+//! (default) that is an error; otherwise it is listed in [`LinearModel::kinks`], and
+//! [`LinearModel::kinks_affecting`] tells whether it lies on a signal path of a given
+//! input-output channel (the zeros and DC-gain functions refuse such channels).
+
+use super::steady::SteadyState;
+use crate::components::cylinder::SeligerIterate;
+use crate::model::{CylinderTemp, Drive, Guard, Model, ModelInput, Signals};
+use nalgebra::DMatrix;
+use std::fmt;
+
+/// Input names of the linear model, in column order (user units: mg, %, %, rpm).
+pub const INPUT_NAMES: [&str; 4] = ["u_delta", "u_egr", "u_vgt", "n_e"];
+
+/// Typical magnitudes of the inputs in [`INPUT_NAMES`] order (mg, %, %, rpm), used for step
+/// sizes and scaling.
+pub const INPUT_SCALES: [f64; 4] = [100.0, 100.0, 100.0, 1000.0];
+
+/// Default outputs: p_im [Pa], p_em [Pa], W_c [kg/s], n_t [rpm], x_egr [-], lambda_O [-],
+/// M_e [Nm].
+pub const DEFAULT_OUTPUTS: [&str; 7] = ["p_im", "p_em", "W_c", "n_t", "x_egr", "lambda_O", "M_e"];
+
+/// Options of [`linearize`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearizeOptions {
+    /// Output names: state names or [`Signals::NAMES`] entries (default [`DEFAULT_OUTPUTS`]).
+    pub outputs: Vec<String>,
+    /// Relative step: `h = rel_step * max(|v|, scale)` (default 1e-4).
+    pub rel_step: f64,
+    /// Richardson extrapolation levels L (0 = plain central differences, 1 = default, <= 3).
+    /// Costs `2 (L + 1)` model evaluations per direction.
+    pub richardson: usize,
+    /// Order of the Padé approximants of the actuator delays added as states (0 = none,
+    /// the undelayed system; 1-3).
+    pub pade_order: usize,
+    /// Fail with [`LinearizeError::Kink`] when any kink is found (default true); otherwise
+    /// return the model with [`LinearModel::kinks`] filled in.
+    pub strict: bool,
+    /// Relative threshold of the one-sided slope test (default 1e-6; see the module doc).
+    pub kink_tol: f64,
+    /// Difference the directions on two rayon tasks (default false: maps parallelize over
+    /// points instead).
+    pub parallel: bool,
+}
+
+impl Default for LinearizeOptions {
+    fn default() -> Self {
+        Self {
+            outputs: DEFAULT_OUTPUTS.iter().map(|s| s.to_string()).collect(),
+            rel_step: 1e-4,
+            richardson: 1,
+            pade_order: 0,
+            strict: true,
+            kink_tol: 1e-6,
+            parallel: false,
+        }
+    }
+}
+
+impl LinearizeOptions {
+    /// Check the options; the message names the field.
+    pub fn validate(&self) -> Result<(), LinearizeError> {
+        let bad = |field: &'static str, value: f64, constraint: &'static str| {
+            Err(LinearizeError::BadOption {
+                field,
+                value,
+                constraint,
+            })
+        };
+        if !(self.rel_step.is_finite() && self.rel_step > 0.0 && self.rel_step <= 0.1) {
+            return bad("rel_step", self.rel_step, "must lie in (0, 0.1]");
+        }
+        if self.richardson > 3 {
+            return bad("richardson", self.richardson as f64, "must be 0..=3");
+        }
+        if self.pade_order > 3 {
+            return bad("pade_order", self.pade_order as f64, "must be 0..=3");
+        }
+        if !(self.kink_tol.is_finite() && self.kink_tol > 0.0) {
+            return bad("kink_tol", self.kink_tol, "must be finite and > 0");
+        }
+        if self.outputs.is_empty() {
+            return bad("outputs", 0.0, "at least one output is needed");
+        }
+        Ok(())
+    }
+}
+
+/// A non-smooth point found inside the difference stencil of one direction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Kink {
+    /// The perturbed variable: a state name or an input name (`u_egr`, or with Padé states
+    /// `u_egr(now)` / `u_egr(delayed)`).
+    pub variable: String,
+    /// Labels of the guards that switch inside the stencil (may be empty).
+    pub guards: Vec<&'static str>,
+    /// Rows whose one-sided slopes disagree (`d(p_im)/dt` for a state derivative, an output
+    /// name otherwise; may be empty when only a guard switched).
+    pub rows: Vec<String>,
+}
+
+impl fmt::Display for Kink {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "kink in direction {}", self.variable)?;
+        if !self.guards.is_empty() {
+            write!(f, " (switching: {})", self.guards.join(", "))?;
+        }
+        if !self.rows.is_empty() {
+            write!(f, " (one-sided slopes differ in: {})", self.rows.join(", "))?;
+        }
+        Ok(())
+    }
+}
+
+/// Why no linear model was returned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LinearizeError {
+    /// An option is out of range.
+    #[error("linearize option {field} = {value}: {constraint}")]
+    BadOption {
+        /// Option name.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Constraint.
+        constraint: &'static str,
+    },
+    /// An output name is neither a state nor a signal.
+    #[error("unknown output {name:?}; known: the states {states} and the signals {signals}")]
+    UnknownOutput {
+        /// The name asked for.
+        name: String,
+        /// State names, comma separated.
+        states: String,
+        /// Signal names, comma separated.
+        signals: String,
+    },
+    /// The state, an input, or a model evaluation is not finite.
+    #[error("non-finite {what} = {value} at the operating point")]
+    NonFinite {
+        /// What (e.g. `state p_im`, `derivative of omega_t`, `output W_c`).
+        what: String,
+        /// Value.
+        value: f64,
+    },
+    /// The operating point sits at (or within the difference stencil of) a kink.
+    #[error("the operating point sits at a kink of the model: {}; the derivative is one-sided there (set strict = false to obtain the averaged slopes with the kinks listed)", .0.iter().map(|k| k.to_string()).collect::<Vec<_>>().join("; "))]
+    Kink(Vec<Kink>),
+}
+
+/// A continuous-time linear model `dx' = A dx + B du`, `dy = C dx + D du` in deviation
+/// variables around the operating point (`x0`, `u0`, `y0`), in the model's units (Pa, -, rad/s,
+/// %; inputs mg, %, %, rpm; outputs in their signal units).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearModel {
+    /// State matrix (n x n) [1/s].
+    pub a: DMatrix<f64>,
+    /// Input matrix (n x 4).
+    pub b: DMatrix<f64>,
+    /// Output matrix (p x n).
+    pub c: DMatrix<f64>,
+    /// Feedthrough matrix (p x 4).
+    pub d: DMatrix<f64>,
+    /// State names: the model's states, then Padé states `pade_egr_1..`, `pade_vgt_1..`.
+    pub state_names: Vec<String>,
+    /// Input names ([`INPUT_NAMES`]).
+    pub input_names: Vec<String>,
+    /// Output names.
+    pub output_names: Vec<String>,
+    /// Operating state (Padé states 0).
+    pub x0: Vec<f64>,
+    /// Operating inputs (u_delta [mg], u_egr [%], u_vgt [%], n_e [rpm]).
+    pub u0: [f64; 4],
+    /// Outputs at the operating point.
+    pub y0: Vec<f64>,
+    /// State derivatives at the operating point (about 0 at a steady state).
+    pub dx0: Vec<f64>,
+    /// Typical magnitudes of the states (for scaling).
+    pub state_scales: Vec<f64>,
+    /// Typical magnitudes of the inputs ([`INPUT_SCALES`]).
+    pub input_scales: Vec<f64>,
+    /// Typical magnitudes of the outputs (|y0|, or the state scale for state outputs).
+    pub output_scales: Vec<f64>,
+    /// Kinks found in the difference stencils (empty for a smooth point).
+    pub kinks: Vec<Kink>,
+    /// Largest last Richardson correction, relative to the row's largest scaled entry (an
+    /// upper estimate of the error of the previous extrapolation order; 0 with `richardson = 0`).
+    pub correction: f64,
+    /// Largest score of the one-sided slope test over all entries: the measure relative to its
+    /// threshold (`kink_tol` times the row's largest scaled entry); above 1 in a direction
+    /// listed in [`LinearModel::kinks`], typically below 0.1 at smooth points.
+    pub kink_score: f64,
+    /// Padé order of the delay approximation (0 = undelayed system).
+    pub pade_order: usize,
+    /// Delays [s] of the (u_egr, u_vgt) channels that the linear model omits (or approximates).
+    pub delays: [f64; 2],
+    /// Model evaluations used.
+    pub evaluations: usize,
+}
+
+/// Output selector: a state (exact row of C) or a signal.
+#[derive(Debug, Clone, Copy)]
+enum Sel {
+    State(usize),
+    Signal(usize),
+}
+
+fn resolve_outputs(
+    state_names: &[&'static str],
+    outputs: &[String],
+) -> Result<Vec<Sel>, LinearizeError> {
+    outputs
+        .iter()
+        .map(|name| {
+            if let Some(i) = state_names.iter().position(|s| s == name) {
+                Ok(Sel::State(i))
+            } else if let Some(j) = Signals::NAMES.iter().position(|s| s == name) {
+                Ok(Sel::Signal(j))
+            } else {
+                Err(LinearizeError::UnknownOutput {
+                    name: name.clone(),
+                    states: state_names.join(", "),
+                    signals: Signals::NAMES.join(", "),
+                })
+            }
+        })
+        .collect()
+}
+
+/// A perturbation direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Dir {
+    State(usize),
+    /// Input (index into INPUT_NAMES); `now` / `delayed` select which copies move.
+    Input {
+        k: usize,
+        now: bool,
+        delayed: bool,
+    },
+}
+
+/// Linearize `m` at its steady state `ss` (see [`linearize`]).
+pub fn linearize_steady<const N: usize, M: Model<N>>(
+    m: &M,
+    ss: &SteadyState<N>,
+    opts: &LinearizeOptions,
+) -> Result<LinearModel, LinearizeError> {
+    linearize(m, &ss.x, &ss.drive, opts)
+}
+
+/// Linearize `m` at state `x` and constant inputs `d` (any point; at a steady state the result
+/// is the usual small-signal model). See the module documentation for the method.
+///
+/// A model in [`CylinderTemp::OneIteration`] mode is linearized in converged mode: the
+/// one-iteration memory is a property of the integration, and its fixed point is the
+/// converged solution.
+pub fn linearize<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    d: &Drive,
+    opts: &LinearizeOptions,
+) -> Result<LinearModel, LinearizeError> {
+    if m.options().cylinder_temp == CylinderTemp::OneIteration {
+        let mut o = *m.options();
+        o.cylinder_temp = CylinderTemp::Converged;
+        return linearize_impl(&m.with_options(o), x, d, opts);
+    }
+    linearize_impl(m, x, d, opts)
+}
+
+/// Rows of one evaluation: the N derivatives then the signal outputs.
+struct Rows {
+    n: usize,
+    sig: Vec<(usize, usize)>, // (row index, signal index)
+}
+
+impl Rows {
+    #[inline]
+    fn fill<const N: usize>(&self, dx: &[f64; N], s: &Signals, out: &mut [f64]) {
+        out[..self.n].copy_from_slice(dx);
+        if !self.sig.is_empty() {
+            let v = s.values();
+            for &(r, j) in &self.sig {
+                out[r] = v[j];
+            }
+        }
+    }
+}
+
+fn linearize_impl<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    d: &Drive,
+    opts: &LinearizeOptions,
+) -> Result<LinearModel, LinearizeError> {
+    opts.validate()?;
+    let names = m.state_names();
+    for i in 0..N {
+        if !x[i].is_finite() {
+            return Err(LinearizeError::NonFinite {
+                what: format!("state {}", names[i]),
+                value: x[i],
+            });
+        }
+    }
+    for (name, v) in Drive::NAMES.iter().zip(d.to_array()) {
+        if !v.is_finite() {
+            return Err(LinearizeError::NonFinite {
+                what: format!("input {name}"),
+                value: v,
+            });
+        }
+    }
+    let sel = resolve_outputs(&names, &opts.outputs)?;
+    let p = sel.len();
+    let nrow = N + p;
+    let rows = Rows {
+        n: N,
+        sig: sel
+            .iter()
+            .enumerate()
+            .filter_map(|(r, s)| match s {
+                Sel::Signal(j) => Some((N + r, *j)),
+                Sel::State(_) => None,
+            })
+            .collect(),
+    };
+    let u0 = [d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct, d.n_e_rpm];
+    let pade = opts.pade_order;
+    let mut dirs: Vec<Dir> = (0..N).map(Dir::State).collect();
+    for k in 0..4 {
+        if pade > 0 && (k == 1 || k == 2) {
+            dirs.push(Dir::Input {
+                k,
+                now: true,
+                delayed: false,
+            });
+        } else {
+            dirs.push(Dir::Input {
+                k,
+                now: true,
+                delayed: true,
+            });
+        }
+    }
+    if pade > 0 {
+        for k in [1, 2] {
+            dirs.push(Dir::Input {
+                k,
+                now: false,
+                delayed: true,
+            });
+        }
+    }
+    let dir_name = |dir: &Dir| -> String {
+        match *dir {
+            Dir::State(i) => names[i].to_string(),
+            Dir::Input { k, now, delayed } => match (now, delayed) {
+                (true, true) => INPUT_NAMES[k].to_string(),
+                (true, false) => format!("{}(now)", INPUT_NAMES[k]),
+                _ => format!("{}(delayed)", INPUT_NAMES[k]),
+            },
+        }
+    };
+    let scales = m.state_scales();
+    let mem = SeligerIterate {
+        x_r: 0.0,
+        t_1: m.params().intake_manifold.t_im,
+    };
+    let u_base = ModelInput::constant(*d);
+    let mut evaluations = 0usize;
+
+    // Base point.
+    let e0 = m.eval(x, &u_base, mem);
+    evaluations += 1;
+    let mut f0 = vec![0.0; nrow];
+    rows.fill(&e0.dx, &e0.signals, &mut f0);
+    for (r, v) in f0.iter().enumerate() {
+        if !v.is_finite() {
+            let what = if r < N {
+                format!("derivative of {}", names[r])
+            } else {
+                format!("output {}", opts.outputs[r - N])
+            };
+            return Err(LinearizeError::NonFinite { what, value: *v });
+        }
+    }
+    let g0 = e0.signals.guards;
+
+    let levels = opts.richardson;
+    let ndir = dirs.len();
+    let differ = Differ {
+        m,
+        x,
+        u_base,
+        mem,
+        rows: &rows,
+        f0: &f0,
+        g0,
+        levels,
+        state_rows: sel
+            .iter()
+            .enumerate()
+            .filter_map(|(o, s)| match s {
+                Sel::State(i) => Some((N + o, *i)),
+                Sel::Signal(_) => None,
+            })
+            .collect(),
+    };
+    let mut work = Work::new(nrow, levels);
+    // Jacobian of all rows w.r.t. all directions, the slope-consistency measure and the last
+    // Richardson correction.
+    let mut jac = DMatrix::<f64>::zeros(nrow, ndir);
+    let mut incons = DMatrix::<f64>::zeros(nrow, ndir);
+    let mut corr = DMatrix::<f64>::zeros(nrow, ndir);
+    let mut col_scale = vec![0.0; ndir];
+    let mut h0 = vec![0.0; ndir];
+    let mut v0s = vec![0.0; ndir];
+    let mut switched = vec![0u32; ndir];
+    let non_finite = |c: usize, r: usize, v: f64| {
+        let what = if r < N {
+            format!(
+                "derivative of {} (perturbing {})",
+                names[r],
+                dir_name(&dirs[c])
+            )
+        } else {
+            format!(
+                "output {} (perturbing {})",
+                opts.outputs[r - N],
+                dir_name(&dirs[c])
+            )
+        };
+        LinearizeError::NonFinite { what, value: v }
+    };
+    let store = |c: usize,
+                 work: &Work,
+                 jac: &mut DMatrix<f64>,
+                 incons: &mut DMatrix<f64>,
+                 corr: &mut DMatrix<f64>| {
+        jac.column_mut(c).copy_from_slice(&work.d);
+        incons.column_mut(c).copy_from_slice(&work.incons);
+        corr.column_mut(c).copy_from_slice(&work.corr);
+    };
+
+    // Pass 1: every direction at the nominal step.
+    for (c, dir) in dirs.iter().enumerate() {
+        let (v0, sc) = match *dir {
+            Dir::State(i) => (x[i], scales[i]),
+            Dir::Input { k, .. } => (u0[k], INPUT_SCALES[k]),
+        };
+        col_scale[c] = sc;
+        v0s[c] = v0;
+        h0[c] = pow2_step(opts.rel_step * v0.abs().max(sc));
+    }
+    evaluations += ndir * 2 * (levels + 1);
+    if opts.parallel && ndir > 1 {
+        type Col = (usize, u32, Vec<f64>, Vec<f64>, Vec<f64>);
+        let run = |range: std::ops::Range<usize>| -> Vec<Col> {
+            let mut w = Work::new(nrow, levels);
+            range
+                .map(|c| {
+                    let sw = differ.column(&dirs[c], v0s[c], h0[c], &mut w);
+                    (c, sw, w.d.clone(), w.incons.clone(), w.corr.clone())
+                })
+                .collect()
+        };
+        let mid = ndir / 2;
+        let (lo, hi) = rayon::join(|| run(0..mid), || run(mid..ndir));
+        for (c, sw, d, inc, co) in lo.into_iter().chain(hi) {
+            switched[c] = sw;
+            work.d.copy_from_slice(&d);
+            work.incons.copy_from_slice(&inc);
+            work.corr.copy_from_slice(&co);
+            if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                return Err(non_finite(c, r, work.d[r]));
+            }
+            store(c, &work, &mut jac, &mut incons, &mut corr);
+        }
+    } else {
+        for c in 0..ndir {
+            switched[c] = differ.column(&dirs[c], v0s[c], h0[c], &mut work);
+            if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                return Err(non_finite(c, r, work.d[r]));
+            }
+            store(c, &work, &mut jac, &mut incons, &mut corr);
+        }
+    }
+
+    // Row references: the largest scaled entry of each row.
+    let reference: Vec<f64> = (0..nrow)
+        .map(|r| {
+            (0..ndir)
+                .map(|c| (jac[(r, c)] * col_scale[c]).abs())
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    let is_inconsistent = |c: usize, r: usize, incons: &DMatrix<f64>| -> bool {
+        levels >= 1
+            && reference[r] > 0.0
+            && incons[(r, c)] * col_scale[c] > opts.kink_tol * reference[r]
+    };
+    let inconsistent_rows = |c: usize, incons: &DMatrix<f64>| -> Vec<usize> {
+        (0..nrow)
+            .filter(|&r| is_inconsistent(c, r, incons))
+            .collect()
+    };
+
+    // Pass 2: a direction whose stencil switches a guard or shows inconsistent one-sided
+    // slopes is retried with steps h/16 and h/256; a kink at a distance from the point is
+    // then outside the stencil. What remains is a kink at (or within 2h/256 of) the point.
+    let row_name = |r: usize| -> String {
+        if r < N {
+            format!("d({})/dt", names[r])
+        } else {
+            opts.outputs[r - N].clone()
+        }
+    };
+    let mut kinks: Vec<Kink> = Vec::new();
+    for c in 0..ndir {
+        if switched[c] == 0 && !(0..nrow).any(|r| is_inconsistent(c, r, &incons)) {
+            continue;
+        }
+        let mut bad = Vec::new();
+        for attempt in 1..=2 {
+            let h = h0[c] / 16f64.powi(attempt);
+            switched[c] = differ.column(&dirs[c], v0s[c], h, &mut work);
+            evaluations += 2 * (levels + 1);
+            if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                return Err(non_finite(c, r, work.d[r]));
+            }
+            store(c, &work, &mut jac, &mut incons, &mut corr);
+            bad = inconsistent_rows(c, &incons);
+            if switched[c] == 0 && bad.is_empty() {
+                break;
+            }
+        }
+        if switched[c] != 0 || !bad.is_empty() {
+            kinks.push(Kink {
+                variable: dir_name(&dirs[c]),
+                guards: Guard::ALL
+                    .iter()
+                    .filter(|g| switched[c] & (**g as u32) != 0)
+                    .map(|g| g.label())
+                    .collect(),
+                rows: bad.iter().map(|&r| row_name(r)).collect(),
+            });
+        }
+    }
+
+    let mut correction: f64 = 0.0;
+    let mut kink_score: f64 = 0.0;
+    for r in 0..nrow {
+        if reference[r] == 0.0 {
+            continue;
+        }
+        for c in 0..ndir {
+            correction = correction.max(corr[(r, c)] * col_scale[c] / reference[r]);
+            kink_score =
+                kink_score.max(incons[(r, c)] * col_scale[c] / (opts.kink_tol * reference[r]));
+        }
+    }
+    if opts.strict && !kinks.is_empty() {
+        return Err(LinearizeError::Kink(kinks));
+    }
+
+    // Assemble A, B, C, D (with Padé states for the delayed copies of u_egr, u_vgt).
+    let np = pade * 2;
+    let n = N + np;
+    let mut a = DMatrix::zeros(n, n);
+    let mut b = DMatrix::zeros(n, 4);
+    let mut cm = DMatrix::zeros(p, n);
+    let mut dm = DMatrix::zeros(p, 4);
+    for r in 0..nrow {
+        for c in 0..(N + 4) {
+            let v = jac[(r, c)];
+            match (r < N, c < N) {
+                (true, true) => a[(r, c)] = v,
+                (true, false) => b[(r, c - N)] = v,
+                (false, true) => cm[(r - N, c)] = v,
+                (false, false) => dm[(r - N, c - N)] = v,
+            }
+        }
+    }
+    let p_ = m.params();
+    let delays = [p_.egr_actuator.tau_degr, p_.vgt_actuator.tau_dvgt];
+    let mut state_names: Vec<String> = names.iter().map(|s| s.to_string()).collect();
+    let mut state_scales: Vec<f64> = scales.to_vec();
+    if pade > 0 {
+        for (q, (k, tau)) in [(1usize, delays[0]), (2usize, delays[1])]
+            .into_iter()
+            .enumerate()
+        {
+            let (pa, pb, pc, pd) = pade_realization(tau, pade);
+            let off = N + q * pade;
+            let col = N + 4 + q; // the delayed-copy direction
+                                 // z' = pa z + pb u_k;   w = pc z + pd u_k  (w replaces the delayed command)
+            for i in 0..pade {
+                for j in 0..pade {
+                    a[(off + i, off + j)] = pa[i][j];
+                }
+                b[(off + i, k)] = pb[i];
+            }
+            for r in 0..nrow {
+                let g = jac[(r, col)];
+                if g == 0.0 {
+                    continue;
+                }
+                for j in 0..pade {
+                    if r < N {
+                        a[(r, off + j)] += g * pc[j];
+                    } else {
+                        cm[(r - N, off + j)] += g * pc[j];
+                    }
+                }
+                if r < N {
+                    b[(r, k)] += g * pd;
+                } else {
+                    dm[(r - N, k)] += g * pd;
+                }
+            }
+            let tag = if k == 1 { "egr" } else { "vgt" };
+            for j in 0..pade {
+                state_names.push(format!("pade_{tag}_{}", j + 1));
+                state_scales.push(INPUT_SCALES[k]);
+            }
+        }
+    }
+    let mut x0v = x.to_vec();
+    x0v.extend(std::iter::repeat_n(0.0, np));
+    let y0: Vec<f64> = sel
+        .iter()
+        .enumerate()
+        .map(|(o, s)| match s {
+            Sel::State(i) => x[*i],
+            Sel::Signal(_) => f0[N + o],
+        })
+        .collect();
+    let output_scales = sel
+        .iter()
+        .zip(&y0)
+        .map(|(s, y)| match s {
+            Sel::State(i) => scales[*i],
+            Sel::Signal(_) => {
+                if y.abs() > 1e-300 {
+                    y.abs()
+                } else {
+                    1.0
+                }
+            }
+        })
+        .collect();
+    Ok(LinearModel {
+        a,
+        b,
+        c: cm,
+        d: dm,
+        state_names,
+        input_names: INPUT_NAMES.iter().map(|s| s.to_string()).collect(),
+        output_names: opts.outputs.clone(),
+        x0: x0v,
+        u0,
+        y0,
+        dx0: f0[..N].to_vec(),
+        state_scales,
+        input_scales: INPUT_SCALES.to_vec(),
+        output_scales,
+        kinks,
+        correction,
+        kink_score,
+        pade_order: pade,
+        delays,
+        evaluations,
+    })
+}
+
+/// Work buffers of one difference column.
+struct Work {
+    /// Central differences per level ([lev * nrow + r]).
+    dk: Vec<f64>,
+    /// Second differences per level.
+    sk: Vec<f64>,
+    fp: Vec<f64>,
+    fm: Vec<f64>,
+    /// Results: extrapolated derivative, last correction, slope inconsistency (per row).
+    d: Vec<f64>,
+    corr: Vec<f64>,
+    incons: Vec<f64>,
+}
+
+impl Work {
+    fn new(nrow: usize, levels: usize) -> Self {
+        Self {
+            dk: vec![0.0; (levels + 1) * nrow],
+            sk: vec![0.0; (levels + 1) * nrow],
+            fp: vec![0.0; nrow],
+            fm: vec![0.0; nrow],
+            d: vec![0.0; nrow],
+            corr: vec![0.0; nrow],
+            incons: vec![0.0; nrow],
+        }
+    }
+}
+
+/// Everything one difference column needs.
+struct Differ<'a, const N: usize, M: Model<N>> {
+    m: &'a M,
+    x: &'a [f64; N],
+    u_base: ModelInput,
+    mem: SeligerIterate,
+    rows: &'a Rows,
+    f0: &'a [f64],
+    g0: u32,
+    levels: usize,
+    /// (row, state) of the outputs that are states: exact rows.
+    state_rows: Vec<(usize, usize)>,
+}
+
+impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
+    /// Richardson-extrapolated central differences of every row in direction `dir` (value
+    /// `v0`) with base step `h`, into `w.d`, `w.corr`, `w.incons`; returns the guard bits that
+    /// switch inside the stencil.
+    fn column(&self, dir: &Dir, v0: f64, h: f64, w: &mut Work) -> u32 {
+        // R_{k,j} = R_{k,j-1} + (R_{k,j-1} - R_{k+1,j-1}) / (4^j - 1)
+        const INV_W: [f64; 4] = [0.0, 1.0 / 3.0, 1.0 / 15.0, 1.0 / 63.0];
+        let nrow = self.f0.len();
+        let levels = self.levels;
+        let mut switched = 0u32;
+        for lev in 0..=levels {
+            let hl = h * f64::from(1u32 << lev);
+            let vp = v0 + hl;
+            let vm = v0 - hl;
+            for (v, plus) in [(vp, true), (vm, false)] {
+                let (xx, uu) = perturbed(self.x, &self.u_base, dir, v);
+                let e = self.m.eval(&xx, &uu, self.mem);
+                let out = if plus { &mut w.fp } else { &mut w.fm };
+                self.rows.fill(&e.dx, &e.signals, out);
+                switched |= e.signals.guards ^ self.g0;
+            }
+            // exactly representable differences of the perturbed values
+            let inv_den = 1.0 / (vp - vm);
+            let inv_half = 2.0 * inv_den;
+            let dl = &mut w.dk[lev * nrow..(lev + 1) * nrow];
+            let sl = &mut w.sk[lev * nrow..(lev + 1) * nrow];
+            for r in 0..nrow {
+                dl[r] = (w.fp[r] - w.fm[r]) * inv_den;
+                sl[r] = (w.fp[r] - 2.0 * self.f0[r] + w.fm[r]) * inv_half;
+            }
+        }
+        for r in 0..nrow {
+            let mut t = [0.0; 4];
+            for (lev, tv) in t.iter_mut().enumerate().take(levels + 1) {
+                *tv = w.dk[lev * nrow + r];
+            }
+            let mut last = 0.0;
+            for j in 1..=levels {
+                for k in 0..=(levels - j) {
+                    let delta = (t[k] - t[k + 1]) * INV_W[j];
+                    if k == 0 {
+                        last = delta;
+                    }
+                    t[k] += delta;
+                }
+            }
+            w.d[r] = t[0];
+            w.corr[r] = last.abs();
+            // smooth: S(2h) - 2 S(h) = O(h^3) and D(h) - D(2h) = O(h^2) (weighted 1/100)
+            w.incons[r] = if levels >= 1 {
+                let t1 = (w.sk[nrow + r] - 2.0 * w.sk[r]).abs();
+                let t2 = (w.dk[r] - w.dk[nrow + r]).abs();
+                t1.max(0.01 * t2)
+            } else {
+                0.0
+            };
+        }
+        for &(r, i) in &self.state_rows {
+            w.d[r] = if *dir == Dir::State(i) { 1.0 } else { 0.0 };
+            w.corr[r] = 0.0;
+            w.incons[r] = 0.0;
+        }
+        switched
+    }
+}
+
+/// Largest power of two not above `h` (h > 0).
+#[inline]
+fn pow2_step(h: f64) -> f64 {
+    2f64.powi(h.log2().floor() as i32)
+}
+
+/// State and inputs with the direction's variable set to `v`.
+#[inline]
+fn perturbed<const N: usize>(
+    x: &[f64; N],
+    u: &ModelInput,
+    dir: &Dir,
+    v: f64,
+) -> ([f64; N], ModelInput) {
+    let mut xx = *x;
+    let mut uu = *u;
+    match *dir {
+        Dir::State(i) => xx[i] = v,
+        Dir::Input { k, now, delayed } => match k {
+            0 => uu.now.u_delta_mg = v,
+            1 => {
+                if now {
+                    uu.now.u_egr_pct = v;
+                }
+                if delayed {
+                    uu.u_egr_delayed = v;
+                }
+            }
+            2 => {
+                if now {
+                    uu.now.u_vgt_pct = v;
+                }
+                if delayed {
+                    uu.u_vgt_delayed = v;
+                }
+            }
+            _ => uu.now.n_e_rpm = v,
+        },
+    }
+    (xx, uu)
+}
+
+/// Coefficients (ascending powers of s) of the [k/k] Padé approximant of exp(-tau s):
+/// numerator N(s) and denominator D(s) with D(s) = sum c_j (tau s)^j, N(s) = sum c_j (-tau s)^j,
+/// c_j = (2k - j)! k! / ((2k)! j! (k - j)!).
+pub fn pade_coefficients(tau: f64, order: usize) -> (Vec<f64>, Vec<f64>) {
+    let fact = |n: usize| (1..=n).fold(1.0, |a, b| a * b as f64);
+    let k = order;
+    let mut num = Vec::with_capacity(k + 1);
+    let mut den = Vec::with_capacity(k + 1);
+    for j in 0..=k {
+        let c = fact(2 * k - j) * fact(k) / (fact(2 * k) * fact(j) * fact(k - j));
+        let t = tau.powi(j as i32);
+        den.push(c * t);
+        num.push(c * t * if j % 2 == 0 { 1.0 } else { -1.0 });
+    }
+    (num, den)
+}
+
+/// State-space realization (A, B, C, D) of the order-`k` Padé approximant of exp(-tau s):
+/// the controllable canonical form with the diagonal similarity `z_j = tau^(k-j) w_j`, which
+/// makes every entry of A and B O(1/tau) and of C O(1) (the states have the input's units).
+#[allow(clippy::type_complexity)]
+pub fn pade_realization(tau: f64, k: usize) -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>, f64) {
+    let (num, den) = pade_coefficients(tau, k);
+    // monic denominator: s^k + a_{k-1} s^{k-1} + ... + a_0
+    let lead = den[k];
+    let a: Vec<f64> = den.iter().map(|c| c / lead).collect();
+    let nn: Vec<f64> = num.iter().map(|c| c / lead).collect();
+    // feedthrough dd = (-1)^k; strictly proper remainder n(s) - dd d(s), degree < k
+    let dd = nn[k];
+    let rem: Vec<f64> = (0..k).map(|j| nn[j] - dd * a[j]).collect();
+    // Controllable canonical form with z_1 = the lowest state: z_j' = z_{j+1}, z_k' = -sum a_j z_{j+1} + u
+    // Balance: z = S w with S = diag(tau^(k-j)).
+    let mut am = vec![vec![0.0; k]; k];
+    let mut bm = vec![0.0; k];
+    let mut cm = vec![0.0; k];
+    // unscaled companion
+    for j in 0..k - 1 {
+        am[j][j + 1] = 1.0;
+    }
+    for j in 0..k {
+        am[k - 1][j] = -a[j];
+        cm[j] = rem[j];
+    }
+    bm[k - 1] = 1.0;
+    // w = S^-1 z -> A' = S^-1 A S, B' = S^-1 B, C' = C S
+    let s: Vec<f64> = (0..k).map(|j| tau.powi((k - j) as i32)).collect();
+    let mut a2 = vec![vec![0.0; k]; k];
+    for i in 0..k {
+        for j in 0..k {
+            a2[i][j] = am[i][j] * s[j] / s[i];
+        }
+    }
+    let b2: Vec<f64> = (0..k).map(|i| bm[i] / s[i]).collect();
+    let c2: Vec<f64> = (0..k).map(|j| cm[j] * s[j]).collect();
+    (a2, b2, c2, dd)
+}
+
+impl LinearModel {
+    /// Number of states.
+    pub fn n_states(&self) -> usize {
+        self.a.nrows()
+    }
+
+    /// Column of an input name (`u_delta`, `u_egr`, `u_vgt`, `n_e`).
+    pub fn input_index(&self, name: &str) -> Option<usize> {
+        self.input_names.iter().position(|s| s == name)
+    }
+
+    /// Row of an output name.
+    pub fn output_index(&self, name: &str) -> Option<usize> {
+        self.output_names.iter().position(|s| s == name)
+    }
+
+    /// Index of a state name.
+    pub fn state_index(&self, name: &str) -> Option<usize> {
+        self.state_names.iter().position(|s| s == name)
+    }
+
+    /// Whether no kink was found.
+    pub fn is_smooth(&self) -> bool {
+        self.kinks.is_empty()
+    }
+
+    /// States on a signal path from input `k` to output `o` (structurally: reachable from the
+    /// input through the nonzero entries of B and A, and reaching the output through A and C).
+    pub fn path_states(&self, k: usize, o: usize) -> Vec<usize> {
+        let n = self.n_states();
+        let mut fwd = vec![false; n];
+        let mut stack: Vec<usize> = (0..n).filter(|&i| self.b[(i, k)] != 0.0).collect();
+        for &i in &stack {
+            fwd[i] = true;
+        }
+        while let Some(j) = stack.pop() {
+            for i in 0..n {
+                if !fwd[i] && self.a[(i, j)] != 0.0 {
+                    fwd[i] = true;
+                    stack.push(i);
+                }
+            }
+        }
+        let mut bwd = vec![false; n];
+        let mut stack: Vec<usize> = (0..n).filter(|&j| self.c[(o, j)] != 0.0).collect();
+        for &j in &stack {
+            bwd[j] = true;
+        }
+        while let Some(i) = stack.pop() {
+            for j in 0..n {
+                if !bwd[j] && self.a[(i, j)] != 0.0 {
+                    bwd[j] = true;
+                    stack.push(j);
+                }
+            }
+        }
+        (0..n).filter(|&i| fwd[i] && bwd[i]).collect()
+    }
+
+    /// Kinks that lie on a signal path of the channel `input -> output`: the kink's direction
+    /// is the input or a path state, and the rows it disturbs (if known) include a path state's
+    /// derivative or the output. Unknown names give all kinks.
+    pub fn kinks_affecting(&self, input: &str, output: &str) -> Vec<&Kink> {
+        let (Some(k), Some(o)) = (self.input_index(input), self.output_index(output)) else {
+            return self.kinks.iter().collect();
+        };
+        let path = self.path_states(k, o);
+        let path_names: Vec<&str> = path.iter().map(|&i| self.state_names[i].as_str()).collect();
+        let path_rows: Vec<String> = path_names.iter().map(|s| format!("d({s})/dt")).collect();
+        self.kinks
+            .iter()
+            .filter(|kink| {
+                let var = kink.variable.as_str();
+                let on_path = var == input
+                    || var.starts_with(&format!("{input}("))
+                    || path_names.contains(&var);
+                let rows_hit = kink.rows.is_empty()
+                    || kink
+                        .rows
+                        .iter()
+                        .any(|r| r == output || path_rows.iter().any(|p| p == r));
+                on_path && rows_hit
+            })
+            .collect()
+    }
+}
