@@ -169,7 +169,7 @@ impl ModelArgs {
     /// Build the model (parameters loaded and validated).
     pub fn build(&self) -> Result<AnyModel> {
         let p = self.load_params()?;
-        Ok(AnyModel::new(self.order(), p, self.options()).context("cannot build the model")?)
+        AnyModel::new(self.order(), p, self.options()).context("cannot build the model")
     }
 }
 

@@ -320,7 +320,7 @@ fn decimate(x: &[f64], y: &[f64], buckets: usize) -> Vec<(f64, f64)> {
 /// two-point line counts along its length).
 fn densify(x: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
     let n = x.len().min(y.len());
-    if n >= 200 || n < 2 {
+    if !(2..200).contains(&n) {
         return x.iter().copied().zip(y.iter().copied()).take(n).collect();
     }
     let mut out = Vec::with_capacity(200 * n);

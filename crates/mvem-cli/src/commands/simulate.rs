@@ -221,7 +221,7 @@ fn run_model<const N: usize, M: Model<N>>(
         )?),
         None => Start::SteadyState,
     };
-    Ok(simulate(m, sched, t0, t_end, start, opts).context("simulation failed")?)
+    simulate(m, sched, t0, t_end, start, opts).context("simulation failed")
 }
 
 /// The main signals of a simulation: actuators, pressures, flows, turbo speed, lambda_O.
