@@ -610,3 +610,60 @@ pub fn cylinder_temp_study<const N: usize, M: Model<N>>(
         steps_one_iteration: b.stats.steps,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn response_features_hand_values() {
+        let t: Vec<f64> = (0..8).map(|i| i as f64).collect();
+        // step at t = 1 from 0 to 1: dips to -0.2 at t = 2, then rises without overshoot
+        let y = [0.0, 0.0, -0.2, -0.1, 0.3, 0.8, 1.0, 1.0];
+        let f = response_features(&t, &y, 1.0, 0.0, 1.0, -10.0);
+        assert!(f.nmp);
+        assert_eq!((f.nmp_extent, f.nmp_time, f.overshoot_pct), (0.2, 1.0, 0.0));
+        assert_eq!(f.dc_gain, -0.1);
+        // falling step from 2 to 1 with 30 % overshoot (down to 0.7), no dip
+        let y = [2.0, 2.0, 1.5, 0.7, 0.9, 1.0, 1.0, 1.0];
+        let f = response_features(&t, &y, 1.0, 2.0, 1.0, 5.0);
+        assert!(!f.nmp && f.nmp_extent == 0.0 && f.nmp_time.is_nan());
+        assert!((f.overshoot_pct - 30.0).abs() < 1e-12);
+        // a dip below the 0.5 % threshold is not NMP; one after the first move does not count
+        let y = [0.0, -0.004, 0.5, -0.5, 1.0, 1.0, 1.0, 1.0];
+        let f = response_features(&t, &y, 1.0, 0.0, 1.0, 1.0);
+        assert!(!f.nmp && (f.nmp_extent - 0.004).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_steps_and_options_are_reported_by_name() {
+        let p = Params::published();
+        let mut s = VgtStep::paper_cases()[0];
+        s.t_step = 9.0;
+        let e = compare_vgt_steps(
+            &p,
+            ModelOptions::default(),
+            &[s],
+            &CompareOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("t_step = 9"), "{e}");
+        s = VgtStep::paper_cases()[0];
+        s.u_delta_mg = f64::NAN;
+        let e = compare_vgt_steps(
+            &p,
+            ModelOptions::default(),
+            &[s],
+            &CompareOptions::default(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("u_delta_mg = NaN"), "{e}");
+        let co = CompareOptions {
+            rtol: 0.0,
+            ..CompareOptions::default()
+        };
+        let e = compare_vgt_steps(&p, ModelOptions::default(), &VgtStep::paper_cases(), &co)
+            .unwrap_err();
+        assert!(e.to_string().contains("rtol"), "{e}");
+    }
+}
