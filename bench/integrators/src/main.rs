@@ -11,6 +11,7 @@
 mod cases;
 mod plot;
 mod runners;
+mod stiffness;
 
 use anyhow::{anyhow, Context, Result};
 use cases::{max_dev, Case, COMPARED};
@@ -109,6 +110,12 @@ pub struct CaseResult {
     pub points: Vec<Point>,
     /// Failed runs: (method, rtol, message).
     pub failures: Vec<(Method, f64, String)>,
+    /// Fastest eigenvalues along the reference trajectory.
+    pub stiffness: stiffness::Stiffness,
+    /// Samples between eigenvalue evaluations.
+    pub stiffness_every: usize,
+    /// Integration interval length [s].
+    pub span: f64,
 }
 
 fn run_case(case: &Case, rtols: &[f64], repeats: usize) -> Result<CaseResult> {
@@ -136,6 +143,13 @@ fn run_case(case: &Case, rtols: &[f64], repeats: usize) -> Result<CaseResult> {
         ));
     }
     eprintln!("   reference mvem DOPRI5 rtol {RTOL_REF:e}: {ref_wall:.3} s");
+    // eigenvalues every 1 s along the reference
+    let every = ((1.0 / cases::DT_OUT).round() as usize).max(1);
+    let stiff = stiffness::along(case, &reference.full, &times, every);
+    eprintln!(
+        "   fastest eigenvalue: start {:.1} 1/s, median {:.1}, most negative {:.1} at {:.1} s; max Re {:.2}",
+        stiff.start, stiff.median, stiff.worst, stiff.t_worst, stiff.max_re
+    );
     let mut ref_checks = Vec::new();
     for m in [Method::Tsit45, Method::Esdirk34] {
         match timed(m, case, RTOL_REF, 1) {
@@ -194,6 +208,9 @@ fn run_case(case: &Case, rtols: &[f64], repeats: usize) -> Result<CaseResult> {
         ref_checks,
         points,
         failures,
+        stiffness: stiff,
+        stiffness_every: every,
+        span: case.t_end - case.t0,
     })
 }
 
@@ -259,7 +276,12 @@ fn table(res: &CaseResult, rtol: f64) -> String {
         s.push('\n');
     }
     for (m, r, e) in res.failures.iter().filter(|f| f.1 == rtol) {
-        let _ = writeln!(s, "| {} | failed at rtol {r:e}: {} |", m.label(), e.replace('|', "/"));
+        let _ = writeln!(
+            s,
+            "| {} | failed at rtol {r:e}: {} |",
+            m.label(),
+            e.replace('|', "/")
+        );
     }
     s
 }
@@ -286,7 +308,12 @@ fn sweep_table(res: &CaseResult) -> String {
             );
         }
         for (_, r, e) in res.failures.iter().filter(|f| f.0 == m) {
-            let _ = writeln!(s, "| {} | {r:.0e} | failed: {} | | | | |", m.label(), e.replace('|', "/"));
+            let _ = writeln!(
+                s,
+                "| {} | {r:.0e} | failed: {} | | | | |",
+                m.label(),
+                e.replace('|', "/")
+            );
         }
     }
     s
@@ -328,6 +355,36 @@ fn report(results: &[CaseResult]) -> String {
                 dev.iter().copied().fold(0.0, f64::max)
             );
         }
+        let st = &r.stiffness;
+        let _ = write!(
+            s,
+            "\n\nStiffness: the most negative real part of the eigenvalues of the 8-state Jacobian \
+             is {:.0} 1/s at the start; along the reference (every {:.1} s, {} points) its median \
+             is {:.0} 1/s and its minimum {:.0} 1/s (at t = {:.1} s); the largest real part seen is \
+             {:.2} 1/s (at t = {:.1} s). An explicit 5(4) pair is stable on the negative real axis up to about \
+             h |lambda| = 3.3, i.e. h <= {:.0} ms at the median and {:.0} ms at the minimum.",
+            st.start,
+            r.stiffness_every as f64 * cases::DT_OUT,
+            st.n,
+            st.median,
+            st.worst,
+            st.t_worst,
+            st.max_re,
+            st.t_max_re,
+            3.3 / st.median.abs() * 1e3,
+            3.3 / st.worst.abs() * 1e3,
+        );
+        if let Some(p) = r
+            .points
+            .iter()
+            .find(|p| p.method == Method::MvemDopri5 && p.rtol == RTOL_MAIN)
+        {
+            let _ = write!(
+                s,
+                " mvem DOPRI5 at rtol {RTOL_MAIN:.0e} averages {:.1} ms per step.",
+                r.span / p.stats.steps as f64 * 1e3
+            );
+        }
         let _ = writeln!(s, "\n");
         s.push_str(&table(r, RTOL_MAIN));
         s.push('\n');
@@ -346,7 +403,8 @@ const BEGIN: &str = "<!-- results:begin (written by bench/integrators) -->";
 const END: &str = "<!-- results:end -->";
 
 fn write_into_doc(doc: &Path, body: &str) -> Result<()> {
-    let text = std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
+    let text =
+        std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
     let (Some(i), Some(j)) = (text.find(BEGIN), text.find(END)) else {
         return Err(anyhow!(
             "{} has no `{BEGIN}` ... `{END}` markers",

@@ -16,6 +16,8 @@ fn color(m: Method) -> RGBColor {
         Method::Bdf => RGBColor(214, 39, 40),
         Method::TrBdf2 => RGBColor(44, 160, 44),
         Method::Esdirk34 => RGBColor(148, 103, 189),
+        Method::MvemDopri5NoStops => RGBColor(127, 127, 127),
+        Method::BdfJumpsOnly => RGBColor(255, 127, 14),
     }
 }
 
@@ -24,6 +26,22 @@ fn decade_bounds(lo: f64, hi: f64) -> (f64, f64) {
         10f64.powf(lo.log10().floor()),
         10f64.powf(hi.log10().ceil()),
     )
+}
+
+/// Tick label on a log axis: only 1, 2 and 5 times a power of ten are labelled.
+fn log_label(v: &f64) -> String {
+    let e = v.log10().floor();
+    let m = v / 10f64.powf(e);
+    let nice = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .any(|n| (m - n).abs() < 1e-6 * n);
+    if !nice {
+        String::new()
+    } else if *v >= 1.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{:.*}", (-e) as usize, v)
+    }
 }
 
 /// Draw the figure to `path` (PNG): one column per case; top row wall time, bottom row CPU
@@ -64,12 +82,14 @@ fn panel(
     if pts.is_empty() {
         return Ok(());
     }
-    let (x0, x1) = decade_bounds(
-        pts.iter().map(|p| time(p)).fold(f64::INFINITY, f64::min),
-        pts.iter().map(|p| time(p)).fold(0.0, f64::max),
+    let (x0, x1) = (
+        pts.iter().map(|p| time(p)).fold(f64::INFINITY, f64::min) / 1.3,
+        pts.iter().map(|p| time(p)).fold(0.0, f64::max) * 1.3,
     );
     let (y0, y1) = decade_bounds(
-        pts.iter().map(|p| p.dev_max()).fold(f64::INFINITY, f64::min),
+        pts.iter()
+            .map(|p| p.dev_max())
+            .fold(f64::INFINITY, f64::min),
         pts.iter().map(|p| p.dev_max()).fold(0.0, f64::max),
     );
     let kind = if cpu { "CPU time" } else { "wall time" };
@@ -87,7 +107,8 @@ fn panel(
         .configure_mesh()
         .x_desc(format!("{kind} per run [ms] (min of 3)"))
         .y_desc("max scaled deviation from reference [-]")
-        .x_label_formatter(&|v| format!("{v}"))
+        .x_labels(30)
+        .x_label_formatter(&log_label)
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 16))
@@ -103,13 +124,35 @@ fn panel(
         if series.is_empty() {
             continue;
         }
+        // variants that do not stop at every breakpoint: dashed
+        if m.variant() {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    series.clone(),
+                    8,
+                    5,
+                    c.stroke_width(2),
+                ))
+                .map_err(|e| anyhow!("{e:?}"))?
+                .label(m.label())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 8, y)], c.stroke_width(3))
+                });
+        } else {
+            chart
+                .draw_series(LineSeries::new(series.clone(), c.stroke_width(2)))
+                .map_err(|e| anyhow!("{e:?}"))?
+                .label(m.label())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3))
+                });
+        }
         chart
-            .draw_series(LineSeries::new(series.clone(), c.stroke_width(2)))
-            .map_err(|e| anyhow!("{e:?}"))?
-            .label(m.label())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
-        chart
-            .draw_series(series.iter().map(|&(x, y)| Circle::new((x, y), 4, c.filled())))
+            .draw_series(
+                series
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 4, c.filled())),
+            )
             .map_err(|e| anyhow!("{e:?}"))?;
         chart
             .draw_series(
@@ -121,7 +164,7 @@ fn panel(
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(SeriesLabelPosition::LowerLeft)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font(("sans-serif", 15))
