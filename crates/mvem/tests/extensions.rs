@@ -225,7 +225,7 @@ fn diff_12_10(
 fn twelve_state_steady_states_reduce_to_ten_state_as_k_ic_vanishes() {
     // k_ic scaled by 1, 1/4, 1/16: the stationary difference is first order in the pressure
     // drop. Much smaller k_ic is out of reach of the steady-state solver, not of the model:
-    // p_c then has a time constant ~ V_ic k_ic (2.6 ms at the default, ~1e-5 s at 1e-3 x),
+    // p_c then has a time constant ~ V_ic k_ic (1.5 ms at the default, ~1.5 us at 1e-3 x),
     // which makes the finite-difference Newton Jacobian ill-conditioned (it stalls at 1/100 x
     // k_ic at some points) and the settling simulation stiff. So Newton alone is started from
     // the 10-state equilibrium with p_c, T_ic from eq. (86) and T_c there.
@@ -331,7 +331,7 @@ fn range(v: &[f64]) -> f64 {
 #[test]
 fn twelve_state_step_response_converges_to_ten_state_as_v_ic_and_k_ic_vanish() {
     // u_vgt 75 -> 65 % at (1500 rpm, 110 mg, 80 %). V_ic and k_ic are scaled together by s;
-    // the time constant of p_c scales like V_ic k_ic ~ s^2 (2.6 ms at s = 1), so the explicit
+    // the time constant of p_c scales like V_ic k_ic ~ s^2 (1.5 ms at s = 1), so the explicit
     // integrator needs ~1/s^2 more steps: s = 1, 1/2, 1/4 keeps this test fast; the error is
     // first order in s, so the trend is what is checked.
     let sched =
