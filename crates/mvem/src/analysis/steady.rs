@@ -113,6 +113,13 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
             return Err(SteadyError::NonFiniteInput { name, value: v });
         }
     }
+    // At an equilibrium the one-iteration memory equals the fixed point: solve with the
+    // converged cylinder-out temperature whatever the model's option.
+    if m.options().cylinder_temp != crate::model::CylinderTemp::Converged {
+        let mut o = *m.options();
+        o.cylinder_temp = crate::model::CylinderTemp::Converged;
+        return steady_state_with(&m.with_options(o), d, guess, opts);
+    }
     let fixed = m.actuator_state_values(d);
     let mut x0 = guess.copied().unwrap_or_else(|| m.initial_guess(d));
     for (i, v) in &fixed {
