@@ -602,7 +602,8 @@ pub fn siso(
     let min = minimal_realization(&sys, tol)?;
     let zeros = invariant_zeros(&min, tol)?;
     let poles = eigenvalues(&min.a)?;
-    let g = dc_gain(&sys)?;
+    // the minimal realization has the same G(0), and no unrelated mode can make A singular
+    let g = dc_gain(&min)?;
     Ok(Channel {
         input: input.to_string(),
         output: output.to_string(),
@@ -677,8 +678,8 @@ pub fn frequency_response(
     Ok(sys.d.map(|v| Complex::new(v, 0.0)) + cc * x)
 }
 
-/// Value of a polynomial-free check: the smallest singular value of the Rosenbrock matrix
-/// S(z) relative to its norm (0 at an invariant zero of a square system).
+/// Smallest singular value of the Rosenbrock matrix S(z) relative to its largest: 0 at an
+/// invariant zero of a square system (an independent check of computed zeros).
 pub fn rosenbrock_rank_gap(sys: &StateSpace, z: Complex<f64>) -> f64 {
     let (n, m, p) = (sys.n(), sys.b.ncols(), sys.c.nrows());
     let mut s = DMatrix::<Complex<f64>>::zeros(n + p, n + m);
