@@ -743,8 +743,9 @@ fn infinite_zeros_are_not_reported_as_finite() {
 
 #[test]
 fn mimo_textbook_zero_and_decoupling_zeros() {
-    // Skogestad & Postlethwaite (2005), Example 4.11 style: G(s) = 1/(s+2) [[s-1, 4], [4.5, 2(s-1)]]
-    // has det G = 2 (s - 4)/(s + 2): one transmission zero at s = 4, one pole at s = -2.
+    // The 2x2 textbook example of Skogestad & Postlethwaite (Multivariable Feedback Control,
+    // 2005, ch. 4): G(s) = 1/(s+2) [[s-1, 4], [4.5, 2(s-1)]] has det G = 2 (s - 4)/(s + 2): one
+    // transmission zero at s = 4 (no element has it), one pole at s = -2 (checked below).
     // G = D + K/(s+2) with D = diag(1, 2), K = [[-3, 4], [4.5, -6]] = [1; -1.5] [-3, 4].
     let minimal = sys(
         &[&[-2.0]],

@@ -84,9 +84,6 @@ pub struct LinearizeOptions {
     pub strict: bool,
     /// Relative threshold of the one-sided slope test (default 1e-6; see the module doc).
     pub kink_tol: f64,
-    /// Difference the directions on two rayon tasks (default false: maps parallelize over
-    /// points instead).
-    pub parallel: bool,
 }
 
 impl Default for LinearizeOptions {
@@ -98,7 +95,6 @@ impl Default for LinearizeOptions {
             pade_order: 0,
             strict: true,
             kink_tol: 1e-6,
-            parallel: false,
         }
     }
 }
@@ -500,37 +496,12 @@ fn linearize_impl<const N: usize, M: Model<N>>(
         h0[c] = pow2_step(opts.rel_step * v0.abs().max(sc));
     }
     evaluations += ndir * 2 * (levels + 1);
-    if opts.parallel && ndir > 1 {
-        type Col = (usize, u32, Vec<f64>, Vec<f64>, Vec<f64>);
-        let run = |range: std::ops::Range<usize>| -> Vec<Col> {
-            let mut w = Work::new(nrow, levels);
-            range
-                .map(|c| {
-                    let sw = differ.column(&dirs[c], v0s[c], h0[c], &mut w);
-                    (c, sw, w.d.clone(), w.incons.clone(), w.corr.clone())
-                })
-                .collect()
-        };
-        let mid = ndir / 2;
-        let (lo, hi) = rayon::join(|| run(0..mid), || run(mid..ndir));
-        for (c, sw, d, inc, co) in lo.into_iter().chain(hi) {
-            switched[c] = sw;
-            work.d.copy_from_slice(&d);
-            work.incons.copy_from_slice(&inc);
-            work.corr.copy_from_slice(&co);
-            if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
-                return Err(non_finite(c, r, work.d[r]));
-            }
-            store(c, &work, &mut jac, &mut incons, &mut corr);
+    for c in 0..ndir {
+        switched[c] = differ.column(&dirs[c], v0s[c], h0[c], &mut work);
+        if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+            return Err(non_finite(c, r, work.d[r]));
         }
-    } else {
-        for c in 0..ndir {
-            switched[c] = differ.column(&dirs[c], v0s[c], h0[c], &mut work);
-            if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
-                return Err(non_finite(c, r, work.d[r]));
-            }
-            store(c, &work, &mut jac, &mut incons, &mut corr);
-        }
+        store(c, &work, &mut jac, &mut incons, &mut corr);
     }
 
     // Row references: the largest scaled entry of each row.
@@ -1011,5 +982,72 @@ impl LinearModel {
                 on_path && rows_hit
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_are_powers_of_two_not_above_the_request() {
+        for h in [1e-4, 0.01, 3.0, 10.0, 123.456] {
+            let p = pow2_step(h);
+            assert!(p <= h && p > 0.5 * h, "{h} -> {p}");
+            assert_eq!(p.log2().fract(), 0.0);
+        }
+    }
+
+    #[test]
+    fn pade_coefficients_by_hand() {
+        // [1/1]: (1 - tau s/2)/(1 + tau s/2); [2/2]: 1 +- tau s/2 + (tau s)^2/12;
+        // [3/3]: 1 +- tau s/2 + (tau s)^2/10 +- (tau s)^3/120
+        let tau = 0.04;
+        let (n1, d1) = pade_coefficients(tau, 1);
+        assert_eq!(n1, vec![1.0, -tau / 2.0]);
+        assert_eq!(d1, vec![1.0, tau / 2.0]);
+        let (n2, d2) = pade_coefficients(tau, 2);
+        assert!((d2[2] - tau * tau / 12.0).abs() < 1e-18 && (n2[2] - d2[2]).abs() < 1e-18);
+        let (n3, d3) = pade_coefficients(tau, 3);
+        assert!((d3[2] - tau * tau / 10.0).abs() < 1e-18);
+        assert!((d3[3] - tau.powi(3) / 120.0).abs() < 1e-20 && (n3[3] + d3[3]).abs() < 1e-20);
+        // the realization has the approximant's feedthrough (-1)^k
+        for k in 1..=3 {
+            let (_, _, _, d) = pade_realization(tau, k);
+            assert_eq!(d, if k % 2 == 0 { 1.0 } else { -1.0 });
+        }
+    }
+
+    #[test]
+    fn perturbations_move_the_right_copies_of_an_input() {
+        let x = [1.0, 2.0];
+        let u = ModelInput::constant(Drive::new(1500.0, 110.0, 80.0, 75.0));
+        let both = Dir::Input {
+            k: 2,
+            now: true,
+            delayed: true,
+        };
+        let (_, uu) = perturbed(&x, &u, &both, 76.0);
+        assert_eq!((uu.now.u_vgt_pct, uu.u_vgt_delayed), (76.0, 76.0));
+        let delayed = Dir::Input {
+            k: 1,
+            now: false,
+            delayed: true,
+        };
+        let (_, uu) = perturbed(&x, &u, &delayed, 81.0);
+        assert_eq!((uu.now.u_egr_pct, uu.u_egr_delayed), (80.0, 81.0));
+        let (xx, uu) = perturbed(&x, &u, &Dir::State(1), 5.0);
+        assert_eq!((xx, uu), ([1.0, 5.0], u));
+        let (_, uu) = perturbed(
+            &x,
+            &u,
+            &Dir::Input {
+                k: 3,
+                now: true,
+                delayed: true,
+            },
+            1600.0,
+        );
+        assert_eq!(uu.now.n_e_rpm, 1600.0);
     }
 }

@@ -463,3 +463,31 @@ pub fn rhp_zero_map<const N: usize, M: Model<N>>(
         .map(|r| r.map(|c| c.zeros.has_rhp()))
         .collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_indices_round_trip_row_major() {
+        let g = Grid::new(
+            Drive::new(1500.0, 110.0, 50.0, 50.0),
+            vec![
+                Axis::linspace("u_vgt", 20.0, 100.0, 3),
+                Axis::new("n_e", vec![1000.0, 2000.0]),
+                Axis::linspace("u_egr", 0.0, 90.0, 4),
+            ],
+        )
+        .unwrap();
+        assert_eq!(g.dims(), vec![3, 2, 4]);
+        assert_eq!(g.len(), 24);
+        for f in 0..24 {
+            assert_eq!(g.flat_index(&g.multi_index(f)), f);
+        }
+        assert_eq!(g.multi_index(1), vec![0, 0, 1]);
+        let d = g.drive_at(&[2, 1, 3]);
+        assert_eq!(d.to_array(), [2000.0, 110.0, 90.0, 100.0]);
+        assert_eq!(Axis::linspace("n_e", 1.0, 2.0, 1).values, vec![1.0]);
+        assert_eq!(Axis::linspace("n_e", 0.0, 1.0, 5).values[4], 1.0);
+    }
+}

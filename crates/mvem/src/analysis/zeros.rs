@@ -602,7 +602,8 @@ pub fn siso(
     let min = minimal_realization(&sys, tol)?;
     let zeros = invariant_zeros(&min, tol)?;
     let poles = eigenvalues(&min.a)?;
-    let g = dc_gain(&sys)?;
+    // the minimal realization has the same G(0), and no unrelated mode can make A singular
+    let g = dc_gain(&min)?;
     Ok(Channel {
         input: input.to_string(),
         output: output.to_string(),
@@ -677,8 +678,8 @@ pub fn frequency_response(
     Ok(sys.d.map(|v| Complex::new(v, 0.0)) + cc * x)
 }
 
-/// Value of a polynomial-free check: the smallest singular value of the Rosenbrock matrix
-/// S(z) relative to its norm (0 at an invariant zero of a square system).
+/// Smallest singular value of the Rosenbrock matrix S(z) relative to its largest: 0 at an
+/// invariant zero of a square system (an independent check of computed zeros).
 pub fn rosenbrock_rank_gap(sys: &StateSpace, z: Complex<f64>) -> f64 {
     let (n, m, p) = (sys.n(), sys.b.ncols(), sys.c.nrows());
     let mut s = DMatrix::<Complex<f64>>::zeros(n + p, n + m);
@@ -704,5 +705,69 @@ pub fn rosenbrock_rank_gap(sys: &StateSpace, z: Complex<f64>) -> f64 {
         0.0
     } else {
         sv.min() / max
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn balancing_keeps_the_eigenvalues_of_a_badly_scaled_matrix() {
+        // diag(1e5, 1, 1e-4) similarity of a matrix with eigenvalues -1, -2, -3
+        let v = DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.0, 1.0]);
+        let l = DMatrix::from_diagonal(&DVector::from_vec(vec![-1.0, -2.0, -3.0]));
+        let a = &v * l * v.clone().try_inverse().unwrap();
+        let s = [1e5, 1.0, 1e-4];
+        let bad = DMatrix::from_fn(3, 3, |i, j| a[(i, j)] * s[j] / s[i]);
+        let b = balance(&bad);
+        let ev = eigenvalues(&bad).unwrap();
+        for (z, want) in ev.iter().zip([-1.0, -2.0, -3.0]) {
+            assert!((z.re - want).abs() < 1e-9 && z.im.abs() < 1e-9, "{ev:?}");
+        }
+        // balancing brings the off-diagonal norms together
+        let spread = |m: &DMatrix<f64>| {
+            let v: Vec<f64> = m.iter().filter(|v| **v != 0.0).map(|v| v.abs()).collect();
+            v.iter().cloned().fold(0.0, f64::max) / v.iter().cloned().fold(f64::INFINITY, f64::min)
+        };
+        assert!(spread(&b) < 1e-3 * spread(&bad));
+    }
+
+    #[test]
+    fn left_basis_is_orthogonal_and_spans_the_columns() {
+        let m = DMatrix::from_row_slice(3, 2, &[1.0, 2.0, 2.0, 4.0, 0.0, 0.0]);
+        let (u, r) = left_basis(&m, 1e-12).unwrap();
+        assert_eq!(r, 1);
+        assert!((u.transpose() * &u - DMatrix::identity(3, 3)).norm() < 1e-14);
+        // the columns of m have no component outside the first column of U
+        let rest = u.columns(1, 2).transpose() * &m;
+        assert!(rest.norm() < 1e-13);
+        let (v, r) = right_basis(&m.transpose(), 1e-12).unwrap();
+        assert_eq!((v.nrows(), r), (3, 1));
+    }
+
+    #[test]
+    fn rhp_classification_ignores_round_off_at_the_origin() {
+        let z = Zeros {
+            finite: vec![Complex::new(1e-14, 0.0), Complex::new(-3.0, 1.0)],
+            order: 2,
+            normal_rank: 1,
+        };
+        assert!(!z.has_rhp());
+        let z = Zeros {
+            finite: vec![Complex::new(1e-3, 0.0)],
+            order: 1,
+            normal_rank: 1,
+        };
+        assert_eq!(z.rhp().len(), 1);
+    }
+
+    #[test]
+    fn channels_parse() {
+        assert_eq!(
+            parse_channel(" u_egr -> p_im ").unwrap(),
+            ("u_egr".to_string(), "p_im".to_string())
+        );
+        assert!(parse_channel("->p_im").is_err());
     }
 }
