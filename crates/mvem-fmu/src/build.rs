@@ -381,10 +381,7 @@ pub fn build(out: &Path, so: &Path) -> Result<(), String> {
     let lib = std::fs::read(so).map_err(|e| format!("{}: {e}", so.display()))?;
     let xml = model_description();
     let so_name = format!("binaries/linux64/{MODEL_IDENTIFIER}.so");
-    let zip = zip_stored(&[
-        ("modelDescription.xml", xml.as_bytes()),
-        (&so_name, &lib),
-    ])?;
+    let zip = zip_stored(&[("modelDescription.xml", xml.as_bytes()), (&so_name, &lib)])?;
     mvem::io::output::write_atomic(out, &zip).map_err(|e| format!("{}: {e}", out.display()))
 }
 

@@ -402,7 +402,9 @@ fn no_vars(kind: &str, nvr: usize) -> Result<(), FmuError> {
     } else {
         Err(FmuError {
             severity: Severity::Error,
-            message: format!("{kind}: the FMU has no variables of this type (unknown value reference)"),
+            message: format!(
+                "{kind}: the FMU has no variables of this type (unknown value reference)"
+            ),
         })
     }
 }
@@ -717,7 +719,9 @@ pub unsafe extern "C" fn fmi2DoStep(
 /// fmi2CancelStep: steps are synchronous; nothing to cancel.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
-    with(c, |_| Err(unsupported("fmi2CancelStep (steps are synchronous)")))
+    with(c, |_| {
+        Err(unsupported("fmi2CancelStep (steps are synchronous)"))
+    })
 }
 
 /// fmi2GetStatus: not supported (no asynchronous steps).
@@ -787,7 +791,10 @@ mod tests {
     #[test]
     fn null_and_wrong_guid_are_refused() {
         unsafe {
-            assert_eq!(fmi2EnterInitializationMode(std::ptr::null_mut()), FMI2_ERROR);
+            assert_eq!(
+                fmi2EnterInitializationMode(std::ptr::null_mut()),
+                FMI2_ERROR
+            );
             let c = fmi2Instantiate(
                 c"x".as_ptr(),
                 1,
@@ -809,7 +816,10 @@ mod tests {
                 0,
             );
             assert!(!c.is_null());
-            assert_eq!(fmi2GetReal(c, std::ptr::null(), 1, std::ptr::null_mut()), FMI2_ERROR);
+            assert_eq!(
+                fmi2GetReal(c, std::ptr::null(), 1, std::ptr::null_mut()),
+                FMI2_ERROR
+            );
             assert_eq!(fmi2DoStep(c, 0.0, 0.1, 1), FMI2_ERROR); // not initialized
             assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), FMI2_OK);
             assert_eq!(fmi2EnterInitializationMode(c), FMI2_OK);
@@ -822,8 +832,14 @@ mod tests {
             let nan = [f64::NAN];
             let vin = [vars::VR_INPUT];
             assert_eq!(fmi2SetReal(c, vin.as_ptr(), 1, nan.as_ptr()), FMI2_ERROR);
-            assert_eq!(fmi2GetInteger(c, vr.as_ptr(), 1, std::ptr::null_mut()), FMI2_ERROR);
-            assert_eq!(fmi2GetInteger(c, vr.as_ptr(), 0, std::ptr::null_mut()), FMI2_OK);
+            assert_eq!(
+                fmi2GetInteger(c, vr.as_ptr(), 1, std::ptr::null_mut()),
+                FMI2_ERROR
+            );
+            assert_eq!(
+                fmi2GetInteger(c, vr.as_ptr(), 0, std::ptr::null_mut()),
+                FMI2_OK
+            );
             fmi2FreeInstance(c);
         }
     }

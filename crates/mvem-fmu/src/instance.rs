@@ -179,7 +179,7 @@ impl Instance {
             )));
         }
         if let Some(tol) = tolerance {
-            if !(tol.is_finite() && tol >= 1e-13 && tol < 1.0) {
+            if !(1e-13..1.0).contains(&tol) {
                 return Err(FmuError::error(format!(
                     "fmi2SetupExperiment: tolerance = {tol} must lie in [1e-13, 1)"
                 )));
@@ -352,9 +352,9 @@ impl Instance {
                 Kind::Param(i) => vars::param_table()[i].name.clone(),
                 Kind::State(i) => {
                     return Err(FmuError::error(format!(
-                        "fmi2SetReal: state {} (vr {vr}) is calculated; use fmi2SetContinuousStates",
-                        vars::state_name(i)
-                    )))
+                    "fmi2SetReal: state {} (vr {vr}) is calculated; use fmi2SetContinuousStates",
+                    vars::state_name(i)
+                )))
                 }
                 Kind::Derivative(_) | Kind::Signal(_) => {
                     return Err(FmuError::error(format!(
@@ -383,9 +383,8 @@ impl Instance {
         }
         if params_changed && !before_run {
             // tunable change during the run: validate now, keep the old set if invalid
-            let built = vars::params_from_values(&self.params).and_then(|p| {
-                Engine8::new(p, ModelOptions::default()).map_err(|e| format!("{e}"))
-            });
+            let built = vars::params_from_values(&self.params)
+                .and_then(|p| Engine8::new(p, ModelOptions::default()).map_err(|e| format!("{e}")));
             match built {
                 Ok(m) => self.model = m,
                 Err(e) => {
@@ -410,7 +409,9 @@ impl Instance {
         self.require_me("fmi2SetTime")?;
         self.require("fmi2SetTime", &[Phase::Event, Phase::ContinuousTime])?;
         if !t.is_finite() {
-            return Err(FmuError::error(format!("fmi2SetTime: time = {t} is not finite")));
+            return Err(FmuError::error(format!(
+                "fmi2SetTime: time = {t} is not finite"
+            )));
         }
         self.t = t;
         Ok(())
@@ -582,18 +583,22 @@ impl Instance {
             dt_out: h,
             ..SimOptions::default()
         };
-        let sol = simulate(&self.model, &sched, self.t, t_end, Start::State(self.x), &opts)
-            .map_err(|e| {
-                FmuError::error(format!(
-                    "fmi2DoStep from t = {} to {t_end}: {e}",
-                    self.t
-                ))
-            })?;
+        let sol = simulate(
+            &self.model,
+            &sched,
+            self.t,
+            t_end,
+            Start::State(self.x),
+            &opts,
+        )
+        .map_err(|e| FmuError::error(format!("fmi2DoStep from t = {} to {t_end}: {e}", self.t)))?;
         for i in 0..N_STATES {
             let col = sol.get(vars::state_name(i)).ok_or_else(|| {
                 FmuError::error(format!("solution lacks {}", vars::state_name(i)))
             })?;
-            self.x[i] = *col.last().ok_or_else(|| FmuError::error("empty solution"))?;
+            self.x[i] = *col
+                .last()
+                .ok_or_else(|| FmuError::error("empty solution"))?;
         }
         self.t = t_end;
         Ok(())
@@ -611,8 +616,7 @@ impl Instance {
             times.push(*t);
             rows.push(*v);
         }
-        InputSchedule::new(times, rows)
-            .map_err(|e| FmuError::error(format!("input history: {e}")))
+        InputSchedule::new(times, rows).map_err(|e| FmuError::error(format!("input history: {e}")))
     }
 }
 
@@ -637,8 +641,11 @@ mod tests {
     #[test]
     fn starts_at_steady_state_with_zero_derivatives() {
         let mut f = started(Interface::ModelExchange);
-        let ss = steady_state(&Engine8::published(), &Drive::new(1500.0, 110.0, 80.0, 75.0))
-            .unwrap();
+        let ss = steady_state(
+            &Engine8::published(),
+            &Drive::new(1500.0, 110.0, 80.0, 75.0),
+        )
+        .unwrap();
         let mut x = [0.0; 8];
         f.get_states(&mut x).unwrap();
         assert_eq!(x, ss.x);
@@ -658,8 +665,7 @@ mod tests {
         let mut f = started(Interface::CoSimulation);
         let model = Engine8::published();
         let sched =
-            InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(0.5, 3, 65.0)])
-                .unwrap();
+            InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(0.5, 3, 65.0)]).unwrap();
         let opts = SimOptions {
             rtol: 1e-8,
             ..SimOptions::default()
@@ -712,7 +718,7 @@ mod tests {
         assert!(f.do_step(0.5, 0.1).is_err()); // wrong communication point
         assert!(f.do_step(0.0, -1.0).is_err());
         assert!(f.get_derivatives(&mut [0.0; 8]).is_err()); // ME-only
-        // invalid tunable parameter value is rejected and the old one kept
+                                                            // invalid tunable parameter value is rejected and the old one kept
         let i = vars::param_table()
             .iter()
             .position(|p| p.name == "turbo.j_t")

@@ -47,9 +47,9 @@ fn merge(base: &mut Value, over: &Value, path: &str) -> CoreResult<()> {
                 if let Some((head, rest)) = k.split_once('.') {
                     let mut nested = serde_json::Map::new();
                     nested.insert(rest.to_string(), v.clone());
-                    let slot = b.get_mut(head).ok_or_else(|| {
-                        CoreError::Value(format!("unknown parameter `{p}`"))
-                    })?;
+                    let slot = b
+                        .get_mut(head)
+                        .ok_or_else(|| CoreError::Value(format!("unknown parameter `{p}`")))?;
                     merge(slot, &Value::Object(nested), head)?;
                     continue;
                 }
@@ -86,7 +86,8 @@ pub fn params_from_overrides(json: &str) -> CoreResult<Params> {
     }
     let mut doc = serde_json::to_value(Params::published()).expect("parameters serialize");
     merge(&mut doc, &over, "")?;
-    let p: Params = serde_json::from_value(doc).map_err(|e| CoreError::Value(format!("params: {e}")))?;
+    let p: Params =
+        serde_json::from_value(doc).map_err(|e| CoreError::Value(format!("params: {e}")))?;
     p.validate()
         .map_err(|e| CoreError::Value(format!("invalid parameters: {e}")))?;
     Ok(p)
@@ -158,7 +159,9 @@ pub fn simulate_rows(
     opts.validate()
         .map_err(|e| CoreError::Value(e.to_string()))?;
     let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &opts).map_err(|e| match e {
-        SimError::BadOption { .. } | SimError::BadInterval { .. } => CoreError::Value(e.to_string()),
+        SimError::BadOption { .. } | SimError::BadInterval { .. } => {
+            CoreError::Value(e.to_string())
+        }
         other => CoreError::Runtime(other.to_string()),
     })?;
     Ok((sol.names, sol.columns))
@@ -186,7 +189,8 @@ pub fn steady(d: [f64; 4], params: Option<Params>) -> CoreResult<Steady> {
         }
     }
     let m = model(params)?;
-    let ss = steady_state(&m, &Drive::from_array(d)).map_err(|e| CoreError::Runtime(e.to_string()))?;
+    let ss =
+        steady_state(&m, &Drive::from_array(d)).map_err(|e| CoreError::Runtime(e.to_string()))?;
     let mut values: Vec<(String, f64)> = ["n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"]
         .iter()
         .zip(d)
@@ -213,36 +217,62 @@ mod tests {
     #[test]
     fn steady_equals_library() {
         let s = steady([1500.0, 110.0, 80.0, 75.0], None).unwrap();
-        let lib = steady_state(&Engine8::published(), &Drive::new(1500.0, 110.0, 80.0, 75.0)).unwrap();
+        let lib = steady_state(
+            &Engine8::published(),
+            &Drive::new(1500.0, 110.0, 80.0, 75.0),
+        )
+        .unwrap();
         let get = |n: &str| s.values.iter().find(|(k, _)| k == n).unwrap().1;
         assert_eq!(get("p_im"), lib.x[0]);
         assert_eq!(get("W_c"), lib.signals.w_c);
         assert!(s.physically_valid);
-        assert!(matches!(steady([f64::NAN, 1.0, 1.0, 1.0], None), Err(CoreError::Value(_))));
+        assert!(matches!(
+            steady([f64::NAN, 1.0, 1.0, 1.0], None),
+            Err(CoreError::Value(_))
+        ));
     }
 
     #[test]
     fn overrides_merge_and_reject_unknown() {
-        let p = params_from_overrides(r#"{"turbo": {"j_t": 1e-4}, "ambient.p_amb": 1.0e5}"#).unwrap();
+        let p =
+            params_from_overrides(r#"{"turbo": {"j_t": 1e-4}, "ambient.p_amb": 1.0e5}"#).unwrap();
         assert_eq!(p.turbo.j_t, 1e-4);
         assert_eq!(p.ambient.p_amb, 1.0e5);
         assert_eq!(p.gas, Params::published().gas);
         let e = params_from_overrides(r#"{"turbo": {"jt": 1}}"#).unwrap_err();
         assert!(e.to_string().contains("turbo.jt"), "{e}");
-        assert!(matches!(params_from_overrides(r#"{"turbo": {"j_t": -1}}"#), Err(CoreError::Value(_))));
+        assert!(matches!(
+            params_from_overrides(r#"{"turbo": {"j_t": -1}}"#),
+            Err(CoreError::Value(_))
+        ));
     }
 
     #[test]
     fn simulate_rejects_bad_rows_and_options() {
-        let rows = [[0.0, 1500.0, 110.0, 80.0, 75.0], [1.0, 1500.0, 110.0, 80.0, 75.0]];
+        let rows = [
+            [0.0, 1500.0, 110.0, 80.0, 75.0],
+            [1.0, 1500.0, 110.0, 80.0, 75.0],
+        ];
         let (names, cols) = simulate_rows(&rows, SimArgs::default(), None).unwrap();
         assert_eq!(names[0], "t");
         assert_eq!(cols[0].len(), 101);
         let bad = [[0.0, f64::NAN, 110.0, 80.0, 75.0]];
-        assert!(matches!(simulate_rows(&bad, SimArgs::default(), None), Err(CoreError::Value(_))));
-        let args = SimArgs { rtol: -1.0, ..SimArgs::default() };
-        assert!(matches!(simulate_rows(&rows, args, None), Err(CoreError::Value(_))));
+        assert!(matches!(
+            simulate_rows(&bad, SimArgs::default(), None),
+            Err(CoreError::Value(_))
+        ));
+        let args = SimArgs {
+            rtol: -1.0,
+            ..SimArgs::default()
+        };
+        assert!(matches!(
+            simulate_rows(&rows, args, None),
+            Err(CoreError::Value(_))
+        ));
         let one = [[0.0, 1500.0, 110.0, 80.0, 75.0]];
-        assert!(matches!(simulate_rows(&one, SimArgs::default(), None), Err(CoreError::Value(_))));
+        assert!(matches!(
+            simulate_rows(&one, SimArgs::default(), None),
+            Err(CoreError::Value(_))
+        ));
     }
 }

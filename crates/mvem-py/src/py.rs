@@ -25,12 +25,16 @@ fn parse_params(py: Python<'_>, params: Option<&Bound<'_, PyAny>>) -> PyResult<O
             .call_method1("dumps", (obj,))
             .map_err(|e| PyValueError::new_err(format!("params: {e}")))?
             .extract()?;
-        return core::params_from_overrides(&json).map(Some).map_err(to_py_err);
+        return core::params_from_overrides(&json)
+            .map(Some)
+            .map_err(to_py_err);
     }
     let os = py.import("os")?;
     let path: String = os
         .call_method1("fspath", (obj,))
-        .map_err(|_| PyValueError::new_err("params must be None, a dict or a path to a TOML/JSON file"))?
+        .map_err(|_| {
+            PyValueError::new_err("params must be None, a dict or a path to a TOML/JSON file")
+        })?
         .extract()
         .map_err(|_| PyValueError::new_err("params path must be a str path"))?;
     core::params_from_path(std::path::Path::new(&path))
@@ -44,7 +48,9 @@ fn float_list(np: &Bound<'_, PyModule>, obj: &Bound<'_, PyAny>, what: &str) -> P
         .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
     let ndim: usize = arr.getattr("ndim")?.extract()?;
     if ndim != 1 {
-        return Err(PyValueError::new_err(format!("{what}: expected a 1-D array, got {ndim}-D")));
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected a 1-D array, got {ndim}-D"
+        )));
     }
     arr.call_method0("tolist")?.extract()
 }
@@ -70,7 +76,9 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
                 c.len()
             )));
         }
-        return Ok((0..n).map(|k| std::array::from_fn(|c| cols[c][k])).collect());
+        return Ok((0..n)
+            .map(|k| std::array::from_fn(|c| cols[c][k]))
+            .collect());
     }
     let arr = np
         .call_method1("asarray", (inputs, "float64"))
@@ -83,7 +91,10 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
         )));
     }
     let rows: Vec<Vec<f64>> = arr.call_method0("tolist")?.extract()?;
-    Ok(rows.into_iter().map(|r| std::array::from_fn(|c| r[c])).collect())
+    Ok(rows
+        .into_iter()
+        .map(|r| std::array::from_fn(|c| r[c]))
+        .collect())
 }
 
 /// Simulate the 8-state model from the steady state at the first input row.
@@ -112,7 +123,12 @@ fn simulate<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let rows = input_rows(py, inputs)?;
     let p = parse_params(py, params)?;
-    let args = SimArgs { t_end, dt, rtol, atol };
+    let args = SimArgs {
+        t_end,
+        dt,
+        rtol,
+        atol,
+    };
     let (names, cols) = py
         .allow_threads(move || core::simulate_rows(&rows, args, p))
         .map_err(to_py_err)?;
