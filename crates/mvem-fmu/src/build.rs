@@ -1,0 +1,409 @@
+//! Packaging: `modelDescription.xml` from the variable table, and the `.fmu` zip archive.
+
+use crate::vars;
+use mvem::model::Signals;
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The model identifier (name of the shared library inside the FMU).
+pub const MODEL_IDENTIFIER: &str = "mvem";
+
+/// Source of the parameter and signal documentation (doc comments become descriptions).
+const PARAMS_SRC: &str = include_str!("../../mvem/src/params/mod.rs");
+const SIGNALS_SRC: &str = include_str!("../../mvem/src/model/signals.rs");
+
+/// Units used in the model description (name, factor to SI, SI exponents kg, m, s, K, rad).
+const UNITS: &[(&str, f64, [i32; 5])] = &[
+    ("Pa", 1.0, [1, -1, -2, 0, 0]),
+    ("K", 1.0, [0, 0, 0, 1, 0]),
+    ("kg/s", 1.0, [1, 0, -1, 0, 0]),
+    ("rad/s", 1.0, [0, 0, -1, 0, 1]),
+    ("rpm", std::f64::consts::PI / 30.0, [0, 0, -1, 0, 1]),
+    ("N.m", 1.0, [1, 2, -2, 0, 0]),
+    ("W", 1.0, [1, 2, -3, 0, 0]),
+    ("%", 0.01, [0, 0, 0, 0, 0]),
+    ("1", 1.0, [0, 0, 0, 0, 0]),
+    ("mg/cycle", 1e-6, [1, 0, 0, 0, 0]),
+];
+
+fn unit_from_doc(doc: &str) -> Option<&'static str> {
+    let open = doc.find('[')?;
+    let close = doc[open..].find(']')? + open;
+    let u = &doc[open + 1..close];
+    Some(match u {
+        "Pa" => "Pa",
+        "K" => "K",
+        "kg/s" => "kg/s",
+        "rad/s" => "rad/s",
+        "rpm" => "rpm",
+        "Nm" => "N.m",
+        "W" => "W",
+        "%" => "%",
+        "-" => "1",
+        _ => return None,
+    })
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Doc comments of `pub field: Type` lines per struct: (struct, field) -> doc.
+fn struct_docs(src: &str) -> (HashMap<(String, String), String>, HashMap<String, String>) {
+    let mut docs = HashMap::new();
+    let mut group_types = HashMap::new();
+    let mut current = String::new();
+    let mut pending = String::new();
+    for line in src.lines() {
+        let l = line.trim();
+        if let Some(d) = l.strip_prefix("///") {
+            if !pending.is_empty() {
+                pending.push(' ');
+            }
+            pending.push_str(d.trim());
+            continue;
+        }
+        if let Some(rest) = l.strip_prefix("pub struct ") {
+            current = rest.split([' ', '{']).next().unwrap_or("").to_string();
+        } else if let Some(rest) = l.strip_prefix("pub ") {
+            if let Some((field, ty)) = rest.split_once(':') {
+                let field = field.trim().to_string();
+                let ty = ty.trim().trim_end_matches(',').to_string();
+                if current == "Params" {
+                    group_types.insert(field.clone(), ty);
+                }
+                docs.insert((current.clone(), field), pending.clone());
+            }
+        }
+        if !l.starts_with("#[") {
+            pending.clear();
+        }
+    }
+    (docs, group_types)
+}
+
+/// Doc comments of the signals: reference name -> doc.
+fn signal_docs(src: &str) -> HashMap<String, String> {
+    let mut out = HashMap::new();
+    let mut pending = String::new();
+    for line in src.lines() {
+        let l = line.trim();
+        if let Some(d) = l.strip_prefix("///") {
+            if !pending.is_empty() {
+                pending.push(' ');
+            }
+            pending.push_str(d.trim());
+            continue;
+        }
+        if let Some((_, name)) = l.split_once("=> \"") {
+            if let Some(name) = name.split('"').next() {
+                out.insert(name.to_string(), pending.clone());
+            }
+        }
+        pending.clear();
+    }
+    out
+}
+
+/// One row of the model description.
+struct Row {
+    vr: u32,
+    name: String,
+    description: String,
+    causality: &'static str,
+    variability: &'static str,
+    initial: Option<&'static str>,
+    start: Option<f64>,
+    unit: Option<&'static str>,
+    derivative_of: Option<usize>,
+}
+
+fn rows() -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (i, (name, desc, unit, start)) in vars::INPUTS.iter().enumerate() {
+        rows.push(Row {
+            vr: vars::VR_INPUT + i as u32,
+            name: name.to_string(),
+            description: desc.to_string(),
+            causality: "input",
+            variability: "continuous",
+            initial: None,
+            start: Some(*start),
+            unit: Some(unit),
+            derivative_of: None,
+        });
+    }
+    for i in 0..8 {
+        rows.push(Row {
+            vr: vars::VR_STATE + i as u32,
+            name: vars::state_name(i).to_string(),
+            description: vars::STATE_DESCRIPTIONS[i].to_string(),
+            causality: "output",
+            variability: "continuous",
+            initial: Some("calculated"),
+            start: None,
+            unit: Some(vars::STATE_UNITS[i]),
+            derivative_of: None,
+        });
+    }
+    for i in 0..8 {
+        rows.push(Row {
+            vr: vars::VR_DER + i as u32,
+            name: format!("der({})", vars::state_name(i)),
+            description: format!("Time derivative of {} [per second]", vars::state_name(i)),
+            causality: "local",
+            variability: "continuous",
+            initial: Some("calculated"),
+            start: None,
+            unit: None,
+            derivative_of: Some(i),
+        });
+    }
+    let sdocs = signal_docs(SIGNALS_SRC);
+    for (i, n) in Signals::NAMES.iter().enumerate() {
+        let doc = sdocs.get(*n).cloned().unwrap_or_default();
+        rows.push(Row {
+            vr: vars::VR_SIGNAL + i as u32,
+            name: vars::signal_name(i),
+            unit: unit_from_doc(&doc),
+            description: doc,
+            causality: "output",
+            variability: "continuous",
+            initial: Some("calculated"),
+            start: None,
+            derivative_of: None,
+        });
+    }
+    let (pdocs, groups) = struct_docs(PARAMS_SRC);
+    for (i, p) in vars::param_table().iter().enumerate() {
+        let ty = groups.get(&p.group).cloned().unwrap_or_default();
+        let doc = pdocs
+            .get(&(ty, p.field.clone()))
+            .cloned()
+            .unwrap_or_default();
+        rows.push(Row {
+            vr: vars::VR_PARAM + i as u32,
+            name: p.name.clone(),
+            unit: unit_from_doc(&doc),
+            description: doc,
+            causality: "parameter",
+            variability: "tunable",
+            initial: Some("exact"),
+            start: Some(p.start),
+            derivative_of: None,
+        });
+    }
+    debug_assert!(rows.iter().all(|r| vars::lookup(r.vr).is_some()));
+    rows
+}
+
+/// The `modelDescription.xml` text.
+pub fn model_description() -> String {
+    let rows = rows();
+    let mut x = String::new();
+    let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        x,
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="mvem" guid="{}" description="Mean-value diesel engine model with VGT and EGR (Wahlstrom and Eriksson 2011), 8 states; starts at the steady state of the start inputs" generationTool="mvem-fmu {}" variableNamingConvention="flat" numberOfEventIndicators="0">"#,
+        vars::guid(),
+        env!("CARGO_PKG_VERSION")
+    );
+    let _ = writeln!(
+        x,
+        r#"  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
+    );
+    let _ = writeln!(
+        x,
+        r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
+    );
+    let _ = writeln!(x, "  <UnitDefinitions>");
+    for (name, factor, e) in UNITS {
+        let labels = ["kg", "m", "s", "K", "rad"];
+        let mut attrs = String::new();
+        for (l, v) in labels.iter().zip(e) {
+            if *v != 0 {
+                let _ = write!(attrs, r#" {l}="{v}""#);
+            }
+        }
+        if *factor != 1.0 {
+            let _ = write!(attrs, r#" factor="{factor:e}""#);
+        }
+        let _ = writeln!(
+            x,
+            r#"    <Unit name="{}"><BaseUnit{attrs}/></Unit>"#,
+            xml_escape(name)
+        );
+    }
+    let _ = writeln!(x, "  </UnitDefinitions>");
+    let _ = writeln!(
+        x,
+        r#"  <DefaultExperiment startTime="0" stopTime="8" tolerance="1e-06" stepSize="0.01"/>"#
+    );
+    let _ = writeln!(x, "  <ModelVariables>");
+    let mut index_of_vr = HashMap::new();
+    for (k, r) in rows.iter().enumerate() {
+        index_of_vr.insert(r.vr, k + 1);
+        let _ = write!(
+            x,
+            r#"    <ScalarVariable name="{}" valueReference="{}" description="{}" causality="{}" variability="{}""#,
+            xml_escape(&r.name),
+            r.vr,
+            xml_escape(&r.description),
+            r.causality,
+            r.variability
+        );
+        if let Some(i) = r.initial {
+            let _ = write!(x, r#" initial="{i}""#);
+        }
+        let _ = write!(x, "><Real");
+        if let Some(u) = r.unit {
+            let _ = write!(x, r#" unit="{}""#, xml_escape(u));
+        }
+        if let Some(s) = r.start {
+            let _ = write!(x, r#" start="{s:e}""#);
+        }
+        if let Some(d) = r.derivative_of {
+            // states follow the 4 inputs, 1-based
+            let _ = write!(x, r#" derivative="{}""#, 4 + d + 1);
+        }
+        let _ = writeln!(x, "/></ScalarVariable>");
+    }
+    let _ = writeln!(x, "  </ModelVariables>");
+    let _ = writeln!(x, "  <ModelStructure>");
+    let idx = |r: &Row| index_of_vr[&r.vr];
+    let _ = writeln!(x, "    <Outputs>");
+    for r in rows.iter().filter(|r| r.causality == "output") {
+        let _ = writeln!(x, r#"      <Unknown index="{}"/>"#, idx(r));
+    }
+    let _ = writeln!(x, "    </Outputs>");
+    let _ = writeln!(x, "    <Derivatives>");
+    for r in rows.iter().filter(|r| r.derivative_of.is_some()) {
+        let _ = writeln!(x, r#"      <Unknown index="{}"/>"#, idx(r));
+    }
+    let _ = writeln!(x, "    </Derivatives>");
+    let _ = writeln!(x, "    <InitialUnknowns>");
+    for r in rows
+        .iter()
+        .filter(|r| r.causality == "output" || r.derivative_of.is_some())
+    {
+        let _ = writeln!(x, r#"      <Unknown index="{}"/>"#, idx(r));
+    }
+    let _ = writeln!(x, "    </InitialUnknowns>");
+    let _ = writeln!(x, "  </ModelStructure>");
+    let _ = writeln!(x, "</fmiModelDescription>");
+    x
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut table = [0u32; 256];
+    for (i, t) in table.iter_mut().enumerate() {
+        let mut c = i as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+        *t = c;
+    }
+    let mut crc = 0xFFFF_FFFFu32;
+    for b in data {
+        crc = table[((crc ^ *b as u32) & 0xFF) as usize] ^ (crc >> 8);
+    }
+    !crc
+}
+
+/// A zip archive of stored (uncompressed) entries; enough for an FMU and free of dependencies.
+pub fn zip_stored(entries: &[(&str, &[u8])]) -> Result<Vec<u8>, String> {
+    let mut out = Vec::new();
+    let mut central = Vec::new();
+    for (name, data) in entries {
+        let size = u32::try_from(data.len()).map_err(|_| format!("{name}: larger than 4 GiB"))?;
+        let offset = u32::try_from(out.len()).map_err(|_| "archive larger than 4 GiB")?;
+        let crc = crc32(data);
+        let n = name.as_bytes();
+        // local file header
+        out.extend_from_slice(&0x0403_4b50u32.to_le_bytes());
+        out.extend_from_slice(&20u16.to_le_bytes()); // version needed
+        out.extend_from_slice(&0u16.to_le_bytes()); // flags
+        out.extend_from_slice(&0u16.to_le_bytes()); // method: stored
+        out.extend_from_slice(&0u16.to_le_bytes()); // time
+        out.extend_from_slice(&0x21u16.to_le_bytes()); // date 1980-01-01
+        out.extend_from_slice(&crc.to_le_bytes());
+        out.extend_from_slice(&size.to_le_bytes());
+        out.extend_from_slice(&size.to_le_bytes());
+        out.extend_from_slice(&(n.len() as u16).to_le_bytes());
+        out.extend_from_slice(&0u16.to_le_bytes());
+        out.extend_from_slice(n);
+        out.extend_from_slice(data);
+        // central directory entry
+        central.extend_from_slice(&0x0201_4b50u32.to_le_bytes());
+        central.extend_from_slice(&(3u16 << 8 | 20).to_le_bytes()); // made by unix, 2.0
+        central.extend_from_slice(&20u16.to_le_bytes());
+        central.extend_from_slice(&0u16.to_le_bytes());
+        central.extend_from_slice(&0u16.to_le_bytes());
+        central.extend_from_slice(&0u16.to_le_bytes());
+        central.extend_from_slice(&0x21u16.to_le_bytes());
+        central.extend_from_slice(&crc.to_le_bytes());
+        central.extend_from_slice(&size.to_le_bytes());
+        central.extend_from_slice(&size.to_le_bytes());
+        central.extend_from_slice(&(n.len() as u16).to_le_bytes());
+        central.extend_from_slice(&0u16.to_le_bytes()); // extra
+        central.extend_from_slice(&0u16.to_le_bytes()); // comment
+        central.extend_from_slice(&0u16.to_le_bytes()); // disk
+        central.extend_from_slice(&0u16.to_le_bytes()); // internal attrs
+        central.extend_from_slice(&(0o100644u32 << 16).to_le_bytes()); // external attrs
+        central.extend_from_slice(&offset.to_le_bytes());
+        central.extend_from_slice(n);
+    }
+    let cd_offset = out.len() as u32;
+    let cd_size = central.len() as u32;
+    out.extend_from_slice(&central);
+    out.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
+    out.extend_from_slice(&0u16.to_le_bytes());
+    out.extend_from_slice(&0u16.to_le_bytes());
+    out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    out.extend_from_slice(&(entries.len() as u16).to_le_bytes());
+    out.extend_from_slice(&cd_size.to_le_bytes());
+    out.extend_from_slice(&cd_offset.to_le_bytes());
+    out.extend_from_slice(&0u16.to_le_bytes());
+    Ok(out)
+}
+
+/// Write the FMU archive `out` from the shared library `so` (the cdylib `libmvem_fmu.so` built
+/// from this crate in release mode). The file is written atomically.
+pub fn build(out: &Path, so: &Path) -> Result<(), String> {
+    let lib = std::fs::read(so).map_err(|e| format!("{}: {e}", so.display()))?;
+    let xml = model_description();
+    let so_name = format!("binaries/linux64/{MODEL_IDENTIFIER}.so");
+    let zip = zip_stored(&[("modelDescription.xml", xml.as_bytes()), (&so_name, &lib)])?;
+    mvem::io::output::write_atomic(out, &zip).map_err(|e| format!("{}: {e}", out.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32_known_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn description_lists_every_variable_once_with_docs() {
+        let x = model_description();
+        let n = x.matches("<ScalarVariable ").count();
+        assert_eq!(n, 4 + 8 + 8 + Signals::COUNT + vars::param_table().len());
+        assert!(x.contains(r#"name="turbo.j_t""#));
+        assert!(x.contains("Turbocharger inertia J_t"));
+        assert!(x.contains(r#"name="W_c" valueReference"#));
+        assert!(x.contains(r#"derivative="5""#));
+        // every parameter has a description
+        assert!(!x.contains(r#"description="" causality="parameter""#));
+    }
+}

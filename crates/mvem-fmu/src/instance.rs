@@ -1,0 +1,735 @@
+//! The FMU instance in safe Rust: state machine, variable access, Model Exchange and
+//! Co-Simulation semantics. The C ABI in [`crate::ffi`] only converts pointers and statuses.
+//!
+//! Transport delays (tau_degr, tau_dvgt): the instance keeps a history of the inputs, one entry
+//! per change, recorded at the FMU's current time whenever an input is set (zero-order hold:
+//! an input value holds from the time it was set until the next change). The delayed commands
+//! are that history evaluated at `t - tau` (constant before the start). This is the same in
+//! both interfaces:
+//! - Co-Simulation: the history becomes an [`InputSchedule`] with a jump at every communication
+//!   point where an input changed, and `fmi2DoStep` integrates with mvem's own simulator over
+//!   it, so delays and the stops at delayed input jumps are exact.
+//! - Model Exchange: the derivatives use the history at `t - tau`; `fmi2NewDiscreteStates`
+//!   announces the next delayed jump as a time event (`nextEventTime`), so the importer's
+//!   integrator stops there instead of stepping over the discontinuity. Inputs that the importer
+//!   changes continuously between events are seen by the delayed path only at the times
+//!   `fmi2SetReal` is called (the history is piecewise constant).
+
+use crate::vars::{self, Kind};
+use mvem::analysis::steady::steady_state;
+use mvem::model::{Drive, Engine8, Model, ModelInput, ModelOptions};
+use mvem::params::Params;
+use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+
+/// FMI interface the instance was created for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Interface {
+    /// Model Exchange.
+    ModelExchange,
+    /// Co-Simulation.
+    CoSimulation,
+}
+
+/// Where the instance is in the FMI 2.0 state machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// After fmi2Instantiate / fmi2Reset.
+    Instantiated,
+    /// Between fmi2EnterInitializationMode and fmi2ExitInitializationMode.
+    Initialization,
+    /// Model Exchange event mode.
+    Event,
+    /// Model Exchange continuous-time mode.
+    ContinuousTime,
+    /// Co-Simulation step mode.
+    StepComplete,
+    /// After fmi2Terminate.
+    Terminated,
+    /// After an error: only fmi2Reset / fmi2FreeInstance are allowed.
+    Failed,
+}
+
+/// FMI status of a failed call (the ABI maps it to fmi2Status).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Severity {
+    /// The call was refused; the instance is unchanged and can go on (fmi2Discard).
+    Discard,
+    /// The call failed (fmi2Error).
+    Error,
+}
+
+/// A refused or failed call: severity and message for the logger.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FmuError {
+    /// How bad.
+    pub severity: Severity,
+    /// Message naming the function, variable or value.
+    pub message: String,
+}
+
+impl FmuError {
+    fn error(message: impl Into<String>) -> Self {
+        Self {
+            severity: Severity::Error,
+            message: message.into(),
+        }
+    }
+    fn discard(message: impl Into<String>) -> Self {
+        Self {
+            severity: Severity::Discard,
+            message: message.into(),
+        }
+    }
+}
+
+/// Result of an instance call.
+pub type FmuResult<T> = Result<T, FmuError>;
+
+/// Event information returned by [`Instance::new_discrete_states`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EventInfo {
+    /// Time of the next delayed input jump, if any.
+    pub next_event_time: Option<f64>,
+}
+
+/// One FMU instance.
+pub struct Instance {
+    /// Interface.
+    pub interface: Interface,
+    /// Phase.
+    pub phase: Phase,
+    params: Vec<f64>,
+    model: Engine8,
+    inputs: [f64; 4],
+    t: f64,
+    t_start: f64,
+    t_stop: Option<f64>,
+    rtol: f64,
+    x: [f64; 8],
+    /// Input history: (time from which the values hold, values).
+    history: Vec<(f64, [f64; 4])>,
+    /// States must be recomputed (initialization mode: inputs or parameters changed).
+    dirty: bool,
+}
+
+/// Number of continuous states.
+pub const N_STATES: usize = 8;
+
+impl Instance {
+    /// A new instance with the published parameters and the start inputs of the model description.
+    pub fn new(interface: Interface) -> Self {
+        Self {
+            interface,
+            phase: Phase::Instantiated,
+            params: vars::param_table().iter().map(|p| p.start).collect(),
+            model: Engine8::published(),
+            inputs: vars::INPUTS.map(|i| i.3),
+            t: 0.0,
+            t_start: 0.0,
+            t_stop: None,
+            rtol: 1e-6,
+            x: [0.0; 8],
+            history: Vec::new(),
+            dirty: true,
+        }
+    }
+
+    /// Back to the state after instantiation (fmi2Reset).
+    pub fn reset(&mut self) {
+        *self = Self::new(self.interface);
+    }
+
+    /// Current time [s].
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
+    fn require(&self, what: &str, allowed: &[Phase]) -> FmuResult<()> {
+        if allowed.contains(&self.phase) {
+            Ok(())
+        } else {
+            Err(FmuError::error(format!(
+                "{what} is not allowed in phase {:?}",
+                self.phase
+            )))
+        }
+    }
+
+    fn require_me(&self, what: &str) -> FmuResult<()> {
+        if self.interface == Interface::ModelExchange {
+            Ok(())
+        } else {
+            Err(FmuError::error(format!(
+                "{what} is a Model Exchange function; this instance is Co-Simulation"
+            )))
+        }
+    }
+
+    /// fmi2SetupExperiment.
+    pub fn setup_experiment(
+        &mut self,
+        tolerance: Option<f64>,
+        t_start: f64,
+        t_stop: Option<f64>,
+    ) -> FmuResult<()> {
+        self.require("fmi2SetupExperiment", &[Phase::Instantiated])?;
+        if !t_start.is_finite() {
+            return Err(FmuError::error(format!(
+                "fmi2SetupExperiment: startTime = {t_start} is not finite"
+            )));
+        }
+        if let Some(tol) = tolerance {
+            if !(1e-13..1.0).contains(&tol) {
+                return Err(FmuError::error(format!(
+                    "fmi2SetupExperiment: tolerance = {tol} must lie in [1e-13, 1)"
+                )));
+            }
+            self.rtol = tol;
+        }
+        if let Some(ts) = t_stop {
+            if !(ts.is_finite() && ts >= t_start) {
+                return Err(FmuError::error(format!(
+                    "fmi2SetupExperiment: stopTime = {ts} must be finite and >= startTime = {t_start}"
+                )));
+            }
+        }
+        self.t_start = t_start;
+        self.t = t_start;
+        self.t_stop = t_stop;
+        Ok(())
+    }
+
+    /// fmi2EnterInitializationMode.
+    pub fn enter_initialization(&mut self) -> FmuResult<()> {
+        self.require("fmi2EnterInitializationMode", &[Phase::Instantiated])?;
+        self.phase = Phase::Initialization;
+        self.dirty = true;
+        Ok(())
+    }
+
+    /// Build the model from the parameter values and start at the steady state of the inputs.
+    fn initialize_states(&mut self) -> FmuResult<()> {
+        let p: Params = vars::params_from_values(&self.params).map_err(FmuError::error)?;
+        self.model = Engine8::new(p, ModelOptions::default())
+            .map_err(|e| FmuError::error(format!("invalid parameters: {e}")))?;
+        let d = Drive::from_array(self.inputs);
+        let ss = steady_state(&self.model, &d).map_err(|e| {
+            FmuError::error(format!(
+                "no steady state at the start inputs n_e = {} rpm, u_delta = {} mg, u_egr = {} %, u_vgt = {} %: {e}",
+                d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
+            ))
+        })?;
+        self.x = ss.x;
+        self.history = vec![(self.t, self.inputs)];
+        self.dirty = false;
+        Ok(())
+    }
+
+    fn ensure_initialized(&mut self) -> FmuResult<()> {
+        if self.dirty {
+            self.initialize_states()?;
+        }
+        Ok(())
+    }
+
+    /// fmi2ExitInitializationMode: computes the steady state at the current inputs.
+    pub fn exit_initialization(&mut self) -> FmuResult<()> {
+        self.require("fmi2ExitInitializationMode", &[Phase::Initialization])?;
+        self.ensure_initialized()?;
+        self.phase = match self.interface {
+            Interface::ModelExchange => Phase::Event,
+            Interface::CoSimulation => Phase::StepComplete,
+        };
+        Ok(())
+    }
+
+    /// fmi2Terminate.
+    pub fn terminate(&mut self) -> FmuResult<()> {
+        self.require(
+            "fmi2Terminate",
+            &[Phase::Event, Phase::ContinuousTime, Phase::StepComplete],
+        )?;
+        self.phase = Phase::Terminated;
+        Ok(())
+    }
+
+    /// Input value at `tq` from the history (zero-order hold, right-continuous; constant before
+    /// the first entry).
+    fn history_at(&self, tq: f64, channel: usize) -> f64 {
+        let k = self.history.partition_point(|(th, _)| *th <= tq);
+        match k {
+            0 => self
+                .history
+                .first()
+                .map_or(self.inputs[channel], |h| h.1[channel]),
+            k => self.history[k - 1].1[channel],
+        }
+    }
+
+    /// Record the current inputs at the current time.
+    fn record_inputs(&mut self) {
+        let t = self.t;
+        // the importer went back in time (e.g. a rejected step): forget the future
+        while self.history.len() > 1 && self.history.last().is_some_and(|h| h.0 > t) {
+            self.history.pop();
+        }
+        match self.history.last_mut() {
+            Some(last) if last.1 == self.inputs => {}
+            Some(last) if last.0 >= t => last.1 = self.inputs,
+            _ => self.history.push((t, self.inputs)),
+        }
+    }
+
+    fn model_input(&self) -> ModelInput {
+        let p = self.model.params();
+        if self.phase == Phase::Initialization || self.history.is_empty() {
+            return ModelInput::constant(Drive::from_array(self.inputs));
+        }
+        ModelInput {
+            now: Drive::from_array(self.inputs),
+            u_egr_delayed: self.history_at(self.t - p.egr_actuator.tau_degr, 2),
+            u_vgt_delayed: self.history_at(self.t - p.vgt_actuator.tau_dvgt, 3),
+        }
+    }
+
+    fn evaluate(&self) -> mvem::model::Evaluation<8> {
+        let memory = mvem::components::cylinder::SeligerIterate {
+            x_r: 0.0,
+            t_1: self.model.params().intake_manifold.t_im,
+        };
+        self.model.eval(&self.x, &self.model_input(), memory)
+    }
+
+    /// fmi2GetReal for a batch of value references.
+    pub fn get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> FmuResult<()> {
+        self.require(
+            "fmi2GetReal",
+            &[
+                Phase::Initialization,
+                Phase::Event,
+                Phase::ContinuousTime,
+                Phase::StepComplete,
+                Phase::Terminated,
+            ],
+        )?;
+        self.ensure_initialized()?;
+        let mut ev = None;
+        for (vr, o) in vrs.iter().zip(out.iter_mut()) {
+            let kind = vars::lookup(*vr).ok_or_else(|| {
+                FmuError::error(format!("fmi2GetReal: unknown value reference {vr}"))
+            })?;
+            *o = match kind {
+                Kind::Input(i) => self.inputs[i],
+                Kind::State(i) => self.x[i],
+                Kind::Param(i) => self.params[i],
+                Kind::Derivative(i) => ev.get_or_insert_with(|| self.evaluate()).dx[i],
+                Kind::Signal(i) => ev.get_or_insert_with(|| self.evaluate()).signals.values()[i],
+            };
+        }
+        Ok(())
+    }
+
+    /// fmi2SetReal for a batch of value references (inputs and parameters).
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> FmuResult<()> {
+        self.require(
+            "fmi2SetReal",
+            &[
+                Phase::Instantiated,
+                Phase::Initialization,
+                Phase::Event,
+                Phase::ContinuousTime,
+                Phase::StepComplete,
+            ],
+        )?;
+        let before_run = matches!(self.phase, Phase::Instantiated | Phase::Initialization);
+        // check everything first: a refused call changes nothing
+        for (vr, v) in vrs.iter().zip(values) {
+            let kind = vars::lookup(*vr).ok_or_else(|| {
+                FmuError::error(format!("fmi2SetReal: unknown value reference {vr}"))
+            })?;
+            let name = match kind {
+                Kind::Input(i) => vars::INPUTS[i].0.to_string(),
+                Kind::Param(i) => vars::param_table()[i].name.clone(),
+                Kind::State(i) => {
+                    return Err(FmuError::error(format!(
+                    "fmi2SetReal: state {} (vr {vr}) is calculated; use fmi2SetContinuousStates",
+                    vars::state_name(i)
+                )))
+                }
+                Kind::Derivative(_) | Kind::Signal(_) => {
+                    return Err(FmuError::error(format!(
+                        "fmi2SetReal: vr {vr} is a calculated output and cannot be set"
+                    )))
+                }
+            };
+            if !v.is_finite() {
+                return Err(FmuError::error(format!(
+                    "fmi2SetReal: {name} = {v} is not finite"
+                )));
+            }
+        }
+        let old_params = self.params.clone();
+        let mut params_changed = false;
+        let mut inputs = self.inputs;
+        for (vr, v) in vrs.iter().zip(values) {
+            match vars::lookup(*vr) {
+                Some(Kind::Input(i)) => inputs[i] = *v,
+                Some(Kind::Param(i)) => {
+                    params_changed |= self.params[i] != *v;
+                    self.params[i] = *v;
+                }
+                _ => {}
+            }
+        }
+        if params_changed && !before_run {
+            // tunable change during the run: validate now, keep the old set if invalid
+            let built = vars::params_from_values(&self.params)
+                .and_then(|p| Engine8::new(p, ModelOptions::default()).map_err(|e| format!("{e}")));
+            match built {
+                Ok(m) => self.model = m,
+                Err(e) => {
+                    self.params = old_params;
+                    return Err(FmuError::error(format!(
+                        "fmi2SetReal: invalid parameters (kept the previous ones): {e}"
+                    )));
+                }
+            }
+        }
+        self.inputs = inputs;
+        if before_run {
+            self.dirty = true;
+        } else {
+            self.record_inputs();
+        }
+        Ok(())
+    }
+
+    /// fmi2SetTime (Model Exchange).
+    pub fn set_time(&mut self, t: f64) -> FmuResult<()> {
+        self.require_me("fmi2SetTime")?;
+        self.require("fmi2SetTime", &[Phase::Event, Phase::ContinuousTime])?;
+        if !t.is_finite() {
+            return Err(FmuError::error(format!(
+                "fmi2SetTime: time = {t} is not finite"
+            )));
+        }
+        self.t = t;
+        Ok(())
+    }
+
+    /// fmi2SetContinuousStates.
+    pub fn set_states(&mut self, x: &[f64]) -> FmuResult<()> {
+        self.require_me("fmi2SetContinuousStates")?;
+        self.require(
+            "fmi2SetContinuousStates",
+            &[Phase::Event, Phase::ContinuousTime],
+        )?;
+        if x.len() != N_STATES {
+            return Err(FmuError::error(format!(
+                "fmi2SetContinuousStates: nx = {} (expected {N_STATES})",
+                x.len()
+            )));
+        }
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(FmuError::error(format!(
+                "fmi2SetContinuousStates: {} = {} is not finite",
+                vars::state_name(i),
+                x[i]
+            )));
+        }
+        self.x.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// fmi2GetContinuousStates.
+    pub fn get_states(&mut self, out: &mut [f64]) -> FmuResult<()> {
+        self.require_me("fmi2GetContinuousStates")?;
+        self.require(
+            "fmi2GetContinuousStates",
+            &[
+                Phase::Initialization,
+                Phase::Event,
+                Phase::ContinuousTime,
+                Phase::Terminated,
+            ],
+        )?;
+        self.check_len("fmi2GetContinuousStates", out.len())?;
+        self.ensure_initialized()?;
+        out.copy_from_slice(&self.x);
+        Ok(())
+    }
+
+    fn check_len(&self, what: &str, n: usize) -> FmuResult<()> {
+        if n == N_STATES {
+            Ok(())
+        } else {
+            Err(FmuError::error(format!(
+                "{what}: nx = {n} (expected {N_STATES})"
+            )))
+        }
+    }
+
+    /// fmi2GetDerivatives.
+    pub fn get_derivatives(&mut self, out: &mut [f64]) -> FmuResult<()> {
+        self.require_me("fmi2GetDerivatives")?;
+        self.require(
+            "fmi2GetDerivatives",
+            &[
+                Phase::Initialization,
+                Phase::Event,
+                Phase::ContinuousTime,
+                Phase::Terminated,
+            ],
+        )?;
+        self.check_len("fmi2GetDerivatives", out.len())?;
+        self.ensure_initialized()?;
+        let ev = self.evaluate();
+        if let Some(i) = ev.dx.iter().position(|v| !v.is_finite()) {
+            return Err(FmuError::discard(format!(
+                "fmi2GetDerivatives: derivative of {} is {} at t = {} (state outside the model's range)",
+                vars::state_name(i),
+                ev.dx[i],
+                self.t
+            )));
+        }
+        out.copy_from_slice(&ev.dx);
+        Ok(())
+    }
+
+    /// fmi2GetNominalsOfContinuousStates: the model's state scales.
+    pub fn nominals(&self, out: &mut [f64]) -> FmuResult<()> {
+        self.require_me("fmi2GetNominalsOfContinuousStates")?;
+        self.check_len("fmi2GetNominalsOfContinuousStates", out.len())?;
+        out.copy_from_slice(&self.model.state_scales());
+        Ok(())
+    }
+
+    /// fmi2EnterEventMode.
+    pub fn enter_event_mode(&mut self) -> FmuResult<()> {
+        self.require_me("fmi2EnterEventMode")?;
+        self.require("fmi2EnterEventMode", &[Phase::Event, Phase::ContinuousTime])?;
+        self.phase = Phase::Event;
+        Ok(())
+    }
+
+    /// fmi2EnterContinuousTimeMode.
+    pub fn enter_continuous_time_mode(&mut self) -> FmuResult<()> {
+        self.require_me("fmi2EnterContinuousTimeMode")?;
+        self.require("fmi2EnterContinuousTimeMode", &[Phase::Event])?;
+        self.phase = Phase::ContinuousTime;
+        Ok(())
+    }
+
+    /// fmi2NewDiscreteStates: no discrete states; announces the next delayed input jump.
+    pub fn new_discrete_states(&mut self) -> FmuResult<EventInfo> {
+        self.require_me("fmi2NewDiscreteStates")?;
+        self.require("fmi2NewDiscreteStates", &[Phase::Event])?;
+        Ok(EventInfo {
+            next_event_time: self.next_delayed_jump(),
+        })
+    }
+
+    /// The first time after the current one at which a delayed actuator command jumps.
+    pub fn next_delayed_jump(&self) -> Option<f64> {
+        let p = self.model.params();
+        let taus = [(2, p.egr_actuator.tau_degr), (3, p.vgt_actuator.tau_dvgt)];
+        let eps = 1e-12 * self.t.abs().max(1.0);
+        let mut next: Option<f64> = None;
+        for w in self.history.windows(2) {
+            for (ch, tau) in taus {
+                if w[1].1[ch] != w[0].1[ch] {
+                    let te = w[1].0 + tau;
+                    if te > self.t + eps {
+                        next = Some(next.map_or(te, |n: f64| n.min(te)));
+                    }
+                }
+            }
+        }
+        next
+    }
+
+    /// fmi2CompletedIntegratorStep: nothing to update (the model is a pure function of the
+    /// state, the inputs and the input history); never requests an event.
+    pub fn completed_integrator_step(&mut self) -> FmuResult<()> {
+        self.require_me("fmi2CompletedIntegratorStep")?;
+        self.require("fmi2CompletedIntegratorStep", &[Phase::ContinuousTime])?;
+        Ok(())
+    }
+
+    /// fmi2DoStep: integrate from `t_c` to `t_c + h` with the inputs held since `t_c`.
+    pub fn do_step(&mut self, t_c: f64, h: f64) -> FmuResult<()> {
+        if self.interface != Interface::CoSimulation {
+            return Err(FmuError::error(
+                "fmi2DoStep is a Co-Simulation function; this instance is Model Exchange",
+            ));
+        }
+        self.require("fmi2DoStep", &[Phase::StepComplete])?;
+        if !(h.is_finite() && h > 0.0) {
+            return Err(FmuError::error(format!(
+                "fmi2DoStep: communicationStepSize = {h} must be finite and > 0"
+            )));
+        }
+        if !t_c.is_finite() || (t_c - self.t).abs() > 1e-9 * self.t.abs().max(1.0) {
+            return Err(FmuError::error(format!(
+                "fmi2DoStep: currentCommunicationPoint = {t_c} differs from the FMU time {}",
+                self.t
+            )));
+        }
+        self.record_inputs();
+        let sched = self.schedule()?;
+        let t_end = self.t + h;
+        let opts = SimOptions {
+            rtol: self.rtol,
+            dt_out: h,
+            ..SimOptions::default()
+        };
+        let sol = simulate(
+            &self.model,
+            &sched,
+            self.t,
+            t_end,
+            Start::State(self.x),
+            &opts,
+        )
+        .map_err(|e| FmuError::error(format!("fmi2DoStep from t = {} to {t_end}: {e}", self.t)))?;
+        for i in 0..N_STATES {
+            let col = sol.get(vars::state_name(i)).ok_or_else(|| {
+                FmuError::error(format!("solution lacks {}", vars::state_name(i)))
+            })?;
+            self.x[i] = *col
+                .last()
+                .ok_or_else(|| FmuError::error("empty solution"))?;
+        }
+        self.t = t_end;
+        Ok(())
+    }
+
+    /// The input history as a schedule (a jump at every recorded change).
+    fn schedule(&self) -> FmuResult<InputSchedule> {
+        let mut times = Vec::with_capacity(2 * self.history.len());
+        let mut rows = Vec::with_capacity(2 * self.history.len());
+        for (k, (t, v)) in self.history.iter().enumerate() {
+            if k > 0 {
+                times.push(*t);
+                rows.push(self.history[k - 1].1);
+            }
+            times.push(*t);
+            rows.push(*v);
+        }
+        InputSchedule::new(times, rows).map_err(|e| FmuError::error(format!("input history: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vars::{VR_DER, VR_INPUT, VR_PARAM, VR_SIGNAL, VR_STATE};
+    use mvem::model::Signals;
+
+    fn vr_signal(name: &str) -> u32 {
+        VR_SIGNAL + Signals::NAMES.iter().position(|n| *n == name).unwrap() as u32
+    }
+
+    fn started(iface: Interface) -> Instance {
+        let mut f = Instance::new(iface);
+        f.setup_experiment(Some(1e-8), 0.0, Some(8.0)).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
+        f
+    }
+
+    #[test]
+    fn starts_at_steady_state_with_zero_derivatives() {
+        let mut f = started(Interface::ModelExchange);
+        let ss = steady_state(
+            &Engine8::published(),
+            &Drive::new(1500.0, 110.0, 80.0, 75.0),
+        )
+        .unwrap();
+        let mut x = [0.0; 8];
+        f.get_states(&mut x).unwrap();
+        assert_eq!(x, ss.x);
+        let mut dx = [0.0; 8];
+        f.get_derivatives(&mut dx).unwrap();
+        let scales = Engine8::published().state_scales();
+        for i in 0..8 {
+            assert!((dx[i] / scales[i]).abs() < 1e-6, "dx[{i}] = {}", dx[i]);
+        }
+        let mut w = [0.0];
+        f.get_real(&[vr_signal("W_c")], &mut w).unwrap();
+        assert_eq!(w[0], ss.signals.w_c);
+    }
+
+    #[test]
+    fn co_simulation_step_matches_library_simulation() {
+        let mut f = started(Interface::CoSimulation);
+        let model = Engine8::published();
+        let sched =
+            InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(0.5, 3, 65.0)]).unwrap();
+        let opts = SimOptions {
+            rtol: 1e-8,
+            ..SimOptions::default()
+        };
+        let sol = simulate(&model, &sched, 0.0, 2.0, Start::SteadyState, &opts).unwrap();
+        let mut t = 0.0;
+        for k in 0..200 {
+            if k == 50 {
+                f.set_real(&[VR_INPUT + 3], &[65.0]).unwrap();
+            }
+            f.do_step(t, 0.01).unwrap();
+            t = (k + 1) as f64 * 0.01;
+        }
+        let mut out = [0.0; 2];
+        f.get_real(&[VR_STATE, vr_signal("W_c")], &mut out).unwrap();
+        let p_im = *sol.get("p_im").unwrap().last().unwrap();
+        let w_c = *sol.get("W_c").unwrap().last().unwrap();
+        assert!((out[0] / p_im - 1.0).abs() < 1e-6, "{} vs {p_im}", out[0]);
+        assert!((out[1] / w_c - 1.0).abs() < 1e-6, "{} vs {w_c}", out[1]);
+    }
+
+    #[test]
+    fn delayed_jump_is_announced_as_time_event() {
+        let mut f = started(Interface::ModelExchange);
+        let tau = Params::published().vgt_actuator.tau_dvgt;
+        f.enter_continuous_time_mode().unwrap();
+        f.set_time(1.0).unwrap();
+        f.enter_event_mode().unwrap();
+        f.set_real(&[VR_INPUT + 3], &[65.0]).unwrap();
+        let ev = f.new_discrete_states().unwrap();
+        assert_eq!(ev.next_event_time, Some(1.0 + tau));
+        // before the delayed jump the VGT actuator still sees 75 %
+        let mut d = [0.0];
+        f.get_real(&[VR_DER + 7], &mut d).unwrap();
+        assert_eq!(d[0], 0.0);
+        f.set_time(1.0 + tau).unwrap();
+        f.get_real(&[VR_DER + 7], &mut d).unwrap();
+        assert!(d[0] < 0.0);
+        assert_eq!(f.new_discrete_states().unwrap().next_event_time, None);
+    }
+
+    #[test]
+    fn bad_calls_are_refused_without_changes() {
+        let mut f = Instance::new(Interface::CoSimulation);
+        assert!(f.do_step(0.0, 0.1).is_err()); // before initialization
+        assert!(f.set_real(&[VR_INPUT], &[f64::NAN]).is_err());
+        assert!(f.set_real(&[9999], &[1.0]).is_err());
+        assert!(f.set_real(&[VR_STATE], &[1.0]).is_err());
+        let mut f = started(Interface::CoSimulation);
+        assert!(f.do_step(0.5, 0.1).is_err()); // wrong communication point
+        assert!(f.do_step(0.0, -1.0).is_err());
+        assert!(f.get_derivatives(&mut [0.0; 8]).is_err()); // ME-only
+                                                            // invalid tunable parameter value is rejected and the old one kept
+        let i = vars::param_table()
+            .iter()
+            .position(|p| p.name == "turbo.j_t")
+            .unwrap();
+        let vr = VR_PARAM + i as u32;
+        let mut old = [0.0];
+        f.get_real(&[vr], &mut old).unwrap();
+        assert!(f.set_real(&[vr], &[-1.0]).is_err());
+        let mut now = [0.0];
+        f.get_real(&[vr], &mut now).unwrap();
+        assert_eq!(old, now);
+        f.do_step(0.0, 0.1).unwrap();
+    }
+}

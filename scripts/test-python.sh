@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Python-side tests: the FMU with FMPy and the Python package mvem (crates/mvem-py).
+# Needs only Rust, python3 and pip: creates .venv-ci, installs maturin, fmpy, pytest, numpy,
+# builds the FMU and the package (release), and runs pytest on tests/python.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root="$PWD"
+venv="$root/.venv-ci"
+start=$(date +%s)
+
+if [ ! -x "$venv/bin/python" ]; then
+    python3 -m venv "$venv"
+fi
+"$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
+"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy
+
+echo "== building the FMU"
+scripts/build-fmu.sh "$root/target/fmu/mvem.fmu"
+export MVEM_FMU="$root/target/fmu/mvem.fmu"
+
+echo "== building the Python package (maturin develop --release)"
+(
+    export VIRTUAL_ENV="$venv"
+    export PATH="$venv/bin:$PATH"
+    maturin develop --release -q -m crates/mvem-py/Cargo.toml
+)
+
+echo "== pytest tests/python"
+"$venv/bin/python" -m pytest -q tests/python
+echo "test-python.sh: done in $(( $(date +%s) - start )) s"
