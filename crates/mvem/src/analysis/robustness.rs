@@ -15,7 +15,8 @@
 //! - `0 <= X_Oim, X_Oem <= X_Oc` (oxygen fractions of mixtures of air and exhaust, eqs (6), (9));
 //! - `p_im` in `[0.5, 10] p_amb`, `p_em` in `[0.5, 20] p_amb` (integrator limits, items 9-10);
 //! - `omega_t` within its integrator limits (item 37);
-//! - `lambda_O > 0` (eq. (15));
+//! - `lambda_O >= 0`, and `lambda_O > 0` wherever `X_Oim > 0` (eq. (15): lambda_O is
+//!   proportional to X_Oim, which may sit at its integrator limit 0 after oxygen-free EGR);
 //! - `W_c >= 1e-4` kg/s (compressor flow floor of the authors' implementation), `W_t >= 0`,
 //!   `W_egr >= 0` (authors' semantics: no reverse flow, eqs (32), (55));
 //! - every value of every output column finite.
@@ -383,7 +384,7 @@ pub fn check_solution(
         ("X_Oem in [0, X_Oc]", "X_Oem", 0.0, x_oc, slack),
         ("p_im in [0.5, 10] p_amb", "p_im", 0.5 * pa, 10.0 * pa, 0.0),
         ("p_em in [0.5, 20] p_amb", "p_em", 0.5 * pa, 20.0 * pa, 0.0),
-        ("lambda_O > 0", "lambda_O", f64::MIN_POSITIVE, f64::INFINITY, 0.0),
+        ("lambda_O >= 0", "lambda_O", 0.0, f64::INFINITY, 0.0),
         ("W_c >= 1e-4", "W_c", W_C_MIN, f64::INFINITY, 0.0),
         ("W_t >= 0", "W_t", 0.0, f64::INFINITY, 0.0),
         ("W_egr >= 0", "W_egr", 0.0, f64::INFINITY, 0.0),
@@ -424,6 +425,24 @@ pub fn check_solution(
         let [num, bad] = worst;
         numerical.extend(num);
         hard.extend(bad);
+    }
+    // lambda_O > 0 wherever the intake holds oxygen (eq. (15): lambda_O is proportional to
+    // X_Oim, so it is exactly 0 when X_Oim sits at its integrator limit 0)
+    if let (Some(l), Some(x)) = (sol.get("lambda_O"), sol.get("X_Oim")) {
+        let bad: Vec<f64> = l
+            .iter()
+            .zip(x)
+            .filter(|(l, x)| **x > 0.0 && !(**l > 0.0))
+            .map(|(l, _)| *l)
+            .collect();
+        if let Some(w) = bad.first() {
+            hard.push(Violation {
+                invariant: "lambda_O > 0 where X_Oim > 0",
+                samples: bad.len(),
+                worst: *w,
+                excess: 1.0,
+            });
+        }
     }
     (nonfinite, hard, numerical)
 }
