@@ -6,5 +6,6 @@ pub mod extensions;
 pub mod linearize;
 pub mod map;
 pub mod steady;
+pub mod robustness;
 pub mod step;
 pub mod zeros;

@@ -1,0 +1,234 @@
+//! Robustness ("never crash, never lie"):
+//! - a CI-sized subset of the sweep of `examples/robustness.rs` (300 runs of 20 s, both
+//!   integrators, seeded): no panic, no NaN/inf in any output sample, no invariant violation,
+//!   every error located;
+//! - failure honesty: absurd tolerances, parameters or start states give a located error (time,
+//!   state dump, hint), never garbage; a failed write leaves no partial file;
+//! - regression tests for the fuzzing findings (`fuzz/`).
+
+use mvem::analysis::robustness::{
+    error_is_located, scenario, start_state, sweep, StartBank, StartKind, SweepConfig,
+};
+use mvem::components::Semantics;
+use mvem::io::output::write_atomic;
+use mvem::model::{Drive, Engine8, ModelOptions, ModelOrder};
+use mvem::params::Params;
+use mvem::sim::{simulate, InputSchedule, Method, SimError, SimOptions, Start};
+
+#[test]
+fn sweep_subset_is_clean() {
+    let cfg = SweepConfig {
+        runs: 300,
+        seed: 7,
+        t_end: 20.0,
+        orders: vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
+        threads: 2,
+        ..SweepConfig::default()
+    };
+    let r = sweep(&Params::published(), &cfg);
+    println!("{r}");
+    assert_eq!(r.runs, 300);
+    assert!(r.panics.is_empty(), "panics: {:?}", r.panics);
+    assert_eq!(r.nonfinite_samples, 0, "NaN/inf in output");
+    assert!(r.violations.is_empty(), "violations: {:?}", r.violations);
+    assert_eq!(r.unlocated_errors, 0);
+    // the authors' model with its guards completes every run of this subset
+    assert_eq!(r.completed, 300, "errors: {:?}", r.errors);
+    // at least 20 s x 100 samples/s + 1 per run were checked
+    assert!(r.samples >= 300 * 2001, "samples {}", r.samples);
+    assert!(r.per_variant.len() >= 2, "both methods ran: {:?}", r.per_variant);
+}
+
+/// Scenarios are reproducible from (seed, run).
+#[test]
+fn scenarios_replay() {
+    let m = [Method::Rosenbrock34, Method::Dopri5];
+    let a = scenario(3, 17, 60.0, &m);
+    let b = scenario(3, 17, 60.0, &m);
+    assert_eq!(a.sched, b.sched);
+    assert_eq!((a.input, a.start, a.method), (b.input, b.start, b.method));
+    let c = scenario(3, 18, 60.0, &m);
+    assert_ne!(a.sched, c.sched);
+    // far start states lie inside the integrator limits, oxygen fractions within [0, X_Oc]
+    let e = Engine8::published();
+    let bank = StartBank::new(&e);
+    assert!(bank.states.len() >= 8, "bank {}", bank.states.len());
+    let mut r = a.rng.clone();
+    for _ in 0..100 {
+        let x = start_state(&e, &bank, StartKind::Far, &mut r);
+        assert!(x[0] >= 0.5e5 && x[0] <= 10.0 * 101300.0, "{x:?}");
+        assert!(x[2] >= 0.0 && x[2] <= 0.2314 && x[3] >= 0.0 && x[3] <= 0.2314);
+    }
+}
+
+fn assert_located(e: &SimError) {
+    let m = e.to_string();
+    assert!(error_is_located(e), "not located: {m}");
+    assert!(m.contains("p_im=") && m.contains("omega_t="), "state dump: {m}");
+}
+
+/// Step-count exhaustion is reported with the time reached and the state.
+#[test]
+fn too_many_steps_is_located() {
+    let m = Engine8::published();
+    let sched = InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 30.0), &[(1.0, 3, 25.0)])
+        .unwrap();
+    let opts = SimOptions {
+        rtol: 1e-12,
+        atol: 1e-14,
+        max_steps: 50,
+        ..SimOptions::default()
+    };
+    let e = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap_err();
+    assert!(matches!(e, SimError::TooManySteps { max_steps: 50, t, .. } if t > 0.0 && t < 8.0));
+    assert_located(&e);
+}
+
+/// Absurd tolerances are rejected before integration, naming the option.
+#[test]
+fn absurd_options_are_rejected() {
+    let m = Engine8::published();
+    let sched = InputSchedule::constant(Drive::new(1500.0, 110.0, 80.0, 30.0));
+    for (opts, field) in [
+        (
+            SimOptions {
+                rtol: 1e-16,
+                ..SimOptions::default()
+            },
+            "rtol",
+        ),
+        (
+            SimOptions {
+                atol: f64::NAN,
+                ..SimOptions::default()
+            },
+            "atol",
+        ),
+        (
+            SimOptions {
+                dt_out: 0.0,
+                ..SimOptions::default()
+            },
+            "dt",
+        ),
+    ] {
+        let e = simulate(&m, &sched, 0.0, 1.0, Start::SteadyState, &opts).unwrap_err();
+        assert!(
+            matches!(e, SimError::BadOption { field: f, .. } if f == field),
+            "{e}"
+        );
+    }
+    let e = simulate(
+        &m,
+        &sched,
+        0.0,
+        f64::NAN,
+        Start::SteadyState,
+        &SimOptions::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, SimError::BadInterval { .. }), "{e}");
+    let mut x = mvem::analysis::steady::steady_state(&m, &Drive::new(1500.0, 110.0, 80.0, 30.0))
+        .unwrap()
+        .x;
+    x[4] = f64::INFINITY;
+    let e = simulate(&m, &sched, 0.0, 1.0, Start::State(x), &SimOptions::default()).unwrap_err();
+    assert!(
+        matches!(&e, SimError::NonFinite { name, t, .. } if name == "omega_t" && *t == 0.0),
+        "{e}"
+    );
+    assert_located(&e);
+}
+
+/// The paper's plain equations have no guards: driven far outside their range from a far-off
+/// state they leave the domain (negative pressure ratio under a fractional power). The solver
+/// must stop with a located error, or complete with finite output -- never return NaN.
+#[test]
+fn paper_semantics_far_off_fails_cleanly() {
+    let opts = ModelOptions {
+        semantics: Semantics::Paper,
+        ..ModelOptions::default()
+    };
+    let m = Engine8::new(Params::published(), opts).unwrap();
+    let sched = InputSchedule::steps(
+        Drive::new(2500.0, 300.0, 120.0, -20.0),
+        &[(0.5, 1, 0.0), (1.0, 0, 300.0)],
+    )
+    .unwrap();
+    let x0 = [0.3e5, 25.0e5, 0.23, 0.0, 200.0, 120.0, 120.0, -20.0];
+    let mut failed = 0;
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let o = SimOptions {
+            method,
+            ..SimOptions::default()
+        };
+        match simulate(&m, &sched, 0.0, 3.0, Start::State(x0), &o) {
+            Ok(sol) => {
+                for c in &sol.columns {
+                    assert!(c.iter().all(|v| v.is_finite()), "{method:?}: NaN in output");
+                }
+            }
+            Err(e) => {
+                failed += 1;
+                assert_located(&e);
+            }
+        }
+    }
+    // at least one method hits the domain boundary (documented in docs/robustness.md)
+    assert!(failed >= 1);
+}
+
+/// Absurd parameters that still validate (a 1000x too light turbo) either integrate to finite
+/// output or stop with a located error.
+#[test]
+fn absurd_parameters_fail_cleanly() {
+    let mut p = Params::published();
+    p.turbo.j_t *= 1e-3;
+    p.intake_manifold.v_im *= 1e-3;
+    let m = Engine8::new(p, ModelOptions::default()).unwrap();
+    let sched = InputSchedule::steps(
+        Drive::new(1500.0, 250.0, 0.0, 20.0),
+        &[(0.2, 1, 0.0), (0.4, 3, 100.0)],
+    )
+    .unwrap();
+    let x0 = [1.0e5, 1.2e5, 0.2, 0.1, 5000.0, 0.0, 0.0, 20.0];
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let o = SimOptions {
+            method,
+            max_steps: 200_000,
+            ..SimOptions::default()
+        };
+        match simulate(&m, &sched, 0.0, 1.0, Start::State(x0), &o) {
+            Ok(sol) => {
+                for c in &sol.columns {
+                    assert!(c.iter().all(|v| v.is_finite()), "{method:?}: NaN in output");
+                }
+            }
+            Err(e) => assert_located(&e),
+        }
+    }
+}
+
+/// A failed write never leaves a partial file or a temporary file, and never replaces an
+/// existing file; a failed simulation has no output to write (the front ends write only
+/// `Ok` solutions, through `write_atomic`).
+#[test]
+fn failed_write_leaves_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    // target is a directory: the rename fails
+    let target = dir.path().join("out.csv");
+    std::fs::create_dir(&target).unwrap();
+    std::fs::write(target.join("keep"), b"x").unwrap();
+    assert!(write_atomic(&target, b"a,b\n1,2\n").is_err());
+    assert!(target.is_dir() && target.join("keep").exists());
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    assert_eq!(names, vec!["out.csv".to_string()], "leftover temporary file");
+    // missing directory: error naming the file, nothing created
+    let missing = dir.path().join("no/such/dir/out.csv");
+    let e = write_atomic(&missing, b"x").unwrap_err();
+    assert!(e.to_string().contains("out.csv"), "{e}");
+    assert!(!missing.exists());
+}
