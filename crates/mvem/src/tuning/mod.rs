@@ -9,3 +9,6 @@
 
 pub mod lsq;
 pub mod varpro;
+pub mod data;
+pub mod lab;
+pub mod steps;
