@@ -332,10 +332,10 @@ pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
         name: "J".into(),
         t,
         columns: vec![
-            ("u_egr".into(), ue),
-            ("u_vgt".into(), uv),
             ("u_egr_pos".into(), pe),
             ("u_vgt_pos".into(), pv),
+            ("u_egr".into(), ue),
+            ("u_vgt".into(), uv),
         ],
     }
 }
@@ -382,4 +382,82 @@ pub fn generate(params: &Params, opts: &LabOptions, out_dir: &Path) -> Result<Ca
     super::data::save_campaign(out_dir, &c)?;
     crate::io::params::save_params(params, &out_dir.join("true_params.toml"))?;
     Ok(c)
+}
+
+/// A dynamic data set with command steps at constant speed (Table 6 columns), simulated with
+/// the 8-state model from the steady state of the first command and sampled at `sample_rate_hz`.
+/// `steps`: (time [s], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
+/// outputs get the noise of `opts` (positions: relative to 100 %).
+#[allow(clippy::too_many_arguments)]
+pub fn step_set(
+    p: &Params,
+    opts: &LabOptions,
+    name: &str,
+    initial: Drive,
+    steps: &[(f64, usize, f64)],
+    t_end: f64,
+    sample_rate_hz: f64,
+) -> Result<DynamicData, LabError> {
+    use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+    let m = Engine8::new(p.clone(), ModelOptions::default())
+        .map_err(|e| LabError::Params(e.to_string()))?;
+    let sched = InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
+    let so = SimOptions {
+        dt_out: 1.0 / sample_rate_hz,
+        ..SimOptions::default()
+    };
+    let sol = simulate(&m, &sched, 0.0, t_end, Start::SteadyState, &so)
+        .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
+    let mut g = Gauss(ChaCha8Rng::seed_from_u64(
+        opts.seed ^ name.bytes().fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64),
+    ));
+    let n = opts.noise;
+    let get = |c: &str| sol.get(c).map(|v| v.to_vec()).unwrap_or_default();
+    let noisy = |g: &mut Gauss, v: Vec<f64>, s: f64, abs: bool| -> Vec<f64> {
+        v.into_iter()
+            .map(|x| if abs { g.abs(x, s) } else { g.rel(x, s) })
+            .collect()
+    };
+    // commands as logged: the value in force at each sample (right-continuous: a sample at a
+    // step time shows the new value), from the step list itself
+    let command = |ch: usize| -> Vec<f64> {
+        sol.t()
+            .iter()
+            .map(|&t| {
+                let mut v = initial.to_array()[ch];
+                let mut s: Vec<&(f64, usize, f64)> = steps.iter().filter(|s| s.1 == ch).collect();
+                s.sort_by(|a, b| a.0.total_cmp(&b.0));
+                for (ts, _, val) in s {
+                    if *ts <= t + 1e-9 {
+                        v = *val;
+                    }
+                }
+                v
+            })
+            .collect()
+    };
+    let columns = vec![
+        ("n_t".to_string(), noisy(&mut g, get("n_t"), n.rel, false)),
+        ("p_em".to_string(), noisy(&mut g, get("p_em"), n.rel, false)),
+        ("p_im".to_string(), noisy(&mut g, get("p_im"), n.rel, false)),
+        ("W_c".to_string(), noisy(&mut g, get("W_c"), n.rel, false)),
+        (
+            "u_egr_pos".to_string(),
+            noisy(&mut g, get("u_egr_actual"), n.rel * 100.0, true),
+        ),
+        (
+            "u_vgt_pos".to_string(),
+            noisy(&mut g, get("u_vgt_actual"), n.rel * 100.0, true),
+        ),
+        ("M_e".to_string(), noisy(&mut g, get("M_e"), n.rel, false)),
+        ("n_e".to_string(), command(0)),
+        ("u_egr".to_string(), command(2)),
+        ("u_vgt".to_string(), command(3)),
+        ("u_delta".to_string(), command(1)),
+    ];
+    Ok(DynamicData {
+        name: name.to_string(),
+        t: sol.t().to_vec(),
+        columns,
+    })
 }

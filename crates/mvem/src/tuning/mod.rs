@@ -12,3 +12,4 @@ pub mod varpro;
 pub mod data;
 pub mod lab;
 pub mod steps;
+pub mod validate;
