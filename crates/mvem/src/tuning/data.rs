@@ -322,11 +322,7 @@ fn read(path: &Path) -> Result<String, DataError> {
 
 /// Parse a CSV into (header, rows), checking that `required` columns exist and every value of
 /// them is finite and within its range. Returns the rows of the required columns in order.
-fn parse_columns(
-    text: &str,
-    path: &Path,
-    required: &[Column],
-) -> Result<Vec<Vec<f64>>, DataError> {
+fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec<f64>>, DataError> {
     let fmt = |message: String| DataError::Format {
         path: path.to_path_buf(),
         message,
@@ -569,7 +565,8 @@ mod tests {
             .collect::<Vec<_>>()
             .join(",")
     }
-    const ROW: &str = "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+    const ROW: &str =
+        "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
 
     #[test]
     fn stationary_roundtrip_and_errors() {
@@ -587,8 +584,11 @@ mod tests {
             msg.contains("line 2") && msg.contains("`p_im`") && msg.contains("s.csv"),
             "{msg}"
         );
-        let e = parse_stationary_csv(&format!("{}\n{}\n", header(), ROW.replace("0.3,", "NaN,")), p)
-            .unwrap_err();
+        let e = parse_stationary_csv(
+            &format!("{}\n{}\n", header(), ROW.replace("0.3,", "NaN,")),
+            p,
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("`W_c`"), "{e}");
         let e = parse_stationary_csv(&format!("{}\n{ROW}\n", header().replace("T_t,", "")), p)
             .unwrap_err();
@@ -597,11 +597,18 @@ mod tests {
 
     #[test]
     fn dynamic_duplicate_time() {
-        let text = "t,u_egr,u_vgt,u_egr_pos,u_vgt_pos\n0,0,50,0,50\n0.01,0,50,0,50\n0.01,0,50,0,50\n";
+        let text =
+            "t,u_egr,u_vgt,u_egr_pos,u_vgt_pos\n0,0,50,0,50\n0.01,0,50,0,50\n0.01,0,50,0,50\n";
         let e = parse_dynamic_csv(text, Path::new("J.csv"), "J", StepKind::Actuator).unwrap_err();
         let msg = e.to_string();
         assert!(msg.contains("line 4") && msg.contains("`t`"), "{msg}");
-        let ok = parse_dynamic_csv(&text[..text.len() - 16], Path::new("J.csv"), "J", StepKind::Actuator).unwrap();
+        let ok = parse_dynamic_csv(
+            &text[..text.len() - 16],
+            Path::new("J.csv"),
+            "J",
+            StepKind::Actuator,
+        )
+        .unwrap();
         assert_eq!(ok.t, vec![0.0, 0.01]);
         assert_eq!(ok.get("u_vgt_pos").unwrap(), &[50.0, 50.0]);
     }

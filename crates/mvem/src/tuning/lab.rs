@@ -99,7 +99,9 @@ pub enum LabError {
     #[error("invalid parameters: {0}")]
     Params(String),
     /// No valid equilibrium was found for a point after many draws.
-    #[error("no physically valid steady state found for stationary point {index} after {tries} draws")]
+    #[error(
+        "no physically valid steady state found for stationary point {index} after {tries} draws"
+    )]
     NoValidPoint {
         /// Point index.
         index: usize,
@@ -301,8 +303,7 @@ pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
         vgt_steps.push((off + k as f64 * hold, vgt[k] - vgt[k - 1]));
     }
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_000a));
-    let (mut t, mut ue, mut uv, mut pe, mut pv) =
-        (vec![], vec![], vec![], vec![], vec![]);
+    let (mut t, mut ue, mut uv, mut pe, mut pv) = (vec![], vec![], vec![], vec![], vec![]);
     let level = |steps: &[(f64, f64)], v0: f64, tt: f64| {
         v0 + steps
             .iter()
@@ -401,7 +402,8 @@ pub fn step_set(
     use crate::sim::{simulate, InputSchedule, SimOptions, Start};
     let m = Engine8::new(p.clone(), ModelOptions::default())
         .map_err(|e| LabError::Params(e.to_string()))?;
-    let sched = InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
+    let sched =
+        InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
     let so = SimOptions {
         dt_out: 1.0 / sample_rate_hz,
         ..SimOptions::default()
@@ -409,7 +411,10 @@ pub fn step_set(
     let sol = simulate(&m, &sched, 0.0, t_end, Start::SteadyState, &so)
         .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(
-        opts.seed ^ name.bytes().fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64),
+        opts.seed
+            ^ name
+                .bytes()
+                .fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64),
     ));
     let n = opts.noise;
     let get = |c: &str| sol.get(c).map(|v| v.to_vec()).unwrap_or_default();

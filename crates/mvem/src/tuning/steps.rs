@@ -184,7 +184,10 @@ fn fit_report(
     let (mean, max) = rel_errors(meas, model);
     FitReport {
         submodel: name.into(),
-        params: params.into_iter().map(|(n, v)| (n.to_string(), v)).collect(),
+        params: params
+            .into_iter()
+            .map(|(n, v)| (n.to_string(), v))
+            .collect(),
         mean_abs_rel_err: mean,
         max_abs_rel_err: max,
         n_points: meas.len(),
@@ -292,7 +295,7 @@ pub fn fit_torque(p: &mut Params, pts: &[StationaryPoint]) -> Result<FitReport, 
         let n = s.n_e / 1000.0;
         match j {
             0 => s.u_delta * 1e-6 * cyl.n_cyl * cyl.q_hv * cc.otto_factor * f, // eqs (28)-(29)
-            1 => -cyl.v_d * 1e5 * n * n * f, // eqs (30)-(31)
+            1 => -cyl.v_d * 1e5 * n * n * f,                                   // eqs (30)-(31)
             2 => -cyl.v_d * 1e5 * n * f,
             _ => -cyl.v_d * 1e5 * f,
         }
@@ -307,18 +310,7 @@ pub fn fit_torque(p: &mut Params, pts: &[StationaryPoint]) -> Result<FitReport, 
     let meas: Vec<f64> = pts.iter().map(|s| s.m_e).collect();
     let model: Vec<f64> = pts
         .iter()
-        .map(|s| {
-            cylinder::torque(
-                &p.cylinder,
-                &cc,
-                s.u_delta,
-                s.n_e,
-                s.p_im,
-                s.p_em,
-                1.0,
-                SEM,
-            )
-        })
+        .map(|s| cylinder::torque(&p.cylinder, &cc, s.u_delta, s.n_e, s.p_im, s.p_em, 1.0, SEM))
         .collect();
     Ok(fit_report(
         "M_e",
@@ -378,8 +370,16 @@ pub fn fit_egr(
     let model: Vec<f64> = pts
         .iter()
         .map(|s| {
-            crate::components::egr::egr_flow(&p.egr_valve, s.p_im, s.p_em, s.t_em, r_e, s.u_egr, SEM)
-                .w_egr
+            crate::components::egr::egr_flow(
+                &p.egr_valve,
+                s.p_im,
+                s.p_em,
+                s.t_em,
+                r_e,
+                s.u_egr,
+                SEM,
+            )
+            .w_egr
         })
         .collect();
     Ok(fit_report(
@@ -453,14 +453,21 @@ pub fn fit_eta_tm(
     let mut n_eval = 0;
     for f2 in [start[1] / hi_cm2, 0.2, 0.6, 0.9, 0.98] {
         for f3 in [1.0, 0.1, 0.03] {
-            let s0 = [start[0], (f2 * hi_cm2).clamp(0.0, 0.999 * hi_cm2), start[2] * f3];
+            let s0 = [
+                start[0],
+                (f2 * hi_cm2).clamp(0.0, 0.999 * hi_cm2),
+                start[2] * f3,
+            ];
             let r = Varpro::new(&y, phi)
                 .bounds(Bounds::new(vec![0.2, 0.0, 1e-4], vec![2.0, hi_cm2, 3.0]))
                 .options(lsq_opts())
                 .fit(&s0);
             if let Ok(r) = r {
                 n_eval += r.lsq.n_eval;
-                if best.as_ref().is_none_or(|b| r.residual_norm < b.residual_norm) {
+                if best
+                    .as_ref()
+                    .is_none_or(|b| r.residual_norm < b.residual_norm)
+                {
                     best = Some(r);
                 }
             }
@@ -562,7 +569,14 @@ fn t_em_model(p: &Params, s: &StationaryPoint, d: &Derived) -> f64 {
         t_im: s.t_im,
     };
     let fp = cylinder::cylinder_out_temp_converged(&p.gas, &p.cylinder, &cc, &inp, SEM); // eq. (24)
-    cylinder::exhaust_temp_drop(&p.exhaust_pipe, p.gas.c_pe, s.t_amb, fp.t_e, d.w_ei + d.w_f, SEM) // eq. (25)
+    cylinder::exhaust_temp_drop(
+        &p.exhaust_pipe,
+        p.gas.c_pe,
+        s.t_amb,
+        fp.t_e,
+        d.w_ei + d.w_f,
+        SEM,
+    ) // eq. (25)
 }
 
 /// Exhaust manifold temperature, eqs (17)-(25): bounded NLS in eta_sc, x_cv, h_tot with
@@ -597,7 +611,11 @@ pub fn fit_t_em(
     )
     .map_err(|e| solver_err("T_em")(e.to_string()))?;
     set(p, &fit.theta);
-    let model: Vec<f64> = pts.iter().zip(&d).map(|(s, d)| t_em_model(p, s, d)).collect();
+    let model: Vec<f64> = pts
+        .iter()
+        .zip(&d)
+        .map(|(s, d)| t_em_model(p, s, d))
+        .collect();
     Ok(fit_report(
         "T_em",
         vec![
@@ -650,8 +668,8 @@ pub fn fit_eta_c(
             let x1 = (d[i].pi_c - 1.0).powf(a[2]) - a[1]; // eqs (63)-(64)
             match j {
                 0 => 1.0,
-                1 => -x0 * x0, // eq. (65): a1
-                2 => -x1 * x1, // a2
+                1 => -x0 * x0,       // eq. (65): a1
+                2 => -x1 * x1,       // a2
                 _ => -2.0 * x0 * x1, // a3
             }
         })
@@ -700,7 +718,8 @@ pub fn fit_w_c(
 ) -> Result<FitReport, StepError> {
     need("W_c", pts.len(), 8)?;
     let d = derive(p, pts)?;
-    let (g, c) = (&p.gas, &p.compressor);
+    let g = &p.gas.clone();
+    let c = &p.compressor;
     let mut psi = Vec::with_capacity(pts.len());
     let mut phic = Vec::with_capacity(pts.len());
     for (s, d) in pts.iter().zip(&d) {
@@ -709,7 +728,8 @@ pub fn fit_w_c(
             2.0 * g.c_pa * s.t_amb * compressor::isentropic_term(d.pi_c, g.gamma_a)
                 / (c.r_c * c.r_c * w * w),
         ); // eq. (66)
-        phic.push(g.r_a * s.t_amb / (s.p_amb * PI * c.r_c.powi(3) * w) * s.w_c); // eq. (67)
+        phic.push(g.r_a * s.t_amb / (s.p_amb * PI * c.r_c.powi(3) * w) * s.w_c);
+        // eq. (67)
     }
     let ones = vec![1.0; pts.len()];
     let phi = |a: &[f64]| {
@@ -728,12 +748,53 @@ pub fn fit_w_c(
         .fit(&start)
         .map_err(|e| solver_err("W_c")(e.to_string()))?;
     let k = [1e-6, 1e-3, 1.0];
-    let cm = &mut p.compressor;
-    cm.c_psi2 = fit.alpha[0];
-    cm.c_phi2 = fit.alpha[1];
-    cm.c_wpsi = [fit.c[0] * k[0], fit.c[1] * k[1], fit.c[2] * k[2]];
-    cm.c_wphi = [fit.c[3] * k[0], fit.c[4] * k[1], fit.c[5] * k[2]];
+    let set = |cm: &mut crate::params::Compressor, th: &[f64]| {
+        cm.c_psi2 = th[0];
+        cm.c_phi2 = th[1];
+        cm.c_wpsi = [th[2] * k[0], th[3] * k[1], th[4] * k[2]];
+        cm.c_wphi = [th[5] * k[0], th[6] * k[1], th[7] * k[2]];
+    };
+    let th0 = [
+        fit.alpha[0],
+        fit.alpha[1],
+        fit.c[0],
+        fit.c[1],
+        fit.c[2],
+        fit.c[3],
+        fit.c[4],
+        fit.c[5],
+    ];
     let meas: Vec<f64> = pts.iter().map(|s| s.w_c).collect();
+    // The ellipse residual weights the points unevenly in W_c; with noisy data its minimum can
+    // put points where the authors' guards (Phi_c >= 0, W_c >= 1e-4) cut the flow. Refine by
+    // NLS of the flow itself, W_c,model - W_c,meas, from the variable-projection solution.
+    let w_mean = meas.iter().sum::<f64>() / meas.len() as f64;
+    let mut cq = p.compressor.clone();
+    let w_model = |cm: &crate::params::Compressor, s: &StationaryPoint, d: &Derived| {
+        compressor::flow(
+            cm,
+            g.c_pa,
+            g.r_a,
+            s.t_amb,
+            s.p_amb,
+            compressor::isentropic_term(d.pi_c, g.gamma_a),
+            d.omega_t,
+            SEM,
+        )
+        .w_c
+    };
+    let res = |th: &[f64]| {
+        set(&mut cq, th);
+        pts.iter()
+            .zip(&d)
+            .map(|(s, dd)| (w_model(&cq, s, dd) - s.w_c) / w_mean)
+            .collect::<Vec<f64>>()
+    };
+    let refined = least_squares(res, &th0, &Bounds::none(8), &lsq_opts())
+        .map_err(|e| solver_err("W_c")(e.to_string()))?;
+    let n_eval = fit.lsq.n_eval + refined.n_eval;
+    let cm = &mut p.compressor;
+    set(cm, &refined.theta);
     let model: Vec<f64> = pts
         .iter()
         .zip(&d)
@@ -765,7 +826,7 @@ pub fn fit_w_c(
         ],
         &meas,
         &model,
-        fit.lsq.n_eval,
+        n_eval,
     ))
 }
 
@@ -849,7 +910,12 @@ pub fn step2(
             column: c,
         })
     };
-    let (ue, uv, pe, pv) = (col("u_egr")?, col("u_vgt")?, col("u_egr_pos")?, col("u_vgt_pos")?);
+    let (ue, uv, pe, pv) = (
+        col("u_egr")?,
+        col("u_vgt")?,
+        col("u_egr_pos")?,
+        col("u_vgt_pos")?,
+    );
     need("EGR actuator", j.t.len(), 10)?;
     let mut p = base.clone();
     let mut reports = Vec::new();
@@ -977,31 +1043,50 @@ pub fn submodel_series(
     };
     push("W_ei", &|s, d| {
         let ev = cylinder::eta_vol(&p.cylinder, s.p_im, s.n_e);
-        (d.w_ei, cylinder::w_ei(&p.cylinder, ev, s.p_im, s.n_e, g.r_a, s.t_im))
+        (
+            d.w_ei,
+            cylinder::w_ei(&p.cylinder, ev, s.p_im, s.n_e, g.r_a, s.t_im),
+        )
     });
     push("M_e", &|s, _| {
         let m = cylinder::torque(&p.cylinder, &cc, s.u_delta, s.n_e, s.p_im, s.p_em, 1.0, SEM);
         (s.m_e, m)
     });
     push("W_egr", &|s, d| {
-        let f = crate::components::egr::egr_flow(&p.egr_valve, s.p_im, s.p_em, s.t_em, g.r_e, s.u_egr, SEM);
+        let f = crate::components::egr::egr_flow(
+            &p.egr_valve,
+            s.p_im,
+            s.p_em,
+            s.t_em,
+            g.r_e,
+            s.u_egr,
+            SEM,
+        );
         (d.w_egr, f.w_egr)
     });
     push("eta_tm", &|s, d| {
         let dh = 1.0 - d.pi_t.powf(1.0 - 1.0 / g.gamma_e);
         let meas = s.w_c * g.c_pa * (s.t_c - s.t_amb) / (d.w_t * g.c_pe * s.t_em * dh); // eq. (47)
-        let pw = turbine::power(&p.turbine, g.c_pe, g.gamma_e, s.t_em, d.pi_t, d.omega_t, d.w_t, SEM);
+        let pw = turbine::power(
+            &p.turbine, g.c_pe, g.gamma_e, s.t_em, d.pi_t, d.omega_t, d.w_t, SEM,
+        );
         (meas, pw.eta_tm)
     });
     push("W_t", &|s, d| {
         let t = &p.turbine;
         let fv = turbine::f_vgt(t, s.u_vgt, SEM);
-        (d.w_t, turbine::w_t(t, s.p_em, s.t_em, g.r_e, turbine::f_pi_t(t, d.pi_t), fv))
+        (
+            d.w_t,
+            turbine::w_t(t, s.p_em, s.t_em, g.r_e, turbine::f_pi_t(t, d.pi_t), fv),
+        )
     });
     push("T_em", &|s, d| (s.t_em, t_em_model(p, s, d)));
     push("eta_c", &|s, d| {
         let meas = s.t_amb * compressor::isentropic_term(d.pi_c, g.gamma_a) / (s.t_c - s.t_amb); // eq. (58)
-        (meas, compressor::efficiency(&p.compressor, s.w_c, d.pi_c, SEM))
+        (
+            meas,
+            compressor::efficiency(&p.compressor, s.w_c, d.pi_c, SEM),
+        )
     });
     push("W_c", &|s, d| {
         let f = compressor::flow(

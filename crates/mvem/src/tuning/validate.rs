@@ -123,13 +123,18 @@ pub fn dynamic_errors(
     let m = Engine8::new(p.clone(), ModelOptions::default()).map_err(|e| merr(e.to_string()))?;
     let t0 = d.t[0];
     let t_end = *d.t.last().unwrap_or(&t0);
-    let dt = if d.t.len() > 1 { (t_end - t0) / (d.t.len() - 1) as f64 } else { 1.0 };
+    let dt = if d.t.len() > 1 {
+        (t_end - t0) / (d.t.len() - 1) as f64
+    } else {
+        1.0
+    };
     let so = SimOptions {
         dt_out: dt,
         ..SimOptions::default()
     };
     let _ = Drive::NAMES;
-    let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &so).map_err(|e| merr(e.to_string()))?;
+    let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &so)
+        .map_err(|e| merr(e.to_string()))?;
     let ts = sol.t();
     let mut outputs = Vec::new();
     for (name, stat_mean) in [
@@ -278,15 +283,11 @@ impl ValidationReport {
     /// (errors as fractions; the stationary submodels under set `stationary`).
     pub fn to_csv(&self) -> String {
         let mut s = String::from("set,output,mean_abs_rel_err,max_abs_rel_err,n\n");
-        let rows = self
-            .stationary
-            .iter()
-            .map(|o| ("stationary", o))
-            .chain(
-                self.datasets
-                    .iter()
-                    .flat_map(|d| d.outputs.iter().map(move |o| (d.name.as_str(), o))),
-            );
+        let rows = self.stationary.iter().map(|o| ("stationary", o)).chain(
+            self.datasets
+                .iter()
+                .flat_map(|d| d.outputs.iter().map(move |o| (d.name.as_str(), o))),
+        );
         for (set, o) in rows {
             s.push_str(&format!(
                 "{set},{},{:?},{:?},{}\n",
