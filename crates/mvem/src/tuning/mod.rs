@@ -7,5 +7,9 @@
 //! - [`varpro`]: separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
 
+pub mod data;
+pub mod lab;
 pub mod lsq;
+pub mod steps;
+pub mod validate;
 pub mod varpro;

@@ -1,0 +1,615 @@
+//! Tuning and validation data: stationary CSV (paper Table 5), dynamic CSV (Table 6) and the
+//! campaign manifest (Table 1). Formats and units: `docs/tuning-data.md`.
+//!
+//! Loading validates everything a tuning step relies on: required columns present, every value
+//! a finite number in a plausible range for its unit (a pressure in kPa or bar, a temperature in
+//! degrees Celsius or a speed in rad/s where r/min is expected is caught), time strictly
+//! increasing. Errors name the file, the line (1-based, the header is line 1) and the column.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Errors of loading or writing tuning data.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// A required column is missing from the header.
+    #[error("{path}: missing column `{column}` in the header (line 1)")]
+    MissingColumn {
+        /// File.
+        path: PathBuf,
+        /// Column name.
+        column: String,
+    },
+    /// A value is not a finite number or is outside its plausible range.
+    #[error("{path}: line {line}, column `{column}`: {message}")]
+    Value {
+        /// File.
+        path: PathBuf,
+        /// Line (1-based, header = 1).
+        line: usize,
+        /// Column name.
+        column: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Malformed CSV or TOML, or a structural problem (no rows, bad manifest entry).
+    #[error("{path}: {message}")]
+    Format {
+        /// File.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// A column of a data file: name, unit and the plausible range of its values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Column {
+    /// Column name in the CSV header.
+    pub name: &'static str,
+    /// Unit (documentation).
+    pub unit: &'static str,
+    /// Smallest plausible value.
+    pub min: f64,
+    /// Largest plausible value.
+    pub max: f64,
+}
+
+const fn col(name: &'static str, unit: &'static str, min: f64, max: f64) -> Column {
+    Column {
+        name,
+        unit,
+        min,
+        max,
+    }
+}
+
+/// Columns of the stationary CSV (Table 5), in [`StationaryPoint`] field order.
+pub const STATIONARY_COLUMNS: [Column; 17] = [
+    col("M_e", "Nm", -2000.0, 20000.0),
+    col("n_e", "r/min", 300.0, 4000.0),
+    col("n_t", "r/min", 0.0, 300000.0),
+    col("p_amb", "Pa", 5.0e4, 1.2e5),
+    col("p_c", "Pa", 5.0e4, 1.0e6),
+    col("p_em", "Pa", 5.0e4, 1.0e6),
+    col("p_im", "Pa", 5.0e4, 1.0e6),
+    col("T_amb", "K", 220.0, 330.0),
+    col("T_c", "K", 220.0, 700.0),
+    col("T_em", "K", 250.0, 1500.0),
+    col("T_im", "K", 220.0, 500.0),
+    col("T_t", "K", 220.0, 1500.0),
+    col("u_egr", "%", -1.0, 101.0),
+    col("u_vgt", "%", -1.0, 101.0),
+    col("u_delta", "mg/cycle", 0.0, 500.0),
+    col("W_c", "kg/s", 0.0, 5.0),
+    col("x_egr", "-", 0.0, 1.0),
+];
+
+/// Columns of a dynamic CSV (Table 6) after the time column `t` [s]. `u_egr_pos`, `u_vgt_pos`
+/// are the measured actuator positions (tilde u in the paper), `u_egr`, `u_vgt` the commands.
+pub const DYNAMIC_COLUMNS: [Column; 11] = [
+    col("n_t", "r/min", 0.0, 300000.0),
+    col("p_em", "Pa", 5.0e4, 1.0e6),
+    col("p_im", "Pa", 5.0e4, 1.0e6),
+    col("W_c", "kg/s", 0.0, 5.0),
+    col("u_egr_pos", "%", -50.0, 150.0),
+    col("u_vgt_pos", "%", -50.0, 150.0),
+    col("M_e", "Nm", -2000.0, 20000.0),
+    col("n_e", "r/min", 300.0, 4000.0),
+    col("u_egr", "%", -1.0, 101.0),
+    col("u_vgt", "%", -1.0, 101.0),
+    col("u_delta", "mg/cycle", 0.0, 500.0),
+];
+
+/// Columns an actuator data set (role [`Role::Actuator`], data set J) needs besides `t`.
+pub const ACTUATOR_COLUMNS: [&str; 4] = ["u_egr", "u_vgt", "u_egr_pos", "u_vgt_pos"];
+
+/// One stationary operating point (Table 5). SI units except speeds [r/min], actuator
+/// signals [%] and fuel [mg/cycle/cylinder].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct StationaryPoint {
+    /// Engine torque M_e [Nm].
+    pub m_e: f64,
+    /// Engine speed n_e [r/min].
+    pub n_e: f64,
+    /// Turbo speed n_t [r/min].
+    pub n_t: f64,
+    /// Ambient pressure p_amb [Pa].
+    pub p_amb: f64,
+    /// Pressure after the compressor p_c [Pa].
+    pub p_c: f64,
+    /// Exhaust manifold pressure p_em [Pa].
+    pub p_em: f64,
+    /// Intake manifold pressure p_im [Pa].
+    pub p_im: f64,
+    /// Ambient temperature T_amb [K].
+    pub t_amb: f64,
+    /// Temperature after the compressor T_c [K].
+    pub t_c: f64,
+    /// Exhaust manifold temperature T_em [K].
+    pub t_em: f64,
+    /// Intake manifold temperature T_im [K].
+    pub t_im: f64,
+    /// Temperature after the turbine T_t [K].
+    pub t_t: f64,
+    /// EGR control signal u_egr [%] (at steady state equal to the valve position).
+    pub u_egr: f64,
+    /// VGT control signal u_vgt [%] (at steady state equal to the vane position).
+    pub u_vgt: f64,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    pub u_delta: f64,
+    /// Compressor mass flow W_c [kg/s].
+    pub w_c: f64,
+    /// EGR fraction x_egr [-].
+    pub x_egr: f64,
+}
+
+impl StationaryPoint {
+    /// Values in [`STATIONARY_COLUMNS`] order.
+    pub fn values(&self) -> [f64; 17] {
+        [
+            self.m_e,
+            self.n_e,
+            self.n_t,
+            self.p_amb,
+            self.p_c,
+            self.p_em,
+            self.p_im,
+            self.t_amb,
+            self.t_c,
+            self.t_em,
+            self.t_im,
+            self.t_t,
+            self.u_egr,
+            self.u_vgt,
+            self.u_delta,
+            self.w_c,
+            self.x_egr,
+        ]
+    }
+
+    /// From values in [`STATIONARY_COLUMNS`] order.
+    pub fn from_values(v: [f64; 17]) -> Self {
+        Self {
+            m_e: v[0],
+            n_e: v[1],
+            n_t: v[2],
+            p_amb: v[3],
+            p_c: v[4],
+            p_em: v[5],
+            p_im: v[6],
+            t_amb: v[7],
+            t_c: v[8],
+            t_em: v[9],
+            t_im: v[10],
+            t_t: v[11],
+            u_egr: v[12],
+            u_vgt: v[13],
+            u_delta: v[14],
+            w_c: v[15],
+            x_egr: v[16],
+        }
+    }
+}
+
+/// Role of a data set in the campaign (Table 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Role {
+    /// Used to tune the static models (step 5; sets A-I).
+    Static,
+    /// Used to tune the dynamic models (steps 3-4; sets B, C, I).
+    Dynamic,
+    /// Actuator step sequences (step 2; set J): commands and measured positions only.
+    Actuator,
+    /// Validation only (sets Q-V).
+    Validation,
+}
+
+/// What is stepped in a data set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StepKind {
+    /// Steps in the VGT and EGR commands at constant speed and fuel.
+    VgtEgr,
+    /// Steps in the injected fuel.
+    Fuel,
+    /// Actuator step sequences (EGR then VGT).
+    Actuator,
+}
+
+/// One data set of the manifest (a row of Table 1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataSetInfo {
+    /// Name (e.g. "B").
+    pub name: String,
+    /// Roles (a set can tune the static and the dynamic models, like B and C).
+    pub roles: Vec<Role>,
+    /// What is stepped.
+    pub kind: StepKind,
+    /// CSV file, relative to the manifest.
+    pub file: String,
+    /// Sample rate [Hz].
+    pub sample_rate_hz: f64,
+    /// Engine speed [r/min] (None for the actuator set).
+    pub speed_rpm: Option<f64>,
+    /// Load [% of the maximum fuel at that speed] (None for fuel steps and the actuator set).
+    pub load_pct: Option<f64>,
+    /// Number of steps.
+    pub steps: usize,
+}
+
+/// The campaign manifest (`manifest.toml`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Stationary CSV, relative to the manifest.
+    pub stationary: String,
+    /// Parameter file of the data-generating model, if the data are virtual (relative path).
+    pub true_params: Option<String>,
+    /// Description of how the data were obtained (noise, seed, ...).
+    pub description: String,
+    /// Dynamic data sets.
+    #[serde(rename = "dataset", default)]
+    pub datasets: Vec<DataSetInfo>,
+}
+
+/// A dynamic data set: time and named columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicData {
+    /// Data set name.
+    pub name: String,
+    /// Time [s], strictly increasing.
+    pub t: Vec<f64>,
+    /// Columns (name, values), each as long as `t`.
+    pub columns: Vec<(String, Vec<f64>)>,
+}
+
+impl DynamicData {
+    /// Column by name.
+    pub fn get(&self, name: &str) -> Option<&[f64]> {
+        self.columns
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+}
+
+/// A loaded campaign: manifest, stationary points, dynamic sets (manifest order).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Campaign {
+    /// The manifest.
+    pub manifest: Manifest,
+    /// Stationary operating points.
+    pub stationary: Vec<StationaryPoint>,
+    /// Dynamic data sets in manifest order.
+    pub dynamic: Vec<DynamicData>,
+}
+
+impl Campaign {
+    /// Dynamic data set and its manifest entry by name.
+    pub fn dataset(&self, name: &str) -> Option<(&DataSetInfo, &DynamicData)> {
+        let i = self.manifest.datasets.iter().position(|d| d.name == name)?;
+        Some((&self.manifest.datasets[i], &self.dynamic[i]))
+    }
+
+    /// Data sets having `role`.
+    pub fn with_role(&self, role: Role) -> Vec<(&DataSetInfo, &DynamicData)> {
+        self.manifest
+            .datasets
+            .iter()
+            .zip(&self.dynamic)
+            .filter(|(i, _)| i.roles.contains(&role))
+            .collect()
+    }
+}
+
+fn read(path: &Path) -> Result<String, DataError> {
+    std::fs::read_to_string(path).map_err(|source| DataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Parse a CSV into (header, rows), checking that `required` columns exist and every value of
+/// them is finite and within its range. Returns the rows of the required columns in order.
+fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec<f64>>, DataError> {
+    let fmt = |message: String| DataError::Format {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let header = rdr
+        .headers()
+        .map_err(|e| fmt(format!("cannot read the header: {e}")))?
+        .clone();
+    let mut idx = Vec::with_capacity(required.len());
+    for c in required {
+        match header.iter().position(|h| h == c.name) {
+            Some(i) => idx.push(i),
+            None => {
+                return Err(DataError::MissingColumn {
+                    path: path.to_path_buf(),
+                    column: c.name.to_string(),
+                })
+            }
+        }
+    }
+    let mut rows = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| fmt(format!("malformed CSV: {e}")))?;
+        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
+        let mut row = Vec::with_capacity(required.len());
+        for (c, &i) in required.iter().zip(&idx) {
+            let bad = |message: String| DataError::Value {
+                path: path.to_path_buf(),
+                line,
+                column: c.name.to_string(),
+                message,
+            };
+            let s = rec.get(i).ok_or_else(|| bad("missing value".into()))?;
+            let v: f64 = s
+                .parse()
+                .map_err(|_| bad(format!("`{s}` is not a number")))?;
+            if !v.is_finite() {
+                return Err(bad(format!("{v} is not finite")));
+            }
+            if v < c.min || v > c.max {
+                return Err(bad(format!(
+                    "{v} {} is outside the plausible range [{}, {}] {} (wrong unit?)",
+                    c.unit, c.min, c.max, c.unit
+                )));
+            }
+            row.push(v);
+        }
+        rows.push(row);
+    }
+    if rows.is_empty() {
+        return Err(fmt("no data rows".into()));
+    }
+    Ok(rows)
+}
+
+/// Parse a stationary CSV (Table 5 columns, any order, extra columns ignored).
+pub fn parse_stationary_csv(text: &str, path: &Path) -> Result<Vec<StationaryPoint>, DataError> {
+    let rows = parse_columns(text, path, &STATIONARY_COLUMNS)?;
+    Ok(rows
+        .into_iter()
+        .map(|r| {
+            let mut v = [0.0; 17];
+            v.copy_from_slice(&r);
+            StationaryPoint::from_values(v)
+        })
+        .collect())
+}
+
+/// Load a stationary CSV file.
+pub fn load_stationary_csv(path: &Path) -> Result<Vec<StationaryPoint>, DataError> {
+    parse_stationary_csv(&read(path)?, path)
+}
+
+/// Stationary points as CSV text (header of [`STATIONARY_COLUMNS`]; full precision).
+pub fn stationary_csv(points: &[StationaryPoint]) -> String {
+    let mut s = STATIONARY_COLUMNS
+        .iter()
+        .map(|c| c.name)
+        .collect::<Vec<_>>()
+        .join(",");
+    s.push('\n');
+    for p in points {
+        let row: Vec<String> = p.values().iter().map(|v| format!("{v:?}")).collect();
+        s.push_str(&row.join(","));
+        s.push('\n');
+    }
+    s
+}
+
+/// Required columns of a dynamic data set with the given kind.
+pub fn dynamic_required(kind: StepKind) -> Vec<Column> {
+    let t = col("t", "s", -1.0e6, 1.0e6);
+    let mut v = vec![t];
+    match kind {
+        StepKind::Actuator => v.extend(
+            DYNAMIC_COLUMNS
+                .iter()
+                .filter(|c| ACTUATOR_COLUMNS.contains(&c.name)),
+        ),
+        _ => v.extend(DYNAMIC_COLUMNS.iter()),
+    }
+    v
+}
+
+/// Parse a dynamic CSV: `t` [s] strictly increasing plus the columns of `kind`
+/// ([`DYNAMIC_COLUMNS`], or [`ACTUATOR_COLUMNS`] for the actuator set).
+pub fn parse_dynamic_csv(
+    text: &str,
+    path: &Path,
+    name: &str,
+    kind: StepKind,
+) -> Result<DynamicData, DataError> {
+    let req = dynamic_required(kind);
+    let rows = parse_columns(text, path, &req)?;
+    for (k, w) in rows.windows(2).enumerate() {
+        if w[1][0] <= w[0][0] {
+            return Err(DataError::Value {
+                path: path.to_path_buf(),
+                line: k + 3,
+                column: "t".into(),
+                message: format!(
+                    "time {} s does not increase (previous row {} s): duplicate or unsorted timestamp",
+                    w[1][0], w[0][0]
+                ),
+            });
+        }
+    }
+    let t = rows.iter().map(|r| r[0]).collect();
+    let columns = req[1..]
+        .iter()
+        .enumerate()
+        .map(|(j, c)| (c.name.to_string(), rows.iter().map(|r| r[j + 1]).collect()))
+        .collect();
+    Ok(DynamicData {
+        name: name.to_string(),
+        t,
+        columns,
+    })
+}
+
+/// A dynamic data set as CSV text (`t` first, then the columns in stored order).
+pub fn dynamic_csv(d: &DynamicData) -> String {
+    let mut s = String::from("t");
+    for (n, _) in &d.columns {
+        s.push(',');
+        s.push_str(n);
+    }
+    s.push('\n');
+    for (i, t) in d.t.iter().enumerate() {
+        s.push_str(&format!("{t:?}"));
+        for (_, v) in &d.columns {
+            s.push_str(&format!(",{:?}", v[i]));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// Parse a manifest TOML (see `docs/tuning-data.md`).
+pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
+    let m: Manifest = toml::from_str(text).map_err(|e| DataError::Format {
+        path: path.to_path_buf(),
+        message: format!("invalid manifest: {e}"),
+    })?;
+    for d in &m.datasets {
+        let bad = |message: String| DataError::Format {
+            path: path.to_path_buf(),
+            message: format!("data set `{}`: {message}", d.name),
+        };
+        if !(d.sample_rate_hz.is_finite() && d.sample_rate_hz > 0.0) {
+            return Err(bad(format!(
+                "sample_rate_hz = {} must be > 0",
+                d.sample_rate_hz
+            )));
+        }
+        if d.roles.is_empty() {
+            return Err(bad("roles must not be empty".into()));
+        }
+        if m.datasets.iter().filter(|e| e.name == d.name).count() > 1 {
+            return Err(bad("duplicate name".into()));
+        }
+    }
+    Ok(m)
+}
+
+/// Load a campaign directory: `manifest.toml`, the stationary CSV and every dynamic set.
+pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
+    let mpath = dir.join("manifest.toml");
+    let manifest = parse_manifest(&read(&mpath)?, &mpath)?;
+    let stationary = load_stationary_csv(&dir.join(&manifest.stationary))?;
+    let mut dynamic = Vec::with_capacity(manifest.datasets.len());
+    for d in &manifest.datasets {
+        let p = dir.join(&d.file);
+        dynamic.push(parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind)?);
+    }
+    Ok(Campaign {
+        manifest,
+        stationary,
+        dynamic,
+    })
+}
+
+/// Write a campaign directory atomically file by file (manifest last).
+pub fn save_campaign(dir: &Path, c: &Campaign) -> Result<(), DataError> {
+    let io = |path: &Path, e: crate::io::IoError| DataError::Format {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    std::fs::create_dir_all(dir).map_err(|source| DataError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let sp = dir.join(&c.manifest.stationary);
+    crate::io::output::write_atomic(&sp, stationary_csv(&c.stationary).as_bytes())
+        .map_err(|e| io(&sp, e))?;
+    for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+        let p = dir.join(&info.file);
+        crate::io::output::write_atomic(&p, dynamic_csv(d).as_bytes()).map_err(|e| io(&p, e))?;
+    }
+    let mp = dir.join("manifest.toml");
+    let text = toml::to_string_pretty(&c.manifest).map_err(|e| DataError::Format {
+        path: mp.clone(),
+        message: e.to_string(),
+    })?;
+    crate::io::output::write_atomic(&mp, text.as_bytes()).map_err(|e| io(&mp, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> String {
+        STATIONARY_COLUMNS
+            .iter()
+            .map(|c| c.name)
+            .collect::<Vec<_>>()
+            .join(",")
+    }
+    const ROW: &str =
+        "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+
+    #[test]
+    fn stationary_roundtrip_and_errors() {
+        let p = Path::new("s.csv");
+        let text = format!("{}\n{ROW}\n", header());
+        let pts = parse_stationary_csv(&text, p).unwrap();
+        assert_eq!(pts.len(), 1);
+        assert_eq!(pts[0].p_em, 250000.0);
+        assert_eq!(parse_stationary_csv(&stationary_csv(&pts), p).unwrap(), pts);
+        // kPa instead of Pa in p_im (column 7), line 2
+        let bad = ROW.replace(",200000,310", ",200,310");
+        let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("line 2") && msg.contains("`p_im`") && msg.contains("s.csv"),
+            "{msg}"
+        );
+        let e = parse_stationary_csv(
+            &format!("{}\n{}\n", header(), ROW.replace("0.3,", "NaN,")),
+            p,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("`W_c`"), "{e}");
+        let e = parse_stationary_csv(&format!("{}\n{ROW}\n", header().replace("T_t,", "")), p)
+            .unwrap_err();
+        assert!(e.to_string().contains("missing column `T_t`"), "{e}");
+    }
+
+    #[test]
+    fn dynamic_duplicate_time() {
+        let text =
+            "t,u_egr,u_vgt,u_egr_pos,u_vgt_pos\n0,0,50,0,50\n0.01,0,50,0,50\n0.01,0,50,0,50\n";
+        let e = parse_dynamic_csv(text, Path::new("J.csv"), "J", StepKind::Actuator).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("line 4") && msg.contains("`t`"), "{msg}");
+        let ok = parse_dynamic_csv(
+            &text[..text.len() - 16],
+            Path::new("J.csv"),
+            "J",
+            StepKind::Actuator,
+        )
+        .unwrap();
+        assert_eq!(ok.t, vec![0.0, 0.01]);
+        assert_eq!(ok.get("u_vgt_pos").unwrap(), &[50.0, 50.0]);
+    }
+}

@@ -1,0 +1,468 @@
+//! Virtual test cell: generates a tuning campaign from a known parameter set, so the tuning
+//! steps can be checked against the true values.
+//!
+//! - **Stationary data** (Table 5): 82 operating points by default, the 13 points of the
+//!   European Stationary Cycle (idle, speeds A/B/C = 1200/1500/1800 r/min at 25/50/75/100 %
+//!   load) plus points drawn uniformly over 800-2000 r/min, 15-100 % load, EGR 0-80 %,
+//!   VGT 20-100 %. Each is the equilibrium of the 8-state model
+//!   ([`crate::analysis::steady::steady_state`]); a point that fails or is not physically valid
+//!   (guard saturation, lambda_O < 1, unstable) is redrawn with new actuator positions (and,
+//!   for random points, a new speed and load).
+//!   Load L % means u_delta = L/100 * [`U_DELTA_MAX`]. The EGR position is kept below the
+//!   vertex of the area polynomial (eq. (38), 80 % for the published set), above which f_egr
+//!   is constant and carries no information on c_egr.
+//! - **Actuator set J** (sections 5.2, 6.2.3): at 100 Hz, first 24 EGR steps (0 -> 90 -> 0 %
+//!   in 10 % steps, a 30 % and a 75 % step, four 5 % steps; the paper's text lists the first
+//!   of these, our copy is cut before the rest, so the 5 % steps are our choice), then 24 VGT
+//!   steps (100 -> 10 -> 100 % in 10 % steps, five 5 % steps and a 20 % step), each held
+//!   [`LabOptions::step_hold_s`]. The positions are the exact responses of eqs (39)-(41), (57)
+//!   (linear systems with transport delay, summed step responses).
+//!
+//! Measured outputs get gaussian noise ([`Noise`]); inputs (n_e, u_delta, actuator commands,
+//! p_amb, T_amb) are exact. "Realistic" default: 0.5 % relative on pressures, flows, speeds,
+//! torque, EGR fraction and actuator positions (sensor accuracy class of production pressure
+//! and mass-flow sensors), 1 K on temperatures (thermocouple class 1 is +-1.5 K).
+//! Everything is drawn from a ChaCha8 generator seeded with [`LabOptions::seed`]: the same seed
+//! gives the same campaign.
+//!
+//! T_t (after the turbine) is not a model output; it is synthesized from the turbine's
+//! enthalpy drop, T_t = T_em (1 - eta_tm (1 - Pi_t^(1 - 1/gamma_e))) (eqs (45)-(48), the
+//! mechanical losses lumped into eta_tm). No tuning step uses it.
+//!
+//! Not yet generated: the dynamic VGT/EGR and fuel step sets A-I, Q-V (Table 1) and sensor time
+//! constants (Table 6).
+
+use super::data::{
+    Campaign, DataError, DataSetInfo, DynamicData, Manifest, Role, StationaryPoint, StepKind,
+};
+use crate::analysis::steady::{steady_state_with, SteadyOptions};
+use crate::components::turbine;
+use crate::model::{Drive, Engine8, Model, ModelOptions};
+use crate::params::Params;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+
+/// Fuel at 100 % load [mg/cycle/cylinder].
+pub const U_DELTA_MAX: f64 = 220.0;
+
+/// Gaussian measurement noise (standard deviations).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    /// Relative standard deviation of pressures, flows, speeds, torque, x_egr, positions [-].
+    pub rel: f64,
+    /// Standard deviation of temperatures [K].
+    pub temp_k: f64,
+}
+
+impl Noise {
+    /// No noise.
+    pub const NONE: Noise = Noise {
+        rel: 0.0,
+        temp_k: 0.0,
+    };
+    /// The "realistic" default of the module documentation: 0.5 %, 1 K.
+    pub const REALISTIC: Noise = Noise {
+        rel: 0.005,
+        temp_k: 1.0,
+    };
+}
+
+/// Options of the virtual test cell.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabOptions {
+    /// Seed of the random generator.
+    pub seed: u64,
+    /// Measurement noise.
+    pub noise: Noise,
+    /// Number of stationary points, the 13 ESC points included (>= 13).
+    pub n_stationary: usize,
+    /// Hold time of each actuator step in set J [s].
+    pub step_hold_s: f64,
+}
+
+impl Default for LabOptions {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            noise: Noise::REALISTIC,
+            n_stationary: 82,
+            step_hold_s: 1.0,
+        }
+    }
+}
+
+/// Errors of the virtual test cell.
+#[derive(Debug, thiserror::Error)]
+pub enum LabError {
+    /// The parameter set is invalid.
+    #[error("invalid parameters: {0}")]
+    Params(String),
+    /// No valid equilibrium was found for a point after many draws.
+    #[error(
+        "no physically valid steady state found for stationary point {index} after {tries} draws"
+    )]
+    NoValidPoint {
+        /// Point index.
+        index: usize,
+        /// Draws.
+        tries: usize,
+    },
+    /// Writing the campaign failed.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// Writing the parameter file failed.
+    #[error(transparent)]
+    Io(#[from] crate::io::IoError),
+}
+
+struct Gauss(ChaCha8Rng);
+
+impl Gauss {
+    /// Standard normal by Box-Muller.
+    fn next(&mut self) -> f64 {
+        let u1: f64 = 1.0 - self.0.gen::<f64>(); // (0, 1]
+        let u2: f64 = self.0.gen::<f64>();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+    fn rel(&mut self, v: f64, s: f64) -> f64 {
+        if s == 0.0 {
+            v
+        } else {
+            v * (1.0 + s * self.next())
+        }
+    }
+    fn abs(&mut self, v: f64, s: f64) -> f64 {
+        if s == 0.0 {
+            v
+        } else {
+            v + s * self.next()
+        }
+    }
+}
+
+/// The 13 ESC operating points (speed [r/min], load [%]).
+pub const ESC_POINTS: [(f64, f64); 13] = [
+    (600.0, 10.0),
+    (1200.0, 100.0),
+    (1500.0, 50.0),
+    (1500.0, 75.0),
+    (1200.0, 50.0),
+    (1200.0, 75.0),
+    (1200.0, 25.0),
+    (1500.0, 100.0),
+    (1500.0, 25.0),
+    (1800.0, 100.0),
+    (1800.0, 25.0),
+    (1800.0, 75.0),
+    (1800.0, 50.0),
+];
+
+/// Noise-free measurement of the equilibrium at `d` (Table 5 variables), or None if there is
+/// no physically valid equilibrium.
+pub fn stationary_truth(m: &Engine8, p: &Params, d: &Drive) -> Option<StationaryPoint> {
+    let ss = steady_state_with(m, d, None, &SteadyOptions::default()).ok()?;
+    if !ss.physically_valid() {
+        return None;
+    }
+    let s = ss.signals;
+    let pi_t = turbine::pi_t(p.ambient.p_amb, ss.x[1], m.options().semantics);
+    let t_t = s.t_em * (1.0 - s.eta_tm * (1.0 - pi_t.powf(1.0 - 1.0 / p.gas.gamma_e)));
+    Some(StationaryPoint {
+        m_e: s.m_e,
+        n_e: d.n_e_rpm,
+        n_t: s.n_t,
+        p_amb: p.ambient.p_amb,
+        p_c: s.p_c_out,
+        p_em: ss.x[1],
+        p_im: ss.x[0],
+        t_amb: p.ambient.t_amb,
+        t_c: s.t_c,
+        t_em: s.t_em,
+        t_im: s.t_im,
+        t_t,
+        u_egr: d.u_egr_pct,
+        u_vgt: d.u_vgt_pct,
+        u_delta: d.u_delta_mg,
+        w_c: s.w_c,
+        x_egr: s.x_egr,
+    })
+}
+
+fn noisy_point(g: &mut Gauss, p: &StationaryPoint, n: Noise) -> StationaryPoint {
+    StationaryPoint {
+        m_e: g.rel(p.m_e, n.rel),
+        n_t: g.rel(p.n_t, n.rel),
+        p_c: g.rel(p.p_c, n.rel),
+        p_em: g.rel(p.p_em, n.rel),
+        p_im: g.rel(p.p_im, n.rel),
+        t_c: g.abs(p.t_c, n.temp_k),
+        t_em: g.abs(p.t_em, n.temp_k),
+        t_im: g.abs(p.t_im, n.temp_k),
+        t_t: g.abs(p.t_t, n.temp_k),
+        w_c: g.rel(p.w_c, n.rel),
+        x_egr: g.rel(p.x_egr, n.rel).clamp(0.0, 1.0),
+        ..*p
+    }
+}
+
+/// Stationary campaign: `opts.n_stationary` valid equilibria (ESC points first), with noise.
+/// Returns (noise-free, measured) points.
+pub fn stationary(
+    p: &Params,
+    opts: &LabOptions,
+) -> Result<(Vec<StationaryPoint>, Vec<StationaryPoint>), LabError> {
+    let m = Engine8::new(p.clone(), ModelOptions::default())
+        .map_err(|e| LabError::Params(e.to_string()))?;
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    let vertex = (-p.egr_valve.c_egr[1] / (2.0 * p.egr_valve.c_egr[0])).clamp(0.0, 100.0);
+    let egr_max = if vertex > 0.0 { 0.99 * vertex } else { 80.0 };
+    let mut truth = Vec::with_capacity(opts.n_stationary);
+    const TRIES: usize = 200;
+    for index in 0..opts.n_stationary.max(13) {
+        let mut found = None;
+        for _ in 0..TRIES {
+            let (n_e, load) = if index < 13 {
+                ESC_POINTS[index]
+            } else {
+                (rng.gen_range(800.0..2000.0), rng.gen_range(15.0..100.0))
+            };
+            // a third of the points without EGR, as in engine-lab practice
+            let u_egr = if rng.gen::<f64>() < 0.3 {
+                0.0
+            } else {
+                rng.gen_range(2.0..egr_max)
+            };
+            let u_vgt = rng.gen_range(20.0..100.0);
+            let d = Drive::new(n_e, load / 100.0 * U_DELTA_MAX, u_egr, u_vgt);
+            if let Some(pt) = stationary_truth(&m, p, &d) {
+                found = Some(pt);
+                break;
+            }
+        }
+        truth.push(found.ok_or(LabError::NoValidPoint {
+            index,
+            tries: TRIES,
+        })?);
+    }
+    let mut g = Gauss(ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_0001));
+    let meas = truth
+        .iter()
+        .map(|t| noisy_point(&mut g, t, opts.noise))
+        .collect();
+    Ok((truth, meas))
+}
+
+/// EGR unit step response of eqs (39)-(41) at time `s` after the (undelayed) command step [-].
+pub fn egr_step_response(p: &Params, s: f64) -> f64 {
+    let a = &p.egr_actuator;
+    let s = s - a.tau_degr;
+    if s <= 0.0 {
+        return 0.0;
+    }
+    a.k_egr * (1.0 - (-s / a.tau_egr1).exp()) - (a.k_egr - 1.0) * (1.0 - (-s / a.tau_egr2).exp())
+}
+
+/// VGT unit step response of eq. (57) at time `s` after the command step [-].
+pub fn vgt_step_response(p: &Params, s: f64) -> f64 {
+    let a = &p.vgt_actuator;
+    let s = s - a.tau_dvgt;
+    if s <= 0.0 {
+        0.0
+    } else {
+        1.0 - (-s / a.tau_vgt).exp()
+    }
+}
+
+/// Command levels of set J: (EGR levels, VGT levels); each change is a step.
+pub fn actuator_levels() -> (Vec<f64>, Vec<f64>) {
+    let mut egr: Vec<f64> = (0..=9).map(|k| 10.0 * k as f64).collect(); // 0..90
+    egr.extend((0..9).rev().map(|k| 10.0 * k as f64)); // 80..0
+    egr.extend([30.0, 0.0, 75.0, 80.0, 85.0, 80.0, 75.0]); // 30, 30, 75, four 5 % steps
+    let mut vgt: Vec<f64> = (0..=9).rev().map(|k| 10.0 + 10.0 * k as f64).collect(); // 100..10
+    vgt.extend((1..=9).map(|k| 10.0 + 10.0 * k as f64)); // 20..100
+    vgt.extend([95.0, 90.0, 85.0, 90.0, 95.0, 75.0]); // five 5 % steps, one 20 % step
+    (egr, vgt)
+}
+
+/// Actuator set J at 100 Hz: commands and measured positions (with noise, relative to 100 %).
+pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
+    let (egr, vgt) = actuator_levels();
+    let hold = opts.step_hold_s;
+    let fs = 100.0;
+    let n_seg = egr.len() + vgt.len() - 1;
+    let n = (n_seg as f64 * hold * fs).round() as usize;
+    // command sequence: EGR steps with VGT at 100 %, then VGT steps with EGR at 0 %
+    let mut egr_steps = Vec::new(); // (time, delta)
+    let mut vgt_steps = Vec::new();
+    for k in 1..egr.len() {
+        egr_steps.push((k as f64 * hold, egr[k] - egr[k - 1]));
+    }
+    let off = (egr.len() - 1) as f64 * hold;
+    for k in 1..vgt.len() {
+        vgt_steps.push((off + k as f64 * hold, vgt[k] - vgt[k - 1]));
+    }
+    let mut g = Gauss(ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_000a));
+    let (mut t, mut ue, mut uv, mut pe, mut pv) = (vec![], vec![], vec![], vec![], vec![]);
+    let level = |steps: &[(f64, f64)], v0: f64, tt: f64| {
+        v0 + steps
+            .iter()
+            .filter(|(ts, _)| *ts <= tt)
+            .map(|(_, d)| d)
+            .sum::<f64>()
+    };
+    for i in 0..n {
+        let tt = i as f64 / fs;
+        t.push(tt);
+        ue.push(level(&egr_steps, egr[0], tt));
+        uv.push(level(&vgt_steps, vgt[0], tt));
+        let pos_e = egr[0]
+            + egr_steps
+                .iter()
+                .map(|(ts, d)| d * egr_step_response(p, tt - ts))
+                .sum::<f64>();
+        let pos_v = vgt[0]
+            + vgt_steps
+                .iter()
+                .map(|(ts, d)| d * vgt_step_response(p, tt - ts))
+                .sum::<f64>();
+        pe.push(g.abs(pos_e, opts.noise.rel * 100.0));
+        pv.push(g.abs(pos_v, opts.noise.rel * 100.0));
+    }
+    DynamicData {
+        name: "J".into(),
+        t,
+        columns: vec![
+            ("u_egr_pos".into(), pe),
+            ("u_vgt_pos".into(), pv),
+            ("u_egr".into(), ue),
+            ("u_vgt".into(), uv),
+        ],
+    }
+}
+
+/// Generate a campaign in memory: (campaign, noise-free stationary points).
+pub fn campaign(
+    p: &Params,
+    opts: &LabOptions,
+) -> Result<(Campaign, Vec<StationaryPoint>), LabError> {
+    let (truth, meas) = stationary(p, opts)?;
+    let j = actuator_set(p, opts);
+    let (egr, vgt) = actuator_levels();
+    let manifest = Manifest {
+        stationary: "stationary.csv".into(),
+        true_params: Some("true_params.toml".into()),
+        description: format!(
+            "virtual test cell (mvem::tuning::lab), seed {}, noise {} relative / {} K gaussian",
+            opts.seed, opts.noise.rel, opts.noise.temp_k
+        ),
+        datasets: vec![DataSetInfo {
+            name: "J".into(),
+            roles: vec![Role::Actuator],
+            kind: StepKind::Actuator,
+            file: "J.csv".into(),
+            sample_rate_hz: 100.0,
+            speed_rpm: None,
+            load_pct: None,
+            steps: egr.len() + vgt.len() - 2,
+        }],
+    };
+    Ok((
+        Campaign {
+            manifest,
+            stationary: meas,
+            dynamic: vec![j],
+        },
+        truth,
+    ))
+}
+
+/// Generate a campaign and write it to `out_dir` (manifest, CSVs, `true_params.toml`).
+pub fn generate(params: &Params, opts: &LabOptions, out_dir: &Path) -> Result<Campaign, LabError> {
+    let (c, _) = campaign(params, opts)?;
+    super::data::save_campaign(out_dir, &c)?;
+    crate::io::params::save_params(params, &out_dir.join("true_params.toml"))?;
+    Ok(c)
+}
+
+/// A dynamic data set with command steps at constant speed (Table 6 columns), simulated with
+/// the 8-state model from the steady state of the first command and sampled at `sample_rate_hz`.
+/// `steps`: (time [s], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
+/// outputs get the noise of `opts` (positions: relative to 100 %).
+#[allow(clippy::too_many_arguments)]
+pub fn step_set(
+    p: &Params,
+    opts: &LabOptions,
+    name: &str,
+    initial: Drive,
+    steps: &[(f64, usize, f64)],
+    t_end: f64,
+    sample_rate_hz: f64,
+) -> Result<DynamicData, LabError> {
+    use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+    let m = Engine8::new(p.clone(), ModelOptions::default())
+        .map_err(|e| LabError::Params(e.to_string()))?;
+    let sched =
+        InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
+    let so = SimOptions {
+        dt_out: 1.0 / sample_rate_hz,
+        ..SimOptions::default()
+    };
+    let sol = simulate(&m, &sched, 0.0, t_end, Start::SteadyState, &so)
+        .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
+    let mut g = Gauss(ChaCha8Rng::seed_from_u64(
+        opts.seed
+            ^ name
+                .bytes()
+                .fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64),
+    ));
+    let n = opts.noise;
+    let get = |c: &str| sol.get(c).map(|v| v.to_vec()).unwrap_or_default();
+    let noisy = |g: &mut Gauss, v: Vec<f64>, s: f64, abs: bool| -> Vec<f64> {
+        v.into_iter()
+            .map(|x| if abs { g.abs(x, s) } else { g.rel(x, s) })
+            .collect()
+    };
+    // commands as logged: the value in force at each sample (right-continuous: a sample at a
+    // step time shows the new value), from the step list itself
+    let command = |ch: usize| -> Vec<f64> {
+        sol.t()
+            .iter()
+            .map(|&t| {
+                let mut v = initial.to_array()[ch];
+                let mut s: Vec<&(f64, usize, f64)> = steps.iter().filter(|s| s.1 == ch).collect();
+                s.sort_by(|a, b| a.0.total_cmp(&b.0));
+                for (ts, _, val) in s {
+                    if *ts <= t + 1e-9 {
+                        v = *val;
+                    }
+                }
+                v
+            })
+            .collect()
+    };
+    let columns = vec![
+        ("n_t".to_string(), noisy(&mut g, get("n_t"), n.rel, false)),
+        ("p_em".to_string(), noisy(&mut g, get("p_em"), n.rel, false)),
+        ("p_im".to_string(), noisy(&mut g, get("p_im"), n.rel, false)),
+        ("W_c".to_string(), noisy(&mut g, get("W_c"), n.rel, false)),
+        (
+            "u_egr_pos".to_string(),
+            noisy(&mut g, get("u_egr_actual"), n.rel * 100.0, true),
+        ),
+        (
+            "u_vgt_pos".to_string(),
+            noisy(&mut g, get("u_vgt_actual"), n.rel * 100.0, true),
+        ),
+        ("M_e".to_string(), noisy(&mut g, get("M_e"), n.rel, false)),
+        ("n_e".to_string(), command(0)),
+        ("u_egr".to_string(), command(2)),
+        ("u_vgt".to_string(), command(3)),
+        ("u_delta".to_string(), command(1)),
+    ];
+    Ok(DynamicData {
+        name: name.to_string(),
+        t: sol.t().to_vec(),
+        columns,
+    })
+}

@@ -1,0 +1,299 @@
+//! Validation: relative errors of eqs (4) and (5) and tables like the paper's Tables 2-4.
+//!
+//! - Stationary: each static submodel (W_ei, M_e, W_egr, eta_tm, W_t, T_em, eta_c, W_c; the
+//!   z_n of eq. (77) plus M_e) evaluated with the given parameters at the measured stationary
+//!   points, compared with the derived measurements of step 1 ([`super::steps`]), eq. (4).
+//! - Dynamic sets with engine outputs: the 8-state model simulated with the measured commands
+//!   (n_e, u_delta, u_egr, u_vgt, held between samples) from the steady state of the first
+//!   sample; p_im, p_em, W_c, n_t and M_e at the sample times compared with the measurements,
+//!   eq. (5) (normalized by the mean of the stationary measurements of that output).
+//! - Actuator sets: measured positions against the actuator models' responses to the commands.
+//!
+//! The report serializes to JSON and renders as Markdown or CSV (rows: outputs, columns: data
+//! sets; entries: mean absolute relative error in per cent, as in Table 2).
+
+use super::data::{load_campaign, Campaign, DataError, DynamicData, StationaryPoint, StepKind};
+use super::lab::{egr_step_response, vgt_step_response};
+use super::steps::{self, rel_errors, StepError};
+use crate::model::{Drive, Engine8, ModelOptions};
+use crate::params::Params;
+use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+use serde::Serialize;
+use std::path::Path;
+
+/// Errors of one output.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutputError {
+    /// Output name (e.g. "p_im").
+    pub output: String,
+    /// Mean absolute relative error [-].
+    pub mean_abs_rel_err: f64,
+    /// Maximum absolute relative error [-].
+    pub max_abs_rel_err: f64,
+    /// Samples.
+    pub n: usize,
+}
+
+/// Errors of one data set.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DataSetErrors {
+    /// Data set name.
+    pub name: String,
+    /// Per output.
+    pub outputs: Vec<OutputError>,
+}
+
+/// A validation report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ValidationReport {
+    /// Stationary submodel errors, eq. (4).
+    pub stationary: Vec<OutputError>,
+    /// Dynamic data sets, eq. (5).
+    pub datasets: Vec<DataSetErrors>,
+}
+
+/// Errors of validation.
+#[derive(Debug, thiserror::Error)]
+pub enum ValidateError {
+    /// Loading the data failed.
+    #[error(transparent)]
+    Data(#[from] DataError),
+    /// A submodel could not be evaluated.
+    #[error(transparent)]
+    Step(#[from] StepError),
+    /// The model or a simulation failed.
+    #[error("data set {set}: {message}")]
+    Model {
+        /// Data set.
+        set: String,
+        /// Message.
+        message: String,
+    },
+}
+
+fn out(name: &str, meas: &[f64], model: &[f64]) -> OutputError {
+    let (m, x) = rel_errors(meas, model);
+    OutputError {
+        output: name.into(),
+        mean_abs_rel_err: m,
+        max_abs_rel_err: x,
+        n: meas.len(),
+    }
+}
+
+/// Stationary submodel errors (eq. (4)) of `p` at the points `pts`.
+pub fn stationary_errors(
+    p: &Params,
+    pts: &[StationaryPoint],
+) -> Result<Vec<OutputError>, StepError> {
+    steps::submodel_series(p, pts).map(|v| {
+        v.iter()
+            .map(|(n, meas, model)| out(n, meas, model))
+            .collect()
+    })
+}
+
+/// Errors of a dynamic set with engine outputs: simulate with the measured commands.
+/// `stat_means`: means of the stationary measurements per output (eq. (5)); the set's own
+/// mean is used where an output has no stationary counterpart.
+pub fn dynamic_errors(
+    p: &Params,
+    d: &DynamicData,
+    stat: &[StationaryPoint],
+) -> Result<DataSetErrors, ValidateError> {
+    let merr = |message: String| ValidateError::Model {
+        set: d.name.clone(),
+        message,
+    };
+    let col = |c: &str| d.get(c).ok_or_else(|| merr(format!("missing column {c}")));
+    let (n_e, u_d, u_e, u_v) = (col("n_e")?, col("u_delta")?, col("u_egr")?, col("u_vgt")?);
+    // zero-order hold: a step between two samples happens at the later sample
+    let mut times = Vec::new();
+    let mut rows = Vec::new();
+    for i in 0..d.t.len() {
+        let r = [n_e[i], u_d[i], u_e[i], u_v[i]];
+        if i > 0 && rows.last() != Some(&r) {
+            times.push(d.t[i]);
+            rows.push(*rows.last().unwrap_or(&r));
+        }
+        times.push(d.t[i]);
+        rows.push(r);
+    }
+    let sched = InputSchedule::new(times, rows).map_err(|e| merr(e.to_string()))?;
+    let m = Engine8::new(p.clone(), ModelOptions::default()).map_err(|e| merr(e.to_string()))?;
+    let t0 = d.t[0];
+    let t_end = *d.t.last().unwrap_or(&t0);
+    let dt = if d.t.len() > 1 {
+        (t_end - t0) / (d.t.len() - 1) as f64
+    } else {
+        1.0
+    };
+    let so = SimOptions {
+        dt_out: dt,
+        ..SimOptions::default()
+    };
+    let _ = Drive::NAMES;
+    let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &so)
+        .map_err(|e| merr(e.to_string()))?;
+    let ts = sol.t();
+    let mut outputs = Vec::new();
+    for (name, stat_mean) in [
+        ("p_im", mean(stat.iter().map(|s| s.p_im))),
+        ("p_em", mean(stat.iter().map(|s| s.p_em))),
+        ("W_c", mean(stat.iter().map(|s| s.w_c))),
+        ("n_t", mean(stat.iter().map(|s| s.n_t))),
+        ("M_e", mean(stat.iter().map(|s| s.m_e))),
+    ] {
+        let (Some(meas), Some(sim)) = (d.get(name), sol.get(name)) else {
+            continue;
+        };
+        // model value at each sample time (linear interpolation of the simulation output)
+        let model: Vec<f64> = d.t.iter().map(|&t| interp(ts, sim, t)).collect();
+        let norm = stat_mean.unwrap_or_else(|| mean(meas.iter().copied()).unwrap_or(1.0));
+        let e: Vec<f64> = meas
+            .iter()
+            .zip(&model)
+            .map(|(a, b)| ((a - b) / norm).abs())
+            .collect();
+        outputs.push(OutputError {
+            output: name.into(),
+            mean_abs_rel_err: e.iter().sum::<f64>() / e.len().max(1) as f64,
+            max_abs_rel_err: e.iter().cloned().fold(0.0, f64::max),
+            n: e.len(),
+        });
+    }
+    Ok(DataSetErrors {
+        name: d.name.clone(),
+        outputs,
+    })
+}
+
+fn mean(it: impl Iterator<Item = f64>) -> Option<f64> {
+    let (s, n) = it.fold((0.0, 0usize), |(s, n), v| (s + v, n + 1));
+    (n > 0).then(|| s / n as f64)
+}
+
+fn interp(t: &[f64], y: &[f64], x: f64) -> f64 {
+    let k = t.partition_point(|&v| v <= x);
+    if k == 0 {
+        return y[0];
+    }
+    if k >= t.len() {
+        return y[t.len() - 1];
+    }
+    let (t0, t1) = (t[k - 1], t[k]);
+    let w = if t1 > t0 { (x - t0) / (t1 - t0) } else { 1.0 };
+    y[k - 1] + w * (y[k] - y[k - 1])
+}
+
+/// Errors of an actuator set: positions against the actuator models' step responses.
+pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, ValidateError> {
+    let mut outputs = Vec::new();
+    for (cmd, pos, egr) in [("u_egr", "u_egr_pos", true), ("u_vgt", "u_vgt_pos", false)] {
+        let (Some(u), Some(y)) = (d.get(cmd), d.get(pos)) else {
+            continue;
+        };
+        let model = steps::actuator_response(p, &d.t, u, egr);
+        outputs.push(out(pos, y, &model));
+    }
+    let _ = (egr_step_response, vgt_step_response);
+    Ok(DataSetErrors {
+        name: d.name.clone(),
+        outputs,
+    })
+}
+
+/// Validate `p` on a loaded campaign.
+pub fn validate_campaign(c: &Campaign, p: &Params) -> Result<ValidationReport, ValidateError> {
+    let stationary = stationary_errors(p, &c.stationary)?;
+    let mut datasets = Vec::new();
+    for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+        datasets.push(match info.kind {
+            StepKind::Actuator => actuator_errors(p, d)?,
+            _ => dynamic_errors(p, d, &c.stationary)?,
+        });
+    }
+    Ok(ValidationReport {
+        stationary,
+        datasets,
+    })
+}
+
+/// Validate `p` on the campaign in `data_dir` (see [`super::data::load_campaign`]).
+pub fn validate(data_dir: &Path, p: &Params) -> Result<ValidationReport, ValidateError> {
+    validate_campaign(&load_campaign(data_dir)?, p)
+}
+
+impl ValidationReport {
+    fn outputs(&self) -> Vec<String> {
+        let mut v: Vec<String> = Vec::new();
+        for d in &self.datasets {
+            for o in &d.outputs {
+                if !v.contains(&o.output) {
+                    v.push(o.output.clone());
+                }
+            }
+        }
+        v
+    }
+
+    fn cell(&self, set: &DataSetErrors, output: &str) -> Option<f64> {
+        set.outputs
+            .iter()
+            .find(|o| o.output == output)
+            .map(|o| 100.0 * o.mean_abs_rel_err)
+    }
+
+    /// Markdown: the stationary table (mean/max per submodel, per cent) and the dynamic table
+    /// (outputs x data sets, mean absolute relative error in per cent; "-" where not measured).
+    pub fn to_markdown(&self) -> String {
+        let mut s = String::from("| submodel | mean abs. rel. error (%) | max abs. rel. error (%) | points |\n|---|---|---|---|\n");
+        for o in &self.stationary {
+            s.push_str(&format!(
+                "| {} | {:.2} | {:.2} | {} |\n",
+                o.output,
+                100.0 * o.mean_abs_rel_err,
+                100.0 * o.max_abs_rel_err,
+                o.n
+            ));
+        }
+        if !self.datasets.is_empty() {
+            s.push_str("\n| output |");
+            for d in &self.datasets {
+                s.push_str(&format!(" {} |", d.name));
+            }
+            s.push_str("\n|---|");
+            s.push_str(&"---|".repeat(self.datasets.len()));
+            s.push('\n');
+            for o in self.outputs() {
+                s.push_str(&format!("| {o} |"));
+                for d in &self.datasets {
+                    match self.cell(d, &o) {
+                        Some(v) => s.push_str(&format!(" {v:.2} |")),
+                        None => s.push_str(" - |"),
+                    }
+                }
+                s.push('\n');
+            }
+        }
+        s
+    }
+
+    /// CSV, one row per (data set, output): `set,output,mean_abs_rel_err,max_abs_rel_err,n`
+    /// (errors as fractions; the stationary submodels under set `stationary`).
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("set,output,mean_abs_rel_err,max_abs_rel_err,n\n");
+        let rows = self.stationary.iter().map(|o| ("stationary", o)).chain(
+            self.datasets
+                .iter()
+                .flat_map(|d| d.outputs.iter().map(move |o| (d.name.as_str(), o))),
+        );
+        for (set, o) in rows {
+            s.push_str(&format!(
+                "{set},{},{:?},{:?},{}\n",
+                o.output, o.mean_abs_rel_err, o.max_abs_rel_err, o.n
+            ));
+        }
+        s
+    }
+}
