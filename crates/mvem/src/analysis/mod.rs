@@ -5,7 +5,7 @@
 pub mod extensions;
 pub mod linearize;
 pub mod map;
-pub mod steady;
 pub mod robustness;
+pub mod steady;
 pub mod step;
 pub mod zeros;
