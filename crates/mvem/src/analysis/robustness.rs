@@ -439,7 +439,7 @@ pub fn check_solution(
         let bad: Vec<f64> = l
             .iter()
             .zip(x)
-            .filter(|(l, x)| **x > 0.0 && !(**l > 0.0))
+            .filter(|(l, x)| **x > 0.0 && (l.is_nan() || **l <= 0.0))
             .map(|(l, _)| *l)
             .collect();
         if let Some(w) = bad.first() {
@@ -556,6 +556,10 @@ impl Default for SweepConfig {
     }
 }
 
+/// Invariant violations keyed by (invariant, method): (runs, samples, worst value, worst
+/// relative excess, example run).
+pub type ViolationTable = BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>;
+
 /// Aggregated results of a sweep.
 #[derive(Debug, Clone, Default)]
 pub struct SweepReport {
@@ -579,9 +583,9 @@ pub struct SweepReport {
     pub nonfinite_runs: u64,
     /// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
     /// example run).
-    pub violations: BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>,
+    pub violations: ViolationTable,
     /// Numerical excursions within the state allowance, same layout.
-    pub numerical: BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>,
+    pub numerical: ViolationTable,
     /// Model orders skipped because the variant is not available in this build.
     pub unavailable: Vec<usize>,
     /// Runs by (input kind, start kind): (completed, errors).
