@@ -577,7 +577,7 @@ mod tests {
         assert_eq!(pts[0].p_em, 250000.0);
         assert_eq!(parse_stationary_csv(&stationary_csv(&pts), p).unwrap(), pts);
         // kPa instead of Pa in p_im (column 7), line 2
-        let bad = ROW.replace(",200000,310", ",200,310");
+        let bad = ROW.replace(",200000,298", ",200,298");
         let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p).unwrap_err();
         let msg = e.to_string();
         assert!(

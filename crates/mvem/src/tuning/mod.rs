@@ -6,6 +6,12 @@
 //!   problems (`tests/nist.rs`, `docs/nist.md`).
 //! - [`varpro`]: separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
+//! - [`data`]: campaign formats (stationary/dynamic CSV, manifest) with validated loading.
+//! - [`lab`]: virtual test cell generating campaigns from known parameters.
+//! - [`steps`]: tuning steps 1 (static submodels) and 2 (actuators) of section 8.1.
+//! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
+//!
+//! Overview, results and open items: `docs/tuning.md`.
 
 pub mod data;
 pub mod lab;
