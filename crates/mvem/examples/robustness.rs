@@ -29,9 +29,7 @@ fn main() {
         match key {
             "--runs" => cfg.runs = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--seed" => cfg.seed = val.parse().unwrap_or_else(|_| bad("expected an integer")),
-            "--threads" => {
-                cfg.threads = val.parse().unwrap_or_else(|_| bad("expected an integer"))
-            }
+            "--threads" => cfg.threads = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--t-end" => {
                 cfg.t_end = val.parse().unwrap_or_else(|_| bad("expected seconds"));
                 if !(cfg.t_end.is_finite() && cfg.t_end > 0.0) {

@@ -36,7 +36,11 @@ fn sweep_subset_is_clean() {
     assert_eq!(r.completed, 300, "errors: {:?}", r.errors);
     // at least 20 s x 100 samples/s + 1 per run were checked
     assert!(r.samples >= 300 * 2001, "samples {}", r.samples);
-    assert!(r.per_variant.len() >= 2, "both methods ran: {:?}", r.per_variant);
+    assert!(
+        r.per_variant.len() >= 2,
+        "both methods ran: {:?}",
+        r.per_variant
+    );
 }
 
 /// Scenarios are reproducible from (seed, run).
@@ -64,15 +68,18 @@ fn scenarios_replay() {
 fn assert_located(e: &SimError) {
     let m = e.to_string();
     assert!(error_is_located(e), "not located: {m}");
-    assert!(m.contains("p_im=") && m.contains("omega_t="), "state dump: {m}");
+    assert!(
+        m.contains("p_im=") && m.contains("omega_t="),
+        "state dump: {m}"
+    );
 }
 
 /// Step-count exhaustion is reported with the time reached and the state.
 #[test]
 fn too_many_steps_is_located() {
     let m = Engine8::published();
-    let sched = InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 30.0), &[(1.0, 3, 25.0)])
-        .unwrap();
+    let sched =
+        InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 30.0), &[(1.0, 3, 25.0)]).unwrap();
     let opts = SimOptions {
         rtol: 1e-12,
         atol: 1e-14,
@@ -132,7 +139,15 @@ fn absurd_options_are_rejected() {
         .unwrap()
         .x;
     x[4] = f64::INFINITY;
-    let e = simulate(&m, &sched, 0.0, 1.0, Start::State(x), &SimOptions::default()).unwrap_err();
+    let e = simulate(
+        &m,
+        &sched,
+        0.0,
+        1.0,
+        Start::State(x),
+        &SimOptions::default(),
+    )
+    .unwrap_err();
     assert!(
         matches!(&e, SimError::NonFinite { name, t, .. } if name == "omega_t" && *t == 0.0),
         "{e}"
@@ -225,7 +240,11 @@ fn failed_write_leaves_nothing() {
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
         .collect();
-    assert_eq!(names, vec!["out.csv".to_string()], "leftover temporary file");
+    assert_eq!(
+        names,
+        vec!["out.csv".to_string()],
+        "leftover temporary file"
+    );
     // missing directory: error naming the file, nothing created
     let missing = dir.path().join("no/such/dir/out.csv");
     let e = write_atomic(&missing, b"x").unwrap_err();

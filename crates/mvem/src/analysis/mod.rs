@@ -1,4 +1,4 @@
 //! Analysis computed from the model: steady state (equilibrium) with validity flags.
 
-pub mod steady;
 pub mod robustness;
+pub mod steady;

@@ -89,7 +89,12 @@ impl Rng {
 
 /// Extended input box of the sweep: (min, max) per channel (n_e [rpm], u_delta [mg],
 /// u_egr [%], u_vgt [%]); the authors' saturations are 500-2000 rpm, 1-250 mg, 0-100 %, 20-100 %.
-pub const INPUT_BOX: [(f64, f64); 4] = [(300.0, 2500.0), (0.0, 300.0), (-20.0, 120.0), (-20.0, 120.0)];
+pub const INPUT_BOX: [(f64, f64); 4] = [
+    (300.0, 2500.0),
+    (0.0, 300.0),
+    (-20.0, 120.0),
+    (-20.0, 120.0),
+];
 
 /// Shape of the random input sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -250,7 +255,9 @@ impl StartBank {
     pub fn new<const N: usize, M: Model<N>>(model: &M) -> Self {
         let states = BANK_POINTS
             .iter()
-            .filter_map(|d| crate::analysis::steady::steady_state(model, &Drive::from_array(*d)).ok())
+            .filter_map(|d| {
+                crate::analysis::steady::steady_state(model, &Drive::from_array(*d)).ok()
+            })
             .map(|s| s.x.to_vec())
             .collect();
         Self { states }
@@ -432,7 +439,7 @@ pub fn check_solution(
         let bad: Vec<f64> = l
             .iter()
             .zip(x)
-            .filter(|(l, x)| **x > 0.0 && !(**l > 0.0))
+            .filter(|(l, x)| **x > 0.0 && (l.is_nan() || **l <= 0.0))
             .map(|(l, _)| *l)
             .collect();
         if let Some(w) = bad.first() {
@@ -549,6 +556,10 @@ impl Default for SweepConfig {
     }
 }
 
+/// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
+/// example run).
+pub type ViolationMap = BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>;
+
 /// Aggregated results of a sweep.
 #[derive(Debug, Clone, Default)]
 pub struct SweepReport {
@@ -572,9 +583,9 @@ pub struct SweepReport {
     pub nonfinite_runs: u64,
     /// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
     /// example run).
-    pub violations: BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>,
+    pub violations: ViolationMap,
     /// Numerical excursions within the state allowance, same layout.
-    pub numerical: BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>,
+    pub numerical: ViolationMap,
     /// Model orders skipped because the variant is not available in this build.
     pub unavailable: Vec<usize>,
     /// Runs by (input kind, start kind): (completed, errors).
@@ -668,7 +679,10 @@ impl fmt::Display for SweepReport {
             self.runs, self.seconds, self.threads
         )?;
         for n in &self.unavailable {
-            writeln!(f, "  ({n}-state model not available in this build: skipped)")?;
+            writeln!(
+                f,
+                "  ({n}-state model not available in this build: skipped)"
+            )?;
         }
         writeln!(f, "{:<40} {:>12}", "quantity", "value")?;
         let row = |f: &mut fmt::Formatter<'_>, k: &str, v: String| writeln!(f, "{k:<40} {v:>12}");
@@ -678,20 +692,36 @@ impl fmt::Display for SweepReport {
             "runs ending in an error",
             (self.runs - self.completed - self.panics.len() as u64).to_string(),
         )?;
-        row(f, "  of which not located (t/state/hint)", self.unlocated_errors.to_string())?;
+        row(
+            f,
+            "  of which not located (t/state/hint)",
+            self.unlocated_errors.to_string(),
+        )?;
         row(f, "panics", self.panics.len().to_string())?;
         row(f, "output samples checked", self.samples.to_string())?;
-        row(f, "samples with NaN/inf", self.nonfinite_samples.to_string())?;
+        row(
+            f,
+            "samples with NaN/inf",
+            self.nonfinite_samples.to_string(),
+        )?;
         row(f, "runs with NaN/inf", self.nonfinite_runs.to_string())?;
         row(
             f,
             "invariant violations (runs)",
-            self.violations.values().map(|v| v.0).sum::<u64>().to_string(),
+            self.violations
+                .values()
+                .map(|v| v.0)
+                .sum::<u64>()
+                .to_string(),
         )?;
         row(
             f,
             "numerical state excursions (runs)",
-            self.numerical.values().map(|v| v.0).sum::<u64>().to_string(),
+            self.numerical
+                .values()
+                .map(|v| v.0)
+                .sum::<u64>()
+                .to_string(),
         )?;
         writeln!(f, "\nper model / method: completed / errors")?;
         for ((n, m), (ok, err)) in &self.per_variant {
