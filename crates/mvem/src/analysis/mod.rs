@@ -1,6 +1,6 @@
 //! Analysis computed from the model: steady state (equilibrium) with validity flags,
 //! linearization, poles and transmission zeros, operating maps, step-response metrics, the
-//! section-9 extension comparison and the cylinder-out temperature study.
+//! section-9 extension comparison, the cylinder-out temperature study and the robustness sweep.
 
 pub mod extensions;
 pub mod linearize;

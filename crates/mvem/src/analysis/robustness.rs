@@ -556,9 +556,9 @@ impl Default for SweepConfig {
     }
 }
 
-/// Invariant violations keyed by (invariant, method): (runs, samples, worst value, worst
-/// relative excess, example run).
-pub type ViolationTable = BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>;
+/// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
+/// example run).
+pub type ViolationMap = BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>;
 
 /// Aggregated results of a sweep.
 #[derive(Debug, Clone, Default)]
@@ -583,9 +583,9 @@ pub struct SweepReport {
     pub nonfinite_runs: u64,
     /// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
     /// example run).
-    pub violations: ViolationTable,
+    pub violations: ViolationMap,
     /// Numerical excursions within the state allowance, same layout.
-    pub numerical: ViolationTable,
+    pub numerical: ViolationMap,
     /// Model orders skipped because the variant is not available in this build.
     pub unavailable: Vec<usize>,
     /// Runs by (input kind, start kind): (completed, errors).
