@@ -64,6 +64,22 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
     }
 }
 
+/// The error and its causes joined by ": ", leaving out a cause whose text is already part of
+/// the message (library errors often repeat their source).
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for c in e.chain() {
+        let s = c.to_string();
+        if msg.is_empty() {
+            msg = s;
+        } else if !msg.contains(&s) {
+            msg.push_str(": ");
+            msg.push_str(&s);
+        }
+    }
+    msg
+}
+
 // ---------------------------------------------------------------------------------------------
 // Model arguments
 
@@ -169,7 +185,7 @@ impl ModelArgs {
     /// Build the model (parameters loaded and validated).
     pub fn build(&self) -> Result<AnyModel> {
         let p = self.load_params()?;
-        Ok(AnyModel::new(self.order(), p, self.options()).context("cannot build the model")?)
+        AnyModel::new(self.order(), p, self.options()).context("cannot build the model")
     }
 }
 
@@ -352,8 +368,10 @@ pub fn fmt_value(v: f64) -> String {
 
 /// Seconds as a short human string.
 pub fn fmt_duration(s: f64) -> String {
-    if s < 1e-3 {
-        format!("{:.1} us", s * 1e6)
+    if s < 1e-6 {
+        format!("{:.0} ns", s * 1e9)
+    } else if s < 1e-3 {
+        format!("{:.2} us", s * 1e6)
     } else if s < 1.0 {
         format!("{:.2} ms", s * 1e3)
     } else {
