@@ -332,6 +332,20 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// Most output rows a run may produce (about 20 GB of CSV); more is certainly a mistaken `--dt`.
+pub const MAX_SAMPLES: f64 = 5e7;
+
+/// Refuse an output grid with more than [`MAX_SAMPLES`] rows before simulating.
+pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
+    let n = (t_end - t0) / dt + 1.0;
+    if n > MAX_SAMPLES {
+        return Err(usage(format!(
+            "--dt {dt}: {n:.3e} output samples from {t0} s to {t_end} s (at most {MAX_SAMPLES:e}); use a larger --dt"
+        )));
+    }
+    Ok(())
+}
+
 /// Unit of a state or signal column, for tables and axis labels.
 pub fn unit(name: &str) -> &'static str {
     match name {

@@ -83,6 +83,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
         )));
     }
+    common::check_samples(t0, t_end, opts.dt_out)?;
     let initial = match &a.initial_state {
         Some(p) => Some(read_initial_state(p)?),
         None => None,
