@@ -64,6 +64,22 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
     }
 }
 
+/// The error and its causes joined by ": ", leaving out a cause whose text is already part of
+/// the message (library errors often repeat their source).
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for c in e.chain() {
+        let s = c.to_string();
+        if msg.is_empty() {
+            msg = s;
+        } else if !msg.contains(&s) {
+            msg.push_str(": ");
+            msg.push_str(&s);
+        }
+    }
+    msg
+}
+
 // ---------------------------------------------------------------------------------------------
 // Model arguments
 
@@ -316,6 +332,20 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// Most output rows a run may produce (about 20 GB of CSV); more is certainly a mistaken `--dt`.
+pub const MAX_SAMPLES: f64 = 5e7;
+
+/// Refuse an output grid with more than [`MAX_SAMPLES`] rows before simulating.
+pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
+    let n = (t_end - t0) / dt + 1.0;
+    if n > MAX_SAMPLES {
+        return Err(usage(format!(
+            "--dt {dt}: {n:.3e} output samples from {t0} s to {t_end} s (at most {MAX_SAMPLES:e}); use a larger --dt"
+        )));
+    }
+    Ok(())
+}
+
 /// Unit of a state or signal column, for tables and axis labels.
 pub fn unit(name: &str) -> &'static str {
     match name {
@@ -352,8 +382,10 @@ pub fn fmt_value(v: f64) -> String {
 
 /// Seconds as a short human string.
 pub fn fmt_duration(s: f64) -> String {
-    if s < 1e-3 {
-        format!("{:.1} us", s * 1e6)
+    if s < 1e-6 {
+        format!("{:.0} ns", s * 1e9)
+    } else if s < 1e-3 {
+        format!("{:.2} us", s * 1e6)
     } else if s < 1.0 {
         format!("{:.2} ms", s * 1e3)
     } else {

@@ -71,7 +71,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", common::error_message(&e));
             ExitCode::from(common::exit_code(&e))
         }
     }

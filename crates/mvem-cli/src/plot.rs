@@ -208,7 +208,7 @@ pub fn render(fig: &Figure, format: Format) -> Result<Vec<u8>> {
             let mut s = String::new();
             {
                 let root = SVGBackend::with_string(&mut s, size).into_drawing_area();
-                draw(&root, fig)?;
+                draw(&root, fig, false)?;
                 root.present().map_err(|e| anyhow!("SVG rendering: {e}"))?;
             }
             Ok(s.into_bytes())
@@ -224,7 +224,7 @@ pub fn render(fig: &Figure, format: Format) -> Result<Vec<u8>> {
             let res = (|| -> Result<Vec<u8>> {
                 {
                     let root = BitMapBackend::new(&tmp, size).into_drawing_area();
-                    draw(&root, fig)?;
+                    draw(&root, fig, true)?;
                     root.present().map_err(|e| anyhow!("PNG rendering: {e}"))?;
                 }
                 std::fs::read(&tmp).with_context(|| format!("reading {}", tmp.display()))
@@ -242,7 +242,12 @@ fn unique() -> u64 {
     N.fetch_add(1, Ordering::Relaxed)
 }
 
-fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Result<()> {
+/// `pieces`: draw lines as separate straight pieces (bitmap output, see [`pieces`]).
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    fig: &Figure,
+    pieces: bool,
+) -> Result<()> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("drawing: {e}");
     root.fill(&WHITE).map_err(err)?;
     let area = match &fig.title {
@@ -251,7 +256,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, fig: &Figure) -> Resu
     };
     let cells = area.split_evenly((fig.rows(), fig.cols));
     for (panel, cell) in fig.panels.iter().zip(cells) {
-        draw_panel(&cell, panel).map_err(err)?;
+        draw_panel(&cell, panel, pieces).map_err(err)?;
     }
     Ok(())
 }
@@ -311,6 +316,49 @@ fn decimate(x: &[f64], y: &[f64], buckets: usize) -> Vec<(f64, f64)> {
         out.push((x[a], y[a]));
         if b != a {
             out.push((x[b], y[b]));
+        }
+    }
+    out
+}
+
+/// A polyline as separate straight pieces in data coordinates, solid or dashed (`dash` = on,
+/// off lengths in pixels), skipping pieces shorter than a pixel. Used for bitmap output: the
+/// wide-line rasterizer of plotters joins polyline segments with miter vertices that shoot far
+/// out at near-reversals (dense min/max envelopes) and breaks on zero-length segments; separate
+/// pieces have no joins.
+fn pieces(
+    pts: &[(f64, f64)],
+    px: &[(i32, i32)],
+    dash: Option<(f64, f64)>,
+) -> Vec<((f64, f64), (f64, f64))> {
+    let lerp =
+        |a: (f64, f64), b: (f64, f64), f: f64| (a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1));
+    let mut out = Vec::new();
+    // position along the dash pattern [px]
+    let mut phase = 0.0;
+    for i in 1..pts.len().min(px.len()) {
+        let (a, b) = (pts[i - 1], pts[i]);
+        let dx = f64::from(px[i].0 - px[i - 1].0);
+        let dy = f64::from(px[i].1 - px[i - 1].1);
+        let len = dx.hypot(dy);
+        if len < 1.0 {
+            continue;
+        }
+        match dash {
+            None => out.push((a, b)),
+            Some((on, off)) => {
+                let period = on + off;
+                let mut s = 0.0;
+                while s < len {
+                    let in_on = phase < on;
+                    let step = if in_on { on - phase } else { period - phase }.min(len - s);
+                    if in_on && step >= 1.0 {
+                        out.push((lerp(a, b, s / len), lerp(a, b, (s + step) / len)));
+                    }
+                    s += step;
+                    phase = (phase + step) % period;
+                }
+            }
         }
     }
     out
@@ -389,6 +437,7 @@ fn legend_corner(
 fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     panel: &Panel,
+    as_pieces: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let (x0, x1) = range(panel.series.iter().flat_map(|s| s.x.iter().copied()), 0.0);
     // extra head- and foot-room for the legend
@@ -424,7 +473,31 @@ fn draw_panel<DB: DrawingBackend>(
             filled: false,
             stroke_width: 2,
         };
+        // Drop points that land on the same pixel as the previous one: the wide-line
+        // rasterizer of plotters computes the line normal from the segment direction, which is
+        // undefined for zero-length segments and produces spikes.
         let pts = decimate(&s.x, &s.y, width.max(100));
+        if as_pieces && !s.markers {
+            let px: Vec<(i32, i32)> = pts.iter().map(|p| chart.backend_coord(p)).collect();
+            let dash = if s.dashed { Some((8.0, 5.0)) } else { None };
+            let segs = pieces(&pts, &px, dash);
+            let legend_style = style;
+            let anno = chart.draw_series(
+                segs.into_iter()
+                    .map(|(a, b)| PathElement::new(vec![a, b], style)),
+            )?;
+            anno.label(s.label.as_str());
+            if s.dashed {
+                anno.legend(move |(x, y)| {
+                    DashedPathElement::new(vec![(x, y), (x + 24, y)], 6, 4, legend_style)
+                });
+            } else {
+                anno.legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 24, y)], legend_style)
+                });
+            }
+            continue;
+        }
         if s.markers {
             let filled = style.filled();
             chart

@@ -403,7 +403,7 @@ fn bad_inputs_exit_2_with_location_and_no_output() {
         );
     }
 
-    let opt_cases: [(&str, &[&str], &str); 4] = [
+    let opt_cases: [(&str, &[&str], &str); 6] = [
         (
             "rtol 0",
             &["--scenario", "vgt-step-nmp", "--rtol", "0"],
@@ -418,6 +418,16 @@ fn bad_inputs_exit_2_with_location_and_no_output() {
             "both sources",
             &["--scenario", "whtc", "--inputs", "in.csv"],
             "cannot be used with",
+        ),
+        (
+            "missing input file",
+            &["--inputs", "nope.csv"],
+            "error: nope.csv: No such file or directory (os error 2)\n",
+        ),
+        (
+            "end before start",
+            &["--scenario", "vgt-step-nmp", "--t-end", "-3"],
+            "end time -3 s must be after the first input time 0 s",
         ),
         (
             "bad figure type",

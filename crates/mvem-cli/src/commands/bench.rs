@@ -63,6 +63,7 @@ pub fn run(a: &Args) -> Result<()> {
             "{source}: the inputs span no time (first and last row at {t0} s)"
         )));
     }
+    common::check_samples(t0, t_end, opts.dt_out)?;
     println!(
         "mvem bench: {source}, t = {t0} .. {t_end} s, rtol {:e}, atol {:e}, output every {} s",
         opts.rtol, opts.atol, opts.dt_out

@@ -51,6 +51,7 @@ pub struct Case {
 /// Run `mvem demo`.
 pub fn run(a: &Args) -> Result<()> {
     let opts = a.solver.options(0.01)?;
+    common::check_samples(0.0, 8.0, opts.dt_out)?;
     let model = a.model.build()?;
     if a.out.exists() && !a.out.is_dir() {
         return Err(common::usage(format!(

@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long, value_name = "OUT.csv")]
     pub out: PathBuf,
     /// End time [s] [default: the last input row, or the scenario's end]
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub t_end: Option<f64>,
     /// Also draw a figure of the main signals (.svg or .png).
     #[arg(long, value_name = "OUT.svg|png")]
@@ -83,6 +83,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
         )));
     }
+    common::check_samples(t0, t_end, opts.dt_out)?;
     let initial = match &a.initial_state {
         Some(p) => Some(read_initial_state(p)?),
         None => None,
@@ -148,14 +149,8 @@ pub fn run(a: &Args) -> Result<()> {
 fn read_initial_state(path: &Path) -> Result<BTreeMap<String, f64>> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| common::usage(format!("{}: {e}", path.display())))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        common::usage(format!(
-            "{}, line {}, column {}: {e}",
-            path.display(),
-            e.line(),
-            e.column()
-        ))
-    })?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| common::usage(format!("{}: {e}", path.display())))?;
     let obj = v.as_object().ok_or_else(|| {
         common::usage(format!(
             "{}: expected a JSON object of state name -> value",
