@@ -416,3 +416,61 @@ pub fn with_spinner<T>(msg: &str, f: impl FnOnce() -> T) -> T {
     pb.finish_and_clear();
     out
 }
+
+// ---------------------------------------------------------------------------------------------
+// Operating points
+
+/// The operating point of the analysis commands (all four inputs).
+#[derive(Debug, Clone, clap::Args)]
+pub struct PointArgs {
+    /// Engine speed n_e [rpm].
+    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
+    pub n_e: f64,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
+    pub u_delta: f64,
+    /// EGR valve command u_egr [%] (0 closed, 100 open).
+    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_egr: f64,
+    /// VGT command u_vgt [%] (0 closed, 100 open).
+    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_vgt: f64,
+}
+
+impl PointArgs {
+    /// The checked operating point (see [`check_drive`]).
+    pub fn drive(&self) -> Result<Drive> {
+        let d = Drive::new(self.n_e, self.u_delta, self.u_egr, self.u_vgt);
+        check_drive(&d)?;
+        Ok(d)
+    }
+}
+
+/// Option names of the inputs in [`Drive::to_array`] order.
+pub const INPUT_OPTIONS: [&str; 4] = ["--n-e", "--u-delta", "--u-egr", "--u-vgt"];
+
+/// Refuse non-finite inputs (usage error naming the option) and warn on stderr about values
+/// outside the authors' input saturation ranges (which clamp them).
+pub fn check_drive(d: &Drive) -> Result<()> {
+    for (name, v) in INPUT_OPTIONS.iter().zip(d.to_array()) {
+        if !v.is_finite() {
+            return Err(usage(format!("{name} {v}: must be finite")));
+        }
+    }
+    for ((name, lo, hi), v) in csv_inputs::INPUT_RANGES.iter().zip(d.to_array()) {
+        if v < *lo || v > *hi {
+            eprintln!(
+                "warning: {name} = {v} is outside [{lo}, {hi}]; the authors' saturation clamps it"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A point as `n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %`.
+pub fn fmt_drive(d: &Drive) -> String {
+    format!(
+        "n_e {} rpm, u_delta {} mg, u_egr {} %, u_vgt {} %",
+        d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
+    )
+}

@@ -9,6 +9,7 @@
 mod commands;
 mod common;
 mod plot;
+mod plot_maps;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +25,11 @@ Examples:
   mvem simulate --scenario vgt-step-nmp --out step.csv --plot step.svg
   mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.csv --dt 0.1
   mvem steady --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json
+  mvem step --input u_vgt --from 75 --to 65 --n-e 1500 --u-delta 110 --u-egr 80 --plot step.png
+  mvem map --axis u_egr=0:100:41 --axis u_vgt=20:100:41 --n-e 1500 --u-delta 110 --out map.csv --plot map.png
+  mvem components --out out/components
+  mvem report figs --out out/report
   mvem bench --repeat 3
   mvem params check my_params.toml
 
@@ -40,6 +46,18 @@ enum Command {
     Simulate(commands::simulate::Args),
     /// Steady state (equilibrium) at constant inputs, with validity flags and eigenvalues.
     Steady(commands::steady::Args),
+    /// Linear model (A, B, C, D) at a steady state: poles, transmission zeros, DC gains.
+    Linearize(commands::linearize::Args),
+    /// Step in any input at any operating point, with step-response metrics per output.
+    Step(commands::step::Args),
+    /// Steady states over a grid of inputs: CSV with validity flags, heat maps, DC-gain and
+    /// RHP-zero (sign-reversal) maps of SISO channels.
+    Map(commands::map::Args),
+    /// Component maps like the paper's figures (compressor, turbine, EGR valve), with the
+    /// operating points of a simulation overlaid.
+    Components(commands::components::Args),
+    /// Built-in reports: the paper's dynamic figures 8-12, the sign-reversal maps.
+    Report(commands::report::Args),
     /// The authors' two VGT demonstration steps: CSVs, a figure and the W_c step metrics.
     Demo(commands::demo::Args),
     /// Simulation speed and accuracy on the WHTC cycle; cost of one model evaluation.
@@ -64,6 +82,11 @@ fn main() -> ExitCode {
     let result = match &cli.cmd {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Steady(a) => commands::steady::run(a),
+        Command::Linearize(a) => commands::linearize::run(a),
+        Command::Step(a) => commands::step::run(a),
+        Command::Map(a) => commands::map::run(a),
+        Command::Components(a) => commands::components::run(a),
+        Command::Report(a) => commands::report::run(a),
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),

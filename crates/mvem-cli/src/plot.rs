@@ -12,10 +12,10 @@ use std::path::Path;
 static FONT: &[u8] = include_bytes!("../../../assets/DejaVuSans.ttf");
 
 /// Font family name used for all text.
-const FAMILY: &str = "sans-serif";
+pub(crate) const FAMILY: &str = "sans-serif";
 
 /// Register the embedded font once (plotters' ab_glyph font table is global).
-fn register_font() -> Result<()> {
+pub(crate) fn register_font() -> Result<()> {
     static ONCE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let ok = *ONCE
         .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
@@ -27,7 +27,7 @@ fn register_font() -> Result<()> {
 }
 
 /// Colour-blind-safe palette (Okabe-Ito), indexed by [`Series::color`].
-const PALETTE: [RGBColor; 7] = [
+pub(crate) const PALETTE: [RGBColor; 7] = [
     RGBColor(0, 114, 178),
     RGBColor(213, 94, 0),
     RGBColor(0, 158, 115),
@@ -204,35 +204,47 @@ pub fn render(fig: &Figure, format: Format) -> Result<Vec<u8>> {
     register_font()?;
     let size = fig.size();
     match format {
-        Format::Svg => {
-            let mut s = String::new();
-            {
-                let root = SVGBackend::with_string(&mut s, size).into_drawing_area();
-                draw(&root, fig, false)?;
-                root.present().map_err(|e| anyhow!("SVG rendering: {e}"))?;
-            }
-            Ok(s.into_bytes())
-        }
-        Format::Png => {
-            // plotters encodes PNG only to a file: render into a hidden temporary file, read it
-            // back and remove it, so that the caller writes the result atomically.
-            let tmp = std::env::temp_dir().join(format!(
-                "mvem-figure-{}-{}.png",
-                std::process::id(),
-                unique()
-            ));
-            let res = (|| -> Result<Vec<u8>> {
-                {
-                    let root = BitMapBackend::new(&tmp, size).into_drawing_area();
-                    draw(&root, fig, true)?;
-                    root.present().map_err(|e| anyhow!("PNG rendering: {e}"))?;
-                }
-                std::fs::read(&tmp).with_context(|| format!("reading {}", tmp.display()))
-            })();
-            let _ = std::fs::remove_file(&tmp);
-            res
-        }
+        Format::Svg => svg_bytes(size, |root| draw(root, fig, false)),
+        Format::Png => png_bytes(size, |root| draw(root, fig, true)),
     }
+}
+
+/// An SVG document of `size` drawn by `f`, as bytes.
+pub(crate) fn svg_bytes(
+    size: (u32, u32),
+    f: impl FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
+) -> Result<Vec<u8>> {
+    let mut s = String::new();
+    {
+        let root = SVGBackend::with_string(&mut s, size).into_drawing_area();
+        f(&root)?;
+        root.present().map_err(|e| anyhow!("SVG rendering: {e}"))?;
+    }
+    Ok(s.into_bytes())
+}
+
+/// A PNG of `size` drawn by `f`, as bytes. plotters encodes PNG only to a file: render into a
+/// hidden temporary file, read it back and remove it, so that the caller writes the result
+/// atomically.
+pub(crate) fn png_bytes(
+    size: (u32, u32),
+    f: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+) -> Result<Vec<u8>> {
+    let tmp = std::env::temp_dir().join(format!(
+        "mvem-figure-{}-{}.png",
+        std::process::id(),
+        unique()
+    ));
+    let res = (|| -> Result<Vec<u8>> {
+        {
+            let root = BitMapBackend::new(&tmp, size).into_drawing_area();
+            f(&root)?;
+            root.present().map_err(|e| anyhow!("PNG rendering: {e}"))?;
+        }
+        std::fs::read(&tmp).with_context(|| format!("reading {}", tmp.display()))
+    })();
+    let _ = std::fs::remove_file(&tmp);
+    res
 }
 
 /// A process-wide counter for temporary names.

@@ -561,6 +561,13 @@ fn every_command_has_help_with_an_example() {
         vec!["params", "--help"],
         vec!["params", "show", "--help"],
         vec!["params", "check", "--help"],
+        vec!["linearize", "--help"],
+        vec!["step", "--help"],
+        vec!["map", "--help"],
+        vec!["components", "--help"],
+        vec!["report", "--help"],
+        vec!["report", "figs", "--help"],
+        vec!["report", "sign-reversal", "--help"],
     ] {
         let o = mvem(d.path(), &cmd);
         assert!(o.status.success(), "{cmd:?}");

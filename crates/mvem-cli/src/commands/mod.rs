@@ -1,7 +1,12 @@
 //! One module per subcommand; each has an `Args` struct (clap) and a `run` function.
 
 pub mod bench;
+pub mod components;
 pub mod demo;
+pub mod linearize;
+pub mod map;
 pub mod params;
+pub mod report;
 pub mod simulate;
 pub mod steady;
+pub mod step;

@@ -42,21 +42,7 @@ pub struct Args {
 /// Run `mvem steady`.
 pub fn run(a: &Args) -> Result<()> {
     let d = Drive::new(a.n_e, a.u_delta, a.u_egr, a.u_vgt);
-    for (name, v) in ["--n-e", "--u-delta", "--u-egr", "--u-vgt"]
-        .iter()
-        .zip(d.to_array())
-    {
-        if !v.is_finite() {
-            return Err(common::usage(format!("{name} {v}: must be finite")));
-        }
-    }
-    for ((name, lo, hi), v) in mvem::io::csv_inputs::INPUT_RANGES.iter().zip(d.to_array()) {
-        if v < *lo || v > *hi {
-            eprintln!(
-                "warning: {name} = {v} is outside [{lo}, {hi}]; the authors' saturation clamps it"
-            );
-        }
-    }
+    common::check_drive(&d)?;
     let model = a.model.build()?;
     let valid = mvem::dispatch!(&model, m => report(m, &d, a.json))?;
     if !valid && a.strict {

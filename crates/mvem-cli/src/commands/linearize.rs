@@ -1,0 +1,364 @@
+//! `mvem linearize`: the linear model (A, B, C, D) at the steady state of an operating point,
+//! its poles, the transmission zeros of every SISO channel and of the square MIMO system, and
+//! the DC-gain matrix.
+
+use crate::common::{self, ModelArgs, PointArgs};
+use anyhow::{Context, Result};
+use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeOptions};
+use mvem::analysis::steady::{steady_state, SteadyState};
+use mvem::analysis::zeros::{
+    dc_gain_matrix, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS,
+};
+use mvem::model::Model;
+use nalgebra::DMatrix;
+use serde_json::{json, Map, Value};
+
+/// Arguments of `mvem linearize`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json > lin.json
+  mvem linearize --n-e 1200 --u-delta 200 --u-egr 50 --u-vgt 40 --pade 2
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 30 --outputs W_c,p_im,T_em
+
+The linear model is dx' = A dx + B du, dy = C dx + D du in deviations from the steady state,
+in SI units (states Pa, -, rad/s, %), inputs (u_delta, u_egr, u_vgt, n_e) in mg/cycle, %, %,
+rpm, outputs in their signal units. Derivatives: Richardson-extrapolated central differences.
+Without --pade the actuator delays are left out (the undelayed system); --pade K replaces them
+by order-K Pade approximants (extra states; their all-pass zeros then appear in the zeros).
+
+With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im}], \"zeros\"
+(object keyed \"u_vgt->W_c\", ..., one entry per SISO channel plus \"MIMO\" for
+(u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O); each a list of {re, im}, null where the
+channel passes a kink of the model, with the reason in \"zero_errors\"), \"dc_gain\" (outputs x
+inputs), \"A\", \"B\", \"C\", \"D\" (lists of rows), \"state_names\", \"input_names\",
+\"output_names\", \"units\", \"operating_point\", \"x0\", \"y0\", \"physically_valid\", \"flags\",
+\"kinks\", \"pade_order\", \"delays_s\".")]
+pub struct Args {
+    #[command(flatten)]
+    pub point: PointArgs,
+    /// Print one JSON object on stdout instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Replace the actuator delays by Pade approximants of this order (1-3; 2 if given without a value).
+    #[arg(long, value_name = "K", num_args = 0..=1, default_missing_value = "2", default_value = "0",
+          value_parser = clap::value_parser!(u8).range(0..=3))]
+    pub pade: u8,
+    /// Outputs (comma separated state or signal names) [default: p_im,p_em,W_c,n_t,x_egr,lambda_O,M_e]
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub outputs: Vec<String>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+}
+
+/// Run `mvem linearize`.
+pub fn run(a: &Args) -> Result<()> {
+    let d = a.point.drive()?;
+    let opts = options(&a.outputs, a.pade as usize)?;
+    let model = a.model.build()?;
+    let v = mvem::dispatch!(&model, m => {
+        let ss = steady_state(m, &d).context("steady state")?;
+        analyse(m, &ss, &opts)?
+    });
+    if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
+        if !w {
+            eprintln!(
+                "warning: the equilibrium is not physically valid; flags: {}",
+                v["flags"]
+                    .as_array()
+                    .map(|f| f
+                        .iter()
+                        .filter_map(Value::as_str)
+                        .collect::<Vec<_>>()
+                        .join(", "))
+                    .unwrap_or_default()
+            );
+        }
+    }
+    for k in v["kinks"].as_array().into_iter().flatten() {
+        eprintln!("warning: {}", k.as_str().unwrap_or_default());
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print_text(&v);
+    }
+    Ok(())
+}
+
+/// Linearization options from `--outputs` and `--pade` (non-strict: kinks are judged per
+/// channel).
+pub fn options(outputs: &[String], pade: usize) -> Result<LinearizeOptions> {
+    let mut o = LinearizeOptions {
+        pade_order: pade,
+        strict: false,
+        ..LinearizeOptions::default()
+    };
+    if !outputs.is_empty() {
+        o.outputs = outputs.iter().map(|s| s.trim().to_string()).collect();
+    }
+    Ok(o)
+}
+
+fn cjson(z: &Complex<f64>) -> Value {
+    json!({"re": z.re, "im": z.im})
+}
+
+fn rows(m: &DMatrix<f64>) -> Value {
+    Value::Array(
+        (0..m.nrows())
+            .map(|i| json!((0..m.ncols()).map(|j| m[(i, j)]).collect::<Vec<f64>>()))
+            .collect(),
+    )
+}
+
+fn state_unit(name: &str) -> &'static str {
+    if name.starts_with("pade_") {
+        "%"
+    } else {
+        common::unit(name)
+    }
+}
+
+/// Input units in `INPUT_NAMES` order.
+const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
+
+/// The whole analysis of the steady state `ss` as the JSON object of the contract.
+pub fn analyse<const N: usize, M: Model<N>>(
+    m: &M,
+    ss: &SteadyState<N>,
+    opts: &LinearizeOptions,
+) -> Result<Value> {
+    let lin = linearize_steady(m, ss, opts).map_err(|e| match e {
+        mvem::analysis::linearize::LinearizeError::UnknownOutput { .. } => {
+            common::usage(format!("--outputs: {e}"))
+        }
+        other => anyhow::Error::new(other).context("linearization"),
+    })?;
+    Ok(to_json(&lin, ss))
+}
+
+fn to_json<const N: usize>(lin: &LinearModel, ss: &SteadyState<N>) -> Value {
+    let zo = ZeroOptions::default();
+    let mut o = Map::new();
+    let d = ss.drive;
+    o.insert(
+        "operating_point".into(),
+        json!({"n_e_rpm": d.n_e_rpm, "u_delta_mg": d.u_delta_mg, "u_egr_pct": d.u_egr_pct, "u_vgt_pct": d.u_vgt_pct}),
+    );
+    o.insert("physically_valid".into(), json!(ss.physically_valid()));
+    o.insert("flags".into(), json!(ss.flags));
+    o.insert("pade_order".into(), json!(lin.pade_order));
+    o.insert(
+        "delays_s".into(),
+        json!({"u_egr": lin.delays[0], "u_vgt": lin.delays[1]}),
+    );
+    o.insert("state_names".into(), json!(lin.state_names));
+    o.insert("input_names".into(), json!(lin.input_names));
+    o.insert("output_names".into(), json!(lin.output_names));
+    o.insert(
+        "units".into(),
+        json!({
+            "states": lin.state_names.iter().map(|s| state_unit(s)).collect::<Vec<_>>(),
+            "inputs": INPUT_UNITS,
+            "outputs": lin.output_names.iter().map(|s| common::unit(s)).collect::<Vec<_>>(),
+            "time": "s",
+            "dc_gain": "output unit per input unit",
+        }),
+    );
+    o.insert("x0".into(), json!(lin.x0));
+    o.insert("y0".into(), json!(lin.y0));
+    o.insert("A".into(), rows(&lin.a));
+    o.insert("B".into(), rows(&lin.b));
+    o.insert("C".into(), rows(&lin.c));
+    o.insert("D".into(), rows(&lin.d));
+    o.insert(
+        "eigenvalues".into(),
+        match poles(lin) {
+            Ok(p) => Value::Array(p.iter().map(cjson).collect()),
+            Err(_) => Value::Null,
+        },
+    );
+    let mut zeros = Map::new();
+    let mut errors = Map::new();
+    for i in &lin.input_names {
+        for out in &lin.output_names {
+            let key = format!("{i}->{out}");
+            match siso(lin, i, out, &zo) {
+                Ok(c) => {
+                    zeros.insert(
+                        key,
+                        Value::Array(c.zeros.finite.iter().map(cjson).collect()),
+                    );
+                }
+                Err(e) => {
+                    zeros.insert(key.clone(), Value::Null);
+                    errors.insert(key, json!(e.to_string()));
+                }
+            }
+        }
+    }
+    match mimo_zeros(lin, &MIMO_INPUTS, &MIMO_OUTPUTS, &zo) {
+        Ok(z) => {
+            zeros.insert(
+                "MIMO".into(),
+                Value::Array(z.finite.iter().map(cjson).collect()),
+            );
+        }
+        Err(e) => {
+            zeros.insert("MIMO".into(), Value::Null);
+            errors.insert("MIMO".into(), json!(e.to_string()));
+        }
+    }
+    o.insert("zeros".into(), Value::Object(zeros));
+    o.insert(
+        "mimo".into(),
+        json!({"inputs": MIMO_INPUTS, "outputs": MIMO_OUTPUTS}),
+    );
+    if !errors.is_empty() {
+        o.insert("zero_errors".into(), Value::Object(errors));
+    }
+    o.insert(
+        "dc_gain".into(),
+        match dc_gain_matrix(lin) {
+            Ok(g) => rows(&g),
+            Err(_) => Value::Null,
+        },
+    );
+    o.insert(
+        "kinks".into(),
+        json!(lin.kinks.iter().map(|k| k.to_string()).collect::<Vec<_>>()),
+    );
+    Value::Object(o)
+}
+
+fn fmt_c(z: &Value) -> String {
+    let re = z["re"].as_f64().unwrap_or(f64::NAN);
+    let im = z["im"].as_f64().unwrap_or(f64::NAN);
+    if im == 0.0 {
+        format!("{re:.4}")
+    } else {
+        format!(
+            "{re:.4} {} {:.4}i",
+            if im < 0.0 { '-' } else { '+' },
+            im.abs()
+        )
+    }
+}
+
+fn names(v: &Value) -> Vec<String> {
+    v.as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|s| s.as_str().map(str::to_string))
+        .collect()
+}
+
+fn print_matrix(title: &str, m: &Value, row_names: &[String], col_names: &[String]) {
+    println!("\n{title}");
+    print!("  {:<12}", "");
+    for c in col_names {
+        print!(" {c:>12}");
+    }
+    println!();
+    for (r, row) in row_names.iter().zip(m.as_array().into_iter().flatten()) {
+        print!("  {r:<12}");
+        for v in row.as_array().into_iter().flatten() {
+            print!(" {:>12.4e}", v.as_f64().unwrap_or(f64::NAN));
+        }
+        println!();
+    }
+}
+
+fn print_text(v: &Value) {
+    let op = &v["operating_point"];
+    println!(
+        "Linearization at n_e = {} rpm, u_delta = {} mg/cycle, u_egr = {} %, u_vgt = {} % (steady state{})",
+        op["n_e_rpm"], op["u_delta_mg"], op["u_egr_pct"], op["u_vgt_pct"],
+        if v["physically_valid"].as_bool() == Some(true) { "" } else { ", NOT physically valid" }
+    );
+    let pade = v["pade_order"].as_u64().unwrap_or(0);
+    if pade == 0 {
+        println!(
+            "Actuator delays (u_egr {} s, u_vgt {} s) left out: the undelayed system; use --pade K to include them.",
+            v["delays_s"]["u_egr"], v["delays_s"]["u_vgt"]
+        );
+    } else {
+        println!("Actuator delays replaced by order-{pade} Pade approximants.");
+    }
+    let states = names(&v["state_names"]);
+    let inputs = names(&v["input_names"]);
+    let outputs = names(&v["output_names"]);
+    let su: Vec<String> = names(&v["units"]["states"]);
+    let ou: Vec<String> = names(&v["units"]["outputs"]);
+    println!(
+        "\nStates [unit]: {}",
+        states
+            .iter()
+            .zip(&su)
+            .map(|(s, u)| format!("{s} [{u}]"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!("Inputs [unit]: u_delta [mg/cycle], u_egr [%], u_vgt [%], n_e [rpm]");
+    println!(
+        "Outputs [unit]: {}",
+        outputs
+            .iter()
+            .zip(&ou)
+            .map(|(s, u)| format!("{s} [{u}]"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    println!("\nPoles (eigenvalues of A) [1/s]");
+    for z in v["eigenvalues"].as_array().into_iter().flatten() {
+        println!("  {}", fmt_c(z));
+    }
+    print_matrix(
+        "DC gain (output unit per input unit)",
+        &v["dc_gain"],
+        &outputs,
+        &inputs,
+    );
+    println!("\nTransmission zeros [1/s] (RHP = right half plane: non-minimum phase)");
+    for (k, zs) in v["zeros"].as_object().into_iter().flatten() {
+        match zs.as_array() {
+            None => println!(
+                "  {k:<20} not computed: {}",
+                v["zero_errors"][k].as_str().unwrap_or("")
+            ),
+            Some(list) => {
+                let rhp = list.iter().any(|z| {
+                    let re = z["re"].as_f64().unwrap_or(0.0);
+                    let im = z["im"].as_f64().unwrap_or(0.0);
+                    re > 1e-9 * (1.0 + re.hypot(im))
+                });
+                let s: Vec<String> = list.iter().map(fmt_c).collect();
+                println!(
+                    "  {k:<20} {}{}",
+                    if s.is_empty() {
+                        "none".to_string()
+                    } else {
+                        s.join(", ")
+                    },
+                    if rhp { "   <- RHP zero" } else { "" }
+                );
+            }
+        }
+    }
+    println!(
+        "  (MIMO = ({}) -> ({}))",
+        names(&v["mimo"]["inputs"]).join(", "),
+        names(&v["mimo"]["outputs"]).join(", ")
+    );
+    print_matrix(
+        "A (d(row state)/dt per unit of the column state)",
+        &v["A"],
+        &states,
+        &states,
+    );
+    print_matrix("B", &v["B"], &states, &inputs);
+    print_matrix("C", &v["C"], &outputs, &states);
+    print_matrix("D", &v["D"], &outputs, &inputs);
+}

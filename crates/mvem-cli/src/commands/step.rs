@@ -1,0 +1,553 @@
+//! `mvem step`: a step in any input at any operating point, simulated with the nonlinear model,
+//! with step-response metrics per output (wrong-way excursion, overshoot, rise and settling
+//! time, DC gain and its sign; definitions in `mvem::analysis::step`).
+
+use crate::common::{self, ModelArgs, SolverArgs};
+use crate::plot::{self, Figure, Panel, Series};
+use anyhow::{Context, Result};
+use clap::ValueEnum;
+use mvem::analysis::linearize::DEFAULT_OUTPUTS;
+use mvem::analysis::steady::{steady_state, SteadyState};
+use mvem::analysis::step::StepMetrics;
+use mvem::model::{Drive, Model};
+use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use serde_json::{json, Map, Value};
+use std::path::PathBuf;
+
+/// An input channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum InputArg {
+    /// Engine speed [rpm].
+    #[value(name = "n_e")]
+    NE,
+    /// Injected fuel [mg/cycle/cylinder].
+    #[value(name = "u_delta")]
+    UDelta,
+    /// EGR valve command [%].
+    #[value(name = "u_egr")]
+    UEgr,
+    /// VGT command [%].
+    #[value(name = "u_vgt")]
+    UVgt,
+}
+
+impl InputArg {
+    /// Index in [`Drive::to_array`] (and the channel of [`InputSchedule::steps`]).
+    pub fn slot(self) -> usize {
+        match self {
+            InputArg::NE => 0,
+            InputArg::UDelta => 1,
+            InputArg::UEgr => 2,
+            InputArg::UVgt => 3,
+        }
+    }
+
+    /// Name (`u_vgt`).
+    pub fn name(self) -> &'static str {
+        Drive::NAMES[self.slot()]
+    }
+}
+
+/// Arguments of `mvem step`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  mvem step --input u_vgt --from 75 --to 65 --n-e 1500 --u-delta 110 --u-egr 80
+  mvem step --input u_vgt --to 25 --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 30 --json
+  mvem step --input u_egr --from 50 --to 55 --n-e 1200 --u-delta 200 --u-vgt 40 --plot egr.png
+  mvem step --input n_e --from 1500 --to 1600 --u-delta 110 --u-egr 80 --u-vgt 75 --out n.csv
+
+The stepped input starts at --from (or at its operating-point option) and jumps to --to at
+--t-step; the other three inputs are held at their options. The run starts at the steady state
+before the step; initial and final values of the metrics are the steady states before and after
+the step. Metrics per output: DC gain (output unit per input unit) and its sign, the wrong-way
+(non-minimum-phase) excursion and its time, overshoot [%], rise time 10-90 % and settling time
+(2 % band) [s]. With --json, stdout holds one JSON object with \"input\", \"from\", \"to\",
+\"t_step\", \"operating_point\" and \"outputs\" (an object keyed by output name).")]
+pub struct Args {
+    /// The stepped input.
+    #[arg(long, value_enum)]
+    pub input: InputArg,
+    /// Value before the step (default: the operating-point option of that input).
+    #[arg(long, value_name = "V", allow_negative_numbers = true)]
+    pub from: Option<f64>,
+    /// Value after the step.
+    #[arg(long, value_name = "V", allow_negative_numbers = true)]
+    pub to: f64,
+    /// Engine speed n_e [rpm].
+    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
+    pub n_e: Option<f64>,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
+    pub u_delta: Option<f64>,
+    /// EGR valve command u_egr [%].
+    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_egr: Option<f64>,
+    /// VGT command u_vgt [%].
+    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_vgt: Option<f64>,
+    /// Time of the step [s].
+    #[arg(long = "t-step", value_name = "S", default_value = "1")]
+    pub t_step: f64,
+    /// End time [s].
+    #[arg(long = "t-end", value_name = "S", default_value = "10")]
+    pub t_end: f64,
+    /// Outputs (comma separated state or signal names) [default: p_im,p_em,W_c,n_t,x_egr,lambda_O,M_e]
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub outputs: Vec<String>,
+    /// Print one JSON object on stdout instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Write a figure of the input and the outputs (.svg or .png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// Write the simulation (every state and signal) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub model: ModelArgs,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+}
+
+/// A simulated step and its metrics.
+pub struct StepCase {
+    /// The stepped input.
+    pub input: InputArg,
+    /// Inputs before the step.
+    pub before: Drive,
+    /// Value after the step.
+    pub to: f64,
+    /// Step time [s].
+    pub t_step: f64,
+    /// The simulation.
+    pub sol: Solution,
+    /// Per output: name and metrics, or why there are none (e.g. no change).
+    pub metrics: Vec<(String, Result<StepMetrics, String>)>,
+    /// Whether both steady states are physically valid (flags otherwise).
+    pub flags: Vec<String>,
+}
+
+/// Value of a state or signal at a steady state.
+pub fn steady_value<const N: usize, M: Model<N>>(
+    m: &M,
+    ss: &SteadyState<N>,
+    name: &str,
+) -> Option<f64> {
+    match m.state_names().iter().position(|s| *s == name) {
+        Some(i) => Some(ss.x[i]),
+        None => ss.signals.get(name),
+    }
+}
+
+/// Simulate a step of `input` from its value in `before` to `to` at `t_step`, up to `t_end`,
+/// and measure `outputs`.
+#[allow(clippy::too_many_arguments)]
+pub fn run_step<const N: usize, M: Model<N>>(
+    m: &M,
+    input: InputArg,
+    before: Drive,
+    to: f64,
+    t_step: f64,
+    t_end: f64,
+    outputs: &[String],
+    opts: &SimOptions,
+) -> Result<StepCase> {
+    let mut after = before.to_array();
+    after[input.slot()] = to;
+    let after = Drive::from_array(after);
+    let ss0 = steady_state(m, &before).with_context(|| {
+        format!(
+            "steady state before the step ({})",
+            common::fmt_drive(&before)
+        )
+    })?;
+    let ss1 = steady_state(m, &after).with_context(|| {
+        format!(
+            "steady state after the step ({})",
+            common::fmt_drive(&after)
+        )
+    })?;
+    let sched = InputSchedule::steps(before, &[(t_step, input.slot(), to)])?;
+    let sol =
+        simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), opts).context("simulation failed")?;
+    let du = to - before.to_array()[input.slot()];
+    let mut metrics = Vec::new();
+    for name in outputs {
+        let r = (|| -> Result<StepMetrics, String> {
+            let y = sol
+                .get(name)
+                .ok_or_else(|| format!("unknown output {name:?}"))?;
+            let y0 = steady_value(m, &ss0, name).ok_or("no steady value")?;
+            let y1 = steady_value(m, &ss1, name).ok_or("no steady value")?;
+            StepMetrics::compute(sol.t(), y, t_step, y0, y1, du).map_err(|e| e.to_string())
+        })();
+        metrics.push((name.clone(), r));
+    }
+    let mut flags = Vec::new();
+    for (when, ss) in [("before", &ss0), ("after", &ss1)] {
+        if !ss.physically_valid() {
+            flags.push(format!(
+                "steady state {when} the step: {}",
+                ss.flags.join(", ")
+            ));
+        }
+    }
+    Ok(StepCase {
+        input,
+        before,
+        to,
+        t_step,
+        sol,
+        metrics,
+        flags,
+    })
+}
+
+/// Run `mvem step`.
+pub fn run(a: &Args) -> Result<()> {
+    let slot = a.input.slot();
+    let given = [a.n_e, a.u_delta, a.u_egr, a.u_vgt];
+    let mut v = [0.0; 4];
+    for k in 0..4 {
+        v[k] = if k == slot {
+            match (a.from, given[k]) {
+                (Some(f), Some(g)) if f != g => {
+                    return Err(common::usage(format!(
+                        "--from {f} and {} {g} disagree; give one of them",
+                        common::INPUT_OPTIONS[k]
+                    )))
+                }
+                (Some(f), _) | (None, Some(f)) => f,
+                (None, None) => {
+                    return Err(common::usage(format!(
+                        "the value before the step is missing: give --from or {}",
+                        common::INPUT_OPTIONS[k]
+                    )))
+                }
+            }
+        } else {
+            given[k].ok_or_else(|| {
+                common::usage(format!(
+                    "{} is required (the operating point)",
+                    common::INPUT_OPTIONS[k]
+                ))
+            })?
+        };
+    }
+    let before = Drive::from_array(v);
+    common::check_drive(&before)?;
+    let mut after = v;
+    after[slot] = a.to;
+    common::check_drive(&Drive::from_array(after))
+        .map_err(|e| common::usage(format!("--to: {}", common::error_message(&e))))?;
+    if a.to == v[slot] {
+        return Err(common::usage(format!(
+            "--to {}: equals the value before the step",
+            a.to
+        )));
+    }
+    if !(a.t_step.is_finite() && a.t_step >= 0.0) {
+        return Err(common::usage(format!(
+            "--t-step {}: must be finite and >= 0",
+            a.t_step
+        )));
+    }
+    if !(a.t_end.is_finite() && a.t_end > a.t_step) {
+        return Err(common::usage(format!(
+            "--t-end {}: must be finite and after --t-step {}",
+            a.t_end, a.t_step
+        )));
+    }
+    let opts = a.solver.options(0.005)?;
+    common::check_samples(0.0, a.t_end, opts.dt_out)?;
+    for (p, what) in [(&a.plot, "--plot"), (&a.out, "--out")] {
+        if let Some(p) = p {
+            common::check_output_path(p, what)?;
+        }
+    }
+    if let Some(p) = &a.plot {
+        plot::Format::of(p)?;
+    }
+    let outputs: Vec<String> = if a.outputs.is_empty() {
+        DEFAULT_OUTPUTS.iter().map(|s| s.to_string()).collect()
+    } else {
+        a.outputs.iter().map(|s| s.trim().to_string()).collect()
+    };
+    let model = a.model.build()?;
+    let case = common::with_spinner("simulating the step", || {
+        mvem::dispatch!(&model, m => {
+            for o in &outputs {
+                if !m.state_names().contains(&o.as_str()) && !mvem::model::Signals::NAMES.contains(&o.as_str()) {
+                    return Err(common::usage(format!(
+                        "--outputs: unknown output {o:?}; known: the states {} and the signals {}",
+                        m.state_names().join(", "),
+                        mvem::model::Signals::NAMES.join(", ")
+                    )));
+                }
+            }
+            run_step(m, a.input, before, a.to, a.t_step, a.t_end, &outputs, &opts)
+        })
+    })?;
+    for f in &case.flags {
+        eprintln!("warning: not physically valid: {f}");
+    }
+    // render before writing anything
+    let fig = match &a.plot {
+        Some(p) => Some((p, plot::render(&figure(&case, None), plot::Format::of(p)?)?)),
+        None => None,
+    };
+    if let Some(p) = &a.out {
+        mvem::io::output::write_solution_csv(&case.sol, p)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if let Some((p, bytes)) = fig {
+        mvem::io::output::write_atomic(p, &bytes)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&to_json(&case))?);
+    } else {
+        print!("{}", text(&case));
+    }
+    Ok(())
+}
+
+fn opt(v: Option<f64>) -> Value {
+    v.map_or(Value::Null, |x| json!(x))
+}
+
+/// The metrics of one output as JSON.
+pub fn metrics_json(m: &StepMetrics) -> Value {
+    let exc = |e: Option<mvem::analysis::step::Excursion>| {
+        e.map_or(
+            Value::Null,
+            |e| json!({"value": e.value, "time": e.time, "relative": e.relative}),
+        )
+    };
+    json!({
+        "y0": m.y0,
+        "y_final": m.y_final,
+        "change": m.change,
+        "dc_gain": m.dc_gain,
+        "gain_sign": m.gain_sign.to_string(),
+        "wrong_way": exc(m.wrong_way),
+        "non_minimum_phase": m.non_minimum_phase,
+        "overshoot_pct": m.overshoot_pct,
+        "peak": exc(m.peak),
+        "rise_time": opt(m.rise_time),
+        "settling_time": opt(m.settling_time),
+    })
+}
+
+fn to_json(c: &StepCase) -> Value {
+    let mut outs = Map::new();
+    for (n, r) in &c.metrics {
+        let mut v = match r {
+            Ok(m) => metrics_json(m),
+            Err(e) => json!({"error": e}),
+        };
+        v["unit"] = json!(common::unit(n));
+        outs.insert(n.clone(), v);
+    }
+    let d = c.before;
+    json!({
+        "input": c.input.name(),
+        "input_unit": common::unit(c.input.name()),
+        "from": d.to_array()[c.input.slot()],
+        "to": c.to,
+        "t_step": c.t_step,
+        "operating_point": {"n_e_rpm": d.n_e_rpm, "u_delta_mg": d.u_delta_mg, "u_egr_pct": d.u_egr_pct, "u_vgt_pct": d.u_vgt_pct},
+        "warnings": c.flags,
+        "outputs": Value::Object(outs),
+    })
+}
+
+fn fmt_opt(v: Option<f64>) -> String {
+    v.map_or("-".into(), |s| format!("{s:.3}"))
+}
+
+/// Title of a step: `u_vgt 75 -> 65 % at t = 1 s`.
+pub fn step_title(c: &StepCase) -> String {
+    format!(
+        "{} {} → {} {} at t = {} s",
+        c.input.name(),
+        c.before.to_array()[c.input.slot()],
+        c.to,
+        common::unit(c.input.name()),
+        c.t_step
+    )
+}
+
+/// The metrics table.
+pub fn text(c: &StepCase) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Step {} ({})",
+        step_title(c),
+        common::fmt_drive(&c.before)
+    );
+    let _ = writeln!(
+        s,
+        "Initial and final values: steady states before and after the step.\n"
+    );
+    let _ = writeln!(
+        s,
+        "{:<10} {:>13} {:>13} {:>12} {:>8} {:>13} {:>8} {:>9} {:>8} {:>9}",
+        "output",
+        "y0",
+        "y_final",
+        "DC gain",
+        "sign",
+        "wrong way",
+        "at [s]",
+        "overshoot",
+        "rise",
+        "settling"
+    );
+    let _ = writeln!(
+        s,
+        "{:<10} {:>13} {:>13} {:>12} {:>8} {:>13} {:>8} {:>9} {:>8} {:>9}",
+        "", "", "", "(per unit)", "", "(% change)", "", "[%]", "[s]", "[s]"
+    );
+    for (n, r) in &c.metrics {
+        match r {
+            Err(e) => {
+                let _ = writeln!(s, "{n:<10} {e}");
+            }
+            Ok(m) => {
+                let (ww, wt) = match m.wrong_way {
+                    Some(w) => (
+                        format!(
+                            "{:.2}{}",
+                            w.relative * 100.0,
+                            if m.non_minimum_phase { " NMP" } else { "" }
+                        ),
+                        format!("{:.3}", w.time),
+                    ),
+                    None => ("none".into(), "-".into()),
+                };
+                let _ = writeln!(
+                    s,
+                    "{n:<10} {:>13.6e} {:>13.6e} {:>12.4e} {:>8} {:>13} {:>8} {:>9.2} {:>8} {:>9}",
+                    m.y0,
+                    m.y_final,
+                    m.dc_gain,
+                    m.gain_sign.to_string(),
+                    ww,
+                    wt,
+                    m.overshoot_pct,
+                    fmt_opt(m.rise_time),
+                    fmt_opt(m.settling_time)
+                );
+            }
+        }
+    }
+    let units: Vec<String> = c
+        .metrics
+        .iter()
+        .map(|(n, _)| format!("{n} [{}]", common::unit(n)))
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nUnits: {}; DC gain in output unit per {}.\nNMP: wrong-way excursion above 0.5 % of the final change (non-minimum phase).",
+        units.join(", "),
+        common::unit(c.input.name())
+    );
+    s
+}
+
+fn short_unit(name: &str) -> &'static str {
+    match name {
+        "u_delta" => "mg",
+        n => common::unit(n),
+    }
+}
+
+/// Display scale and unit for plotting (pressures in kPa).
+pub fn display(name: &str) -> (f64, String) {
+    match common::unit(name) {
+        "Pa" => (1e-3, "kPa".into()),
+        u => (1.0, u.to_string()),
+    }
+}
+
+/// The input panel then one panel per output (two columns), with the steady states before and
+/// after and the wrong-way extremum marked. `label` prefixes the title.
+pub fn figure(c: &StepCase, label: Option<&str>) -> Figure {
+    let mut f = Figure::new(2);
+    f.panel_size = (700, 290);
+    let others: Vec<String> = Drive::NAMES
+        .iter()
+        .zip(c.before.to_array())
+        .filter(|(n, _)| **n != c.input.name())
+        .map(|(n, v)| format!("{n} {v} {}", short_unit(n)))
+        .collect();
+    f.title = Some(format!("Step {}; {}", step_title(c), others.join(", ")));
+    let t = c.sol.t();
+    let (t0, t1) = (t[0], t[t.len() - 1]);
+    let inp = c.input.name();
+    let col = |n: &str| c.sol.get(n).map(|v| v.to_vec()).unwrap_or_default();
+    let mut p = Panel::new("t [s]", format!("{inp} [{}]", common::unit(inp)))
+        .title(label.map_or(format!("Input {inp}"), str::to_string))
+        .with(Series::line(format!("command {inp}"), t, &col(inp), 6));
+    let actual = match c.input {
+        InputArg::UEgr => Some("u_egr_actual"),
+        InputArg::UVgt => Some("u_vgt_actual"),
+        _ => None,
+    };
+    if let Some(a) = actual {
+        p = p.with(Series::line("actuator position", t, &col(a), 0));
+    }
+    f.panels.push(p);
+    for (k, (n, r)) in c.metrics.iter().enumerate() {
+        let (sc, unit) = display(n);
+        let y: Vec<f64> = col(n).iter().map(|v| v * sc).collect();
+        let color = [0, 1, 2, 3, 4, 5][k % 6];
+        let mut p = Panel::new("t [s]", format!("{n} [{unit}]")).with(Series::line(
+            n.as_str(),
+            t,
+            &y,
+            color,
+        ));
+        match r {
+            Ok(m) => {
+                let what = if m.non_minimum_phase {
+                    format!(
+                        "non-minimum phase ({:.1} % wrong way)",
+                        m.wrong_way.map_or(0.0, |w| w.relative * 100.0)
+                    )
+                } else if m.overshoot_pct > 0.5 {
+                    format!("overshoot {:.1} %", m.overshoot_pct)
+                } else {
+                    "no NMP, no overshoot".into()
+                };
+                p = p
+                    .title(format!("{n}: DC gain {}, {what}", m.gain_sign))
+                    .with(Series::hline("steady state before", t0, t1, m.y0 * sc, 6))
+                    .with(Series::hline(
+                        "steady state after",
+                        t0,
+                        t1,
+                        m.y_final * sc,
+                        1,
+                    ));
+                if let Some(w) = m.wrong_way.filter(|_| m.non_minimum_phase) {
+                    p = p.with(Series::markers(
+                        format!("wrong-way extremum at {:.2} s", w.time),
+                        &[w.time],
+                        &[w.value * sc],
+                        3,
+                    ));
+                }
+            }
+            Err(e) => {
+                p = p.title(format!("{n}: {e}"));
+            }
+        }
+        f.panels.push(p);
+    }
+    f
+}

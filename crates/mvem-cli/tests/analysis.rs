@@ -1,0 +1,729 @@
+//! End-to-end tests of the analysis commands (`linearize`, `step`, `map`, `components`,
+//! `report`): the JSON contract, the acceptance facts of the control analysis (actuator poles,
+//! RHP zero and sign reversal of u_vgt -> W_c), agreement with the library, CSV shape and
+//! validity flags, figures, and bad input.
+
+use mvem::analysis::linearize::{linearize_steady, LinearizeOptions};
+use mvem::analysis::steady::steady_state;
+use mvem::analysis::step::StepMetrics;
+use mvem::analysis::zeros::dc_gain_matrix;
+use mvem::model::{Drive, Engine8, Signals, STATE_NAMES_8};
+use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn mvem(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mvem"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run mvem")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn json_of(o: &Output) -> Value {
+    assert!(o.status.success(), "{}", stderr(o));
+    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
+}
+
+fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
+    let mut args = vec![
+        "linearize",
+        "--n-e",
+        "1500",
+        "--u-delta",
+        "110",
+        "--u-egr",
+        "80",
+        "--u-vgt",
+        u_vgt,
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    json_of(&mvem(dir, &args))
+}
+
+fn complex_list(v: &Value) -> Vec<(f64, f64)> {
+    v.as_array()
+        .unwrap_or_else(|| panic!("not a list: {v}"))
+        .iter()
+        .map(|z| (z["re"].as_f64().unwrap(), z["im"].as_f64().unwrap()))
+        .collect()
+}
+
+fn matrix(v: &Value) -> Vec<Vec<f64>> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|r| {
+            r.as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+fn index(v: &Value, key: &str, name: &str) -> usize {
+    v[key]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|s| s == name)
+        .unwrap_or_else(|| panic!("{name} not in {key}"))
+}
+
+#[test]
+fn linearize_json_contract_and_acceptance_facts() {
+    let d = tempfile::tempdir().unwrap();
+    let v = lin_json(d.path(), "75", &[]);
+    for k in [
+        "eigenvalues",
+        "zeros",
+        "dc_gain",
+        "A",
+        "B",
+        "C",
+        "D",
+        "state_names",
+        "input_names",
+        "output_names",
+        "units",
+        "operating_point",
+    ] {
+        assert!(v.get(k).is_some(), "key {k} missing");
+    }
+    // every SISO channel plus MIMO, each a list of {re, im}
+    let zeros = v["zeros"].as_object().unwrap();
+    assert_eq!(zeros.len(), 4 * 7 + 1);
+    for i in ["u_delta", "u_egr", "u_vgt", "n_e"] {
+        for o in ["p_im", "p_em", "W_c", "n_t", "x_egr", "lambda_O", "M_e"] {
+            complex_list(&zeros[&format!("{i}->{o}")]);
+        }
+    }
+    complex_list(&zeros["MIMO"]);
+    // shapes: 8 states, 4 inputs, 7 outputs
+    let (a, b, c, dd) = (
+        matrix(&v["A"]),
+        matrix(&v["B"]),
+        matrix(&v["C"]),
+        matrix(&v["D"]),
+    );
+    assert_eq!((a.len(), a[0].len()), (8, 8));
+    assert_eq!((b.len(), b[0].len()), (8, 4));
+    assert_eq!((c.len(), c[0].len()), (7, 8));
+    assert_eq!((dd.len(), dd[0].len()), (7, 4));
+    // the actuator poles -1/tau_vgt = -40, -1/tau_egr1 = -20, -1/tau_egr2 = -1/0.13
+    let ev = complex_list(&v["eigenvalues"]);
+    assert_eq!(ev.len(), 8);
+    for want in [-40.0, -20.0, -1.0 / 0.13] {
+        assert!(
+            ev.iter().any(|z| (z.0 - want).abs() < 1e-6 && z.1 == 0.0),
+            "{want} not in {ev:?}"
+        );
+    }
+    // u_vgt -> W_c: RHP zero and negative DC gain at 75 %, neither at 30 %
+    let (wc, uvgt) = (
+        index(&v, "output_names", "W_c"),
+        index(&v, "input_names", "u_vgt"),
+    );
+    assert!(complex_list(&zeros["u_vgt->W_c"]).iter().any(|z| z.0 > 0.0));
+    let g75 = matrix(&v["dc_gain"])[wc][uvgt];
+    assert!(g75 < 0.0, "{g75}");
+    let v30 = lin_json(d.path(), "30", &[]);
+    assert!(complex_list(&v30["zeros"]["u_vgt->W_c"])
+        .iter()
+        .all(|z| z.0 < 0.0));
+    let g30 = matrix(&v30["dc_gain"])[wc][uvgt];
+    assert!(g30 > 0.0, "{g30}");
+
+    // the JSON carries the library's numbers unchanged (serde round trip of f64 is exact)
+    let m = Engine8::published();
+    let ss = steady_state(&m, &Drive::new(1500.0, 110.0, 80.0, 75.0)).unwrap();
+    let lin = linearize_steady(
+        &m,
+        &ss,
+        &LinearizeOptions {
+            strict: false,
+            ..LinearizeOptions::default()
+        },
+    )
+    .unwrap();
+    for (i, row) in a.iter().enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            assert_eq!(*v, lin.a[(i, j)], "A[{i}][{j}]");
+        }
+    }
+    let g = dc_gain_matrix(&lin).unwrap();
+    assert_eq!(g75, g[(wc, uvgt)]);
+    // units and names
+    assert_eq!(v["units"]["inputs"][3], "rpm");
+    assert_eq!(v["units"]["outputs"][wc], "kg/s");
+    assert_eq!(v["state_names"][0], STATE_NAMES_8[0]);
+}
+
+#[test]
+fn linearize_pade_models_and_text() {
+    let d = tempfile::tempdir().unwrap();
+    // Pade order 2 on both delays: 4 extra states; the actuator poles stay, and the delay's
+    // all-pass zeros (RHP) appear in the u_vgt channels
+    let v = lin_json(d.path(), "75", &["--pade", "2"]);
+    assert_eq!(matrix(&v["A"]).len(), 12);
+    assert_eq!(v["pade_order"], 2);
+    let ev = complex_list(&v["eigenvalues"]);
+    assert!(ev.iter().any(|z| (z.0 + 40.0).abs() < 1e-6));
+    assert!(complex_list(&v["zeros"]["u_vgt->p_em"])
+        .iter()
+        .any(|z| z.0 > 0.0));
+    // the 10-state model: 10 states, same channel facts at 75 %
+    let v10 = lin_json(d.path(), "75", &["--model", "10"]);
+    assert_eq!(matrix(&v10["A"]).len(), 10);
+    assert!(complex_list(&v10["zeros"]["u_vgt->W_c"])
+        .iter()
+        .any(|z| z.0 > 0.0));
+    // text output names the sections
+    let o = mvem(
+        d.path(),
+        &[
+            "linearize",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--u-vgt",
+            "75",
+        ],
+    );
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    for s in ["Poles", "DC gain", "u_vgt->W_c", "RHP zero", "MIMO"] {
+        assert!(out.contains(s), "{s} missing in {out}");
+    }
+}
+
+/// A state or signal of a steady state.
+fn value(ss: &mvem::analysis::steady::SteadyState<8>, name: &str) -> f64 {
+    match STATE_NAMES_8.iter().position(|s| *s == name) {
+        Some(i) => ss.x[i],
+        None => ss.signals.get(name).unwrap(),
+    }
+}
+
+#[test]
+fn step_json_metrics_match_the_library() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "step",
+            "--input",
+            "u_vgt",
+            "--from",
+            "75",
+            "--to",
+            "65",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--t-end",
+            "8",
+            "--json",
+            "--plot",
+            "s.png",
+            "--out",
+            "s.csv",
+        ],
+    );
+    let v = json_of(&o);
+    assert!(d.path().join("s.png").is_file() && d.path().join("s.csv").is_file());
+    // the same step with the library (same defaults: rtol 1e-6, output every 5 ms)
+    let m = Engine8::published();
+    let before = Drive::new(1500.0, 110.0, 80.0, 75.0);
+    let after = Drive::new(1500.0, 110.0, 80.0, 65.0);
+    let (ss0, ss1) = (
+        steady_state(&m, &before).unwrap(),
+        steady_state(&m, &after).unwrap(),
+    );
+    let opts = SimOptions {
+        rtol: 1e-6,
+        atol: 1e-8,
+        dt_out: 0.005,
+        ..SimOptions::default()
+    };
+    let sched = InputSchedule::steps(before, &[(1.0, 3, 65.0)]).unwrap();
+    let sol = simulate(&m, &sched, 0.0, 8.0, Start::State(ss0.x), &opts).unwrap();
+    for name in ["W_c", "p_im", "n_t"] {
+        let want = StepMetrics::compute(
+            sol.t(),
+            sol.get(name).unwrap(),
+            1.0,
+            value(&ss0, name),
+            value(&ss1, name),
+            -10.0,
+        )
+        .unwrap();
+        let got = &v["outputs"][name];
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1e-12);
+        assert!(
+            close(got["dc_gain"].as_f64().unwrap(), want.dc_gain),
+            "{name}"
+        );
+        assert!(
+            close(got["overshoot_pct"].as_f64().unwrap(), want.overshoot_pct)
+                || want.overshoot_pct == 0.0
+        );
+        assert_eq!(got["non_minimum_phase"], want.non_minimum_phase, "{name}");
+        assert_eq!(got["gain_sign"], want.gain_sign.to_string());
+        if let Some(w) = want.wrong_way {
+            assert!(close(got["wrong_way"]["value"].as_f64().unwrap(), w.value));
+            assert!(close(got["wrong_way"]["time"].as_f64().unwrap(), w.time));
+        }
+        if let Some(r) = want.rise_time {
+            assert!(close(got["rise_time"].as_f64().unwrap(), r));
+        }
+    }
+    // the demonstration facts: W_c non-minimum phase with a negative DC gain
+    assert_eq!(v["outputs"]["W_c"]["non_minimum_phase"], true);
+    assert_eq!(v["outputs"]["W_c"]["gain_sign"], "negative");
+    assert_eq!(v["input"], "u_vgt");
+    assert_eq!(v["from"], 75.0);
+}
+
+#[test]
+fn step_in_any_input() {
+    let d = tempfile::tempdir().unwrap();
+    // EGR step at a point with EGR flow: non-minimum phase in p_im (implementation notes, item 40)
+    let v = json_of(&mvem(
+        d.path(),
+        &[
+            "step",
+            "--input",
+            "u_egr",
+            "--to",
+            "60",
+            "--n-e",
+            "1200",
+            "--u-delta",
+            "200",
+            "--u-egr",
+            "50",
+            "--u-vgt",
+            "40",
+            "--outputs",
+            "p_im,W_egr",
+            "--json",
+            "--t-end",
+            "6",
+        ],
+    ));
+    assert_eq!(v["outputs"]["p_im"]["non_minimum_phase"], true);
+    assert_eq!(v["outputs"]["W_egr"]["gain_sign"], "positive");
+    // speed step: fuel and speed are inputs too
+    let v = json_of(&mvem(
+        d.path(),
+        &[
+            "step",
+            "--input",
+            "n_e",
+            "--from",
+            "1500",
+            "--to",
+            "1550",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--u-vgt",
+            "75",
+            "--outputs",
+            "W_c",
+            "--json",
+            "--t-end",
+            "4",
+        ],
+    ));
+    assert_eq!(v["outputs"]["W_c"]["gain_sign"], "positive");
+}
+
+#[test]
+fn map_csv_shape_flags_and_values() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "map",
+            "--axis",
+            "u_egr=0:100:3",
+            "--axis",
+            "u_vgt=30,60,90",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--out",
+            "m.csv",
+            "--plot",
+            "m.svg",
+            "--channel",
+            "u_vgt->W_c",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut r = csv::Reader::from_path(d.path().join("m.csv")).unwrap();
+    let h: Vec<String> = r.headers().unwrap().iter().map(str::to_string).collect();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    assert_eq!(rows.len(), 9);
+    let col = |n: &str| {
+        h.iter()
+            .position(|x| x == n)
+            .unwrap_or_else(|| panic!("no {n}"))
+    };
+    for n in STATE_NAMES_8.iter().chain(Signals::NAMES) {
+        col(n);
+    }
+    // row-major, last axis fastest; values equal independent cold solves
+    let m = Engine8::published();
+    for (k, row) in rows.iter().enumerate() {
+        let (ue, uv) = ([0.0, 50.0, 100.0][k / 3], [30.0, 60.0, 90.0][k % 3]);
+        assert_eq!(row[col("u_egr_pct")].parse::<f64>().unwrap(), ue);
+        assert_eq!(row[col("u_vgt_pct")].parse::<f64>().unwrap(), uv);
+        let ss = steady_state(&m, &Drive::new(1500.0, 110.0, ue, uv)).unwrap();
+        assert_eq!(&row[col("converged")], "1");
+        assert_eq!(
+            &row[col("physically_valid")],
+            if ss.physically_valid() { "1" } else { "0" }
+        );
+        assert_eq!(&row[col("flags")], ss.flags.join(";"));
+        let p_im: f64 = row[col("p_im")].parse().unwrap();
+        assert!(
+            (p_im - ss.x[0]).abs() < 1e-6 * ss.x[0],
+            "{p_im} {}",
+            ss.x[0]
+        );
+        let g: f64 = row[col("u_vgt->W_c:dc_gain")].parse().unwrap();
+        assert!(g.is_finite());
+    }
+    // the sign reversal along u_vgt at u_egr 100 %: positive at 30 %, negative at 90 %
+    let g = |k: usize| rows[k][col("u_vgt->W_c:dc_gain")].parse::<f64>().unwrap();
+    assert!(g(6) > 0.0 && g(8) < 0.0, "{} {}", g(6), g(8));
+    assert_eq!(&rows[8][col("u_vgt->W_c:rhp_zero")], "1");
+    let svg = std::fs::read_to_string(d.path().join("m.svg")).unwrap();
+    assert!(
+        svg.contains("u_egr [%]") && svg.contains("lambda_O [-]") && svg.contains("sign change")
+    );
+}
+
+#[test]
+fn map_keeps_points_without_equilibrium() {
+    let d = tempfile::tempdir().unwrap();
+    // the paper's plain equations have no equilibrium at (500 rpm, 1 mg)
+    let o = mvem(
+        d.path(),
+        &[
+            "map",
+            "--axis",
+            "n_e=500,1500",
+            "--axis",
+            "u_delta=1,110",
+            "--u-egr",
+            "40",
+            "--u-vgt",
+            "70",
+            "--semantics",
+            "paper",
+            "--out",
+            "m.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("point (n_e 500 rpm, u_delta 1 mg") && err.contains("no equilibrium"),
+        "{err}"
+    );
+    let mut r = csv::Reader::from_path(d.path().join("m.csv")).unwrap();
+    let rows: Vec<csv::StringRecord> = r.records().map(|x| x.unwrap()).collect();
+    assert_eq!(rows.len(), 4);
+    assert_eq!(&rows[0][4], "0");
+    assert!(rows[0][7].contains("no equilibrium"));
+    assert_eq!(&rows[3][4], "1");
+}
+
+#[test]
+fn report_and_component_figures_are_written() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(d.path(), &["report", "figs", "--out", "rep"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("(no EGR flow)"), "{out}");
+    for f in [
+        "fig08_egr_step_1200rpm.png",
+        "fig08_egr_step_1900rpm.svg",
+        "fig09_vgt_step_nmp.png",
+        "fig10_vgt_step_overshoot.png",
+        "fig11_12_model_orders.png",
+    ] {
+        let b = std::fs::read(d.path().join("rep").join(f)).unwrap();
+        assert!(b.len() > 1000, "{f}");
+    }
+    // a simulation CSV overlaid on the component maps
+    let o = mvem(
+        d.path(),
+        &[
+            "step",
+            "--input",
+            "u_vgt",
+            "--from",
+            "75",
+            "--to",
+            "65",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--out",
+            "s.csv",
+        ],
+    );
+    assert!(o.status.success());
+    let o = mvem(
+        d.path(),
+        &["components", "--overlay", "s.csv", "--out", "comp"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let svg = std::fs::read_to_string(d.path().join("comp/compressor.svg")).unwrap();
+    assert!(svg.contains("W_c [kg/s]") && svg.contains("Pi_c [-]") && svg.contains("s.csv"));
+    for f in ["turbine.png", "egr.png"] {
+        assert_eq!(
+            &std::fs::read(d.path().join("comp").join(f)).unwrap()[1..4],
+            b"PNG"
+        );
+    }
+}
+
+#[test]
+fn bad_analysis_input_exits_2_with_a_clear_message() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("bad.csv"), "t,foo\n0,1\n").unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec![
+                "linearize",
+                "--n-e",
+                "nan",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+                "--u-vgt",
+                "75",
+            ],
+            "--n-e NaN",
+        ),
+        (
+            vec![
+                "linearize",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+                "--u-vgt",
+                "75",
+                "--outputs",
+                "W_x",
+            ],
+            "unknown output \"W_x\"",
+        ),
+        (
+            vec![
+                "linearize",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+                "--u-vgt",
+                "75",
+                "--pade",
+                "5",
+            ],
+            "--pade",
+        ),
+        (
+            vec![
+                "step",
+                "--input",
+                "u_vgt",
+                "--to",
+                "65",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+            ],
+            "give --from or --u-vgt",
+        ),
+        (
+            vec![
+                "step",
+                "--input",
+                "u_vgt",
+                "--from",
+                "75",
+                "--to",
+                "75",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+            ],
+            "equals the value before",
+        ),
+        (
+            vec![
+                "step",
+                "--input",
+                "u_vgt",
+                "--from",
+                "75",
+                "--to",
+                "65",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+            ],
+            "--n-e is required",
+        ),
+        (
+            vec![
+                "step",
+                "--input",
+                "u_vgt",
+                "--from",
+                "75",
+                "--to",
+                "65",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "80",
+                "--plot",
+                "x.pdf",
+            ],
+            ".svg or .png",
+        ),
+        (
+            vec!["map", "--axis", "u_foo=1:2:3", "--n-e", "1500"],
+            "unknown input \"u_foo\"",
+        ),
+        (
+            vec![
+                "map",
+                "--axis",
+                "u_egr=0:100:3",
+                "--u-delta",
+                "110",
+                "--u-vgt",
+                "50",
+            ],
+            "--n-e is required",
+        ),
+        (
+            vec![
+                "map",
+                "--axis",
+                "u_egr=0:100:1",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-vgt",
+                "50",
+            ],
+            "N must lie in",
+        ),
+        (
+            vec![
+                "map",
+                "--axis",
+                "u_egr=50,10",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-vgt",
+                "50",
+            ],
+            "strictly increasing",
+        ),
+        (
+            vec![
+                "map",
+                "--axis",
+                "u_egr=0:100:3",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-vgt",
+                "50",
+                "--plot",
+                "m.png",
+            ],
+            "exactly two --axis",
+        ),
+        (
+            vec![
+                "map",
+                "--axis",
+                "u_egr=0:100:3",
+                "--axis",
+                "u_vgt=20:90:3",
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--channel",
+                "u_vgt=>W_c",
+            ],
+            "input->output",
+        ),
+        (
+            vec!["components", "--overlay", "missing.csv"],
+            "missing.csv",
+        ),
+        (vec!["components", "--overlay", "bad.csv"], "no column W_c"),
+        (vec!["report", "sign-reversal", "--n", "1"], "--n 1"),
+    ];
+    for (args, want) in cases {
+        let o = mvem(d.path(), &args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(want), "{args:?}: `{want}` not in {e}");
+        assert!(!e.contains("panicked"), "{e}");
+    }
+    // no output file is left by a failed run
+    assert!(!d.path().join("m.png").exists());
+}
