@@ -2,7 +2,7 @@
 //! PNG (chosen by the file extension) with the embedded DejaVu Sans font, so that no system font
 //! is needed. Files are written atomically.
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use plotters::coord::Shift;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
@@ -223,35 +223,33 @@ pub(crate) fn svg_bytes(
     Ok(s.into_bytes())
 }
 
-/// A PNG of `size` drawn by `f`, as bytes. plotters encodes PNG only to a file: render into a
-/// hidden temporary file, read it back and remove it, so that the caller writes the result
-/// atomically.
+/// A PNG of `size` drawn by `f`, as bytes: plotters draws into an RGB buffer, which is encoded
+/// at the best compression (about 3 times smaller than plotters' own encoder). The caller
+/// writes the result atomically.
 pub(crate) fn png_bytes(
     size: (u32, u32),
     f: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<Vec<u8>> {
-    let tmp = std::env::temp_dir().join(format!(
-        "mvem-figure-{}-{}.png",
-        std::process::id(),
-        unique()
-    ));
-    let res = (|| -> Result<Vec<u8>> {
-        {
-            let root = BitMapBackend::new(&tmp, size).into_drawing_area();
-            f(&root)?;
-            root.present().map_err(|e| anyhow!("PNG rendering: {e}"))?;
-        }
-        std::fs::read(&tmp).with_context(|| format!("reading {}", tmp.display()))
-    })();
-    let _ = std::fs::remove_file(&tmp);
-    res
-}
-
-/// A process-wide counter for temporary names.
-fn unique() -> u64 {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static N: AtomicU64 = AtomicU64::new(0);
-    N.fetch_add(1, Ordering::Relaxed)
+    let mut buf = vec![0u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        f(&root)?;
+        root.present().map_err(|e| anyhow!("PNG rendering: {e}"))?;
+    }
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, size.0, size.1);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::Best);
+        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+        let mut w = enc
+            .write_header()
+            .map_err(|e| anyhow!("PNG encoding: {e}"))?;
+        w.write_image_data(&buf)
+            .map_err(|e| anyhow!("PNG encoding: {e}"))?;
+    }
+    Ok(out)
 }
 
 /// `pieces`: draw lines as separate straight pieces (bitmap output, see [`pieces`]).
