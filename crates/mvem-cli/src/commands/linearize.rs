@@ -77,7 +77,10 @@ pub fn run(a: &Args) -> Result<()> {
         }
     }
     for k in v["kinks"].as_array().into_iter().flatten() {
-        eprintln!("warning: {}", k.as_str().unwrap_or_default());
+        eprintln!(
+            "warning: {}; the derivative is one-sided there: channels through it have no zeros (see zero_errors)",
+            k.as_str().unwrap_or_default()
+        );
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&v)?);
