@@ -66,7 +66,18 @@ enum Command {
     Params(commands::params::Args),
 }
 
+/// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
+/// closes the pipe (Rust ignores SIGPIPE, which turns the closed pipe into a panic in `println!`).
+fn reset_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called once at start-up, before any thread exists; SIG_DFL is a valid action.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    reset_sigpipe();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

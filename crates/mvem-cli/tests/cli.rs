@@ -578,3 +578,44 @@ fn every_command_has_help_with_an_example() {
     let o = mvem(d.path(), &[]);
     assert_eq!(o.status.code(), Some(2));
 }
+
+/// `mvem ... | head`: a reader that closes the pipe early ends the program quietly (SIGPIPE),
+/// never with a Rust panic message.
+#[cfg(unix)]
+#[test]
+fn closed_stdout_pipe_is_not_a_panic() {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mvem"))
+        // a 12 x 12 map to stdout: ~120 kB of CSV, more than a pipe buffer holds
+        .args([
+            "map",
+            "--axis",
+            "u_egr=0:100:12",
+            "--axis",
+            "u_vgt=20:100:12",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run mvem");
+    // read one byte, then close our end of the pipe before the program has written everything
+    let mut out = child.stdout.take().unwrap();
+    let mut byte = [0u8; 1];
+    out.read_exact(&mut byte).unwrap();
+    drop(out);
+    let mut err = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    let status = child.wait().unwrap();
+    assert!(!err.contains("panicked"), "stderr: {err}");
+    assert_ne!(status.code(), Some(101), "a panic exit code: {status:?}");
+}
