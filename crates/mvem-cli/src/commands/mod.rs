@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod demo;
+pub mod fmu;
 pub mod params;
 pub mod simulate;
 pub mod steady;
