@@ -855,6 +855,21 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
 mod tests {
     use super::*;
 
+    /// fmi2Instantiate without callbacks (type 0 = Model Exchange, 1 = Co-Simulation).
+    unsafe fn inst(fmu_type: fmi2Type, guid: fmi2String, location: fmi2String) -> fmi2Component {
+        unsafe {
+            fmi2Instantiate(
+                c"x".as_ptr(),
+                fmu_type,
+                guid,
+                location,
+                std::ptr::null(),
+                0,
+                0,
+            )
+        }
+    }
+
     #[test]
     fn null_and_wrong_guid_are_refused() {
         unsafe {
@@ -862,36 +877,20 @@ mod tests {
                 fmi2EnterInitializationMode(std::ptr::null_mut()),
                 FMI2_ERROR
             );
-            let c = fmi2Instantiate(
-                c"x".as_ptr(),
-                1,
-                c"{wrong}".as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let c = inst(1, c"{wrong}".as_ptr(), std::ptr::null());
             assert!(c.is_null());
             let cfg = FmuConfig::default();
             let g = CString::new(vars::guid(&cfg)).unwrap();
             // no resource location, and one without mvem.json: refused
             for loc in [std::ptr::null(), c"file:///nonexistent/resources".as_ptr()] {
-                let c = fmi2Instantiate(c"x".as_ptr(), 1, g.as_ptr(), loc, std::ptr::null(), 0, 0);
+                let c = inst(1, g.as_ptr(), loc);
                 assert!(c.is_null());
             }
             let dir = std::env::temp_dir().join(format!("mvem-fmu-test-{}", std::process::id()));
             std::fs::create_dir_all(&dir).unwrap();
             std::fs::write(dir.join(vars::CONFIG_FILE), cfg.to_json()).unwrap();
             let loc = CString::new(format!("file://{}", dir.display())).unwrap();
-            let c = fmi2Instantiate(
-                c"x".as_ptr(),
-                1,
-                g.as_ptr(),
-                loc.as_ptr(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let c = inst(1, g.as_ptr(), loc.as_ptr());
             assert!(!c.is_null());
             assert_eq!(
                 fmi2GetReal(c, std::ptr::null(), 1, std::ptr::null_mut()),
@@ -925,25 +924,9 @@ mod tests {
             };
             std::fs::write(dir.join(vars::CONFIG_FILE), oi.to_json()).unwrap();
             let g = CString::new(vars::guid(&oi)).unwrap();
-            let me = fmi2Instantiate(
-                c"x".as_ptr(),
-                0,
-                g.as_ptr(),
-                loc.as_ptr(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let me = inst(0, g.as_ptr(), loc.as_ptr());
             assert!(me.is_null());
-            let cs = fmi2Instantiate(
-                c"x".as_ptr(),
-                1,
-                g.as_ptr(),
-                loc.as_ptr(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let cs = inst(1, g.as_ptr(), loc.as_ptr());
             assert!(!cs.is_null());
             fmi2FreeInstance(cs);
             let _ = std::fs::remove_dir_all(&dir);

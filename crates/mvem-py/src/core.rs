@@ -182,6 +182,21 @@ impl Default for SimArgs {
     }
 }
 
+impl SimArgs {
+    /// The simulator options (validated; the output interval is `dt`).
+    fn options(&self) -> CoreResult<SimOptions> {
+        let opts = SimOptions {
+            rtol: self.rtol,
+            atol: self.atol,
+            dt_out: self.dt,
+            ..SimOptions::default()
+        };
+        opts.validate()
+            .map_err(|e| CoreError::Value(e.to_string()))?;
+        Ok(opts)
+    }
+}
+
 /// Simulate from the steady state at the first input row. `rows` are
 /// `[time_s, n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct]` (linear interpolation between rows,
 /// two rows with the same time make a step). Returns column names and columns.
@@ -204,14 +219,7 @@ pub fn simulate_rows(
             "t_end = {t_end} must be finite and after the first input time {t0} (give t_end, or inputs spanning a time interval)"
         )));
     }
-    let opts = SimOptions {
-        rtol: args.rtol,
-        atol: args.atol,
-        dt_out: args.dt,
-        ..SimOptions::default()
-    };
-    opts.validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let opts = args.options()?;
     let sol = mvem::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &opts))
         .map_err(sim_error)?;
     Ok((sol.names, sol.columns))
@@ -441,14 +449,7 @@ pub fn step_response(
             "need 0 <= t_step < t_end (t_step = {t_step}, t_end = {t_end})"
         )));
     }
-    let opts = SimOptions {
-        rtol: args.rtol,
-        atol: args.atol,
-        dt_out: args.dt,
-        ..SimOptions::default()
-    };
-    opts.validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let opts = args.options()?;
     let before = Drive::from_array(d);
     let mut a = d;
     a[ch] = to;
@@ -600,29 +601,20 @@ mod tests {
         assert_eq!(r.metrics.du, -10.0);
         let again = step_metrics(&r.t, &r.y, 1.0, r.metrics.y0, r.metrics.y_final, -10.0).unwrap();
         assert_eq!(again, r.metrics);
-        assert!(step_response(
-            d,
-            "u_x",
-            65.0,
-            "W_c",
-            1.0,
-            4.0,
-            args,
-            None,
-            Variant::default()
-        )
-        .is_err());
-        assert!(step_response(
-            d,
-            "u_vgt",
-            65.0,
-            "W_x",
-            1.0,
-            4.0,
-            args,
-            None,
-            Variant::default()
-        )
-        .is_err());
+        let with = |input: &str, output: &str| {
+            step_response(
+                d,
+                input,
+                65.0,
+                output,
+                1.0,
+                4.0,
+                args,
+                None,
+                Variant::default(),
+            )
+        };
+        assert!(matches!(with("u_x", "W_c"), Err(CoreError::Value(m)) if m.contains("u_x")));
+        assert!(matches!(with("u_vgt", "W_x"), Err(CoreError::Value(m)) if m.contains("W_x")));
     }
 }
