@@ -153,8 +153,10 @@ impl Instance {
     /// A new instance of the configured variant, with the configured parameters and the start
     /// inputs of the model description.
     pub fn new(interface: Interface, config: &FmuConfig) -> Self {
+        // the configuration's parameters were validated when it was read; fall back to the
+        // published ones for the same variant rather than fail here
         let model = build_model(config, config.params.clone())
-            .or_else(|_| build_model(&FmuConfig::default(), Params::published()))
+            .or_else(|_| build_model(config, Params::published()))
             .expect("the published parameters are valid");
         let layout = config.layout();
         Self {
