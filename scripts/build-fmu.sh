@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Build the mvem FMU (FMI 2.0, Model Exchange + Co-Simulation, linux64).
-# Usage: scripts/build-fmu.sh [OUT.fmu]   (default: target/fmu/mvem.fmu)
+# Build the mvem FMU (FMI 2.0, Model Exchange + Co-Simulation, linux64) with `mvem fmu`.
+# Usage: scripts/build-fmu.sh [OUT.fmu] [mvem fmu options, e.g. --model 10 --params P.toml]
+#        (default OUT: target/fmu/mvem.fmu)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/fmu/mvem.fmu}"
+shift || true
 mkdir -p "$(dirname "$out")"
-cargo build --release -p mvem-fmu
-cargo run --release -q -p mvem-fmu --bin mvem-fmu-build -- --out "$out"
+cargo build --release -q -p mvem-fmu -p mvem-cli
+target/release/mvem fmu --out "$out" --lib target/release/libmvem_fmu.so "$@"

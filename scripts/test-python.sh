@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Python-side tests: the FMU with FMPy and the Python package mvem (crates/mvem-py).
 # Needs only Rust, python3 and pip: creates .venv-ci, installs maturin, fmpy, pytest, numpy,
-# builds the FMU and the package (release), and runs pytest on tests/python.
+# builds the CLI, the FMU library and the package (release), and runs pytest on tests/python
+# (the tests build the 10/12-state FMUs with `mvem fmu` and compare with the CLI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root="$PWD"
@@ -14,9 +15,11 @@ fi
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
 "$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy
 
-echo "== building the FMU"
+echo "== building the CLI, the FMU library and the 8-state FMU (mvem fmu)"
 scripts/build-fmu.sh "$root/target/fmu/mvem.fmu"
 export MVEM_FMU="$root/target/fmu/mvem.fmu"
+export MVEM_CLI="$root/target/release/mvem"
+export MVEM_FMU_LIB="$root/target/release/libmvem_fmu.so"
 
 echo "== building the Python package (maturin develop --release)"
 (

@@ -1,67 +1,81 @@
-"""VGT step responses at several operating points on a local dask.distributed cluster (or ray).
+"""VGT step responses at several operating points on a local dask.distributed cluster or ray.
 
-Uses dask.distributed's LocalCluster if installed, else ray in local mode, else says so and
-exits with status 0. Run:
+The path for sweeps that outgrow one machine: the same code runs on a remote cluster by giving
+dask's Client the scheduler address (or ray.init(address=...)). Each task is one
+mvem.step_response call (simulation plus the step metrics of mvem demo). Run:
 
-    python examples/python/sweep_ray_or_dask.py
+    python examples/python/sweep_ray_or_dask.py [--backend auto|dask|ray] [--model 8|10|12]
+
+auto: dask.distributed's LocalCluster if installed, else ray, else says so and exits with
+status 0. Install one with `pip install "dask[distributed]"` or `pip install ray`.
 """
 
+import argparse
 import sys
 
 import mvem
 
-
-def step_response(n_e, u_delta, u_egr=80.0, u_vgt=(75.0, 65.0), t_step=1.0, t_end=8.0):
-    """W_c [kg/s] before and at the end of a VGT step, and its minimum (non-minimum phase)."""
-    inputs = {
-        "time_s": [0.0, t_step, t_step, t_end],
-        "n_e_rpm": [n_e] * 4,
-        "u_delta_mg": [u_delta] * 4,
-        "u_egr_pct": [u_egr] * 4,
-        "u_vgt_pct": [u_vgt[0], u_vgt[0], u_vgt[1], u_vgt[1]],
-    }
-    r = mvem.simulate(inputs, dt=0.05)
-    w = r["W_c"]
-    return {"n_e_rpm": n_e, "u_delta_mg": u_delta, "W_c_start": float(w[0]),
-            "W_c_min": float(w.min()), "W_c_end": float(w[-1])}
-
-
 CASES = [(n, d) for n in (1200.0, 1500.0, 1800.0) for d in (80.0, 110.0, 150.0)]
 
 
-def with_dask():
+def step(n_e, u_delta, model=8):
+    """W_c response to a VGT step 75 -> 65 % at 1 s (n_e [rpm], u_delta [mg/cycle/cylinder])."""
+    r = mvem.step_response(n_e, u_delta, 80.0, 75.0, input="u_vgt", to=65.0, output="W_c",
+                           t_step=1.0, t_end=8.0, dt=0.05, model=model)
+    return {"n_e_rpm": n_e, "u_delta_mg": u_delta, "W_c_start": r["y0"], "W_c_end": r["y_final"],
+            "dc_gain": r["dc_gain"], "non_minimum_phase": r["non_minimum_phase"],
+            "wrong_way_pct": 100 * r["wrong_way"]["relative"] if r["wrong_way"] else 0.0}
+
+
+def with_dask(model):
     from dask.distributed import Client, LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster, \
             Client(cluster) as client:
-        futures = [client.submit(step_response, n, d) for n, d in CASES]
+        futures = [client.submit(step, n, d, model) for n, d in CASES]
         return client.gather(futures)
 
 
-def with_ray():
+def with_ray(model):
     import ray
 
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(step_response)
-        return ray.get([remote.remote(n, d) for n, d in CASES])
+        remote = ray.remote(step)
+        return ray.get([remote.remote(n, d, model) for n, d in CASES])
     finally:
         ray.shutdown()
 
 
+def available(module):
+    try:
+        __import__(module)
+        return True
+    except ImportError:
+        return False
+
+
 def main():
-    for name, run in (("dask.distributed", with_dask), ("ray", with_ray)):
-        try:
-            __import__(name.split(".")[0] if name == "ray" else "dask.distributed")
-        except ImportError:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--backend", choices=["auto", "dask", "ray"], default="auto")
+    ap.add_argument("--model", type=int, choices=[8, 10, 12], default=8)
+    a = ap.parse_args()
+    backends = {"dask": ("dask.distributed", with_dask), "ray": ("ray", with_ray)}
+    order = ["dask", "ray"] if a.backend == "auto" else [a.backend]
+    for b in order:
+        module, run = backends[b]
+        if not available(module):
+            if a.backend != "auto":
+                print(f"{module} is not installed", file=sys.stderr)
+                return 2
             continue
-        rows = run()
-        print(f"{len(rows)} VGT steps on {name}:")
+        rows = run(a.model)
+        print(f"{len(rows)} VGT steps (75 -> 65 %, {a.model}-state model) on {module}:")
         for r in rows:
-            sign = "+" if r["W_c_end"] > r["W_c_start"] else "-"
             print(f"  n_e {r['n_e_rpm']:6.0f} rpm, u_delta {r['u_delta_mg']:5.0f} mg: "
-                  f"W_c {r['W_c_start']:.4f} -> {r['W_c_end']:.4f} kg/s (DC gain sign {sign}), "
-                  f"min {r['W_c_min']:.4f}")
+                  f"W_c {r['W_c_start']:.4f} -> {r['W_c_end']:.4f} kg/s, "
+                  f"dW_c/du_vgt {r['dc_gain']:+.2e} kg/s per %, wrong way "
+                  f"{r['wrong_way_pct']:.0f} %{' (non-minimum phase)' if r['non_minimum_phase'] else ''}")
         return 0
     print("neither dask.distributed nor ray is installed: pip install 'dask[distributed]' or ray;"
           " skipping")

@@ -1,7 +1,8 @@
 """The mvem FMU (FMI 2.0, Model Exchange + Co-Simulation) checked with FMPy.
 
 The FMU is taken from $MVEM_FMU (scripts/test-python.sh builds it), else built here with
-`cargo run --release -p mvem-fmu --bin mvem-fmu-build`.
+`mvem fmu`; the 10- and 12-state and one-iteration FMUs are built with `mvem fmu` (the CLI and
+libmvem_fmu.so from target/release, see conftest.py) and compared with `mvem simulate`.
 
 Reference: tests/reference/step_vgt_75_to_65.csv (independent implementation, rtol 1e-9), the
 authors' demo VGT step: n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 -> 65 % at t = 1 s.
@@ -27,17 +28,23 @@ OUTPUTS = ["p_im", "p_em", "W_c", "n_t", "x_egr", "lambda_O", "M_e", "T_em", "W_
 TOL = 1e-4
 
 
+def build_fmu(mvem_cli, out, *args):
+    lib = ROOT / "target" / "release" / "libmvem_fmu.so"
+    if not lib.is_file():
+        subprocess.run(["cargo", "build", "--release", "-q", "-p", "mvem-fmu"], cwd=ROOT,
+                       check=True)
+    env = dict(os.environ, MVEM_FMU_LIB=os.environ.get("MVEM_FMU_LIB", str(lib)))
+    subprocess.run([mvem_cli, "fmu", "--out", str(out), *args], check=True,
+                   capture_output=True, env=env)
+    return str(out)
+
+
 @pytest.fixture(scope="session")
-def fmu(tmp_path_factory):
+def fmu(tmp_path_factory, mvem_cli):
     env = os.environ.get("MVEM_FMU")
     if env:
         return env
-    out = tmp_path_factory.mktemp("fmu") / "mvem.fmu"
-    subprocess.run(
-        ["cargo", "run", "--release", "-q", "-p", "mvem-fmu", "--bin", "mvem-fmu-build",
-         "--", "--out", str(out)],
-        cwd=ROOT, check=True)
-    return str(out)
+    return build_fmu(mvem_cli, tmp_path_factory.mktemp("fmu") / "mvem.fmu")
 
 
 def step_input():
@@ -173,3 +180,131 @@ def test_model_exchange_state_access(fmu):
         s.setContinuousStates(xs, 8)
     s.terminate()
     s.freeInstance()
+
+
+# ---------------------------------------------------------------------------------------------
+# 10- and 12-state FMUs, the one-iteration Co-Simulation FMU, and `mvem fmu`
+
+from conftest import read_csv  # noqa: E402
+
+STATES = {
+    10: ["p_im", "p_em", "T_im", "T_em", "X_Oim", "X_Oem", "omega_t", "u_egr1", "u_egr2",
+         "u_vgt_act"],
+    12: ["p_im", "p_em", "p_c", "T_im", "T_em", "T_ic", "X_Oim", "X_Oem", "omega_t", "u_egr1",
+         "u_egr2", "u_vgt_act"],
+}
+
+
+@pytest.fixture(scope="session")
+def cli_step(mvem_cli, tmp_path_factory):
+    """`mvem simulate --scenario vgt-step-nmp --rtol 1e-9 [args]` as {column: array}."""
+    cache = {}
+
+    def run(*args):
+        if args not in cache:
+            out = tmp_path_factory.mktemp("cli") / "step.csv"
+            subprocess.run([mvem_cli, "simulate", "--scenario", "vgt-step-nmp", "--rtol", "1e-9",
+                            "--out", str(out), *args], check=True, capture_output=True)
+            cache[args] = read_csv(out)
+        return cache[args]
+    return run
+
+
+@pytest.fixture(scope="session", params=[10, 12])
+def variant(request, mvem_cli, tmp_path_factory):
+    n = request.param
+    return n, build_fmu(mvem_cli, tmp_path_factory.mktemp("fmu") / f"mvem{n}.fmu",
+                        "--model", str(n))
+
+
+def test_variant_fmu_validates_with_its_states(variant):
+    n, fmu = variant
+    assert validate_fmu(fmu) == []
+    md = read_model_description(fmu)
+    assert md.modelExchange is not None and md.coSimulation is not None
+    assert md.numberOfContinuousStates == n
+    assert [d.variable.name for d in md.derivatives] == [f"der({s})" for s in STATES[n]]
+    names = {v.name: v for v in md.modelVariables}
+    assert len(names) == len(md.modelVariables)  # no duplicate names (T_em is a state only)
+    for o in OUTPUTS + STATES[n]:
+        assert names[o].causality == "output", o
+    assert names["T_em"].description.startswith("Exhaust manifold temperature")
+    assert names["T_em"].unit == "K"
+    assert [u.variable.name for u in md.outputs][:n] == STATES[n]
+
+
+@pytest.mark.parametrize("fmi_type,kw", [
+    ("CoSimulation", {}),
+    ("ModelExchange", {"solver": "CVode", "relative_tolerance": 1e-8}),
+])
+def test_variant_vgt_step_matches_cli(variant, cli_step, fmi_type, kw):
+    n, fmu = variant
+    ref = cli_step("--model", str(n))
+    outs = OUTPUTS + (["T_im", "p_c", "T_ic"] if n == 12 else ["T_im"])
+    r = simulate_fmu(fmu, fmi_type=fmi_type, start_time=0.0, stop_time=8.0,
+                     output_interval=0.01, input=step_input(), output=outs, **kw)
+    errs = {o: max_rel_err(r["time"], r[o], ref["t"], ref[o]) for o in outs}
+    print(n, fmi_type, errs)
+    assert max(errs.values()) < TOL, errs
+
+
+def test_one_iteration_fmu_is_co_simulation_only_and_matches_cli(mvem_cli, cli_step,
+                                                                  tmp_path):
+    fmu = build_fmu(mvem_cli, tmp_path / "oi.fmu", "--cylinder-temp", "one-iteration")
+    assert validate_fmu(fmu) == []
+    md = read_model_description(fmu)
+    assert md.modelExchange is None and md.coSimulation is not None
+    ref = cli_step("--cylinder-temp", "one-iteration")
+    r = simulate_fmu(fmu, fmi_type="CoSimulation", stop_time=8.0, output_interval=0.01,
+                     input=step_input(), output=OUTPUTS)
+    errs = {o: max_rel_err(r["time"], r[o], ref["t"], ref[o]) for o in OUTPUTS}
+    assert max(errs.values()) < TOL, errs
+
+
+def test_params_file_sets_start_values(mvem_cli, tmp_path):
+    # a complete parameter file: the published one with another ambient pressure
+    text = (ROOT / "crates" / "mvem" / "data" / "published.toml").read_text()
+    lines = [("p_amb = 1.05e5" if ln.startswith("p_amb =") else ln) for ln in text.splitlines()]
+    assert "p_amb = 1.05e5" in lines
+    pfile = tmp_path / "p.toml"
+    pfile.write_text("\n".join(lines) + "\n")
+    fmu = build_fmu(mvem_cli, tmp_path / "p.fmu", "--params", str(pfile), "--model", "10")
+    md = read_model_description(fmu)
+    names = {v.name: v for v in md.modelVariables}
+    assert float(names["ambient.p_amb"].start) == 1.05e5
+    r = simulate_fmu(fmu, fmi_type="CoSimulation", stop_time=0.1, output=["p_im", "W_c"])
+    p = subprocess.run([mvem_cli, "steady", "--n-e", "1500", "--u-delta", "110", "--u-egr", "80",
+                        "--u-vgt", "75", "--model", "10", "--params", str(pfile), "--json"],
+                       check=True, capture_output=True, text=True)
+    import json
+    s = json.loads(p.stdout)
+    assert r["p_im"][0] == pytest.approx(s["p_im"], rel=1e-12)
+    assert r["W_c"][0] == pytest.approx(s["W_c"], rel=1e-12)
+
+
+def test_tampered_resources_are_refused(mvem_cli, tmp_path):
+    # modelDescription.xml and resources/mvem.json must belong together (GUID check)
+    import zipfile
+    fmu = build_fmu(mvem_cli, tmp_path / "a.fmu", "--model", "10")
+    other = build_fmu(mvem_cli, tmp_path / "b.fmu", "--model", "12")
+    bad = tmp_path / "bad.fmu"
+    with zipfile.ZipFile(fmu) as a, zipfile.ZipFile(other) as b, zipfile.ZipFile(bad, "w") as z:
+        for name in a.namelist():
+            src = b if name == "resources/mvem.json" else a
+            z.writestr(name, src.read(name))
+    with pytest.raises(Exception):
+        simulate_fmu(str(bad), fmi_type="CoSimulation", stop_time=0.1)
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--model", "9"], "invalid value '9'"),
+    (["--params", "/nonexistent.toml"], "nonexistent.toml"),
+    (["--lib", "/nonexistent/libmvem_fmu.so"], "not found"),
+    (["--cylinder-temp", "twice"], "invalid value 'twice'"),
+])
+def test_mvem_fmu_usage_errors_exit_2(mvem_cli, tmp_path, args, msg):
+    p = subprocess.run([mvem_cli, "fmu", "--out", str(tmp_path / "x.fmu"), *args],
+                       capture_output=True, text=True)
+    assert p.returncode == 2, p.stderr
+    assert msg in p.stderr
+    assert not (tmp_path / "x.fmu").exists()

@@ -122,26 +122,211 @@ def test_solver_failure_is_runtime_error_not_crash():
 
 
 def test_releases_the_gil():
-    # a Python thread keeps running while simulate runs in another thread
-    ticks = []
-    done = threading.Event()
-
-    def ticker():
-        while not done.is_set():
-            ticks.append(1)
-            done.wait(0.001)
-
-    th = threading.Thread(target=ticker)
-    th.start()
-    try:
-        mvem.simulate(STEP, rtol=1e-10, dt=0.001)
-    finally:
-        done.set()
-        th.join()
-    assert len(ticks) > 5
+    # While simulate runs in a worker thread, the main thread keeps executing Python only if the
+    # GIL is released: it spins and counts. With the GIL held during the Rust call the count
+    # would stay at the few iterations before and after it (independent of machine speed).
+    worker = threading.Thread(
+        target=lambda: mvem.simulate(STEP, rtol=1e-10, dt=0.001, t_end=40.0))
+    count = 0
+    worker.start()
+    while worker.is_alive():
+        count += 1
+    worker.join()
+    assert count > 1000, count
 
 
 def test_results_are_numpy_float_arrays():
     r = mvem.simulate(STEP, t_end=0.05)
     assert isinstance(r["W_c"], np.ndarray) and r["W_c"].dtype == np.float64
     assert not math.isnan(r["W_c"][0])
+
+
+# ---------------------------------------------------------------------------------------------
+# Model order, linearization and step metrics
+
+import json  # noqa: E402
+import subprocess  # noqa: E402
+
+from conftest import read_csv  # noqa: E402
+
+POINT = (1500.0, 110.0, 80.0, 75.0)
+
+
+@pytest.mark.parametrize("model", [10, 12])
+def test_simulate_model_order_equals_cli(mvem_cli, tmp_path, model):
+    # the Python call and `mvem simulate --model N` run the same library code: equal to 1e-12
+    out = tmp_path / "cli.csv"
+    subprocess.run([mvem_cli, "simulate", "--scenario", "vgt-step-nmp", "--model", str(model),
+                    "--out", str(out)], check=True, capture_output=True)
+    cli = read_csv(out)
+    r = mvem.simulate(STEP, model=model)
+    for c in ["p_im", "p_em", "T_im", "T_em", "W_c", "n_t", "x_egr", "lambda_O", "M_e", "W_egr"]:
+        scale = np.maximum(np.abs(cli[c]), 1e-300)
+        assert np.max(np.abs(r[c] - cli[c]) / scale) <= 1e-12, c
+    if model == 12:
+        assert np.max(np.abs(r["T_ic"] / cli["T_ic"] - 1)) <= 1e-12
+
+
+@pytest.mark.parametrize("model", [8, 12])
+def test_steady_model_order_equals_cli(mvem_cli, model):
+    p = subprocess.run([mvem_cli, "steady", "--n-e", "1500", "--u-delta", "110", "--u-egr", "80",
+                        "--u-vgt", "75", "--model", str(model), "--json"],
+                       check=True, capture_output=True, text=True)
+    cli = json.loads(p.stdout)
+    s = mvem.steady(*POINT, model=model)
+    compared = 0
+    for k, v in cli.items():
+        if isinstance(v, float) and k in s:
+            assert s[k] == pytest.approx(v, rel=1e-12, abs=1e-300), k
+            compared += 1
+    assert compared >= model + 30
+
+
+@pytest.fixture(scope="module")
+def lin():
+    return mvem.linearize(*POINT)
+
+
+def test_linearize_operating_point_equals_steady_and_cli(mvem_cli, lin):
+    s = mvem.steady(*POINT)
+    assert lin["state_names"] == ["p_im", "p_em", "X_Oim", "X_Oem", "omega_t", "u_egr1", "u_egr2",
+                                  "u_vgt_act"]
+    assert lin["input_names"] == ["u_delta", "u_egr", "u_vgt", "n_e"]
+    for n, v in zip(lin["state_names"], lin["x0"]):
+        assert v == s[n], n
+    for n, v in zip(lin["output_names"], lin["y0"]):
+        assert v == s[n], n
+    assert list(lin["u0"]) == [110.0, 80.0, 75.0, 1500.0]
+    p = subprocess.run([mvem_cli, "steady", "--n-e", "1500", "--u-delta", "110", "--u-egr", "80",
+                        "--u-vgt", "75", "--json"], check=True, capture_output=True, text=True)
+    cli = json.loads(p.stdout)
+    for n, v in zip(lin["state_names"], lin["x0"]):
+        assert v == pytest.approx(cli[n], rel=1e-12), n
+    # the CLI's eigenvalues come from the steady-state solver's own forward-difference Jacobian
+    # of the non-actuator states: each is a pole of the linear model to that accuracy (1e-7
+    # forward steps: ~1e-5 relative); the other poles are the actuators' -1/tau
+    ev = lin["eigenvalues"]
+    for e in cli["eigenvalues"]:
+        z = e["re"] + 1j * e["im"]
+        assert np.min(np.abs(ev - z)) < 1e-4 * abs(z), z
+
+
+def test_linearize_matrices_are_consistent(lin):
+    a, b, c, d = lin["A"], lin["B"], lin["C"], lin["D"]
+    assert a.shape == (8, 8) and b.shape == (8, 4) and c.shape == (7, 8) and d.shape == (7, 4)
+    assert a.dtype == np.float64 and lin["eigenvalues"].dtype == np.complex128
+    # eigenvalues: numpy's LAPACK on the same A (independent algorithm)
+    ev = np.sort_complex(lin["eigenvalues"])
+    ev_np = np.sort_complex(np.linalg.eigvals(a))
+    assert np.max(np.abs(ev - ev_np) / np.abs(ev_np)) < 1e-9
+    assert np.all(ev.real < 0)
+    # DC gain = D - C A^-1 B
+    g = d - c @ np.linalg.solve(a, b)
+    assert np.max(np.abs(lin["dc_gain"] - g)) <= 1e-9 * np.max(np.abs(g))
+    # ... and the slope of the steady states (central difference in u_vgt, +-0.5 %)
+    hi, lo = mvem.steady(1500, 110, 80, 75.5), mvem.steady(1500, 110, 80, 74.5)
+    k = lin["input_names"].index("u_vgt")
+    for o, name in enumerate(lin["output_names"]):
+        fd = (hi[name] - lo[name]) / 1.0
+        assert lin["dc_gain"][o, k] == pytest.approx(fd, rel=1e-3, abs=1e-9 * abs(lin["y0"][o])), name
+
+
+def test_linearize_zeros_are_zeros_of_the_channel(lin):
+    # u_vgt -> W_c at the demo point: non-minimum phase (the wrong-way W_c response of the demo)
+    z = lin["zeros"]["u_vgt->W_c"]
+    assert np.any(z.real > 0)
+    a = lin["A"]
+    k = lin["input_names"].index("u_vgt")
+    o = lin["output_names"].index("W_c")
+    b, c, d = lin["B"][:, [k]], lin["C"][[o], :], lin["D"][[o]][:, [k]]
+    # G(s) = C (sI - A)^-1 B + D vanishes at a transmission zero (relative to |G| nearby)
+    for zi in z:
+        g = (c @ np.linalg.solve(zi * np.eye(8) - a, b) + d)[0, 0]
+        g_near = (c @ np.linalg.solve((zi + 1.0) * np.eye(8) - a, b) + d)[0, 0]
+        assert abs(g) < 1e-5 * abs(g_near), zi
+    assert set(lin["zeros"]) == {f"{i}->{o}" for i in lin["input_names"]
+                                 for o in lin["output_names"]}
+    assert lin["mimo_zeros"] is not None
+
+
+def test_linearize_twelve_states_and_pade():
+    r = mvem.linearize(*POINT, model=12, outputs=["W_c", "T_em", "p_c"], pade_order=2)
+    assert r["A"].shape == (16, 16)  # 12 states + 2 x 2 Pade states
+    assert r["output_names"] == ["W_c", "T_em", "p_c"]
+    assert r["mimo_zeros"] is None  # M_e, x_egr, lambda_O not among the outputs
+    p = mvem.published_params()
+    assert r["delays"] == [p["egr_actuator"]["tau_degr"], p["vgt_actuator"]["tau_dvgt"]]
+
+
+def test_step_response_equals_cli_demo(mvem_cli, tmp_path):
+    subprocess.run([mvem_cli, "demo", "--out", str(tmp_path)], check=True, capture_output=True)
+    cli = read_csv(tmp_path / "vgt_step_75_to_65.csv")
+    r = mvem.step_response(*POINT, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0)
+    assert np.array_equal(r["t"], cli["t"])
+    assert np.max(np.abs(r["y"] - cli["W_c"]) / np.abs(cli["W_c"])) <= 1e-12
+    # the metrics of the CLI's samples with the steady states as end points
+    y0 = mvem.steady(*POINT)["W_c"]
+    y1 = mvem.steady(1500, 110, 80, 65)["W_c"]
+    m = mvem.step_metrics(cli["t"], cli["W_c"], 1.0, y0, y1, -10.0)
+    for k in ["y0", "y_final", "change", "dc_gain", "overshoot_pct", "rise_time",
+              "settling_time"]:
+        assert r[k] == pytest.approx(m[k], rel=1e-12, abs=1e-15), k
+    assert r["wrong_way"]["value"] == pytest.approx(m["wrong_way"]["value"], rel=1e-12)
+    assert r["non_minimum_phase"] and r["gain_sign"] == "negative"
+    # the sign of the DC gain agrees with the linear model's
+    lin = mvem.linearize(*POINT)
+    g = lin["dc_gain"][lin["output_names"].index("W_c"), lin["input_names"].index("u_vgt")]
+    assert np.sign(g) == np.sign(r["dc_gain"])
+
+
+def test_step_metrics_of_a_first_order_response():
+    # y = 1 - exp(-(t - 1)) after a unit step at t = 1: rise time ln 9, settling ln 50, no
+    # overshoot, no wrong way (linear interpolation between samples: O(dt^2) in z -> 1e-6 s)
+    t = np.arange(0, 30, 1e-3)
+    y = np.where(t < 1, 0.0, 1 - np.exp(-(t - 1)))
+    m = mvem.step_metrics(t, y, 1.0, 0.0, 1.0, 1.0)
+    assert m["rise_time"] == pytest.approx(math.log(9), abs=1e-6)
+    assert m["settling_time"] == pytest.approx(math.log(50), abs=1e-6)
+    assert m["overshoot_pct"] == 0.0 and m["peak"] is None and m["wrong_way"] is None
+    assert m["gain_sign"] == "positive" and m["dc_gain"] == 1.0
+
+
+@pytest.mark.parametrize("call,exc,msg", [
+    (lambda: mvem.linearize(float("nan"), 110, 80, 75), ValueError, "n_e = NaN"),
+    (lambda: mvem.linearize(*POINT, model=9), ValueError, "model = 9"),
+    (lambda: mvem.linearize(*POINT, outputs=["W_x"]), ValueError, "unknown output \"W_x\""),
+    (lambda: mvem.linearize(*POINT, outputs=[]), ValueError, "at least one output"),
+    (lambda: mvem.linearize(*POINT, pade_order=7), ValueError, "pade_order"),
+    (lambda: mvem.linearize(*POINT, params={"turbo": {"jt": 1}}), ValueError, "turbo.jt"),
+    (lambda: mvem.simulate(STEP, model=11), ValueError, "model = 11"),
+    (lambda: mvem.simulate(STEP, cylinder_temp="twice"), ValueError, "cylinder_temp"),
+    (lambda: mvem.steady(*POINT, model=0), ValueError, "model = 0"),
+    (lambda: mvem.step_metrics([0, 1], [1, 2, 3], 0, 1, 2, 1), ValueError, "differ in length"),
+    (lambda: mvem.step_metrics([[0, 1]], [1, 2], 0, 1, 2, 1), ValueError, "1-D"),
+    (lambda: mvem.step_metrics([0, 1], [1, np.nan], 0, 1, 2, 1), ValueError, "non-finite"),
+    (lambda: mvem.step_metrics([0, 1], [1, 2], 0, 1, 1, 1), ValueError, "zero final change"),
+    (lambda: mvem.step_response(*POINT, input="u_x"), ValueError, "input \"u_x\""),
+    (lambda: mvem.step_response(*POINT, output="W_x"), ValueError, "output \"W_x\""),
+    (lambda: mvem.step_response(*POINT, t_step=5, t_end=2), ValueError, "t_step"),
+    (lambda: mvem.step_response(*POINT, to=float("inf")), ValueError, "to = inf"),
+])
+def test_bad_input_raises_with_rust_message(call, exc, msg):
+    with pytest.raises(exc, match=msg.replace("(", r"\(")):
+        call()
+
+
+def test_wrong_types_raise_type_error_not_crash():
+    with pytest.raises(TypeError):
+        mvem.linearize("fast", 110, 80, 75)
+    with pytest.raises(TypeError):
+        mvem.linearize(*POINT, outputs="W_c")  # a str is not a list of names
+
+
+def test_linearize_runs_in_parallel_threads():
+    # the GIL is released: four threads give the same results as one call
+    from concurrent.futures import ThreadPoolExecutor
+    pts = [(1500, 110, 80, u) for u in (60, 65, 70, 75)]
+    with ThreadPoolExecutor(4) as ex:
+        par = list(ex.map(lambda p: mvem.linearize(*p)["A"], pts))
+    for p, a in zip(pts, par):
+        assert np.array_equal(a, mvem.linearize(*p)["A"])

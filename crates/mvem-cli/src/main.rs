@@ -32,6 +32,7 @@ Examples:
   mvem report figs --out out/report
   mvem bench --repeat 3
   mvem params check my_params.toml
+  mvem fmu --out mvem.fmu --model 10
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -64,6 +65,8 @@ enum Command {
     Bench(commands::bench::Args),
     /// Show or check parameter sets.
     Params(commands::params::Args),
+    /// Package an FMI 2.0 FMU (Model Exchange + Co-Simulation) of the 8-, 10- or 12-state model.
+    Fmu(commands::fmu::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -101,6 +104,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),
+        Command::Fmu(a) => commands::fmu::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

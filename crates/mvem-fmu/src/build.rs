@@ -1,7 +1,7 @@
 //! Packaging: `modelDescription.xml` from the variable table, and the `.fmu` zip archive.
 
-use crate::vars;
-use mvem::model::Signals;
+use crate::vars::{self, FmuConfig};
+use mvem::model::{CylinderTemp, Signals};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -122,7 +122,8 @@ struct Row {
     derivative_of: Option<usize>,
 }
 
-fn rows() -> Vec<Row> {
+fn rows(cfg: &FmuConfig) -> Vec<Row> {
+    let layout = cfg.layout();
     let mut rows = Vec::new();
     for (i, (name, desc, unit, start)) in vars::INPUTS.iter().enumerate() {
         rows.push(Row {
@@ -137,24 +138,25 @@ fn rows() -> Vec<Row> {
             derivative_of: None,
         });
     }
-    for i in 0..8 {
+    for (i, name) in layout.states.iter().enumerate() {
+        let (unit, description) = vars::state_info(name);
         rows.push(Row {
             vr: vars::VR_STATE + i as u32,
-            name: vars::state_name(i).to_string(),
-            description: vars::STATE_DESCRIPTIONS[i].to_string(),
+            name: name.to_string(),
+            description: description.to_string(),
             causality: "output",
             variability: "continuous",
             initial: Some("calculated"),
             start: None,
-            unit: Some(vars::STATE_UNITS[i]),
+            unit: Some(unit),
             derivative_of: None,
         });
     }
-    for i in 0..8 {
+    for (i, name) in layout.states.iter().enumerate() {
         rows.push(Row {
             vr: vars::VR_DER + i as u32,
-            name: format!("der({})", vars::state_name(i)),
-            description: format!("Time derivative of {} [per second]", vars::state_name(i)),
+            name: format!("der({name})"),
+            description: format!("Time derivative of {name} [per second]"),
             causality: "local",
             variability: "continuous",
             initial: Some("calculated"),
@@ -165,6 +167,9 @@ fn rows() -> Vec<Row> {
     }
     let sdocs = signal_docs(SIGNALS_SRC);
     for (i, n) in Signals::NAMES.iter().enumerate() {
+        if !layout.signal_exposed[i] {
+            continue;
+        }
         let doc = sdocs.get(*n).cloned().unwrap_or_default();
         rows.push(Row {
             vr: vars::VR_SIGNAL + i as u32,
@@ -179,7 +184,8 @@ fn rows() -> Vec<Row> {
         });
     }
     let (pdocs, groups) = struct_docs(PARAMS_SRC);
-    for (i, p) in vars::param_table().iter().enumerate() {
+    let starts = cfg.param_values();
+    for (i, (p, start)) in vars::param_table().iter().zip(starts).enumerate() {
         let ty = groups.get(&p.group).cloned().unwrap_or_default();
         let doc = pdocs
             .get(&(ty, p.field.clone()))
@@ -193,29 +199,36 @@ fn rows() -> Vec<Row> {
             causality: "parameter",
             variability: "tunable",
             initial: Some("exact"),
-            start: Some(p.start),
+            start: Some(start),
             derivative_of: None,
         });
     }
-    debug_assert!(rows.iter().all(|r| vars::lookup(r.vr).is_some()));
+    debug_assert!(rows.iter().all(|r| layout.lookup(r.vr).is_some()));
     rows
 }
 
-/// The `modelDescription.xml` text.
-pub fn model_description() -> String {
-    let rows = rows();
+/// The `modelDescription.xml` text of the configuration `cfg`.
+pub fn model_description(cfg: &FmuConfig) -> String {
+    let rows = rows(cfg);
+    let n = cfg.layout().n_states();
+    let cyl = match cfg.cylinder_temp {
+        CylinderTemp::Converged => "converged cylinder-out temperature",
+        CylinderTemp::OneIteration => "one-iteration cylinder-out temperature (Co-Simulation only)",
+    };
     let mut x = String::new();
     let _ = writeln!(x, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
         x,
-        r#"<fmiModelDescription fmiVersion="2.0" modelName="mvem" guid="{}" description="Mean-value diesel engine model with VGT and EGR (Wahlstrom and Eriksson 2011), 8 states; starts at the steady state of the start inputs" generationTool="mvem-fmu {}" variableNamingConvention="flat" numberOfEventIndicators="0">"#,
-        vars::guid(),
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="mvem" guid="{}" description="Mean-value diesel engine model with VGT and EGR (Wahlstrom and Eriksson 2011), {n} states, {cyl}; starts at the steady state of the start inputs" generationTool="mvem-fmu {}" variableNamingConvention="flat" numberOfEventIndicators="0">"#,
+        vars::guid(cfg),
         env!("CARGO_PKG_VERSION")
     );
-    let _ = writeln!(
-        x,
-        r#"  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
-    );
+    if cfg.model_exchange() {
+        let _ = writeln!(
+            x,
+            r#"  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
+        );
+    }
     let _ = writeln!(
         x,
         r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
@@ -375,13 +388,27 @@ pub fn zip_stored(entries: &[(&str, &[u8])]) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-/// Write the FMU archive `out` from the shared library `so` (the cdylib `libmvem_fmu.so` built
-/// from this crate in release mode). The file is written atomically.
-pub fn build(out: &Path, so: &Path) -> Result<(), String> {
+/// Write the FMU archive `out` of the configuration `cfg` from the shared library `so` (the
+/// cdylib `libmvem_fmu.so` built from this crate in release mode). The archive holds
+/// `modelDescription.xml`, `binaries/linux64/mvem.so` and `resources/mvem.json` (the
+/// configuration the library reads at instantiation). The file is written atomically.
+pub fn build(out: &Path, so: &Path, cfg: &FmuConfig) -> Result<(), String> {
     let lib = std::fs::read(so).map_err(|e| format!("{}: {e}", so.display()))?;
-    let xml = model_description();
+    if !lib.starts_with(b"\x7fELF") {
+        return Err(format!(
+            "{}: not an ELF shared library (the FMU is built for linux64)",
+            so.display()
+        ));
+    }
+    let xml = model_description(cfg);
     let so_name = format!("binaries/linux64/{MODEL_IDENTIFIER}.so");
-    let zip = zip_stored(&[("modelDescription.xml", xml.as_bytes()), (&so_name, &lib)])?;
+    let config = cfg.to_json();
+    let res_name = format!("resources/{}", vars::CONFIG_FILE);
+    let zip = zip_stored(&[
+        ("modelDescription.xml", xml.as_bytes()),
+        (&so_name, &lib),
+        (&res_name, config.as_bytes()),
+    ])?;
     mvem::io::output::write_atomic(out, &zip).map_err(|e| format!("{}: {e}", out.display()))
 }
 
@@ -396,7 +423,7 @@ mod tests {
 
     #[test]
     fn description_lists_every_variable_once_with_docs() {
-        let x = model_description();
+        let x = model_description(&FmuConfig::default());
         let n = x.matches("<ScalarVariable ").count();
         assert_eq!(n, 4 + 8 + 8 + Signals::COUNT + vars::param_table().len());
         assert!(x.contains(r#"name="turbo.j_t""#));
@@ -405,5 +432,40 @@ mod tests {
         assert!(x.contains(r#"derivative="5""#));
         // every parameter has a description
         assert!(!x.contains(r#"description="" causality="parameter""#));
+        assert!(x.contains("<ModelExchange "));
+    }
+
+    #[test]
+    fn twelve_state_description_has_its_states_and_no_duplicate_names() {
+        use mvem::model::ModelOrder;
+        let cfg = FmuConfig {
+            order: ModelOrder::Twelve,
+            cylinder_temp: CylinderTemp::OneIteration,
+            ..FmuConfig::default()
+        };
+        let x = model_description(&cfg);
+        // T_im, T_em and p_c are states here; their signals are not listed again
+        let n = x.matches("<ScalarVariable ").count();
+        assert_eq!(
+            n,
+            4 + 12 + 12 + Signals::COUNT - 3 + vars::param_table().len()
+        );
+        let mut names: Vec<&str> = x
+            .split(r#"<ScalarVariable name=""#)
+            .skip(1)
+            .map(|r| r.split('"').next().unwrap())
+            .collect();
+        let total = names.len();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), total);
+        assert!(x.contains(r#"name="der(T_ic)""#));
+        assert_eq!(
+            x.matches("<Unknown ").count(),
+            (12 + Signals::COUNT - 3) * 2 + 24
+        );
+        // one-iteration: Co-Simulation only
+        assert!(!x.contains("<ModelExchange "));
+        assert!(x.contains("<CoSimulation "));
     }
 }

@@ -10,7 +10,7 @@
 #![allow(clippy::missing_safety_doc, non_snake_case, non_camel_case_types)]
 
 use crate::instance::{FmuError, Instance, Interface, Phase, Severity};
-use crate::vars;
+use crate::vars::{self, FmuConfig};
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -206,6 +206,47 @@ fn unsupported(what: &str) -> FmuError {
     }
 }
 
+/// Decode `%XX` escapes of a URI path.
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' && i + 2 < b.len() {
+            let hex = std::str::from_utf8(&b[i + 1..i + 3]).unwrap_or("");
+            if let Ok(v) = u8::from_str_radix(hex, 16) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(b[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// The local folder of an `fmuResourceLocation` URI (`file:///dir`, `file:/dir`,
+/// `file://localhost/dir`, or a plain path).
+pub fn resource_dir(location: &str) -> std::path::PathBuf {
+    let path = if let Some(rest) = location.strip_prefix("file://") {
+        rest.strip_prefix("localhost").unwrap_or(rest)
+    } else if let Some(rest) = location.strip_prefix("file:") {
+        rest
+    } else {
+        location
+    };
+    std::path::PathBuf::from(percent_decode(path))
+}
+
+/// Read `resources/mvem.json` from the resource location.
+fn read_config(location: &str) -> Result<FmuConfig, String> {
+    let file = resource_dir(location).join(vars::CONFIG_FILE);
+    let text = std::fs::read_to_string(&file)
+        .map_err(|e| format!("fmi2Instantiate: cannot read {}: {e}", file.display()))?;
+    FmuConfig::from_json(&text).map_err(|e| format!("fmi2Instantiate: {e}"))
+}
+
 /// fmi2GetTypesPlatform: "default".
 #[no_mangle]
 pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
@@ -224,7 +265,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
     instance_name: fmi2String,
     fmu_type: fmi2Type,
     guid: fmi2String,
-    _resource_location: fmi2String,
+    resource_location: fmi2String,
     functions: *const fmi2CallbackFunctions,
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
@@ -248,8 +289,18 @@ pub unsafe extern "C" fn fmi2Instantiate(
             1 => Some(Interface::CoSimulation),
             _ => None,
         };
+        let config = if resource_location.is_null() {
+            Err("fmi2Instantiate: fmuResourceLocation is null".to_string())
+        } else {
+            // SAFETY: NUL-terminated string from the importer.
+            let loc = unsafe { CStr::from_ptr(resource_location) }.to_string_lossy();
+            read_config(&loc)
+        };
         let comp = Component {
-            inst: Instance::new(interface.unwrap_or(Interface::CoSimulation)),
+            inst: Instance::new(
+                interface.unwrap_or(Interface::CoSimulation),
+                config.as_ref().unwrap_or(&FmuConfig::default()),
+            ),
             name,
             logger,
             env,
@@ -263,6 +314,21 @@ pub unsafe extern "C" fn fmi2Instantiate(
             );
             return std::ptr::null_mut();
         };
+        let config = match config {
+            Ok(c) => c,
+            Err(e) => {
+                comp.log(FMI2_ERROR, "logStatusError", &e);
+                return std::ptr::null_mut();
+            }
+        };
+        if interface == Some(Interface::ModelExchange) && !config.model_exchange() {
+            comp.log(
+                FMI2_ERROR,
+                "logStatusError",
+                "fmi2Instantiate: this FMU was built with --cylinder-temp one-iteration, which is offered for Co-Simulation only (the one-iteration right-hand side depends on the solver's step sequence)",
+            );
+            return std::ptr::null_mut();
+        }
         let g = if guid.is_null() {
             String::new()
         } else {
@@ -271,13 +337,14 @@ pub unsafe extern "C" fn fmi2Instantiate(
                 .to_string_lossy()
                 .into_owned()
         };
-        if g != vars::guid() {
+        let expected = vars::guid(&config);
+        if g != expected {
             comp.log(
                 FMI2_ERROR,
                 "logStatusError",
                 &format!(
-                    "fmi2Instantiate: GUID {g} does not match this binary's {}",
-                    vars::guid()
+                    "fmi2Instantiate: GUID {g} does not match {expected} of this binary and resources/{}",
+                    vars::CONFIG_FILE
                 ),
             );
             return std::ptr::null_mut();
@@ -788,6 +855,21 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
 mod tests {
     use super::*;
 
+    /// fmi2Instantiate without callbacks (type 0 = Model Exchange, 1 = Co-Simulation).
+    unsafe fn inst(fmu_type: fmi2Type, guid: fmi2String, location: fmi2String) -> fmi2Component {
+        unsafe {
+            fmi2Instantiate(
+                c"x".as_ptr(),
+                fmu_type,
+                guid,
+                location,
+                std::ptr::null(),
+                0,
+                0,
+            )
+        }
+    }
+
     #[test]
     fn null_and_wrong_guid_are_refused() {
         unsafe {
@@ -795,26 +877,20 @@ mod tests {
                 fmi2EnterInitializationMode(std::ptr::null_mut()),
                 FMI2_ERROR
             );
-            let c = fmi2Instantiate(
-                c"x".as_ptr(),
-                1,
-                c"{wrong}".as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let c = inst(1, c"{wrong}".as_ptr(), std::ptr::null());
             assert!(c.is_null());
-            let g = CString::new(vars::guid()).unwrap();
-            let c = fmi2Instantiate(
-                c"x".as_ptr(),
-                1,
-                g.as_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-                0,
-                0,
-            );
+            let cfg = FmuConfig::default();
+            let g = CString::new(vars::guid(&cfg)).unwrap();
+            // no resource location, and one without mvem.json: refused
+            for loc in [std::ptr::null(), c"file:///nonexistent/resources".as_ptr()] {
+                let c = inst(1, g.as_ptr(), loc);
+                assert!(c.is_null());
+            }
+            let dir = std::env::temp_dir().join(format!("mvem-fmu-test-{}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join(vars::CONFIG_FILE), cfg.to_json()).unwrap();
+            let loc = CString::new(format!("file://{}", dir.display())).unwrap();
+            let c = inst(1, g.as_ptr(), loc.as_ptr());
             assert!(!c.is_null());
             assert_eq!(
                 fmi2GetReal(c, std::ptr::null(), 1, std::ptr::null_mut()),
@@ -841,6 +917,32 @@ mod tests {
                 FMI2_OK
             );
             fmi2FreeInstance(c);
+            // a one-iteration configuration refuses Model Exchange
+            let oi = FmuConfig {
+                cylinder_temp: mvem::model::CylinderTemp::OneIteration,
+                ..FmuConfig::default()
+            };
+            std::fs::write(dir.join(vars::CONFIG_FILE), oi.to_json()).unwrap();
+            let g = CString::new(vars::guid(&oi)).unwrap();
+            let me = inst(0, g.as_ptr(), loc.as_ptr());
+            assert!(me.is_null());
+            let cs = inst(1, g.as_ptr(), loc.as_ptr());
+            assert!(!cs.is_null());
+            fmi2FreeInstance(cs);
+            let _ = std::fs::remove_dir_all(&dir);
         }
+    }
+
+    #[test]
+    fn resource_locations_decode_to_paths() {
+        let p = std::path::PathBuf::from;
+        assert_eq!(
+            resource_dir("file:///tmp/a%20b/resources"),
+            p("/tmp/a b/resources")
+        );
+        assert_eq!(resource_dir("file:/tmp/x"), p("/tmp/x"));
+        assert_eq!(resource_dir("file://localhost/tmp/x"), p("/tmp/x"));
+        assert_eq!(resource_dir("/tmp/x%"), p("/tmp/x%"));
+        assert_eq!(resource_dir("/tmp/%zz%4"), p("/tmp/%zz%4"));
     }
 }

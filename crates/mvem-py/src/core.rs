@@ -1,10 +1,14 @@
 //! The Python API in plain Rust (no Python types), so it is tested by `cargo test` and the
 //! pyo3 layer only converts values.
 
-use mvem::analysis::steady::steady_state;
-use mvem::model::{Drive, Engine8, Model, ModelOptions, Signals};
+use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
+use mvem::analysis::steady::{steady_state, SteadyState};
+use mvem::analysis::step::StepMetrics;
+use mvem::analysis::zeros::{self, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS};
+use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelOptions, ModelOrder, Signals};
 use mvem::params::Params;
 use mvem::sim::{simulate, InputSchedule, SimError, SimOptions, Start};
+use nalgebra::DMatrix;
 use serde_json::Value;
 use std::path::Path;
 
@@ -98,10 +102,59 @@ pub fn params_from_path(path: &Path) -> CoreResult<Params> {
     mvem::io::params::load_params(path).map_err(|e| CoreError::Value(e.to_string()))
 }
 
-fn model(params: Option<Params>) -> CoreResult<Engine8> {
+/// Model variant and cylinder-temperature mode of a call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Variant {
+    /// 8, 10 or 12 states.
+    pub order: ModelOrder,
+    /// Cylinder-out temperature fixed point.
+    pub cylinder_temp: CylinderTemp,
+}
+
+impl Variant {
+    /// From the Python arguments `model` (8, 10, 12) and `cylinder_temp`
+    /// ("converged", "one-iteration").
+    pub fn parse(model: i64, cylinder_temp: &str) -> CoreResult<Self> {
+        let order = usize::try_from(model)
+            .ok()
+            .and_then(ModelOrder::from_states)
+            .ok_or_else(|| CoreError::Value(format!("model = {model}: expected 8, 10 or 12")))?;
+        let cylinder_temp = match cylinder_temp {
+            "converged" => CylinderTemp::Converged,
+            "one-iteration" => CylinderTemp::OneIteration,
+            other => {
+                return Err(CoreError::Value(format!(
+                    "cylinder_temp = {other:?}: expected \"converged\" or \"one-iteration\""
+                )))
+            }
+        };
+        Ok(Self {
+            order,
+            cylinder_temp,
+        })
+    }
+}
+
+fn model(params: Option<Params>, v: Variant) -> CoreResult<AnyModel> {
     let p = params.unwrap_or_else(Params::published);
-    Engine8::new(p, ModelOptions::default())
+    let opts = ModelOptions {
+        cylinder_temp: v.cylinder_temp,
+        ..ModelOptions::default()
+    };
+    AnyModel::new(v.order, p, opts)
         .map_err(|e| CoreError::Value(format!("invalid parameters: {e}")))
+}
+
+fn check_finite(d: [f64; 4]) -> CoreResult<()> {
+    for (i, v) in d.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(CoreError::Value(format!(
+                "{} = {v} is not finite",
+                Drive::NAMES[i]
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Simulation options of the Python API.
@@ -129,6 +182,21 @@ impl Default for SimArgs {
     }
 }
 
+impl SimArgs {
+    /// The simulator options (validated; the output interval is `dt`).
+    fn options(&self) -> CoreResult<SimOptions> {
+        let opts = SimOptions {
+            rtol: self.rtol,
+            atol: self.atol,
+            dt_out: self.dt,
+            ..SimOptions::default()
+        };
+        opts.validate()
+            .map_err(|e| CoreError::Value(e.to_string()))?;
+        Ok(opts)
+    }
+}
+
 /// Simulate from the steady state at the first input row. `rows` are
 /// `[time_s, n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct]` (linear interpolation between rows,
 /// two rows with the same time make a step). Returns column names and columns.
@@ -136,8 +204,9 @@ pub fn simulate_rows(
     rows: &[[f64; 5]],
     args: SimArgs,
     params: Option<Params>,
+    variant: Variant,
 ) -> CoreResult<(Vec<String>, Vec<Vec<f64>>)> {
-    let m = model(params)?;
+    let m = model(params, variant)?;
     let sched = InputSchedule::new(
         rows.iter().map(|r| r[0]).collect(),
         rows.iter().map(|r| [r[1], r[2], r[3], r[4]]).collect(),
@@ -150,21 +219,19 @@ pub fn simulate_rows(
             "t_end = {t_end} must be finite and after the first input time {t0} (give t_end, or inputs spanning a time interval)"
         )));
     }
-    let opts = SimOptions {
-        rtol: args.rtol,
-        atol: args.atol,
-        dt_out: args.dt,
-        ..SimOptions::default()
-    };
-    opts.validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
-    let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &opts).map_err(|e| match e {
+    let opts = args.options()?;
+    let sol = mvem::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &opts))
+        .map_err(sim_error)?;
+    Ok((sol.names, sol.columns))
+}
+
+fn sim_error(e: SimError) -> CoreError {
+    match e {
         SimError::BadOption { .. } | SimError::BadInterval { .. } => {
             CoreError::Value(e.to_string())
         }
         other => CoreError::Runtime(other.to_string()),
-    })?;
-    Ok((sol.names, sol.columns))
+    }
 }
 
 /// A steady state for Python.
@@ -179,18 +246,15 @@ pub struct Steady {
 }
 
 /// Steady state at the given inputs.
-pub fn steady(d: [f64; 4], params: Option<Params>) -> CoreResult<Steady> {
-    for (i, v) in d.iter().enumerate() {
-        if !v.is_finite() {
-            return Err(CoreError::Value(format!(
-                "{} = {v} is not finite",
-                ["n_e", "u_delta", "u_egr", "u_vgt"][i]
-            )));
-        }
-    }
-    let m = model(params)?;
+pub fn steady(d: [f64; 4], params: Option<Params>, variant: Variant) -> CoreResult<Steady> {
+    check_finite(d)?;
+    let m = model(params, variant)?;
+    mvem::dispatch!(&m, m => steady_of(m, d))
+}
+
+fn steady_of<const N: usize, M: Model<N>>(m: &M, d: [f64; 4]) -> CoreResult<Steady> {
     let ss =
-        steady_state(&m, &Drive::from_array(d)).map_err(|e| CoreError::Runtime(e.to_string()))?;
+        steady_state(m, &Drive::from_array(d)).map_err(|e| CoreError::Runtime(e.to_string()))?;
     let mut values: Vec<(String, f64)> = ["n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"]
         .iter()
         .zip(d)
@@ -200,13 +264,218 @@ pub fn steady(d: [f64; 4], params: Option<Params>) -> CoreResult<Steady> {
         values.push((n.to_string(), v));
     }
     for (n, v) in Signals::NAMES.iter().zip(ss.signals.values()) {
-        // the saturated inputs would clash with nothing here, but keep the reference names
-        values.push((n.to_string(), v));
+        // a signal named like a state (T_em in the 10-state model) is the state's value
+        if !m.state_names().contains(n) {
+            values.push((n.to_string(), v));
+        }
     }
     Ok(Steady {
         values,
         physically_valid: ss.physically_valid(),
         flags: ss.flags.clone(),
+    })
+}
+
+/// Options of [`linearize_at`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinArgs {
+    /// Output names (states or signals); `None`: the library's default outputs.
+    pub outputs: Option<Vec<String>>,
+    /// Refuse an operating point at a kink of the model.
+    pub strict: bool,
+    /// Padé order of the actuator delays (0: the undelayed system).
+    pub pade_order: usize,
+}
+
+impl Default for LinArgs {
+    fn default() -> Self {
+        Self {
+            outputs: None,
+            strict: true,
+            pade_order: 0,
+        }
+    }
+}
+
+/// Complex numbers as (re, im) [1/s], or why they could not be computed.
+pub type ZerosResult = Result<Vec<(f64, f64)>, String>;
+
+/// A linearization with its poles, DC gains and zeros.
+#[derive(Debug, Clone)]
+pub struct Lin {
+    /// The linear model (A, B, C, D, names, operating point).
+    pub lin: LinearModel,
+    /// Eigenvalues of A [1/s] as (re, im).
+    pub eigenvalues: Vec<(f64, f64)>,
+    /// DC-gain matrix (outputs x inputs), or why there is none.
+    pub dc_gain: Result<DMatrix<f64>, String>,
+    /// Transmission zeros [1/s] of every SISO channel `"input->output"`, or why there are none
+    /// (e.g. a kink on the channel).
+    pub zeros: Vec<(String, ZerosResult)>,
+    /// Transmission zeros of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O), when those
+    /// outputs are linearized.
+    pub mimo_zeros: Option<ZerosResult>,
+}
+
+fn pairs(z: &[zeros::Complex<f64>]) -> Vec<(f64, f64)> {
+    z.iter().map(|c| (c.re, c.im)).collect()
+}
+
+/// Linearize at the steady state of the inputs `d` (n_e, u_delta, u_egr, u_vgt) and compute
+/// poles, DC gains and zeros (`mvem::analysis::{linearize, zeros}`).
+pub fn linearize_at(
+    d: [f64; 4],
+    params: Option<Params>,
+    variant: Variant,
+    args: &LinArgs,
+) -> CoreResult<Lin> {
+    check_finite(d)?;
+    let mut opts = LinearizeOptions {
+        strict: args.strict,
+        pade_order: args.pade_order,
+        ..LinearizeOptions::default()
+    };
+    if let Some(o) = &args.outputs {
+        opts.outputs = o.clone();
+    }
+    opts.validate()
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let m = model(params, variant)?;
+    let lin = mvem::dispatch!(&m, m => {
+        let ss = steady_state(m, &Drive::from_array(d))
+            .map_err(|e| CoreError::Runtime(format!("steady state: {e}")))?;
+        linearize_steady(m, &ss, &opts).map_err(|e| match e {
+            LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
+                CoreError::Value(e.to_string())
+            }
+            other => CoreError::Runtime(other.to_string()),
+        })
+    })?;
+    let eigenvalues = zeros::poles(&lin)
+        .map(|p| pairs(&p))
+        .map_err(|e| CoreError::Runtime(format!("eigenvalues: {e}")))?;
+    let dc_gain = zeros::dc_gain_matrix(&lin).map_err(|e| e.to_string());
+    let zo = ZeroOptions::default();
+    let mut zs = Vec::new();
+    for i in &lin.input_names {
+        for o in &lin.output_names {
+            let r = zeros::siso(&lin, i, o, &zo)
+                .map(|c| pairs(&c.zeros.finite))
+                .map_err(|e| e.to_string());
+            zs.push((format!("{i}->{o}"), r));
+        }
+    }
+    let mimo_zeros = MIMO_OUTPUTS
+        .iter()
+        .all(|o| lin.output_index(o).is_some())
+        .then(|| {
+            zeros::mimo_zeros(&lin, &MIMO_INPUTS, &MIMO_OUTPUTS, &zo)
+                .map(|z| pairs(&z.finite))
+                .map_err(|e| e.to_string())
+        });
+    Ok(Lin {
+        lin,
+        eigenvalues,
+        dc_gain,
+        zeros: zs,
+        mimo_zeros,
+    })
+}
+
+/// Step metrics of samples (`mvem::analysis::step::StepMetrics::compute`).
+pub fn step_metrics(
+    t: &[f64],
+    y: &[f64],
+    t_step: f64,
+    y0: f64,
+    y_final: f64,
+    du: f64,
+) -> CoreResult<StepMetrics> {
+    StepMetrics::compute(t, y, t_step, y0, y_final, du).map_err(|e| CoreError::Value(e.to_string()))
+}
+
+/// A simulated step response with its metrics.
+#[derive(Debug, Clone)]
+pub struct StepResponse {
+    /// Metrics; y0 and y_final are the steady states before and after the step.
+    pub metrics: StepMetrics,
+    /// Output times [s].
+    pub t: Vec<f64>,
+    /// The output.
+    pub y: Vec<f64>,
+}
+
+/// Value of a state or signal `name` at a steady state.
+fn named<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>, name: &str) -> Option<f64> {
+    if let Some(i) = m.state_names().iter().position(|s| *s == name) {
+        return Some(ss.x[i]);
+    }
+    let j = Signals::NAMES.iter().position(|s| *s == name)?;
+    Some(ss.signals.values()[j])
+}
+
+/// Step of input `input` (n_e, u_delta, u_egr, u_vgt) from `d` to `to` at `t_step`, simulated
+/// from the steady state to `t_end`; metrics of `output` with the initial and final values from
+/// the steady states before and after the step (as `mvem demo`).
+#[allow(clippy::too_many_arguments)]
+pub fn step_response(
+    d: [f64; 4],
+    input: &str,
+    to: f64,
+    output: &str,
+    t_step: f64,
+    t_end: f64,
+    args: SimArgs,
+    params: Option<Params>,
+    variant: Variant,
+) -> CoreResult<StepResponse> {
+    check_finite(d)?;
+    let ch = Drive::NAMES
+        .iter()
+        .position(|n| *n == input)
+        .ok_or_else(|| {
+            CoreError::Value(format!(
+                "input {input:?}: expected one of {}",
+                Drive::NAMES.join(", ")
+            ))
+        })?;
+    for (what, v) in [("to", to), ("t_step", t_step), ("t_end", t_end)] {
+        if !v.is_finite() {
+            return Err(CoreError::Value(format!("{what} = {v} is not finite")));
+        }
+    }
+    if !(t_step >= 0.0 && t_end > t_step) {
+        return Err(CoreError::Value(format!(
+            "need 0 <= t_step < t_end (t_step = {t_step}, t_end = {t_end})"
+        )));
+    }
+    let opts = args.options()?;
+    let before = Drive::from_array(d);
+    let mut a = d;
+    a[ch] = to;
+    let after = Drive::from_array(a);
+    let m = model(params, variant)?;
+    mvem::dispatch!(&m, m => {
+        let known = || {
+            format!(
+                "output {output:?}: expected a state ({}) or a signal ({})",
+                m.state_names().join(", "),
+                Signals::NAMES.join(", ")
+            )
+        };
+        let ss0 = steady_state(m, &before)
+            .map_err(|e| CoreError::Runtime(format!("steady state before the step: {e}")))?;
+        let y0 = named(m, &ss0, output).ok_or_else(|| CoreError::Value(known()))?;
+        let ss1 = steady_state(m, &after)
+            .map_err(|e| CoreError::Runtime(format!("steady state after the step: {e}")))?;
+        let y_final = named(m, &ss1, output).ok_or_else(|| CoreError::Value(known()))?;
+        let sched = InputSchedule::steps(before, &[(t_step, ch, to)])
+            .map_err(|e| CoreError::Value(format!("inputs: {e}")))?;
+        let sol = simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), &opts).map_err(sim_error)?;
+        let y = sol.get(output).ok_or_else(|| CoreError::Value(known()))?.to_vec();
+        let t = sol.t().to_vec();
+        let metrics = step_metrics(&t, &y, t_step, y0, y_final, to - d[ch])?;
+        Ok(StepResponse { metrics, t, y })
     })
 }
 
@@ -216,9 +485,9 @@ mod tests {
 
     #[test]
     fn steady_equals_library() {
-        let s = steady([1500.0, 110.0, 80.0, 75.0], None).unwrap();
+        let s = steady([1500.0, 110.0, 80.0, 75.0], None, Variant::default()).unwrap();
         let lib = steady_state(
-            &Engine8::published(),
+            &mvem::model::Engine8::published(),
             &Drive::new(1500.0, 110.0, 80.0, 75.0),
         )
         .unwrap();
@@ -227,7 +496,7 @@ mod tests {
         assert_eq!(get("W_c"), lib.signals.w_c);
         assert!(s.physically_valid);
         assert!(matches!(
-            steady([f64::NAN, 1.0, 1.0, 1.0], None),
+            steady([f64::NAN, 1.0, 1.0, 1.0], None, Variant::default()),
             Err(CoreError::Value(_))
         ));
     }
@@ -253,12 +522,13 @@ mod tests {
             [0.0, 1500.0, 110.0, 80.0, 75.0],
             [1.0, 1500.0, 110.0, 80.0, 75.0],
         ];
-        let (names, cols) = simulate_rows(&rows, SimArgs::default(), None).unwrap();
+        let (names, cols) =
+            simulate_rows(&rows, SimArgs::default(), None, Variant::default()).unwrap();
         assert_eq!(names[0], "t");
         assert_eq!(cols[0].len(), 101);
         let bad = [[0.0, f64::NAN, 110.0, 80.0, 75.0]];
         assert!(matches!(
-            simulate_rows(&bad, SimArgs::default(), None),
+            simulate_rows(&bad, SimArgs::default(), None, Variant::default()),
             Err(CoreError::Value(_))
         ));
         let args = SimArgs {
@@ -266,13 +536,85 @@ mod tests {
             ..SimArgs::default()
         };
         assert!(matches!(
-            simulate_rows(&rows, args, None),
+            simulate_rows(&rows, args, None, Variant::default()),
             Err(CoreError::Value(_))
         ));
         let one = [[0.0, 1500.0, 110.0, 80.0, 75.0]];
         assert!(matches!(
-            simulate_rows(&one, SimArgs::default(), None),
+            simulate_rows(&one, SimArgs::default(), None, Variant::default()),
             Err(CoreError::Value(_))
         ));
+    }
+
+    #[test]
+    fn linearize_equals_library_and_checks_arguments() {
+        let d = [1500.0, 110.0, 80.0, 75.0];
+        let r = linearize_at(d, None, Variant::default(), &LinArgs::default()).unwrap();
+        let m = mvem::model::Engine8::published();
+        let ss = steady_state(&m, &Drive::from_array(d)).unwrap();
+        let lib = linearize_steady(&m, &ss, &LinearizeOptions::default()).unwrap();
+        assert_eq!(r.lin, lib);
+        assert_eq!(r.eigenvalues.len(), 8);
+        assert!(r.eigenvalues.iter().all(|e| e.0 < 0.0));
+        let g = r.dc_gain.unwrap();
+        assert_eq!(g.shape(), (7, 4));
+        // the u_vgt -> W_c channel of the demo point is non-minimum phase (a RHP zero)
+        let z = &r.zeros.iter().find(|(c, _)| c == "u_vgt->W_c").unwrap().1;
+        assert!(z.as_ref().unwrap().iter().any(|z| z.0 > 0.0), "{z:?}");
+        assert!(r.mimo_zeros.is_some());
+        let v12 = Variant::parse(12, "converged").unwrap();
+        let r12 = linearize_at(d, None, v12, &LinArgs::default()).unwrap();
+        assert_eq!(r12.lin.a.shape(), (12, 12));
+        let bad = LinArgs {
+            outputs: Some(vec!["nope".into()]),
+            ..LinArgs::default()
+        };
+        let e = linearize_at(d, None, Variant::default(), &bad).unwrap_err();
+        assert!(
+            matches!(&e, CoreError::Value(m) if m.contains("nope")),
+            "{e}"
+        );
+        assert!(Variant::parse(9, "converged").is_err());
+        assert!(Variant::parse(8, "once").is_err());
+    }
+
+    #[test]
+    fn step_response_metrics_are_those_of_the_samples() {
+        let d = [1500.0, 110.0, 80.0, 75.0];
+        let args = SimArgs {
+            dt: 0.02,
+            ..SimArgs::default()
+        };
+        let r = step_response(
+            d,
+            "u_vgt",
+            65.0,
+            "W_c",
+            1.0,
+            4.0,
+            args,
+            None,
+            Variant::default(),
+        )
+        .unwrap();
+        assert!(r.metrics.non_minimum_phase);
+        assert_eq!(r.metrics.du, -10.0);
+        let again = step_metrics(&r.t, &r.y, 1.0, r.metrics.y0, r.metrics.y_final, -10.0).unwrap();
+        assert_eq!(again, r.metrics);
+        let with = |input: &str, output: &str| {
+            step_response(
+                d,
+                input,
+                65.0,
+                output,
+                1.0,
+                4.0,
+                args,
+                None,
+                Variant::default(),
+            )
+        };
+        assert!(matches!(with("u_x", "W_c"), Err(CoreError::Value(m)) if m.contains("u_x")));
+        assert!(matches!(with("u_vgt", "W_x"), Err(CoreError::Value(m)) if m.contains("W_x")));
     }
 }

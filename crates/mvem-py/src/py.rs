@@ -1,11 +1,12 @@
 //! The pyo3 layer: conversions only (see [`crate::core`]).
 
-use crate::core::{self, CoreError, SimArgs};
+use crate::core::{self, CoreError, LinArgs, SimArgs, Variant};
+use mvem::analysis::step::{Excursion, StepMetrics};
 use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyString};
+use pyo3::types::{PyDict, PyList, PyString};
 
 fn to_py_err(e: CoreError) -> PyErr {
     match e {
@@ -106,12 +107,17 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// dt: output interval [s]. rtol, atol: integrator tolerances (atol relative to the state scales).
 /// params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
 ///     {"turbo.j_t": 1e-4}) or a path to a TOML/JSON parameter file.
+/// model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
+/// cylinder_temp: "converged" (default) or "one-iteration" (the authors' Simulink Memory blocks).
 ///
-/// Returns a dict of numpy arrays: "t" [s], the states (p_im [Pa], p_em [Pa], X_Oim, X_Oem [-],
-/// omega_t [rad/s], u_egr1, u_egr2, u_vgt_act [%]) and every signal (W_c [kg/s], n_t [rpm], ...).
-/// Raises ValueError for bad inputs/options/parameters, RuntimeError if the solver fails.
+/// Returns a dict of numpy arrays: "t" [s], the states (8 states: p_im [Pa], p_em [Pa], X_Oim,
+/// X_Oem [-], omega_t [rad/s], u_egr1, u_egr2, u_vgt_act [%]; 10 states add T_im, T_em [K];
+/// 12 add p_c [Pa], T_ic [K]) and every signal (W_c [kg/s], n_t [rpm], ...; a signal named like
+/// a state is the state). Raises ValueError for bad inputs/options/parameters, RuntimeError if
+/// the solver fails.
 #[pyfunction]
-#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None))]
+#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8, cylinder_temp="converged"))]
+#[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
     inputs: &Bound<'py, PyAny>,
@@ -120,7 +126,10 @@ fn simulate<'py>(
     rtol: f64,
     atol: f64,
     params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+    cylinder_temp: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
     let p = parse_params(py, params)?;
     let args = SimArgs {
@@ -130,25 +139,28 @@ fn simulate<'py>(
         atol,
     };
     let (names, cols) = py
-        .allow_threads(move || core::simulate_rows(&rows, args, p))
+        .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
         .map_err(to_py_err)?;
     let np = py.import("numpy")?;
     let out = PyDict::new(py);
+    // a signal named like a state (T_em in the 10-state model) comes after it: keep the state
     for (n, c) in names.into_iter().zip(cols) {
-        out.set_item(n, np.call_method1("array", (c,))?)?;
+        if !out.contains(&n)? {
+            out.set_item(n, np.call_method1("array", (c,))?)?;
+        }
     }
     Ok(out)
 }
 
 /// Steady state (equilibrium) at constant inputs.
 ///
-/// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]; params as in simulate.
-/// Returns a dict of floats (the inputs as n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct, the 8
+/// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]; params, model as in simulate.
+/// Returns a dict of floats (the inputs as n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct, the
 /// states and every signal, SI units) plus "physically_valid" (bool) and "flags" (list of the
 /// active guard saturations). Raises ValueError for non-finite inputs or bad parameters,
 /// RuntimeError if no equilibrium is found.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, params=None))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, params=None, model=8))]
 fn steady<'py>(
     py: Python<'py>,
     n_e: f64,
@@ -156,10 +168,12 @@ fn steady<'py>(
     u_egr: f64,
     u_vgt: f64,
     params: Option<&Bound<'py, PyAny>>,
+    model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
     let p = parse_params(py, params)?;
     let s = py
-        .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p))
+        .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p, variant))
         .map_err(to_py_err)?;
     let out = PyDict::new(py);
     for (n, v) in s.values {
@@ -168,6 +182,224 @@ fn steady<'py>(
     out.set_item("physically_valid", s.physically_valid)?;
     out.set_item("flags", s.flags)?;
     Ok(out)
+}
+
+fn matrix<'py>(
+    np: &Bound<'py, PyModule>,
+    m: &nalgebra::DMatrix<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let rows: Vec<Vec<f64>> = (0..m.nrows())
+        .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+        .collect();
+    np.call_method1("array", (rows, "float64"))?
+        .call_method1("reshape", (m.nrows(), m.ncols()))
+}
+
+fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<Bound<'py, PyAny>> {
+    let re: Vec<f64> = z.iter().map(|c| c.0).collect();
+    let im: Vec<f64> = z.iter().map(|c| c.1).collect();
+    let re = np.call_method1("array", (re, "float64"))?;
+    let im = np.call_method1("array", (im, "float64"))?;
+    let j = np.getattr("complex128")?.call1((0.0, 1.0))?;
+    re.call_method1("__add__", (im.call_method1("__mul__", (j,))?,))?
+        .call_method1("astype", ("complex128",))
+}
+
+/// Linearize at the steady state of constant inputs: dx' = A dx + B du, dy = C dx + D du.
+///
+/// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]: the operating point.
+/// outputs: output names (states or signals; default p_im, p_em, W_c, n_t, x_egr, lambda_O, M_e).
+/// strict: raise RuntimeError when the point sits at a kink of the model (else the averaged
+///     slopes are returned and the kinks listed). pade_order: 0 (undelayed system) to 3 (Pade
+///     states for the actuator delays). params, model as in simulate.
+///
+/// Returns a dict: "A" (n x n) [1/s], "B" (n x 4), "C" (p x n), "D" (p x 4) numpy arrays in the
+/// model's units (states Pa, K, -, rad/s, %; inputs in "input_names" order u_delta [mg], u_egr
+/// [%], u_vgt [%], n_e [rpm]; outputs in their signal units); "state_names", "input_names",
+/// "output_names"; operating point "x0", "u0", "y0" (arrays); "eigenvalues" (complex array
+/// [1/s]); "dc_gain" (p x 4 array, output units per input unit; None if A is singular);
+/// "zeros" {"u_vgt->W_c": complex array [1/s], ...} of every SISO channel (None where a kink
+/// lies on the channel); "mimo_zeros" of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O)
+/// when those outputs are present; "kinks" (list of str); "delays" [s] of (u_egr, u_vgt).
+/// Raises ValueError for bad arguments, RuntimeError when there is no steady state or a kink.
+#[pyfunction]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=0, params=None, model=8))]
+#[allow(clippy::too_many_arguments)]
+fn linearize<'py>(
+    py: Python<'py>,
+    n_e: f64,
+    u_delta: f64,
+    u_egr: f64,
+    u_vgt: f64,
+    outputs: Option<Vec<String>>,
+    strict: bool,
+    pade_order: usize,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let p = parse_params(py, params)?;
+    let args = LinArgs {
+        outputs,
+        strict,
+        pade_order,
+    };
+    let r = py
+        .allow_threads(move || core::linearize_at([n_e, u_delta, u_egr, u_vgt], p, variant, &args))
+        .map_err(to_py_err)?;
+    let np = py.import("numpy")?;
+    let out = PyDict::new(py);
+    let l = &r.lin;
+    out.set_item("A", matrix(&np, &l.a)?)?;
+    out.set_item("B", matrix(&np, &l.b)?)?;
+    out.set_item("C", matrix(&np, &l.c)?)?;
+    out.set_item("D", matrix(&np, &l.d)?)?;
+    out.set_item("state_names", &l.state_names)?;
+    out.set_item("input_names", &l.input_names)?;
+    out.set_item("output_names", &l.output_names)?;
+    out.set_item("x0", np.call_method1("array", (l.x0.clone(),))?)?;
+    out.set_item("u0", np.call_method1("array", (l.u0.to_vec(),))?)?;
+    out.set_item("y0", np.call_method1("array", (l.y0.clone(),))?)?;
+    out.set_item("eigenvalues", complex_array(&np, &r.eigenvalues)?)?;
+    match &r.dc_gain {
+        Ok(g) => out.set_item("dc_gain", matrix(&np, g)?)?,
+        Err(_) => out.set_item("dc_gain", py.None())?,
+    }
+    let zs = PyDict::new(py);
+    for (ch, z) in &r.zeros {
+        match z {
+            Ok(z) => zs.set_item(ch, complex_array(&np, z)?)?,
+            Err(_) => zs.set_item(ch, py.None())?,
+        }
+    }
+    out.set_item("zeros", zs)?;
+    match &r.mimo_zeros {
+        Some(Ok(z)) => out.set_item("mimo_zeros", complex_array(&np, z)?)?,
+        _ => out.set_item("mimo_zeros", py.None())?,
+    }
+    let kinks: Vec<String> = l.kinks.iter().map(|k| k.to_string()).collect();
+    out.set_item("kinks", PyList::new(py, kinks)?)?;
+    out.set_item("delays", l.delays.to_vec())?;
+    Ok(out)
+}
+
+fn excursion<'py>(py: Python<'py>, e: Option<Excursion>) -> PyResult<Bound<'py, PyAny>> {
+    match e {
+        None => Ok(py.None().into_bound(py)),
+        Some(e) => {
+            let d = PyDict::new(py);
+            d.set_item("value", e.value)?;
+            d.set_item("time", e.time)?;
+            d.set_item("relative", e.relative)?;
+            Ok(d.into_any())
+        }
+    }
+}
+
+fn metrics_dict<'py>(py: Python<'py>, m: &StepMetrics) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("t_step", m.t_step)?;
+    d.set_item("y0", m.y0)?;
+    d.set_item("y_final", m.y_final)?;
+    d.set_item("du", m.du)?;
+    d.set_item("change", m.change)?;
+    d.set_item("dc_gain", m.dc_gain)?;
+    d.set_item("gain_sign", m.gain_sign.to_string())?;
+    d.set_item("wrong_way", excursion(py, m.wrong_way)?)?;
+    d.set_item("non_minimum_phase", m.non_minimum_phase)?;
+    d.set_item("overshoot_pct", m.overshoot_pct)?;
+    d.set_item("peak", excursion(py, m.peak)?)?;
+    d.set_item("rise_time", m.rise_time)?;
+    d.set_item("settling_time", m.settling_time)?;
+    Ok(d)
+}
+
+/// Step-response metrics of samples y(t) for an input step of size du at t_step, from y0 to
+/// y_final (mvem::analysis::step, the definitions of `mvem demo`).
+///
+/// Returns a dict: "change" = y_final - y0, "dc_gain" = change / du (units of y per unit of
+/// input), "gain_sign" ("positive"/"negative"), "wrong_way" (None or {"value", "time" [s],
+/// "relative" [-]}: the excursion against the final direction before the response moves 0.5 %),
+/// "non_minimum_phase" (bool: wrong way by more than 0.5 %), "overshoot_pct" [%], "peak"
+/// (None or like wrong_way), "rise_time" [s] (10-90 %, None if not reached), "settling_time"
+/// [s] (2 % band, from the step; None if not settled), and the arguments. Raises ValueError
+/// for arrays of different lengths, non-finite values or a zero change.
+#[pyfunction]
+fn step_metrics<'py>(
+    py: Python<'py>,
+    t: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    t_step: f64,
+    y0: f64,
+    y_final: f64,
+    du: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let np = py.import("numpy")?;
+    let t = float_list(&np, t, "t")?;
+    let y = float_list(&np, y, "y")?;
+    let m = core::step_metrics(&t, &y, t_step, y0, y_final, du).map_err(to_py_err)?;
+    metrics_dict(py, &m)
+}
+
+/// Simulate a step of one input and measure the response of one output.
+///
+/// From the steady state at n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%], the
+/// input `input` ("n_e", "u_delta", "u_egr" or "u_vgt") steps to `to` at t_step [s]; the
+/// simulation runs to t_end [s]. The metrics of `output` (a state or signal name) use the
+/// steady states before and after the step as y0 and y_final (as `mvem demo`).
+/// dt, rtol, atol, params, model as in simulate.
+///
+/// Returns step_metrics' dict plus "t" and "y" (numpy arrays). ValueError for bad arguments,
+/// RuntimeError when a steady state or the simulation fails.
+#[pyfunction]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8))]
+#[allow(clippy::too_many_arguments)]
+fn step_response<'py>(
+    py: Python<'py>,
+    n_e: f64,
+    u_delta: f64,
+    u_egr: f64,
+    u_vgt: f64,
+    input: &str,
+    to: f64,
+    output: &str,
+    t_step: f64,
+    t_end: f64,
+    dt: f64,
+    rtol: f64,
+    atol: f64,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let p = parse_params(py, params)?;
+    let args = SimArgs {
+        t_end: None,
+        dt,
+        rtol,
+        atol,
+    };
+    let (input, output) = (input.to_string(), output.to_string());
+    let r = py
+        .allow_threads(move || {
+            core::step_response(
+                [n_e, u_delta, u_egr, u_vgt],
+                &input,
+                to,
+                &output,
+                t_step,
+                t_end,
+                args,
+                p,
+                variant,
+            )
+        })
+        .map_err(to_py_err)?;
+    let np = py.import("numpy")?;
+    let d = metrics_dict(py, &r.metrics)?;
+    d.set_item("t", np.call_method1("array", (r.t,))?)?;
+    d.set_item("y", np.call_method1("array", (r.y,))?)?;
+    Ok(d)
 }
 
 /// The published parameter set of Wahlstrom & Eriksson (2011) as a nested dict
@@ -185,6 +417,9 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;
+    m.add_function(wrap_pyfunction!(linearize, m)?)?;
+    m.add_function(wrap_pyfunction!(step_metrics, m)?)?;
+    m.add_function(wrap_pyfunction!(step_response, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod components;
 pub mod demo;
+pub mod fmu;
 pub mod linearize;
 pub mod map;
 pub mod params;

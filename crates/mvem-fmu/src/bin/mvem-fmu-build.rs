@@ -1,4 +1,5 @@
-//! Package the FMU: `mvem-fmu-build --out FILE.fmu [--so PATH]`.
+//! Package the 8-state FMU with the published parameters: `mvem-fmu-build --out FILE.fmu [--so PATH]`.
+//! `mvem fmu` (the CLI) offers the other variants and parameter files.
 //!
 //! Without `--so`, the shared library is taken from next to this executable
 //! (`target/release/libmvem_fmu.so` when run as
@@ -40,7 +41,7 @@ fn main() -> ExitCode {
         );
         return ExitCode::FAILURE;
     }
-    match mvem_fmu::build::build(&out, &so) {
+    match mvem_fmu::build::build(&out, &so, &mvem_fmu::vars::FmuConfig::default()) {
         Ok(()) => {
             println!("wrote {}", out.display());
             ExitCode::SUCCESS

@@ -1,16 +1,44 @@
 """mvem: mean-value diesel engine model with VGT and EGR (Wahlstrom & Eriksson 2011).
 
-Functions (implemented in Rust, the GIL is released while the model runs):
+Functions (implemented in Rust; the GIL is released while the model runs, so threads run
+in parallel):
 
-- simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None) -> dict of numpy arrays
-- steady(n_e, u_delta, u_egr, u_vgt, params=None) -> dict
+- simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8,
+  cylinder_temp="converged") -> dict of numpy arrays
+- steady(n_e, u_delta, u_egr, u_vgt, params=None, model=8) -> dict
+- linearize(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None,
+  model=8) -> dict with A, B, C, D, eigenvalues, dc_gain, zeros, ...
+- step_metrics(t, y, t_step, y0, y_final, du) -> dict
+- step_response(n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", ...) -> dict
 - published_params() -> dict
 
+model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
+params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
+{"turbo.j_t": 1e-4}) or a path to a TOML/JSON parameter file.
 Units: Pa, K, kg/s, rad/s (omega_t), rpm (n_e, n_t), Nm, %, mg/cycle/cylinder.
+Errors: ValueError (bad input, options, parameters), RuntimeError (solver / no equilibrium),
+both carrying the Rust message.
 """
 
-from ._mvem import __version__, published_params, simulate, steady
+from ._mvem import (
+    __version__,
+    linearize,
+    published_params,
+    simulate,
+    steady,
+    step_metrics,
+    step_response,
+)
 
 INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
 
-__all__ = ["simulate", "steady", "published_params", "INPUT_COLUMNS", "__version__"]
+__all__ = [
+    "simulate",
+    "steady",
+    "linearize",
+    "step_metrics",
+    "step_response",
+    "published_params",
+    "INPUT_COLUMNS",
+    "__version__",
+]

@@ -1,7 +1,7 @@
 """Type stubs of mvem (the Python bindings of the Rust crate mvem-py)."""
 
 import os
-from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +12,10 @@ INPUT_COLUMNS: Tuple[str, str, str, str, str]
 #: None (published set), overrides {"group": {"field": value}} / {"group.field": value},
 #: or a path to a TOML/JSON parameter file.
 Params = Union[None, Mapping[str, Any], str, "os.PathLike[str]"]
+#: Number of states: 8 (the paper's model), 10 or 12 (section 9 extensions).
+ModelOrder = Literal[8, 10, 12]
+FloatArray = "np.ndarray[Any, np.dtype[np.float64]]"
+ComplexArray = "np.ndarray[Any, np.dtype[np.complex128]]"
 
 def simulate(
     inputs: Union[Mapping[str, npt.ArrayLike], npt.ArrayLike],
@@ -20,19 +24,99 @@ def simulate(
     rtol: float = 1e-6,
     atol: float = 1e-8,
     params: Params = None,
+    model: ModelOrder = 8,
+    cylinder_temp: Literal["converged", "one-iteration"] = "converged",
 ) -> Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"]:
     """Simulate from the steady state at the first input row.
 
     inputs: columns time_s [s], n_e_rpm [rpm], u_delta_mg [mg/cycle/cylinder], u_egr_pct [%],
-    u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns). Returns "t" [s], the 8
-    states and every signal as numpy arrays. ValueError: bad inputs/options/params;
-    RuntimeError: solver failure.
+    u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns); linear interpolation,
+    two rows with the same time make a step. t_end [s], dt [s]: end time and output interval.
+    Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
+    ValueError: bad inputs/options/params; RuntimeError: solver failure.
     """
 
 def steady(
-    n_e: float, u_delta: float, u_egr: float, u_vgt: float, params: Params = None
+    n_e: float,
+    u_delta: float,
+    u_egr: float,
+    u_vgt: float,
+    params: Params = None,
+    model: ModelOrder = 8,
 ) -> Dict[str, Union[float, bool, List[str]]]:
-    """Steady state at n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]."""
+    """Steady state at n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%].
+
+    Returns the inputs, states and signals by name (SI units), "physically_valid" and "flags".
+    """
+
+class Excursion(TypedDict):
+    value: float  # signal value (units of y)
+    time: float  # [s]
+    relative: float  # size relative to |final change| [-]
+
+class StepMetrics(TypedDict):
+    t_step: float  # [s]
+    y0: float
+    y_final: float
+    du: float
+    change: float  # y_final - y0
+    dc_gain: float  # change / du (units of y per unit of input)
+    gain_sign: Literal["positive", "negative"]
+    wrong_way: Optional[Excursion]
+    non_minimum_phase: bool
+    overshoot_pct: float  # [%]
+    peak: Optional[Excursion]
+    rise_time: Optional[float]  # 10-90 % [s]
+    settling_time: Optional[float]  # 2 % band, from the step [s]
+
+def linearize(
+    n_e: float,
+    u_delta: float,
+    u_egr: float,
+    u_vgt: float,
+    outputs: Optional[Sequence[str]] = None,
+    strict: bool = True,
+    pade_order: int = 0,
+    params: Params = None,
+    model: ModelOrder = 8,
+) -> Dict[str, Any]:
+    """Linearize at the steady state of the inputs: dx' = A dx + B du, dy = C dx + D du.
+
+    Keys: "A" (n x n) [1/s], "B" (n x 4), "C" (p x n), "D" (p x 4) float arrays; inputs in
+    "input_names" order (u_delta [mg], u_egr [%], u_vgt [%], n_e [rpm]); "state_names",
+    "output_names"; "x0", "u0", "y0"; "eigenvalues" (complex array [1/s]); "dc_gain"
+    (p x 4, output units per input unit, or None); "zeros" {"u_vgt->W_c": complex array or
+    None}; "mimo_zeros" (complex array or None); "kinks" (list of str); "delays" [s].
+    ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
+    """
+
+def step_metrics(
+    t: npt.ArrayLike,
+    y: npt.ArrayLike,
+    t_step: float,
+    y0: float,
+    y_final: float,
+    du: float,
+) -> StepMetrics:
+    """Metrics of the samples y(t) [units of y] for an input step du at t_step [s]."""
+
+def step_response(
+    n_e: float,
+    u_delta: float,
+    u_egr: float,
+    u_vgt: float,
+    input: Literal["n_e", "u_delta", "u_egr", "u_vgt"] = "u_vgt",
+    to: float = 65.0,
+    output: str = "W_c",
+    t_step: float = 1.0,
+    t_end: float = 8.0,
+    dt: float = 0.01,
+    rtol: float = 1e-6,
+    atol: float = 1e-8,
+    params: Params = None,
+    model: ModelOrder = 8,
+) -> Dict[str, Any]:
+    """Simulate a step of `input` to `to` at t_step [s]; StepMetrics of `output` plus "t", "y"."""
 
 def published_params() -> Dict[str, Dict[str, Union[float, List[float], List[List[float]]]]]:
-    """The published parameter set as a nested dict."""
+    """The published parameter set as a nested dict (SI units)."""
