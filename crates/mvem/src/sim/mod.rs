@@ -22,7 +22,7 @@ mod rosw;
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 
 use crate::components::cylinder::SeligerIterate;
-use crate::model::{Actuators, CylinderTemp, Evaluation, Model, ModelInput, Signals};
+use crate::model::{Actuators, CylinderTemp, Model, ModelInput, Signals};
 use dopri5::*;
 use std::fmt;
 
@@ -492,6 +492,13 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     pub stats: SimStats,
 }
 
+/// What the integrator keeps of a model evaluation (not the signals, which are only needed at
+/// output samples: moving them costs more than the arithmetic of a step).
+struct Rhs<const N: usize> {
+    dx: [f64; N],
+    memory_next: SeligerIterate,
+}
+
 /// Result of one trial step.
 struct Trial<const N: usize> {
     y1: [f64; N],
@@ -594,12 +601,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     }
 
     #[inline]
-    fn rhs(
-        &mut self,
-        inp: &mut SegmentInputs,
-        t: f64,
-        y: &[f64; N],
-    ) -> Result<Evaluation<N>, SimError> {
+    fn rhs(&mut self, inp: &mut SegmentInputs, t: f64, y: &[f64; N]) -> Result<Rhs<N>, SimError> {
         self.stats.rhs_evals += 1;
         let u = inp.at(t);
         let ev = self.model.eval(y, &u, self.memory);
@@ -618,7 +620,10 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                 },
             });
         }
-        Ok(ev)
+        Ok(Rhs {
+            dx: ev.dx,
+            memory_next: ev.memory_next,
+        })
     }
 
     fn output(&mut self, inp: &mut SegmentInputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
