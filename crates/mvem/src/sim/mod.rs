@@ -968,11 +968,11 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         }
         let j = self.jac.expect("Jacobian set above");
         // (I - gamma h J) is refactored only when J or h changed, e.g. not for the second of
-        // two equal steps that split a segment remainder (h equal to rounding: the factors of
+        // two equal steps that split a segment remainder (h equal up to rounding: the factors of
         // I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with J' = (h'/h) J,
-        // and a W-method admits any J').
-        let (lu, piv) = match self.lu {
-            Some((hl, lu, piv)) if (hl - h).abs() <= 1e-9 * h => (lu, piv),
+        // a W-method admits any J', and the stage terms h J' g k below use the same J').
+        let (lu, piv, js) = match self.lu {
+            Some((hl, lu, piv)) if (hl - h).abs() <= 1e-9 * h => (lu, piv, hl / h),
             _ => {
                 let mut lu = [[0.0; N]; N];
                 for r in 0..N {
@@ -987,11 +987,14 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                 }
                 self.stats.lu += 1;
                 self.lu = Some((h, lu, piv));
-                (lu, piv)
+                (lu, piv, 1.0)
             }
         };
         let y = self.y;
-        let mv = |v: &[f64; N]| linalg::mat_vec(&j, v);
+        let mv = |v: &[f64; N]| -> [f64; N] {
+            let p = linalg::mat_vec(&j, v);
+            std::array::from_fn(|i| js * p[i])
+        };
         // stage 1
         let mut k1: [f64; N] = std::array::from_fn(|i| h * f0[i]);
         linalg::lu_solve(&lu, &piv, &mut k1);
