@@ -229,9 +229,9 @@ pub const FIXED_POINT_MAX_ITER: u32 = 60;
 
 /// Cylinder-out temperature with the fixed point (24) converged (implementation notes §3,
 /// `converged`): iterate from the closed-form fixed point for x_cv = 0 (see
-/// `fixed_point_start`; (0, T_im) where that has no physical solution) until the relative change
-/// of both x_r and T_1 is <= [`FIXED_POINT_RTOL`]; T_e is the map's value at the fixed point. A pure function of the
-/// conditions, which solvers, linearization and FMUs need.
+/// `fixed_point_start`; (0, T_im) where that has no physical solution) until the relative
+/// change of both x_r and T_1 is <= [`FIXED_POINT_RTOL`]; T_e is the map's value at the fixed
+/// point. A pure function of the conditions, which solvers, linearization and FMUs need.
 pub fn cylinder_out_temp_converged(
     gas: &Gas,
     cyl: &Cylinder,
