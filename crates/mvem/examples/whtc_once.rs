@@ -1,16 +1,83 @@
-//! One WHTC run with the default options and 0.1 s output (for instruction counting:
-//! `valgrind --tool=callgrind target/release/examples/whtc_once`).
+//! One WHTC run with the default options and 0.1 s output, for instruction counting:
+//! `valgrind --tool=callgrind target/release/examples/whtc_once`.
+//!
+//! With `--check REF.csv` it also prints the largest scaled deviation (p_im, p_em by 1e5 Pa,
+//! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
+//! in REF.csv. `--rtol R` sets the tolerance of the measured run.
 use mvem::model::Engine8;
-use mvem::sim::{simulate, SimOptions, Start};
+use mvem::sim::{simulate, SimOptions, Solution, Start};
+
+const COMPARE: [(&str, f64); 5] = [
+    ("p_im", 1e5),
+    ("p_em", 1e5),
+    ("X_Oim", 0.1),
+    ("X_Oem", 0.1),
+    ("omega_t", 1e4),
+];
+
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let arg = |k: &str| {
+        args.iter()
+            .position(|a| a == k)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
     let m = Engine8::published();
     let text = include_str!("../../../data/whtc_inputs_10hz.csv");
     let sched = mvem::io::csv_inputs::parse_inputs_csv(text, std::path::Path::new("whtc")).unwrap();
     let opts = SimOptions {
         dt_out: 0.1,
+        rtol: arg("--rtol").map_or(1e-6, |r| r.parse().expect("--rtol")),
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();
     let s = simulate(&m, &sched, 0.0, 1800.0, Start::SteadyState, &opts).unwrap();
     println!("{:?} {:?}", t.elapsed(), s.stats);
+    if let Some(path) = arg("--check") {
+        let reference: Vec<Vec<f64>> = match std::fs::read_to_string(&path) {
+            Ok(txt) => txt
+                .lines()
+                .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+                .collect(),
+            Err(_) => {
+                let ro = SimOptions {
+                    rtol: 1e-10,
+                    atol: 1e-12,
+                    ..opts.clone()
+                };
+                let r = simulate(&m, &sched, 0.0, 1800.0, Start::SteadyState, &ro).unwrap();
+                let cols = columns(&r);
+                let txt: Vec<String> = cols
+                    .iter()
+                    .map(|c| {
+                        c.iter()
+                            .map(|v| format!("{v:e}"))
+                            .collect::<Vec<_>>()
+                            .join(",")
+                    })
+                    .collect();
+                std::fs::write(&path, txt.join("\n")).unwrap();
+                cols
+            }
+        };
+        let mine = columns(&s);
+        let mut worst = 0.0f64;
+        for (k, (name, scale)) in COMPARE.iter().enumerate() {
+            let d = mine[k]
+                .iter()
+                .zip(&reference[k])
+                .map(|(a, b)| (a - b).abs() / scale)
+                .fold(0.0, f64::max);
+            print!("{name} {d:.2e}  ");
+            worst = worst.max(d);
+        }
+        println!("\nmax dev {worst:.2e}");
+    }
+}
+
+fn columns(s: &Solution) -> Vec<Vec<f64>> {
+    COMPARE
+        .iter()
+        .map(|(n, _)| s.get(n).unwrap().to_vec())
+        .collect()
 }

@@ -182,6 +182,33 @@ pub fn cylinder_out_temp_step(
     seliger_map(gas, cyl, &k, s.t_im, old, sem)
 }
 
+/// Start of the fixed-point iteration: the exact fixed point of the map for x_cv = 0
+/// (constant-pressure combustion only), where eqs (17)-(24) reduce to closed form. With
+/// K = eta_sc Pi_e / r_c and M = q_scale (1 - K) / (c_pa r_c^(gamma_a - 1) T_im):
+/// ```text
+/// x_r = Pi_e^(1/gamma_a) / (r_c (1 + M)),   T_1 = (1 - x_r) T_im / (1 - K)
+/// ```
+/// (x_r T_e = K T_1 and x_v = 1 + M at the fixed point). For the published x_cv = 2.3e-14 this
+/// is within about 1e-13 of the true fixed point, so the iteration usually stops after one
+/// application of the map. If the closed form has no physical solution (K >= 1, or outside the
+/// saturations of the authors' implementation) the iteration starts from (0, T_im) instead.
+#[inline]
+fn fixed_point_start(gas: &Gas, cyl: &Cylinder, k: &SeligerConsts, t_im: f64) -> SeligerIterate {
+    let kk = cyl.eta_sc * k.pi_e_ig * k.pi_e_1ig / cyl.r_c;
+    let m = k.q_scale * (1.0 - kk) / (gas.c_pa * k.rc_g1 * t_im);
+    let x_r = k.pi_e_ig / (cyl.r_c * (1.0 + m)); // eq. (22) with x_p = 1
+    let t_1 = (1.0 - x_r) * t_im / (1.0 - kk); // eq. (21) with x_r T_e = K T_1
+    let t_e = kk * t_1 / x_r;
+    if kk < 1.0 && (0.0..=1.0).contains(&x_r) && t_1 >= 273.0 && t_e <= 1500.0 && t_1.is_finite() {
+        SeligerIterate { x_r, t_1 }
+    } else {
+        SeligerIterate {
+            x_r: 0.0,
+            t_1: t_im,
+        }
+    }
+}
+
 /// Result of the converged fixed point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SeligerFixedPoint {
@@ -201,9 +228,10 @@ pub const FIXED_POINT_RTOL: f64 = 1e-12;
 pub const FIXED_POINT_MAX_ITER: u32 = 60;
 
 /// Cylinder-out temperature with the fixed point (24) converged (implementation notes §3,
-/// `converged`): iterate from (x_r, T_1) = (0, T_im) until the relative change of both is
-/// <= [`FIXED_POINT_RTOL`]; T_e is the map's value at the fixed point. A pure function of the
-/// conditions, which solvers, linearization and FMUs need.
+/// `converged`): iterate from the closed-form fixed point for x_cv = 0 (see
+/// `fixed_point_start`; (0, T_im) where that has no physical solution) until the relative
+/// change of both x_r and T_1 is <= [`FIXED_POINT_RTOL`]; T_e is the map's value at the fixed
+/// point. A pure function of the conditions, which solvers, linearization and FMUs need.
 pub fn cylinder_out_temp_converged(
     gas: &Gas,
     cyl: &Cylinder,
@@ -212,10 +240,7 @@ pub fn cylinder_out_temp_converged(
     sem: Semantics,
 ) -> SeligerFixedPoint {
     let k = SeligerConsts::new(gas, cyl, cc, s);
-    let mut it = SeligerIterate {
-        x_r: 0.0,
-        t_1: s.t_im,
-    };
+    let mut it = fixed_point_start(gas, cyl, &k, s.t_im);
     let small = |a: f64, b: f64| (a - b).abs() <= FIXED_POINT_RTOL * b.abs();
     let mut prev: Option<SeligerIterate> = None;
     let mut step = seliger_map(gas, cyl, &k, s.t_im, it, sem);
@@ -421,6 +446,45 @@ mod tests {
         // T_1 = x_r T_e + (1 - x_r) T_im at the fixed point (eq. (21)).
         let t1 = fp.at.x_r * fp.t_e + (1.0 - fp.at.x_r) * s.t_im;
         assert!((t1 / fp.at.t_1 - 1.0).abs() < 1e-11);
+    }
+
+    #[test]
+    fn closed_form_start_matches_the_iteration_from_the_cold_start() {
+        // The fixed point reached from the x_cv = 0 closed form agrees with plain iteration of
+        // the map from (0, T_im), and for the published x_cv the start is already converged.
+        let p = Params::published();
+        let cc = CylinderConsts::new(&p.gas, &p.cylinder);
+        for (pi_e, w_f, w_ei) in [(1.3, 0.00825, 0.3), (0.9, 0.001, 0.05), (2.5, 0.02, 0.4)] {
+            let s = SeligerInputs {
+                pi_e,
+                w_f,
+                w_ei,
+                t_im: p.intake_manifold.t_im,
+            };
+            for cyl in [p.cylinder.clone(), {
+                let mut c = p.cylinder.clone();
+                c.x_cv = 0.4; // a real constant-volume share: the start is only a guess
+                c
+            }] {
+                let fp = cylinder_out_temp_converged(&p.gas, &cyl, &cc, &s, Semantics::Authors);
+                assert!(fp.converged, "{fp:?}");
+                let mut it = SeligerIterate {
+                    x_r: 0.0,
+                    t_1: s.t_im,
+                };
+                let mut t_e = 0.0;
+                for _ in 0..200 {
+                    let st = cylinder_out_temp_step(&p.gas, &cyl, &cc, &s, it, Semantics::Authors);
+                    it = st.next;
+                    t_e = st.t_e;
+                }
+                assert!((fp.t_e / t_e - 1.0).abs() < 1e-11, "{} {}", fp.t_e, t_e);
+                assert!((fp.at.x_r / it.x_r - 1.0).abs() < 1e-11);
+                if cyl.x_cv < 1e-10 {
+                    assert!(fp.iterations <= 2, "{fp:?}");
+                }
+            }
+        }
     }
 
     #[test]

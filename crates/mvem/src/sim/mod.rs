@@ -22,7 +22,7 @@ mod rosw;
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 
 use crate::components::cylinder::SeligerIterate;
-use crate::model::{Actuators, CylinderTemp, Evaluation, Model, ModelInput, Signals};
+use crate::model::{Actuators, CylinderTemp, Model, ModelInput, Signals};
 use dopri5::*;
 use std::fmt;
 
@@ -295,11 +295,12 @@ pub struct SegmentInputs<'a> {
     tau_egr: f64,
     tau_vgt: f64,
     hints: [usize; 6],
-    /// Cached linear piece per lookup: (t_lo, t_hi, t_ref, v_ref, slope).
+    /// Cached linear piece per lookup: (t_lo, t_hi, t_ref, v_ref, slope). Pieces come from the
+    /// schedule alone, so the cache stays valid from one segment to the next.
     pieces: [(f64, f64, f64, f64, f64); 6],
-    /// Segment bounds: inputs are evaluated at times clamped strictly inside.
-    a: f64,
-    b: f64,
+    /// Lookup window per lookup: inputs are evaluated at times clamped strictly inside the
+    /// segment (shifted back by the lookup's delay), or unclamped if the segment is too short.
+    window: [(f64, f64); 6],
 }
 
 impl<'a> SegmentInputs<'a> {
@@ -311,14 +312,33 @@ impl<'a> SegmentInputs<'a> {
         b: f64,
     ) -> Self {
         let p = model.params();
-        Self {
+        let mut me = Self {
             sched,
             tau_egr: p.egr_actuator.tau_degr,
             tau_vgt: p.vgt_actuator.tau_dvgt,
             hints: [0; 6],
             pieces: [(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 6],
-            a,
-            b,
+            window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
+        };
+        me.set_segment(a, b);
+        me
+    }
+
+    /// Move to the segment `[a, b]` (keeps the search cursors and cached pieces).
+    pub fn set_segment(&mut self, a: f64, b: f64) {
+        for (k, w) in self.window.iter_mut().enumerate() {
+            let shift = match k {
+                4 => self.tau_egr,
+                5 => self.tau_vgt,
+                _ => 0.0,
+            };
+            let lo = a - shift + Self::delta(a);
+            let hi = b - shift - Self::delta(b);
+            *w = if hi > lo {
+                (lo, hi)
+            } else {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            };
         }
     }
 
@@ -328,20 +348,15 @@ impl<'a> SegmentInputs<'a> {
     }
 
     #[inline]
-    fn value(&mut self, ch: usize, hint: usize, t: f64, shift: f64) -> f64 {
-        let lo = self.a - shift + Self::delta(self.a);
-        let hi = self.b - shift - Self::delta(self.b);
-        let tq = if hi > lo {
-            (t - shift).clamp(lo, hi)
-        } else {
-            t - shift
-        };
-        let (lo, hi, t_ref, v_ref, slope) = self.pieces[hint];
+    fn value(&mut self, ch: usize, k: usize, t: f64, shift: f64) -> f64 {
+        let (lo, hi) = self.window[k];
+        let tq = (t - shift).clamp(lo, hi);
+        let (lo, hi, t_ref, v_ref, slope) = self.pieces[k];
         if lo <= tq && tq <= hi {
             return v_ref + slope * (tq - t_ref);
         }
-        let pc = self.sched.piece(ch, tq, Side::Right, &mut self.hints[hint]);
-        self.pieces[hint] = pc;
+        let pc = self.sched.piece(ch, tq, Side::Right, &mut self.hints[k]);
+        self.pieces[k] = pc;
         pc.3 + pc.4 * (tq - pc.2)
     }
 
@@ -470,9 +485,18 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     next_out: u64,
     t_out0: f64,
     jac: Option<[[f64; N]; N]>,
+    /// LU factors of I - gamma h J for the current Jacobian, with the h they were made for.
+    lu: Option<(f64, [[f64; N]; N], [usize; N])>,
     jac_age: usize,
     /// Statistics so far.
     pub stats: SimStats,
+}
+
+/// What the integrator keeps of a model evaluation (not the signals, which are only needed at
+/// output samples: moving them costs more than the arithmetic of a step).
+struct Rhs<const N: usize> {
+    dx: [f64; N],
+    memory_next: SeligerIterate,
 }
 
 /// Result of one trial step.
@@ -558,6 +582,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             next_out: 0,
             t_out0: t0,
             jac: None,
+            lu: None,
             jac_age: usize::MAX,
             stats: SimStats::default(),
         };
@@ -576,12 +601,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     }
 
     #[inline]
-    fn rhs(
-        &mut self,
-        inp: &mut SegmentInputs,
-        t: f64,
-        y: &[f64; N],
-    ) -> Result<Evaluation<N>, SimError> {
+    fn rhs(&mut self, inp: &mut SegmentInputs, t: f64, y: &[f64; N]) -> Result<Rhs<N>, SimError> {
         self.stats.rhs_evals += 1;
         let u = inp.at(t);
         let ev = self.model.eval(y, &u, self.memory);
@@ -600,7 +620,10 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                 },
             });
         }
-        Ok(ev)
+        Ok(Rhs {
+            dx: ev.dx,
+            memory_next: ev.memory_next,
+        })
     }
 
     fn output(&mut self, inp: &mut SegmentInputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
@@ -629,9 +652,9 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         };
         let mut seg_ends: Vec<(f64, bool)> = stops;
         seg_ends.push((t_end, false));
+        let mut inp = self.inputs(self.t, t_end);
         for (b, jump) in seg_ends {
-            let a = self.t;
-            let mut inp = self.inputs(a, b);
+            inp.set_segment(self.t, b);
             self.segment(&mut inp, b, sol)?;
             if b < t_end {
                 self.stats.breakpoints += 1;
@@ -727,6 +750,10 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             let last = t + h * 1.01 >= b;
             if last {
                 h = b - t;
+            } else if t + 2.0 * h > b {
+                // two equal steps instead of a full one and a short remainder (the short step
+                // would also shrink the next segment's first step)
+                h = 0.5 * (b - t);
             }
             if h <= 1e-14 * t.abs().max(1.0) {
                 if last {
@@ -937,22 +964,37 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             let j = self.jacobian(inp, t, f0)?;
             self.jac = Some(j);
             self.jac_age = 0;
+            self.lu = None;
         }
         let j = self.jac.expect("Jacobian set above");
-        let mut lu = [[0.0; N]; N];
-        for r in 0..N {
-            for c in 0..N {
-                lu[r][c] = -GAMMA * h * j[r][c];
+        // (I - gamma h J) is refactored only when J or h changed, e.g. not for the second of
+        // two equal steps that split a segment remainder (h equal up to rounding: the factors of
+        // I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with J' = (h'/h) J,
+        // a W-method admits any J', and the stage terms h J' g k below use the same J').
+        let (lu, piv, js) = match self.lu {
+            Some((hl, lu, piv)) if (hl - h).abs() <= 1e-9 * h => (lu, piv, hl / h),
+            _ => {
+                let mut lu = [[0.0; N]; N];
+                for r in 0..N {
+                    for c in 0..N {
+                        lu[r][c] = -GAMMA * h * j[r][c];
+                    }
+                    lu[r][r] += 1.0;
+                }
+                let mut piv = [0usize; N];
+                if !linalg::lu_factor(&mut lu, &mut piv) {
+                    return Err(self.singular(t, h));
+                }
+                self.stats.lu += 1;
+                self.lu = Some((h, lu, piv));
+                (lu, piv, 1.0)
             }
-            lu[r][r] += 1.0;
-        }
-        let mut piv = [0usize; N];
-        if !linalg::lu_factor(&mut lu, &mut piv) {
-            return Err(self.singular(t, h));
-        }
-        self.stats.lu += 1;
+        };
         let y = self.y;
-        let mv = |v: &[f64; N]| linalg::mat_vec(&j, v);
+        let mv = |v: &[f64; N]| -> [f64; N] {
+            let p = linalg::mat_vec(&j, v);
+            std::array::from_fn(|i| js * p[i])
+        };
         // stage 1
         let mut k1: [f64; N] = std::array::from_fn(|i| h * f0[i]);
         linalg::lu_solve(&lu, &piv, &mut k1);
