@@ -46,6 +46,12 @@ enum Command {
     Bench(commands::bench::Args),
     /// Show or check parameter sets.
     Params(commands::params::Args),
+    /// Virtual test cell: a tuning campaign generated from a parameter set, with noise.
+    Lab(commands::lab::Args),
+    /// Parameter estimation: the paper's five tuning steps on a campaign.
+    Tune(commands::tune::Args),
+    /// Relative errors of a parameter set on a campaign: tables and figures.
+    Validate(commands::validate::Args),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +73,9 @@ fn main() -> ExitCode {
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),
+        Command::Lab(a) => commands::lab::run(a),
+        Command::Tune(a) => commands::tune::run(a),
+        Command::Validate(a) => commands::validate::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

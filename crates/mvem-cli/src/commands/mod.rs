@@ -2,6 +2,9 @@
 
 pub mod bench;
 pub mod demo;
+pub mod lab;
 pub mod params;
 pub mod simulate;
 pub mod steady;
+pub mod tune;
+pub mod validate;
