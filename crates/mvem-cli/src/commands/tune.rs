@@ -48,6 +48,9 @@ pub struct Args {
     /// beta of eq. (77).
     #[arg(long, default_value_t = 1.0)]
     pub beta: f64,
+    /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper).
+    #[arg(long = "refine-dynamics")]
+    pub refine_dynamics: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
     pub max_evals: usize,
@@ -104,6 +107,7 @@ pub fn run(a: &Args) -> Result<()> {
         ..PipelineOptions::default()
     };
     opts.step5.beta = a.beta;
+    opts.refine_dynamics = a.refine_dynamics;
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
@@ -231,6 +235,9 @@ pub fn markdown(
             "Step 5: complete model on the static-tuning sets (eq. (5))",
             &r.dynamic,
         );
+    }
+    if let Some(r) = &rep.step3_refined {
+        table(&mut s, "Step 3 repeated after step 5", &r.errors);
     }
     let mut names: Vec<&str> = vec![
         "tau_egr1", "tau_egr2", "tau_degr", "k_egr", "tau_vgt", "tau_dvgt", "v_im", "v_em", "j_t",

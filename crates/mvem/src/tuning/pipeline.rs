@@ -43,6 +43,10 @@ pub struct PipelineOptions {
     pub step3_max_eval: usize,
     /// Step 5 options (cost rows, beta, gamma_j, evaluation limit).
     pub step5: Step5Options,
+    /// After step 5, run steps 3 and 4 again with the final static parameters (not in the
+    /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
+    /// V_em; see docs/tuning.md).
+    pub refine_dynamics: bool,
 }
 
 impl Default for PipelineOptions {
@@ -53,6 +57,7 @@ impl Default for PipelineOptions {
             step3: Step3Start::default(),
             step3_max_eval: 100,
             step5: Step5Options::default(),
+            refine_dynamics: false,
         }
     }
 }
@@ -98,6 +103,10 @@ pub struct TuneReport {
     pub tau_me_s: Option<f64>,
     /// Step 5.
     pub step5: Option<Step5Report>,
+    /// Step 3 repeated after step 5 (option `refine_dynamics`).
+    pub step3_refined: Option<CompleteReport>,
+    /// Step 4 repeated after step 5 (option `refine_dynamics`).
+    pub step4_refined: Option<CompleteReport>,
     /// Wall time of each step [s] (0 when not run).
     pub seconds: [f64; 5],
     /// Total wall time [s].
@@ -144,6 +153,8 @@ pub fn tune(
         step4: None,
         tau_me_s: None,
         step5: None,
+        step3_refined: None,
+        step4_refined: None,
         seconds: [0.0; 5],
         total_seconds: 0.0,
     };
@@ -210,6 +221,27 @@ pub fn tune(
         p = q;
         rep.step5 = Some(r);
         rep.seconds[4] = t.elapsed().as_secs_f64();
+    }
+    if opts.refine_dynamics && opts.steps[4] {
+        let t = Instant::now();
+        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
+        if !sets.is_empty() {
+            let (q, r) =
+                step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
+            p = q;
+            rep.step3_refined = Some(r);
+        }
+        if let Some(set) = infos
+            .iter()
+            .zip(&c.dynamic)
+            .find(|(i, _)| i.roles.contains(&Role::Dynamic) && i.kind == StepKind::Fuel)
+            .map(|(_, d)| d)
+        {
+            let (tau, r) = step4(&p, set, &c.stationary).map_err(at(4))?;
+            rep.tau_me_s = Some(tau);
+            rep.step4_refined = Some(r);
+        }
+        rep.seconds[2] += t.elapsed().as_secs_f64();
     }
     p.validate().map_err(|e| PipelineError {
         step: opts

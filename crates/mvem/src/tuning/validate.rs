@@ -142,7 +142,7 @@ pub fn sample_interval(d: &DynamicData) -> f64 {
 
 /// Simulated outputs at the sample times of `d`: (name, values) for p_im, p_em, W_c, n_t and
 /// M_e; with `tau_me` the simulated torque is passed through the dynamometer lag of eq. (76)
-/// (on a grid of at most 0.1 s) before sampling.
+/// (on a grid of at most 0.02 s) before sampling.
 pub fn simulated_outputs(
     p: &Params,
     d: &DynamicData,
@@ -150,7 +150,7 @@ pub fn simulated_outputs(
     rtol: f64,
 ) -> Result<Vec<(&'static str, Vec<f64>)>, String> {
     let dt = sample_interval(d);
-    let dt_out = if tau_me.is_some() { dt.min(0.1) } else { dt };
+    let dt_out = if tau_me.is_some() { dt.min(0.02) } else { dt };
     let sol = simulate_set(p, d, dt_out, rtol)?;
     let ts = sol.t();
     let mut out = Vec::new();
