@@ -25,8 +25,7 @@
 //!
 //! Relative errors are those of eq. (4): (measured - modelled) / mean(measured).
 //!
-//! Not yet implemented: step 3 (V_im, V_em, J_t by eqs (74)-(75)), step 4 (tau_Me, eq. (76)),
-//! step 5 (cost (77)).
+//! Steps 3-5 (complete model) are in [`super::complete`], the chain in [`super::pipeline`].
 
 use super::data::{DynamicData, StationaryPoint};
 use super::lab::{egr_step_response, vgt_step_response};
