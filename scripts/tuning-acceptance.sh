@@ -9,7 +9,7 @@ cargo build --release -p mvem-cli
 MVEM=target/release/mvem
 mkdir -p "$OUT"
 $MVEM lab --out "$OUT/campaign" --seed 1 --noise realistic
-tau() { grep -o '"tau_me_s": [0-9.e-]*' "$1/tune_report.json" | awk '{print $2}'; }
+tau() { { grep -o '"tau_me_s": [0-9.e-]*' "$1/tune_report.json" || true; } | awk '{print $2}'; }
 # full method, steps 1-5
 /usr/bin/time -v $MVEM tune --data "$OUT/campaign" --out "$OUT/full.toml" --report "$OUT/full" \
   2> "$OUT/full.time" > /dev/null
