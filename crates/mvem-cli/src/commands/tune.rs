@@ -112,6 +112,24 @@ pub fn run(a: &Args) -> Result<()> {
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
     let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
+    // searches stopped by their evaluation limit: results are written, with a warning
+    for (step, conv) in [
+        (3, rep.step3.as_ref().map(|r| r.converged)),
+        (4, rep.step4.as_ref().map(|r| r.converged)),
+        (5, rep.step5.as_ref().map(|r| r.converged)),
+    ] {
+        if conv == Some(false) {
+            eprintln!(
+                "warning: step {step} stopped at its evaluation limit before a convergence test \
+                 was met{}",
+                if step == 5 {
+                    " (raise --max-evals)"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
     // truth, if the campaign is virtual
     let truth = c
         .manifest
