@@ -67,6 +67,12 @@ enum Command {
     Params(commands::params::Args),
     /// Package an FMI 2.0 FMU (Model Exchange + Co-Simulation) of the 8-, 10- or 12-state model.
     Fmu(commands::fmu::Args),
+    /// Virtual test cell: a tuning campaign generated from a parameter set, with noise.
+    Lab(commands::lab::Args),
+    /// Parameter estimation: the paper's five tuning steps on a campaign.
+    Tune(commands::tune::Args),
+    /// Relative errors of a parameter set on a campaign: tables and figures.
+    Validate(commands::validate::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -105,6 +111,9 @@ fn main() -> ExitCode {
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),
         Command::Fmu(a) => commands::fmu::run(a),
+        Command::Lab(a) => commands::lab::run(a),
+        Command::Tune(a) => commands::tune::run(a),
+        Command::Validate(a) => commands::validate::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -130,14 +130,12 @@ fn step1_noisy_submodel_errors_bounded() {
     // both pressures gives tens of per cent at single points (the paper: 6.1 % mean, 22.2 %
     // max on real data).
     let bound = |s: &str| match s {
-        "eta_c" | "eta_tm" => 0.03,
+        // W_c: Psi_c and Phi_c carry the noise of n_t (squared) and p_c as well
+        "eta_c" | "eta_tm" | "W_c" => 0.03,
         "W_egr" => 0.08,
         _ => 0.012,
     };
-    // KNOWN FAILURE, excluded here: the compressor flow fit (W_c) on noisy data ends at
-    // coefficients where the authors' guards cut the flow (about 100 % error); see
-    // docs/tuning.md. It is exact on noise-free data (test above).
-    for f in rep.fits.iter().filter(|f| f.submodel != "W_c") {
+    for f in &rep.fits {
         eprintln!(
             "{:8} mean {:.2e} max {:.2e}",
             f.submodel, f.mean_abs_rel_err, f.max_abs_rel_err
@@ -151,13 +149,18 @@ fn step1_noisy_submodel_errors_bounded() {
     }
     // The tuned submodels predict the noise-free truth (eq. (4) against the true outputs).
     let v = validate::stationary_errors(&q, &truth).unwrap();
-    for r in v.iter().filter(|r| r.output != "W_c") {
+    for r in &v {
         eprintln!(
             "vs truth {:8} mean {:.2e} max {:.2e}",
             r.output, r.mean_abs_rel_err, r.max_abs_rel_err
         );
         assert!(
-            r.mean_abs_rel_err < if r.output == "eta_c" { 0.02 } else { 0.01 },
+            r.mean_abs_rel_err
+                < if r.output == "eta_c" || r.output == "W_c" {
+                    0.02
+                } else {
+                    0.01
+                },
             "{}: {}",
             r.output,
             r.mean_abs_rel_err
@@ -224,7 +227,8 @@ fn validation_tables_dynamic_and_actuator() {
     assert_eq!(set.t.len(), 101);
     let (truth, _) = stationary(Noise::NONE, 15, 3);
     // the same model on its own data: only the resampling of the commands differs
-    let own = validate::dynamic_errors(&p, &set, &truth).unwrap();
+    // the measured torque is M_dynamo (eq. (76), tau_Me = 1 s in the lab): filter the model too
+    let own = validate::dynamic_errors_with(&p, &set, &truth, Some(opts.tau_me_s)).unwrap();
     assert_eq!(own.outputs.len(), 5);
     for o in &own.outputs {
         assert!(

@@ -256,6 +256,9 @@ pub struct Manifest {
     pub stationary: String,
     /// Parameter file of the data-generating model, if the data are virtual (relative path).
     pub true_params: Option<String>,
+    /// True dynamometer time constant tau_Me of eq. (76) [s], if the data are virtual.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub true_tau_me_s: Option<f64>,
     /// Description of how the data were obtained (noise, seed, ...).
     pub description: String,
     /// Dynamic data sets.

@@ -29,8 +29,20 @@
 //! enthalpy drop, T_t = T_em (1 - eta_tm (1 - Pi_t^(1 - 1/gamma_e))) (eqs (45)-(48), the
 //! mechanical losses lumped into eta_tm). No tuning step uses it.
 //!
-//! Not yet generated: the dynamic VGT/EGR and fuel step sets A-I, Q-V (Table 1) and sensor time
-//! constants (Table 6).
+//! - **Dynamic sets A-I, Q-V** (Table 1, [`TABLE1`]): at the speeds, loads, step counts and
+//!   sample rates of the table. VGT/EGR sets: constant speed and fuel, each step changes the
+//!   VGT or the EGR command (alternating at random) to a new level drawn uniformly (EGR 0 % to
+//!   the vertex of the area polynomial, VGT 25-100 %, at least 5 % change), held
+//!   [`Table1Row::hold_s`] (6 s at 1 Hz, 4 s for the 100 Hz sets B and Q, 6 s for C, 10 s for
+//!   H); fuel sets (I, V) at 1500 r/min step u_delta between 30 and 90 % load at fixed EGR and
+//!   VGT. The paper does not give the hold times or the step levels: these are our choice.
+//!   Each set is simulated with the 8-state model from the steady state of its first commands
+//!   on a 100 Hz grid (500 Hz with sensor lags) and sampled at its rate; a set whose
+//!   simulation fails is redrawn.
+//! - **Dynamometer**: the measured torque is M_dynamo of eq. (76), M_e through a first-order
+//!   lag with [`LabOptions::tau_me_s`] (default 1 s, the torque-sensor time constant of Table 6).
+//! - **Sensor time constants** (optional, [`LabOptions::sensor_lags`]): first-order lags with
+//!   the maxima of Table 6 (n_t 6 ms, p_em 20 ms, p_im 15 ms, W_c 20 ms).
 
 use super::data::{
     Campaign, DataError, DataSetInfo, DynamicData, Manifest, Role, StationaryPoint, StepKind,
@@ -41,6 +53,7 @@ use crate::model::{Drive, Engine8, Model, ModelOptions};
 use crate::params::Params;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// Fuel at 100 % load [mg/cycle/cylinder].
@@ -79,6 +92,16 @@ pub struct LabOptions {
     pub n_stationary: usize,
     /// Hold time of each actuator step in set J [s].
     pub step_hold_s: f64,
+    /// Generate the dynamic sets of Table 1 (A-I, Q-V).
+    pub dynamic: bool,
+    /// Only these dynamic sets (names of Table 1; None: all).
+    pub sets: Option<Vec<String>>,
+    /// At most this many steps per dynamic set (None: the counts of Table 1).
+    pub max_steps: Option<usize>,
+    /// Dynamometer time constant tau_Me of eq. (76) [s] (0: the torque is measured directly).
+    pub tau_me_s: f64,
+    /// Apply the sensor time constants of Table 6 to n_t, p_em, p_im, W_c.
+    pub sensor_lags: bool,
 }
 
 impl Default for LabOptions {
@@ -88,6 +111,11 @@ impl Default for LabOptions {
             noise: Noise::REALISTIC,
             n_stationary: 82,
             step_hold_s: 1.0,
+            dynamic: true,
+            sets: None,
+            max_steps: None,
+            tau_me_s: 1.0,
+            sensor_lags: false,
         }
     }
 }
@@ -349,32 +377,248 @@ pub fn campaign(
     let (truth, meas) = stationary(p, opts)?;
     let j = actuator_set(p, opts);
     let (egr, vgt) = actuator_levels();
+    let mut infos = Vec::new();
+    let mut dynamic = Vec::new();
+    if opts.dynamic {
+        for (info, d) in dynamic_sets(p, opts)? {
+            infos.push(info);
+            dynamic.push(d);
+        }
+    }
+    infos.push(DataSetInfo {
+        name: "J".into(),
+        roles: vec![Role::Actuator],
+        kind: StepKind::Actuator,
+        file: "J.csv".into(),
+        sample_rate_hz: 100.0,
+        speed_rpm: None,
+        load_pct: None,
+        steps: egr.len() + vgt.len() - 2,
+    });
+    dynamic.push(j);
     let manifest = Manifest {
         stationary: "stationary.csv".into(),
         true_params: Some("true_params.toml".into()),
+        true_tau_me_s: (opts.dynamic && opts.tau_me_s > 0.0).then_some(opts.tau_me_s),
         description: format!(
-            "virtual test cell (mvem::tuning::lab), seed {}, noise {} relative / {} K gaussian",
-            opts.seed, opts.noise.rel, opts.noise.temp_k
+            "virtual test cell (mvem::tuning::lab), seed {}, noise {} relative / {} K gaussian, \
+             dynamometer tau_Me {} s, sensor lags {}",
+            opts.seed,
+            opts.noise.rel,
+            opts.noise.temp_k,
+            opts.tau_me_s,
+            if opts.sensor_lags { "Table 6" } else { "none" }
         ),
-        datasets: vec![DataSetInfo {
-            name: "J".into(),
-            roles: vec![Role::Actuator],
-            kind: StepKind::Actuator,
-            file: "J.csv".into(),
-            sample_rate_hz: 100.0,
-            speed_rpm: None,
-            load_pct: None,
-            steps: egr.len() + vgt.len() - 2,
-        }],
+        datasets: infos,
     };
     Ok((
         Campaign {
             manifest,
             stationary: meas,
-            dynamic: vec![j],
+            dynamic,
         },
         truth,
     ))
+}
+
+/// One dynamic data set of the paper's Table 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Table1Row {
+    /// Name (A-I, Q-V).
+    pub name: &'static str,
+    /// What is stepped.
+    pub kind: StepKind,
+    /// Roles (Table 1 caption: B, C, I dynamic tuning; A-I static tuning; A, D-I and Q-V
+    /// validation).
+    pub roles: &'static [Role],
+    /// Engine speed [r/min].
+    pub speed_rpm: f64,
+    /// Load [%] (VGT/EGR sets).
+    pub load_pct: Option<f64>,
+    /// Number of steps.
+    pub steps: usize,
+    /// Sample rate [Hz].
+    pub sample_rate_hz: f64,
+    /// Hold time of each step [s] (our choice; the paper does not give it).
+    pub hold_s: f64,
+}
+
+const ST_VA: &[Role] = &[Role::Static, Role::Validation];
+const DY_ST: &[Role] = &[Role::Dynamic, Role::Static];
+const VA: &[Role] = &[Role::Validation];
+
+#[allow(clippy::too_many_arguments)]
+const fn row(
+    name: &'static str,
+    kind: StepKind,
+    roles: &'static [Role],
+    speed_rpm: f64,
+    load: f64,
+    steps: usize,
+    sample_rate_hz: f64,
+    hold_s: f64,
+) -> Table1Row {
+    Table1Row {
+        name,
+        kind,
+        roles,
+        speed_rpm,
+        load_pct: if load > 0.0 { Some(load) } else { None },
+        steps,
+        sample_rate_hz,
+        hold_s,
+    }
+}
+
+/// The dynamic sets of Table 1 (J, the actuator set, is [`actuator_set`]).
+pub const TABLE1: [Table1Row; 15] = [
+    row("A", StepKind::VgtEgr, ST_VA, 1200.0, 25.0, 77, 1.0, 6.0),
+    row("B", StepKind::VgtEgr, DY_ST, 1200.0, 40.0, 23, 100.0, 4.0),
+    row("Q", StepKind::VgtEgr, VA, 1200.0, 40.0, 12, 100.0, 4.0),
+    row("C", StepKind::VgtEgr, DY_ST, 1200.0, 50.0, 2, 100.0, 6.0),
+    row("R", StepKind::VgtEgr, VA, 1200.0, 50.0, 77, 1.0, 6.0),
+    row("D", StepKind::VgtEgr, ST_VA, 1200.0, 75.0, 77, 1.0, 6.0),
+    row("S", StepKind::VgtEgr, VA, 1500.0, 25.0, 77, 1.0, 6.0),
+    row("E", StepKind::VgtEgr, ST_VA, 1500.0, 50.0, 77, 1.0, 6.0),
+    row("T", StepKind::VgtEgr, VA, 1500.0, 75.0, 77, 1.0, 6.0),
+    row("F", StepKind::VgtEgr, ST_VA, 1900.0, 25.0, 77, 1.0, 6.0),
+    row("U", StepKind::VgtEgr, VA, 1900.0, 50.0, 77, 1.0, 6.0),
+    row("G", StepKind::VgtEgr, ST_VA, 1900.0, 75.0, 55, 1.0, 6.0),
+    row("H", StepKind::VgtEgr, ST_VA, 1900.0, 100.0, 1, 100.0, 10.0),
+    row(
+        "I",
+        StepKind::Fuel,
+        &[Role::Dynamic, Role::Static, Role::Validation],
+        1500.0,
+        0.0,
+        7,
+        10.0,
+        5.0,
+    ),
+    row("V", StepKind::Fuel, VA, 1500.0, 0.0, 28, 1.0, 6.0),
+];
+
+fn name_seed(seed: u64, name: &str) -> u64 {
+    seed ^ name
+        .bytes()
+        .fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64)
+}
+
+/// Initial drive and command steps of a Table 1 set (draw `attempt` of the set's sequence).
+fn table1_steps(
+    p: &Params,
+    r: &Table1Row,
+    n_steps: usize,
+    seed: u64,
+    attempt: u64,
+) -> (Drive, Vec<(f64, usize, f64)>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(name_seed(seed, r.name).wrapping_add(attempt));
+    let vertex = (-p.egr_valve.c_egr[1] / (2.0 * p.egr_valve.c_egr[0])).clamp(0.0, 100.0);
+    let egr_max = if vertex > 0.0 { 0.99 * vertex } else { 80.0 };
+    let mut steps = Vec::with_capacity(n_steps);
+    match r.kind {
+        StepKind::Fuel => {
+            let (u_egr, u_vgt) = (rng.gen_range(10.0..40.0), rng.gen_range(40.0..80.0));
+            let mut level: f64 = rng.gen_range(30.0..90.0);
+            let d0 = Drive::new(r.speed_rpm, level / 100.0 * U_DELTA_MAX, u_egr, u_vgt);
+            for k in 1..=n_steps {
+                let mut next = level;
+                while (next - level).abs() < 5.0 {
+                    next = rng.gen_range(30.0..90.0);
+                }
+                level = next;
+                steps.push((k as f64 * r.hold_s, 1, level / 100.0 * U_DELTA_MAX));
+            }
+            (d0, steps)
+        }
+        _ => {
+            let load = r.load_pct.unwrap_or(50.0);
+            let mut egr = rng.gen_range(0.0..egr_max);
+            let mut vgt = rng.gen_range(25.0..100.0);
+            let d0 = Drive::new(r.speed_rpm, load / 100.0 * U_DELTA_MAX, egr, vgt);
+            for k in 1..=n_steps {
+                let (ch, cur, lo, hi) = if rng.gen::<bool>() {
+                    (2, &mut egr, 0.0, egr_max)
+                } else {
+                    (3, &mut vgt, 25.0, 100.0)
+                };
+                let mut next = *cur;
+                while (next - *cur).abs() < 5.0 {
+                    next = rng.gen_range(lo..hi);
+                }
+                *cur = next;
+                steps.push((k as f64 * r.hold_s, ch, next));
+            }
+            (d0, steps)
+        }
+    }
+}
+
+/// Generate the dynamic sets of Table 1 selected by `opts` (in parallel; deterministic).
+pub fn dynamic_sets(
+    p: &Params,
+    opts: &LabOptions,
+) -> Result<Vec<(DataSetInfo, DynamicData)>, LabError> {
+    let rows: Vec<&Table1Row> = TABLE1
+        .iter()
+        .filter(|r| {
+            opts.sets
+                .as_ref()
+                .is_none_or(|v| v.iter().any(|n| n == r.name))
+        })
+        .collect();
+    rows.par_iter()
+        .map(|r| {
+            let n_steps = opts.max_steps.map_or(r.steps, |m| m.min(r.steps)).max(1);
+            let t_end = (n_steps + 1) as f64 * r.hold_s;
+            let mut last = String::new();
+            for attempt in 0..10 {
+                let (d0, steps) = table1_steps(p, r, n_steps, opts.seed, attempt);
+                match step_set(p, opts, r.name, d0, &steps, t_end, r.sample_rate_hz) {
+                    Ok(d) => {
+                        let info = DataSetInfo {
+                            name: r.name.into(),
+                            roles: r.roles.to_vec(),
+                            kind: r.kind,
+                            file: format!("{}.csv", r.name),
+                            sample_rate_hz: r.sample_rate_hz,
+                            speed_rpm: Some(r.speed_rpm),
+                            load_pct: r.load_pct,
+                            steps: n_steps,
+                        };
+                        return Ok((info, d));
+                    }
+                    Err(e) => last = e.to_string(),
+                }
+            }
+            Err(LabError::Params(format!(
+                "data set {}: no valid step sequence in 10 draws ({last})",
+                r.name
+            )))
+        })
+        .collect()
+}
+
+/// First-order lag dy/dt = (u - y)/tau on samples `(t, u)`, exact for u linear between samples,
+/// starting at y = u[0] (steady state) [same unit as u]. tau <= 0 returns u.
+pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
+    if tau <= 0.0 || u.is_empty() {
+        return u.to_vec();
+    }
+    let mut y = Vec::with_capacity(u.len());
+    y.push(u[0]);
+    for k in 1..u.len() {
+        let h = t[k] - t[k - 1];
+        let a = (-h / tau).exp();
+        let b = if h > 0.0 {
+            1.0 - tau * (1.0 - a) / h
+        } else {
+            1.0
+        };
+        let prev = y[k - 1];
+        y.push(a * prev + (1.0 - a) * u[k - 1] + b * (u[k] - u[k - 1]));
+    }
+    y
 }
 
 /// Generate a campaign and write it to `out_dir` (manifest, CSVs, `true_params.toml`).
@@ -388,7 +632,8 @@ pub fn generate(params: &Params, opts: &LabOptions, out_dir: &Path) -> Result<Ca
 /// A dynamic data set with command steps at constant speed (Table 6 columns), simulated with
 /// the 8-state model from the steady state of the first command and sampled at `sample_rate_hz`.
 /// `steps`: (time [s], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
-/// outputs get the noise of `opts` (positions: relative to 100 %).
+/// outputs get the noise of `opts` (positions: relative to 100 %), the torque the dynamometer
+/// lag (eq. (76)) and, optionally, the sensor lags of Table 6.
 #[allow(clippy::too_many_arguments)]
 pub fn step_set(
     p: &Params,
@@ -404,36 +649,46 @@ pub fn step_set(
         .map_err(|e| LabError::Params(e.to_string()))?;
     let sched =
         InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
+    // simulate on a fine grid (lags), then sample at the data rate
+    let fine_hz = if opts.sensor_lags { 500.0 } else { 100.0 };
+    let ratio = (fine_hz / sample_rate_hz).round().max(1.0) as usize;
     let so = SimOptions {
-        dt_out: 1.0 / sample_rate_hz,
+        dt_out: 1.0 / (sample_rate_hz * ratio as f64),
         ..SimOptions::default()
     };
     let sol = simulate(&m, &sched, 0.0, t_end, Start::SteadyState, &so)
         .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
-    let mut g = Gauss(ChaCha8Rng::seed_from_u64(
-        opts.seed
-            ^ name
-                .bytes()
-                .fold(0xd1_u64, |h, b| h.wrapping_mul(131) ^ b as u64),
-    ));
+    let idx: Vec<usize> = (0..sol.len()).step_by(ratio).collect();
+    let mut g = Gauss(ChaCha8Rng::seed_from_u64(name_seed(opts.seed, name)));
     let n = opts.noise;
-    let get = |c: &str| sol.get(c).map(|v| v.to_vec()).unwrap_or_default();
+    let lag = |c: &str, tau: f64| -> Vec<f64> {
+        let v = sol.get(c).map(|v| v.to_vec()).unwrap_or_default();
+        let v = first_order_lag(sol.t(), &v, tau);
+        idx.iter().filter_map(|&i| v.get(i).copied()).collect()
+    };
+    let sensor = |tau_ms: f64| {
+        if opts.sensor_lags {
+            tau_ms * 1e-3
+        } else {
+            0.0
+        }
+    };
     let noisy = |g: &mut Gauss, v: Vec<f64>, s: f64, abs: bool| -> Vec<f64> {
         v.into_iter()
             .map(|x| if abs { g.abs(x, s) } else { g.rel(x, s) })
             .collect()
     };
+    let ts: Vec<f64> = idx.iter().map(|&i| sol.t()[i]).collect();
     // commands as logged: the value in force at each sample (right-continuous: a sample at a
     // step time shows the new value), from the step list itself
+    let mut sorted: Vec<&(f64, usize, f64)> = steps.iter().collect();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
     let command = |ch: usize| -> Vec<f64> {
-        sol.t()
-            .iter()
+        ts.iter()
             .map(|&t| {
                 let mut v = initial.to_array()[ch];
-                let mut s: Vec<&(f64, usize, f64)> = steps.iter().filter(|s| s.1 == ch).collect();
-                s.sort_by(|a, b| a.0.total_cmp(&b.0));
-                for (ts, _, val) in s {
-                    if *ts <= t + 1e-9 {
+                for (tt, c, val) in &sorted {
+                    if *c == ch && *tt <= t + 1e-9 {
                         v = *val;
                     }
                 }
@@ -442,19 +697,34 @@ pub fn step_set(
             .collect()
     };
     let columns = vec![
-        ("n_t".to_string(), noisy(&mut g, get("n_t"), n.rel, false)),
-        ("p_em".to_string(), noisy(&mut g, get("p_em"), n.rel, false)),
-        ("p_im".to_string(), noisy(&mut g, get("p_im"), n.rel, false)),
-        ("W_c".to_string(), noisy(&mut g, get("W_c"), n.rel, false)),
+        (
+            "n_t".to_string(),
+            noisy(&mut g, lag("n_t", sensor(6.0)), n.rel, false),
+        ),
+        (
+            "p_em".to_string(),
+            noisy(&mut g, lag("p_em", sensor(20.0)), n.rel, false),
+        ),
+        (
+            "p_im".to_string(),
+            noisy(&mut g, lag("p_im", sensor(15.0)), n.rel, false),
+        ),
+        (
+            "W_c".to_string(),
+            noisy(&mut g, lag("W_c", sensor(20.0)), n.rel, false),
+        ),
         (
             "u_egr_pos".to_string(),
-            noisy(&mut g, get("u_egr_actual"), n.rel * 100.0, true),
+            noisy(&mut g, lag("u_egr_actual", 0.0), n.rel * 100.0, true),
         ),
         (
             "u_vgt_pos".to_string(),
-            noisy(&mut g, get("u_vgt_actual"), n.rel * 100.0, true),
+            noisy(&mut g, lag("u_vgt_actual", 0.0), n.rel * 100.0, true),
         ),
-        ("M_e".to_string(), noisy(&mut g, get("M_e"), n.rel, false)),
+        (
+            "M_e".to_string(),
+            noisy(&mut g, lag("M_e", opts.tau_me_s), n.rel, false),
+        ),
         ("n_e".to_string(), command(0)),
         ("u_egr".to_string(), command(2)),
         ("u_vgt".to_string(), command(3)),
@@ -462,7 +732,7 @@ pub fn step_set(
     ];
     Ok(DynamicData {
         name: name.to_string(),
-        t: sol.t().to_vec(),
+        t: ts,
         columns,
     })
 }

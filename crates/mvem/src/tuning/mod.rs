@@ -9,13 +9,17 @@
 //! - [`data`]: campaign formats (stationary/dynamic CSV, manifest) with validated loading.
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
 //! - [`steps`]: tuning steps 1 (static submodels) and 2 (actuators) of section 8.1.
+//! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
+//! - [`pipeline`]: steps 1-5 chained, from data only.
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
 //! Overview, results and open items: `docs/tuning.md`.
 
+pub mod complete;
 pub mod data;
 pub mod lab;
 pub mod lsq;
+pub mod pipeline;
 pub mod steps;
 pub mod validate;
 pub mod varpro;

@@ -25,8 +25,7 @@
 //!
 //! Relative errors are those of eq. (4): (measured - modelled) / mean(measured).
 //!
-//! Not yet implemented: step 3 (V_im, V_em, J_t by eqs (74)-(75)), step 4 (tau_Me, eq. (76)),
-//! step 5 (cost (77)).
+//! Steps 3-5 (complete model) are in [`super::complete`], the chain in [`super::pipeline`].
 
 use super::data::{DynamicData, StationaryPoint};
 use super::lab::{egr_step_response, vgt_step_response};
@@ -766,9 +765,18 @@ pub fn fit_w_c(
     ];
     let meas: Vec<f64> = pts.iter().map(|s| s.w_c).collect();
     // The ellipse residual weights the points unevenly in W_c; with noisy data its minimum can
-    // put points where the authors' guards (Phi_c >= 0, W_c >= 1e-4) cut the flow. Refine by
-    // NLS of the flow itself, W_c,model - W_c,meas, from the variable-projection solution.
+    // put points where the authors' guards (c_Phi1 >= 0.1, Phi_c >= 0, W_c >= 1e-4) cut the
+    // flow, where the gradient of the flow is zero. Second start, free of the guards: solve
+    // eq. (71) for Phi_c, (Phi_c - c_Phi2)^2 = A(omega) - B(omega) (Psi_c - c_Psi2)^2 with
+    // A = 1/c_Phi1, B = c_Psi1/c_Phi1 quadratic in omega (linear LS, residual in Phi_c^2
+    // units, i.e. in the flow), then c_Phi1 = 1/A, c_Psi1 = B/A at the data refitted as the
+    // quadratics (69)-(70). Both starts are refined by NLS of the flow itself,
+    // W_c,model - W_c,meas; the better one is kept.
     let w_mean = meas.iter().sum::<f64>() / meas.len() as f64;
+    let mut starts = vec![th0.to_vec()];
+    if let Some(th) = w_c_phi_start(&psi, &phic, &d, start) {
+        starts.push(th);
+    }
     let mut cq = p.compressor.clone();
     let w_model = |cm: &crate::params::Compressor, s: &StationaryPoint, d: &Derived| {
         compressor::flow(
@@ -783,15 +791,28 @@ pub fn fit_w_c(
         )
         .w_c
     };
-    let res = |th: &[f64]| {
+    let mut res = |th: &[f64]| {
         set(&mut cq, th);
         pts.iter()
             .zip(&d)
             .map(|(s, dd)| (w_model(&cq, s, dd) - s.w_c) / w_mean)
             .collect::<Vec<f64>>()
     };
-    let refined = least_squares(res, &th0, &Bounds::none(8), &lsq_opts())
-        .map_err(|e| solver_err("W_c")(e.to_string()))?;
+    let mut refined: Option<super::lsq::LsqResult> = None;
+    let mut n_refine = 0;
+    for th in &starts {
+        let r = least_squares(&mut res, th, &Bounds::none(8), &lsq_opts())
+            .map_err(|e| solver_err("W_c")(e.to_string()))?;
+        n_refine += r.n_eval;
+        if refined.as_ref().is_none_or(|b| r.cost < b.cost) {
+            refined = Some(r);
+        }
+    }
+    let refined = refined.ok_or_else(|| solver_err("W_c")("no start".into()))?;
+    let refined = super::lsq::LsqResult {
+        n_eval: n_refine,
+        ..refined
+    };
     let n_eval = fit.lsq.n_eval + refined.n_eval;
     let cm = &mut p.compressor;
     set(cm, &refined.theta);
@@ -828,6 +849,44 @@ pub fn fit_w_c(
         &model,
         n_eval,
     ))
+}
+
+/// Guard-free start of the compressor flow fit (see [`fit_w_c`]): linear LS of
+/// (Phi_c - c_Phi2)^2 = A(w) - B(w) (Psi_c - c_Psi2)^2 with A, B quadratic in w = omega_t/1000
+/// and c_Psi2, c_Phi2 at their start values; then c_Phi1 = 1/A and c_Psi1 = B/A at the data
+/// refitted as quadratics. Returns the 8 parameters in the scaled order of [`fit_w_c`], or None
+/// when A <= 0 at a data point.
+fn w_c_phi_start(psi: &[f64], phic: &[f64], d: &[Derived], start: [f64; 2]) -> Option<Vec<f64>> {
+    let n = psi.len();
+    let w: Vec<f64> = d.iter().map(|d| d.omega_t / 1000.0).collect();
+    let a = DMatrix::from_fn(n, 6, |i, j| {
+        let pw = w[i].powi(2 - (j % 3) as i32);
+        if j < 3 {
+            pw
+        } else {
+            -(psi[i] - start[0]).powi(2) * pw
+        }
+    });
+    let y: Vec<f64> = phic.iter().map(|f| (f - start[1]).powi(2)).collect();
+    let c = linear_lsq(&a, &y);
+    let poly = |k: &[f64], x: f64| k[0] * x * x + k[1] * x + k[2];
+    let mut cphi = Vec::with_capacity(n);
+    let mut cpsi = Vec::with_capacity(n);
+    for &x in &w {
+        let aa = poly(&c[0..3], x);
+        if aa <= 0.0 || !aa.is_finite() {
+            return None;
+        }
+        cphi.push(1.0 / aa);
+        cpsi.push(poly(&c[3..6], x) / aa);
+    }
+    let q = DMatrix::from_fn(n, 3, |i, j| w[i].powi(2 - j as i32));
+    let kpsi = linear_lsq(&q, &cpsi);
+    let kphi = linear_lsq(&q, &cphi);
+    let th = vec![
+        start[0], start[1], kpsi[0], kpsi[1], kpsi[2], kphi[0], kphi[1], kphi[2],
+    ];
+    th.iter().all(|v| v.is_finite()).then_some(th)
 }
 
 /// Step 1: initialize every static submodel from stationary data. `base` supplies the

@@ -12,10 +12,12 @@
 //! The report serializes to JSON and renders as Markdown or CSV (rows: outputs, columns: data
 //! sets; entries: mean absolute relative error in per cent, as in Table 2).
 
-use super::data::{load_campaign, Campaign, DataError, DynamicData, StationaryPoint, StepKind};
+use super::data::{
+    load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
+};
 use super::lab::{egr_step_response, vgt_step_response};
 use super::steps::{self, rel_errors, StepError};
-use crate::model::{Drive, Engine8, ModelOptions};
+use crate::model::{Engine8, ModelOptions};
 use crate::params::Params;
 use crate::sim::{simulate, InputSchedule, SimOptions, Start};
 use serde::Serialize;
@@ -93,21 +95,20 @@ pub fn stationary_errors(
     })
 }
 
-/// Errors of a dynamic set with engine outputs: simulate with the measured commands.
-/// `stat_means`: means of the stationary measurements per output (eq. (5)); the set's own
-/// mean is used where an output has no stationary counterpart.
-pub fn dynamic_errors(
+/// Simulate the 8-state model driven by the commands of a dynamic set (n_e, u_delta, u_egr,
+/// u_vgt held between samples: a change between two samples happens at the later one) from
+/// the steady state of the first sample, output every `dt_out` [s], relative tolerance `rtol`.
+pub fn simulate_set(
     p: &Params,
     d: &DynamicData,
-    stat: &[StationaryPoint],
-) -> Result<DataSetErrors, ValidateError> {
-    let merr = |message: String| ValidateError::Model {
-        set: d.name.clone(),
-        message,
-    };
-    let col = |c: &str| d.get(c).ok_or_else(|| merr(format!("missing column {c}")));
+    dt_out: f64,
+    rtol: f64,
+) -> Result<crate::sim::Solution, String> {
+    let col = |c: &str| d.get(c).ok_or_else(|| format!("missing column {c}"));
     let (n_e, u_d, u_e, u_v) = (col("n_e")?, col("u_delta")?, col("u_egr")?, col("u_vgt")?);
-    // zero-order hold: a step between two samples happens at the later sample
+    if d.t.len() < 2 {
+        return Err("fewer than 2 samples".into());
+    }
     let mut times = Vec::new();
     let mut rows = Vec::new();
     for i in 0..d.t.len() {
@@ -119,44 +120,103 @@ pub fn dynamic_errors(
         times.push(d.t[i]);
         rows.push(r);
     }
-    let sched = InputSchedule::new(times, rows).map_err(|e| merr(e.to_string()))?;
-    let m = Engine8::new(p.clone(), ModelOptions::default()).map_err(|e| merr(e.to_string()))?;
+    let sched = InputSchedule::new(times, rows).map_err(|e| e.to_string())?;
+    let m = Engine8::new(p.clone(), ModelOptions::default()).map_err(|e| e.to_string())?;
     let t0 = d.t[0];
     let t_end = *d.t.last().unwrap_or(&t0);
-    let dt = if d.t.len() > 1 {
-        (t_end - t0) / (d.t.len() - 1) as f64
-    } else {
-        1.0
-    };
     let so = SimOptions {
-        dt_out: dt,
+        dt_out,
+        rtol,
         ..SimOptions::default()
     };
-    let _ = Drive::NAMES;
-    let sol = simulate(&m, &sched, t0, t_end, Start::SteadyState, &so)
-        .map_err(|e| merr(e.to_string()))?;
+    simulate(&m, &sched, t0, t_end, Start::SteadyState, &so).map_err(|e| e.to_string())
+}
+
+/// Mean sample interval of a set [s].
+pub fn sample_interval(d: &DynamicData) -> f64 {
+    match (d.t.first(), d.t.last()) {
+        (Some(a), Some(b)) if d.t.len() > 1 => (b - a) / (d.t.len() - 1) as f64,
+        _ => 1.0,
+    }
+}
+
+/// Simulated outputs at the sample times of `d`: (name, values) for p_im, p_em, W_c, n_t and
+/// M_e; with `tau_me` the simulated torque is passed through the dynamometer lag of eq. (76)
+/// (on a grid of at most 0.02 s) before sampling.
+pub fn simulated_outputs(
+    p: &Params,
+    d: &DynamicData,
+    tau_me: Option<f64>,
+    rtol: f64,
+) -> Result<Vec<(&'static str, Vec<f64>)>, String> {
+    let dt = sample_interval(d);
+    let dt_out = if tau_me.is_some() { dt.min(0.02) } else { dt };
+    let sol = simulate_set(p, d, dt_out, rtol)?;
     let ts = sol.t();
+    let mut out = Vec::new();
+    for name in ["p_im", "p_em", "W_c", "n_t", "M_e"] {
+        let Some(sim) = sol.get(name) else { continue };
+        let sim = match (name, tau_me) {
+            ("M_e", Some(tau)) => super::lab::first_order_lag(ts, sim, tau),
+            _ => sim.to_vec(),
+        };
+        out.push((name, d.t.iter().map(|&t| interp(ts, &sim, t)).collect()));
+    }
+    Ok(out)
+}
+
+/// Means of the stationary measurements of p_im, p_em, W_c, n_t, M_e (normalization of eq. (5)).
+pub fn stationary_means(stat: &[StationaryPoint]) -> [Option<f64>; 5] {
+    [
+        mean(stat.iter().map(|s| s.p_im)),
+        mean(stat.iter().map(|s| s.p_em)),
+        mean(stat.iter().map(|s| s.w_c)),
+        mean(stat.iter().map(|s| s.n_t)),
+        mean(stat.iter().map(|s| s.m_e)),
+    ]
+}
+
+/// Errors of a dynamic set with engine outputs: simulate with the measured commands, the
+/// measured torque compared unfiltered (see [`dynamic_errors_with`]).
+pub fn dynamic_errors(
+    p: &Params,
+    d: &DynamicData,
+    stat: &[StationaryPoint],
+) -> Result<DataSetErrors, ValidateError> {
+    dynamic_errors_with(p, d, stat, None)
+}
+
+/// Errors of a dynamic set, eq. (5): p_im, p_em, W_c, n_t and M_e at the sample times against
+/// the measurements, normalized by the mean of the stationary measurements of that output (the
+/// set's own mean where there are none). `tau_me`: dynamometer time constant of eq. (76) applied
+/// to the simulated torque.
+pub fn dynamic_errors_with(
+    p: &Params,
+    d: &DynamicData,
+    stat: &[StationaryPoint],
+    tau_me: Option<f64>,
+) -> Result<DataSetErrors, ValidateError> {
+    let sims = simulated_outputs(p, d, tau_me, SimOptions::default().rtol).map_err(|message| {
+        ValidateError::Model {
+            set: d.name.clone(),
+            message,
+        }
+    })?;
+    let means = stationary_means(stat);
     let mut outputs = Vec::new();
-    for (name, stat_mean) in [
-        ("p_im", mean(stat.iter().map(|s| s.p_im))),
-        ("p_em", mean(stat.iter().map(|s| s.p_em))),
-        ("W_c", mean(stat.iter().map(|s| s.w_c))),
-        ("n_t", mean(stat.iter().map(|s| s.n_t))),
-        ("M_e", mean(stat.iter().map(|s| s.m_e))),
-    ] {
-        let (Some(meas), Some(sim)) = (d.get(name), sol.get(name)) else {
+    for (k, name) in ["p_im", "p_em", "W_c", "n_t", "M_e"].iter().enumerate() {
+        let (Some(meas), Some((_, model))) = (d.get(name), sims.iter().find(|s| s.0 == *name))
+        else {
             continue;
         };
-        // model value at each sample time (linear interpolation of the simulation output)
-        let model: Vec<f64> = d.t.iter().map(|&t| interp(ts, sim, t)).collect();
-        let norm = stat_mean.unwrap_or_else(|| mean(meas.iter().copied()).unwrap_or(1.0));
+        let norm = means[k].unwrap_or_else(|| mean(meas.iter().copied()).unwrap_or(1.0));
         let e: Vec<f64> = meas
             .iter()
-            .zip(&model)
+            .zip(model)
             .map(|(a, b)| ((a - b) / norm).abs())
             .collect();
         outputs.push(OutputError {
-            output: name.into(),
+            output: name.to_string(),
             mean_abs_rel_err: e.iter().sum::<f64>() / e.len().max(1) as f64,
             max_abs_rel_err: e.iter().cloned().fold(0.0, f64::max),
             n: e.len(),
@@ -173,7 +233,8 @@ fn mean(it: impl Iterator<Item = f64>) -> Option<f64> {
     (n > 0).then(|| s / n as f64)
 }
 
-fn interp(t: &[f64], y: &[f64], x: f64) -> f64 {
+/// Linear interpolation of (t, y) at x (constant beyond the ends).
+pub fn interp(t: &[f64], y: &[f64], x: f64) -> f64 {
     let k = t.partition_point(|&v| v <= x);
     if k == 0 {
         return y[0];
@@ -203,16 +264,35 @@ pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, Val
     })
 }
 
-/// Validate `p` on a loaded campaign.
+/// Validate `p` on a loaded campaign (torque unfiltered; see [`validate_campaign_with`]).
 pub fn validate_campaign(c: &Campaign, p: &Params) -> Result<ValidationReport, ValidateError> {
+    validate_campaign_with(c, p, None, None)
+}
+
+/// Validate `p` on the data sets of a campaign (those with a role in `roles`, all if None), in
+/// parallel; `tau_me`: dynamometer time constant of eq. (76).
+pub fn validate_campaign_with(
+    c: &Campaign,
+    p: &Params,
+    tau_me: Option<f64>,
+    roles: Option<&[Role]>,
+) -> Result<ValidationReport, ValidateError> {
+    use rayon::prelude::*;
     let stationary = stationary_errors(p, &c.stationary)?;
-    let mut datasets = Vec::new();
-    for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
-        datasets.push(match info.kind {
-            StepKind::Actuator => actuator_errors(p, d)?,
-            _ => dynamic_errors(p, d, &c.stationary)?,
-        });
-    }
+    let sel: Vec<_> = c
+        .manifest
+        .datasets
+        .iter()
+        .zip(&c.dynamic)
+        .filter(|(i, _)| roles.is_none_or(|r| i.roles.iter().any(|x| r.contains(x))))
+        .collect();
+    let datasets = sel
+        .par_iter()
+        .map(|(info, d)| match info.kind {
+            StepKind::Actuator => actuator_errors(p, d),
+            _ => dynamic_errors_with(p, d, &c.stationary, tau_me),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(ValidationReport {
         stationary,
         datasets,

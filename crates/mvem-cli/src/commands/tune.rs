@@ -1,0 +1,301 @@
+//! `mvem tune`: the paper's five-step parameter estimation (sections 2.3, 8.1) on a campaign.
+
+use crate::common;
+use anyhow::Result;
+use mvem::params::Params;
+use mvem::tuning::complete::{param_value, STATIC_PARAMS};
+use mvem::tuning::pipeline::{self, Init, PipelineOptions, TuneReport};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `mvem tune`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  mvem lab --out campaign && mvem tune --data campaign --out tuned.toml --report tune-report
+  mvem tune --data campaign --out steps14.toml --steps 1-4
+  mvem tune --data campaign --params steps14.toml --steps 5 --init naive --cost dynamic --out a.toml
+
+Steps: 1 static submodels (stationary data), 2 actuators (set J), 3 V_im, V_em, J_t (sets with
+role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static parameters by cost (77)
+(sets with role static + stationary points). Parameters of steps not run come from --params
+(default: the published set, which also supplies the constants that are never tuned). No
+step starts from a value of --params. The tuned dynamometer time constant tau_Me is not a
+model parameter: it is printed and written to the report (pass it to `mvem validate --tau-me`).
+Nothing is written if a step fails (exit code 1, naming the step).")]
+pub struct Args {
+    /// Campaign directory (manifest.toml; see docs/tuning-data.md).
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// Output parameter file (TOML; JSON if it ends in .json).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Report directory: tune_report.json, tune_report.md (created).
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+    /// Steps to run, e.g. 1-5, 1-4, 3,4 or 5.
+    #[arg(long, default_value = "1-5", value_name = "LIST")]
+    pub steps: String,
+    /// Constants and the parameters of the steps not run [default: the published set].
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
+    /// Start of step 5: the step-1 values or eq. (78) from the bounds.
+    #[arg(long, value_enum, default_value = "step1")]
+    pub init: InitArg,
+    /// Rows of cost (77): both, only the complete model (dynamic), only the submodels (static).
+    #[arg(long, value_enum, default_value = "full")]
+    pub cost: CostArg,
+    /// beta of eq. (77).
+    #[arg(long, default_value_t = 1.0)]
+    pub beta: f64,
+    /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper).
+    #[arg(long = "refine-dynamics")]
+    pub refine_dynamics: bool,
+    /// Limit on evaluations of cost (77) in step 5 (finite differences included).
+    #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
+    pub max_evals: usize,
+}
+
+/// `--init`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum InitArg {
+    /// The step-1 values.
+    Step1,
+    /// Eq. (78).
+    Naive,
+}
+
+/// `--cost`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CostArg {
+    /// Both rows of eq. (77).
+    Full,
+    /// Only the first row (complete model).
+    Dynamic,
+    /// Only the second row (submodels).
+    Static,
+}
+
+/// Run `mvem tune`.
+pub fn run(a: &Args) -> Result<()> {
+    let steps =
+        pipeline::parse_steps(&a.steps).map_err(|e| common::usage(format!("--steps: {e}")))?;
+    if !(a.beta.is_finite() && a.beta > 0.0) {
+        return Err(common::usage(format!("--beta {}: must be > 0", a.beta)));
+    }
+    common::check_output_path(&a.out, "--out")?;
+    if let Some(r) = &a.report {
+        if r.exists() && !r.is_dir() {
+            return Err(common::usage(format!(
+                "--report {}: exists and is not a directory",
+                r.display()
+            )));
+        }
+    }
+    let base = match &a.params {
+        None => Params::published(),
+        Some(p) => mvem::io::params::load_params(p)
+            .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
+    };
+    let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
+    let mut opts = PipelineOptions {
+        steps,
+        init: match a.init {
+            InitArg::Step1 => Init::Step1,
+            InitArg::Naive => Init::Naive,
+        },
+        ..PipelineOptions::default()
+    };
+    opts.step5.beta = a.beta;
+    opts.refine_dynamics = a.refine_dynamics;
+    opts.step5.max_evaluations = a.max_evals;
+    opts.step5.dynamic_row = a.cost != CostArg::Static;
+    opts.step5.static_row = a.cost != CostArg::Dynamic;
+    let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
+    // searches stopped by their evaluation limit: results are written, with a warning
+    for (step, conv) in [
+        (3, rep.step3.as_ref().map(|r| r.converged)),
+        (4, rep.step4.as_ref().map(|r| r.converged)),
+        (5, rep.step5.as_ref().map(|r| r.converged)),
+    ] {
+        if conv == Some(false) {
+            eprintln!(
+                "warning: step {step} stopped at its evaluation limit before a convergence test \
+                 was met{}",
+                if step == 5 {
+                    " (raise --max-evals)"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    // truth, if the campaign is virtual
+    let truth = c
+        .manifest
+        .true_params
+        .as_ref()
+        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
+    let md = markdown(&rep, &p, truth.as_ref(), c.manifest.true_tau_me_s);
+    // render everything, then write
+    let json = serde_json::to_string_pretty(&rep)?;
+    mvem::io::params::save_params(&p, &a.out)?;
+    if let Some(dir) = &a.report {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| common::usage(format!("--report {}: {e}", dir.display())))?;
+        mvem::io::output::write_atomic(&dir.join("tune_report.json"), json.as_bytes())?;
+        mvem::io::output::write_atomic(&dir.join("tune_report.md"), md.as_bytes())?;
+    }
+    print!("{md}");
+    eprintln!(
+        "wrote {}{}; total {}",
+        a.out.display(),
+        a.report
+            .as_ref()
+            .map(|d| format!(
+                " and {}",
+                Path::new(d).join("tune_report.{json,md}").display()
+            ))
+            .unwrap_or_default(),
+        common::fmt_duration(rep.total_seconds)
+    );
+    if let Some(t) = rep.tau_me_s {
+        eprintln!(
+            "validate with: mvem validate --data {} --params {} --tau-me {t:.4}",
+            a.data.display(),
+            a.out.display()
+        );
+    }
+    Ok(())
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.2}", 100.0 * x)
+}
+
+/// The report as Markdown: per step the submodel/output errors (mean and max absolute relative
+/// error, per cent), timings, and (virtual campaigns) each tuned parameter against the truth.
+pub fn markdown(
+    rep: &TuneReport,
+    p: &Params,
+    truth: Option<&Params>,
+    tau_true: Option<f64>,
+) -> String {
+    let mut s = String::from("# Tuning report\n\n");
+    let _ = writeln!(
+        s,
+        "Wall time per step [s]: {}; total {:.1} s\n",
+        rep.seconds
+            .iter()
+            .enumerate()
+            .map(|(i, t)| format!("{}: {t:.1}", i + 1))
+            .collect::<Vec<_>>()
+            .join(", "),
+        rep.total_seconds
+    );
+    let table = |s: &mut String, title: &str, rows: &[mvem::tuning::steps::FitReport]| {
+        let _ = writeln!(s, "## {title}\n\n| submodel / output | mean abs. rel. error (%) | max abs. rel. error (%) | n |\n|---|---|---|---|");
+        for f in rows {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                f.submodel,
+                pct(f.mean_abs_rel_err),
+                pct(f.max_abs_rel_err),
+                f.n_points
+            );
+        }
+        s.push('\n');
+    };
+    if let Some(r) = &rep.step1 {
+        table(
+            &mut s,
+            "Step 1: static submodels (stationary data, eq. (4))",
+            &r.fits,
+        );
+    }
+    if let Some(r) = &rep.step2 {
+        table(&mut s, "Step 2: actuators (set J)", r);
+    }
+    if let Some(r) = &rep.step3 {
+        let _ = writeln!(
+            s,
+            "Step 3: {} evaluations, converged {}",
+            r.n_eval, r.converged
+        );
+        table(
+            &mut s,
+            "Step 3: V_im, V_em, J_t (eq. (5) on the dynamic sets)",
+            &r.errors,
+        );
+    }
+    if let Some(r) = &rep.step4 {
+        table(
+            &mut s,
+            "Step 4: tau_Me (eq. (5), M_dynamo on the fuel set)",
+            &r.errors,
+        );
+    }
+    if let Some(r) = &rep.step5 {
+        let _ = writeln!(
+            s,
+            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations, converged {}, one evaluation {:.3} s; at bounds: {}\n",
+            r.cost_start,
+            r.cost_end,
+            r.n_eval,
+            r.converged,
+            r.eval_seconds,
+            if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
+        );
+        table(&mut s, "Step 5: submodels (eq. (4))", &r.submodels);
+        table(
+            &mut s,
+            "Step 5: complete model on the static-tuning sets (eq. (5))",
+            &r.dynamic,
+        );
+    }
+    if let Some(r) = &rep.step3_refined {
+        table(&mut s, "Step 3 repeated after step 5", &r.errors);
+    }
+    let mut names: Vec<&str> = vec![
+        "tau_egr1", "tau_egr2", "tau_degr", "k_egr", "tau_vgt", "tau_dvgt", "v_im", "v_em", "j_t",
+        "eta_igch", "c_fric1", "c_fric2", "c_fric3",
+    ];
+    names.extend(STATIC_PARAMS.iter().map(|s| s.name));
+    let stderr = |n: &str| {
+        rep.step5
+            .as_ref()
+            .and_then(|r| r.rel_std_err.iter().find(|(m, _)| m == n).map(|x| x.1))
+    };
+    let _ = writeln!(s, "## Parameters\n\n| parameter | tuned | true | rel. deviation (%) | lin. rel. std. error step 5 (%) |\n|---|---|---|---|---|");
+    for n in names {
+        let v = param_value(p, n).unwrap_or(f64::NAN);
+        let (t, dev) = match truth.and_then(|q| param_value(q, n)) {
+            Some(t) => (
+                format!("{t:.6e}"),
+                if t != 0.0 {
+                    pct((v - t) / t)
+                } else {
+                    format!("abs {:.2e}", v - t)
+                },
+            ),
+            None => ("-".into(), "-".into()),
+        };
+        let se = stderr(n).map_or("-".into(), |x| {
+            if x.is_finite() {
+                pct(x)
+            } else {
+                "inf".into()
+            }
+        });
+        let _ = writeln!(s, "| {n} | {v:.6e} | {t} | {dev} | {se} |");
+    }
+    if let Some(tau) = rep.tau_me_s {
+        let (t, dev) = match tau_true {
+            Some(t) => (format!("{t:.6e}"), pct((tau - t) / t)),
+            None => ("-".into(), "-".into()),
+        };
+        let _ = writeln!(s, "| tau_me | {tau:.6e} | {t} | {dev} | - |");
+    }
+    s
+}

@@ -1,0 +1,196 @@
+//! `mvem validate`: relative errors (eqs (4), (5)) of a parameter set on a campaign, as tables
+//! like the paper's Tables 2-4, with figures of measured versus simulated signals.
+
+use crate::common;
+use crate::plot::{self, Figure, Panel, Series};
+use anyhow::Result;
+use mvem::tuning::data::{Role, StepKind};
+use mvem::tuning::validate::{self as v, ValidationReport};
+use serde_json::{Map, Value};
+use std::path::PathBuf;
+
+/// Arguments of `mvem validate`.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "\
+Examples:
+  mvem validate --data campaign --params tuned.toml --tau-me 1.0
+  mvem validate --data campaign --params tuned.toml --roles validation --json
+  mvem validate --data campaign --params tuned.toml --report val   # tables + figures
+
+Tables: the stationary submodels (eq. (4): mean and max absolute relative error, per cent) and
+the dynamic sets (eq. (5): mean absolute relative error per set and output, per cent, like the
+paper's Tables 2-4). --json prints {\"datasets\": {SET: {OUTPUT: percent}}, \"stationary\":
+{SUBMODEL: percent}}. --report DIR writes validation.md, validation.csv, validation.json and
+one figure per set (SET.png, measured vs simulated). --tau-me applies the dynamometer lag of
+eq. (76) to the simulated torque (the value printed by `mvem tune`).")]
+pub struct Args {
+    /// Campaign directory.
+    #[arg(long, value_name = "DIR")]
+    pub data: PathBuf,
+    /// Parameter file to validate.
+    #[arg(long, value_name = "FILE")]
+    pub params: PathBuf,
+    /// Dynamometer time constant tau_Me [s] of eq. (76) (default: torque compared unfiltered).
+    #[arg(long = "tau-me", value_name = "S")]
+    pub tau_me: Option<f64>,
+    /// Only data sets with one of these roles (comma separated: static, dynamic, actuator,
+    /// validation) [default: all].
+    #[arg(long, value_name = "LIST")]
+    pub roles: Option<String>,
+    /// Print one JSON object (per data set and output: mean abs. rel. error in per cent).
+    #[arg(long)]
+    pub json: bool,
+    /// Report directory (created): tables and figures.
+    #[arg(long, value_name = "DIR")]
+    pub report: Option<PathBuf>,
+}
+
+fn parse_roles(s: &str) -> Result<Vec<Role>> {
+    s.split(',')
+        .map(|r| match r.trim() {
+            "static" => Ok(Role::Static),
+            "dynamic" => Ok(Role::Dynamic),
+            "actuator" => Ok(Role::Actuator),
+            "validation" => Ok(Role::Validation),
+            o => Err(common::usage(format!(
+                "--roles: unknown role {o:?} (static, dynamic, actuator, validation)"
+            ))),
+        })
+        .collect()
+}
+
+/// The JSON object of `--json`.
+pub fn json(r: &ValidationReport) -> Value {
+    let mut sets = Map::new();
+    for d in &r.datasets {
+        let mut o = Map::new();
+        for e in &d.outputs {
+            o.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
+        }
+        sets.insert(d.name.clone(), Value::Object(o));
+    }
+    let mut st = Map::new();
+    for e in &r.stationary {
+        st.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
+    }
+    let mut top = Map::new();
+    top.insert("datasets".into(), Value::Object(sets));
+    top.insert("stationary".into(), Value::Object(st));
+    Value::Object(top)
+}
+
+/// Run `mvem validate`.
+pub fn run(a: &Args) -> Result<()> {
+    if let Some(t) = a.tau_me {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(common::usage(format!("--tau-me {t}: must be > 0")));
+        }
+    }
+    let roles = a.roles.as_deref().map(parse_roles).transpose()?;
+    if let Some(r) = &a.report {
+        if r.exists() && !r.is_dir() {
+            return Err(common::usage(format!(
+                "--report {}: exists and is not a directory",
+                r.display()
+            )));
+        }
+    }
+    let p = mvem::io::params::load_params(&a.params)
+        .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
+    let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
+    let rep = common::with_spinner("validating", || {
+        v::validate_campaign_with(&c, &p, a.tau_me, roles.as_deref())
+    })?;
+    let md = rep.to_markdown();
+    if let Some(dir) = &a.report {
+        // render every file in memory first
+        let mut files: Vec<(String, Vec<u8>)> = vec![
+            ("validation.md".into(), md.clone().into_bytes()),
+            ("validation.csv".into(), rep.to_csv().into_bytes()),
+            (
+                "validation.json".into(),
+                serde_json::to_string_pretty(&json(&rep))?.into_bytes(),
+            ),
+        ];
+        for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+            if !rep.datasets.iter().any(|x| x.name == d.name) {
+                continue;
+            }
+            let fig = match info.kind {
+                StepKind::Actuator => actuator_figure(&p, d),
+                _ => dynamic_figure(&p, d, a.tau_me)?,
+            };
+            files.push((
+                format!("{}.png", d.name),
+                plot::render(&fig, plot::Format::Png)?,
+            ));
+        }
+        std::fs::create_dir_all(dir)
+            .map_err(|e| common::usage(format!("--report {}: {e}", dir.display())))?;
+        for (name, bytes) in &files {
+            mvem::io::output::write_atomic(&dir.join(name), bytes)?;
+        }
+        eprintln!("wrote {} files to {}", files.len(), dir.display());
+    }
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&json(&rep))?);
+    } else {
+        print!("{md}");
+    }
+    Ok(())
+}
+
+fn unit_scale(name: &str) -> (f64, &'static str) {
+    match name {
+        "p_im" | "p_em" => (1e-3, "kPa"),
+        "W_c" => (1.0, "kg/s"),
+        "n_t" => (1e-3, "krpm"),
+        "M_e" => (1.0, "Nm"),
+        _ => (1.0, "%"),
+    }
+}
+
+fn dynamic_figure(
+    p: &mvem::params::Params,
+    d: &mvem::tuning::data::DynamicData,
+    tau_me: Option<f64>,
+) -> Result<Figure> {
+    let sims = v::simulated_outputs(p, d, tau_me, mvem::sim::SimOptions::default().rtol)
+        .map_err(|e| anyhow::anyhow!("data set {}: {e}", d.name))?;
+    let mut fig = Figure::new(1);
+    fig.title = Some(format!("data set {}: measured vs simulated", d.name));
+    for (name, sim) in &sims {
+        let Some(meas) = d.get(name) else { continue };
+        let (k, u) = unit_scale(name);
+        let scale = |v: &[f64]| v.iter().map(|x| x * k).collect::<Vec<f64>>();
+        let label = if *name == "M_e" && tau_me.is_some() {
+            "simulated (dynamometer lag)"
+        } else {
+            "simulated"
+        };
+        fig.panels.push(
+            Panel::new("time [s]", format!("{name} [{u}]"))
+                .with(Series::line("measured", &d.t, &scale(meas), 0))
+                .with(Series::dashed(label, &d.t, &scale(sim), 1)),
+        );
+    }
+    Ok(fig)
+}
+
+fn actuator_figure(p: &mvem::params::Params, d: &mvem::tuning::data::DynamicData) -> Figure {
+    let mut fig = Figure::new(1);
+    fig.title = Some(format!("data set {}: actuator positions", d.name));
+    for (cmd, pos, egr) in [("u_egr", "u_egr_pos", true), ("u_vgt", "u_vgt_pos", false)] {
+        let (Some(u), Some(y)) = (d.get(cmd), d.get(pos)) else {
+            continue;
+        };
+        let model = mvem::tuning::steps::actuator_response(p, &d.t, u, egr);
+        fig.panels.push(
+            Panel::new("time [s]", format!("{pos} [%]"))
+                .with(Series::line("measured", &d.t, y, 0))
+                .with(Series::dashed("model", &d.t, &model, 1))
+                .with(Series::line("command", &d.t, u, 2)),
+        );
+    }
+    fig
+}

@@ -1,0 +1,855 @@
+//! Tuning steps 3-5 on the complete model (paper section 8.1).
+//!
+//! - [`step3`]: V_im, V_em, J_t by eqs (74)-(75): least squares of the normalized step
+//!   responses of p_im, p_em, W_c, n_t (K = 4) in the dynamic sets (B, C: J = 2), each set's
+//!   sum normalized by its number of samples L_j.
+//! - [`step4`]: tau_Me of the dynamometer lag eq. (76) by the same problem with K = 1,
+//!   w_1 = M_dynamo^norm, on the fuel-step set I.
+//! - [`step5`]: the static parameters by the combined cost (77): dynamic errors of the complete
+//!   model on the static-tuning sets (A-I, 10 Hz) normalized by the stationary means and
+//!   weighted by gamma_j, plus the submodel errors z_1..z_7 (W_ei, T_em, W_egr, eta_tm, W_t,
+//!   eta_c, W_c) at the stationary points weighted by 1/beta; box bounds, Q_c projected on the
+//!   positive semidefinite cone at every evaluation. Data sets are simulated in parallel (rayon).
+//!
+//! **Normalized step responses** (eq. (75)): "each output and each step response is normalized
+//! so that the initial and final values for each step response are the same for both the
+//! measurements and the simulations". For each step (from one command change to the next) the
+//! initial level is the mean over the 0.2 s before the step, the final level the mean over the
+//! last 20 % of the step; the simulated response is mapped affinely onto the measured initial
+//! and final levels (only shifted when the simulated or measured change is below 1 % of the
+//! output's stationary mean, where a scale would amplify noise) and the residual is divided by
+//! the measured step amplitude (at least that 1 %). The residuals then carry only dynamic
+//! errors, as in the paper.
+
+use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
+use super::lab::first_order_lag;
+use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
+use super::steps::{self, project_q_c, FitReport, StepError};
+use super::validate::{interp, sample_interval, simulate_set, stationary_means};
+use crate::params::Params;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// The outputs of eqs (75) and (77): p_im, p_em, W_c, n_t.
+pub const DYN_OUTPUTS: [&str; 4] = ["p_im", "p_em", "W_c", "n_t"];
+
+/// Relative integration tolerance of the simulations inside the searches: tight, so that the
+/// finite-difference Jacobians are not dominated by the adaptive step sequence.
+pub const SEARCH_RTOL: f64 = 1e-8;
+
+/// Relative finite-difference step of the searches (about the square root of the relative
+/// simulation noise).
+pub const FD_STEP: f64 = 1e-4;
+
+fn solver_err(submodel: &'static str, message: impl ToString) -> StepError {
+    StepError::Solver {
+        submodel,
+        message: message.to_string(),
+    }
+}
+
+/// Sample indices at which a command (u_egr, u_vgt, u_delta) changes.
+pub fn step_indices(d: &DynamicData) -> Vec<usize> {
+    let cols: Vec<&[f64]> = ["u_egr", "u_vgt", "u_delta"]
+        .iter()
+        .filter_map(|c| d.get(c))
+        .collect();
+    (1..d.t.len())
+        .filter(|&i| cols.iter().any(|c| c[i] != c[i - 1]))
+        .collect()
+}
+
+/// Step segments [i0, i1): from each command change to the next one (or the end).
+pub fn segments(d: &DynamicData) -> Vec<(usize, usize)> {
+    let s = step_indices(d);
+    let n = d.t.len();
+    s.iter()
+        .enumerate()
+        .map(|(k, &i0)| (i0, s.get(k + 1).copied().unwrap_or(n)))
+        .filter(|(a, b)| b > a)
+        .collect()
+}
+
+fn mean_of(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+/// Normalized step-response residuals of one output (module documentation), appended to
+/// `out`, each multiplied by `w`. `floor`: 1 % of the output's stationary mean.
+fn normalized_residuals(
+    t: &[f64],
+    meas: &[f64],
+    sim: &[f64],
+    segs: &[(usize, usize)],
+    floor: f64,
+    w: f64,
+    out: &mut Vec<f64>,
+) {
+    let dt = if t.len() > 1 {
+        (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+    } else {
+        1.0
+    };
+    let pre = ((0.2 / dt).round() as usize).max(1);
+    for &(i0, i1) in segs {
+        let a0 = i0.saturating_sub(pre);
+        let (m0, s0) = if i0 > a0 {
+            (mean_of(&meas[a0..i0]), mean_of(&sim[a0..i0]))
+        } else {
+            (meas[i0], sim[i0])
+        };
+        let tail = ((i1 - i0) / 5).max(1);
+        let (m1, s1) = (mean_of(&meas[i1 - tail..i1]), mean_of(&sim[i1 - tail..i1]));
+        let amp = (m1 - m0).abs().max(floor);
+        let scale = if (s1 - s0).abs() > floor && (m1 - m0).abs() > floor {
+            ((m1 - m0) / (s1 - s0)).clamp(0.2, 5.0)
+        } else {
+            1.0
+        };
+        for i in i0..i1 {
+            let adj = m0 + scale * (sim[i] - s0);
+            out.push(w * (meas[i] - adj) / amp);
+        }
+    }
+}
+
+fn count_segment_samples(segs: &[(usize, usize)]) -> usize {
+    segs.iter().map(|(a, b)| b - a).sum()
+}
+
+fn search_opts(max_eval: usize, scale: Vec<f64>) -> LsqOptions {
+    LsqOptions {
+        ftol: 1e-6,
+        xtol: 1e-6,
+        gtol: 1e-8,
+        max_evaluations: Some(max_eval),
+        x_scale: XScale::Fixed(scale),
+        finite_diff: FiniteDiff::Forward,
+        fd_rel_step: Some(FD_STEP),
+        ..LsqOptions::default()
+    }
+}
+
+/// Start values and bounds of step 3 (generic, not the published values).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step3Start {
+    /// Start [V_im [m^3], V_em [m^3], J_t [kg m^2]].
+    pub theta: [f64; 3],
+    /// Lower bounds.
+    pub lo: [f64; 3],
+    /// Upper bounds.
+    pub hi: [f64; 3],
+    /// Floor of the step amplitude in the normalization, as a fraction of the output's
+    /// stationary mean (module documentation).
+    pub amp_floor: f64,
+}
+
+impl Default for Step3Start {
+    /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
+    /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2.
+    fn default() -> Self {
+        Self {
+            theta: [0.038, 0.038, 1e-4],
+            lo: [0.002, 0.002, 1e-5],
+            hi: [0.2, 0.2, 1e-3],
+            amp_floor: 0.01,
+        }
+    }
+}
+
+fn set_dyn(p: &mut Params, th: &[f64]) {
+    p.intake_manifold.v_im = th[0];
+    p.exhaust_manifold.v_em = th[1];
+    p.turbo.j_t = th[2];
+}
+
+/// Report of a complete-model step: fitted parameters, the search statistics and per-output
+/// errors (eq. (5), mean and max absolute relative error over the sets used).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CompleteReport {
+    /// Fitted parameters (name, value).
+    pub params: Vec<(String, f64)>,
+    /// Per output: (name, mean abs rel error, max abs rel error), unnormalized eq. (5).
+    pub errors: Vec<FitReport>,
+    /// Final cost (sum of squared residuals of the search).
+    pub cost: f64,
+    /// Residual evaluations.
+    pub n_eval: usize,
+    /// Whether a convergence test stopped the search.
+    pub converged: bool,
+}
+
+/// Per-output eq. (5) errors of `p` on `sets` (pooled over the sets).
+fn output_errors(
+    p: &Params,
+    sets: &[&DynamicData],
+    stat: &[StationaryPoint],
+    outputs: &[&str],
+    tau_me: Option<f64>,
+) -> Result<Vec<FitReport>, StepError> {
+    let means = stationary_means(stat);
+    let sims: Vec<_> = sets
+        .par_iter()
+        .map(|d| super::validate::simulated_outputs(p, d, tau_me, SEARCH_RTOL))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| solver_err("complete model", e))?;
+    let mut reps = Vec::new();
+    for name in outputs {
+        let k = ["p_im", "p_em", "W_c", "n_t", "M_e"]
+            .iter()
+            .position(|n| n == name)
+            .unwrap_or(0);
+        let mut e = Vec::new();
+        for (d, sim) in sets.iter().zip(&sims) {
+            let (Some(meas), Some((_, model))) = (d.get(name), sim.iter().find(|s| s.0 == *name))
+            else {
+                continue;
+            };
+            let norm = means[k].unwrap_or_else(|| mean_of(meas));
+            e.extend(meas.iter().zip(model).map(|(a, b)| ((a - b) / norm).abs()));
+        }
+        reps.push(FitReport {
+            submodel: name.to_string(),
+            params: vec![],
+            mean_abs_rel_err: mean_of(&e),
+            max_abs_rel_err: e.iter().cloned().fold(0.0, f64::max),
+            n_points: e.len(),
+            n_eval: 0,
+        });
+    }
+    Ok(reps)
+}
+
+/// Step 3: V_im, V_em, J_t by eqs (74)-(75) on the normalized step responses of `sets`
+/// (the dynamic-tuning VGT/EGR sets, B and C), starting from `start` (never from `base`).
+pub fn step3(
+    base: &Params,
+    sets: &[&DynamicData],
+    stat: &[StationaryPoint],
+    start: &Step3Start,
+    max_eval: usize,
+) -> Result<(Params, CompleteReport), StepError> {
+    if sets.is_empty() {
+        return Err(StepError::TooFewPoints {
+            submodel: "step 3 (V_im, V_em, J_t)",
+            n: 0,
+            needed: 1,
+        });
+    }
+    let means = stationary_means(stat);
+    let segs: Vec<_> = sets.iter().map(|d| segments(d)).collect();
+    let n_res: usize = segs.iter().map(|s| 4 * count_segment_samples(s)).sum();
+    if n_res == 0 {
+        return Err(solver_err(
+            "step 3 (V_im, V_em, J_t)",
+            "the dynamic sets contain no command steps",
+        ));
+    }
+    let res = |th: &[f64]| -> Vec<f64> {
+        let mut q = base.clone();
+        set_dyn(&mut q, th);
+        let parts: Vec<Option<Vec<f64>>> = sets
+            .par_iter()
+            .zip(&segs)
+            .map(|(d, sg)| {
+                let sim = simulate_set(&q, d, sample_interval(d), SEARCH_RTOL).ok()?;
+                let w = 1.0 / (count_segment_samples(sg).max(1) as f64).sqrt(); // 1/L_j, eq. (75)
+                let mut r = Vec::new();
+                for (k, name) in DYN_OUTPUTS.iter().enumerate() {
+                    let meas = d.get(name)?;
+                    let s = sim.get(name)?;
+                    let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), s, t)).collect();
+                    let floor = start.amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
+                    normalized_residuals(&d.t, meas, &simv, sg, floor, w, &mut r);
+                }
+                Some(r)
+            })
+            .collect();
+        let mut out = Vec::with_capacity(n_res);
+        for p in parts {
+            match p {
+                Some(v) => out.extend(v),
+                None => return vec![10.0; n_res], // failed simulation: large, finite cost
+            }
+        }
+        out
+    };
+    let fit = least_squares(
+        res,
+        &start.theta,
+        &Bounds::new(start.lo.to_vec(), start.hi.to_vec()),
+        &search_opts(max_eval, vec![0.02, 0.02, 1e-4]),
+    )
+    .map_err(|e| solver_err("step 3 (V_im, V_em, J_t)", e))?;
+    let mut p = base.clone();
+    set_dyn(&mut p, &fit.theta);
+    let errors = output_errors(&p, sets, stat, &DYN_OUTPUTS, None)?;
+    Ok((
+        p,
+        CompleteReport {
+            params: vec![
+                ("v_im".into(), fit.theta[0]),
+                ("v_em".into(), fit.theta[1]),
+                ("j_t".into(), fit.theta[2]),
+            ],
+            errors,
+            cost: fit.cost,
+            n_eval: fit.n_eval,
+            converged: fit.termination.converged(),
+        },
+    ))
+}
+
+/// Step 4: tau_Me of eq. (76) on the normalized torque step responses of `set` (the fuel-step
+/// set I, 10 Hz), K = 1, J = 1. The engine states do not depend on tau_Me: the set is simulated
+/// once and the simulated M_e filtered for each trial value. Start 0.3 s, bounds 0.005-20 s.
+pub fn step4(
+    p: &Params,
+    set: &DynamicData,
+    stat: &[StationaryPoint],
+) -> Result<(f64, CompleteReport), StepError> {
+    const NAME: &str = "step 4 (tau_Me)";
+    let meas = set.get("M_e").ok_or(StepError::MissingColumn {
+        set: set.name.clone(),
+        column: "M_e",
+    })?;
+    let segs = segments(set);
+    if segs.is_empty() {
+        return Err(solver_err(NAME, "the torque set contains no command steps"));
+    }
+    let dt = sample_interval(set).min(0.01);
+    let sol = simulate_set(p, set, dt, SEARCH_RTOL).map_err(|e| solver_err(NAME, e))?;
+    let m_e = sol
+        .get("M_e")
+        .ok_or_else(|| solver_err(NAME, "no M_e"))?
+        .to_vec();
+    let ts = sol.t().to_vec();
+    let floor = 0.01
+        * stationary_means(stat)[4]
+            .unwrap_or_else(|| mean_of(meas))
+            .abs();
+    let w = 1.0 / (count_segment_samples(&segs).max(1) as f64).sqrt();
+    let model = |tau: f64| -> Vec<f64> {
+        let f = first_order_lag(&ts, &m_e, tau);
+        set.t.iter().map(|&t| interp(&ts, &f, t)).collect()
+    };
+    let res = |th: &[f64]| {
+        let mut r = Vec::new();
+        normalized_residuals(&set.t, meas, &model(th[0]), &segs, floor, w, &mut r);
+        r
+    };
+    let opts = LsqOptions {
+        fd_rel_step: Some(1e-6),
+        ..search_opts(200, vec![0.3])
+    };
+    let fit = least_squares(res, &[0.3], &Bounds::new(vec![0.005], vec![20.0]), &opts)
+        .map_err(|e| solver_err(NAME, e))?;
+    let tau = fit.theta[0];
+    let errors = output_errors(p, &[set], stat, &["M_e"], Some(tau))?;
+    Ok((
+        tau,
+        CompleteReport {
+            params: vec![("tau_me".into(), tau)],
+            errors,
+            cost: fit.cost,
+            n_eval: fit.n_eval,
+            converged: fit.termination.converged(),
+        },
+    ))
+}
+
+/// One static parameter of step 5: name, bounds (used by eq. (78) and the search) and a typical
+/// magnitude (scaling of the search).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticParam {
+    /// Name (as in the step-1 reports).
+    pub name: &'static str,
+    /// Lower bound.
+    pub lo: f64,
+    /// Upper bound.
+    pub hi: f64,
+    /// Typical magnitude.
+    pub scale: f64,
+}
+
+const fn sp(name: &'static str, lo: f64, hi: f64, scale: f64) -> StaticParam {
+    StaticParam {
+        name,
+        lo,
+        hi,
+        scale,
+    }
+}
+
+/// The static parameters theta of eq. (77) with their bounds (our choice: physically plausible
+/// boxes wide enough for a 6-cylinder heavy-duty engine; the paper does not list its bounds).
+/// The torque parameters are not in theta (paper section 8.1: M_e is not in y_k, z_n).
+pub const STATIC_PARAMS: [StaticParam; 35] = [
+    sp("c_vol1", -0.01, 0.01, 1e-4),
+    sp("c_vol2", -0.1, 0.1, 1e-3),
+    sp("c_vol3", 0.0, 3.0, 1.0),
+    sp("eta_sc", 0.5, 1.5, 1.0),
+    sp("x_cv", 0.0, 1.0, 0.1),
+    sp("h_tot", 1.0, 500.0, 100.0),
+    sp("pi_egropt", 0.05, 0.99, 0.5),
+    sp("c_egr1", -1e-3, -1e-8, 1e-4), // < 0: parameter validation (eq. (38))
+    sp("c_egr2", -0.1, 0.1, 1e-2),
+    sp("c_egr3", -1.0, 1.0, 0.1),
+    sp("eta_tmmax", 0.3, 1.0, 0.8),
+    sp("bsr_opt", 0.3, 1.5, 1.0),
+    sp("c_m1", 0.0, 10.0, 1.0),
+    sp("c_m2", 0.0, 2700.0, 1000.0),
+    sp("c_m3", 0.001, 3.0, 0.1),
+    sp("k_t", 0.1, 10.0, 1.0),
+    sp("c_f1", 0.0, 5.0, 1.0),
+    sp("c_f2", -2.0, 2.0, 1.0),
+    sp("c_vgt1", 50.0, 300.0, 100.0),
+    sp("c_vgt2", 50.0, 300.0, 100.0),
+    sp("eta_cmax", 0.3, 1.0, 0.7),
+    sp("w_copt", 0.0, 2.0, 0.3),
+    sp("pi_copt", 0.0, 5.0, 1.0),
+    sp("c_pi", 0.05, 3.0, 0.3),
+    sp("a1", 0.0, 100.0, 1.0),
+    sp("a2", 0.0, 100.0, 1.0),
+    sp("a3", -100.0, 100.0, 1.0),
+    sp("c_psi2", -1.0, 1.0, 0.1),
+    sp("c_phi2", -0.1, 0.1, 0.01),
+    sp("c_wpsi1", -1e-5, 1e-5, 1e-8),
+    sp("c_wpsi2", -0.1, 0.1, 1e-4),
+    sp("c_wpsi3", -100.0, 100.0, 1.0),
+    sp("c_wphi1", -1e-5, 1e-5, 1e-8),
+    sp("c_wphi2", -0.1, 0.1, 1e-3),
+    sp("c_wphi3", -100.0, 100.0, 10.0),
+];
+
+/// Mutable reference to a tunable parameter by name (the names of [`STATIC_PARAMS`], the
+/// step-2 and step-3 names and the torque parameters).
+pub fn param_mut<'a>(p: &'a mut Params, name: &str) -> Option<&'a mut f64> {
+    let (c, t, e, k) = (
+        &mut p.cylinder,
+        &mut p.turbine,
+        &mut p.egr_valve,
+        &mut p.compressor,
+    );
+    Some(match name {
+        "c_vol1" => &mut c.c_vol[0],
+        "c_vol2" => &mut c.c_vol[1],
+        "c_vol3" => &mut c.c_vol[2],
+        "eta_igch" => &mut c.eta_igch,
+        "c_fric1" => &mut c.c_fric[0],
+        "c_fric2" => &mut c.c_fric[1],
+        "c_fric3" => &mut c.c_fric[2],
+        "eta_sc" => &mut c.eta_sc,
+        "x_cv" => &mut c.x_cv,
+        "h_tot" => &mut p.exhaust_pipe.h_tot,
+        "pi_egropt" => &mut e.pi_egropt,
+        "c_egr1" => &mut e.c_egr[0],
+        "c_egr2" => &mut e.c_egr[1],
+        "c_egr3" => &mut e.c_egr[2],
+        "eta_tmmax" => &mut t.eta_tmmax,
+        "bsr_opt" => &mut t.bsr_opt,
+        "c_m1" => &mut t.c_m[0],
+        "c_m2" => &mut t.c_m[1],
+        "c_m3" => &mut t.c_m[2],
+        "k_t" => &mut t.k_t,
+        "c_f1" => &mut t.c_f1,
+        "c_f2" => &mut t.c_f2,
+        "c_vgt1" => &mut t.c_vgt1,
+        "c_vgt2" => &mut t.c_vgt2,
+        "eta_cmax" => &mut k.eta_cmax,
+        "w_copt" => &mut k.w_copt,
+        "pi_copt" => &mut k.pi_copt,
+        "c_pi" => &mut k.c_pi,
+        "a1" => &mut k.q_c[0][0],
+        "a2" => &mut k.q_c[1][1],
+        "a3" => &mut k.q_c[0][1],
+        "c_psi2" => &mut k.c_psi2,
+        "c_phi2" => &mut k.c_phi2,
+        "c_wpsi1" => &mut k.c_wpsi[0],
+        "c_wpsi2" => &mut k.c_wpsi[1],
+        "c_wpsi3" => &mut k.c_wpsi[2],
+        "c_wphi1" => &mut k.c_wphi[0],
+        "c_wphi2" => &mut k.c_wphi[1],
+        "c_wphi3" => &mut k.c_wphi[2],
+        "tau_egr1" => &mut p.egr_actuator.tau_egr1,
+        "tau_egr2" => &mut p.egr_actuator.tau_egr2,
+        "tau_degr" => &mut p.egr_actuator.tau_degr,
+        "k_egr" => &mut p.egr_actuator.k_egr,
+        "tau_vgt" => &mut p.vgt_actuator.tau_vgt,
+        "tau_dvgt" => &mut p.vgt_actuator.tau_dvgt,
+        "v_im" => &mut p.intake_manifold.v_im,
+        "v_em" => &mut p.exhaust_manifold.v_em,
+        "j_t" => &mut p.turbo.j_t,
+        _ => return None,
+    })
+}
+
+/// Value of a tunable parameter by name (see [`param_mut`]).
+pub fn param_value(p: &Params, name: &str) -> Option<f64> {
+    let mut q = p.clone();
+    param_mut(&mut q, name).map(|v| *v)
+}
+
+/// theta of eq. (77) from a parameter set.
+pub fn static_theta(p: &Params) -> Vec<f64> {
+    STATIC_PARAMS
+        .iter()
+        .map(|s| param_value(p, s.name).unwrap_or(f64::NAN))
+        .collect()
+}
+
+/// Write theta of eq. (77) into a parameter set: Q_c projected on the PSD cone (a3 symmetric),
+/// c_mlin tied to c_m1 (w_tlin - c_m2)^c_m3 as in step 1.
+pub fn set_static_theta(p: &mut Params, th: &[f64]) {
+    for (s, v) in STATIC_PARAMS.iter().zip(th) {
+        if let Some(x) = param_mut(p, s.name) {
+            *x = *v;
+        }
+    }
+    let k = &mut p.compressor;
+    k.q_c[1][0] = k.q_c[0][1];
+    k.q_c = project_q_c(k.q_c);
+    let t = &mut p.turbine;
+    t.c_mlin = t.c_m[0] * (t.w_tlin - t.c_m[1]).max(0.0).powf(t.c_m[2]);
+}
+
+/// The naive initialization of eq. (78) from the bounds of [`STATIC_PARAMS`].
+pub fn naive_theta() -> Vec<f64> {
+    STATIC_PARAMS
+        .iter()
+        .map(|s| {
+            if s.hi < 1.0 {
+                s.hi
+            } else if s.lo <= 1.0 {
+                1.0
+            } else {
+                s.lo
+            }
+        })
+        .collect()
+}
+
+/// Options of step 5 (cost (77)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step5Options {
+    /// beta of eq. (77) (weight 1/beta of the submodel row).
+    pub beta: f64,
+    /// gamma_j by data-set name (1 for sets not listed); paper: G 2, H 4.
+    pub gammas: Vec<(String, f64)>,
+    /// Include the first row (complete-model dynamic errors).
+    pub dynamic_row: bool,
+    /// Include the second row (submodel errors).
+    pub static_row: bool,
+    /// Sample rate of the dynamic terms [Hz] (paper: 10 Hz; sets sampled slower stay as they are).
+    pub sample_hz: f64,
+    /// Limit on cost evaluations (finite differences included).
+    pub max_evaluations: usize,
+}
+
+impl Default for Step5Options {
+    fn default() -> Self {
+        Self {
+            beta: 1.0,
+            gammas: vec![("G".into(), 2.0), ("H".into(), 4.0)],
+            dynamic_row: true,
+            static_row: true,
+            sample_hz: 10.0,
+            max_evaluations: 600,
+        }
+    }
+}
+
+/// The cost function (77), ready to evaluate for any parameter set.
+pub struct Cost77 {
+    base: Params,
+    stat: Vec<StationaryPoint>,
+    sets: Vec<(DynamicData, f64)>,
+    norms: [f64; 4],
+    opts: Step5Options,
+    n_res: usize,
+}
+
+/// Subsample a set to at most `hz` (every k-th sample).
+fn subsample(d: &DynamicData, hz: f64) -> DynamicData {
+    let dt = sample_interval(d);
+    let k = ((1.0 / hz) / dt).round().max(1.0) as usize;
+    let idx: Vec<usize> = (0..d.t.len()).step_by(k).collect();
+    DynamicData {
+        name: d.name.clone(),
+        t: idx.iter().map(|&i| d.t[i]).collect(),
+        columns: d
+            .columns
+            .iter()
+            .map(|(n, v)| (n.clone(), idx.iter().map(|&i| v[i]).collect()))
+            .collect(),
+    }
+}
+
+impl Cost77 {
+    /// Build the cost from the stationary points and the static-tuning sets.
+    pub fn new(
+        base: &Params,
+        stat: &[StationaryPoint],
+        sets: &[&DynamicData],
+        opts: &Step5Options,
+    ) -> Self {
+        let m = stationary_means(stat);
+        let norms = std::array::from_fn(|k| m[k].unwrap_or(1.0));
+        let sets: Vec<(DynamicData, f64)> = sets
+            .iter()
+            .map(|d| {
+                let g = opts
+                    .gammas
+                    .iter()
+                    .find(|(n, _)| *n == d.name)
+                    .map_or(1.0, |g| g.1);
+                (subsample(d, opts.sample_hz), g)
+            })
+            .collect();
+        let mut c = Self {
+            base: base.clone(),
+            stat: stat.to_vec(),
+            sets,
+            norms,
+            opts: opts.clone(),
+            n_res: 0,
+        };
+        c.n_res = c.dyn_len() + c.stat_len();
+        c
+    }
+
+    fn dyn_len(&self) -> usize {
+        if self.opts.dynamic_row {
+            self.sets.iter().map(|(d, _)| 4 * d.t.len()).sum()
+        } else {
+            0
+        }
+    }
+
+    fn stat_len(&self) -> usize {
+        if self.opts.static_row {
+            7 * self.stat.len()
+        } else {
+            0
+        }
+    }
+
+    /// Number of residuals.
+    pub fn len(&self) -> usize {
+        self.n_res
+    }
+
+    /// Whether there are no residuals.
+    pub fn is_empty(&self) -> bool {
+        self.n_res == 0
+    }
+
+    /// Parameter set for theta.
+    pub fn params(&self, th: &[f64]) -> Params {
+        let mut q = self.base.clone();
+        set_static_theta(&mut q, th);
+        q
+    }
+
+    /// Residuals r with V(theta) = sum r^2 (eq. (77)); a failed simulation gives residuals of 10
+    /// (finite, large) for its set.
+    pub fn residuals(&self, th: &[f64]) -> Vec<f64> {
+        let q = self.params(th);
+        let mut out = Vec::with_capacity(self.n_res);
+        if self.opts.dynamic_row {
+            let k_j = (4 * self.sets.len()) as f64;
+            let parts: Vec<Vec<f64>> = self
+                .sets
+                .par_iter()
+                .map(|(d, g)| {
+                    let w = g / (k_j * d.t.len() as f64).sqrt();
+                    let fail = vec![10.0; 4 * d.t.len()];
+                    let Ok(sim) = simulate_set(&q, d, sample_interval(d), SEARCH_RTOL) else {
+                        return fail;
+                    };
+                    let mut r = Vec::with_capacity(4 * d.t.len());
+                    for (k, name) in DYN_OUTPUTS.iter().enumerate() {
+                        let (Some(meas), Some(s)) = (d.get(name), sim.get(name)) else {
+                            return fail;
+                        };
+                        for (i, &t) in d.t.iter().enumerate() {
+                            r.push(w * (meas[i] - interp(sim.t(), s, t)) / self.norms[k]);
+                        }
+                    }
+                    r
+                })
+                .collect();
+            for p in parts {
+                out.extend(p);
+            }
+        }
+        if self.opts.static_row {
+            let n_m = (7 * self.stat.len()) as f64;
+            let w = 1.0 / (self.opts.beta * n_m).sqrt();
+            match steps::submodel_series(&q, &self.stat) {
+                Ok(series) => {
+                    for (name, meas, model) in series.iter().filter(|s| s.0 != "M_e") {
+                        let _ = name;
+                        let mm = mean_of(meas);
+                        out.extend(
+                            meas.iter()
+                                .zip(model)
+                                .map(|(a, b)| w * (a - b) / mm)
+                                .map(|r| if r.is_finite() { r } else { 10.0 }),
+                        );
+                    }
+                }
+                Err(_) => out.extend(std::iter::repeat_n(10.0, 7 * self.stat.len())),
+            }
+        }
+        out.resize(self.n_res, 10.0);
+        out
+    }
+
+    /// V(theta) of eq. (77).
+    pub fn cost(&self, th: &[f64]) -> f64 {
+        self.residuals(th).iter().map(|r| r * r).sum()
+    }
+}
+
+/// Report of step 5.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Step5Report {
+    /// Fitted static parameters (name, value).
+    pub params: Vec<(String, f64)>,
+    /// Cost (77) at the start and at the end.
+    pub cost_start: f64,
+    /// Final cost.
+    pub cost_end: f64,
+    /// Evaluations of (77) (finite differences included).
+    pub n_eval: usize,
+    /// Whether a convergence test stopped the search.
+    pub converged: bool,
+    /// Submodel errors (eq. (4)) after step 5.
+    pub submodels: Vec<FitReport>,
+    /// Complete-model errors (eq. (5)) on the sets of the cost, per output.
+    pub dynamic: Vec<FitReport>,
+    /// Wall time of one evaluation of (77) [s] (measured at the start value).
+    pub eval_seconds: f64,
+    /// Parameters at a bound at the end.
+    pub at_bounds: Vec<String>,
+    /// Linearized relative standard errors of the parameters (identifiability; infinite for
+    /// unidentifiable directions).
+    pub rel_std_err: Vec<(String, f64)>,
+}
+
+/// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
+/// (78)), with the bounds of [`STATIC_PARAMS`] (the start clipped into them).
+pub fn step5(
+    base: &Params,
+    stat: &[StationaryPoint],
+    sets: &[&DynamicData],
+    theta0: &[f64],
+    opts: &Step5Options,
+) -> Result<(Params, Step5Report), StepError> {
+    const NAME: &str = "step 5 (cost (77))";
+    if opts.static_row && stat.len() < 8 {
+        return Err(StepError::TooFewPoints {
+            submodel: NAME,
+            n: stat.len(),
+            needed: 8,
+        });
+    }
+    let cost = Cost77::new(base, stat, sets, opts);
+    if cost.is_empty() {
+        return Err(solver_err(
+            NAME,
+            "no residuals (no data sets and no stationary row)",
+        ));
+    }
+    let lo: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.lo).collect();
+    let hi: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.hi).collect();
+    let th0: Vec<f64> = theta0
+        .iter()
+        .zip(lo.iter().zip(&hi))
+        .map(|(v, (l, h))| {
+            let m = 1e-9 * (h - l);
+            v.clamp(l + m, h - m)
+        })
+        .collect();
+    let t0 = std::time::Instant::now();
+    let cost_start = cost.cost(&th0);
+    let eval_seconds = t0.elapsed().as_secs_f64();
+    let scale: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.scale).collect();
+    let fit: LsqResult = least_squares(
+        |th: &[f64]| cost.residuals(th),
+        &th0,
+        &Bounds::new(lo.clone(), hi.clone()),
+        &search_opts(opts.max_evaluations, scale),
+    )
+    .map_err(|e| solver_err(NAME, e))?;
+    let p = cost.params(&fit.theta);
+    let theta = static_theta(&p);
+    let at_bounds = STATIC_PARAMS
+        .iter()
+        .zip(&theta)
+        .filter(|(s, v)| {
+            (**v - s.lo).abs() <= 1e-6 * (s.hi - s.lo) || (**v - s.hi).abs() <= 1e-6 * (s.hi - s.lo)
+        })
+        .map(|(s, _)| s.name.to_string())
+        .collect();
+    let stats = fit.stats();
+    let rel_std_err = STATIC_PARAMS
+        .iter()
+        .zip(&theta)
+        .zip(&stats.std_err)
+        .map(|((s, v), e)| (s.name.to_string(), e / v.abs().max(s.scale * 1e-3)))
+        .collect();
+    let submodels = super::validate::stationary_errors(&p, stat)?
+        .into_iter()
+        .map(|o| FitReport {
+            submodel: o.output,
+            params: vec![],
+            mean_abs_rel_err: o.mean_abs_rel_err,
+            max_abs_rel_err: o.max_abs_rel_err,
+            n_points: o.n,
+            n_eval: 0,
+        })
+        .collect();
+    // empty when the final parameters cannot be simulated (reported, not an error here)
+    let dynamic = if sets.is_empty() {
+        vec![]
+    } else {
+        output_errors(&p, sets, stat, &DYN_OUTPUTS, None).unwrap_or_default()
+    };
+    Ok((
+        p,
+        Step5Report {
+            params: STATIC_PARAMS
+                .iter()
+                .zip(&theta)
+                .map(|(s, v)| (s.name.to_string(), *v))
+                .collect(),
+            cost_start,
+            cost_end: fit.cost,
+            n_eval: fit.n_eval,
+            converged: fit.termination.converged(),
+            submodels,
+            dynamic,
+            eval_seconds,
+            at_bounds,
+            rel_std_err,
+        },
+    ))
+}
+
+/// Sets of a campaign with a role (manifest order).
+pub fn sets_with_role<'a>(
+    infos: &'a [DataSetInfo],
+    data: &'a [DynamicData],
+    role: Role,
+    vgt_egr_only: bool,
+) -> Vec<&'a DynamicData> {
+    infos
+        .iter()
+        .zip(data)
+        .filter(|(i, _)| i.roles.contains(&role))
+        .filter(|(i, _)| !vgt_egr_only || i.kind == super::data::StepKind::VgtEgr)
+        .map(|(_, d)| d)
+        .collect()
+}

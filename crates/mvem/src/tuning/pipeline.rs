@@ -1,0 +1,259 @@
+//! The five-step tuning pipeline of the paper (sections 2.3, 8.1) from data only.
+//!
+//! 1. static submodels from the stationary points ([`super::steps::step1`], generic starts);
+//! 2. actuators from the actuator set ([`super::steps::step2`]);
+//! 3. V_im, V_em, J_t from the dynamic-tuning VGT/EGR sets ([`super::complete::step3`]);
+//! 4. tau_Me from the dynamic-tuning fuel set ([`super::complete::step4`]);
+//! 5. the static parameters by cost (77) on the static-tuning sets and the stationary points
+//!    ([`super::complete::step5`]), started from the step-1 values (or eq. (78)).
+//!
+//! `base` supplies the constants that are not tuned (gas properties, geometry, A_egrmax, ...)
+//! and the values of the parameters of the steps that are not run. No step starts from a value
+//! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
+
+use super::complete::{
+    naive_theta, sets_with_role, static_theta, step3, step4, step5, CompleteReport, Step3Start,
+    Step5Options, Step5Report,
+};
+use super::data::{Campaign, Role, StepKind};
+use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
+use crate::params::Params;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Initialization of the static parameters of step 5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Init {
+    /// The step-1 values (or the values of `base` when step 1 is not run).
+    Step1,
+    /// Eq. (78) from the bounds (section 8.2, method (a)).
+    Naive,
+}
+
+/// Options of the pipeline.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PipelineOptions {
+    /// Which of steps 1-5 to run.
+    pub steps: [bool; 5],
+    /// Start of step 5.
+    pub init: Init,
+    /// Step 3 start and bounds.
+    pub step3: Step3Start,
+    /// Step 3 evaluation limit.
+    pub step3_max_eval: usize,
+    /// Step 5 options (cost rows, beta, gamma_j, evaluation limit).
+    pub step5: Step5Options,
+    /// After step 5, run steps 3 and 4 again with the final static parameters (not in the
+    /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
+    /// V_em; see docs/tuning.md).
+    pub refine_dynamics: bool,
+}
+
+impl Default for PipelineOptions {
+    fn default() -> Self {
+        Self {
+            steps: [true; 5],
+            init: Init::Step1,
+            step3: Step3Start::default(),
+            step3_max_eval: 100,
+            step5: Step5Options::default(),
+            refine_dynamics: false,
+        }
+    }
+}
+
+/// Parse a step selection like "1-5", "1-4", "3,4" or "5".
+pub fn parse_steps(s: &str) -> Result<[bool; 5], String> {
+    let mut out = [false; 5];
+    for part in s.split(',') {
+        let part = part.trim();
+        let (a, b) = match part.split_once('-') {
+            Some((a, b)) => (a.trim(), b.trim()),
+            None => (part, part),
+        };
+        let n = |x: &str| -> Result<usize, String> {
+            match x.parse::<usize>() {
+                Ok(v) if (1..=5).contains(&v) => Ok(v),
+                _ => Err(format!("step {x:?} is not a number 1-5 (in {s:?})")),
+            }
+        };
+        let (a, b) = (n(a)?, n(b)?);
+        if a > b {
+            return Err(format!("step range {part:?} is decreasing"));
+        }
+        for k in a..=b {
+            out[k - 1] = true;
+        }
+    }
+    Ok(out)
+}
+
+/// What the pipeline did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TuneReport {
+    /// Step 1 submodel fits.
+    pub step1: Option<Step1Report>,
+    /// Step 2 actuator fits.
+    pub step2: Option<Vec<FitReport>>,
+    /// Step 3.
+    pub step3: Option<CompleteReport>,
+    /// Step 4.
+    pub step4: Option<CompleteReport>,
+    /// Tuned dynamometer time constant tau_Me [s] (eq. (76); not part of the model parameters).
+    pub tau_me_s: Option<f64>,
+    /// Step 5.
+    pub step5: Option<Step5Report>,
+    /// Step 3 repeated after step 5 (option `refine_dynamics`).
+    pub step3_refined: Option<CompleteReport>,
+    /// Step 4 repeated after step 5 (option `refine_dynamics`).
+    pub step4_refined: Option<CompleteReport>,
+    /// Wall time of each step [s] (0 when not run).
+    pub seconds: [f64; 5],
+    /// Total wall time [s].
+    pub total_seconds: f64,
+}
+
+/// A failed pipeline step.
+#[derive(Debug, thiserror::Error)]
+#[error("tuning step {step} failed: {source}")]
+pub struct PipelineError {
+    /// Step number 1-5.
+    pub step: u8,
+    /// Cause.
+    #[source]
+    pub source: StepError,
+}
+
+fn at(step: u8) -> impl Fn(StepError) -> PipelineError {
+    move |source| PipelineError { step, source }
+}
+
+fn missing(step: u8, what: &str) -> PipelineError {
+    PipelineError {
+        step,
+        source: StepError::Solver {
+            submodel: "data",
+            message: format!("the campaign has no {what}"),
+        },
+    }
+}
+
+/// Run the selected steps on a campaign; returns the tuned parameters and the report.
+pub fn tune(
+    c: &Campaign,
+    base: &Params,
+    opts: &PipelineOptions,
+) -> Result<(Params, TuneReport), PipelineError> {
+    let t_all = Instant::now();
+    let mut p = base.clone();
+    let mut rep = TuneReport {
+        step1: None,
+        step2: None,
+        step3: None,
+        step4: None,
+        tau_me_s: None,
+        step5: None,
+        step3_refined: None,
+        step4_refined: None,
+        seconds: [0.0; 5],
+        total_seconds: 0.0,
+    };
+    let infos = &c.manifest.datasets;
+    if opts.steps[0] {
+        let t = Instant::now();
+        let (q, r) = step1(&p, &c.stationary, &Step1Start::default()).map_err(at(1))?;
+        p = q;
+        rep.step1 = Some(r);
+        rep.seconds[0] = t.elapsed().as_secs_f64();
+    }
+    if opts.steps[1] {
+        let t = Instant::now();
+        let j = sets_with_role(infos, &c.dynamic, Role::Actuator, false);
+        let j = j
+            .first()
+            .ok_or_else(|| missing(2, "actuator data set (role \"actuator\")"))?;
+        let (q, r) = step2(&p, j, &Step2Start::default()).map_err(at(2))?;
+        p = q;
+        rep.step2 = Some(r);
+        rep.seconds[1] = t.elapsed().as_secs_f64();
+    }
+    if opts.steps[2] {
+        let t = Instant::now();
+        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
+        if sets.is_empty() {
+            return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
+        }
+        let (q, r) =
+            step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
+        p = q;
+        rep.step3 = Some(r);
+        rep.seconds[2] = t.elapsed().as_secs_f64();
+    }
+    if opts.steps[3] {
+        let t = Instant::now();
+        let set = infos
+            .iter()
+            .zip(&c.dynamic)
+            .find(|(i, _)| i.roles.contains(&Role::Dynamic) && i.kind == StepKind::Fuel)
+            .map(|(_, d)| d)
+            .ok_or_else(|| missing(4, "fuel-step data set with role \"dynamic\""))?;
+        let (tau, r) = step4(&p, set, &c.stationary).map_err(at(4))?;
+        rep.tau_me_s = Some(tau);
+        rep.step4 = Some(r);
+        rep.seconds[3] = t.elapsed().as_secs_f64();
+    }
+    if opts.steps[4] {
+        let t = Instant::now();
+        let sets: Vec<_> = infos
+            .iter()
+            .zip(&c.dynamic)
+            .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
+            .map(|(_, d)| d)
+            .collect();
+        if sets.is_empty() && opts.step5.dynamic_row {
+            return Err(missing(5, "data set with role \"static\""));
+        }
+        let th0 = match opts.init {
+            Init::Step1 => static_theta(&p),
+            Init::Naive => naive_theta(),
+        };
+        let (q, r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
+        p = q;
+        rep.step5 = Some(r);
+        rep.seconds[4] = t.elapsed().as_secs_f64();
+    }
+    if opts.refine_dynamics && opts.steps[4] {
+        let t = Instant::now();
+        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
+        if !sets.is_empty() {
+            let (q, r) =
+                step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
+            p = q;
+            rep.step3_refined = Some(r);
+        }
+        if let Some(set) = infos
+            .iter()
+            .zip(&c.dynamic)
+            .find(|(i, _)| i.roles.contains(&Role::Dynamic) && i.kind == StepKind::Fuel)
+            .map(|(_, d)| d)
+        {
+            let (tau, r) = step4(&p, set, &c.stationary).map_err(at(4))?;
+            rep.tau_me_s = Some(tau);
+            rep.step4_refined = Some(r);
+        }
+        rep.seconds[2] += t.elapsed().as_secs_f64();
+    }
+    p.validate().map_err(|e| PipelineError {
+        step: opts
+            .steps
+            .iter()
+            .rposition(|s| *s)
+            .map_or(0, |i| i as u8 + 1),
+        source: StepError::Solver {
+            submodel: "result",
+            message: format!("the tuned parameters are invalid: {e}"),
+        },
+    })?;
+    rep.total_seconds = t_all.elapsed().as_secs_f64();
+    Ok((p, rep))
+}
