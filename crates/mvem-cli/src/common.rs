@@ -199,7 +199,7 @@ pub struct SolverArgs {
     #[arg(long, value_name = "R")]
     pub rtol: Option<f64>,
     /// Absolute tolerance, relative to each state's typical magnitude (1e5 Pa, 0.1, 1e4 rad/s,
-    /// 100 %) [default: rtol / 100]
+    /// 100 %) [default: equal to rtol, as the library's `SimOptions::default()` (1e-6, 1e-6)]
     #[arg(long, value_name = "A")]
     pub atol: Option<f64>,
     /// Output interval [s] (the end time is always written) [default: 0.01; bench: 0.1]
@@ -213,7 +213,7 @@ impl SolverArgs {
         let rtol = self.rtol.unwrap_or(1e-6);
         let o = SimOptions {
             rtol,
-            atol: self.atol.unwrap_or(rtol * 1e-2),
+            atol: self.atol.unwrap_or(rtol),
             dt_out: self.dt.unwrap_or(default_dt),
             ..SimOptions::default()
         };

@@ -181,7 +181,7 @@ pub enum SimError {
         state: StateDump,
     },
     /// More steps than allowed.
-    #[error("more than {max_steps} steps before t = {t} s; state: {state}")]
+    #[error("more than {max_steps} steps before t = {t} s; state: {state}. Hint: raise SimOptions::max_steps for long or fast-varying inputs, loosen a very tight tolerance, or check the inputs (equilibrium lost, inputs far out of range make the model stiff)")]
     TooManySteps {
         /// Limit.
         max_steps: usize,
