@@ -8,6 +8,7 @@
 
 mod commands;
 mod common;
+mod outdir;
 mod plot;
 
 use clap::{Parser, Subcommand};
@@ -25,6 +26,8 @@ Examples:
   mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.csv --dt 0.1
   mvem steady --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json
   mvem bench --repeat 3
+  mvem compare-models --out out/compare-models
+  mvem te-study --out out/te-study
   mvem params check my_params.toml
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
@@ -46,6 +49,10 @@ enum Command {
     Bench(commands::bench::Args),
     /// Show or check parameter sets.
     Params(commands::params::Args),
+    /// The 8-, 10- and 12-state models after the paper's VGT steps (Figs 11-14): figures and tables.
+    CompareModels(commands::compare_models::Args),
+    /// Cylinder-out temperature with one fixed-point iteration vs converged on a cycle (Fig. 2).
+    TeStudy(commands::te_study::Args),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +74,8 @@ fn main() -> ExitCode {
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),
+        Command::CompareModels(a) => commands::compare_models::run(a),
+        Command::TeStudy(a) => commands::te_study::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),
