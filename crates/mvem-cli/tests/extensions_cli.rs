@@ -186,7 +186,10 @@ fn te_study_reports_the_largest_error_and_where() {
         )),
         "{out}"
     );
-    assert!(out.contains(&format!("| at | t = {} s", worst.1)), "{out}");
+    assert!(
+        out.contains(&format!("| at | t = {:.2} s", worst.1)),
+        "{out}"
+    );
     assert!(
         out.contains("| operating point there | n_e 1200 rpm"),
         "{out}"

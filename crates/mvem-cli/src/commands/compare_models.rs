@@ -195,14 +195,25 @@ fn figure(c: &StepComparison, paper_figs: &str) -> Figure {
             )),
     );
     for (name, ylabel, title, scale) in panels {
+        let title = title.to_string();
         f.panels
-            .push(models_panel(c, name, ylabel, title.to_string(), scale));
+            .push(models_panel(c, (name, &LEGEND), ylabel, title, scale));
     }
     f
 }
 
-/// One signal of every model in one panel.
-fn models_panel(c: &StepComparison, name: &str, ylabel: &str, title: String, scale: f64) -> Panel {
+/// Panels that carry the model legend: those where the lower right corner is free after both
+/// steps (a legend elsewhere would hide the steady state before the step).
+const LEGEND: [&str; 5] = ["p_im", "p_em", "p_c", "n_t", "T_em"];
+
+/// One signal of every model in one panel (with the legend if `name` is in `legend`).
+fn models_panel(
+    c: &StepComparison,
+    (name, legend): (&str, &[&str]),
+    ylabel: &str,
+    title: String,
+    scale: f64,
+) -> Panel {
     let mut panel = Panel::new("t [s]", ylabel).title(title);
     for r in &c.responses {
         let (_, lab, color, dashed) = ORDERS
@@ -211,6 +222,7 @@ fn models_panel(c: &StepComparison, name: &str, ylabel: &str, title: String, sca
             .find(|o| o.0 == r.order)
             .unwrap_or((r.order, "?", 6, false));
         let y = series_of(r, name, scale);
+        let lab = if legend.contains(&name) { lab } else { "" };
         panel = panel.with(if dashed {
             Series::dashed(lab, &r.t, &y, color)
         } else {
@@ -240,7 +252,8 @@ fn key_figure(r: &[StepComparison]) -> Figure {
                 "{what}, u_vgt {} → {} %",
                 c.step.u_vgt_from, c.step.u_vgt_to
             );
-            f.panels.push(models_panel(c, name, ylabel, title, scale));
+            f.panels
+                .push(models_panel(c, (name, &["p_im"]), ylabel, title, scale));
         }
     }
     f

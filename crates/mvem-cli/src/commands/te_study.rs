@@ -140,14 +140,14 @@ fn figure(st: &CylinderTempStudy, source: &str, n: usize) -> Figure {
     f.panels.push(
         Panel::new(x, "relative error of T_e [%]")
             .title(format!(
-                "(one iteration - converged) / converged: max |error| {:.3} % at t = {} s, mean {:.2e} %",
+                "(one iteration - converged) / converged: max |error| {:.3} % at t = {:.2} s, mean {:.2e} %",
                 100.0 * st.max_abs_rel_error,
                 st.t_max,
                 100.0 * st.mean_abs_rel_error
             ))
             .with(Series::line("relative error", &st.t, &pct, 2))
             .with(Series::markers(
-                format!("max at t = {} s", st.t_max),
+                format!("max at t = {:.2} s", st.t_max),
                 &[st.t[i]],
                 &[pct[i]],
                 1,
@@ -162,7 +162,10 @@ fn figure(st: &CylinderTempStudy, source: &str, n: usize) -> Figure {
     let tz = pick(&st.t);
     f.panels.push(
         Panel::new(x, "T_e [K]")
-            .title(format!("Close-up around the maximum (t = {} s)", st.t_max))
+            .title(format!(
+                "Close-up around the maximum (t = {:.2} s)",
+                st.t_max
+            ))
             .with(Series::line(
                 "converged fixed point",
                 &tz,
@@ -256,7 +259,7 @@ fn report(st: &CylinderTempStudy, sched: &InputSchedule, source: &str, n: usize)
     );
     let _ = writeln!(
         s,
-        "| at | t = {} s: T_e {:.2} K converged, {:.2} K one iteration |",
+        "| at | t = {:.2} s: T_e {:.2} K converged, {:.2} K one iteration |",
         st.t_max, st.t_e_converged[i], st.t_e_one_iteration[i]
     );
     let _ = writeln!(s, "| operating point there | {} |", drive_text(&d));
