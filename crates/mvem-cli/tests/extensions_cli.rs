@@ -2,46 +2,9 @@
 //! independent reference step data, `mvem te-study` (Fig. 2) against its own CSV, the 10/12-state
 //! CSV and JSON outputs (each column name once), and bad input.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn mvem(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mvem"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run mvem")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let header = r.headers().unwrap().iter().map(str::to_string).collect();
-    let rows = r
-        .records()
-        .map(|x| x.unwrap().iter().map(|c| c.parse().unwrap()).collect())
-        .collect();
-    (header, rows)
-}
-
-fn col(header: &[String], name: &str) -> usize {
-    header
-        .iter()
-        .position(|h| h == name)
-        .unwrap_or_else(|| panic!("no column {name}"))
-}
-
-fn files(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
+use common::{col, files, mvem, read_csv, reference, stderr, stdout, usage_error};
 
 #[test]
 fn compare_models_matches_the_reference_and_reports_persistence() {
@@ -50,7 +13,7 @@ fn compare_models_matches_the_reference_and_reports_persistence() {
         d.path(),
         &["compare-models", "--out", "cmp", "--rtol", "1e-7"],
     );
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let dir = d.path().join("cmp");
     assert_eq!(
         files(&dir),
@@ -69,10 +32,7 @@ fn compare_models_matches_the_reference_and_reports_persistence() {
     // the 8-state W_c of both steps against the independent reference implementation
     for step in ["75_to_65", "30_to_25"] {
         let (h, rows) = read_csv(&dir.join(format!("vgt_step_{step}.csv")));
-        let (rh, rrows) = read_csv(
-            &Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join(format!("../../tests/reference/step_vgt_{step}.csv")),
-        );
+        let (rh, rrows) = read_csv(&reference(&format!("step_vgt_{step}.csv")));
         assert_eq!(rows.len(), 801);
         assert_eq!(rows.len(), rrows.len());
         let (a, b) = (col(&h, "W_c_8"), col(&rh, "W_c"));
@@ -87,7 +47,7 @@ fn compare_models_matches_the_reference_and_reports_persistence() {
         assert_eq!(rows[0][col(&h, "p_c_8")], rows[0][col(&h, "p_im_8")]);
         assert!(rows[0][col(&h, "p_c_12")] > rows[0][col(&h, "p_im_12")]);
     }
-    let out = text(&o.stdout);
+    let out = stdout(&o);
     let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
     assert!(out.starts_with(&report));
     for order in [8, 10, 12] {
@@ -112,27 +72,24 @@ fn compare_models_bad_input_exits_2_without_output() {
     ] {
         let mut a = vec!["compare-models", "--out", "cmp"];
         a.extend(args);
-        let o = mvem(d.path(), &a);
-        assert_eq!(o.status.code(), Some(2), "{a:?}");
-        assert!(text(&o.stderr).contains(needle), "{}", text(&o.stderr));
+        let err = usage_error(d.path(), &a);
+        assert!(err.contains(needle), "{err}");
     }
     // k_ic = 0 cannot make a 12-state model: the message names the field
     let published = mvem(d.path(), &["params", "show"]);
-    let toml = text(&published.stdout).replace("k_ic = 19000000.0", "k_ic = 0.0");
+    let toml = stdout(&published).replace("k_ic = 19000000.0", "k_ic = 0.0");
     assert!(toml.contains("k_ic = 0.0"));
     std::fs::write(d.path().join("p.toml"), toml).unwrap();
-    let o = mvem(
+    let err = usage_error(
         d.path(),
         &["compare-models", "--out", "cmp", "--params", "p.toml"],
     );
-    let err = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("k_ic"), "{err}");
     assert_eq!(files(d.path()), ["p.toml"]);
     for cmd in ["compare-models", "te-study"] {
         let o = mvem(d.path(), &[cmd, "--help"]);
         assert!(o.status.success());
-        assert!(text(&o.stdout).contains("Examples:\n  mvem "), "{cmd}");
+        assert!(stdout(&o).contains("Examples:\n  mvem "), "{cmd}");
     }
 }
 
@@ -152,7 +109,7 @@ fn te_study_reports_the_largest_error_and_where() {
             "te-study", "--inputs", "in.csv", "--out", "te", "--rtol", "1e-4",
         ],
     );
-    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(o.status.success(), "{}", stderr(&o));
     let dir = d.path().join("te");
     assert_eq!(
         files(&dir),
@@ -178,7 +135,7 @@ fn te_study_reports_the_largest_error_and_where() {
         (10.0..11.5).contains(&worst.1) || (20.0..21.5).contains(&worst.1),
         "{worst:?}"
     );
-    let out = text(&o.stdout);
+    let out = stdout(&o);
     assert!(
         out.contains(&format!(
             "| max abs relative error of T_e | {:.3e}",
@@ -195,8 +152,8 @@ fn te_study_reports_the_largest_error_and_where() {
         "{out}"
     );
 
-    let o = mvem(d.path(), &["te-study", "--out", "te2", "--rtol", "2"]);
-    assert_eq!(o.status.code(), Some(2));
+    let err = usage_error(d.path(), &["te-study", "--out", "te2", "--rtol", "2"]);
+    assert!(err.contains("--rtol 2"), "{err}");
     assert!(!d.path().join("te2").exists());
 }
 
@@ -219,7 +176,7 @@ fn extension_outputs_name_each_column_once() {
                 &out,
             ],
         );
-        assert!(o.status.success(), "{}", text(&o.stderr));
+        assert!(o.status.success(), "{}", stderr(&o));
         let (h, rows) = read_csv(&d.path().join(&out));
         let mut seen = std::collections::HashSet::new();
         for n in &h {
@@ -236,44 +193,26 @@ fn extension_outputs_name_each_column_once() {
         let r = &rows[0];
         assert!((r[col(&h, "T_em")] - r[col(&h, "T_em_in")]).abs() < 1e-6 * r[col(&h, "T_em")]);
 
-        let o = mvem(
-            d.path(),
-            &[
-                "steady",
-                "--n-e",
-                "1500",
-                "--u-delta",
-                "110",
-                "--u-egr",
-                "80",
-                "--u-vgt",
-                "75",
-                "--model",
-                model,
-                "--json",
-            ],
-        );
-        assert!(o.status.success(), "{}", text(&o.stderr));
+        let steady = [
+            "steady",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--u-vgt",
+            "75",
+            "--model",
+            model,
+        ];
+        let o = mvem(d.path(), &[&steady[..], &["--json"]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
         let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         let t_im = v["T_im"].as_f64().unwrap();
         assert!((t_im - 300.61857).abs() < 1e-4, "{t_im}");
-        let tables = mvem(
-            d.path(),
-            &[
-                "steady",
-                "--n-e",
-                "1500",
-                "--u-delta",
-                "110",
-                "--u-egr",
-                "80",
-                "--u-vgt",
-                "75",
-                "--model",
-                model,
-            ],
-        );
-        let t = text(&tables.stdout);
+        let tables = mvem(d.path(), &steady);
+        let t = stdout(&tables);
         assert_eq!(t.matches("\n  T_em ").count(), 1, "{t}");
     }
 }
