@@ -423,9 +423,9 @@ fn max_distance(y_ref: &[f64], y: &[f64]) -> f64 {
 #[test]
 fn twelve_state_step_response_converges_to_ten_state_as_v_ic_and_k_ic_vanish() {
     // u_vgt 75 -> 65 % at (1500 rpm, 110 mg, 80 %). V_ic and k_ic are scaled together by s;
-    // the time constant of p_c scales like V_ic k_ic ~ s^2 (1.5 ms at s = 1), so the explicit
-    // integrator needs ~1/s^2 more steps: s = 1, 1/2, 1/4 keeps this test fast; the error is
-    // first order in s, so the trend is what is checked.
+    // the time constant of p_c scales like V_ic k_ic ~ s^2 (1.5 ms at s = 1; the L-stable
+    // default integrator is not limited by it, an explicit one would need ~1/s^2 more steps).
+    // The error is first order in s, so the trend over s = 1, 1/2, 1/4 is what is checked.
     let sched =
         InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(1.0, 3, 65.0)]).unwrap();
     let opts = SimOptions {
