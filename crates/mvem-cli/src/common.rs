@@ -291,6 +291,22 @@ pub fn whtc_schedule() -> Result<InputSchedule> {
     )?)
 }
 
+/// A whole input cycle: the CSV `inputs` or, without one, the built-in WHTC; returns the
+/// schedule, its name for messages, and its first and last time [s] (which must differ).
+pub fn cycle_inputs(inputs: Option<&Path>) -> Result<(InputSchedule, String, f64, f64)> {
+    let (sched, source) = match inputs {
+        Some(p) => (load_inputs(p)?, p.display().to_string()),
+        None => (whtc_schedule()?, WHTC_NAME.to_string()),
+    };
+    let (t0, t_end) = (sched.t_first(), sched.t_last());
+    if t_end <= t0 {
+        return Err(usage(format!(
+            "{source}: the inputs span no time (first and last row at {t0} s)"
+        )));
+    }
+    Ok((sched, source, t0, t_end))
+}
+
 /// Load an input CSV and warn once per channel (on stderr) about values outside the
 /// authors' input saturation ranges.
 pub fn load_inputs(path: &Path) -> Result<InputSchedule> {

@@ -8,6 +8,7 @@
 
 mod commands;
 mod common;
+mod outdir;
 mod plot;
 mod plot_maps;
 
@@ -31,6 +32,8 @@ Examples:
   mvem components --out out/components
   mvem report figs --out out/report
   mvem bench --repeat 3
+  mvem compare-models --out out/compare-models
+  mvem te-study --out out/te-study
   mvem params check my_params.toml
   mvem fmu --out mvem.fmu --model 10
 
@@ -73,6 +76,10 @@ enum Command {
     Tune(commands::tune::Args),
     /// Relative errors of a parameter set on a campaign: tables and figures.
     Validate(commands::validate::Args),
+    /// The 8-, 10- and 12-state models after the paper's VGT steps (Figs 11-14): figures and tables.
+    CompareModels(commands::compare_models::Args),
+    /// Cylinder-out temperature with one fixed-point iteration vs converged on a cycle (Fig. 2).
+    TeStudy(commands::te_study::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -114,6 +121,8 @@ fn main() -> ExitCode {
         Command::Lab(a) => commands::lab::run(a),
         Command::Tune(a) => commands::tune::run(a),
         Command::Validate(a) => commands::validate::run(a),
+        Command::CompareModels(a) => commands::compare_models::run(a),
+        Command::TeStudy(a) => commands::te_study::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

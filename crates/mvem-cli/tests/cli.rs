@@ -2,66 +2,13 @@
 //! independent implementation of the authors' model), exit codes and messages of bad input,
 //! and that failed runs leave no output file.
 
+mod common;
+
+use common::{col, files, mvem, read_csv, reference, stderr, stdout};
 use mvem::model::{Signals, STATE_NAMES_8};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::PathBuf;
 
 const HEADER: &str = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct";
-
-fn mvem(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mvem"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run mvem")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn reference(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/reference")
-        .join(name)
-}
-
-/// A CSV file as header + rows of numbers (non-numeric cells as NaN).
-fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let header = r.headers().unwrap().iter().map(str::to_string).collect();
-    let rows = r
-        .records()
-        .map(|x| {
-            x.unwrap()
-                .iter()
-                .map(|c| c.parse().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .collect();
-    (header, rows)
-}
-
-fn col(header: &[String], name: &str) -> usize {
-    header
-        .iter()
-        .position(|h| h == name)
-        .unwrap_or_else(|| panic!("no column {name}"))
-}
-
-/// Every file in `dir` (to check that nothing, not even a temporary file, was left behind).
-fn files(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
 
 #[test]
 fn simulate_scenario_matches_reference() {

@@ -53,16 +53,7 @@ const COMPARE: [(&str, f64); 5] = [
 pub fn run(a: &Args) -> Result<()> {
     let opts = a.solver.options(0.1)?;
     let model = a.model.build()?;
-    let (sched, source) = match &a.inputs {
-        Some(p) => (common::load_inputs(p)?, p.display().to_string()),
-        None => (common::whtc_schedule()?, common::WHTC_NAME.to_string()),
-    };
-    let (t0, t_end) = (sched.t_first(), sched.t_last());
-    if t_end <= t0 {
-        return Err(common::usage(format!(
-            "{source}: the inputs span no time (first and last row at {t0} s)"
-        )));
-    }
+    let (sched, source, t0, t_end) = common::cycle_inputs(a.inputs.as_deref())?;
     common::check_samples(t0, t_end, opts.dt_out)?;
     println!(
         "mvem bench: {source}, t = {t0} .. {t_end} s, rtol {:e}, atol {:e}, output every {} s",

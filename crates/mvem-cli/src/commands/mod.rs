@@ -1,6 +1,7 @@
 //! One module per subcommand; each has an `Args` struct (clap) and a `run` function.
 
 pub mod bench;
+pub mod compare_models;
 pub mod components;
 pub mod demo;
 pub mod fmu;
@@ -12,5 +13,6 @@ pub mod report;
 pub mod simulate;
 pub mod steady;
 pub mod step;
+pub mod te_study;
 pub mod tune;
 pub mod validate;

@@ -75,8 +75,9 @@ pub fn to_json<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>) -> Value
     for (n, v) in m.state_names().iter().zip(ss.x) {
         o.insert(n.to_string(), json!(v));
     }
+    // T_im, T_em, p_c are states of the 10/12-state models: keep the state value
     for (n, v) in Signals::NAMES.iter().zip(ss.signals.values()) {
-        o.insert(n.to_string(), json!(v));
+        o.entry(n.to_string()).or_insert(json!(v));
     }
     o.insert("physically_valid".into(), json!(ss.physically_valid()));
     o.insert("flags".into(), json!(ss.flags));
@@ -127,7 +128,12 @@ fn print_tables<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>) {
         );
     }
     println!("\nSignals");
-    for (n, v) in Signals::NAMES.iter().zip(ss.signals.values()) {
+    let names = m.state_names();
+    for (n, v) in Signals::NAMES
+        .iter()
+        .zip(ss.signals.values())
+        .filter(|(n, _)| !names.contains(n))
+    {
         println!(
             "  {n:<14} {:>18}  {}",
             common::fmt_value(v),

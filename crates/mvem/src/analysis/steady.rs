@@ -5,7 +5,9 @@
 //! residuals scaled the same way (units 1/s). Method: damped Newton with a finite-difference
 //! Jacobian and a backtracking line search that keeps the iterate inside the integrator limits;
 //! if that fails or lands on an unstable equilibrium, a settling simulation (40 s, then 200 s)
-//! from the guess provides a new start, as the reference procedure does.
+//! from the guess provides a new start, as the reference procedure does. Without a given guess,
+//! the 10- and 12-state models start from the 8-state equilibrium lifted into their state space
+//! (temperatures at their inflow values, p_c from the intercooler pressure drop).
 //!
 //! A converged equilibrium is always checked: [`SteadyState::flags`] lists every active guard
 //! saturation of the authors' implementation, lambda_O < 1, integrator limits, an unstable
@@ -93,7 +95,8 @@ impl Default for SteadyOptions {
     }
 }
 
-/// Steady state at `d` from the model's initial guess (see the module documentation).
+/// Steady state at `d` from the model's initial guess (see the module documentation; the
+/// extensions start from the 8-state equilibrium, see [`Model::lift_equilibrium_8`]).
 pub fn steady_state<const N: usize, M: Model<N>>(
     m: &M,
     d: &Drive,
@@ -121,7 +124,10 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
         return steady_state_with(&m.with_options(o), d, guess, opts);
     }
     let fixed = m.actuator_state_values(d);
-    let mut x0 = guess.copied().unwrap_or_else(|| m.initial_guess(d));
+    let mut x0 = match guess {
+        Some(g) => *g,
+        None => seed_from_8(m, d, opts).unwrap_or_else(|| m.initial_guess(d)),
+    };
     for (i, v) in &fixed {
         x0[*i] = *v;
     }
@@ -202,6 +208,22 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
         state: format!("[{state}]"),
         reason,
     })
+}
+
+/// For the extensions (10, 12 states): the 8-state equilibrium at `d`, lifted into the
+/// extension's state space ([`Model::lift_equilibrium_8`]); `None` for the 8-state model or if
+/// the 8-state solve fails. The 10-state steady states equal the 8-state ones and the 12-state
+/// ones differ by the intercooler pressure drop, so Newton converges from there without the
+/// settling fallback that the heuristic guess often needs.
+fn seed_from_8<const N: usize, M: Model<N>>(
+    m: &M,
+    d: &Drive,
+    opts: &SteadyOptions,
+) -> Option<[f64; N]> {
+    let m8 = m.reduced_8()?;
+    let ss8 = steady_state_with(m8, d, None, opts).ok()?;
+    let x = m.lift_equilibrium_8(&ss8.x, &ss8.signals)?;
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 struct NewtonResult<const N: usize> {

@@ -260,3 +260,31 @@ pub(crate) fn evaluate(
         memory_next,
     }
 }
+
+/// A smaller model's state-indexed array `small` placed at the indices `map` of an extension's
+/// `N`-array whose other entries are `fill` (states, scales, limits of the 8-state model in the
+/// 10-state one, of the 10-state model in the 12-state one).
+pub(crate) fn embed<T: Copy, const M: usize, const N: usize>(
+    small: &[T; M],
+    map: &[usize; M],
+    fill: T,
+) -> [T; N] {
+    let mut out = [fill; N];
+    for (k, &i) in map.iter().enumerate() {
+        out[i] = small[k];
+    }
+    out
+}
+
+/// The inverse of [`embed`]: the entries of `x` at the indices `map`.
+pub(crate) fn restrict<T: Copy, const M: usize, const N: usize>(
+    x: &[T; N],
+    map: &[usize; M],
+) -> [T; M] {
+    std::array::from_fn(|k| x[map[k]])
+}
+
+/// Actuator (index, value) pairs of a smaller model at the extension's indices `map`.
+pub(crate) fn remap_indices(v: Vec<(usize, f64)>, map: &[usize]) -> Vec<(usize, f64)> {
+    v.into_iter().map(|(k, x)| (map[k], x)).collect()
+}

@@ -20,10 +20,11 @@
 //! At an equilibrium the adiabatic balances give T_im = T_im,in and T_em = T_em,in, so the
 //! steady states equal those of [`Engine8`] (checked in `tests/extensions.rs`).
 
-use super::common::{self, Ports};
+use super::common::{self, embed, remap_indices, restrict, Ports};
 use super::Engine8;
 use super::{
     clip_state, limit_derivatives, Drive, Evaluation, Guard, Model, ModelInput, ModelOptions,
+    Signals,
 };
 use crate::components::cylinder::SeligerIterate;
 use crate::components::manifold;
@@ -97,13 +98,8 @@ pub(super) fn temperature_bounds(p: &Params, opts: &ModelOptions) -> (f64, f64) 
 }
 
 fn state_bounds_10(base: &Engine8) -> [(f64, f64); 10] {
-    let b8 = base.state_bounds();
     let tb = temperature_bounds(base.params(), base.options());
-    let mut b = [tb; 10];
-    for (i8, &i) in FROM_8.iter().enumerate() {
-        b[i] = b8[i8];
-    }
-    b
+    embed(&base.state_bounds(), &FROM_8, tb)
 }
 
 impl Engine10 {
@@ -122,10 +118,7 @@ impl Engine10 {
 
     /// The 10-state vector of an 8-state vector `x8` with manifold temperatures `t_im`, `t_em` [K].
     pub fn from_8_state(x8: &[f64; 8], t_im: f64, t_em: f64) -> [f64; 10] {
-        let mut x = [0.0; 10];
-        for (i8, &i) in FROM_8.iter().enumerate() {
-            x[i] = x8[i8];
-        }
+        let mut x = embed(x8, &FROM_8, 0.0);
         x[ix::T_IM] = t_im;
         x[ix::T_EM] = t_em;
         x
@@ -133,7 +126,7 @@ impl Engine10 {
 
     /// The 8 states shared with [`Engine8`] (p_im, p_em, X_Oim, X_Oem, omega_t, actuators).
     pub fn to_8_state(x: &[f64; 10]) -> [f64; 8] {
-        std::array::from_fn(|i8| x[FROM_8[i8]])
+        restrict(x, &FROM_8)
     }
 }
 
@@ -143,12 +136,7 @@ impl Model<10> for Engine10 {
     }
 
     fn state_scales(&self) -> [f64; 10] {
-        let s8 = self.base.state_scales();
-        let mut s = [1e3; 10]; // temperatures: 1000 K
-        for (i8, &i) in FROM_8.iter().enumerate() {
-            s[i] = s8[i8];
-        }
-        s
+        embed(&self.base.state_scales(), &FROM_8, 1e3) // temperatures: 1000 K
     }
 
     fn with_options(&self, opts: ModelOptions) -> Self {
@@ -170,11 +158,19 @@ impl Model<10> for Engine10 {
     }
 
     fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)> {
-        self.base
-            .actuator_state_values(d)
-            .into_iter()
-            .map(|(i8, v)| (FROM_8[i8], v))
-            .collect()
+        remap_indices(self.base.actuator_state_values(d), &FROM_8)
+    }
+
+    fn reduced_8(&self) -> Option<&Engine8> {
+        Some(&self.base)
+    }
+
+    fn lift_equilibrium_8(&self, x8: &[f64; 8], s8: &Signals) -> Option<[f64; 10]> {
+        Some(Self::from_8_state(
+            x8,
+            self.params().intake_manifold.t_im,
+            s8.t_em,
+        ))
     }
 
     /// The 8-state guess, T_im = T_im,in and T_em = T_em,in (eq. (25)) evaluated at that guess

@@ -23,10 +23,11 @@
 //!
 //! `k_ic` must be > 0 (k_ic -> 0 is the 10-state model, where p_c = p_im algebraically).
 
-use super::common::{self, Ports};
+use super::common::{self, embed, remap_indices, restrict, Ports};
 use super::engine10::{self, temperature_bounds, Engine10};
 use super::{
-    clip_state, limit_derivatives, Drive, Evaluation, Guard, Model, ModelInput, ModelOptions,
+    clip_state, limit_derivatives, Drive, Engine8, Evaluation, Guard, Model, ModelInput,
+    ModelOptions, Signals,
 };
 use crate::components::cylinder::SeligerIterate;
 use crate::components::{intercooler, manifold};
@@ -101,10 +102,11 @@ pub struct Engine12 {
 
 fn state_bounds_12(base: &Engine10) -> [(f64, f64); 12] {
     let b10 = base.state_bounds();
-    let mut b = [temperature_bounds(base.params(), base.options()); 12];
-    for (i10, &i) in FROM_10.iter().enumerate() {
-        b[i] = b10[i10];
-    }
+    let mut b = embed(
+        &b10,
+        &FROM_10,
+        temperature_bounds(base.params(), base.options()),
+    );
     b[ix::P_C] = b10[engine10::ix::P_IM];
     b
 }
@@ -138,10 +140,7 @@ impl Engine12 {
     /// The 12-state vector of a 10-state vector `x10` with the intercooler-volume states
     /// `p_c` [Pa] and `t_ic` [K].
     pub fn from_10_state(x10: &[f64; 10], p_c: f64, t_ic: f64) -> [f64; 12] {
-        let mut x = [0.0; 12];
-        for (i10, &i) in FROM_10.iter().enumerate() {
-            x[i] = x10[i10];
-        }
+        let mut x = embed(x10, &FROM_10, 0.0);
         x[ix::P_C] = p_c;
         x[ix::T_IC] = t_ic;
         x
@@ -149,7 +148,7 @@ impl Engine12 {
 
     /// The 10 states shared with [`Engine10`].
     pub fn to_10_state(x: &[f64; 12]) -> [f64; 10] {
-        std::array::from_fn(|i10| x[FROM_10[i10]])
+        restrict(x, &FROM_10)
     }
 }
 
@@ -160,10 +159,7 @@ impl Model<12> for Engine12 {
 
     fn state_scales(&self) -> [f64; 12] {
         let s10 = self.base.state_scales();
-        let mut s = [0.0; 12];
-        for (i10, &i) in FROM_10.iter().enumerate() {
-            s[i] = s10[i10];
-        }
+        let mut s = embed(&s10, &FROM_10, 0.0);
         s[ix::P_C] = s10[engine10::ix::P_IM];
         s[ix::T_IC] = s10[engine10::ix::T_IM];
         s
@@ -188,11 +184,18 @@ impl Model<12> for Engine12 {
     }
 
     fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)> {
-        self.base
-            .actuator_state_values(d)
-            .into_iter()
-            .map(|(i10, v)| (FROM_10[i10], v))
-            .collect()
+        remap_indices(self.base.actuator_state_values(d), &FROM_10)
+    }
+
+    fn reduced_8(&self) -> Option<&Engine8> {
+        self.base.reduced_8()
+    }
+
+    fn lift_equilibrium_8(&self, x8: &[f64; 8], s8: &Signals) -> Option<[f64; 12]> {
+        let x10 = self.base.lift_equilibrium_8(x8, s8)?;
+        let p_im = x10[engine10::ix::P_IM];
+        let dp = intercooler::pressure_drop(&self.params().intercooler, s8.w_c, s8.t_c, p_im);
+        Some(Self::from_10_state(&x10, p_im + dp, s8.t_c))
     }
 
     /// The 10-state guess; T_ic = the compressor outlet temperature T_c there and p_c = p_im

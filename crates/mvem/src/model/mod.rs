@@ -163,6 +163,22 @@ pub trait Model<const N: usize>: Send + Sync {
     where
         Self: Sized;
 
+    /// For the extensions: the 8-state model with the same parameters and options (`None` for
+    /// the 8-state model). The steady-state solver solves it first and starts the extension's
+    /// Newton iteration from its equilibrium, lifted by [`Model::lift_equilibrium_8`].
+    fn reduced_8(&self) -> Option<&Engine8> {
+        None
+    }
+
+    /// This model's state at the 8-state equilibrium `x8` with signals `s8` (the seed of the
+    /// steady-state solver; `None` for the 8-state model). The 10-state model takes T_im = the
+    /// cooled charge temperature and T_em = the 8-state T_em (the values at any equilibrium);
+    /// the 12-state model adds T_ic = the compressor outlet temperature T_c and p_c = p_im plus
+    /// the intercooler pressure drop (eq. (86)) carrying W_c.
+    fn lift_equilibrium_8(&self, _x8: &[f64; 8], _s8: &Signals) -> Option<[f64; N]> {
+        None
+    }
+
     /// The converged cylinder-temperature fixed point (x_r, T_1) at `x`, `u` (the initial
     /// memory of a one-iteration simulation).
     fn cylinder_fixed_point(&self, x: &[f64; N], u: &ModelInput) -> SeligerIterate

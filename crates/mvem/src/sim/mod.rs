@@ -219,7 +219,8 @@ fn dump<const N: usize, M: Model<N>>(m: &M, y: &[f64; N]) -> StateDump {
 /// Simulation result: named columns sampled at the output times.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Solution {
-    /// Column names: `t`, the states, then [`Signals::NAMES`].
+    /// Column names: `t`, the states, then the [`Signals::NAMES`] that are not state names
+    /// (each name once; `T_im`, `T_em`, `p_c` are states of the 10/12-state models).
     pub names: Vec<String>,
     /// Column data, one vector per name.
     pub columns: Vec<Vec<f64>>,
@@ -233,7 +234,14 @@ impl Solution {
     fn new(state_names: &[&'static str]) -> Self {
         let mut names = vec!["t".to_string()];
         names.extend(state_names.iter().map(|s| s.to_string()));
-        names.extend(Signals::NAMES.iter().map(|s| s.to_string()));
+        // A signal that is also a state (T_im, T_em, p_c of the 10/12-state models) appears
+        // once, as the state.
+        names.extend(
+            Signals::NAMES
+                .iter()
+                .filter(|s| !state_names.contains(s))
+                .map(|s| s.to_string()),
+        );
         let columns = vec![Vec::new(); names.len()];
         Self {
             names,
@@ -248,8 +256,13 @@ impl Solution {
         for i in 0..N {
             self.columns[1 + i].push(y[i]);
         }
-        for (j, v) in s.values().iter().enumerate() {
-            self.columns[1 + N + j].push(*v);
+        // signal columns follow the states in `Signals::NAMES` order, minus the state names
+        let mut c = 1 + N;
+        for (name, v) in Signals::NAMES.iter().zip(s.values()) {
+            if self.names.get(c).is_some_and(|n| n == name) {
+                self.columns[c].push(v);
+                c += 1;
+            }
         }
         self.guards_seen |= s.guards;
     }
