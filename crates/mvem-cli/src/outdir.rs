@@ -31,11 +31,11 @@ impl Files {
         self.0.push((name.into(), bytes.into()));
     }
 
-    /// Add `STEM.svg` and `STEM.png` of a figure (the PNG at the best compression).
+    /// Add `STEM.svg` and `STEM.png` of a figure (`plot::render` encodes PNGs at the best
+    /// compression).
     pub fn figure(&mut self, stem: &str, fig: &Figure) -> Result<()> {
         self.add(format!("{stem}.svg"), plot::render(fig, plot::Format::Svg)?);
-        let png = plot::render(fig, plot::Format::Png)?;
-        self.add(format!("{stem}.png"), recompress_png(&png)?);
+        self.add(format!("{stem}.png"), plot::render(fig, plot::Format::Png)?);
         Ok(())
     }
 
@@ -64,54 +64,4 @@ pub fn wrote(paths: &[PathBuf]) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     )
-}
-
-/// The same image re-encoded at the best deflate level: plotters' encoder writes at the fastest
-/// level, about three times larger for line figures.
-pub fn recompress_png(bytes: &[u8]) -> Result<Vec<u8>> {
-    let mut reader = png::Decoder::new(bytes)
-        .read_info()
-        .context("decoding the rendered PNG")?;
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader
-        .next_frame(&mut buf)
-        .context("decoding the rendered PNG")?;
-    let mut out = Vec::with_capacity(bytes.len() / 2);
-    {
-        let mut enc = png::Encoder::new(&mut out, info.width, info.height);
-        enc.set_color(info.color_type);
-        enc.set_depth(info.bit_depth);
-        enc.set_compression(png::Compression::Best);
-        enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
-        let mut w = enc.write_header().context("encoding PNG")?;
-        w.write_image_data(&buf[..info.buffer_size()])
-            .context("encoding PNG")?;
-    }
-    Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::plot::{Panel, Series};
-
-    #[test]
-    fn recompressed_png_has_the_same_pixels_and_is_smaller() {
-        let t: Vec<f64> = (0..400).map(|i| i as f64 * 0.01).collect();
-        let y: Vec<f64> = t.iter().map(|v| (5.0 * v).sin()).collect();
-        let mut f = Figure::new(1);
-        f.panels
-            .push(Panel::new("t [s]", "y [-]").with(Series::line("y", &t, &y, 0)));
-        let png = plot::render(&f, plot::Format::Png).unwrap();
-        let small = recompress_png(&png).unwrap();
-        assert!(small.len() < png.len(), "{} vs {}", small.len(), png.len());
-        let pixels = |b: &[u8]| {
-            let mut r = png::Decoder::new(b).read_info().unwrap();
-            let mut buf = vec![0; r.output_buffer_size()];
-            let i = r.next_frame(&mut buf).unwrap();
-            buf.truncate(i.buffer_size());
-            (i.width, i.height, buf)
-        };
-        assert_eq!(pixels(&png), pixels(&small));
-    }
 }
