@@ -256,7 +256,7 @@ fn step_json_metrics_match_the_library() {
     );
     let opts = SimOptions {
         rtol: 1e-6,
-        atol: 1e-8,
+        atol: 1e-6, // the CLI default: atol = rtol
         dt_out: 0.005,
         ..SimOptions::default()
     };

@@ -533,7 +533,7 @@ fn every_command_has_help_with_an_example() {
 fn closed_stdout_pipe_is_not_a_panic() {
     use std::io::Read;
     use std::process::Stdio;
-    let mut child = Command::new(env!("CARGO_BIN_EXE_mvem"))
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_mvem"))
         // a 12 x 12 map to stdout: ~120 kB of CSV, more than a pipe buffer holds
         .args([
             "map",

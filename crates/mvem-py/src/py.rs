@@ -104,7 +104,8 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 ///     u_egr_pct [%], u_vgt_pct [%] (1-D arrays), or a 2-D array with these 5 columns. Values are
 ///     interpolated linearly between rows; two rows with the same time make a step.
 /// t_end: end time [s] (default: the last input time; inputs are held after it).
-/// dt: output interval [s]. rtol, atol: integrator tolerances (atol relative to the state scales).
+/// dt: output interval [s]. rtol, atol: integrator tolerances (atol relative to the state scales;
+///     default: equal to rtol, as the CLI and the library).
 /// params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
 ///     {"turbo.j_t": 1e-4}) or a path to a TOML/JSON parameter file.
 /// model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
@@ -116,7 +117,7 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// a state is the state). Raises ValueError for bad inputs/options/parameters, RuntimeError if
 /// the solver fails.
 #[pyfunction]
-#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8, cylinder_temp="converged"))]
+#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged"))]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
@@ -124,7 +125,7 @@ fn simulate<'py>(
     t_end: Option<f64>,
     dt: f64,
     rtol: f64,
-    atol: f64,
+    atol: Option<f64>,
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
     cylinder_temp: &str,
@@ -136,7 +137,7 @@ fn simulate<'py>(
         t_end,
         dt,
         rtol,
-        atol,
+        atol: atol.unwrap_or(rtol),
     };
     let (names, cols) = py
         .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
@@ -352,7 +353,7 @@ fn step_metrics<'py>(
 /// Returns step_metrics' dict plus "t" and "y" (numpy arrays). ValueError for bad arguments,
 /// RuntimeError when a steady state or the simulation fails.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=None, params=None, model=8))]
 #[allow(clippy::too_many_arguments)]
 fn step_response<'py>(
     py: Python<'py>,
@@ -367,7 +368,7 @@ fn step_response<'py>(
     t_end: f64,
     dt: f64,
     rtol: f64,
-    atol: f64,
+    atol: Option<f64>,
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
@@ -377,7 +378,7 @@ fn step_response<'py>(
         t_end: None,
         dt,
         rtol,
-        atol,
+        atol: atol.unwrap_or(rtol),
     };
     let (input, output) = (input.to_string(), output.to_string());
     let r = py

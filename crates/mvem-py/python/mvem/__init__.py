@@ -3,7 +3,7 @@
 Functions (implemented in Rust; the GIL is released while the model runs, so threads run
 in parallel):
 
-- simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=1e-8, params=None, model=8,
+- simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8,
   cylinder_temp="converged") -> dict of numpy arrays
 - steady(n_e, u_delta, u_egr, u_vgt, params=None, model=8) -> dict
 - linearize(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None,

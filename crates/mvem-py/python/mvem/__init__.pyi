@@ -22,7 +22,7 @@ def simulate(
     t_end: Optional[float] = None,
     dt: float = 0.01,
     rtol: float = 1e-6,
-    atol: float = 1e-8,
+    atol: Optional[float] = None,
     params: Params = None,
     model: ModelOrder = 8,
     cylinder_temp: Literal["converged", "one-iteration"] = "converged",
@@ -112,7 +112,7 @@ def step_response(
     t_end: float = 8.0,
     dt: float = 0.01,
     rtol: float = 1e-6,
-    atol: float = 1e-8,
+    atol: Optional[float] = None,
     params: Params = None,
     model: ModelOrder = 8,
 ) -> Dict[str, Any]:
