@@ -26,6 +26,7 @@ Examples:
   mvem steady --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json
   mvem bench --repeat 3
   mvem params check my_params.toml
+  mvem robustness --runs 10000 --model all --out robustness.md
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -46,6 +47,8 @@ enum Command {
     Bench(commands::bench::Args),
     /// Show or check parameter sets.
     Params(commands::params::Args),
+    /// Robustness sweep: random inputs and start states; panics, NaN/inf, invariants.
+    Robustness(commands::robustness::Args),
 }
 
 fn main() -> ExitCode {
@@ -67,6 +70,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::run(a),
         Command::Params(a) => commands::params::run(a),
+        Command::Robustness(a) => commands::robustness::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -3,5 +3,6 @@
 pub mod bench;
 pub mod demo;
 pub mod params;
+pub mod robustness;
 pub mod simulate;
 pub mod steady;
