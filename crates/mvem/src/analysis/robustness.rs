@@ -578,6 +578,9 @@ pub fn run_scenario<const N: usize, M: Model<N>>(
 pub struct SweepConfig {
     /// Number of runs (split over model orders and methods).
     pub runs: u64,
+    /// Index of the first run (runs `first_run .. first_run + runs`; a sweep split into chunks
+    /// gives the same runs as one sweep).
+    pub first_run: u64,
     /// Seed.
     pub seed: u64,
     /// Simulated time per run [s].
@@ -598,6 +601,7 @@ impl Default for SweepConfig {
     fn default() -> Self {
         Self {
             runs: 10_000,
+            first_run: 0,
             seed: 1,
             t_end: 60.0,
             orders: vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
@@ -656,6 +660,52 @@ impl SweepReport {
             && self.nonfinite_samples == 0
             && self.violations.is_empty()
             && self.unlocated_errors == 0
+    }
+
+    /// Add the results of another sweep (e.g. the next chunk of runs of the same sweep).
+    pub fn merge(&mut self, o: SweepReport) {
+        self.runs += o.runs;
+        self.completed += o.completed;
+        for (k, v) in o.per_variant {
+            let e = self.per_variant.entry(k).or_default();
+            e.0 += v.0;
+            e.1 += v.1;
+        }
+        for (k, v) in o.per_kind {
+            let e = self.per_kind.entry(k).or_default();
+            e.0 += v.0;
+            e.1 += v.1;
+        }
+        for (k, v) in o.errors {
+            self.errors.entry(k).or_insert((0, v.1, v.2)).0 += v.0;
+        }
+        self.unlocated_errors += o.unlocated_errors;
+        self.panics.extend(o.panics);
+        self.samples += o.samples;
+        self.nonfinite_samples += o.nonfinite_samples;
+        self.nonfinite_runs += o.nonfinite_runs;
+        for (mine, theirs) in [
+            (&mut self.violations, o.violations),
+            (&mut self.numerical, o.numerical),
+        ] {
+            for (k, v) in theirs {
+                let e = mine.entry(k).or_insert((0, 0, v.2, v.3, v.4));
+                e.0 += v.0;
+                e.1 += v.1;
+                if v.3 > e.3 {
+                    e.2 = v.2;
+                    e.3 = v.3;
+                    e.4 = v.4;
+                }
+            }
+        }
+        for n in o.unavailable {
+            if !self.unavailable.contains(&n) {
+                self.unavailable.push(n);
+            }
+        }
+        self.seconds += o.seconds;
+        self.threads = self.threads.max(o.threads);
     }
 
     fn add(&mut self, states: usize, sc: &Scenario, o: Outcome) {
@@ -855,7 +905,7 @@ pub fn sweep_with_progress(
         .build()
         .expect("thread pool");
     let outcomes: Vec<(usize, Scenario, Outcome)> = pool.install(|| {
-        (0..cfg.runs)
+        (cfg.first_run..cfg.first_run + cfg.runs)
             .into_par_iter()
             .map(|run| {
                 let (m, bank) = &models[(run as usize) % models.len()];
