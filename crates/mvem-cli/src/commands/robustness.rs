@@ -38,7 +38,12 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "all")]
     pub model: OrderArg,
     /// Simulated time per run [s].
-    #[arg(long = "t-end", default_value_t = 60.0, value_name = "S")]
+    #[arg(
+        long = "t-end",
+        default_value_t = 60.0,
+        value_name = "S",
+        allow_negative_numbers = true
+    )]
     pub t_end: f64,
     /// Integrators, alternating by run.
     #[arg(
