@@ -251,3 +251,22 @@ fn failed_write_leaves_nothing() {
     assert!(e.to_string().contains("out.csv"), "{e}");
     assert!(!missing.exists());
 }
+
+/// Known gap in `crates/mvem/src/sim/` (left to its owner, see docs/robustness.md): every
+/// integration failure should give a hint, but `TooManySteps` carries only the time and the
+/// state. Ignored so that CI stays green until the message is extended; run with
+/// `cargo test --release -p mvem --test robustness -- --ignored`.
+#[test]
+#[ignore = "sim/: SimError::TooManySteps has no hint yet (fix belongs to the sim owner)"]
+fn too_many_steps_has_a_hint() {
+    let m = Engine8::published();
+    let sched =
+        InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 30.0), &[(1.0, 3, 25.0)]).unwrap();
+    let opts = SimOptions {
+        max_steps: 50,
+        ..SimOptions::default()
+    };
+    let e = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap_err();
+    assert!(matches!(e, SimError::TooManySteps { .. }), "{e}");
+    assert!(e.to_string().contains("Hint:"), "no hint: {e}");
+}
