@@ -4,6 +4,8 @@
 //! `cargo run --release -p mvem --example robustness -- --runs 10000 --seed 1 --threads 2`
 //! Options: `--runs N`, `--seed S`, `--threads T`, `--t-end SECONDS` (default 60),
 //! `--orders 8,10,12`, `--methods rosenbrock34,dopri5`, `--semantics authors|paper`.
+//! `--first-run K` starts at run K (`--first-run K --runs 1` replays run K alone);
+//! `--rtol R` sets the solver tolerance (atol = R / 100).
 //! `--chunk N --checkpoint FILE`: run the sweep in chunks of N runs and rewrite FILE with the
 //! cumulative report after every chunk (the same runs as one sweep; a long sweep that is
 //! stopped still leaves the results of its finished chunks, marked partial).
@@ -35,6 +37,13 @@ fn main() {
             "--runs" => cfg.runs = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--chunk" => chunk = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--checkpoint" => checkpoint = Some(val.clone()),
+            "--first-run" => {
+                cfg.first_run = val.parse().unwrap_or_else(|_| bad("expected an integer"))
+            }
+            "--rtol" => {
+                cfg.sim.rtol = val.parse().unwrap_or_else(|_| bad("expected a number"));
+                cfg.sim.atol = cfg.sim.rtol * 1e-2;
+            }
             "--seed" => cfg.seed = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--threads" => cfg.threads = val.parse().unwrap_or_else(|_| bad("expected an integer")),
             "--t-end" => {

@@ -288,7 +288,7 @@ fn markdown(a: &Args, reports: &[(usize, SweepReport)]) -> String {
     });
     row(
         &mut s,
-        "numerical X_O excursions <= 100 rtol (runs)",
+        "numerical X_O excursions within 100x tolerance (runs)",
         &|r| r.numerical.values().map(|v| v.0).sum::<u64>().to_string(),
     );
     row(&mut s, "worst numerical excursion (relative)", &|r| {

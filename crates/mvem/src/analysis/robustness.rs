@@ -37,11 +37,19 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 pub const INVARIANT_TOL: f64 = 1e-9;
 
 /// Allowed excursion of a *state* beyond an invariant bound that the model does not enforce by
-/// an integrator limit (X_Oim, X_Oem <= X_Oc), in units of `rtol * |bound|`: the exact solution
-/// stays inside, the numerical one only to within its (global) integration error. Excursions
-/// within this allowance are counted and reported separately as numerical, larger ones are
-/// violations.
+/// an integrator limit (X_Oim, X_Oem <= X_Oc), in units of the solver's error tolerance at the
+/// bound, `rtol + atol * scale / |bound|` (relative to the bound; `atol` is scaled by the
+/// state's scale, as in the integrator; see [`state_allowance`]): the exact solution stays
+/// inside, the numerical one only to within its (global) integration error. Excursions within
+/// this allowance are counted and reported separately as numerical, larger ones are violations.
 pub const STATE_SLACK_RTOL: f64 = 100.0;
+
+/// Allowed relative excursion of a state beyond `bound`: [`STATE_SLACK_RTOL`] times the solver's
+/// error tolerance there, `rtol + atol * scale / |bound|` (`scale`: the state's scale, by which
+/// the integrator multiplies `atol`).
+pub fn state_allowance(opts: &SimOptions, scale: f64, bound: f64) -> f64 {
+    STATE_SLACK_RTOL * (opts.rtol + opts.atol * scale / bound.abs())
+}
 
 /// Minimum compressor flow of the authors' implementation [kg/s].
 pub const W_C_MIN: f64 = 1e-4;
@@ -382,14 +390,14 @@ pub fn state_limits<const N: usize, M: Model<N>>(model: &M) -> Vec<(&'static str
 
 /// Check every output sample of `sol` against the invariants (see the module documentation).
 /// `limits` are the states' integrator limits ([`state_limits`]; states with a stricter fixed
-/// check, `p_im`, `p_em`, `X_Oim`, `X_Oem`, are skipped); `rtol` is the solver's relative
-/// tolerance (for the state allowance [`STATE_SLACK_RTOL`]).
+/// check, `p_im`, `p_em`, `X_Oim`, `X_Oem`, are skipped); `slack` is the relative excursion of
+/// X_Oim, X_Oem beyond X_Oc counted as numerical, not as a violation ([`state_allowance`]).
 /// Returns (non-finite samples, violations, numerical excursions).
 pub fn check_solution(
     sol: &Solution,
     p: &Params,
     limits: &[(&'static str, f64, f64)],
-    rtol: f64,
+    slack: f64,
 ) -> (usize, Vec<Violation>, Vec<Violation>) {
     let n = sol.len();
     let mut nonfinite = 0;
@@ -402,7 +410,6 @@ pub fn check_solution(
     let pa = p.ambient.p_amb;
     let x_oc = p.intake_manifold.x_oc;
     // (label, column, lower, upper, allowance relative to the bound)
-    let slack = STATE_SLACK_RTOL * rtol;
     let inf = f64::INFINITY;
     let mut checks: Vec<(String, &str, f64, f64, f64)> = vec![
         ("X_Oim in [0, X_Oc]".into(), "X_Oim", 0.0, x_oc, slack),
@@ -543,10 +550,17 @@ pub fn run_scenario<const N: usize, M: Model<N>>(
             ..base_opts.clone()
         };
         let limits = state_limits(model);
+        let x_oc = model.params().intake_manifold.x_oc;
+        let scale = model
+            .state_names()
+            .iter()
+            .position(|n| *n == "X_Oim")
+            .map_or(0.0, |i| model.state_scales()[i]);
+        let slack = state_allowance(&opts, scale, x_oc);
         match simulate(model, &sc.sched, 0.0, t_end, Start::State(x0), &opts) {
             Ok(sol) => {
                 let (nonfinite_samples, violations, numerical) =
-                    check_solution(&sol, model.params(), &limits, opts.rtol);
+                    check_solution(&sol, model.params(), &limits, slack);
                 Outcome::Completed {
                     samples: sol.len(),
                     nonfinite_samples,
