@@ -36,6 +36,7 @@ Examples:
   mvem te-study --out out/te-study
   mvem params check my_params.toml
   mvem fmu --out mvem.fmu --model 10
+  mvem robustness --runs 10000 --model all --out robustness.md
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -80,6 +81,8 @@ enum Command {
     CompareModels(commands::compare_models::Args),
     /// Cylinder-out temperature with one fixed-point iteration vs converged on a cycle (Fig. 2).
     TeStudy(commands::te_study::Args),
+    /// Robustness sweep: random inputs and start states; panics, NaN/inf, invariants.
+    Robustness(commands::robustness::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -123,6 +126,7 @@ fn main() -> ExitCode {
         Command::Validate(a) => commands::validate::run(a),
         Command::CompareModels(a) => commands::compare_models::run(a),
         Command::TeStudy(a) => commands::te_study::run(a),
+        Command::Robustness(a) => commands::robustness::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -8,11 +8,12 @@
 //!   1e-9 relative to the state scales (both stop at the same breakpoints; the only difference
 //!   is the extra stop at t1, which changes the step sequence, so agreement is to the
 //!   tolerance-driven local error, not bitwise: we use rtol 1e-12 to make it ~1e-9);
-//! - parameter files round-trip exactly (TOML and JSON) for randomly perturbed valid parameters.
+//! - parameter files round-trip exactly (TOML and JSON) for randomly perturbed valid parameters;
+//! - the first three also for the 10- and 12-state models (fewer cases).
 
 use mvem::analysis::steady::steady_state;
 use mvem::io::params::{parse_params, to_json, to_toml};
-use mvem::model::{Drive, Engine8, Model, ModelInput, STATE_NAMES_8};
+use mvem::model::{Drive, Engine10, Engine12, Engine8, Model, ModelInput, STATE_NAMES_8};
 use mvem::params::Params;
 use mvem::sim::{simulate, InputSchedule, Integrator, Method, SimOptions, Solution, Start};
 use proptest::prelude::*;
@@ -194,5 +195,172 @@ proptest! {
         prop_assert_eq!(&back, &p);
         let back = parse_params(&to_json(&p), Path::new("rt.json")).unwrap();
         prop_assert_eq!(&back, &p);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The extended models (section 9: 10 states with manifold temperatures, 12 with the volume
+// before the intercooler), with fewer cases: the same properties.
+
+/// A state of `m` from unit numbers `u` in [0, 1]: inside the integrator limits (pressures and
+/// omega_t log-uniform), oxygen fractions in [0, X_Oc], actuator states -50..150 %,
+/// temperatures from their lower limit (0.5 T_amb) to 3000 K.
+fn state_from_unit<const N: usize, M: Model<N>>(m: &M, u: &[f64]) -> [f64; N] {
+    let x_oc = m.params().intake_manifold.x_oc;
+    let names = m.state_names();
+    let bounds = m.state_bounds();
+    std::array::from_fn(|i| {
+        let (lo, hi) = bounds[i];
+        let r = u[i];
+        if names[i].starts_with("X_O") {
+            r * x_oc
+        } else if names[i].starts_with("u_") {
+            -50.0 + 200.0 * r
+        } else if names[i].starts_with("T_") {
+            lo + (3000.0 - lo) * r
+        } else {
+            (lo.ln() + r * (hi.ln() - lo.ln())).exp()
+        }
+    })
+}
+
+fn rhs_finite<const N: usize, M: Model<N>>(
+    m: &M,
+    unit: &[f64],
+    u: &ModelInput,
+) -> Result<(), TestCaseError> {
+    let x = state_from_unit(m, unit);
+    let mem = m.cylinder_fixed_point(&x, u);
+    let ev = m.eval(&x, u, mem);
+    for (i, v) in ev.dx.iter().enumerate() {
+        prop_assert!(
+            v.is_finite(),
+            "{N} states: d{}/dt = {v} at x={x:?} u={u:?}",
+            m.state_names()[i]
+        );
+    }
+    for (n, v) in mvem::model::Signals::NAMES.iter().zip(ev.signals.values()) {
+        prop_assert!(v.is_finite(), "{N} states: {n} = {v} at x={x:?} u={u:?}");
+    }
+    Ok(())
+}
+
+/// Mass balances of an equilibrium of the 10- or 12-state model: intake W_ic + W_egr = W_ei,
+/// exhaust W_eo = W_t + W_egr, and before the intercooler (12 states) W_c = W_ic; dx ~ 0.
+fn extended_mass_balances<const N: usize, M: Model<N>>(
+    m: &M,
+    d: &Drive,
+) -> Result<(), TestCaseError> {
+    if let Ok(ss) = steady_state(m, d) {
+        let s = ss.signals;
+        let scale = s.w_ei.abs().max(1e-3);
+        prop_assert!(
+            (s.w_ic + s.w_egr - s.w_ei).abs() <= 1e-8 * scale,
+            "{N} states, intake: W_ic {} + W_egr {} != W_ei {}",
+            s.w_ic,
+            s.w_egr,
+            s.w_ei
+        );
+        prop_assert!(
+            (s.w_c - s.w_ic).abs() <= 1e-8 * scale,
+            "{N} states: W_c {} != W_ic {}",
+            s.w_c,
+            s.w_ic
+        );
+        prop_assert!(
+            (s.w_eo - s.w_t - s.w_egr).abs() <= 1e-8 * scale,
+            "{N} states, exhaust: W_eo {} != W_t {} + W_egr {}",
+            s.w_eo,
+            s.w_t,
+            s.w_egr
+        );
+        prop_assert!((s.w_eo - s.w_ei - s.w_f).abs() <= 1e-12 * scale);
+    }
+    Ok(())
+}
+
+/// advance(t1) then advance(t_end) equals one run, for any model (see `restart_equals_single_run`).
+/// Bound 5e-9 of the state scales: the extra stop at t1 changes the step sequence, and the
+/// global error at rtol 1e-12 of the fast temperature states reaches ~2e-9 of their 1000 K scale
+/// (Dopri5); a restart that lost state (delays, step size, memory) deviates by orders more.
+fn restart_matches<const N: usize, M: Model<N>>(
+    m: &M,
+    t1: f64,
+    uv: f64,
+    dopri: bool,
+) -> Result<(), TestCaseError> {
+    let d0 = Drive::new(1500.0, 110.0, 50.0, 60.0);
+    let sched = InputSchedule::steps(d0, &[(0.5, 3, uv), (1.0, 1, 60.0)]).unwrap();
+    let opts = SimOptions {
+        rtol: 1e-12,
+        atol: 1e-14,
+        dt_out: 0.05,
+        method: if dopri {
+            Method::Dopri5
+        } else {
+            Method::Rosenbrock34
+        },
+        ..SimOptions::default()
+    };
+    let x0 = steady_state(m, &d0).unwrap().x;
+    let once = simulate(m, &sched, 0.0, 1.5, Start::State(x0), &opts).unwrap();
+    let mut run = Integrator::new(m, &sched, 0.0, x0, &opts).unwrap();
+    let mut twice = once.clone();
+    for c in twice.columns.iter_mut() {
+        c.clear();
+    }
+    run.advance(t1, &mut twice, false).unwrap();
+    run.advance(1.5, &mut twice, true).unwrap();
+    prop_assert_eq!(once.len(), twice.len());
+    let scales = m.state_scales();
+    for i in 0..once.len() {
+        let dev = m
+            .state_names()
+            .iter()
+            .zip(scales)
+            .map(|(n, s)| (once.get(n).unwrap()[i] - twice.get(n).unwrap()[i]).abs() / s)
+            .fold(0.0, f64::max);
+        prop_assert!(
+            dev < 5e-9,
+            "{N} states, t = {}: scaled deviation {dev:e} (t1 = {t1})",
+            once.t()[i]
+        );
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, ..ProptestConfig::default() })]
+
+    /// Authors' semantics, 10 and 12 states: dx and every signal finite on the admissible box.
+    #[test]
+    fn rhs_finite_on_admissible_box_extended(
+        unit in proptest::collection::vec(0.0..=1.0f64, 12), u in any_input(),
+    ) {
+        rhs_finite(&Engine10::published(), &unit, &u)?;
+        rhs_finite(&Engine12::published(), &unit, &u)?;
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 8, ..ProptestConfig::default() })]
+
+    /// Mass balances at converged equilibria of the 10- and 12-state models.
+    #[test]
+    fn steady_state_mass_balances_extended(
+        n in 500.0..2000.0f64, ud in 1.0..250.0f64, ue in 0.0..100.0f64, uv in 20.0..100.0f64,
+    ) {
+        let d = Drive::new(n, ud, ue, uv);
+        extended_mass_balances(&Engine10::published(), &d)?;
+        extended_mass_balances(&Engine12::published(), &d)?;
+    }
+
+    /// Restartability of the 10- and 12-state models.
+    #[test]
+    fn restart_equals_single_run_extended(
+        t1 in 0.2..1.3f64, uv in 20.0..100.0f64, dopri in any::<bool>(),
+    ) {
+        restart_matches(&Engine10::published(), t1, uv, dopri)?;
+        restart_matches(&Engine12::published(), t1, uv, dopri)?;
     }
 }

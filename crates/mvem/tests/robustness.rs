@@ -251,3 +251,18 @@ fn failed_write_leaves_nothing() {
     assert!(e.to_string().contains("out.csv"), "{e}");
     assert!(!missing.exists());
 }
+
+/// Every integration failure gives a hint, `TooManySteps` included.
+#[test]
+fn too_many_steps_has_a_hint() {
+    let m = Engine8::published();
+    let sched =
+        InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 30.0), &[(1.0, 3, 25.0)]).unwrap();
+    let opts = SimOptions {
+        max_steps: 50,
+        ..SimOptions::default()
+    };
+    let e = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap_err();
+    assert!(matches!(e, SimError::TooManySteps { .. }), "{e}");
+    assert!(e.to_string().contains("Hint:"), "no hint: {e}");
+}

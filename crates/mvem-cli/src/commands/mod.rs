@@ -10,6 +10,7 @@ pub mod linearize;
 pub mod map;
 pub mod params;
 pub mod report;
+pub mod robustness;
 pub mod simulate;
 pub mod steady;
 pub mod step;

@@ -14,11 +14,15 @@
 //! relative):
 //! - `0 <= X_Oim, X_Oem <= X_Oc` (oxygen fractions of mixtures of air and exhaust, eqs (6), (9));
 //! - `p_im` in `[0.5, 10] p_amb`, `p_em` in `[0.5, 20] p_amb` (integrator limits, items 9-10);
-//! - `omega_t` within its integrator limits (item 37);
+//! - every other state with a finite integrator limit within it: `omega_t` (item 37), and in
+//!   the extended models `p_c` (as `p_im`) and the temperatures `T_im`, `T_em`, `T_ic`
+//!   (`>= 0.5 T_amb`);
 //! - `lambda_O >= 0`, and `lambda_O > 0` wherever `X_Oim > 0` (eq. (15): lambda_O is
 //!   proportional to X_Oim, which may sit at its integrator limit 0 after oxygen-free EGR);
 //! - `W_c >= 1e-4` kg/s (compressor flow floor of the authors' implementation), `W_t >= 0`,
-//!   `W_egr >= 0` (authors' semantics: no reverse flow, eqs (32), (55));
+//!   `W_egr >= 0` (authors' semantics: no reverse flow, eqs (32), (55)), `W_ei >= 0`,
+//!   `W_eo >= 0`, `W_f >= 0` (eqs (11), (13), (14)), and `W_ic` with the sign of `p_c - p_im`
+//!   (eq. (86), signed back flow in the 12-state model; `W_ic = W_c` otherwise);
 //! - every value of every output column finite.
 
 use crate::model::{AnyModel, Drive, Model, ModelOptions, ModelOrder};
@@ -33,11 +37,19 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 pub const INVARIANT_TOL: f64 = 1e-9;
 
 /// Allowed excursion of a *state* beyond an invariant bound that the model does not enforce by
-/// an integrator limit (X_Oim, X_Oem <= X_Oc), in units of `rtol * |bound|`: the exact solution
-/// stays inside, the numerical one only to within its (global) integration error. Excursions
-/// within this allowance are counted and reported separately as numerical, larger ones are
-/// violations.
+/// an integrator limit (X_Oim, X_Oem <= X_Oc), in units of the solver's error tolerance at the
+/// bound, `rtol + atol * scale / |bound|` (relative to the bound; `atol` is scaled by the
+/// state's scale, as in the integrator; see [`state_allowance`]): the exact solution stays
+/// inside, the numerical one only to within its (global) integration error. Excursions within
+/// this allowance are counted and reported separately as numerical, larger ones are violations.
 pub const STATE_SLACK_RTOL: f64 = 100.0;
+
+/// Allowed relative excursion of a state beyond `bound`: [`STATE_SLACK_RTOL`] times the solver's
+/// error tolerance there, `rtol + atol * scale / |bound|` (`scale`: the state's scale, by which
+/// the integrator multiplies `atol`).
+pub fn state_allowance(opts: &SimOptions, scale: f64, bound: f64) -> f64 {
+    STATE_SLACK_RTOL * (opts.rtol + opts.atol * scale / bound.abs())
+}
 
 /// Minimum compressor flow of the authors' implementation [kg/s].
 pub const W_C_MIN: f64 = 1e-4;
@@ -364,15 +376,28 @@ pub fn error_is_located(e: &SimError) -> bool {
     }
 }
 
+/// Integrator limits of `model`'s states that are finite on at least one side, as
+/// (state name, lower, upper): the states checked by [`check_solution`] beyond its fixed list.
+pub fn state_limits<const N: usize, M: Model<N>>(model: &M) -> Vec<(&'static str, f64, f64)> {
+    model
+        .state_names()
+        .iter()
+        .zip(model.state_bounds())
+        .filter(|(_, (lo, hi))| lo.is_finite() || hi.is_finite())
+        .map(|(n, (lo, hi))| (*n, lo, hi))
+        .collect()
+}
+
 /// Check every output sample of `sol` against the invariants (see the module documentation).
-/// `rtol` is the solver's relative tolerance (for the state allowance [`STATE_SLACK_RTOL`]).
-/// Returns (non-finite samples, violations, numerical excursions); each entry is
-/// (invariant, samples, worst value, worst excess relative to the bound).
+/// `limits` are the states' integrator limits ([`state_limits`]; states with a stricter fixed
+/// check, `p_im`, `p_em`, `X_Oim`, `X_Oem`, are skipped); `slack` is the relative excursion of
+/// X_Oim, X_Oem beyond X_Oc counted as numerical, not as a violation ([`state_allowance`]).
+/// Returns (non-finite samples, violations, numerical excursions).
 pub fn check_solution(
     sol: &Solution,
     p: &Params,
-    bounds_omega_t: Option<(f64, f64)>,
-    rtol: f64,
+    limits: &[(&'static str, f64, f64)],
+    slack: f64,
 ) -> (usize, Vec<Violation>, Vec<Violation>) {
     let n = sol.len();
     let mut nonfinite = 0;
@@ -385,19 +410,42 @@ pub fn check_solution(
     let pa = p.ambient.p_amb;
     let x_oc = p.intake_manifold.x_oc;
     // (label, column, lower, upper, allowance relative to the bound)
-    let slack = STATE_SLACK_RTOL * rtol;
-    let mut checks: Vec<(&'static str, &str, f64, f64, f64)> = vec![
-        ("X_Oim in [0, X_Oc]", "X_Oim", 0.0, x_oc, slack),
-        ("X_Oem in [0, X_Oc]", "X_Oem", 0.0, x_oc, slack),
-        ("p_im in [0.5, 10] p_amb", "p_im", 0.5 * pa, 10.0 * pa, 0.0),
-        ("p_em in [0.5, 20] p_amb", "p_em", 0.5 * pa, 20.0 * pa, 0.0),
-        ("lambda_O >= 0", "lambda_O", 0.0, f64::INFINITY, 0.0),
-        ("W_c >= 1e-4", "W_c", W_C_MIN, f64::INFINITY, 0.0),
-        ("W_t >= 0", "W_t", 0.0, f64::INFINITY, 0.0),
-        ("W_egr >= 0", "W_egr", 0.0, f64::INFINITY, 0.0),
+    let inf = f64::INFINITY;
+    let mut checks: Vec<(String, &str, f64, f64, f64)> = vec![
+        ("X_Oim in [0, X_Oc]".into(), "X_Oim", 0.0, x_oc, slack),
+        ("X_Oem in [0, X_Oc]".into(), "X_Oem", 0.0, x_oc, slack),
+        (
+            "p_im in [0.5, 10] p_amb".into(),
+            "p_im",
+            0.5 * pa,
+            10.0 * pa,
+            0.0,
+        ),
+        (
+            "p_em in [0.5, 20] p_amb".into(),
+            "p_em",
+            0.5 * pa,
+            20.0 * pa,
+            0.0,
+        ),
+        ("lambda_O >= 0".into(), "lambda_O", 0.0, inf, 0.0),
+        ("W_c >= 1e-4".into(), "W_c", W_C_MIN, inf, 0.0),
+        ("W_t >= 0".into(), "W_t", 0.0, inf, 0.0),
+        ("W_egr >= 0".into(), "W_egr", 0.0, inf, 0.0),
+        ("W_ei >= 0".into(), "W_ei", 0.0, inf, 0.0),
+        ("W_eo >= 0".into(), "W_eo", 0.0, inf, 0.0),
+        ("W_f >= 0".into(), "W_f", 0.0, inf, 0.0),
     ];
-    if let Some((lo, hi)) = bounds_omega_t {
-        checks.push(("omega_t within limits", "omega_t", lo, hi, 0.0));
+    for &(name, lo, hi) in limits {
+        if !matches!(name, "p_im" | "p_em" | "X_Oim" | "X_Oem") {
+            checks.push((
+                format!("{name} within integrator limits"),
+                name,
+                lo,
+                hi,
+                0.0,
+            ));
+        }
     }
     let mut hard = Vec::new();
     let mut numerical = Vec::new();
@@ -417,8 +465,8 @@ pub fn check_solution(
                 continue;
             }
             let tier = usize::from(excess > allow);
-            let w = worst[tier].get_or_insert(Violation {
-                invariant: label,
+            let w = worst[tier].get_or_insert_with(|| Violation {
+                invariant: label.clone(),
                 samples: 0,
                 worst: v,
                 excess,
@@ -444,7 +492,24 @@ pub fn check_solution(
             .collect();
         if let Some(w) = bad.first() {
             hard.push(Violation {
-                invariant: "lambda_O > 0 where X_Oim > 0",
+                invariant: "lambda_O > 0 where X_Oim > 0".into(),
+                samples: bad.len(),
+                worst: *w,
+                excess: 1.0,
+            });
+        }
+    }
+    // the intercooler flow follows the pressure drop p_c - p_im (eq. (86), signed)
+    if let (Some(w), Some(pc), Some(pim)) = (sol.get("W_ic"), sol.get("p_c"), sol.get("p_im")) {
+        let bad: Vec<f64> = w
+            .iter()
+            .zip(pc.iter().zip(pim))
+            .filter(|(w, (pc, pim))| **w * (**pc - **pim) < 0.0)
+            .map(|(w, _)| *w)
+            .collect();
+        if let Some(w) = bad.first() {
+            hard.push(Violation {
+                invariant: "W_ic has the sign of p_c - p_im".into(),
                 samples: bad.len(),
                 worst: *w,
                 excess: 1.0,
@@ -458,7 +523,7 @@ pub fn check_solution(
 #[derive(Debug, Clone, PartialEq)]
 pub struct Violation {
     /// Invariant label.
-    pub invariant: &'static str,
+    pub invariant: String,
     /// Samples outside the bound.
     pub samples: usize,
     /// Value at the worst sample.
@@ -484,16 +549,18 @@ pub fn run_scenario<const N: usize, M: Model<N>>(
             method: sc.method,
             ..base_opts.clone()
         };
-        let omega = model
+        let limits = state_limits(model);
+        let x_oc = model.params().intake_manifold.x_oc;
+        let scale = model
             .state_names()
             .iter()
-            .position(|n| *n == "omega_t")
-            .map(|i| model.state_bounds()[i])
-            .filter(|b| b.0.is_finite() && b.1.is_finite());
+            .position(|n| *n == "X_Oim")
+            .map_or(0.0, |i| model.state_scales()[i]);
+        let slack = state_allowance(&opts, scale, x_oc);
         match simulate(model, &sc.sched, 0.0, t_end, Start::State(x0), &opts) {
             Ok(sol) => {
                 let (nonfinite_samples, violations, numerical) =
-                    check_solution(&sol, model.params(), omega, opts.rtol);
+                    check_solution(&sol, model.params(), &limits, slack);
                 Outcome::Completed {
                     samples: sol.len(),
                     nonfinite_samples,
@@ -525,6 +592,9 @@ pub fn run_scenario<const N: usize, M: Model<N>>(
 pub struct SweepConfig {
     /// Number of runs (split over model orders and methods).
     pub runs: u64,
+    /// Index of the first run (runs `first_run .. first_run + runs`; a sweep split into chunks
+    /// gives the same runs as one sweep).
+    pub first_run: u64,
     /// Seed.
     pub seed: u64,
     /// Simulated time per run [s].
@@ -545,6 +615,7 @@ impl Default for SweepConfig {
     fn default() -> Self {
         Self {
             runs: 10_000,
+            first_run: 0,
             seed: 1,
             t_end: 60.0,
             orders: vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
@@ -558,7 +629,7 @@ impl Default for SweepConfig {
 
 /// Violations by (invariant, method): (runs, samples, worst value, worst relative excess,
 /// example run).
-pub type ViolationMap = BTreeMap<(&'static str, String), (u64, u64, f64, f64, u64)>;
+pub type ViolationMap = BTreeMap<(String, String), (u64, u64, f64, f64, u64)>;
 
 /// Aggregated results of a sweep.
 #[derive(Debug, Clone, Default)]
@@ -603,6 +674,52 @@ impl SweepReport {
             && self.nonfinite_samples == 0
             && self.violations.is_empty()
             && self.unlocated_errors == 0
+    }
+
+    /// Add the results of another sweep (e.g. the next chunk of runs of the same sweep).
+    pub fn merge(&mut self, o: SweepReport) {
+        self.runs += o.runs;
+        self.completed += o.completed;
+        for (k, v) in o.per_variant {
+            let e = self.per_variant.entry(k).or_default();
+            e.0 += v.0;
+            e.1 += v.1;
+        }
+        for (k, v) in o.per_kind {
+            let e = self.per_kind.entry(k).or_default();
+            e.0 += v.0;
+            e.1 += v.1;
+        }
+        for (k, v) in o.errors {
+            self.errors.entry(k).or_insert((0, v.1, v.2)).0 += v.0;
+        }
+        self.unlocated_errors += o.unlocated_errors;
+        self.panics.extend(o.panics);
+        self.samples += o.samples;
+        self.nonfinite_samples += o.nonfinite_samples;
+        self.nonfinite_runs += o.nonfinite_runs;
+        for (mine, theirs) in [
+            (&mut self.violations, o.violations),
+            (&mut self.numerical, o.numerical),
+        ] {
+            for (k, v) in theirs {
+                let e = mine.entry(k).or_insert((0, 0, v.2, v.3, v.4));
+                e.0 += v.0;
+                e.1 += v.1;
+                if v.3 > e.3 {
+                    e.2 = v.2;
+                    e.3 = v.3;
+                    e.4 = v.4;
+                }
+            }
+        }
+        for n in o.unavailable {
+            if !self.unavailable.contains(&n) {
+                self.unavailable.push(n);
+            }
+        }
+        self.seconds += o.seconds;
+        self.threads = self.threads.max(o.threads);
     }
 
     fn add(&mut self, states: usize, sc: &Scenario, o: Outcome) {
@@ -767,6 +884,16 @@ impl fmt::Display for SweepReport {
 /// Run a sweep: `cfg.runs` runs split round-robin over the available model orders, methods
 /// alternating, in parallel on `cfg.threads` threads.
 pub fn sweep(params: &Params, cfg: &SweepConfig) -> SweepReport {
+    sweep_with_progress(params, cfg, &|| {})
+}
+
+/// [`sweep`], calling `progress` once after each finished run (from the worker threads; for a
+/// progress bar).
+pub fn sweep_with_progress(
+    params: &Params,
+    cfg: &SweepConfig,
+    progress: &(dyn Fn() + Sync),
+) -> SweepReport {
     use rayon::prelude::*;
     let start = std::time::Instant::now();
     let mut report = SweepReport {
@@ -792,7 +919,7 @@ pub fn sweep(params: &Params, cfg: &SweepConfig) -> SweepReport {
         .build()
         .expect("thread pool");
     let outcomes: Vec<(usize, Scenario, Outcome)> = pool.install(|| {
-        (0..cfg.runs)
+        (cfg.first_run..cfg.first_run + cfg.runs)
             .into_par_iter()
             .map(|run| {
                 let (m, bank) = &models[(run as usize) % models.len()];
@@ -803,6 +930,7 @@ pub fn sweep(params: &Params, cfg: &SweepConfig) -> SweepReport {
                     ..sc
                 };
                 let o = crate::dispatch!(m, mm => run_scenario(mm, bank, &sc, cfg.t_end, &cfg.sim));
+                progress();
                 (m.order().states(), sc, o)
             })
             .collect()

@@ -508,6 +508,18 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
         if d.roles.is_empty() {
             return Err(bad("roles must not be empty".into()));
         }
+        // optional operating point: a number in the plausible range (as the n_e column);
+        // NaN or inf would not even compare equal to itself after a round trip (fuzz finding)
+        for (key, v, lo, hi) in [
+            ("speed_rpm", d.speed_rpm, 300.0, 4000.0),
+            ("load_pct", d.load_pct, 0.0, 100.0),
+        ] {
+            if let Some(v) = v {
+                if !(lo..=hi).contains(&v) {
+                    return Err(bad(format!("{key} = {v} must lie in [{lo}, {hi}]")));
+                }
+            }
+        }
         if m.datasets.iter().filter(|e| e.name == d.name).count() > 1 {
             return Err(bad("duplicate name".into()));
         }
@@ -596,6 +608,36 @@ mod tests {
         let e = parse_stationary_csv(&format!("{}\n{ROW}\n", header().replace("T_t,", "")), p)
             .unwrap_err();
         assert!(e.to_string().contains("missing column `T_t`"), "{e}");
+    }
+
+    /// Fuzz finding (`fuzz/` target `data`): a manifest with `speed_rpm = nan` was accepted and
+    /// did not round-trip (NaN != NaN); non-finite or implausible operating points are errors
+    /// naming the data set and the key.
+    #[test]
+    fn manifest_rejects_non_finite_operating_point() {
+        let head = "stationary = \"s.csv\"\ndescription = \"d\"\n[[dataset]]\nname = \"B\"\n\
+                    roles = [\"static\"]\nkind = \"fuel\"\nfile = \"B.csv\"\n\
+                    sample_rate_hz = 10.0\nsteps = 1\n";
+        let p = Path::new("manifest.toml");
+        for (line, key) in [
+            ("speed_rpm = nan", "speed_rpm = NaN"),
+            ("speed_rpm = inf", "speed_rpm = inf"),
+            ("speed_rpm = 1e6", "speed_rpm = 1000000"),
+            ("load_pct = -inf", "load_pct = -inf"),
+            ("load_pct = 150.0", "load_pct = 150"),
+        ] {
+            let e = parse_manifest(&format!("{head}{line}\n"), p).unwrap_err();
+            let msg = e.to_string();
+            assert!(
+                msg.contains("manifest.toml") && msg.contains("data set `B`") && msg.contains(key),
+                "{line}: {msg}"
+            );
+        }
+        let ok =
+            parse_manifest(&format!("{head}speed_rpm = 1200.0\nload_pct = 40.0\n"), p).unwrap();
+        assert_eq!(ok.datasets[0].speed_rpm, Some(1200.0));
+        let back = parse_manifest(&toml::to_string(&ok).unwrap(), p).unwrap();
+        assert_eq!(back, ok);
     }
 
     #[test]
