@@ -173,3 +173,27 @@ fn v_ic_in_the_second_12_state_step() {
         assert!(((a - b) / b).abs() < 0.01, "{n} {a} vs {b}");
     }
 }
+
+#[test]
+fn step5_with_k_ic_restores_k_ic_from_the_w_ic_row() {
+    // third 12-state step, second row only (no simulation): all other parameters at the truth,
+    // k_ic started 20 % high; only z_8 = W_ic depends on k_ic, so the search must return it
+    let p = Params::published();
+    let (truth, _) = lab::stationary(&p, &lab12(Noise::NONE, &[], 1, 20)).unwrap();
+    let list = mvem::tuning::complete::static_params(ModelOrder::Twelve);
+    let mut th0 = mvem::tuning::complete::theta_of(&list, &p);
+    *th0.last_mut().unwrap() *= 1.2;
+    let opts = Step5Options {
+        model: ModelOrder::Twelve,
+        beta: 2.58,
+        dynamic_row: false,
+        max_evaluations: 400,
+        ..Step5Options::default()
+    };
+    let (q, rep) = mvem::tuning::complete::step5(&p, &truth, &[], &th0, &opts).unwrap();
+    let k = q.intercooler.k_ic;
+    assert!((k / p.intercooler.k_ic - 1.0).abs() < 1e-3, "k_ic {k:e}");
+    let w_ic = rep.submodels.iter().find(|r| r.submodel == "W_ic").unwrap();
+    assert!(w_ic.mean_abs_rel_err < 1e-4, "{w_ic:?}");
+    assert_eq!(rep.params.last().map(|x| x.0.as_str()), Some("k_ic"));
+}

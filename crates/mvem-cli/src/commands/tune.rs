@@ -135,12 +135,24 @@ pub fn run(a: &Args) -> Result<()> {
         (3, rep.step3.as_ref().map(|r| r.converged)),
         (4, rep.step4.as_ref().map(|r| r.converged)),
         (5, rep.step5.as_ref().map(|r| r.converged)),
+        (
+            7,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.dynamic.as_ref().map(|r| r.converged)),
+        ),
+        (
+            8,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.statics.as_ref().map(|r| r.converged)),
+        ),
     ] {
         if conv == Some(false) {
             eprintln!(
                 "warning: step {step} stopped at its evaluation limit before a convergence test \
                  was met{}",
-                if step == 5 {
+                if step == 5 || step == 8 {
                     " (raise --max-evals)"
                 } else {
                     ""

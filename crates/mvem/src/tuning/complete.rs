@@ -884,7 +884,7 @@ pub fn step5(
     .map_err(|e| solver_err(NAME, e))?;
     let p = cost.params(&fit.theta);
     let theta = theta_of(&list, &p);
-    let at_bounds = STATIC_PARAMS
+    let at_bounds = list
         .iter()
         .zip(&theta)
         .filter(|(s, v)| {
@@ -893,13 +893,13 @@ pub fn step5(
         .map(|(s, _)| s.name.to_string())
         .collect();
     let stats = fit.stats();
-    let rel_std_err = STATIC_PARAMS
+    let rel_std_err = list
         .iter()
         .zip(&theta)
         .zip(&stats.std_err)
         .map(|((s, v), e)| (s.name.to_string(), e / v.abs().max(s.scale * 1e-3)))
         .collect();
-    let submodels = super::validate::stationary_errors(&p, stat)?
+    let mut submodels: Vec<FitReport> = super::validate::stationary_errors(&p, stat)?
         .into_iter()
         .map(|o| FitReport {
             submodel: o.output,
@@ -910,6 +910,18 @@ pub fn step5(
             n_eval: 0,
         })
         .collect();
+    if opts.model == ModelOrder::Twelve {
+        let (meas, model) = super::twelve::w_ic_series(&p, stat);
+        let (mean, max) = steps::rel_errors(&meas, &model);
+        submodels.push(FitReport {
+            submodel: "W_ic".into(),
+            params: vec![],
+            mean_abs_rel_err: mean,
+            max_abs_rel_err: max,
+            n_points: meas.len(),
+            n_eval: 0,
+        });
+    }
     // empty when the final parameters cannot be simulated (reported, not an error here)
     let dynamic = if sets.is_empty() {
         vec![]
@@ -919,7 +931,7 @@ pub fn step5(
     Ok((
         p,
         Step5Report {
-            params: STATIC_PARAMS
+            params: list
                 .iter()
                 .zip(&theta)
                 .map(|(s, v)| (s.name.to_string(), *v))
