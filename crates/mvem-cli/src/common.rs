@@ -97,6 +97,17 @@ pub enum ModelArg {
     Twelve,
 }
 
+impl ModelArg {
+    /// The model variant.
+    pub fn order(self) -> ModelOrder {
+        match self {
+            ModelArg::Eight => ModelOrder::Eight,
+            ModelArg::Ten => ModelOrder::Ten,
+            ModelArg::Twelve => ModelOrder::Twelve,
+        }
+    }
+}
+
 /// `--semantics`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SemanticsArg {
@@ -175,11 +186,7 @@ impl ModelArgs {
 
     /// The model variant.
     pub fn order(&self) -> ModelOrder {
-        match self.model {
-            ModelArg::Eight => ModelOrder::Eight,
-            ModelArg::Ten => ModelOrder::Ten,
-            ModelArg::Twelve => ModelOrder::Twelve,
-        }
+        self.model.order()
     }
 
     /// Build the model (parameters loaded and validated).

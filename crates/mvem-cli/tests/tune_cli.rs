@@ -127,3 +127,110 @@ fn lab_tune_validate_roundtrip_and_errors() {
     assert_eq!(o.status.code(), Some(2));
     assert!(err(&o).contains("--noise"));
 }
+
+#[test]
+fn lab_tune_validate_12_state() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let lab = |out: &str, model: &str| {
+        mvem(
+            d,
+            &[
+                "lab",
+                "--out",
+                out,
+                "--sets",
+                "B",
+                "--max-steps",
+                "2",
+                "--n-stationary",
+                "13",
+                "--noise",
+                "none",
+                "--model",
+                model,
+            ],
+        )
+    };
+    let o = lab("c12", "12");
+    assert!(o.status.success(), "{}", err(&o));
+    // the stationary CSV carries p_c before the intercooler, above p_im
+    let csv = std::fs::read_to_string(d.join("c12/stationary.csv")).unwrap();
+    let head: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
+    for line in csv.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        assert!(v[col("p_c")] > v[col("p_im")] + 100.0, "{line}");
+    }
+    // the true parameters validate to ~0 with the 12-state model (W_ic row included) and not
+    // with the 8-state model (no intercooler drop)
+    let val = |model: &str| {
+        let o = mvem(
+            d,
+            &[
+                "validate",
+                "--data",
+                "c12",
+                "--params",
+                "c12/true_params.toml",
+                "--json",
+                "--model",
+                model,
+            ],
+        );
+        assert!(o.status.success(), "{}", err(&o));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let v12 = val("12");
+    assert!(v12["stationary"]["W_ic"].as_f64().unwrap() < 1e-4);
+    let e12 = v12["datasets"]["B"]["p_im"].as_f64().unwrap();
+    let e8 = val("8")["datasets"]["B"]["p_im"].as_f64().unwrap();
+    assert!(e12 < 0.01 && e8 > 10.0 * e12, "p_im: 12 {e12} %, 8 {e8} %");
+    // step 3 and the 12-state steps 6 (k_ic) and 7 (V_ic, ...): the output has the intercooler
+    let o = mvem(
+        d,
+        &[
+            "tune",
+            "--data",
+            "c12",
+            "--steps",
+            "3",
+            "--model",
+            "12",
+            "--params",
+            "c12/true_params.toml",
+            "--out",
+            "t12.toml",
+        ],
+    );
+    assert!(o.status.success(), "{}", err(&o));
+    let md = String::from_utf8_lossy(&o.stdout);
+    assert!(md.contains("Step 6") && md.contains("| k_ic |"), "{md}");
+    let t: toml::Value =
+        toml::from_str(&std::fs::read_to_string(d.join("t12.toml")).unwrap()).unwrap();
+    let k = t["intercooler"]["k_ic"].as_float().unwrap();
+    assert!((k / 1.9e7 - 1.0).abs() < 1e-5, "k_ic {k}");
+    // bad usage: --model 10 (nothing to tune), --model 13; exit 2, nothing written
+    for m in ["10", "13"] {
+        let o = mvem(
+            d,
+            &["tune", "--data", "c12", "--model", m, "--out", "bad.toml"],
+        );
+        assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+        assert!(err(&o).contains("--model"), "{}", err(&o));
+    }
+    let o = mvem(d, &["lab", "--out", "z", "--model", "9"]);
+    assert_eq!(o.status.code(), Some(2));
+    // an 8-state campaign has no intercooler drop: step 6 fails by name, exit 1
+    let o = lab("c8", "8");
+    assert!(o.status.success(), "{}", err(&o));
+    let o = mvem(
+        d,
+        &[
+            "tune", "--data", "c8", "--steps", "2", "--model", "12", "--out", "bad.toml",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
+    assert!(err(&o).contains("tuning step 6"), "{}", err(&o));
+    assert!(!d.join("bad.toml").exists());
+}

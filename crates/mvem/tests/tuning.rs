@@ -228,7 +228,14 @@ fn validation_tables_dynamic_and_actuator() {
     let (truth, _) = stationary(Noise::NONE, 15, 3);
     // the same model on its own data: only the resampling of the commands differs
     // the measured torque is M_dynamo (eq. (76), tau_Me = 1 s in the lab): filter the model too
-    let own = validate::dynamic_errors_with(&p, &set, &truth, Some(opts.tau_me_s)).unwrap();
+    let own = validate::dynamic_errors_with(
+        mvem::model::ModelOrder::Eight,
+        &p,
+        &set,
+        &truth,
+        Some(opts.tau_me_s),
+    )
+    .unwrap();
     assert_eq!(own.outputs.len(), 5);
     for o in &own.outputs {
         assert!(

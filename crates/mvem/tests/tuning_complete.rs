@@ -141,6 +141,7 @@ fn pipeline_on_a_tiny_noisy_campaign() {
     assert!(rep.tau_me_s.is_some() && rep.step3.is_some());
     // the tuned model reproduces the validation sets to better than 2 % per output
     let v = mvem::tuning::validate::validate_campaign_with(
+        mvem::model::ModelOrder::Eight,
         &c,
         &p,
         rep.tau_me_s,

@@ -14,10 +14,13 @@ Examples:
   mvem lab --out campaign                       # published parameters, seed 1, realistic noise
   mvem lab --out c2 --seed 7 --noise none --sensor-lags
   mvem lab --out small --sets B,C,I --max-steps 4 --n-stationary 30
+  mvem lab --out c12 --model 12                 # virtual engine: the 12-state model
 
 Writes DIR/manifest.toml, DIR/stationary.csv, one CSV per data set (A-I, Q-V, J) and
 DIR/true_params.toml (formats: docs/tuning-data.md). --noise: realistic (0.5 % relative on
-pressures, flows, speeds, torque, x_egr, positions; 1 K on temperatures), none, or REL,KELVIN.")]
+pressures, flows, speeds, torque, x_egr, positions; 1 K on temperatures), none, or REL,KELVIN.
+With --model 12 the stationary p_c is the pressure before the intercooler (above p_im by the
+intercooler drop of eq. (86)); with 8 or 10 states p_c = p_im.")]
 pub struct Args {
     /// Output directory (created).
     #[arg(long, value_name = "DIR")]
@@ -49,6 +52,9 @@ pub struct Args {
     /// Stationary points and actuator set only (no Table 1 sets).
     #[arg(long = "no-dynamic")]
     pub no_dynamic: bool,
+    /// Model of the virtual engine (number of states).
+    #[arg(long, value_enum, default_value = "8")]
+    pub model: common::ModelArg,
 }
 
 /// Parse `--noise`.
@@ -131,6 +137,7 @@ pub fn run(a: &Args) -> Result<()> {
         max_steps: a.max_steps,
         tau_me_s: a.tau_me,
         sensor_lags: a.sensor_lags,
+        model: a.model.order(),
         ..LabOptions::default()
     };
     let t = std::time::Instant::now();

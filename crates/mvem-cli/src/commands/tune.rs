@@ -2,6 +2,7 @@
 
 use crate::common;
 use anyhow::Result;
+use mvem::model::ModelOrder;
 use mvem::params::Params;
 use mvem::tuning::complete::{param_value, STATIC_PARAMS};
 use mvem::tuning::pipeline::{self, Init, PipelineOptions, TuneReport};
@@ -15,6 +16,7 @@ Examples:
   mvem lab --out campaign && mvem tune --data campaign --out tuned.toml --report tune-report
   mvem tune --data campaign --out steps14.toml --steps 1-4
   mvem tune --data campaign --params steps14.toml --steps 5 --init naive --cost dynamic --out a.toml
+  mvem lab --out c12 --model 12 && mvem tune --data c12 --model 12 --out tuned12.toml
 
 Steps: 1 static submodels (stationary data), 2 actuators (set J), 3 V_im, V_em, J_t (sets with
 role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static parameters by cost (77)
@@ -22,6 +24,11 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 (default: the published set, which also supplies the constants that are never tuned). No
 step starts from a value of --params. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is printed and written to the report (pass it to `mvem validate --tau-me`).
+--model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
+least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
+model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58
+(with step 5; --beta applies to step 5 only). The output file then carries the tuned
+[intercooler] group. Validate with `mvem validate --model 12`.
 Nothing is written if a step fails (exit code 1, naming the step).")]
 pub struct Args {
     /// Campaign directory (manifest.toml; see docs/tuning-data.md).
@@ -54,6 +61,9 @@ pub struct Args {
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
     pub max_evals: usize,
+    /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
+    #[arg(long, value_enum, default_value = "8")]
+    pub model: common::ModelArg,
 }
 
 /// `--init`.
@@ -97,8 +107,16 @@ pub fn run(a: &Args) -> Result<()> {
         Some(p) => mvem::io::params::load_params(p)
             .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
     };
+    let model = a.model.order();
+    if model == ModelOrder::Ten {
+        return Err(common::usage(
+            "--model 10: the tuning pipeline tunes the 8- or 12-state model (the 10-state model \
+             has no parameters of its own)",
+        ));
+    }
     let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
     let mut opts = PipelineOptions {
+        model,
         steps,
         init: match a.init {
             InitArg::Step1 => Init::Step1,
@@ -117,12 +135,24 @@ pub fn run(a: &Args) -> Result<()> {
         (3, rep.step3.as_ref().map(|r| r.converged)),
         (4, rep.step4.as_ref().map(|r| r.converged)),
         (5, rep.step5.as_ref().map(|r| r.converged)),
+        (
+            7,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.dynamic.as_ref().map(|r| r.converged)),
+        ),
+        (
+            8,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.statics.as_ref().map(|r| r.converged)),
+        ),
     ] {
         if conv == Some(false) {
             eprintln!(
                 "warning: step {step} stopped at its evaluation limit before a convergence test \
                  was met{}",
-                if step == 5 {
+                if step == 5 || step == 8 {
                     " (raise --max-evals)"
                 } else {
                     ""
@@ -257,10 +287,50 @@ pub fn markdown(
     if let Some(r) = &rep.step3_refined {
         table(&mut s, "Step 3 repeated after step 5", &r.errors);
     }
+    if let Some(t) = &rep.twelve {
+        let _ = writeln!(
+            s,
+            "12-state model (section 9.2.1): {:.1} s; step 6 k_ic = {:.6e}\n",
+            t.seconds, t.k_ic.params[0].1
+        );
+        table(
+            &mut s,
+            "Step 6: k_ic (linear least squares of p_c - p_im, eq. (86))",
+            std::slice::from_ref(&t.k_ic),
+        );
+        if let Some(r) = &t.dynamic {
+            let _ = writeln!(
+                s,
+                "Step 7: {} evaluations, converged {}",
+                r.n_eval, r.converged
+            );
+            table(
+                &mut s,
+                "Step 7: V_ic, V_im, V_em, J_t (12-state model, eq. (5) on the dynamic sets)",
+                &r.errors,
+            );
+        }
+        if let Some(r) = &t.statics {
+            let _ = writeln!(
+                s,
+                "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {}\n",
+                r.cost_start, r.cost_end, r.n_eval, r.converged
+            );
+            table(&mut s, "Step 8: submodels (eq. (4))", &r.submodels);
+            table(
+                &mut s,
+                "Step 8: 12-state model on the static-tuning sets (eq. (5))",
+                &r.dynamic,
+            );
+        }
+    }
     let mut names: Vec<&str> = vec![
         "tau_egr1", "tau_egr2", "tau_degr", "k_egr", "tau_vgt", "tau_dvgt", "v_im", "v_em", "j_t",
         "eta_igch", "c_fric1", "c_fric2", "c_fric3",
     ];
+    if rep.twelve.is_some() {
+        names.extend(["v_ic", "k_ic"]);
+    }
     names.extend(STATIC_PARAMS.iter().map(|s| s.name));
     let stderr = |n: &str| {
         rep.step5

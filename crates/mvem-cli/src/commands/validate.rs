@@ -22,7 +22,9 @@ the dynamic sets (eq. (5): mean absolute relative error per set and output, per 
 paper's Tables 2-4). --json prints {\"datasets\": {SET: {OUTPUT: percent}}, \"stationary\":
 {SUBMODEL: percent}}. --report DIR writes validation.md, validation.csv, validation.json and
 one figure per set (SET.png, measured vs simulated). --tau-me applies the dynamometer lag of
-eq. (76) to the simulated torque (the value printed by `mvem tune`).")]
+eq. (76) to the simulated torque (the value printed by `mvem tune`). --model 12 simulates the
+12-state model and adds the intercooler flow W_ic (eq. (86), z_8 of section 9.2.1) to the
+stationary table.")]
 pub struct Args {
     /// Campaign directory.
     #[arg(long, value_name = "DIR")]
@@ -43,6 +45,9 @@ pub struct Args {
     /// Report directory (created): tables and figures.
     #[arg(long, value_name = "DIR")]
     pub report: Option<PathBuf>,
+    /// Model simulated (number of states).
+    #[arg(long, value_enum, default_value = "8")]
+    pub model: common::ModelArg,
 }
 
 fn parse_roles(s: &str) -> Result<Vec<Role>> {
@@ -99,7 +104,7 @@ pub fn run(a: &Args) -> Result<()> {
         .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
     let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
     let rep = common::with_spinner("validating", || {
-        v::validate_campaign_with(&c, &p, a.tau_me, roles.as_deref())
+        v::validate_campaign_with(a.model.order(), &c, &p, a.tau_me, roles.as_deref())
     })?;
     let md = rep.to_markdown();
     if let Some(dir) = &a.report {
@@ -118,7 +123,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
             let fig = match info.kind {
                 StepKind::Actuator => actuator_figure(&p, d),
-                _ => dynamic_figure(&p, d, a.tau_me)?,
+                _ => dynamic_figure(a.model.order(), &p, d, a.tau_me)?,
             };
             files.push((
                 format!("{}.png", d.name),
@@ -151,11 +156,12 @@ fn unit_scale(name: &str) -> (f64, &'static str) {
 }
 
 fn dynamic_figure(
+    order: mvem::model::ModelOrder,
     p: &mvem::params::Params,
     d: &mvem::tuning::data::DynamicData,
     tau_me: Option<f64>,
 ) -> Result<Figure> {
-    let sims = v::simulated_outputs(p, d, tau_me, mvem::sim::SimOptions::default().rtol)
+    let sims = v::simulated_outputs(order, p, d, tau_me, mvem::sim::SimOptions::default().rtol)
         .map_err(|e| anyhow::anyhow!("data set {}: {e}", d.name))?;
     let mut fig = Figure::new(1);
     fig.title = Some(format!("data set {}: measured vs simulated", d.name));

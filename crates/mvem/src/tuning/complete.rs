@@ -26,6 +26,7 @@ use super::lab::first_order_lag;
 use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
+use crate::model::ModelOrder;
 use crate::params::Params;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -157,12 +158,6 @@ impl Default for Step3Start {
     }
 }
 
-fn set_dyn(p: &mut Params, th: &[f64]) {
-    p.intake_manifold.v_im = th[0];
-    p.exhaust_manifold.v_em = th[1];
-    p.turbo.j_t = th[2];
-}
-
 /// Report of a complete-model step: fitted parameters, the search statistics and per-output
 /// errors (eq. (5), mean and max absolute relative error over the sets used).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -179,8 +174,9 @@ pub struct CompleteReport {
     pub converged: bool,
 }
 
-/// Per-output eq. (5) errors of `p` on `sets` (pooled over the sets).
-fn output_errors(
+/// Per-output eq. (5) errors of `p` (model `order`) on `sets` (pooled over the sets).
+pub(crate) fn output_errors(
+    order: ModelOrder,
     p: &Params,
     sets: &[&DynamicData],
     stat: &[StationaryPoint],
@@ -190,7 +186,7 @@ fn output_errors(
     let means = stationary_means(stat);
     let sims: Vec<_> = sets
         .par_iter()
-        .map(|d| super::validate::simulated_outputs(p, d, tau_me, SEARCH_RTOL))
+        .map(|d| super::validate::simulated_outputs(order, p, d, tau_me, SEARCH_RTOL))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| solver_err("complete model", e))?;
     let mut reps = Vec::new();
@@ -229,37 +225,89 @@ pub fn step3(
     start: &Step3Start,
     max_eval: usize,
 ) -> Result<(Params, CompleteReport), StepError> {
+    let fit = DynamicFit {
+        order: ModelOrder::Eight,
+        names: &["v_im", "v_em", "j_t"],
+        theta0: &start.theta,
+        lo: &start.lo,
+        hi: &start.hi,
+        scale: &[0.02, 0.02, 1e-4],
+        amp_floor: start.amp_floor,
+        max_eval,
+    };
+    fit_dynamic("step 3 (V_im, V_em, J_t)", base, sets, stat, &fit)
+}
+
+/// A least-squares problem of the form (74)-(75): named dynamic parameters (names of
+/// [`param_mut`]) fitted to the normalized step responses of p_im, p_em, W_c, n_t, simulated
+/// with the model `order`.
+#[derive(Debug, Clone)]
+pub struct DynamicFit<'a> {
+    /// Model simulated.
+    pub order: ModelOrder,
+    /// Parameter names.
+    pub names: &'a [&'a str],
+    /// Start values.
+    pub theta0: &'a [f64],
+    /// Lower bounds.
+    pub lo: &'a [f64],
+    /// Upper bounds.
+    pub hi: &'a [f64],
+    /// Typical magnitudes (scaling of the search).
+    pub scale: &'a [f64],
+    /// Floor of the step amplitude (fraction of the stationary mean), see [`Step3Start`].
+    pub amp_floor: f64,
+    /// Limit on residual evaluations.
+    pub max_eval: usize,
+}
+
+/// Solve a problem of the form (74)-(75) ([`DynamicFit`]) on `sets`, the other parameters
+/// from `base`.
+pub fn fit_dynamic(
+    name: &'static str,
+    base: &Params,
+    sets: &[&DynamicData],
+    stat: &[StationaryPoint],
+    f: &DynamicFit,
+) -> Result<(Params, CompleteReport), StepError> {
     if sets.is_empty() {
         return Err(StepError::TooFewPoints {
-            submodel: "step 3 (V_im, V_em, J_t)",
+            submodel: name,
             n: 0,
             needed: 1,
         });
     }
+    let set_all = |p: &mut Params, th: &[f64]| {
+        for (n, v) in f.names.iter().zip(th) {
+            if let Some(x) = param_mut(p, n) {
+                *x = *v;
+            }
+        }
+    };
     let means = stationary_means(stat);
     let segs: Vec<_> = sets.iter().map(|d| segments(d)).collect();
     let n_res: usize = segs.iter().map(|s| 4 * count_segment_samples(s)).sum();
     if n_res == 0 {
         return Err(solver_err(
-            "step 3 (V_im, V_em, J_t)",
+            name,
             "the dynamic sets contain no command steps",
         ));
     }
     let res = |th: &[f64]| -> Vec<f64> {
         let mut q = base.clone();
-        set_dyn(&mut q, th);
+        set_all(&mut q, th);
         let parts: Vec<Option<Vec<f64>>> = sets
             .par_iter()
             .zip(&segs)
             .map(|(d, sg)| {
-                let sim = simulate_set(&q, d, sample_interval(d), SEARCH_RTOL).ok()?;
+                let sim = simulate_set(f.order, &q, d, sample_interval(d), SEARCH_RTOL).ok()?;
                 let w = 1.0 / (count_segment_samples(sg).max(1) as f64).sqrt(); // 1/L_j, eq. (75)
                 let mut r = Vec::new();
                 for (k, name) in DYN_OUTPUTS.iter().enumerate() {
                     let meas = d.get(name)?;
                     let s = sim.get(name)?;
                     let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), s, t)).collect();
-                    let floor = start.amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
+                    let floor = f.amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
                     normalized_residuals(&d.t, meas, &simv, sg, floor, w, &mut r);
                 }
                 Some(r)
@@ -276,22 +324,23 @@ pub fn step3(
     };
     let fit = least_squares(
         res,
-        &start.theta,
-        &Bounds::new(start.lo.to_vec(), start.hi.to_vec()),
-        &search_opts(max_eval, vec![0.02, 0.02, 1e-4]),
+        f.theta0,
+        &Bounds::new(f.lo.to_vec(), f.hi.to_vec()),
+        &search_opts(f.max_eval, f.scale.to_vec()),
     )
-    .map_err(|e| solver_err("step 3 (V_im, V_em, J_t)", e))?;
+    .map_err(|e| solver_err(name, e))?;
     let mut p = base.clone();
-    set_dyn(&mut p, &fit.theta);
-    let errors = output_errors(&p, sets, stat, &DYN_OUTPUTS, None)?;
+    set_all(&mut p, &fit.theta);
+    let errors = output_errors(f.order, &p, sets, stat, &DYN_OUTPUTS, None)?;
     Ok((
         p,
         CompleteReport {
-            params: vec![
-                ("v_im".into(), fit.theta[0]),
-                ("v_em".into(), fit.theta[1]),
-                ("j_t".into(), fit.theta[2]),
-            ],
+            params: f
+                .names
+                .iter()
+                .zip(&fit.theta)
+                .map(|(n, v)| (n.to_string(), *v))
+                .collect(),
             errors,
             cost: fit.cost,
             n_eval: fit.n_eval,
@@ -318,7 +367,8 @@ pub fn step4(
         return Err(solver_err(NAME, "the torque set contains no command steps"));
     }
     let dt = sample_interval(set).min(0.01);
-    let sol = simulate_set(p, set, dt, SEARCH_RTOL).map_err(|e| solver_err(NAME, e))?;
+    let sol = simulate_set(ModelOrder::Eight, p, set, dt, SEARCH_RTOL)
+        .map_err(|e| solver_err(NAME, e))?;
     let m_e = sol
         .get("M_e")
         .ok_or_else(|| solver_err(NAME, "no M_e"))?
@@ -345,7 +395,7 @@ pub fn step4(
     let fit = least_squares(res, &[0.3], &Bounds::new(vec![0.005], vec![20.0]), &opts)
         .map_err(|e| solver_err(NAME, e))?;
     let tau = fit.theta[0];
-    let errors = output_errors(p, &[set], stat, &["M_e"], Some(tau))?;
+    let errors = output_errors(ModelOrder::Eight, p, &[set], stat, &["M_e"], Some(tau))?;
     Ok((
         tau,
         CompleteReport {
@@ -422,6 +472,20 @@ pub const STATIC_PARAMS: [StaticParam; 35] = [
     sp("c_wphi3", -100.0, 100.0, 10.0),
 ];
 
+/// k_ic of eq. (86) [Pa^2 s^2/(K kg^2)], the additional static parameter of the 12-state model
+/// (section 9.2.1, third step). Bounds: pressure drops from ~0.1 kPa to ~600 kPa at rated flow
+/// (default 1.9e7 gives 12.5 kPa, docs/extensions.md).
+pub const K_IC_PARAM: StaticParam = sp("k_ic", 1e5, 1e9, 1e7);
+
+/// theta of eq. (77) for the model `order`: [`STATIC_PARAMS`], plus [`K_IC_PARAM`] for 12 states.
+pub fn static_params(order: ModelOrder) -> Vec<StaticParam> {
+    let mut v = STATIC_PARAMS.to_vec();
+    if order == ModelOrder::Twelve {
+        v.push(K_IC_PARAM);
+    }
+    v
+}
+
 /// Mutable reference to a tunable parameter by name (the names of [`STATIC_PARAMS`], the
 /// step-2 and step-3 names and the torque parameters).
 pub fn param_mut<'a>(p: &'a mut Params, name: &str) -> Option<&'a mut f64> {
@@ -480,6 +544,8 @@ pub fn param_mut<'a>(p: &'a mut Params, name: &str) -> Option<&'a mut f64> {
         "v_im" => &mut p.intake_manifold.v_im,
         "v_em" => &mut p.exhaust_manifold.v_em,
         "j_t" => &mut p.turbo.j_t,
+        "v_ic" => &mut p.intercooler.v_ic,
+        "k_ic" => &mut p.intercooler.k_ic,
         _ => return None,
     })
 }
@@ -492,8 +558,12 @@ pub fn param_value(p: &Params, name: &str) -> Option<f64> {
 
 /// theta of eq. (77) from a parameter set.
 pub fn static_theta(p: &Params) -> Vec<f64> {
-    STATIC_PARAMS
-        .iter()
+    theta_of(&STATIC_PARAMS, p)
+}
+
+/// Values of the parameters `list` in `p`.
+pub fn theta_of(list: &[StaticParam], p: &Params) -> Vec<f64> {
+    list.iter()
         .map(|s| param_value(p, s.name).unwrap_or(f64::NAN))
         .collect()
 }
@@ -501,7 +571,12 @@ pub fn static_theta(p: &Params) -> Vec<f64> {
 /// Write theta of eq. (77) into a parameter set: Q_c projected on the PSD cone (a3 symmetric),
 /// c_mlin tied to c_m1 (w_tlin - c_m2)^c_m3 as in step 1.
 pub fn set_static_theta(p: &mut Params, th: &[f64]) {
-    for (s, v) in STATIC_PARAMS.iter().zip(th) {
+    set_theta_of(&STATIC_PARAMS, p, th)
+}
+
+/// Write the values `th` of the parameters `list` (see [`set_static_theta`]).
+pub fn set_theta_of(list: &[StaticParam], p: &mut Params, th: &[f64]) {
+    for (s, v) in list.iter().zip(th) {
         if let Some(x) = param_mut(p, s.name) {
             *x = *v;
         }
@@ -544,6 +619,9 @@ pub struct Step5Options {
     pub sample_hz: f64,
     /// Limit on cost evaluations (finite differences included).
     pub max_evaluations: usize,
+    /// Model of the first row. With 12 states theta gets k_ic and the second row z_8 = W_ic
+    /// (N = 8, section 9.2.1).
+    pub model: ModelOrder,
 }
 
 impl Default for Step5Options {
@@ -555,6 +633,7 @@ impl Default for Step5Options {
             static_row: true,
             sample_hz: 10.0,
             max_evaluations: 600,
+            model: ModelOrder::Eight,
         }
     }
 }
@@ -566,6 +645,7 @@ pub struct Cost77 {
     sets: Vec<(DynamicData, f64)>,
     norms: [f64; 4],
     opts: Step5Options,
+    list: Vec<StaticParam>,
     n_res: usize,
 }
 
@@ -612,6 +692,7 @@ impl Cost77 {
             sets,
             norms,
             opts: opts.clone(),
+            list: static_params(opts.model),
             n_res: 0,
         };
         c.n_res = c.dyn_len() + c.stat_len();
@@ -626,9 +707,18 @@ impl Cost77 {
         }
     }
 
+    /// N of eq. (77): 7 submodels, 8 with W_ic for the 12-state model.
+    fn n_z(&self) -> usize {
+        if self.opts.model == ModelOrder::Twelve {
+            8
+        } else {
+            7
+        }
+    }
+
     fn stat_len(&self) -> usize {
         if self.opts.static_row {
-            7 * self.stat.len()
+            self.n_z() * self.stat.len()
         } else {
             0
         }
@@ -647,7 +737,7 @@ impl Cost77 {
     /// Parameter set for theta.
     pub fn params(&self, th: &[f64]) -> Params {
         let mut q = self.base.clone();
-        set_static_theta(&mut q, th);
+        set_theta_of(&self.list, &mut q, th);
         q
     }
 
@@ -664,7 +754,9 @@ impl Cost77 {
                 .map(|(d, g)| {
                     let w = g / (k_j * d.t.len() as f64).sqrt();
                     let fail = vec![10.0; 4 * d.t.len()];
-                    let Ok(sim) = simulate_set(&q, d, sample_interval(d), SEARCH_RTOL) else {
+                    let Ok(sim) =
+                        simulate_set(self.opts.model, &q, d, sample_interval(d), SEARCH_RTOL)
+                    else {
                         return fail;
                     };
                     let mut r = Vec::with_capacity(4 * d.t.len());
@@ -684,10 +776,15 @@ impl Cost77 {
             }
         }
         if self.opts.static_row {
-            let n_m = (7 * self.stat.len()) as f64;
+            let n_m = (self.n_z() * self.stat.len()) as f64;
             let w = 1.0 / (self.opts.beta * n_m).sqrt();
             match steps::submodel_series(&q, &self.stat) {
-                Ok(series) => {
+                Ok(mut series) => {
+                    if self.opts.model == ModelOrder::Twelve {
+                        // z_8 = W_ic (section 9.2.1): eq. (86) against the measured W_c
+                        let (meas, model) = super::twelve::w_ic_series(&q, &self.stat);
+                        series.push(("W_ic".into(), meas, model));
+                    }
                     for (name, meas, model) in series.iter().filter(|s| s.0 != "M_e") {
                         let _ = name;
                         let mm = mean_of(meas);
@@ -699,7 +796,7 @@ impl Cost77 {
                         );
                     }
                 }
-                Err(_) => out.extend(std::iter::repeat_n(10.0, 7 * self.stat.len())),
+                Err(_) => out.extend(std::iter::repeat_n(10.0, self.stat_len())),
             }
         }
         out.resize(self.n_res, 10.0);
@@ -739,7 +836,8 @@ pub struct Step5Report {
 }
 
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
-/// (78)), with the bounds of [`STATIC_PARAMS`] (the start clipped into them).
+/// (78)), with the bounds of [`static_params`] (the start clipped into them; with the 12-state
+/// model `theta0` ends with k_ic).
 pub fn step5(
     base: &Params,
     stat: &[StationaryPoint],
@@ -762,8 +860,9 @@ pub fn step5(
             "no residuals (no data sets and no stationary row)",
         ));
     }
-    let lo: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.lo).collect();
-    let hi: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.hi).collect();
+    let list = static_params(opts.model);
+    let lo: Vec<f64> = list.iter().map(|s| s.lo).collect();
+    let hi: Vec<f64> = list.iter().map(|s| s.hi).collect();
     let th0: Vec<f64> = theta0
         .iter()
         .zip(lo.iter().zip(&hi))
@@ -775,7 +874,7 @@ pub fn step5(
     let t0 = std::time::Instant::now();
     let cost_start = cost.cost(&th0);
     let eval_seconds = t0.elapsed().as_secs_f64();
-    let scale: Vec<f64> = STATIC_PARAMS.iter().map(|s| s.scale).collect();
+    let scale: Vec<f64> = list.iter().map(|s| s.scale).collect();
     let fit: LsqResult = least_squares(
         |th: &[f64]| cost.residuals(th),
         &th0,
@@ -784,8 +883,8 @@ pub fn step5(
     )
     .map_err(|e| solver_err(NAME, e))?;
     let p = cost.params(&fit.theta);
-    let theta = static_theta(&p);
-    let at_bounds = STATIC_PARAMS
+    let theta = theta_of(&list, &p);
+    let at_bounds = list
         .iter()
         .zip(&theta)
         .filter(|(s, v)| {
@@ -794,13 +893,13 @@ pub fn step5(
         .map(|(s, _)| s.name.to_string())
         .collect();
     let stats = fit.stats();
-    let rel_std_err = STATIC_PARAMS
+    let rel_std_err = list
         .iter()
         .zip(&theta)
         .zip(&stats.std_err)
         .map(|((s, v), e)| (s.name.to_string(), e / v.abs().max(s.scale * 1e-3)))
         .collect();
-    let submodels = super::validate::stationary_errors(&p, stat)?
+    let mut submodels: Vec<FitReport> = super::validate::stationary_errors(&p, stat)?
         .into_iter()
         .map(|o| FitReport {
             submodel: o.output,
@@ -811,16 +910,28 @@ pub fn step5(
             n_eval: 0,
         })
         .collect();
+    if opts.model == ModelOrder::Twelve {
+        let (meas, model) = super::twelve::w_ic_series(&p, stat);
+        let (mean, max) = steps::rel_errors(&meas, &model);
+        submodels.push(FitReport {
+            submodel: "W_ic".into(),
+            params: vec![],
+            mean_abs_rel_err: mean,
+            max_abs_rel_err: max,
+            n_points: meas.len(),
+            n_eval: 0,
+        });
+    }
     // empty when the final parameters cannot be simulated (reported, not an error here)
     let dynamic = if sets.is_empty() {
         vec![]
     } else {
-        output_errors(&p, sets, stat, &DYN_OUTPUTS, None).unwrap_or_default()
+        output_errors(opts.model, &p, sets, stat, &DYN_OUTPUTS, None).unwrap_or_default()
     };
     Ok((
         p,
         Step5Report {
-            params: STATIC_PARAMS
+            params: list
                 .iter()
                 .zip(&theta)
                 .map(|(s, v)| (s.name.to_string(), *v))

@@ -4,7 +4,7 @@
 //! - **Stationary data** (Table 5): 82 operating points by default, the 13 points of the
 //!   European Stationary Cycle (idle, speeds A/B/C = 1200/1500/1800 r/min at 25/50/75/100 %
 //!   load) plus points drawn uniformly over 800-2000 r/min, 15-100 % load, EGR 0-80 %,
-//!   VGT 20-100 %. Each is the equilibrium of the 8-state model
+//!   VGT 20-100 %. Each is the equilibrium of the model of [`LabOptions::model`] (default 8 states)
 //!   ([`crate::analysis::steady::steady_state`]); a point that fails or is not physically valid
 //!   (guard saturation, lambda_O < 1, unstable) is redrawn with new actuator positions (and,
 //!   for random points, a new speed and load).
@@ -49,7 +49,7 @@ use super::data::{
 };
 use crate::analysis::steady::{steady_state_with, SteadyOptions};
 use crate::components::turbine;
-use crate::model::{Drive, Engine8, Model, ModelOptions};
+use crate::model::{AnyModel, Drive, Model, ModelOptions, ModelOrder};
 use crate::params::Params;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -102,6 +102,9 @@ pub struct LabOptions {
     pub tau_me_s: f64,
     /// Apply the sensor time constants of Table 6 to n_t, p_em, p_im, W_c.
     pub sensor_lags: bool,
+    /// Model of the virtual engine (8, 10 or 12 states). With 12 states the stationary p_c is
+    /// the state p_c before the intercooler (eq. (87)), above p_im by the drop of eq. (86).
+    pub model: ModelOrder,
 }
 
 impl Default for LabOptions {
@@ -116,6 +119,7 @@ impl Default for LabOptions {
             max_steps: None,
             tau_me_s: 1.0,
             sensor_lags: false,
+            model: ModelOrder::Eight,
         }
     }
 }
@@ -188,7 +192,11 @@ pub const ESC_POINTS: [(f64, f64); 13] = [
 
 /// Noise-free measurement of the equilibrium at `d` (Table 5 variables), or None if there is
 /// no physically valid equilibrium.
-pub fn stationary_truth(m: &Engine8, p: &Params, d: &Drive) -> Option<StationaryPoint> {
+pub fn stationary_truth<const N: usize, M: Model<N>>(
+    m: &M,
+    p: &Params,
+    d: &Drive,
+) -> Option<StationaryPoint> {
     let ss = steady_state_with(m, d, None, &SteadyOptions::default()).ok()?;
     if !ss.physically_valid() {
         return None;
@@ -240,7 +248,7 @@ pub fn stationary(
     p: &Params,
     opts: &LabOptions,
 ) -> Result<(Vec<StationaryPoint>, Vec<StationaryPoint>), LabError> {
-    let m = Engine8::new(p.clone(), ModelOptions::default())
+    let m = AnyModel::new(opts.model, p.clone(), ModelOptions::default())
         .map_err(|e| LabError::Params(e.to_string()))?;
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
     let vertex = (-p.egr_valve.c_egr[1] / (2.0 * p.egr_valve.c_egr[0])).clamp(0.0, 100.0);
@@ -263,7 +271,7 @@ pub fn stationary(
             };
             let u_vgt = rng.gen_range(20.0..100.0);
             let d = Drive::new(n_e, load / 100.0 * U_DELTA_MAX, u_egr, u_vgt);
-            if let Some(pt) = stationary_truth(&m, p, &d) {
+            if let Some(pt) = crate::dispatch!(&m, m => stationary_truth(m, p, &d)) {
                 found = Some(pt);
                 break;
             }
@@ -630,7 +638,7 @@ pub fn generate(params: &Params, opts: &LabOptions, out_dir: &Path) -> Result<Ca
 }
 
 /// A dynamic data set with command steps at constant speed (Table 6 columns), simulated with
-/// the 8-state model from the steady state of the first command and sampled at `sample_rate_hz`.
+/// the model of `opts.model` (default 8 states) from the steady state of the first command and sampled at `sample_rate_hz`.
 /// `steps`: (time [s], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
 /// outputs get the noise of `opts` (positions: relative to 100 %), the torque the dynamometer
 /// lag (eq. (76)) and, optionally, the sensor lags of Table 6.
@@ -645,7 +653,7 @@ pub fn step_set(
     sample_rate_hz: f64,
 ) -> Result<DynamicData, LabError> {
     use crate::sim::{simulate, InputSchedule, SimOptions, Start};
-    let m = Engine8::new(p.clone(), ModelOptions::default())
+    let m = AnyModel::new(opts.model, p.clone(), ModelOptions::default())
         .map_err(|e| LabError::Params(e.to_string()))?;
     let sched =
         InputSchedule::steps(initial, steps).map_err(|e| LabError::Params(e.to_string()))?;
@@ -656,7 +664,7 @@ pub fn step_set(
         dt_out: 1.0 / (sample_rate_hz * ratio as f64),
         ..SimOptions::default()
     };
-    let sol = simulate(&m, &sched, 0.0, t_end, Start::SteadyState, &so)
+    let sol = crate::dispatch!(&m, m => simulate(m, &sched, 0.0, t_end, Start::SteadyState, &so))
         .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
     let idx: Vec<usize> = (0..sol.len()).step_by(ratio).collect();
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(name_seed(opts.seed, name)));

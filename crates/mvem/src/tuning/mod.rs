@@ -10,7 +10,8 @@
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
 //! - [`steps`]: tuning steps 1 (static submodels) and 2 (actuators) of section 8.1.
 //! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
-//! - [`pipeline`]: steps 1-5 chained, from data only.
+//! - [`twelve`]: the three 12-state steps of section 9.2.1 (k_ic, V_ic, cost (77) with W_ic).
+//! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
 //! Overview, results and open items: `docs/tuning.md`.
@@ -21,5 +22,6 @@ pub mod lab;
 pub mod lsq;
 pub mod pipeline;
 pub mod steps;
+pub mod twelve;
 pub mod validate;
 pub mod varpro;

@@ -7,16 +7,23 @@
 //! 5. the static parameters by cost (77) on the static-tuning sets and the stationary points
 //!    ([`super::complete::step5`]), started from the step-1 values (or eq. (78)).
 //!
+//! With [`PipelineOptions::model`] = 12 the three steps of section 9.2.1 follow
+//! ([`super::twelve`]): k_ic by linear least squares (always), V_ic with V_im, V_em, J_t by
+//! (74)-(75) on the 12-state model (when step 3 is selected), the static parameters with k_ic
+//! by (77), N = 8, z_8 = W_ic, beta = 2.58 (when step 5 is selected).
+//!
 //! `base` supplies the constants that are not tuned (gas properties, geometry, A_egrmax, ...)
 //! and the values of the parameters of the steps that are not run. No step starts from a value
 //! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
 
 use super::complete::{
-    naive_theta, sets_with_role, static_theta, step3, step4, step5, CompleteReport, Step3Start,
-    Step5Options, Step5Report,
+    fit_dynamic, naive_theta, sets_with_role, static_params, static_theta, step3, step4, step5,
+    theta_of, CompleteReport, DynamicFit, Step3Start, Step5Options, Step5Report,
 };
 use super::data::{Campaign, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
+use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
+use crate::model::ModelOrder;
 use crate::params::Params;
 use serde::Serialize;
 use std::time::Instant;
@@ -47,6 +54,8 @@ pub struct PipelineOptions {
     /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
     /// V_em; see docs/tuning.md).
     pub refine_dynamics: bool,
+    /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
+    pub model: ModelOrder,
 }
 
 impl Default for PipelineOptions {
@@ -58,6 +67,7 @@ impl Default for PipelineOptions {
             step3_max_eval: 100,
             step5: Step5Options::default(),
             refine_dynamics: false,
+            model: ModelOrder::Eight,
         }
     }
 }
@@ -107,17 +117,32 @@ pub struct TuneReport {
     pub step3_refined: Option<CompleteReport>,
     /// Step 4 repeated after step 5 (option `refine_dynamics`).
     pub step4_refined: Option<CompleteReport>,
+    /// The 12-state steps of section 9.2.1 (option `model` = 12).
+    pub twelve: Option<TwelveReport>,
     /// Wall time of each step [s] (0 when not run).
     pub seconds: [f64; 5],
     /// Total wall time [s].
     pub total_seconds: f64,
 }
 
+/// The three 12-state steps of section 9.2.1.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TwelveReport {
+    /// First step: k_ic by linear least squares (errors of p_c - p_im).
+    pub k_ic: FitReport,
+    /// Second step: V_ic, V_im, V_em, J_t by (74)-(75) on the 12-state model.
+    pub dynamic: Option<CompleteReport>,
+    /// Third step: the static parameters and k_ic by (77), N = 8, z_8 = W_ic, beta = 2.58.
+    pub statics: Option<Step5Report>,
+    /// Wall time [s].
+    pub seconds: f64,
+}
+
 /// A failed pipeline step.
 #[derive(Debug, thiserror::Error)]
 #[error("tuning step {step} failed: {source}")]
 pub struct PipelineError {
-    /// Step number 1-5.
+    /// Step number 1-5; 6-8 for the three 12-state steps of section 9.2.1.
     pub step: u8,
     /// Cause.
     #[source]
@@ -155,6 +180,7 @@ pub fn tune(
         step5: None,
         step3_refined: None,
         step4_refined: None,
+        twelve: None,
         seconds: [0.0; 5],
         total_seconds: 0.0,
     };
@@ -243,6 +269,9 @@ pub fn tune(
         }
         rep.seconds[2] += t.elapsed().as_secs_f64();
     }
+    if opts.model == ModelOrder::Twelve {
+        rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
+    }
     p.validate().map_err(|e| PipelineError {
         step: opts
             .steps
@@ -256,4 +285,81 @@ pub fn tune(
     })?;
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
+}
+
+/// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.
+fn tune_twelve(
+    c: &Campaign,
+    p: &mut Params,
+    opts: &PipelineOptions,
+) -> Result<TwelveReport, PipelineError> {
+    let t = Instant::now();
+    let infos = &c.manifest.datasets;
+    let (k, k_rep) = fit_k_ic(&c.stationary).map_err(at(6))?;
+    p.intercooler.k_ic = k;
+    let mut dynamic = None;
+    if opts.steps[2] {
+        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
+        if sets.is_empty() {
+            return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
+        }
+        let s3 = &opts.step3;
+        let th0 = [
+            V_IC_START[0],
+            p.intake_manifold.v_im,
+            p.exhaust_manifold.v_em,
+            p.turbo.j_t,
+        ];
+        let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
+        let th0: Vec<f64> = th0
+            .iter()
+            .zip([V_IC_START[1], s3.lo[0], s3.lo[1], s3.lo[2]])
+            .zip([V_IC_START[2], s3.hi[0], s3.hi[1], s3.hi[2]])
+            .map(|((v, lo), hi)| clip(*v, lo, hi))
+            .collect();
+        let f = DynamicFit {
+            order: ModelOrder::Twelve,
+            names: &["v_ic", "v_im", "v_em", "j_t"],
+            theta0: &th0,
+            lo: &[V_IC_START[1], s3.lo[0], s3.lo[1], s3.lo[2]],
+            hi: &[V_IC_START[2], s3.hi[0], s3.hi[1], s3.hi[2]],
+            scale: &[0.01, 0.02, 0.02, 1e-4],
+            amp_floor: s3.amp_floor,
+            max_eval: opts.step3_max_eval,
+        };
+        let (q, r) = fit_dynamic(
+            "12-state step 2 (V_ic, V_im, V_em, J_t)",
+            p,
+            &sets,
+            &c.stationary,
+            &f,
+        )
+        .map_err(at(7))?;
+        *p = q;
+        dynamic = Some(r);
+    }
+    let mut statics = None;
+    if opts.steps[4] {
+        let sets: Vec<_> = infos
+            .iter()
+            .zip(&c.dynamic)
+            .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
+            .map(|(_, d)| d)
+            .collect();
+        let so = Step5Options {
+            model: ModelOrder::Twelve,
+            beta: BETA_12,
+            ..opts.step5.clone()
+        };
+        let th0 = theta_of(&static_params(ModelOrder::Twelve), p);
+        let (q, r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
+        *p = q;
+        statics = Some(r);
+    }
+    Ok(TwelveReport {
+        k_ic: k_rep,
+        dynamic,
+        statics,
+        seconds: t.elapsed().as_secs_f64(),
+    })
 }

@@ -3,7 +3,9 @@
 //! - Stationary: each static submodel (W_ei, M_e, W_egr, eta_tm, W_t, T_em, eta_c, W_c; the
 //!   z_n of eq. (77) plus M_e) evaluated with the given parameters at the measured stationary
 //!   points, compared with the derived measurements of step 1 ([`super::steps`]), eq. (4).
-//! - Dynamic sets with engine outputs: the 8-state model simulated with the measured commands
+//!   With the 12-state model the intercooler flow W_ic of eq. (86) is added (z_8 of section
+//!   9.2.1: measured W_c against eq. (86) at the measured p_c, p_im, T_c).
+//! - Dynamic sets with engine outputs: the model (8 states by default) simulated with the measured commands
 //!   (n_e, u_delta, u_egr, u_vgt, held between samples) from the steady state of the first
 //!   sample; p_im, p_em, W_c, n_t and M_e at the sample times compared with the measurements,
 //!   eq. (5) (normalized by the mean of the stationary measurements of that output).
@@ -17,7 +19,7 @@ use super::data::{
 };
 use super::lab::{egr_step_response, vgt_step_response};
 use super::steps::{self, rel_errors, StepError};
-use crate::model::{Engine8, ModelOptions};
+use crate::model::{AnyModel, ModelOptions, ModelOrder};
 use crate::params::Params;
 use crate::sim::{simulate, InputSchedule, SimOptions, Start};
 use serde::Serialize;
@@ -95,10 +97,12 @@ pub fn stationary_errors(
     })
 }
 
-/// Simulate the 8-state model driven by the commands of a dynamic set (n_e, u_delta, u_egr,
-/// u_vgt held between samples: a change between two samples happens at the later one) from
-/// the steady state of the first sample, output every `dt_out` [s], relative tolerance `rtol`.
+/// Simulate the model `order` (8, 10 or 12 states) driven by the commands of a dynamic set
+/// (n_e, u_delta, u_egr, u_vgt held between samples: a change between two samples happens at
+/// the later one) from the steady state of the first sample, output every `dt_out` [s],
+/// relative tolerance `rtol`.
 pub fn simulate_set(
+    order: ModelOrder,
     p: &Params,
     d: &DynamicData,
     dt_out: f64,
@@ -121,7 +125,7 @@ pub fn simulate_set(
         rows.push(r);
     }
     let sched = InputSchedule::new(times, rows).map_err(|e| e.to_string())?;
-    let m = Engine8::new(p.clone(), ModelOptions::default()).map_err(|e| e.to_string())?;
+    let m = AnyModel::new(order, p.clone(), ModelOptions::default()).map_err(|e| e.to_string())?;
     let t0 = d.t[0];
     let t_end = *d.t.last().unwrap_or(&t0);
     let so = SimOptions {
@@ -129,7 +133,8 @@ pub fn simulate_set(
         rtol,
         ..SimOptions::default()
     };
-    simulate(&m, &sched, t0, t_end, Start::SteadyState, &so).map_err(|e| e.to_string())
+    crate::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &so))
+        .map_err(|e| e.to_string())
 }
 
 /// Mean sample interval of a set [s].
@@ -144,6 +149,7 @@ pub fn sample_interval(d: &DynamicData) -> f64 {
 /// M_e; with `tau_me` the simulated torque is passed through the dynamometer lag of eq. (76)
 /// (on a grid of at most 0.02 s) before sampling.
 pub fn simulated_outputs(
+    order: ModelOrder,
     p: &Params,
     d: &DynamicData,
     tau_me: Option<f64>,
@@ -151,7 +157,7 @@ pub fn simulated_outputs(
 ) -> Result<Vec<(&'static str, Vec<f64>)>, String> {
     let dt = sample_interval(d);
     let dt_out = if tau_me.is_some() { dt.min(0.02) } else { dt };
-    let sol = simulate_set(p, d, dt_out, rtol)?;
+    let sol = simulate_set(order, p, d, dt_out, rtol)?;
     let ts = sol.t();
     let mut out = Vec::new();
     for name in ["p_im", "p_em", "W_c", "n_t", "M_e"] {
@@ -183,7 +189,7 @@ pub fn dynamic_errors(
     d: &DynamicData,
     stat: &[StationaryPoint],
 ) -> Result<DataSetErrors, ValidateError> {
-    dynamic_errors_with(p, d, stat, None)
+    dynamic_errors_with(ModelOrder::Eight, p, d, stat, None)
 }
 
 /// Errors of a dynamic set, eq. (5): p_im, p_em, W_c, n_t and M_e at the sample times against
@@ -191,17 +197,19 @@ pub fn dynamic_errors(
 /// set's own mean where there are none). `tau_me`: dynamometer time constant of eq. (76) applied
 /// to the simulated torque.
 pub fn dynamic_errors_with(
+    order: ModelOrder,
     p: &Params,
     d: &DynamicData,
     stat: &[StationaryPoint],
     tau_me: Option<f64>,
 ) -> Result<DataSetErrors, ValidateError> {
-    let sims = simulated_outputs(p, d, tau_me, SimOptions::default().rtol).map_err(|message| {
-        ValidateError::Model {
-            set: d.name.clone(),
-            message,
-        }
-    })?;
+    let sims =
+        simulated_outputs(order, p, d, tau_me, SimOptions::default().rtol).map_err(|message| {
+            ValidateError::Model {
+                set: d.name.clone(),
+                message,
+            }
+        })?;
     let means = stationary_means(stat);
     let mut outputs = Vec::new();
     for (k, name) in ["p_im", "p_em", "W_c", "n_t", "M_e"].iter().enumerate() {
@@ -266,19 +274,24 @@ pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, Val
 
 /// Validate `p` on a loaded campaign (torque unfiltered; see [`validate_campaign_with`]).
 pub fn validate_campaign(c: &Campaign, p: &Params) -> Result<ValidationReport, ValidateError> {
-    validate_campaign_with(c, p, None, None)
+    validate_campaign_with(ModelOrder::Eight, c, p, None, None)
 }
 
-/// Validate `p` on the data sets of a campaign (those with a role in `roles`, all if None), in
-/// parallel; `tau_me`: dynamometer time constant of eq. (76).
+/// Validate `p` with the model `order` on the data sets of a campaign (those with a role in
+/// `roles`, all if None), in parallel; `tau_me`: dynamometer time constant of eq. (76).
 pub fn validate_campaign_with(
+    order: ModelOrder,
     c: &Campaign,
     p: &Params,
     tau_me: Option<f64>,
     roles: Option<&[Role]>,
 ) -> Result<ValidationReport, ValidateError> {
     use rayon::prelude::*;
-    let stationary = stationary_errors(p, &c.stationary)?;
+    let mut stationary = stationary_errors(p, &c.stationary)?;
+    if order == ModelOrder::Twelve {
+        let (meas, model) = super::twelve::w_ic_series(p, &c.stationary);
+        stationary.push(out("W_ic", &meas, &model));
+    }
     let sel: Vec<_> = c
         .manifest
         .datasets
@@ -290,7 +303,7 @@ pub fn validate_campaign_with(
         .par_iter()
         .map(|(info, d)| match info.kind {
             StepKind::Actuator => actuator_errors(p, d),
-            _ => dynamic_errors_with(p, d, &c.stationary, tau_me),
+            _ => dynamic_errors_with(order, p, d, &c.stationary, tau_me),
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ValidationReport {

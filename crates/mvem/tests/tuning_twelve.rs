@@ -1,0 +1,199 @@
+//! The 12-state tuning of section 9.2.1 on small virtual 12-state campaigns (cheap: seconds in
+//! release). The searches start from generic values (V_ic 10 dm^3, truth 18 dm^3).
+
+use mvem::model::ModelOrder;
+use mvem::params::Params;
+use mvem::tuning::complete::{fit_dynamic, param_value, Cost77, DynamicFit, Step5Options};
+use mvem::tuning::data::Role;
+use mvem::tuning::lab::{self, LabOptions, Noise};
+use mvem::tuning::twelve::{fit_k_ic, w_ic_series, V_IC_START};
+
+fn lab12(noise: Noise, sets: &[&str], max_steps: usize, n_stat: usize) -> LabOptions {
+    LabOptions {
+        noise,
+        n_stationary: n_stat,
+        sets: Some(sets.iter().map(|s| s.to_string()).collect()),
+        max_steps: Some(max_steps),
+        model: ModelOrder::Twelve,
+        ..LabOptions::default()
+    }
+}
+
+#[test]
+fn stationary_12_state_data_carry_the_intercooler_drop() {
+    let p = Params::published();
+    let (truth, _) = lab::stationary(&p, &lab12(Noise::NONE, &[], 1, 20)).unwrap();
+    for s in &truth {
+        // eq. (86) at the equilibrium: W_ic = W_c, T_ic = T_c, so
+        // p_c (p_c - p_im) = k_ic W_c^2 T_c
+        let lhs = s.p_c * (s.p_c - s.p_im);
+        let rhs = p.intercooler.k_ic * s.w_c * s.w_c * s.t_c;
+        assert!((lhs - rhs).abs() <= 1e-6 * rhs, "{lhs} vs {rhs}");
+        assert!(s.p_c - s.p_im > 100.0, "drop {} Pa", s.p_c - s.p_im);
+    }
+    // the 8-state campaign has p_c = p_im: no drop, and step 6 says so instead of fitting
+    let (t8, _) = lab::stationary(
+        &p,
+        &LabOptions {
+            model: ModelOrder::Eight,
+            ..lab12(Noise::NONE, &[], 1, 13)
+        },
+    )
+    .unwrap();
+    assert!(t8.iter().all(|s| s.p_c == s.p_im));
+    let e = fit_k_ic(&t8).unwrap_err().to_string();
+    assert!(e.contains("k_ic"), "{e}");
+}
+
+#[test]
+fn k_ic_recovered_from_noise_free_stationary_data() {
+    let mut p = Params::published();
+    for k_true in [1.9e7, 6.0e7] {
+        p.intercooler.k_ic = k_true;
+        let (truth, _) = lab::stationary(&p, &lab12(Noise::NONE, &[], 1, 30)).unwrap();
+        let (k, rep) = fit_k_ic(&truth).unwrap();
+        assert!(
+            ((k - k_true) / k_true).abs() < 1e-6,
+            "k_ic {k:.8e} vs {k_true:.8e}"
+        );
+        assert!(rep.max_abs_rel_err < 1e-6, "{rep:?}");
+        // and z_8 = W_ic is then zero to the same accuracy
+        let mut q = p.clone();
+        q.intercooler.k_ic = k;
+        let (meas, model) = w_ic_series(&q, &truth);
+        for (a, b) in meas.iter().zip(&model) {
+            assert!((a - b).abs() <= 1e-6 * a, "W_ic {b} vs W_c {a}");
+        }
+    }
+    // with realistic noise (0.5 % on p_c, p_im: ~1.5 kPa against drops of 1-13 kPa) the estimate
+    // stays within 15 % on 82 points
+    p.intercooler.k_ic = 1.9e7;
+    let (_, meas) = lab::stationary(&p, &lab12(Noise::REALISTIC, &[], 1, 82)).unwrap();
+    let (k, _) = fit_k_ic(&meas).unwrap();
+    assert!(((k - 1.9e7) / 1.9e7).abs() < 0.15, "noisy k_ic {k:.4e}");
+}
+
+#[test]
+fn cost77_with_w_ic_row_is_zero_at_the_truth() {
+    // N = 8: the second row has 8 n_m residuals; all vanish at the true parameters on
+    // noise-free data, and the W_ic row responds to k_ic
+    let p = Params::published();
+    let c = lab::campaign(&p, &lab12(Noise::NONE, &["G"], 2, 13))
+        .unwrap()
+        .0;
+    let sets: Vec<_> = c
+        .with_role(Role::Static)
+        .into_iter()
+        .filter(|(i, _)| i.name == "G")
+        .map(|(_, d)| d)
+        .collect();
+    let opts = Step5Options {
+        model: ModelOrder::Twelve,
+        beta: 2.58,
+        ..Step5Options::default()
+    };
+    let cost = Cost77::new(&p, &c.stationary, &sets, &opts);
+    let n_dyn: usize = sets.iter().map(|d| 4 * d.t.len()).sum::<usize>();
+    assert_eq!(cost.len(), n_dyn + 8 * c.stationary.len());
+    let mut th = mvem::tuning::complete::theta_of(
+        &mvem::tuning::complete::static_params(ModelOrder::Twelve),
+        &p,
+    );
+    assert_eq!(th.last(), Some(&p.intercooler.k_ic));
+    let v0 = cost.cost(&th);
+    // not exactly 0: the campaign is simulated at the default tolerance, the cost at 1e-8
+    assert!(v0 < 1e-9, "cost at truth {v0:e}");
+    *th.last_mut().unwrap() *= 1.2;
+    let v1 = cost.cost(&th);
+    // in the second row only z_8 changes: eq. (86) scales by 1/sqrt(1.2), residuals
+    // (W_c - W_c/sqrt(1.2)) / mean(W_c) / sqrt(beta N n_m)
+    let n = c.stationary.len() as f64;
+    let mean = c.stationary.iter().map(|s| s.w_c).sum::<f64>() / n;
+    let f = 1.0 - 1.0 / 1.2f64.sqrt();
+    let expected: f64 = c
+        .stationary
+        .iter()
+        .map(|s| (f * s.w_c / mean).powi(2) / (2.58 * 8.0 * n))
+        .sum();
+    // the first row (12-state simulation of G) responds too: the static row alone is exact
+    let stat_only = Cost77::new(
+        &p,
+        &c.stationary,
+        &sets,
+        &Step5Options {
+            dynamic_row: false,
+            ..opts.clone()
+        },
+    );
+    let vs = stat_only.cost(&th);
+    assert!(
+        (vs - expected).abs() < 1e-6 * expected + 1e-9,
+        "k_ic +20 %: static row {vs:e} vs {expected:e}"
+    );
+    assert!(v1 > vs + v0, "{v1:e}");
+}
+
+#[test]
+fn v_ic_in_the_second_12_state_step() {
+    // noise-free 12-state campaign, one 100 Hz VGT/EGR set (B, 3 steps); the problem (74)-(75)
+    // with V_ic, V_im, V_em, J_t, V_ic started at 10 dm^3, the others at the truth
+    let p = Params::published();
+    let c = lab::campaign(&p, &lab12(Noise::NONE, &["B"], 3, 13))
+        .unwrap()
+        .0;
+    let sets: Vec<_> = c
+        .with_role(Role::Dynamic)
+        .into_iter()
+        .map(|(_, d)| d)
+        .collect();
+    let th0 = [
+        V_IC_START[0],
+        p.intake_manifold.v_im,
+        p.exhaust_manifold.v_em,
+        p.turbo.j_t,
+    ];
+    let f = DynamicFit {
+        order: ModelOrder::Twelve,
+        names: &["v_ic", "v_im", "v_em", "j_t"],
+        theta0: &th0,
+        lo: &[V_IC_START[1], 0.002, 0.002, 1e-5],
+        hi: &[V_IC_START[2], 0.2, 0.2, 1e-3],
+        scale: &[0.01, 0.02, 0.02, 1e-4],
+        amp_floor: 0.01,
+        max_eval: 60,
+    };
+    let (q, rep) = fit_dynamic("test", &p, &sets, &c.stationary, &f).unwrap();
+    assert!(rep.converged, "{rep:?}");
+    let v_ic = param_value(&q, "v_ic").unwrap();
+    let t = p.intercooler.v_ic;
+    // noise-free: 0.15 % off (the lab simulates at the default tolerance, the search at 1e-8)
+    assert!(((v_ic - t) / t).abs() < 0.01, "V_ic {v_ic} vs {t}");
+    for n in ["v_im", "v_em", "j_t"] {
+        let (a, b) = (param_value(&q, n).unwrap(), param_value(&p, n).unwrap());
+        assert!(((a - b) / b).abs() < 0.01, "{n} {a} vs {b}");
+    }
+}
+
+#[test]
+fn step5_with_k_ic_restores_k_ic_from_the_w_ic_row() {
+    // third 12-state step, second row only (no simulation): all other parameters at the truth,
+    // k_ic started 20 % high; only z_8 = W_ic depends on k_ic, so the search must return it
+    let p = Params::published();
+    let (truth, _) = lab::stationary(&p, &lab12(Noise::NONE, &[], 1, 20)).unwrap();
+    let list = mvem::tuning::complete::static_params(ModelOrder::Twelve);
+    let mut th0 = mvem::tuning::complete::theta_of(&list, &p);
+    *th0.last_mut().unwrap() *= 1.2;
+    let opts = Step5Options {
+        model: ModelOrder::Twelve,
+        beta: 2.58,
+        dynamic_row: false,
+        max_evaluations: 400,
+        ..Step5Options::default()
+    };
+    let (q, rep) = mvem::tuning::complete::step5(&p, &truth, &[], &th0, &opts).unwrap();
+    let k = q.intercooler.k_ic;
+    assert!((k / p.intercooler.k_ic - 1.0).abs() < 1e-3, "k_ic {k:e}");
+    let w_ic = rep.submodels.iter().find(|r| r.submodel == "W_ic").unwrap();
+    assert!(w_ic.mean_abs_rel_err < 1e-4, "{w_ic:?}");
+    assert_eq!(rep.params.last().map(|x| x.0.as_str()), Some("k_ic"));
+}
