@@ -11,19 +11,10 @@ use mvem::model::{Drive, Engine8, Signals, STATE_NAMES_8};
 use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn mvem(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mvem"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run mvem")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{mvem, stderr};
+use std::process::Output;
 
 fn json_of(o: &Output) -> Value {
     assert!(o.status.success(), "{}", stderr(o));

@@ -6,30 +6,11 @@
 //!   Markdown; bad options exit with code 2.
 
 use std::path::Path;
-use std::process::{Command, Output};
+mod common;
+
+use common::{files, mvem, stderr};
 
 const HEADER: &str = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct";
-
-fn mvem(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mvem"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run mvem")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn files(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
-}
 
 /// Full load with the EGR valve over-open and the VGT closed beyond its range, then motoring at
 /// 300 rpm: far outside the paper's plain equations (no guards).

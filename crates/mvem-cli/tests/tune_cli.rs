@@ -2,20 +2,9 @@
 //! output, bad-data errors (file, line, column; exit code 2), a failing step (exit code 1,
 //! named step) that leaves no output file.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn mvem(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mvem"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run mvem")
-}
-
-fn err(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{mvem, stderr};
 
 #[test]
 fn lab_tune_validate_roundtrip_and_errors() {
@@ -37,7 +26,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
             "none",
         ],
     );
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     for f in [
         "manifest.toml",
         "stationary.csv",
@@ -61,7 +50,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
             "--json",
         ],
     );
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     for set in ["B", "C", "I", "Q"] {
         for out in ["p_im", "p_em", "W_c", "n_t", "M_e"] {
@@ -79,7 +68,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
             "tune", "--data", "c", "--steps", "3-4", "--out", "t.toml", "--report", "rep",
         ],
     );
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("t.toml").is_file() && d.join("rep/tune_report.json").is_file());
     let md = String::from_utf8_lossy(&o.stdout);
     assert!(md.contains("| v_im |") && md.contains("| tau_me |"), "{md}");
@@ -98,8 +87,8 @@ fn lab_tune_validate_roundtrip_and_errors() {
             "tune", "--data", "noj", "--steps", "2", "--out", "x.toml", "--report", "xr",
         ],
     );
-    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
-    assert!(err(&o).contains("tuning step 2"), "{}", err(&o));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("tuning step 2"), "{}", stderr(&o));
     assert!(!d.join("x.toml").exists() && !d.join("xr").exists());
 
     // bad data: a non-number in B.csv -> exit 2, message names file, line and column
@@ -110,8 +99,8 @@ fn lab_tune_validate_roundtrip_and_errors() {
     lines[3] = cells.join(",");
     std::fs::write(d.join("c/B.csv"), lines.join("\n")).unwrap();
     let o = mvem(d, &["tune", "--data", "c", "--out", "y.toml"]);
-    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
-    let e = err(&o);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
     assert!(
         e.contains("B.csv") && e.contains('4') && e.contains("p_em"),
         "{e}"
@@ -125,7 +114,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
     assert_eq!(o.status.code(), Some(2));
     let o = mvem(d, &["lab", "--out", "z", "--noise", "loud"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(err(&o).contains("--noise"));
+    assert!(stderr(&o).contains("--noise"));
 }
 
 #[test]
@@ -153,7 +142,7 @@ fn lab_tune_validate_12_state() {
         )
     };
     let o = lab("c12", "12");
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     // the stationary CSV carries p_c before the intercooler, above p_im
     let csv = std::fs::read_to_string(d.join("c12/stationary.csv")).unwrap();
     let head: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
@@ -178,7 +167,7 @@ fn lab_tune_validate_12_state() {
                 model,
             ],
         );
-        assert!(o.status.success(), "{}", err(&o));
+        assert!(o.status.success(), "{}", stderr(&o));
         serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
     };
     let v12 = val("12");
@@ -203,7 +192,7 @@ fn lab_tune_validate_12_state() {
             "t12.toml",
         ],
     );
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     let md = String::from_utf8_lossy(&o.stdout);
     assert!(md.contains("Step 6") && md.contains("| k_ic |"), "{md}");
     let t: toml::Value =
@@ -216,21 +205,21 @@ fn lab_tune_validate_12_state() {
             d,
             &["tune", "--data", "c12", "--model", m, "--out", "bad.toml"],
         );
-        assert_eq!(o.status.code(), Some(2), "{}", err(&o));
-        assert!(err(&o).contains("--model"), "{}", err(&o));
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--model"), "{}", stderr(&o));
     }
     let o = mvem(d, &["lab", "--out", "z", "--model", "9"]);
     assert_eq!(o.status.code(), Some(2));
     // an 8-state campaign has no intercooler drop: step 6 fails by name, exit 1
     let o = lab("c8", "8");
-    assert!(o.status.success(), "{}", err(&o));
+    assert!(o.status.success(), "{}", stderr(&o));
     let o = mvem(
         d,
         &[
             "tune", "--data", "c8", "--steps", "2", "--model", "12", "--out", "bad.toml",
         ],
     );
-    assert_eq!(o.status.code(), Some(1), "{}", err(&o));
-    assert!(err(&o).contains("tuning step 6"), "{}", err(&o));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("tuning step 6"), "{}", stderr(&o));
     assert!(!d.join("bad.toml").exists());
 }
