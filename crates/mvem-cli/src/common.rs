@@ -469,6 +469,31 @@ impl PointArgs {
     }
 }
 
+/// An operating point whose inputs may be supplied otherwise (`map`: a grid axis; `step`:
+/// `--from` for the stepped input); the command says which are required.
+#[derive(Debug, Clone, clap::Args)]
+pub struct OptionalPointArgs {
+    /// Engine speed n_e [rpm] (unless given otherwise, e.g. as an --axis).
+    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
+    pub n_e: Option<f64>,
+    /// Injected fuel u_delta [mg/cycle/cylinder] (unless given otherwise).
+    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
+    pub u_delta: Option<f64>,
+    /// EGR valve command u_egr [%] (unless given otherwise).
+    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_egr: Option<f64>,
+    /// VGT command u_vgt [%] (unless given otherwise).
+    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
+    pub u_vgt: Option<f64>,
+}
+
+impl OptionalPointArgs {
+    /// The given values in [`Drive::to_array`] order.
+    pub fn given(&self) -> [Option<f64>; 4] {
+        [self.n_e, self.u_delta, self.u_egr, self.u_vgt]
+    }
+}
+
 /// Option names of the inputs in [`Drive::to_array`] order.
 pub const INPUT_OPTIONS: [&str; 4] = ["--n-e", "--u-delta", "--u-egr", "--u-vgt"];
 

@@ -39,18 +39,9 @@ pub struct Args {
     /// A grid axis: NAME=LO:HI:N or NAME=V1,V2,... (1 to 4 axes; repeat the option).
     #[arg(long = "axis", value_name = "SPEC", required = true)]
     pub axes: Vec<String>,
-    /// Engine speed n_e [rpm] (when not an axis).
-    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
-    pub n_e: Option<f64>,
-    /// Injected fuel u_delta [mg/cycle/cylinder] (when not an axis).
-    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
-    pub u_delta: Option<f64>,
-    /// EGR valve command u_egr [%] (when not an axis).
-    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_egr: Option<f64>,
-    /// VGT command u_vgt [%] (when not an axis).
-    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_vgt: Option<f64>,
+    /// The operating point; inputs that are not given otherwise are required.
+    #[command(flatten)]
+    pub point: common::OptionalPointArgs,
     /// SISO channel whose DC gain and RHP zeros are mapped, e.g. u_vgt->W_c (repeatable).
     #[arg(long = "channel", value_name = "IN->OUT")]
     pub channels: Vec<String>,
@@ -145,7 +136,7 @@ fn grid(a: &Args) -> Result<Grid> {
             axes.len()
         )));
     }
-    let given = [a.n_e, a.u_delta, a.u_egr, a.u_vgt];
+    let given = a.point.given();
     let mut base = [0.0; 4];
     for k in 0..4 {
         let on_axis = axes.iter().any(|ax| ax.input == Drive::NAMES[k]);

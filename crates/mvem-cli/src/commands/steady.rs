@@ -17,18 +17,9 @@ Examples:
 With --json, stdout holds one JSON object: every state and signal by name (\"p_im\", \"W_c\",
 \"lambda_O\", ...), \"physically_valid\", \"flags\", \"eigenvalues\" [{re, im}], \"inputs\".")]
 pub struct Args {
-    /// Engine speed n_e [rpm].
-    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
-    pub n_e: f64,
-    /// Injected fuel u_delta [mg/cycle/cylinder].
-    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
-    pub u_delta: f64,
-    /// EGR valve command u_egr [%] (0 closed, 100 open).
-    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_egr: f64,
-    /// VGT command u_vgt [%] (0 closed, 100 open).
-    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_vgt: f64,
+    /// The operating point (--n-e, --u-delta, --u-egr, --u-vgt).
+    #[command(flatten)]
+    pub point: common::PointArgs,
     /// Print one JSON object on stdout instead of tables.
     #[arg(long)]
     pub json: bool,
@@ -41,8 +32,7 @@ pub struct Args {
 
 /// Run `mvem steady`.
 pub fn run(a: &Args) -> Result<()> {
-    let d = Drive::new(a.n_e, a.u_delta, a.u_egr, a.u_vgt);
-    common::check_drive(&d)?;
+    let d = a.point.drive()?;
     let model = a.model.build()?;
     let valid = mvem::dispatch!(&model, m => report(m, &d, a.json))?;
     if !valid && a.strict {

@@ -74,18 +74,9 @@ pub struct Args {
     /// Value after the step.
     #[arg(long, value_name = "V", allow_negative_numbers = true)]
     pub to: f64,
-    /// Engine speed n_e [rpm].
-    #[arg(long = "n-e", value_name = "RPM", allow_negative_numbers = true)]
-    pub n_e: Option<f64>,
-    /// Injected fuel u_delta [mg/cycle/cylinder].
-    #[arg(long = "u-delta", value_name = "MG", allow_negative_numbers = true)]
-    pub u_delta: Option<f64>,
-    /// EGR valve command u_egr [%].
-    #[arg(long = "u-egr", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_egr: Option<f64>,
-    /// VGT command u_vgt [%].
-    #[arg(long = "u-vgt", value_name = "PCT", allow_negative_numbers = true)]
-    pub u_vgt: Option<f64>,
+    /// The operating point; inputs that are not given otherwise are required.
+    #[command(flatten)]
+    pub point: common::OptionalPointArgs,
     /// Time of the step [s].
     #[arg(long = "t-step", value_name = "S", default_value = "1")]
     pub t_step: f64,
@@ -207,7 +198,7 @@ pub fn run_step<const N: usize, M: Model<N>>(
 /// Run `mvem step`.
 pub fn run(a: &Args) -> Result<()> {
     let slot = a.input.slot();
-    let given = [a.n_e, a.u_delta, a.u_egr, a.u_vgt];
+    let given = a.point.given();
     let mut v = [0.0; 4];
     for k in 0..4 {
         v[k] = if k == slot {
