@@ -212,6 +212,10 @@ pub struct SolverArgs {
     /// Output interval [s] (the end time is always written) [default: 0.01; bench: 0.1]
     #[arg(long, value_name = "S")]
     pub dt: Option<f64>,
+    /// Integrate the actuator states numerically like the other states (default: in closed
+    /// form on every segment where the delayed command is linear; see docs/integrator.md)
+    #[arg(long)]
+    pub numeric_actuators: bool,
 }
 
 impl SolverArgs {
@@ -222,6 +226,7 @@ impl SolverArgs {
             rtol,
             atol: self.atol.unwrap_or(rtol),
             dt_out: self.dt.unwrap_or(default_dt),
+            exact_actuators: !self.numeric_actuators,
             ..SimOptions::default()
         };
         o.validate().map_err(|e| match e {

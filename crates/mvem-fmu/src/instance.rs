@@ -26,7 +26,7 @@ use mvem::analysis::steady::steady_state;
 use mvem::components::cylinder::SeligerIterate;
 use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelInput, ModelOptions, Signals};
 use mvem::params::Params;
-use mvem::sim::{InputSchedule, Integrator, SimOptions, SimStats, Solution};
+use mvem::sim::{InputSchedule, Integrator, SimOptions, Solution};
 
 /// FMI interface the instance was created for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -644,12 +644,7 @@ impl Instance {
                     // carry the iterate held at the end of the previous step
                     run.memory = mem0;
                 }
-                let mut sink = Solution {
-                    names: Vec::new(),
-                    columns: vec![Vec::new(); 1 + m.state_names().len() + Signals::COUNT],
-                    stats: SimStats::default(),
-                    guards_seen: 0,
-                };
+                let mut sink = Solution::new(&m.state_names());
                 run.advance(t_end, &mut sink, false)?;
                 Ok((run.y.to_vec(), run.memory))
             })

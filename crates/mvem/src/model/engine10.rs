@@ -175,6 +175,14 @@ impl Model<10> for Engine10 {
 
     /// The 8-state guess, T_im = T_im,in and T_em = T_em,in (eq. (25)) evaluated at that guess
     /// (the values they take at any equilibrium).
+    fn linear_lags(&self) -> Vec<super::LinearLag> {
+        super::actuator_lags(
+            self.params(),
+            self.options().semantics,
+            [ix::U_EGR1, ix::U_EGR2, ix::U_VGT],
+        )
+    }
+
     fn initial_guess(&self, d: &Drive) -> [f64; 10] {
         let p = self.params();
         let x8 = self.base.initial_guess(d);

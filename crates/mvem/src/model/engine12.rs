@@ -201,6 +201,14 @@ impl Model<12> for Engine12 {
     /// The 10-state guess; T_ic = the compressor outlet temperature T_c there and p_c = p_im
     /// plus the pressure drop (eq. (86)) that carries W_ei - W_egr (the intercooler flow at any
     /// equilibrium).
+    fn linear_lags(&self) -> Vec<super::LinearLag> {
+        super::actuator_lags(
+            self.params(),
+            self.options().semantics,
+            [ix::U_EGR1, ix::U_EGR2, ix::U_VGT],
+        )
+    }
+
     fn initial_guess(&self, d: &Drive) -> [f64; 12] {
         let p = self.params();
         let x10 = self.base.initial_guess(d);

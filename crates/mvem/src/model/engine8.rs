@@ -135,6 +135,14 @@ impl Model<8> for Engine8 {
         ]
     }
 
+    fn linear_lags(&self) -> Vec<super::LinearLag> {
+        super::actuator_lags(
+            &self.p,
+            self.opts.semantics,
+            [ix::U_EGR1, ix::U_EGR2, ix::U_VGT],
+        )
+    }
+
     fn initial_guess(&self, d: &Drive) -> [f64; 8] {
         let pa = self.p.ambient.p_amb;
         let load = (d.u_delta_mg / 250.0).clamp(0.0, 1.0);

@@ -139,6 +139,67 @@ pub struct Evaluation<const N: usize> {
     pub memory_next: SeligerIterate,
 }
 
+/// The delayed input command that drives a [`LinearLag`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LagCommand {
+    /// u_egr(t - tau_degr) (eqs (40), (41)).
+    Egr,
+    /// u_vgt(t - tau_dvgt) (eq. (57)).
+    Vgt,
+}
+
+/// A state that is a first-order lag of a saturated, delayed input command,
+/// `dx/dt = (clamp(u(t - tau_d), lo, hi) - x) / tau`: the actuator states u_egr1, u_egr2
+/// (eqs (40), (41)) and u_vgt (eq. (57)). They depend on nothing but the inputs, so the simulator
+/// can integrate them in closed form (see `sim`); [`Model::eval`] must give exactly this derivative
+/// (tested for every model).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinearLag {
+    /// State index.
+    pub state: usize,
+    /// Time constant tau [s].
+    pub tau: f64,
+    /// Driving command.
+    pub command: LagCommand,
+    /// Saturation (lo, hi) of the delayed command [%] (infinite: none).
+    pub saturation: (f64, f64),
+}
+
+/// Saturation range [%] of the EGR command in the authors' implementation (item 3).
+pub const U_EGR_RANGE: (f64, f64) = (0.0, 100.0);
+/// Saturation range [%] of the VGT command in the authors' implementation (item 4).
+pub const U_VGT_RANGE: (f64, f64) = (20.0, 100.0);
+
+/// The three actuator lags (u_egr1, u_egr2, u_vgt at the given state indices).
+pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<LinearLag> {
+    let none = (f64::NEG_INFINITY, f64::INFINITY);
+    let (egr, vgt) = if sem.authors() {
+        (U_EGR_RANGE, U_VGT_RANGE)
+    } else {
+        (none, none)
+    };
+    vec![
+        LinearLag {
+            state: ix[0],
+            tau: p.egr_actuator.tau_egr1,
+            command: LagCommand::Egr,
+            saturation: egr,
+        },
+        LinearLag {
+            state: ix[1],
+            tau: p.egr_actuator.tau_egr2,
+            command: LagCommand::Egr,
+            saturation: egr,
+        },
+        LinearLag {
+            state: ix[2],
+            tau: p.vgt_actuator.tau_vgt,
+            command: LagCommand::Vgt,
+            saturation: vgt,
+        },
+    ]
+}
+
 /// A mean-value engine model with `N` states.
 pub trait Model<const N: usize>: Send + Sync {
     /// State names (reference-data names: `p_im`, `p_em`, `X_Oim`, ...).
@@ -156,6 +217,10 @@ pub trait Model<const N: usize>: Send + Sync {
     fn eval(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Evaluation<N>;
     /// Indices of the states that are actuator states (set to the saturated commands at steady state).
     fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)>;
+    /// The states that are first-order lags of delayed input commands (default: none).
+    fn linear_lags(&self) -> Vec<LinearLag> {
+        Vec::new()
+    }
     /// Initial guess for the steady state at `d`, for iterative solvers.
     fn initial_guess(&self, d: &Drive) -> [f64; N];
     /// The same model with other options.
@@ -220,7 +285,7 @@ pub fn saturate_inputs(d: &Drive, sem: Semantics) -> (Drive, u32) {
 #[inline]
 pub fn saturate_u_egr(u: f64, sem: Semantics) -> f64 {
     if sem.authors() {
-        u.clamp(0.0, 100.0)
+        u.clamp(U_EGR_RANGE.0, U_EGR_RANGE.1)
     } else {
         u
     }
@@ -230,7 +295,7 @@ pub fn saturate_u_egr(u: f64, sem: Semantics) -> f64 {
 #[inline]
 pub fn saturate_u_vgt(u: f64, sem: Semantics) -> f64 {
     if sem.authors() {
-        u.clamp(20.0, 100.0)
+        u.clamp(U_VGT_RANGE.0, U_VGT_RANGE.1)
     } else {
         u
     }

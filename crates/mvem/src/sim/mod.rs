@@ -13,6 +13,11 @@
 //! breakpoint of every channel (jumps and kinks), shifted by the delay of each channel that
 //! feeds a delay, and each segment is integrated with the inputs evaluated strictly inside the
 //! segment, so a step on either side of a jump sees one smooth input.
+//!
+//! The actuator states ([`Model::linear_lags`]) are first-order lags of those delayed commands;
+//! on a segment the command is linear, so by default they are integrated in closed form there and
+//! the W-method integrates the other states only ([`SimOptions::exact_actuators`],
+//! `docs/integrator.md`).
 
 mod dopri5;
 pub mod input;
@@ -22,7 +27,7 @@ mod rosw;
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 
 use crate::components::cylinder::SeligerIterate;
-use crate::model::{Actuators, CylinderTemp, Model, ModelInput, Signals};
+use crate::model::{Actuators, CylinderTemp, LagCommand, LinearLag, Model, ModelInput, Signals};
 use dopri5::*;
 use std::fmt;
 
@@ -46,6 +51,12 @@ pub struct SimOptions {
     pub max_steps: usize,
     /// Integration method.
     pub method: Method,
+    /// Integrate the actuator states ([`Model::linear_lags`]: first-order lags of the delayed,
+    /// saturated commands, eqs (40), (41), (57)) in closed form on every segment where their
+    /// driving command is linear, and the other states by the W-method with them as known
+    /// functions of time (default true; [`Method::Rosenbrock34`] only). `false` integrates all
+    /// states with the W-method, for comparison.
+    pub exact_actuators: bool,
 }
 
 /// Integration method (see `docs/integrator.md` for the measured comparison).
@@ -81,6 +92,7 @@ impl Default for SimOptions {
             stop_at_breakpoints: true,
             max_steps: 50_000_000,
             method: Method::default(),
+            exact_actuators: true,
         }
     }
 }
@@ -228,10 +240,13 @@ pub struct Solution {
     pub stats: SimStats,
     /// Guards of the authors' implementation that were active at any output sample.
     pub guards_seen: u32,
+    /// Column of each entry of [`Signals::NAMES`] (`None`: the signal is a state column).
+    signal_columns: Vec<Option<usize>>,
 }
 
 impl Solution {
-    fn new(state_names: &[&'static str]) -> Self {
+    /// An empty solution with the columns `t`, the states and the signals.
+    pub fn new(state_names: &[&'static str]) -> Self {
         let mut names = vec!["t".to_string()];
         names.extend(state_names.iter().map(|s| s.to_string()));
         // A signal that is also a state (T_im, T_em, p_c of the 10/12-state models) appears
@@ -242,12 +257,30 @@ impl Solution {
                 .filter(|s| !state_names.contains(s))
                 .map(|s| s.to_string()),
         );
+        let mut c = state_names.len();
+        let signal_columns = Signals::NAMES
+            .iter()
+            .map(|s| {
+                (!state_names.contains(s)).then(|| {
+                    c += 1;
+                    c
+                })
+            })
+            .collect();
         let columns = vec![Vec::new(); names.len()];
         Self {
             names,
             columns,
             stats: SimStats::default(),
             guards_seen: 0,
+            signal_columns,
+        }
+    }
+
+    /// Reserve room for `n` more samples in every column.
+    fn reserve(&mut self, n: usize) {
+        for c in &mut self.columns {
+            c.reserve(n);
         }
     }
 
@@ -257,11 +290,9 @@ impl Solution {
             self.columns[1 + i].push(y[i]);
         }
         // signal columns follow the states in `Signals::NAMES` order, minus the state names
-        let mut c = 1 + N;
-        for (name, v) in Signals::NAMES.iter().zip(s.values()) {
-            if self.names.get(c).is_some_and(|n| n == name) {
-                self.columns[c].push(v);
-                c += 1;
+        for (col, v) in self.signal_columns.iter().zip(s.values()) {
+            if let Some(c) = col {
+                self.columns[*c].push(v);
             }
         }
         self.guards_seen |= s.guards;
@@ -300,6 +331,10 @@ impl Solution {
     }
 }
 
+/// A linear piece of a schedule channel: (t_lo, t_hi, t_ref, v_ref, slope), see
+/// [`InputSchedule::piece`].
+type Piece = (f64, f64, f64, f64, f64);
+
 /// The inputs of the model over time plus the delays: evaluates [`ModelInput`] for one
 /// integration segment `[a, b]` between consecutive stop times, always from inside the segment
 /// (so a step at `a` or `b` is seen from the correct side).
@@ -308,12 +343,23 @@ pub struct SegmentInputs<'a> {
     tau_egr: f64,
     tau_vgt: f64,
     hints: [usize; 6],
-    /// Cached linear piece per lookup: (t_lo, t_hi, t_ref, v_ref, slope). Pieces come from the
-    /// schedule alone, so the cache stays valid from one segment to the next.
-    pieces: [(f64, f64, f64, f64, f64); 6],
+    /// The two most recently used linear pieces per lookup: (t_lo, t_hi, t_ref, v_ref, slope).
+    /// Pieces come from the schedule alone, so the cache stays valid from one segment to the
+    /// next. Two, because the undelayed u_egr and u_vgt commands are not stop times when the
+    /// actuators are dynamic (only their delayed copies are), so a segment can straddle one of
+    /// their kinks and the stages of a step alternate between the two pieces.
+    pieces: [[Piece; 2]; 6],
     /// Lookup window per lookup: inputs are evaluated at times clamped strictly inside the
     /// segment (shifted back by the lookup's delay), or unclamped if the segment is too short.
     window: [(f64, f64); 6],
+    /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
+    /// current segment, if one does (always for the lookups whose kinks are stop times).
+    linear: [Option<(f64, f64, f64)>; 6],
+    /// Chord (t_ref, v_ref, slope) of the delayed u_egr and u_vgt commands over the window of
+    /// the current segment, in lookup time. Their kinks are stop times, so on a segment they
+    /// are linear up to the schedule's collinearity tolerance (rows within
+    /// [`InputSchedule::collinear_tol`] of a line are not breakpoints).
+    chords: [Option<(f64, f64, f64)>; 2],
 }
 
 impl<'a> SegmentInputs<'a> {
@@ -330,8 +376,10 @@ impl<'a> SegmentInputs<'a> {
             tau_egr: p.egr_actuator.tau_degr,
             tau_vgt: p.vgt_actuator.tau_dvgt,
             hints: [0; 6],
-            pieces: [(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 6],
+            pieces: [[(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 2]; 6],
             window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
+            linear: [None; 6],
+            chords: [None; 2],
         };
         me.set_segment(a, b);
         me
@@ -353,7 +401,55 @@ impl<'a> SegmentInputs<'a> {
                 (f64::NEG_INFINITY, f64::INFINITY)
             };
         }
+        for k in 0..6 {
+            let (lo, hi) = self.window[k];
+            self.linear[k] = None;
+            if lo.is_finite() {
+                let mut pc = self.pieces[k][0];
+                if !(pc.0 <= lo && lo <= pc.1) {
+                    pc = self
+                        .sched
+                        .piece(Self::CHANNEL[k], lo, Side::Right, &mut self.hints[k]);
+                    self.pieces[k] = [pc, self.pieces[k][0]];
+                }
+                if pc.0 <= lo && hi <= pc.1 {
+                    self.linear[k] = Some((pc.2, pc.3, pc.4));
+                }
+            }
+        }
+        for (i, k) in [4, 5].into_iter().enumerate() {
+            let (lo, hi) = self.window[k];
+            self.chords[i] = match self.linear[k] {
+                Some(line) => Some(line),
+                None if lo.is_finite() => {
+                    let ch = Self::CHANNEL[k];
+                    let v_lo = self
+                        .sched
+                        .value_hint(ch, lo, Side::Right, &mut self.hints[k]);
+                    let v_hi = self
+                        .sched
+                        .value_hint(ch, hi, Side::Right, &mut self.hints[k]);
+                    Some((lo, v_lo, (v_hi - v_lo) / (hi - lo)))
+                }
+                None => None,
+            };
+        }
     }
+
+    /// The delayed command `cmd` on the current segment as a line in simulation time t,
+    /// `v(t) = v_ref + slope (t - t_ref)` (its chord over the segment; `None` for a segment
+    /// shorter than the lookup margins).
+    fn delayed_line(&self, cmd: LagCommand) -> Option<(f64, f64, f64)> {
+        let (i, shift) = match cmd {
+            LagCommand::Egr => (0, self.tau_egr),
+            LagCommand::Vgt => (1, self.tau_vgt),
+        };
+        self.chords[i].map(|(t_ref, v_ref, slope)| (t_ref + shift, v_ref, slope))
+    }
+
+    /// Schedule channel of each lookup (n_e, u_delta, u_egr, u_vgt, delayed u_egr, delayed
+    /// u_vgt).
+    const CHANNEL: [usize; 6] = [0, 1, 2, 3, 2, 3];
 
     #[inline]
     fn delta(t: f64) -> f64 {
@@ -364,12 +460,20 @@ impl<'a> SegmentInputs<'a> {
     fn value(&mut self, ch: usize, k: usize, t: f64, shift: f64) -> f64 {
         let (lo, hi) = self.window[k];
         let tq = (t - shift).clamp(lo, hi);
-        let (lo, hi, t_ref, v_ref, slope) = self.pieces[k];
-        if lo <= tq && tq <= hi {
+        if let Some((t_ref, v_ref, slope)) = self.linear[k] {
             return v_ref + slope * (tq - t_ref);
         }
-        let pc = self.sched.piece(ch, tq, Side::Right, &mut self.hints[k]);
-        self.pieces[k] = pc;
+        let p0 = &self.pieces[k][0];
+        if p0.0 <= tq && tq <= p0.1 {
+            return p0.3 + p0.4 * (tq - p0.2);
+        }
+        let p1 = &self.pieces[k][1];
+        let pc = if p1.0 <= tq && tq <= p1.1 {
+            *p1
+        } else {
+            self.sched.piece(ch, tq, Side::Right, &mut self.hints[k])
+        };
+        self.pieces[k] = [pc, self.pieces[k][0]];
         pc.3 + pc.4 * (tq - pc.2)
     }
 
@@ -474,6 +578,8 @@ pub fn simulate<const N: usize, M: Model<N>>(
     };
     let mut run = Integrator::new(model, sched, t0, y0, opts)?;
     let mut sol = Solution::new(&model.state_names());
+    let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
+    sol.reserve(samples.min(1e7) as usize);
     run.advance(t_end, &mut sol, true)?;
     sol.stats = run.stats;
     Ok(sol)
@@ -498,11 +604,43 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     next_out: u64,
     t_out0: f64,
     jac: Option<[[f64; N]; N]>,
-    /// LU factors of I - gamma h J for the current Jacobian, with the h they were made for.
-    lu: Option<(f64, [[f64; N]; N], [usize; N])>,
+    /// LU factors of I - gamma h J_zz for the current Jacobian (J_zz: J without the rows and
+    /// columns of the closed-form lag states if `reduced`), with the h they were made for,
+    /// `reduced` and J_zz itself, both in the leading m x m block (z coordinates).
+    #[allow(clippy::type_complexity)]
+    lu: Option<(f64, bool, [[f64; N]; N], [usize; N], [[f64; N]; N])>,
     jac_age: usize,
+    /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
+    jac_full: bool,
+    /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
+    lags: Vec<LinearLag>,
+    /// Their closed-form solution on the current segment (empty: the segment is integrated
+    /// with the W-method in all states).
+    lag_seg: Vec<LagSegment>,
     /// Statistics so far.
     pub stats: SimStats,
+}
+
+/// A lag state on one segment: `dx/dt = (c(t) - x)/tau` with the driving command
+/// `c(t) = c_a + beta (t - t_a)` (already saturated; linear on the whole segment).
+#[derive(Debug, Clone, Copy)]
+struct LagSegment {
+    state: usize,
+    tau: f64,
+    t_a: f64,
+    c_a: f64,
+    beta: f64,
+}
+
+impl LagSegment {
+    /// Exact solution at `t + s` from `x` at `t`:
+    /// x(t + s) = c(t + s) - beta tau + (x - c(t) + beta tau) exp(-s / tau).
+    #[inline]
+    fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
+        let c = |t: f64| self.c_a + self.beta * (t - self.t_a);
+        let bt = self.beta * self.tau;
+        c(t + s) - bt + (x - c(t) + bt) * (-s / self.tau).exp()
+    }
 }
 
 /// What the integrator keeps of a model evaluation (not the signals, which are only needed at
@@ -597,8 +735,25 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             jac: None,
             lu: None,
             jac_age: usize::MAX,
+            jac_full: false,
+            lags: Vec::new(),
+            lag_seg: Vec::new(),
             stats: SimStats::default(),
         };
+        if opts.exact_actuators && opts.method == Method::Rosenbrock34 {
+            let lags = model.linear_lags();
+            // the closed form knows no integrator limits: only for unbounded lag states
+            let ok = lags.iter().all(|l| {
+                l.state < N
+                    && l.tau.is_finite()
+                    && l.tau > 0.0
+                    && bounds[l.state] == (f64::NEG_INFINITY, f64::INFINITY)
+            });
+            if ok {
+                me.lag_seg.reserve(lags.len());
+                me.lags = lags;
+            }
+        }
         // Memory starts at the converged fixed point of the initial state (the authors'
         // runSimEngine sets x_r_Init, T_1_Init from the settling run).
         if model.options().cylinder_temp == CylinderTemp::OneIteration {
@@ -668,6 +823,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         let mut inp = self.inputs(self.t, t_end);
         for (b, jump) in seg_ends {
             inp.set_segment(self.t, b);
+            self.plan_lags(&inp, self.t, b);
             self.segment(&mut inp, b, sol)?;
             if b < t_end {
                 self.stats.breakpoints += 1;
@@ -688,6 +844,38 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             }
         }
         Ok(())
+    }
+
+    /// The closed-form lag solutions on the segment `[a, b]`, if every lag's saturated command is
+    /// linear there (else none: the W-method integrates all states on this segment).
+    fn plan_lags(&mut self, inp: &SegmentInputs, a: f64, b: f64) {
+        self.lag_seg.clear();
+        for lag in &self.lags {
+            let Some((t_ref, v_ref, slope)) = inp.delayed_line(lag.command) else {
+                self.lag_seg.clear();
+                return;
+            };
+            let (va, vb) = (v_ref + slope * (a - t_ref), v_ref + slope * (b - t_ref));
+            let (lo, hi) = lag.saturation;
+            let (c_a, beta) = if lo <= va.min(vb) && va.max(vb) <= hi {
+                (va, slope)
+            } else if va.max(vb) <= lo {
+                (lo, 0.0)
+            } else if va.min(vb) >= hi {
+                (hi, 0.0)
+            } else {
+                // the command crosses its saturation inside the segment
+                self.lag_seg.clear();
+                return;
+            };
+            self.lag_seg.push(LagSegment {
+                state: lag.state,
+                tau: lag.tau,
+                t_a: a,
+                c_a,
+                beta,
+            });
+        }
     }
 
     fn initial_step(
@@ -843,7 +1031,10 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                     break;
                 }
                 let theta = ((to - t) / h).clamp(0.0, 1.0);
-                let yo = dense.eval(theta);
+                let mut yo = dense.eval(theta);
+                for l in &self.lag_seg {
+                    yo[l.state] = l.advance(t, y[l.state], to - t);
+                }
                 let yo = crate::model::clip_state(&yo, &self.bounds);
                 self.output(inp, sol, to, &yo);
                 self.next_out += 1;
@@ -937,17 +1128,18 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     }
 
     /// Finite-difference Jacobian df/dy at (t, y) with f(t, y) = f0 (forward differences,
-    /// step sqrt(eps) relative to max(|y_i|, scale_i)).
+    /// step sqrt(eps) relative to max(|y_i|, scale_i)); the columns with `skip[c]` stay zero.
     fn jacobian(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,
         f0: &[f64; N],
+        skip: &[bool; N],
     ) -> Result<[[f64; N]; N], SimError> {
         let y = self.y;
         let scales = self.model.state_scales();
         let mut j = [[0.0; N]; N];
-        for c in 0..N {
+        for c in (0..N).filter(|&c| !skip[c]) {
             let mut yp = y;
             let mut d = 1.5e-8 * y[c].abs().max(scales[c]);
             if yp[c] + d > self.bounds[c].1 {
@@ -964,6 +1156,13 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     }
 
     /// One trial step of the Rosenbrock-W method ROS34PW2 (see [`rosw`]).
+    ///
+    /// On a segment with closed-form lag states (`lag_seg` not empty) the method integrates the
+    /// other states only, as the non-autonomous system dz/dt = f_z(z, a(t), u(t)) with the exact
+    /// lag solution a(t): the stages take a(t + alpha_i h), the iteration matrix is
+    /// I - gamma h J_zz (lag rows and columns of J replaced by the identity), and the lag
+    /// states' error estimate is zero. This is the W-method applied to the smaller system, so
+    /// order and error control are those of ROS34PW2.
     fn step_rosw(
         &mut self,
         inp: &mut SegmentInputs,
@@ -972,67 +1171,119 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         t_new: f64,
         f0: &[f64; N],
     ) -> Result<Trial<N>, SimError> {
+        // moved out for the step (the stages borrow self mutably), put back whatever happens
+        let lag_seg = std::mem::take(&mut self.lag_seg);
+        let trial = self.step_rosw_with(inp, t, h, t_new, f0, &lag_seg);
+        self.lag_seg = lag_seg;
+        trial
+    }
+
+    fn step_rosw_with(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        t_new: f64,
+        f0: &[f64; N],
+        lag_seg: &[LagSegment],
+    ) -> Result<Trial<N>, SimError> {
         use rosw::*;
-        if self.jac.is_none() || self.jac_age >= JAC_MAX_AGE {
-            let j = self.jacobian(inp, t, f0)?;
+        let reduced = !lag_seg.is_empty();
+        let mut is_lag = [false; N];
+        for l in lag_seg {
+            is_lag[l.state] = true;
+        }
+        // the states the W-method integrates: z[0..m]
+        let mut z = [0usize; N];
+        let mut m = 0;
+        for i in (0..N).filter(|&i| !is_lag[i]) {
+            z[m] = i;
+            m += 1;
+        }
+        if self.jac.is_none() || self.jac_age >= JAC_MAX_AGE || (!reduced && !self.jac_full) {
+            let j = self.jacobian(inp, t, f0, &is_lag)?;
             self.jac = Some(j);
+            self.jac_full = !reduced;
             self.jac_age = 0;
             self.lu = None;
         }
-        let j = self.jac.expect("Jacobian set above");
-        // (I - gamma h J) is refactored only when J or h changed, e.g. not for the second of
+        // The iteration matrix I - gamma h J_zz and J_zz, in the z coordinates. They are
+        // refactored only when J, h or the set of lag states changed, e.g. not for the second of
         // two equal steps that split a segment remainder (h equal up to rounding: the factors of
-        // I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with J' = (h'/h) J,
-        // a W-method admits any J', and the stage terms h J' g k below use the same J').
-        let (lu, piv, js) = match self.lu {
-            Some((hl, lu, piv)) if (hl - h).abs() <= 1e-9 * h => (lu, piv, hl / h),
+        // I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
+        // J' = (h'/h) J, a W-method admits any J', and the stage terms h J' g k below use the
+        // same J').
+        let (lu, piv, jz, js) = match &self.lu {
+            Some((hl, red, lu, piv, jz)) if *red == reduced && (hl - h).abs() <= 1e-9 * h => {
+                (*lu, *piv, *jz, hl / h)
+            }
             _ => {
+                let j = self.jac.as_ref().expect("Jacobian set above");
+                let mut jz = [[0.0; N]; N];
                 let mut lu = [[0.0; N]; N];
-                for r in 0..N {
-                    for c in 0..N {
-                        lu[r][c] = -GAMMA * h * j[r][c];
+                for a in 0..m {
+                    for b in 0..m {
+                        jz[a][b] = j[z[a]][z[b]];
+                        lu[a][b] = -GAMMA * h * jz[a][b];
                     }
-                    lu[r][r] += 1.0;
+                    lu[a][a] += 1.0;
                 }
                 let mut piv = [0usize; N];
-                if !linalg::lu_factor(&mut lu, &mut piv) {
+                if !linalg::lu_factor(&mut lu, &mut piv, m) {
                     return Err(self.singular(t, h));
                 }
                 self.stats.lu += 1;
-                self.lu = Some((h, lu, piv));
-                (lu, piv, 1.0)
+                self.lu = Some((h, reduced, lu, piv, jz));
+                (lu, piv, jz, 1.0)
             }
         };
         let y = self.y;
-        let mv = |v: &[f64; N]| -> [f64; N] {
-            let p = linalg::mat_vec(&j, v);
-            std::array::from_fn(|i| js * p[i])
+        // k = (I - gamma h J_zz)^-1 h (f + J_zz g) on the z states; 0 on the lag states
+        // (their values are exact, the increments are not used)
+        let stage = |f: &[f64; N], g: Option<&[f64; N]>| -> [f64; N] {
+            let mut r = [0.0; N];
+            for a in 0..m {
+                let jg = g.map_or(0.0, |g| (0..m).map(|b| jz[a][b] * g[z[b]]).sum::<f64>());
+                r[a] = h * (f[z[a]] + js * jg);
+            }
+            linalg::lu_solve(&lu, &piv, &mut r, m);
+            let mut k = [0.0; N];
+            for a in 0..m {
+                k[z[a]] = r[a];
+            }
+            k
         };
-        // stage 1
-        let mut k1: [f64; N] = std::array::from_fn(|i| h * f0[i]);
-        linalg::lu_solve(&lu, &piv, &mut k1);
+        // exact lag states at t + s
+        let exact = |yt: &mut [f64; N], s: f64| {
+            for l in lag_seg {
+                yt[l.state] = l.advance(t, y[l.state], s);
+            }
+        };
+        let k1 = stage(f0, None);
         // stage 2
-        let y2: [f64; N] = std::array::from_fn(|i| y[i] + A21 * k1[i]);
+        let mut y2: [f64; N] = std::array::from_fn(|i| y[i] + A21 * k1[i]);
+        exact(&mut y2, ALPHA2 * h);
         let f2 = self.rhs(inp, t + ALPHA2 * h, &y2)?.dx;
-        let jv = mv(&std::array::from_fn(|i| G21 * k1[i]));
-        let mut k2: [f64; N] = std::array::from_fn(|i| h * (f2[i] + jv[i]));
-        linalg::lu_solve(&lu, &piv, &mut k2);
+        let k2 = stage(&f2, Some(&std::array::from_fn(|i| G21 * k1[i])));
         // stage 3
-        let y3: [f64; N] = std::array::from_fn(|i| y[i] + A31 * k1[i] + A32 * k2[i]);
+        let mut y3: [f64; N] = std::array::from_fn(|i| y[i] + A31 * k1[i] + A32 * k2[i]);
+        exact(&mut y3, ALPHA3 * h);
         let f3 = self.rhs(inp, t + ALPHA3 * h, &y3)?.dx;
-        let jv = mv(&std::array::from_fn(|i| G31 * k1[i] + G32 * k2[i]));
-        let mut k3: [f64; N] = std::array::from_fn(|i| h * (f3[i] + jv[i]));
-        linalg::lu_solve(&lu, &piv, &mut k3);
+        let k3 = stage(
+            &f3,
+            Some(&std::array::from_fn(|i| G31 * k1[i] + G32 * k2[i])),
+        );
         // stage 4 (a41 = a42 = 0, a43 = 1, alpha4 = 1)
-        let y4: [f64; N] = std::array::from_fn(|i| y[i] + k3[i]);
+        let mut y4: [f64; N] = std::array::from_fn(|i| y[i] + k3[i]);
+        exact(&mut y4, t_new - t);
         let f4 = self.rhs(inp, t_new, &y4)?.dx;
-        let jv = mv(&std::array::from_fn(|i| {
-            G41 * k1[i] + G42 * k2[i] + G43 * k3[i]
-        }));
-        let mut k4: [f64; N] = std::array::from_fn(|i| h * (f4[i] + jv[i]));
-        linalg::lu_solve(&lu, &piv, &mut k4);
-        let y1: [f64; N] =
+        let g4: [f64; N] = std::array::from_fn(|i| G41 * k1[i] + G42 * k2[i] + G43 * k3[i]);
+        let k4 = stage(&f4, Some(&g4));
+        let mut y1: [f64; N] =
             std::array::from_fn(|i| y[i] + B1 * k1[i] + B2 * k2[i] + B3 * k3[i] + B4 * k4[i]);
+        for l in lag_seg {
+            y1[l.state] = y4[l.state];
+        }
         let e: [f64; N] = std::array::from_fn(|i| {
             (B1 - BH1) * k1[i] + (B2 - BH2) * k2[i] + (B3 - BH3) * k3[i] + (B4 - BH4) * k4[i]
         });
