@@ -456,7 +456,7 @@ impl<'a> SegmentInputs<'a> {
         1e-12 * t.abs().max(1.0)
     }
 
-    #[inline]
+    #[inline(always)]
     fn value(&mut self, ch: usize, k: usize, t: f64, shift: f64) -> f64 {
         let (lo, hi) = self.window[k];
         let tq = (t - shift).clamp(lo, hi);
@@ -604,11 +604,9 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     next_out: u64,
     t_out0: f64,
     jac: Option<[[f64; N]; N]>,
-    /// LU factors of I - gamma h J_zz for the current Jacobian (J_zz: J without the rows and
-    /// columns of the closed-form lag states if `reduced`), with the h they were made for,
-    /// `reduced` and J_zz itself, both in the leading m x m block (z coordinates).
-    #[allow(clippy::type_complexity)]
-    lu: Option<(f64, bool, [[f64; N]; N], [usize; N], [[f64; N]; N])>,
+    /// Iteration matrix of the current Jacobian and step size (boxed: it is moved out and back
+    /// at every step).
+    lu: Option<Box<IterationMatrix<N>>>,
     jac_age: usize,
     /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
     jac_full: bool,
@@ -619,6 +617,22 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     lag_seg: Vec<LagSegment>,
     /// Statistics so far.
     pub stats: SimStats,
+}
+
+/// LU factors of I - gamma h J_zz, where J_zz is the Jacobian restricted to the states the
+/// W-method integrates (all states, or all but the closed-form lag states if `reduced`), and J_zz
+/// itself, both in the leading m x m block of the z coordinates.
+struct IterationMatrix<const N: usize> {
+    /// Step size [s] the factors were made for.
+    h: f64,
+    /// Whether the lag states are left out.
+    reduced: bool,
+    /// The integrated states: z[0..m] are state indices.
+    z: [usize; N],
+    m: usize,
+    lu: [[f64; N]; N],
+    piv: [usize; N],
+    jz: [[f64; N]; N],
 }
 
 /// A lag state on one segment: `dx/dt = (c(t) - x)/tau` with the driving command
@@ -1160,9 +1174,9 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     /// On a segment with closed-form lag states (`lag_seg` not empty) the method integrates the
     /// other states only, as the non-autonomous system dz/dt = f_z(z, a(t), u(t)) with the exact
     /// lag solution a(t): the stages take a(t + alpha_i h), the iteration matrix is
-    /// I - gamma h J_zz (lag rows and columns of J replaced by the identity), and the lag
-    /// states' error estimate is zero. This is the W-method applied to the smaller system, so
-    /// order and error control are those of ROS34PW2.
+    /// I - gamma h J_zz (J without the lag rows and columns), and the lag states' error estimate
+    /// is zero. This is the W-method applied to the smaller system, so order and error control
+    /// are those of ROS34PW2.
     fn step_rosw(
         &mut self,
         inp: &mut SegmentInputs,
@@ -1173,32 +1187,37 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     ) -> Result<Trial<N>, SimError> {
         // moved out for the step (the stages borrow self mutably), put back whatever happens
         let lag_seg = std::mem::take(&mut self.lag_seg);
-        let trial = self.step_rosw_with(inp, t, h, t_new, f0, &lag_seg);
+        let trial = self
+            .iteration_matrix(inp, t, h, f0, &lag_seg)
+            .and_then(|()| {
+                let w = self.lu.take().expect("iteration matrix set up");
+                let trial = self.rosw_stages(inp, t, h, t_new, f0, &lag_seg, &w);
+                self.lu = Some(w);
+                trial
+            });
         self.lag_seg = lag_seg;
         trial
     }
 
-    fn step_rosw_with(
+    /// Make `self.lu` the iteration matrix for step size `h` (lagged Jacobian).
+    ///
+    /// (I - gamma h J) is refactored only when J, h or the set of lag states changed, e.g. not
+    /// for the second of two equal steps that split a segment remainder (h equal up to rounding:
+    /// the factors of I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
+    /// J' = (h'/h) J, a W-method admits any J', and the stage terms h J' g k use the same J').
+    fn iteration_matrix(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,
         h: f64,
-        t_new: f64,
         f0: &[f64; N],
         lag_seg: &[LagSegment],
-    ) -> Result<Trial<N>, SimError> {
+    ) -> Result<(), SimError> {
         use rosw::*;
         let reduced = !lag_seg.is_empty();
         let mut is_lag = [false; N];
         for l in lag_seg {
             is_lag[l.state] = true;
-        }
-        // the states the W-method integrates: z[0..m]
-        let mut z = [0usize; N];
-        let mut m = 0;
-        for i in (0..N).filter(|&i| !is_lag[i]) {
-            z[m] = i;
-            m += 1;
         }
         if self.jac.is_none() || self.jac_age >= JAC_MAX_AGE || (!reduced && !self.jac_full) {
             let j = self.jacobian(inp, t, f0, &is_lag)?;
@@ -1207,46 +1226,89 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             self.jac_age = 0;
             self.lu = None;
         }
-        // The iteration matrix I - gamma h J_zz and J_zz, in the z coordinates. They are
-        // refactored only when J, h or the set of lag states changed, e.g. not for the second of
-        // two equal steps that split a segment remainder (h equal up to rounding: the factors of
-        // I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
-        // J' = (h'/h) J, a W-method admits any J', and the stage terms h J' g k below use the
-        // same J').
-        let (lu, piv, jz, js) = match &self.lu {
-            Some((hl, red, lu, piv, jz)) if *red == reduced && (hl - h).abs() <= 1e-9 * h => {
-                (*lu, *piv, *jz, hl / h)
+        if let Some(w) = &self.lu {
+            if w.reduced == reduced && (w.h - h).abs() <= 1e-9 * h {
+                return Ok(());
             }
-            _ => {
-                let j = self.jac.as_ref().expect("Jacobian set above");
-                let mut jz = [[0.0; N]; N];
-                let mut lu = [[0.0; N]; N];
-                for a in 0..m {
-                    for b in 0..m {
-                        jz[a][b] = j[z[a]][z[b]];
-                        lu[a][b] = -GAMMA * h * jz[a][b];
-                    }
-                    lu[a][a] += 1.0;
-                }
-                let mut piv = [0usize; N];
-                if !linalg::lu_factor(&mut lu, &mut piv, m) {
-                    return Err(self.singular(t, h));
-                }
-                self.stats.lu += 1;
-                self.lu = Some((h, reduced, lu, piv, jz));
-                (lu, piv, jz, 1.0)
+        }
+        let j = self.jac.as_ref().expect("Jacobian set above");
+        let mut w = self.lu.take().unwrap_or_else(|| {
+            Box::new(IterationMatrix {
+                h,
+                reduced,
+                z: [0; N],
+                m: 0,
+                lu: [[0.0; N]; N],
+                piv: [0; N],
+                jz: [[0.0; N]; N],
+            })
+        });
+        w.h = h;
+        w.reduced = reduced;
+        w.m = 0;
+        for i in (0..N).filter(|&i| !is_lag[i]) {
+            w.z[w.m] = i;
+            w.m += 1;
+        }
+        let (m, z) = (w.m, w.z);
+        for a in 0..m {
+            for b in 0..m {
+                w.jz[a][b] = j[z[a]][z[b]];
+                w.lu[a][b] = -GAMMA * h * w.jz[a][b];
             }
-        };
+            w.lu[a][a] += 1.0;
+        }
+        let IterationMatrix { lu, piv, .. } = &mut *w;
+        if !linalg::lu_factor(lu, piv, m) {
+            return Err(self.singular(t, h));
+        }
+        self.stats.lu += 1;
+        self.lu = Some(w);
+        Ok(())
+    }
+
+    /// The four stages of ROS34PW2 with the iteration matrix `w`.
+    #[allow(clippy::too_many_arguments)]
+    fn rosw_stages(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        t_new: f64,
+        f0: &[f64; N],
+        lag_seg: &[LagSegment],
+        w: &IterationMatrix<N>,
+    ) -> Result<Trial<N>, SimError> {
+        use rosw::*;
+        let (m, z) = (w.m.min(N), &w.z);
+        let js = w.h / h;
         let y = self.y;
         // k = (I - gamma h J_zz)^-1 h (f + J_zz g) on the z states; 0 on the lag states
         // (their values are exact, the increments are not used)
         let stage = |f: &[f64; N], g: Option<&[f64; N]>| -> [f64; N] {
             let mut r = [0.0; N];
-            for a in 0..m {
-                let jg = g.map_or(0.0, |g| (0..m).map(|b| jz[a][b] * g[z[b]]).sum::<f64>());
-                r[a] = h * (f[z[a]] + js * jg);
+            match g {
+                None => {
+                    for a in 0..m {
+                        r[a] = h * f[z[a]];
+                    }
+                }
+                Some(g) => {
+                    let mut gz = [0.0; N];
+                    for b in 0..m {
+                        gz[b] = g[z[b]];
+                    }
+                    for a in 0..m {
+                        let row = &w.jz[a];
+                        let mut s = 0.0;
+                        for b in 0..m {
+                            s += row[b] * gz[b];
+                        }
+                        r[a] = h * (f[z[a]] + js * s);
+                    }
+                }
             }
-            linalg::lu_solve(&lu, &piv, &mut r, m);
+            linalg::lu_solve(&w.lu, &w.piv, &mut r, m);
             let mut k = [0.0; N];
             for a in 0..m {
                 k[z[a]] = r[a];
