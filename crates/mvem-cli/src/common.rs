@@ -513,7 +513,7 @@ pub fn check_drive(d: &Drive) -> Result<()> {
     for ((name, lo, hi), v) in csv_inputs::INPUT_RANGES.iter().zip(d.to_array()) {
         if v < *lo || v > *hi {
             eprintln!(
-                "warning: {name} = {v} is outside [{lo}, {hi}]; the authors' saturation clamps it"
+                "warning: {name} = {v} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given)"
             );
         }
     }

@@ -108,6 +108,18 @@ fn lost_equilibrium_is_located_for_10_and_12_states() {
         );
         assert!(msg.contains(state) && msg.contains("Hint:"), "{msg}");
         assert!(msg.contains("equilibrium lost"), "{msg}");
+        if msg.contains("too small at t = ") {
+            // the state whose error estimate forced the step down is named
+            let limiting = msg
+                .split("limiting state: ")
+                .nth(1)
+                .and_then(|r| r.split(' ').next())
+                .unwrap_or("");
+            assert!(
+                msg.contains(&format!("{limiting}=")) && !limiting.is_empty(),
+                "{msg}"
+            );
+        }
         assert_eq!(
             files(d.path()),
             before,

@@ -149,7 +149,7 @@ pub fn range_warnings(s: &InputSchedule) -> Vec<String> {
         }
         if let Some(t) = first {
             out.push(format!(
-                "{name} leaves [{lo}, {hi}] first at t = {t} s (values from {vmin} to {vmax}); the authors' saturation clamps it"
+                "{name} leaves [{lo}, {hi}] first at t = {t} s (values from {vmin} to {vmax}); the authors' saturation clamps it (the paper's semantics use it as given)"
             ));
         }
     }

@@ -183,12 +183,14 @@ pub enum SimError {
         hint: &'static str,
     },
     /// The step size fell below the resolution of the time axis.
-    #[error("step size {h:e} s too small at t = {t} s; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight")]
+    #[error("step size {h:e} s too small at t = {t} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight")]
     StepSizeTooSmall {
         /// Time [s].
         t: f64,
         /// Step size [s].
         h: f64,
+        /// The state whose error estimate limited the step, with that error.
+        limiting: String,
         /// State.
         state: StateDump,
     },
@@ -668,6 +670,8 @@ struct Rhs<const N: usize> {
 struct Trial<const N: usize> {
     y1: [f64; N],
     err: f64,
+    /// Local error estimate per state.
+    e: [f64; N],
     dense: Option<Dense<N>>,
     /// f(t_new, y1) and the cylinder-temperature memory computed there, if the method has it.
     f1: Option<([f64; N], SeligerIterate)>,
@@ -952,6 +956,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             self.h = self.initial_step(inp, &f0, span)?;
         }
         let mut last_failure: Option<SimError> = None;
+        let mut worst_rejected: Option<(usize, f64)> = None;
         while self.t < b {
             if self.stats.steps + self.stats.rejected >= self.opts.max_steps {
                 return Err(SimError::TooManySteps {
@@ -976,9 +981,17 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
                     self.t = b;
                     break;
                 }
+                let limiting = match worst_rejected {
+                    Some((i, e)) => format!(
+                        "{} (scaled local error {e:.3e} in the last rejected step)",
+                        self.model.state_names()[i]
+                    ),
+                    None => "none (no step was rejected for accuracy)".to_string(),
+                };
                 return Err(last_failure.unwrap_or(SimError::StepSizeTooSmall {
                     t,
                     h,
+                    limiting,
                     state: dump(self.model, &self.y),
                 }));
             }
@@ -1003,6 +1016,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             let order = self.opts.method.order() as f64;
             if err.is_nan() || err > 1.0 {
                 self.stats.rejected += 1;
+                worst_rejected = Some(self.worst_state(&self.y, &trial.y1, &trial.e));
                 let fac = if err.is_finite() {
                     (0.9 * err.powf(-1.0 / order)).max(0.2)
                 } else {
@@ -1016,6 +1030,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
             }
             // accept
             last_failure = None;
+            worst_rejected = None;
             self.stats.steps += 1;
             self.jac_age = self.jac_age.saturating_add(1);
             let y = self.y;
@@ -1126,9 +1141,20 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         Ok(Trial {
             y1,
             err: self.error_norm(&y, &y1, &e),
+            e,
             dense: Some(Dense::new(&y, &y1, &k1, &k3, &k4, &k5, &k6, &k7, h)),
             f1: Some((k7, ev7.memory_next)),
         })
+    }
+
+    /// The state with the largest scaled error estimate and that error (for failure reports).
+    fn worst_state(&self, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> (usize, f64) {
+        (0..N)
+            .map(|i| {
+                let sc = self.atol[i] + self.opts.rtol * y0[i].abs().max(y1[i].abs());
+                (i, (e[i] / sc).abs())
+            })
+            .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a })
     }
 
     /// RMS of the error estimate scaled by atol_i + rtol max(|y0_i|, |y1_i|).
@@ -1352,6 +1378,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         Ok(Trial {
             y1,
             err: self.error_norm(&self.y, &y1, &e),
+            e,
             dense: None,
             f1: None,
         })
