@@ -164,10 +164,14 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
     }
     if opts.settle {
         let sched = InputSchedule::constant(*d);
+        // A budget: settling at constant inputs takes hundreds of steps; a run that needs a
+        // million (fast oscillation, equilibrium lost) fails with TooManySteps, reported as the
+        // reason, instead of running for minutes.
         let sim_opts = SimOptions {
             rtol: 1e-6,
             atol: 1e-8,
             dt_out: 1e9,
+            max_steps: 1_000_000,
             ..SimOptions::default()
         };
         let mut start = x0;
