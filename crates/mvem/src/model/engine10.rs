@@ -216,7 +216,7 @@ impl Model<10> for Engine10 {
             p_c: None,
             w_ic: None, // eq. (82): W_ic = W_c
         };
-        let sh = common::evaluate(p, &self.base.cc, opts, &ports, u, memory);
+        let sh = common::evaluate::<true>(p, &self.base.cc, opts, &ports, u, memory);
         let mut signals = sh.signals;
         let sg = &signals;
 

@@ -248,7 +248,7 @@ impl Model<12> for Engine12 {
             p_c: Some(p_c),
             w_ic: Some(w_ic),
         };
-        let sh = common::evaluate(p, &self.base.base.cc, opts, &ports, u, memory);
+        let sh = common::evaluate::<true>(p, &self.base.base.cc, opts, &ports, u, memory);
         let mut signals = sh.signals;
         let sg = &signals;
 
