@@ -2,7 +2,7 @@
 //! Seliger cycle fixed point (section 4.2, eqs (17)-(24)), exhaust pipe heat loss (eq. (25)) and
 //! engine torque (section 4.3, eqs (26)-(31)).
 
-use super::{poly2, Semantics};
+use super::{poly2, pow_ln, Semantics};
 use crate::params::{Cylinder, ExhaustPipe, Gas};
 use std::f64::consts::PI;
 
@@ -106,7 +106,7 @@ struct SeligerConsts {
 
 impl SeligerConsts {
     fn new(gas: &Gas, cyl: &Cylinder, cc: &CylinderConsts, s: &SeligerInputs) -> Self {
-        let pi_e_ig = s.pi_e.powf(1.0 / gas.gamma_a);
+        let pi_e_ig = pow_ln(s.pi_e, 1.0 / gas.gamma_a);
         Self {
             rc_g1: cc.rc_g1,
             pi_e_ig,

@@ -276,6 +276,35 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
     }
 }
 
+/// [`Evaluation`](super::Evaluation) from a variant's shared part, derivatives and whether a
+/// state is at an integrator limit (the [`Guard::StateLimit`] bit).
+#[inline(always)]
+pub(crate) fn evaluation<const N: usize>(
+    sh: Shared,
+    dx: [f64; N],
+    at_limit: bool,
+) -> super::Evaluation<N> {
+    let mut signals = sh.signals;
+    if at_limit {
+        signals.guards |= Guard::StateLimit as u32;
+    }
+    super::Evaluation {
+        dx,
+        signals,
+        memory_next: sh.memory_next,
+    }
+}
+
+/// [`Derivatives`](super::Derivatives) from a variant's shared part (evaluated without the
+/// signals) and derivatives.
+#[inline(always)]
+pub(crate) fn derivatives<const N: usize>(sh: &Shared, dx: [f64; N]) -> super::Derivatives<N> {
+    super::Derivatives {
+        dx,
+        memory_next: sh.memory_next,
+    }
+}
+
 /// A smaller model's state-indexed array `small` placed at the indices `map` of an extension's
 /// `N`-array whose other entries are `fill` (states, scales, limits of the 8-state model in the
 /// 10-state one, of the 10-state model in the 12-state one).

@@ -4,7 +4,7 @@
 use super::common::{self, Ports, Shared};
 use super::{
     clip_state, limit_derivatives, saturate_u_egr, saturate_u_vgt, Derivatives, Drive, Evaluation,
-    Guard, Model, ModelInput, ModelOptions,
+    Model, ModelInput, ModelOptions,
 };
 use crate::components::cylinder::{CylinderConsts, SeligerIterate};
 use crate::components::manifold;
@@ -157,25 +157,14 @@ impl Model<8> for Engine8 {
     #[inline]
     fn eval(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Evaluation<8> {
         let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
-        let mut signals = sh.signals;
-        if at_limit {
-            signals.guards |= Guard::StateLimit as u32;
-        }
-        Evaluation {
-            dx,
-            signals,
-            memory_next: sh.memory_next,
-        }
+        common::evaluation(sh, dx, at_limit)
     }
 
     #[inline]
     fn derivatives(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Derivatives<8> {
         // The same code as `eval` without the signal-only work.
         let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
-        Derivatives {
-            dx,
-            memory_next: sh.memory_next,
-        }
+        common::derivatives(&sh, dx)
     }
 }
 
