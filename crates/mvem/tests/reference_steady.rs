@@ -119,3 +119,89 @@ fn mass_flows_balance_at_steady_state() {
         assert!((s.w_eo - s.w_ei - s.w_f).abs() < 1e-15);
     }
 }
+
+/// `Model::derivatives` (the integrator's path, which skips the signal-only work) gives
+/// bitwise the `dx` and `memory_next` of `Model::eval`, for the 8-, 10- and 12-state models: at
+/// the 90 reference states and, for each, 20 perturbed states (up to +-30 % per state, some
+/// outside the integrator limits), with every option combination.
+#[test]
+fn derivatives_path_equals_eval() {
+    use mvem::components::cylinder::SeligerIterate;
+    use mvem::components::Semantics;
+    use mvem::model::{
+        Actuators, CylinderTemp, Engine10, Engine12, Model, ModelInput, ModelOptions,
+    };
+    fn check<const N: usize, M: Model<N>>(
+        m: &M,
+        x: &[f64; N],
+        u: &ModelInput,
+        mem: SeligerIterate,
+    ) {
+        let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let ev = m.eval(x, u, mem);
+        let dv = m.derivatives(x, u, mem);
+        for i in 0..N {
+            assert!(
+                same(ev.dx[i], dv.dx[i]),
+                "{N} states, {:?}, x = {x:?}: state {i}: {} vs {}",
+                m.options(),
+                ev.dx[i],
+                dv.dx[i]
+            );
+        }
+        assert!(same(ev.memory_next.x_r, dv.memory_next.x_r));
+        assert!(same(ev.memory_next.t_1, dv.memory_next.t_1));
+    }
+    let t = Table::read("steady_states.csv");
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = move || {
+        // xorshift64*: a reproducible sequence in [-1, 1)
+        seed ^= seed >> 12;
+        seed ^= seed << 25;
+        seed ^= seed >> 27;
+        (seed.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    };
+    let mut checked = 0;
+    for semantics in [Semantics::Authors, Semantics::Paper] {
+        for cylinder_temp in [CylinderTemp::Converged, CylinderTemp::OneIteration] {
+            for actuators in [Actuators::Dynamic, Actuators::Bypass] {
+                let opts = ModelOptions {
+                    semantics,
+                    cylinder_temp,
+                    actuators,
+                };
+                let m8 = Engine8::published().with_options(opts);
+                let m10 = Engine10::published().with_options(opts);
+                let m12 = Engine12::published().with_options(opts);
+                for r in 0..t.rows.len() {
+                    let d = Drive::new(
+                        t.f(r, "n_e_rpm"),
+                        t.f(r, "u_delta_mg"),
+                        t.f(r, "u_egr_pct"),
+                        t.f(r, "u_vgt_pct"),
+                    );
+                    let x0: [f64; 8] = std::array::from_fn(|i| t.f(r, STATES[i]));
+                    for k in 0..21 {
+                        let mut v = |scale: f64| if k == 0 { 1.0 } else { 1.0 + scale * uniform() };
+                        let x8: [f64; 8] = std::array::from_fn(|i| x0[i] * v(0.3));
+                        let x10 =
+                            Engine10::from_8_state(&x8, 300.0 * v(0.1), t.f(r, "T_em") * v(0.1));
+                        let x12 = Engine12::from_10_state(&x10, x8[0] * v(0.05), 320.0 * v(0.1));
+                        let mut u = ModelInput::constant(d);
+                        u.u_egr_delayed += 20.0 * uniform();
+                        u.u_vgt_delayed += 20.0 * uniform();
+                        let mem = SeligerIterate {
+                            x_r: 0.03 + 0.02 * uniform(),
+                            t_1: 330.0 + 30.0 * uniform(),
+                        };
+                        check(&m8, &x8, &u, mem);
+                        check(&m10, &x10, &u, mem);
+                        check(&m12, &x12, &u, mem);
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 8 * 90 * 21);
+}

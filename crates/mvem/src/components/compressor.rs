@@ -1,7 +1,7 @@
 //! Compressor: efficiency (section 6.3.1, eqs (58)-(65)) and mass flow (section 6.3.2,
 //! eqs (66)-(72)).
 
-use super::{poly2, Semantics};
+use super::{poly2, pow_ln, Semantics};
 use crate::params::Compressor;
 use std::f64::consts::PI;
 
@@ -80,7 +80,7 @@ pub fn flow(
 #[inline]
 pub fn efficiency(c: &Compressor, w_c: f64, pi_c: f64, sem: Semantics) -> f64 {
     let x0 = w_c - c.w_copt; // eq. (63)
-    let x1 = (pi_c - 1.0).powf(c.c_pi) - c.pi_copt; // eqs (63)-(64)
+    let x1 = pow_ln(pi_c - 1.0, c.c_pi) - c.pi_copt; // eqs (63)-(64)
     let q = &c.q_c;
     let eta = c.eta_cmax - (q[0][0] * x0 * x0 + 2.0 * q[0][1] * x0 * x1 + q[1][1] * x1 * x1); // eq. (62), (65)
     if sem.authors() {

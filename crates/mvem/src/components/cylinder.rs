@@ -2,7 +2,7 @@
 //! Seliger cycle fixed point (section 4.2, eqs (17)-(24)), exhaust pipe heat loss (eq. (25)) and
 //! engine torque (section 4.3, eqs (26)-(31)).
 
-use super::{poly2, Semantics};
+use super::{poly2, pow_ln, Semantics};
 use crate::params::{Cylinder, ExhaustPipe, Gas};
 use std::f64::consts::PI;
 
@@ -84,31 +84,45 @@ pub struct CylinderConsts {
     pub rc_g1: f64,
     /// 1 - 1/r_c^(gamma_cyl - 1) [-] (eq. (29)).
     pub otto_factor: f64,
+    /// 1 / gamma_a [-] (eqs (17), (22)).
+    pub inv_gamma_a: f64,
+    /// 1 / r_c^(gamma_a - 1) [-] (eq. (17)).
+    pub inv_rc_g1: f64,
+    /// (1 - x_cv)/c_pa + x_cv/c_va [K kg/J] (eq. (17)).
+    pub heat_per_cp: f64,
+    /// c_pa r_c^(gamma_a - 1) [J/(kg K)] (the closed-form start of the fixed point).
+    pub cpa_rc_g1: f64,
 }
 
 impl CylinderConsts {
-    /// Compute from the gas and cylinder parameters.
+    /// Compute from the gas and cylinder parameters (each constant is the expression the
+    /// per-evaluation code would otherwise compute, so the results are the same bit for bit).
     pub fn new(gas: &Gas, cyl: &Cylinder) -> Self {
+        let rc_g1 = cyl.r_c.powf(gas.gamma_a - 1.0);
         Self {
-            rc_g1: cyl.r_c.powf(gas.gamma_a - 1.0),
+            rc_g1,
             otto_factor: 1.0 - 1.0 / cyl.r_c.powf(cyl.gamma_c - 1.0),
+            inv_gamma_a: 1.0 / gas.gamma_a,
+            inv_rc_g1: 1.0 / rc_g1,
+            heat_per_cp: (1.0 - cyl.x_cv) / gas.c_pa + cyl.x_cv / gas.c_va,
+            cpa_rc_g1: gas.c_pa * rc_g1,
         }
     }
 }
 
 /// Constants of the map that depend only on parameters and the pressure ratio.
 struct SeligerConsts {
-    rc_g1: f64,    // r_c^(gamma_a - 1)
+    cc: CylinderConsts,
     pi_e_ig: f64,  // Pi_e^(1/gamma_a)
     pi_e_1ig: f64, // Pi_e^(1 - 1/gamma_a)
     q_scale: f64,  // W_f q_HV / (W_ei + W_f)
 }
 
 impl SeligerConsts {
-    fn new(gas: &Gas, cyl: &Cylinder, cc: &CylinderConsts, s: &SeligerInputs) -> Self {
-        let pi_e_ig = s.pi_e.powf(1.0 / gas.gamma_a);
+    fn new(cyl: &Cylinder, cc: &CylinderConsts, s: &SeligerInputs) -> Self {
+        let pi_e_ig = pow_ln(s.pi_e, cc.inv_gamma_a);
         Self {
-            rc_g1: cc.rc_g1,
+            cc: *cc,
             pi_e_ig,
             pi_e_1ig: s.pi_e / pi_e_ig,
             q_scale: s.w_f * cyl.q_hv / (s.w_ei + s.w_f),
@@ -138,22 +152,17 @@ fn seliger_map(
     it: SeligerIterate,
     sem: Semantics,
 ) -> SeligerStep {
-    let ga = gas.gamma_a;
     let x_cv = cyl.x_cv;
     let q_in = k.q_scale * (1.0 - it.x_r); // eq. (20)
-    let t1rc = it.t_1 * k.rc_g1;
+    let t1rc = it.t_1 * k.cc.rc_g1;
     let eps_p = q_in * x_cv / (gas.c_va * t1rc);
     let x_p = 1.0 + eps_p; // eq. (19)
     let x_v = 1.0 + q_in * (1.0 - x_cv) / (gas.c_pa * (q_in * x_cv / gas.c_va + t1rc)); // eq. (23)
-    let xp_mig = one_plus_pow(eps_p, -1.0 / ga); // x_p^(-1/gamma_a)
+    let xp_mig = one_plus_pow(eps_p, -k.cc.inv_gamma_a); // x_p^(-1/gamma_a)
     let mut x_r = k.pi_e_ig * xp_mig / (cyl.r_c * x_v); // eq. (22)
     let xp_ig1 = 1.0 / (x_p * xp_mig); // x_p^(1/gamma_a - 1)
-                                       // eq. (17)
-    let mut t_e = cyl.eta_sc
-        * k.pi_e_1ig
-        * (1.0 / k.rc_g1)
-        * xp_ig1
-        * (q_in * ((1.0 - x_cv) / gas.c_pa + x_cv / gas.c_va) + t1rc);
+    let mut t_e = // eq. (17)
+        cyl.eta_sc * k.pi_e_1ig * k.cc.inv_rc_g1 * xp_ig1 * (q_in * k.cc.heat_per_cp + t1rc);
     if sem.authors() {
         t_e = t_e.min(1500.0); // item 18
         x_r = x_r.clamp(0.0, 1.0); // item 19
@@ -178,7 +187,7 @@ pub fn cylinder_out_temp_step(
     old: SeligerIterate,
     sem: Semantics,
 ) -> SeligerStep {
-    let k = SeligerConsts::new(gas, cyl, cc, s);
+    let k = SeligerConsts::new(cyl, cc, s);
     seliger_map(gas, cyl, &k, s.t_im, old, sem)
 }
 
@@ -193,9 +202,9 @@ pub fn cylinder_out_temp_step(
 /// application of the map. If the closed form has no physical solution (K >= 1, or outside the
 /// saturations of the authors' implementation) the iteration starts from (0, T_im) instead.
 #[inline]
-fn fixed_point_start(gas: &Gas, cyl: &Cylinder, k: &SeligerConsts, t_im: f64) -> SeligerIterate {
+fn fixed_point_start(cyl: &Cylinder, k: &SeligerConsts, t_im: f64) -> SeligerIterate {
     let kk = cyl.eta_sc * k.pi_e_ig * k.pi_e_1ig / cyl.r_c;
-    let m = k.q_scale * (1.0 - kk) / (gas.c_pa * k.rc_g1 * t_im);
+    let m = k.q_scale * (1.0 - kk) / (k.cc.cpa_rc_g1 * t_im);
     let x_r = k.pi_e_ig / (cyl.r_c * (1.0 + m)); // eq. (22) with x_p = 1
     let t_1 = (1.0 - x_r) * t_im / (1.0 - kk); // eq. (21) with x_r T_e = K T_1
     let t_e = kk * t_1 / x_r;
@@ -239,8 +248,8 @@ pub fn cylinder_out_temp_converged(
     s: &SeligerInputs,
     sem: Semantics,
 ) -> SeligerFixedPoint {
-    let k = SeligerConsts::new(gas, cyl, cc, s);
-    let mut it = fixed_point_start(gas, cyl, &k, s.t_im);
+    let k = SeligerConsts::new(cyl, cc, s);
+    let mut it = fixed_point_start(cyl, &k, s.t_im);
     let small = |a: f64, b: f64| (a - b).abs() <= FIXED_POINT_RTOL * b.abs();
     let mut prev: Option<SeligerIterate> = None;
     let mut step = seliger_map(gas, cyl, &k, s.t_im, it, sem);

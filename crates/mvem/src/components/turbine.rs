@@ -1,7 +1,7 @@
 //! Turbine: efficiency (section 6.2.1, eqs (43)-(51)), mass flow (section 6.2.2, eqs (52)-(56))
 //! and the VGT actuator (section 6.2.3, eq. (57)).
 
-use super::Semantics;
+use super::{pow_ln, Semantics};
 use crate::params::{Turbine, VgtActuator};
 
 /// Turbine pressure ratio Pi_t = p_es / p_em with p_es = p_amb, eq. (44); the authors cap it at
@@ -35,6 +35,31 @@ pub fn f_pi_t(t: &Turbine, pi_t: f64) -> f64 {
     (1.0 - pi_t.powf(t.k_t)).sqrt()
 }
 
+/// The two powers of the turbine pressure ratio in one evaluation, from one logarithm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExpansionTerms {
+    /// Choking function f_Pi_t = sqrt(1 - Pi_t^K_t) [-], eq. (53).
+    pub f_pi_t: f64,
+    /// Isentropic enthalpy-drop factor 1 - Pi_t^(1 - 1/gamma_e) [-], eqs (48), (50).
+    pub dh: f64,
+}
+
+/// [`f_pi_t`] (eq. (53)) and the factor 1 - Pi_t^(1 - 1/gamma_e) of eqs (48) and (50), with
+/// one ln(Pi_t) shared by both powers: 1 - Pi_t^a = -expm1(a ln Pi_t), within a few units in
+/// the last place of the exact value for every Pi_t. The `powf` form 1 - Pi_t^a loses
+/// eps/2 / (1 - Pi_t^a) relative to the rounding of Pi_t^a near 1 (up to ~1e-11 for
+/// 1 - Pi_t^(1 - 1/gamma_e) at the authors' cap Pi_t = 0.9999), which bounds the difference
+/// between the two forms. Same special values: Pi_t = 0 gives (1, 1), Pi_t > 1 NaN for f_Pi_t,
+/// Pi_t < 0 NaN.
+#[inline]
+pub fn expansion_terms(t: &Turbine, gamma_e: f64, pi_t: f64) -> ExpansionTerms {
+    let ln = pi_t.ln();
+    ExpansionTerms {
+        f_pi_t: (-(t.k_t * ln).exp_m1()).sqrt(),
+        dh: -((1.0 - 1.0 / gamma_e) * ln).exp_m1(),
+    }
+}
+
 /// Turbine mass flow W_t [kg/s], eq. (55): A_vgtmax p_em f_Pi_t f_vgt / sqrt(T_em R_e).
 #[inline]
 pub fn w_t(t: &Turbine, p_em: f64, t_em: f64, r_e: f64, f_pi_t: f64, f_vgt: f64) -> f64 {
@@ -50,7 +75,7 @@ pub fn c_m(t: &Turbine, omega_t: f64, sem: Semantics) -> f64 {
     if sem.authors() && w < t.w_tlin {
         t.c_mlin * (w - t.c_m[1]) / (t.w_tlin - t.c_m[1])
     } else {
-        t.c_m[0] * (w - t.c_m[1]).powf(t.c_m[2]) // eq. (51)
+        t.c_m[0] * pow_ln(w - t.c_m[1], t.c_m[2]) // eq. (51)
     }
 }
 
@@ -84,6 +109,21 @@ pub fn power(
     sem: Semantics,
 ) -> TurbinePower {
     let dh = 1.0 - pi_t.powf(1.0 - 1.0 / gamma_e);
+    power_dh(t, c_pe, t_em, dh, omega_t, w_t, sem)
+}
+
+/// [`power`] with the enthalpy-drop factor dh = 1 - Pi_t^(1 - 1/gamma_e) given (from
+/// [`expansion_terms`]).
+#[inline]
+pub fn power_dh(
+    t: &Turbine,
+    c_pe: f64,
+    t_em: f64,
+    dh: f64,
+    omega_t: f64,
+    w_t: f64,
+    sem: Semantics,
+) -> TurbinePower {
     let mut bsr = t.r_t * omega_t / (2.0 * c_pe * t_em * dh).sqrt(); // eq. (50)
     if sem.authors() {
         bsr = bsr.clamp(0.0, 2.0 * t.bsr_opt); // item 32
@@ -125,7 +165,7 @@ mod tests {
         // paper: power law, max(0, .) at and below c_m2
         assert_eq!(c_m(t, 100.0, Semantics::Paper), 0.0);
         let pw = t.c_m[0] * (mid - t.c_m[1]).powf(t.c_m[2]);
-        assert_eq!(c_m(t, mid, Semantics::Paper), pw);
+        assert!((c_m(t, mid, Semantics::Paper) / pw - 1.0).abs() < 1e-15);
     }
 
     #[test]
@@ -145,6 +185,51 @@ mod tests {
         assert!(pi_t(1.0e5, 0.9e5, Semantics::Paper) > 1.0);
         // f_Pi_t(0.5) = sqrt(1 - 0.5^2.8901927) = sqrt(1 - 0.1348855) = 0.9301153
         assert!((f_pi_t(t, 0.5) - 0.9301153).abs() < 1e-6);
+    }
+
+    #[test]
+    fn expansion_terms_match_the_powers() {
+        // One shared ln(Pi_t) with expm1 against the two `powf` forms. Bound: `powf` rounds
+        // Pi_t^a to within eps/2 absolute, so 1 - Pi_t^a from it is within eps/2 / (1 - Pi_t^a)
+        // relative; the ln/expm1 form is within a few eps relative. The difference is
+        // <= eps / (1 - Pi_t^a) + 8 eps relative: a few eps for Pi_t <= 0.5, the old form's own
+        // rounding error (up to ~1e-11 for 1 - Pi_t^(1 - 1/gamma_e)) at the cap 0.9999.
+        let p = Params::published();
+        let t = &p.turbine;
+        let ge = p.gas.gamma_e;
+        let eps = f64::EPSILON;
+        for k in 0..=2000 {
+            let pi = 0.02 + (0.9999 - 0.02) * k as f64 / 2000.0;
+            let ex = expansion_terms(t, ge, pi);
+            let one_minus_k = 1.0 - pi.powf(t.k_t);
+            let dh = 1.0 - pi.powf(1.0 - 1.0 / ge);
+            let rel_f = (ex.f_pi_t / one_minus_k.sqrt() - 1.0).abs();
+            let rel_dh = (ex.dh / dh - 1.0).abs();
+            assert!(
+                rel_f <= 0.5 * eps / one_minus_k + 8.0 * eps,
+                "{pi} {rel_f:e}"
+            );
+            assert!(rel_dh <= eps / dh + 8.0 * eps, "{pi} {rel_dh:e}");
+        }
+        // Special values as with powf.
+        assert_eq!(expansion_terms(t, ge, 0.0).f_pi_t, 1.0);
+        assert_eq!(expansion_terms(t, ge, 0.0).dh, 1.0);
+        assert!(expansion_terms(t, ge, 1.1).f_pi_t.is_nan());
+        assert!(expansion_terms(t, ge, -0.1).dh.is_nan());
+        // power() (powf form) and power_dh() agree to rounding.
+        let a = power(
+            t,
+            p.gas.c_pe,
+            ge,
+            800.0,
+            0.5,
+            9000.0,
+            0.3,
+            Semantics::Authors,
+        );
+        let ex = expansion_terms(t, ge, 0.5);
+        let b = power_dh(t, p.gas.c_pe, 800.0, ex.dh, 9000.0, 0.3, Semantics::Authors);
+        assert!((a.p_t_eta_m / b.p_t_eta_m - 1.0).abs() < 1e-14);
     }
 
     #[test]

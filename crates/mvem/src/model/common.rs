@@ -72,8 +72,14 @@ pub(crate) struct Shared {
 }
 
 /// Evaluate the shared algebraic part at `s` with inputs `u` (see the module documentation).
-#[inline]
-pub(crate) fn evaluate(
+///
+/// With `SIGNALS = false` (for [`Model::derivatives`]) the work that feeds no derivative is
+/// left out: the torque M_e (eqs (26)-(31)), n_t and x_egr are NaN and `guards` holds only
+/// the input-saturation and fixed-point bits. Every other value is the same, bit for bit.
+///
+/// [`Model::derivatives`]: super::Model::derivatives
+#[inline(always)]
+pub(crate) fn evaluate<const SIGNALS: bool>(
     p: &Params,
     cc: &CylinderConsts,
     opts: &ModelOptions,
@@ -145,8 +151,9 @@ pub(crate) fn evaluate(
     let tb = &p.turbine;
     let pi_t = turbine::pi_t(p_amb, p_em, sem);
     let f_vgt = turbine::f_vgt(tb, u_vgt_act, sem);
-    let w_t = turbine::w_t(tb, p_em, t_em, gas.r_e, turbine::f_pi_t(tb, pi_t), f_vgt);
-    let tp = turbine::power(tb, gas.c_pe, gas.gamma_e, t_em, pi_t, omega_t, w_t, sem);
+    let ex = turbine::expansion_terms(tb, gas.gamma_e, pi_t); // eqs (48), (50), (53)
+    let w_t = turbine::w_t(tb, p_em, t_em, gas.r_e, ex.f_pi_t, f_vgt);
+    let tp = turbine::power_dh(tb, gas.c_pe, t_em, ex.dh, omega_t, w_t, sem);
 
     // Compressor, eqs (58)-(72); outlet pressure p_im (eq. (59)) or p_c (eq. (87)).
     let cp = &p.compressor;
@@ -167,11 +174,19 @@ pub(crate) fn evaluate(
         egr::actuator_derivatives(&p.egr_actuator, ue_delayed, s.u_egr1, s.u_egr2);
     let d_u_vgt = turbine::actuator_derivative(&p.vgt_actuator, uv_delayed, s.u_vgt);
 
-    let m_e = cylinder::torque(cyl, cc, d.u_delta_mg, d.n_e_rpm, p_im, p_em, lambda_o, sem);
-    let x_egr = manifold::egr_fraction(w_egr, w_ic, authors);
+    // Signals that feed no derivative: torque (eqs (26)-(31)), EGR fraction (eq. (7)), n_t.
+    let (m_e, x_egr, n_t) = if SIGNALS {
+        (
+            cylinder::torque(cyl, cc, d.u_delta_mg, d.n_e_rpm, p_im, p_em, lambda_o, sem),
+            manifold::egr_fraction(w_egr, w_ic, authors),
+            turbo::n_t_rpm(omega_t),
+        )
+    } else {
+        (f64::NAN, f64::NAN, f64::NAN)
+    };
 
     // Guard and regime flags (reporting only; they do not change the values).
-    if authors {
+    if SIGNALS && authors {
         let raw_pi_c = p_c_out / p_amb;
         let mut set = |c: bool, g: Guard| {
             if c {
@@ -198,12 +213,12 @@ pub(crate) fn evaluate(
         set(omega_t.max(tb.c_m[1]) < tb.w_tlin, Guard::CmLinear);
     }
     let ratio = p_im / p_em;
-    if ratio < p.egr_valve.pi_egropt {
+    if SIGNALS && ratio < p.egr_valve.pi_egropt {
         guards |= Guard::EgrChoked as u32;
-    } else if ratio >= 1.0 {
+    } else if SIGNALS && ratio >= 1.0 {
         guards |= Guard::EgrNoFlow as u32;
     }
-    if cf.psi_c.is_finite() {
+    if SIGNALS && cf.psi_c.is_finite() {
         let c_psi1 = poly2(&cp.c_wpsi, omega_t);
         let c_psi1 = if authors { c_psi1.max(0.0) } else { c_psi1 };
         let dd = cf.psi_c - cp.c_psi2;
@@ -234,7 +249,7 @@ pub(crate) fn evaluate(
         lambda_o,
         x_oe,
         m_e,
-        n_t: turbo::n_t_rpm(omega_t),
+        n_t,
         eta_c,
         eta_tm: tp.eta_tm,
         bsr: tp.bsr,
@@ -258,6 +273,35 @@ pub(crate) fn evaluate(
         d_u_egr2,
         d_u_vgt,
         memory_next,
+    }
+}
+
+/// [`Evaluation`](super::Evaluation) from a variant's shared part, derivatives and whether a
+/// state is at an integrator limit (the [`Guard::StateLimit`] bit).
+#[inline(always)]
+pub(crate) fn evaluation<const N: usize>(
+    sh: Shared,
+    dx: [f64; N],
+    at_limit: bool,
+) -> super::Evaluation<N> {
+    let mut signals = sh.signals;
+    if at_limit {
+        signals.guards |= Guard::StateLimit as u32;
+    }
+    super::Evaluation {
+        dx,
+        signals,
+        memory_next: sh.memory_next,
+    }
+}
+
+/// [`Derivatives`](super::Derivatives) from a variant's shared part (evaluated without the
+/// signals) and derivatives.
+#[inline(always)]
+pub(crate) fn derivatives<const N: usize>(sh: &Shared, dx: [f64; N]) -> super::Derivatives<N> {
+    super::Derivatives {
+        dx,
+        memory_next: sh.memory_next,
     }
 }
 

@@ -15,15 +15,15 @@
 //! with the authors' semantics T_im, T_em >= T_amb / 2 (an mvem addition, mirroring the
 //! pressures' >= p_amb / 2 of items 9-10: a floor that keeps the gas law and the flow
 //! functions defined and is never reached in normal operation; reaching it sets
-//! [`Guard::StateLimit`]).
+//! [`Guard::StateLimit`](super::Guard::StateLimit)).
 //!
 //! At an equilibrium the adiabatic balances give T_im = T_im,in and T_em = T_em,in, so the
 //! steady states equal those of [`Engine8`] (checked in `tests/extensions.rs`).
 
-use super::common::{self, embed, remap_indices, restrict, Ports};
+use super::common::{self, embed, remap_indices, restrict, Ports, Shared};
 use super::Engine8;
 use super::{
-    clip_state, limit_derivatives, Drive, Evaluation, Guard, Model, ModelInput, ModelOptions,
+    clip_state, limit_derivatives, Derivatives, Drive, Evaluation, Model, ModelInput, ModelOptions,
     Signals,
 };
 use crate::components::cylinder::SeligerIterate;
@@ -200,7 +200,34 @@ impl Model<10> for Engine10 {
     }
 
     #[inline]
-    fn eval(&self, x_raw: &[f64; 10], u: &ModelInput, memory: SeligerIterate) -> Evaluation<10> {
+    fn eval(&self, x: &[f64; 10], u: &ModelInput, memory: SeligerIterate) -> Evaluation<10> {
+        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
+        common::evaluation(sh, dx, at_limit)
+    }
+
+    #[inline]
+    fn derivatives(
+        &self,
+        x: &[f64; 10],
+        u: &ModelInput,
+        memory: SeligerIterate,
+    ) -> Derivatives<10> {
+        // The same code as `eval` without the signal-only work.
+        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
+        common::derivatives(&sh, dx)
+    }
+}
+
+impl Engine10 {
+    /// The shared algebraic part (with the signals if `SIGNALS`, see [`common::evaluate`]),
+    /// the derivatives and whether a state is at an integrator limit.
+    #[inline(always)]
+    fn evaluate<const SIGNALS: bool>(
+        &self,
+        x_raw: &[f64; 10],
+        u: &ModelInput,
+        memory: SeligerIterate,
+    ) -> (Shared, [f64; 10], bool) {
         let p = self.params();
         let opts = self.options();
         let gas = &p.gas;
@@ -224,9 +251,8 @@ impl Model<10> for Engine10 {
             p_c: None,
             w_ic: None, // eq. (82): W_ic = W_c
         };
-        let sh = common::evaluate(p, &self.base.cc, opts, &ports, u, memory);
-        let mut signals = sh.signals;
-        let sg = &signals;
+        let sh = common::evaluate::<SIGNALS>(p, &self.base.cc, opts, &ports, u, memory);
+        let sg = &sh.signals;
 
         // Intake manifold, eq. (80): in W_ic + W_egr at T_im,in, out W_ei at T_im.
         let w_in_im = sg.w_ic + sg.w_egr;
@@ -287,14 +313,8 @@ impl Model<10> for Engine10 {
             sh.d_u_egr2,
             sh.d_u_vgt,
         ];
-        if opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds) {
-            signals.guards |= Guard::StateLimit as u32;
-        }
-        Evaluation {
-            dx,
-            signals,
-            memory_next: sh.memory_next,
-        }
+        let at_limit = opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds);
+        (sh, dx, at_limit)
     }
 }
 

@@ -23,10 +23,10 @@
 //!
 //! `k_ic` must be > 0 (k_ic -> 0 is the 10-state model, where p_c = p_im algebraically).
 
-use super::common::{self, embed, remap_indices, restrict, Ports};
+use super::common::{self, embed, remap_indices, restrict, Ports, Shared};
 use super::engine10::{self, temperature_bounds, Engine10};
 use super::{
-    clip_state, limit_derivatives, Drive, Engine8, Evaluation, Guard, Model, ModelInput,
+    clip_state, limit_derivatives, Derivatives, Drive, Engine8, Evaluation, Model, ModelInput,
     ModelOptions, Signals,
 };
 use crate::components::cylinder::SeligerIterate;
@@ -228,7 +228,34 @@ impl Model<12> for Engine12 {
     }
 
     #[inline]
-    fn eval(&self, x_raw: &[f64; 12], u: &ModelInput, memory: SeligerIterate) -> Evaluation<12> {
+    fn eval(&self, x: &[f64; 12], u: &ModelInput, memory: SeligerIterate) -> Evaluation<12> {
+        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
+        common::evaluation(sh, dx, at_limit)
+    }
+
+    #[inline]
+    fn derivatives(
+        &self,
+        x: &[f64; 12],
+        u: &ModelInput,
+        memory: SeligerIterate,
+    ) -> Derivatives<12> {
+        // The same code as `eval` without the signal-only work.
+        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
+        common::derivatives(&sh, dx)
+    }
+}
+
+impl Engine12 {
+    /// The shared algebraic part (with the signals if `SIGNALS`, see [`common::evaluate`]),
+    /// the derivatives and whether a state is at an integrator limit.
+    #[inline(always)]
+    fn evaluate<const SIGNALS: bool>(
+        &self,
+        x_raw: &[f64; 12],
+        u: &ModelInput,
+        memory: SeligerIterate,
+    ) -> (Shared, [f64; 12], bool) {
         let p = self.params();
         let opts = self.options();
         let gas = &p.gas;
@@ -256,9 +283,8 @@ impl Model<12> for Engine12 {
             p_c: Some(p_c),
             w_ic: Some(w_ic),
         };
-        let sh = common::evaluate(p, &self.base.base.cc, opts, &ports, u, memory);
-        let mut signals = sh.signals;
-        let sg = &signals;
+        let sh = common::evaluate::<SIGNALS>(p, &self.base.base.cc, opts, &ports, u, memory);
+        let sg = &sh.signals;
 
         // Control volume before the intercooler, eq. (85): in W_c at T_c, out W_ic at T_ic.
         let ic = manifold::adiabatic(
@@ -332,14 +358,8 @@ impl Model<12> for Engine12 {
             sh.d_u_egr2,
             sh.d_u_vgt,
         ];
-        if opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds) {
-            signals.guards |= Guard::StateLimit as u32;
-        }
-        Evaluation {
-            dx,
-            signals,
-            memory_next: sh.memory_next,
-        }
+        let at_limit = opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds);
+        (sh, dx, at_limit)
     }
 }
 

@@ -1,10 +1,10 @@
 //! The paper's 8-state model (sections 3-7): states (eq. (1))
 //! `x = (p_im, p_em, X_Oim, X_Oem, omega_t, u_egr1, u_egr2, u_vgt)`.
 
-use super::common::{self, Ports};
+use super::common::{self, Ports, Shared};
 use super::{
-    clip_state, limit_derivatives, saturate_u_egr, saturate_u_vgt, Drive, Evaluation, Guard, Model,
-    ModelInput, ModelOptions,
+    clip_state, limit_derivatives, saturate_u_egr, saturate_u_vgt, Derivatives, Drive, Evaluation,
+    Model, ModelInput, ModelOptions,
 };
 use crate::components::cylinder::{CylinderConsts, SeligerIterate};
 use crate::components::manifold;
@@ -163,7 +163,29 @@ impl Model<8> for Engine8 {
     }
 
     #[inline]
-    fn eval(&self, x_raw: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Evaluation<8> {
+    fn eval(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Evaluation<8> {
+        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
+        common::evaluation(sh, dx, at_limit)
+    }
+
+    #[inline]
+    fn derivatives(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Derivatives<8> {
+        // The same code as `eval` without the signal-only work.
+        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
+        common::derivatives(&sh, dx)
+    }
+}
+
+impl Engine8 {
+    /// The shared algebraic part (with the signals if `SIGNALS`, see [`common::evaluate`]),
+    /// the derivatives and whether a state is at an integrator limit.
+    #[inline(always)]
+    fn evaluate<const SIGNALS: bool>(
+        &self,
+        x_raw: &[f64; 8],
+        u: &ModelInput,
+        memory: SeligerIterate,
+    ) -> (Shared, [f64; 8], bool) {
         let p = &self.p;
         let gas = &p.gas;
         let t_im = p.intake_manifold.t_im;
@@ -187,9 +209,8 @@ impl Model<8> for Engine8 {
             p_c: None,
             w_ic: None,
         };
-        let sh = common::evaluate(p, &self.cc, &self.opts, &ports, u, memory);
-        let mut signals = sh.signals;
-        let sg = &signals;
+        let sh = common::evaluate::<SIGNALS>(p, &self.cc, &self.opts, &ports, u, memory);
+        let sg = &sh.signals;
 
         // State equations: isothermal manifolds (6), (9).
         let im = manifold::intake(
@@ -225,13 +246,8 @@ impl Model<8> for Engine8 {
             sh.d_u_egr2,
             sh.d_u_vgt,
         ];
-        if self.opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds) {
-            signals.guards |= Guard::StateLimit as u32;
-        }
-        Evaluation {
-            dx,
-            signals,
-            memory_next: sh.memory_next,
-        }
+        let at_limit =
+            self.opts.semantics.authors() && limit_derivatives(&x, &mut dx, &self.bounds);
+        (sh, dx, at_limit)
     }
 }

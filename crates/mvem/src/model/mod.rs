@@ -200,6 +200,15 @@ pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<L
     ]
 }
 
+/// What an integrator needs of one model evaluation: [`Evaluation`] without the signals.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Derivatives<const N: usize> {
+    /// State derivatives dx/dt (units of the state per second).
+    pub dx: [f64; N],
+    /// The cylinder-temperature iterate to hold after an accepted step.
+    pub memory_next: SeligerIterate,
+}
+
 /// A mean-value engine model with `N` states.
 pub trait Model<const N: usize>: Send + Sync {
     /// State names (reference-data names: `p_im`, `p_em`, `X_Oim`, ...).
@@ -215,6 +224,18 @@ pub trait Model<const N: usize>: Send + Sync {
     /// Evaluate derivatives and signals at state `x` and inputs `u`, with the cylinder
     /// temperature memory `memory` (used only in [`CylinderTemp::OneIteration`]).
     fn eval(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Evaluation<N>;
+    /// The derivatives and cylinder-temperature memory of [`Model::eval`] without the
+    /// signals, for integrators and Jacobians: bitwise the same `dx` and `memory_next` (the
+    /// variants compile the same code with the signal-only work - torque, guard flags, the
+    /// signal record - left out).
+    #[inline]
+    fn derivatives(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Derivatives<N> {
+        let ev = self.eval(x, u, memory);
+        Derivatives {
+            dx: ev.dx,
+            memory_next: ev.memory_next,
+        }
+    }
     /// Indices of the states that are actuator states (set to the saturated commands at steady state).
     fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)>;
     /// The states that are first-order lags of delayed input commands (default: none).
@@ -267,10 +288,15 @@ pub fn saturate_inputs(d: &Drive, sem: Semantics) -> (Drive, u32) {
     }
     let mut g = 0;
     let mut clamp = |v: f64, lo: f64, hi: f64, bit: Guard| {
-        if v < lo || v > hi {
+        if v < lo {
             g |= bit as u32;
+            lo
+        } else if v > hi {
+            g |= bit as u32;
+            hi
+        } else {
+            v // also NaN, as f64::clamp
         }
-        v.clamp(lo, hi)
     };
     let out = Drive::new(
         clamp(d.n_e_rpm, 500.0, 2000.0, Guard::InputNe),
@@ -305,11 +331,18 @@ pub fn saturate_u_vgt(u: f64, sem: Semantics) -> f64 {
 /// Returns the clipped state and whether any state was outside or on a bound.
 #[inline]
 pub fn clip_state<const N: usize>(x: &[f64; N], bounds: &[(f64, f64); N]) -> [f64; N] {
-    let mut y = *x;
-    for i in 0..N {
-        y[i] = y[i].clamp(bounds[i].0, bounds[i].1);
-    }
-    y
+    // f64::clamp without its lo <= hi assertion (the bounds are built with lo <= hi): the
+    // same value for every input, NaN included.
+    std::array::from_fn(|i| {
+        let (v, (lo, hi)) = (x[i], bounds[i]);
+        if v < lo {
+            lo
+        } else if v > hi {
+            hi
+        } else {
+            v
+        }
+    })
 }
 
 /// Limited-integrator emulation: zero each derivative that points outward at or beyond its bound.

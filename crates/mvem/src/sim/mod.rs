@@ -790,7 +790,7 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
     fn rhs(&mut self, inp: &mut SegmentInputs, t: f64, y: &[f64; N]) -> Result<Rhs<N>, SimError> {
         self.stats.rhs_evals += 1;
         let u = inp.at(t);
-        let ev = self.model.eval(y, &u, self.memory);
+        let ev = self.model.derivatives(y, &u, self.memory);
         if !ev.dx.iter().sum::<f64>().is_finite() {
             let i = ev.dx.iter().position(|v| !v.is_finite()).unwrap_or(0);
             return Err(SimError::NonFinite {
