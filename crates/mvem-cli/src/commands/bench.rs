@@ -132,10 +132,19 @@ fn bench<const N: usize, M: Model<N>>(
             }
         })
     });
+    let ((), wd) = common::with_spinner("timing derivative evaluations", || {
+        timed(|| {
+            for _ in 0..a.evals {
+                black_box(m.derivatives(black_box(&x), black_box(&u), black_box(mem)));
+            }
+        })
+    });
     println!(
-        "\nModel evaluation (state at t = {tm} s, {} calls): {} per call",
+        "\nModel evaluation (state at t = {tm} s, {} calls): {} per call with all signals \
+         (Model::eval), {} for the derivatives alone (Model::derivatives, what the integrator calls)",
         a.evals,
-        common::fmt_duration(w / a.evals as f64)
+        common::fmt_duration(w / a.evals as f64),
+        common::fmt_duration(wd / a.evals as f64)
     );
 
     if a.no_reference {
