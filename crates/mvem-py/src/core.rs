@@ -168,6 +168,9 @@ pub struct SimArgs {
     pub rtol: f64,
     /// Absolute tolerance (relative to the state scales).
     pub atol: f64,
+    /// Integrate the actuator states numerically too (default false: in closed form, see
+    /// `SimOptions::exact_actuators`).
+    pub numeric_actuators: bool,
 }
 
 impl Default for SimArgs {
@@ -178,6 +181,7 @@ impl Default for SimArgs {
             dt: d.dt_out,
             rtol: d.rtol,
             atol: d.atol,
+            numeric_actuators: !d.exact_actuators,
         }
     }
 }
@@ -189,6 +193,7 @@ impl SimArgs {
             rtol: self.rtol,
             atol: self.atol,
             dt_out: self.dt,
+            exact_actuators: !self.numeric_actuators,
             ..SimOptions::default()
         };
         opts.validate()

@@ -110,6 +110,8 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 ///     {"turbo.j_t": 1e-4}) or a path to a TOML/JSON parameter file.
 /// model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
 /// cylinder_temp: "converged" (default) or "one-iteration" (the authors' Simulink Memory blocks).
+/// numeric_actuators: integrate the actuator states numerically like the other states (default
+///     False: in closed form on each segment between input breakpoints, docs/integrator.md).
 ///
 /// Returns a dict of numpy arrays: "t" [s], the states (8 states: p_im [Pa], p_em [Pa], X_Oim,
 /// X_Oem [-], omega_t [rad/s], u_egr1, u_egr2, u_vgt_act [%]; 10 states add T_im, T_em [K];
@@ -117,7 +119,7 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// a state is the state). Raises ValueError for bad inputs/options/parameters, RuntimeError if
 /// the solver fails.
 #[pyfunction]
-#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged"))]
+#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged", numeric_actuators=false))]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
@@ -129,6 +131,7 @@ fn simulate<'py>(
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
     cylinder_temp: &str,
+    numeric_actuators: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
@@ -138,6 +141,7 @@ fn simulate<'py>(
         dt,
         rtol,
         atol: atol.unwrap_or(rtol),
+        numeric_actuators,
     };
     let (names, cols) = py
         .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
@@ -379,6 +383,7 @@ fn step_response<'py>(
         dt,
         rtol,
         atol: atol.unwrap_or(rtol),
+        ..SimArgs::default()
     };
     let (input, output) = (input.to_string(), output.to_string());
     let r = py

@@ -26,12 +26,14 @@ def simulate(
     params: Params = None,
     model: ModelOrder = 8,
     cylinder_temp: Literal["converged", "one-iteration"] = "converged",
+    numeric_actuators: bool = False,
 ) -> Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"]:
     """Simulate from the steady state at the first input row.
 
     inputs: columns time_s [s], n_e_rpm [rpm], u_delta_mg [mg/cycle/cylinder], u_egr_pct [%],
     u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns); linear interpolation,
     two rows with the same time make a step. t_end [s], dt [s]: end time and output interval.
+    numeric_actuators: integrate the actuator states numerically too (default: closed form).
     Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
     ValueError: bad inputs/options/params; RuntimeError: solver failure.
     """
