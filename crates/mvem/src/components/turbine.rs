@@ -29,10 +29,17 @@ pub fn f_vgt(t: &Turbine, u_vgt: f64, sem: Semantics) -> f64 {
     }
 }
 
-/// Choking function f_Pi_t [-], eq. (53): sqrt(1 - Pi_t^K_t).
+/// Choking function f_Pi_t [-], eq. (53): sqrt(1 - Pi_t^K_t) (in the form of
+/// [`expansion_terms`]).
 #[inline]
 pub fn f_pi_t(t: &Turbine, pi_t: f64) -> f64 {
-    (1.0 - pi_t.powf(t.k_t)).sqrt()
+    one_minus_pow_ln(t.k_t, pi_t.ln()).sqrt()
+}
+
+/// 1 - x^a from ln x, as -expm1(a ln x) (accurate near x = 1, where 1 - powf cancels).
+#[inline]
+fn one_minus_pow_ln(a: f64, ln_x: f64) -> f64 {
+    -(a * ln_x).exp_m1()
 }
 
 /// The two powers of the turbine pressure ratio in one evaluation, from one logarithm.
@@ -55,8 +62,8 @@ pub struct ExpansionTerms {
 pub fn expansion_terms(t: &Turbine, gamma_e: f64, pi_t: f64) -> ExpansionTerms {
     let ln = pi_t.ln();
     ExpansionTerms {
-        f_pi_t: (-(t.k_t * ln).exp_m1()).sqrt(),
-        dh: -((1.0 - 1.0 / gamma_e) * ln).exp_m1(),
+        f_pi_t: one_minus_pow_ln(t.k_t, ln).sqrt(),
+        dh: one_minus_pow_ln(1.0 - 1.0 / gamma_e, ln),
     }
 }
 
@@ -108,7 +115,7 @@ pub fn power(
     w_t: f64,
     sem: Semantics,
 ) -> TurbinePower {
-    let dh = 1.0 - pi_t.powf(1.0 - 1.0 / gamma_e);
+    let dh = one_minus_pow_ln(1.0 - 1.0 / gamma_e, pi_t.ln());
     power_dh(t, c_pe, t_em, dh, omega_t, w_t, sem)
 }
 
@@ -216,7 +223,7 @@ mod tests {
         assert_eq!(expansion_terms(t, ge, 0.0).dh, 1.0);
         assert!(expansion_terms(t, ge, 1.1).f_pi_t.is_nan());
         assert!(expansion_terms(t, ge, -0.1).dh.is_nan());
-        // power() (powf form) and power_dh() agree to rounding.
+        // power() (from Pi_t) and power_dh() (from expansion_terms) agree to rounding.
         let a = power(
             t,
             p.gas.c_pe,
