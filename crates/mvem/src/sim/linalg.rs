@@ -66,15 +66,14 @@ pub(crate) fn lu_solve<const N: usize>(
     }
 }
 
-/// y = A x.
-#[cfg(test)]
-pub(crate) fn mat_vec<const N: usize>(a: &[[f64; N]; N], x: &[f64; N]) -> [f64; N] {
-    std::array::from_fn(|r| (0..N).map(|c| a[r][c] * x[c]).sum())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// y = A x.
+    fn mat_vec<const N: usize>(a: &[[f64; N]; N], x: &[f64; N]) -> [f64; N] {
+        std::array::from_fn(|r| (0..N).map(|c| a[r][c] * x[c]).sum())
+    }
 
     #[test]
     fn solves_a_pivoting_system() {

@@ -389,15 +389,11 @@ impl<'a> SegmentInputs<'a> {
 
     /// Move to the segment `[a, b]` (keeps the search cursors and cached pieces).
     pub fn set_segment(&mut self, a: f64, b: f64) {
-        for (k, w) in self.window.iter_mut().enumerate() {
-            let shift = match k {
-                4 => self.tau_egr,
-                5 => self.tau_vgt,
-                _ => 0.0,
-            };
+        for k in 0..6 {
+            let shift = self.shift(k);
             let lo = a - shift + Self::delta(a);
             let hi = b - shift - Self::delta(b);
-            *w = if hi > lo {
+            self.window[k] = if hi > lo {
                 (lo, hi)
             } else {
                 (f64::NEG_INFINITY, f64::INFINITY)
@@ -442,11 +438,22 @@ impl<'a> SegmentInputs<'a> {
     /// `v(t) = v_ref + slope (t - t_ref)` (its chord over the segment; `None` for a segment
     /// shorter than the lookup margins).
     fn delayed_line(&self, cmd: LagCommand) -> Option<(f64, f64, f64)> {
-        let (i, shift) = match cmd {
-            LagCommand::Egr => (0, self.tau_egr),
-            LagCommand::Vgt => (1, self.tau_vgt),
+        let i = match cmd {
+            LagCommand::Egr => 0,
+            LagCommand::Vgt => 1,
         };
+        let shift = self.shift(4 + i);
         self.chords[i].map(|(t_ref, v_ref, slope)| (t_ref + shift, v_ref, slope))
+    }
+
+    /// Delay [s] of lookup `k` (the actuator delays for the delayed commands, else none).
+    #[inline(always)]
+    fn shift(&self, k: usize) -> f64 {
+        match k {
+            4 => self.tau_egr,
+            5 => self.tau_vgt,
+            _ => 0.0,
+        }
     }
 
     /// Schedule channel of each lookup (n_e, u_delta, u_egr, u_vgt, delayed u_egr, delayed
@@ -458,10 +465,11 @@ impl<'a> SegmentInputs<'a> {
         1e-12 * t.abs().max(1.0)
     }
 
+    /// Value of lookup `k` (channel [`Self::CHANNEL`]`[k]`, delayed by [`Self::shift`]) at `t`.
     #[inline(always)]
-    fn value(&mut self, ch: usize, k: usize, t: f64, shift: f64) -> f64 {
+    fn value(&mut self, k: usize, t: f64) -> f64 {
         let (lo, hi) = self.window[k];
-        let tq = (t - shift).clamp(lo, hi);
+        let tq = (t - self.shift(k)).clamp(lo, hi);
         if let Some((t_ref, v_ref, slope)) = self.linear[k] {
             return v_ref + slope * (tq - t_ref);
         }
@@ -473,7 +481,8 @@ impl<'a> SegmentInputs<'a> {
         let pc = if p1.0 <= tq && tq <= p1.1 {
             *p1
         } else {
-            self.sched.piece(ch, tq, Side::Right, &mut self.hints[k])
+            self.sched
+                .piece(Self::CHANNEL[k], tq, Side::Right, &mut self.hints[k])
         };
         self.pieces[k] = [pc, self.pieces[k][0]];
         pc.3 + pc.4 * (tq - pc.2)
@@ -483,16 +492,15 @@ impl<'a> SegmentInputs<'a> {
     #[inline]
     pub fn at(&mut self, t: f64) -> ModelInput {
         let now = crate::model::Drive::new(
-            self.value(0, 0, t, 0.0),
-            self.value(1, 1, t, 0.0),
-            self.value(2, 2, t, 0.0),
-            self.value(3, 3, t, 0.0),
+            self.value(0, t),
+            self.value(1, t),
+            self.value(2, t),
+            self.value(3, t),
         );
-        let (te, tv) = (self.tau_egr, self.tau_vgt);
         ModelInput {
             now,
-            u_egr_delayed: self.value(2, 4, t, te),
-            u_vgt_delayed: self.value(3, 5, t, tv),
+            u_egr_delayed: self.value(4, t),
+            u_vgt_delayed: self.value(5, t),
         }
     }
 }
@@ -1147,22 +1155,25 @@ impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
         })
     }
 
+    /// Error estimate of state `i` scaled by atol_i + rtol max(|y0_i|, |y1_i|).
+    #[inline]
+    fn scaled_error(&self, i: usize, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> f64 {
+        e[i] / (self.atol[i] + self.opts.rtol * y0[i].abs().max(y1[i].abs()))
+    }
+
     /// The state with the largest scaled error estimate and that error (for failure reports).
     fn worst_state(&self, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> (usize, f64) {
         (0..N)
-            .map(|i| {
-                let sc = self.atol[i] + self.opts.rtol * y0[i].abs().max(y1[i].abs());
-                (i, (e[i] / sc).abs())
-            })
+            .map(|i| (i, self.scaled_error(i, y0, y1, e).abs()))
             .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a })
     }
 
-    /// RMS of the error estimate scaled by atol_i + rtol max(|y0_i|, |y1_i|).
+    /// RMS of the scaled error estimate.
     fn error_norm(&self, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> f64 {
         let mut err = 0.0;
         for i in 0..N {
-            let sc = self.atol[i] + self.opts.rtol * y0[i].abs().max(y1[i].abs());
-            err += (e[i] / sc) * (e[i] / sc);
+            let s = self.scaled_error(i, y0, y1, e);
+            err += s * s;
         }
         (err / N as f64).sqrt()
     }
