@@ -93,6 +93,22 @@ def test_params_dict_and_file():
     assert f == base
 
 
+def test_metadata_names_every_column_and_parameter():
+    # every column of a simulation has a unit and description in the core's metadata
+    out = mvem.simulate(STEP, model=12)
+    meta = mvem.variables()
+    for name in out:
+        assert meta[name]["unit"] and meta[name]["description"], name
+    assert meta["T_em_in"]["unit"] == "K"
+    assert meta["omega_t"] == {**meta["omega_t"], "kind": "state", "unit": "rad/s"}
+    # the parameter registry agrees with the published set
+    p = mvem.published_params()
+    params = {q["path"]: q for q in mvem.parameters()}
+    assert params["turbo.j_t"]["published"] == p["turbo"]["j_t"]
+    assert params["cylinder.c_vol[2]"]["published"] == p["cylinder"]["c_vol"][1]
+    assert params["compressor.q_c[1][2]"]["symbol"] == "a3"
+
+
 def test_fmu_start_value_agrees_with_python_params():
     fmpy = pytest.importorskip("fmpy")
     import os

@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result};
 use clap::ValueEnum;
+use mvem::analysis::experiment::VgtStep;
 use mvem::components::Semantics;
 use mvem::io::csv_inputs;
 use mvem::model::{Actuators, AnyModel, CylinderTemp, Drive, ModelOptions, ModelOrder};
@@ -263,22 +264,21 @@ pub const WHTC_CSV: &str = include_str!("../../../data/whtc_inputs_10hz.csv");
 pub const WHTC_NAME: &str = "<built-in data/whtc_inputs_10hz.csv>";
 
 impl Scenario {
-    /// Operating point, u_vgt before and after, step time [s], end time [s] of a VGT step.
-    pub fn vgt_step(self) -> Option<(Drive, f64, f64, f64)> {
-        let base = |u_vgt| Drive::new(1500.0, 110.0, 80.0, u_vgt);
+    /// The paper's VGT step of this scenario (defined in the core,
+    /// [`VgtStep::paper_cases`]); `None` for the WHTC.
+    pub fn paper_step(self) -> Option<VgtStep> {
+        let [nmp, overshoot] = VgtStep::paper_cases();
         match self {
-            Scenario::VgtStepNmp => Some((base(75.0), 65.0, 1.0, 8.0)),
-            Scenario::VgtStepOvershoot => Some((base(30.0), 25.0, 1.0, 8.0)),
+            Scenario::VgtStepNmp => Some(nmp),
+            Scenario::VgtStepOvershoot => Some(overshoot),
             Scenario::Whtc => None,
         }
     }
 
     /// The input schedule and the end time [s].
     pub fn schedule(self) -> Result<(InputSchedule, f64)> {
-        match self.vgt_step() {
-            Some((d, to, t_step, t_end)) => {
-                Ok((InputSchedule::steps(d, &[(t_step, 3, to)])?, t_end))
-            }
+        match self.paper_step() {
+            Some(step) => Ok((step.spec().schedule()?, step.t_end)),
             None => {
                 let s = whtc_schedule()?;
                 let t_end = s.t_last();
@@ -374,25 +374,10 @@ pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
     Ok(())
 }
 
-/// Unit of a state or signal column, for tables and axis labels.
+/// Unit of a state, signal or input column, for tables and axis labels (the core's metadata,
+/// [`mvem::model::meta::unit`]; `""` for an unknown name).
 pub fn unit(name: &str) -> &'static str {
-    match name {
-        "t" => "s",
-        "p_im" | "p_em" | "p_c" => "Pa",
-        "X_Oim" | "X_Oem" | "X_Oe" | "x_r" | "x_egr" | "lambda_O" | "eta_c" | "eta_tm" | "BSR"
-        | "Pi_c" | "Pi_t" | "eta_vol" | "Pi_egr" => "-",
-        "omega_t" => "rad/s",
-        "u_egr1" | "u_egr2" | "u_vgt_act" | "u_egr" | "u_vgt" | "u_egr_actual" | "u_vgt_actual" => {
-            "%"
-        }
-        "n_e" | "n_t" => "rpm",
-        "u_delta" => "mg/cycle",
-        "W_c" | "W_egr" | "W_t" | "W_ei" | "W_eo" | "W_f" | "W_ic" => "kg/s",
-        "T_e" | "T_em" | "T_c" | "T_1" | "T_im" | "T_ic" => "K",
-        "M_e" => "Nm",
-        "P_c" | "P_t_eta_m" => "W",
-        _ => "",
-    }
+    mvem::model::meta::unit(name)
 }
 
 /// A value with 8 significant digits, plain for magnitudes in [1e-3, 1e7), scientific otherwise.

@@ -453,6 +453,38 @@ fn demo_writes_files_and_reports_the_sign_reversal() {
 }
 
 #[test]
+fn params_show_is_annotated_and_loads_back_identically() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(d.path(), &["params", "show", "--format", "toml"]);
+    assert!(o.status.success());
+    let text = stdout(&o);
+    // units, one-line descriptions and equation numbers as comments; short numbers
+    assert!(
+        text.contains("# Turbocharger inertia J_t (eq. (42)) [kg m^2]\nj_t = "),
+        "{text}"
+    );
+    assert!(text.contains("\n# Intake manifold control volume (eqs (6)-(9)) and the ideal intercooler (eq. (73))\n[intake_manifold]\n"));
+    assert!(!text.contains("0.0000000"), "{text}");
+    for line in text
+        .lines()
+        .filter(|l| !l.is_empty() && !l.starts_with('#') && !l.starts_with('['))
+    {
+        assert!(line.contains(" = "), "{line}");
+    }
+    // the file loads back to the same parameter set (compared as JSON, exact numbers)
+    std::fs::write(d.path().join("p.toml"), &text).unwrap();
+    let json = |args: &[&str]| -> serde_json::Value {
+        let o = mvem(d.path(), args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_str(&stdout(&o)).unwrap()
+    };
+    assert_eq!(
+        json(&["params", "show", "--params", "p.toml", "--format", "json"]),
+        json(&["params", "show", "--format", "json"])
+    );
+}
+
+#[test]
 fn params_show_and_check() {
     let d = tempfile::tempdir().unwrap();
     let o = mvem(d.path(), &["params", "show"]);

@@ -1,17 +1,13 @@
 //! Packaging: `modelDescription.xml` from the variable table, and the `.fmu` zip archive.
 
 use crate::vars::{self, FmuConfig};
-use mvem::model::{CylinderTemp, Signals};
+use mvem::model::{meta, CylinderTemp, Signals};
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
 /// The model identifier (name of the shared library inside the FMU).
 pub const MODEL_IDENTIFIER: &str = "mvem";
-
-/// Source of the parameter and signal documentation (doc comments become descriptions).
-const PARAMS_SRC: &str = include_str!("../../mvem/src/params/mod.rs");
-const SIGNALS_SRC: &str = include_str!("../../mvem/src/model/signals.rs");
 
 /// Units used in the model description (name, factor to SI, SI exponents kg, m, s, K, rad).
 const UNITS: &[(&str, f64, [i32; 5])] = &[
@@ -25,24 +21,35 @@ const UNITS: &[(&str, f64, [i32; 5])] = &[
     ("%", 0.01, [0, 0, 0, 0, 0]),
     ("1", 1.0, [0, 0, 0, 0, 0]),
     ("mg/cycle", 1e-6, [1, 0, 0, 0, 0]),
+    ("s", 1.0, [0, 0, 1, 0, 0]),
+    ("m", 1.0, [0, 1, 0, 0, 0]),
+    ("m2", 1.0, [0, 2, 0, 0, 0]),
+    ("m3", 1.0, [0, 3, 0, 0, 0]),
+    ("kg.m2", 1.0, [1, 2, 0, 0, 0]),
+    ("J/(kg.K)", 1.0, [0, 2, -2, -1, 0]),
+    ("J/kg", 1.0, [0, 2, -2, 0, 0]),
+    ("W/(m2.K)", 1.0, [1, 0, -3, -1, 0]),
 ];
 
-fn unit_from_doc(doc: &str) -> Option<&'static str> {
-    let open = doc.find('[')?;
-    let close = doc[open..].find(']')? + open;
-    let u = &doc[open + 1..close];
-    Some(match u {
-        "Pa" => "Pa",
-        "K" => "K",
-        "kg/s" => "kg/s",
-        "rad/s" => "rad/s",
-        "rpm" => "rpm",
-        "Nm" => "N.m",
-        "W" => "W",
-        "%" => "%",
+/// The FMI unit of a unit of the core's metadata (`None` for the few without a definition
+/// here, e.g. the polynomial coefficients' `Pa^-1/2`).
+fn fmi_unit(unit: &str) -> Option<&'static str> {
+    let u = match unit {
         "-" => "1",
-        _ => return None,
-    })
+        "Nm" => "N.m",
+        "m^2" => "m2",
+        "m^3" => "m3",
+        "kg m^2" => "kg.m2",
+        "J/(kg K)" => "J/(kg.K)",
+        "W/(m^2 K)" => "W/(m2.K)",
+        u => u,
+    };
+    UNITS.iter().map(|(n, ..)| *n).find(|n| *n == u)
+}
+
+/// A description with the unit appended, e.g. `Turbocharger inertia J_t (eq. (42)) [kg m^2]`.
+fn with_unit(description: &str, unit: &str) -> String {
+    format!("{description} [{unit}]")
 }
 
 fn xml_escape(s: &str) -> String {
@@ -50,63 +57,6 @@ fn xml_escape(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
-}
-
-/// Doc comments of `pub field: Type` lines per struct: (struct, field) -> doc.
-fn struct_docs(src: &str) -> (HashMap<(String, String), String>, HashMap<String, String>) {
-    let mut docs = HashMap::new();
-    let mut group_types = HashMap::new();
-    let mut current = String::new();
-    let mut pending = String::new();
-    for line in src.lines() {
-        let l = line.trim();
-        if let Some(d) = l.strip_prefix("///") {
-            if !pending.is_empty() {
-                pending.push(' ');
-            }
-            pending.push_str(d.trim());
-            continue;
-        }
-        if let Some(rest) = l.strip_prefix("pub struct ") {
-            current = rest.split([' ', '{']).next().unwrap_or("").to_string();
-        } else if let Some(rest) = l.strip_prefix("pub ") {
-            if let Some((field, ty)) = rest.split_once(':') {
-                let field = field.trim().to_string();
-                let ty = ty.trim().trim_end_matches(',').to_string();
-                if current == "Params" {
-                    group_types.insert(field.clone(), ty);
-                }
-                docs.insert((current.clone(), field), pending.clone());
-            }
-        }
-        if !l.starts_with("#[") {
-            pending.clear();
-        }
-    }
-    (docs, group_types)
-}
-
-/// Doc comments of the signals: reference name -> doc.
-fn signal_docs(src: &str) -> HashMap<String, String> {
-    let mut out = HashMap::new();
-    let mut pending = String::new();
-    for line in src.lines() {
-        let l = line.trim();
-        if let Some(d) = l.strip_prefix("///") {
-            if !pending.is_empty() {
-                pending.push(' ');
-            }
-            pending.push_str(d.trim());
-            continue;
-        }
-        if let Some((_, name)) = l.split_once("=> \"") {
-            if let Some(name) = name.split('"').next() {
-                out.insert(name.to_string(), pending.clone());
-            }
-        }
-        pending.clear();
-    }
-    out
 }
 
 /// One row of the model description.
@@ -125,30 +75,33 @@ struct Row {
 fn rows(cfg: &FmuConfig) -> Vec<Row> {
     let layout = cfg.layout();
     let mut rows = Vec::new();
-    for (i, (name, desc, unit, start)) in vars::INPUTS.iter().enumerate() {
+    for (i, (v, start)) in meta::INPUTS.iter().zip(vars::INPUT_STARTS).enumerate() {
         rows.push(Row {
             vr: vars::VR_INPUT + i as u32,
-            name: name.to_string(),
-            description: desc.to_string(),
+            name: v.name.to_string(),
+            description: with_unit(v.description, v.unit),
             causality: "input",
             variability: "continuous",
             initial: None,
-            start: Some(*start),
-            unit: Some(unit),
+            start: Some(start),
+            unit: fmi_unit(v.unit),
             derivative_of: None,
         });
     }
     for (i, name) in layout.states.iter().enumerate() {
-        let (unit, description) = vars::state_info(name);
+        let (unit, description) = match meta::state(name) {
+            Some(v) => (fmi_unit(v.unit), with_unit(v.description, v.unit)),
+            None => (None, String::new()),
+        };
         rows.push(Row {
             vr: vars::VR_STATE + i as u32,
             name: name.to_string(),
-            description: description.to_string(),
+            description: format!("{description} (state)"),
             causality: "output",
             variability: "continuous",
             initial: Some("calculated"),
             start: None,
-            unit: Some(unit),
+            unit,
             derivative_of: None,
         });
     }
@@ -165,17 +118,15 @@ fn rows(cfg: &FmuConfig) -> Vec<Row> {
             derivative_of: Some(i),
         });
     }
-    let sdocs = signal_docs(SIGNALS_SRC);
-    for (i, n) in Signals::NAMES.iter().enumerate() {
+    for (i, v) in Signals::META.iter().enumerate() {
         if !layout.signal_exposed[i] {
             continue;
         }
-        let doc = sdocs.get(*n).cloned().unwrap_or_default();
         rows.push(Row {
             vr: vars::VR_SIGNAL + i as u32,
             name: vars::signal_name(i),
-            unit: unit_from_doc(&doc),
-            description: doc,
+            unit: fmi_unit(v.unit),
+            description: with_unit(v.description, v.unit),
             causality: "output",
             variability: "continuous",
             initial: Some("calculated"),
@@ -183,19 +134,13 @@ fn rows(cfg: &FmuConfig) -> Vec<Row> {
             derivative_of: None,
         });
     }
-    let (pdocs, groups) = struct_docs(PARAMS_SRC);
     let starts = cfg.param_values();
     for (i, (p, start)) in vars::param_table().iter().zip(starts).enumerate() {
-        let ty = groups.get(&p.group).cloned().unwrap_or_default();
-        let doc = pdocs
-            .get(&(ty, p.field.clone()))
-            .cloned()
-            .unwrap_or_default();
         rows.push(Row {
             vr: vars::VR_PARAM + i as u32,
-            name: p.name.clone(),
-            unit: unit_from_doc(&doc),
-            description: doc,
+            name: p.path.clone(),
+            unit: fmi_unit(p.unit),
+            description: with_unit(&p.describe(), p.unit),
             causality: "parameter",
             variability: "tunable",
             initial: Some("exact"),

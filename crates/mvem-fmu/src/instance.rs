@@ -164,7 +164,7 @@ impl Instance {
             phase: Phase::Instantiated,
             params: config.param_values(),
             model,
-            inputs: vars::INPUTS.map(|i| i.3),
+            inputs: vars::INPUT_STARTS,
             t: 0.0,
             t_start: 0.0,
             t_stop: None,
@@ -409,8 +409,8 @@ impl Instance {
                 FmuError::error(format!("fmi2SetReal: unknown value reference {vr}"))
             })?;
             let name = match kind {
-                Kind::Input(i) => vars::INPUTS[i].0.to_string(),
-                Kind::Param(i) => vars::param_table()[i].name.clone(),
+                Kind::Input(i) => vars::input_name(i).to_string(),
+                Kind::Param(i) => vars::param_table()[i].path.clone(),
                 Kind::State(i) => {
                     return Err(FmuError::error(format!(
                     "fmi2SetReal: state {} (vr {vr}) is calculated; use fmi2SetContinuousStates",
@@ -822,7 +822,7 @@ mod tests {
                                                             // invalid tunable parameter value is rejected and the old one kept
         let i = vars::param_table()
             .iter()
-            .position(|p| p.name == "turbo.j_t")
+            .position(|p| p.path == "turbo.j_t")
             .unwrap();
         let vr = VR_PARAM + i as u32;
         let mut old = [0.0];

@@ -18,9 +18,8 @@
 use mvem::model::{
     CylinderTemp, ModelOrder, Signals, STATE_NAMES_10, STATE_NAMES_12, STATE_NAMES_8,
 };
-use mvem::params::Params;
+use mvem::params::{ParamInfo, Params};
 use serde_json::{json, Value};
-use std::sync::OnceLock;
 
 /// First value reference of the inputs.
 pub const VR_INPUT: u32 = 0;
@@ -36,70 +35,14 @@ pub const VR_PARAM: u32 = 1000;
 /// Name of the configuration file inside the FMU's `resources/` folder.
 pub const CONFIG_FILE: &str = "mvem.json";
 
-/// Input names, descriptions, units and start values (the demo operating point).
-pub const INPUTS: [(&str, &str, &str, f64); 4] = [
-    ("n_e", "Engine speed n_e [rpm]", "rpm", 1500.0),
-    (
-        "u_delta",
-        "Injected fuel u_delta [mg/cycle/cylinder]",
-        "mg/cycle",
-        110.0,
-    ),
-    (
-        "u_egr",
-        "EGR valve command u_egr [%] (0 closed, 100 open)",
-        "%",
-        80.0,
-    ),
-    (
-        "u_vgt",
-        "VGT command u_vgt [%] (0 closed, 100 open)",
-        "%",
-        75.0,
-    ),
-];
+/// Start values of the inputs n_e [rpm], u_delta [mg/cycle], u_egr [%], u_vgt [%] (the demo
+/// operating point); names, units and descriptions are the core's
+/// ([`mvem::model::meta::INPUTS`]).
+pub const INPUT_STARTS: [f64; 4] = [1500.0, 110.0, 80.0, 75.0];
 
-/// Unit and description of a state (any variant) by name.
-pub fn state_info(name: &str) -> (&'static str, &'static str) {
-    match name {
-        "p_im" => (
-            "Pa",
-            "Intake manifold pressure p_im [Pa] (state, eq. (6) / (80))",
-        ),
-        "p_em" => (
-            "Pa",
-            "Exhaust manifold pressure p_em [Pa] (state, eq. (6) / (81))",
-        ),
-        "p_c" => (
-            "Pa",
-            "Pressure before the intercooler p_c [Pa] (state, eq. (85), 12-state model)",
-        ),
-        "T_im" => (
-            "K",
-            "Intake manifold temperature T_im [K] (state, eq. (80), 10/12-state models)",
-        ),
-        "T_em" => (
-            "K",
-            "Exhaust manifold temperature T_em [K] (state, eq. (81), 10/12-state models)",
-        ),
-        "T_ic" => (
-            "K",
-            "Temperature before the intercooler T_ic [K] (state, eq. (85), 12-state model)",
-        ),
-        "X_Oim" => (
-            "1",
-            "Intake manifold oxygen mass fraction X_Oim [-] (state, eq. (9))",
-        ),
-        "X_Oem" => (
-            "1",
-            "Exhaust manifold oxygen mass fraction X_Oem [-] (state, eq. (9))",
-        ),
-        "omega_t" => ("rad/s", "Turbo speed omega_t [rad/s] (state, eq. (42))"),
-        "u_egr1" => ("%", "EGR actuator state u_egr1 [%] (state, eq. (40))"),
-        "u_egr2" => ("%", "EGR actuator state u_egr2 [%] (state, eq. (41))"),
-        "u_vgt_act" => ("%", "VGT actuator state u_vgt [%] (state, eq. (57))"),
-        _ => ("1", ""),
-    }
+/// Name of input `i` (n_e, u_delta, u_egr, u_vgt).
+pub fn input_name(i: usize) -> &'static str {
+    mvem::model::meta::INPUTS[i].name
 }
 
 /// What the FMU simulates: written to `resources/mvem.json` by the packager and read by the
@@ -182,10 +125,7 @@ impl FmuConfig {
 
     /// Start values of the parameter variables, in [`param_table`] order.
     pub fn param_values(&self) -> Vec<f64> {
-        let doc = serde_json::to_value(&self.params).expect("parameters serialize to JSON");
-        let mut out = Vec::new();
-        flatten_doc(&doc, &mut out);
-        out.into_iter().map(|p| p.start).collect()
+        param_table().iter().map(|p| self.params.value(p)).collect()
     }
 
     /// The layout of the variables of this variant.
@@ -259,97 +199,31 @@ pub enum Kind {
     Param(usize),
 }
 
-/// One scalar parameter: its FMU name and the JSON path into the serialized [`Params`].
-#[derive(Debug, Clone)]
-pub struct ParamVar {
-    /// Name, e.g. `turbine.c_m[1]` (1-based index like Modelica).
-    pub name: String,
-    /// Group (e.g. `turbine`) and field (e.g. `c_m`).
-    pub group: String,
-    /// Field name within the group.
-    pub field: String,
-    /// Array indices (0-based) for array fields.
-    pub index: Vec<usize>,
-    /// Published value.
-    pub start: f64,
-}
-
-/// The serialized published parameters (the base document every parameter set is built from).
-pub fn published_json() -> &'static Value {
-    static CELL: OnceLock<Value> = OnceLock::new();
-    CELL.get_or_init(|| {
-        serde_json::to_value(Params::published()).expect("parameters serialize to JSON")
-    })
-}
-
-fn flatten(v: &Value, group: &str, field: &str, index: &mut Vec<usize>, out: &mut Vec<ParamVar>) {
-    match v {
-        Value::Number(n) => {
-            let mut name = format!("{group}.{field}");
-            for i in index.iter() {
-                name.push_str(&format!("[{}]", i + 1));
-            }
-            out.push(ParamVar {
-                name,
-                group: group.to_string(),
-                field: field.to_string(),
-                index: index.clone(),
-                start: n.as_f64().unwrap_or(f64::NAN),
-            });
-        }
-        Value::Array(a) => {
-            for (i, e) in a.iter().enumerate() {
-                index.push(i);
-                flatten(e, group, field, index, out);
-                index.pop();
-            }
-        }
-        _ => {}
-    }
-}
-
-fn flatten_doc(doc: &Value, out: &mut Vec<ParamVar>) {
-    if let Value::Object(groups) = doc {
-        for (g, fields) in groups {
-            if let Value::Object(fields) = fields {
-                for (f, v) in fields {
-                    flatten(v, g, f, &mut Vec::new(), out);
-                }
-            }
-        }
-    }
-}
-
-/// Every scalar parameter of the published set, in document order.
-pub fn param_table() -> &'static [ParamVar] {
-    static CELL: OnceLock<Vec<ParamVar>> = OnceLock::new();
-    CELL.get_or_init(|| {
-        let mut out = Vec::new();
-        flatten_doc(published_json(), &mut out);
-        out
-    })
+/// Every scalar parameter, in the order of the core's parameter registry (file order); the
+/// variable name is the parameter's path ([`ParamInfo::path`], e.g. `turbine.c_m[1]`).
+pub fn param_table() -> &'static [ParamInfo] {
+    Params::registry()
 }
 
 /// Build a [`Params`] from flat parameter values (same order as [`param_table`]).
 pub fn params_from_values(values: &[f64]) -> Result<Params, String> {
-    let mut doc = published_json().clone();
-    for (p, v) in param_table().iter().zip(values) {
-        let num = serde_json::Number::from_f64(*v)
-            .ok_or_else(|| format!("parameter {} = {v} is not finite", p.name))?;
-        let mut slot = &mut doc[p.group.as_str()][p.field.as_str()];
-        for i in &p.index {
-            slot = &mut slot[*i];
+    let mut p = Params::published();
+    for (info, v) in param_table().iter().zip(values) {
+        if !v.is_finite() {
+            return Err(format!("parameter {} = {v} is not finite", info.path));
         }
-        *slot = Value::Number(num);
+        if let Some(x) = p.value_mut(info) {
+            *x = *v;
+        }
     }
-    serde_json::from_value(doc).map_err(|e| format!("parameters: {e}"))
+    Ok(p)
 }
 
 /// Names of the signals as FMU variables: the four saturated inputs are renamed `<name>_sat`
 /// so they do not clash with the inputs.
 pub fn signal_name(i: usize) -> String {
     let n = Signals::NAMES[i];
-    if INPUTS.iter().any(|(name, ..)| *name == n) {
+    if mvem::model::meta::INPUTS.iter().any(|v| v.name == n) {
         format!("{n}_sat")
     } else {
         n.to_string()
@@ -373,8 +247,8 @@ pub fn guid(cfg: &FmuConfig) -> String {
     };
     eat(env!("CARGO_PKG_VERSION"));
     eat(&format!("{:?}/{:?}", cfg.order, cfg.cylinder_temp));
-    for (n, ..) in INPUTS {
-        eat(n);
+    for v in &mvem::model::meta::INPUTS {
+        eat(v.name);
     }
     let layout = cfg.layout();
     for n in layout.states {
@@ -386,7 +260,7 @@ pub fn guid(cfg: &FmuConfig) -> String {
         }
     }
     for (p, v) in param_table().iter().zip(cfg.param_values()) {
-        eat(&p.name);
+        eat(&p.path);
         eat(&format!("{v:e}"));
     }
     let hex = format!("{h:016x}");
@@ -407,12 +281,11 @@ mod tests {
 
     #[test]
     fn params_round_trip_through_flat_values() {
-        let vals: Vec<f64> = param_table().iter().map(|p| p.start).collect();
+        let vals: Vec<f64> = FmuConfig::default().param_values();
         assert!(vals.len() > 60, "{} parameters", vals.len());
         let p = params_from_values(&vals).unwrap();
         assert_eq!(p, Params::published());
-        assert_eq!(FmuConfig::default().param_values(), vals);
-        let names: Vec<&str> = param_table().iter().map(|p| p.name.as_str()).collect();
+        let names: Vec<&str> = param_table().iter().map(|p| p.path.as_str()).collect();
         assert!(names.contains(&"vgt_actuator.tau_dvgt"));
         assert!(names.contains(&"compressor.q_c[2][1]"));
     }

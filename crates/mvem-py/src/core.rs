@@ -1,8 +1,9 @@
 //! The Python API in plain Rust (no Python types), so it is tested by `cargo test` and the
 //! pyo3 layer only converts values.
 
+use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
-use mvem::analysis::steady::{steady_state, SteadyState};
+use mvem::analysis::steady::steady_state;
 use mvem::analysis::step::StepMetrics;
 use mvem::analysis::zeros::{self, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS};
 use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelOptions, ModelOrder, Signals};
@@ -36,6 +37,31 @@ pub type CoreResult<T> = Result<T, CoreError>;
 /// The published parameter set as a JSON document (`{group: {field: value}}`).
 pub fn published_json() -> String {
     serde_json::to_string(&Params::published()).expect("parameters serialize")
+}
+
+/// One variable of the model's metadata: (kind, name, unit, description); kind is "time",
+/// "input", "state" or "signal" (the core's [`mvem::model::meta`]).
+pub type VariableRow = (&'static str, &'static str, &'static str, &'static str);
+
+/// Every variable of every model variant, with its unit and description.
+pub fn variables() -> Vec<VariableRow> {
+    use mvem::model::meta;
+    let row = |kind, v: &'static mvem::model::VarMeta| (kind, v.name, v.unit, v.description);
+    std::iter::once(row("time", &meta::TIME))
+        .chain(meta::INPUTS.iter().map(|v| row("input", v)))
+        .chain(meta::STATES.iter().map(|v| row("state", v)))
+        .chain(Signals::META.iter().map(|v| row("signal", v)))
+        .collect()
+}
+
+/// Every scalar parameter (the core's registry): (path, symbol, unit, description, published
+/// value).
+pub fn parameters() -> Vec<(String, &'static str, &'static str, String, f64)> {
+    let p = Params::published();
+    Params::registry()
+        .iter()
+        .map(|i| (i.path.clone(), i.symbol, i.unit, i.describe(), p.value(i)))
+        .collect()
 }
 
 fn merge(base: &mut Value, over: &Value, path: &str) -> CoreResult<()> {
@@ -410,15 +436,6 @@ pub struct StepResponse {
     pub y: Vec<f64>,
 }
 
-/// Value of a state or signal `name` at a steady state.
-fn named<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>, name: &str) -> Option<f64> {
-    if let Some(i) = m.state_names().iter().position(|s| *s == name) {
-        return Some(ss.x[i]);
-    }
-    let j = Signals::NAMES.iter().position(|s| *s == name)?;
-    Some(ss.signals.values()[j])
-}
-
 /// Step of input `input` (n_e, u_delta, u_egr, u_vgt) from `d` to `to` at `t_step`, simulated
 /// from the steady state to `t_end`; metrics of `output` with the initial and final values from
 /// the steady states before and after the step (as `mvem demo`).
@@ -455,38 +472,51 @@ pub fn step_response(
         )));
     }
     let opts = args.options()?;
-    let before = Drive::from_array(d);
-    let mut a = d;
-    a[ch] = to;
-    let after = Drive::from_array(a);
+    let spec = StepSpec {
+        before: Drive::from_array(d),
+        input: ch,
+        to,
+        t_step,
+        t_end,
+    };
     let m = model(params, variant)?;
     mvem::dispatch!(&m, m => {
-        let known = || {
-            format!(
+        if !m.state_names().contains(&output) && !Signals::NAMES.contains(&output) {
+            return Err(CoreError::Value(format!(
                 "output {output:?}: expected a state ({}) or a signal ({})",
                 m.state_names().join(", "),
                 Signals::NAMES.join(", ")
-            )
-        };
-        let ss0 = steady_state(m, &before)
-            .map_err(|e| CoreError::Runtime(format!("steady state before the step: {e}")))?;
-        let y0 = named(m, &ss0, output).ok_or_else(|| CoreError::Value(known()))?;
-        let ss1 = steady_state(m, &after)
-            .map_err(|e| CoreError::Runtime(format!("steady state after the step: {e}")))?;
-        let y_final = named(m, &ss1, output).ok_or_else(|| CoreError::Value(known()))?;
-        let sched = InputSchedule::steps(before, &[(t_step, ch, to)])
-            .map_err(|e| CoreError::Value(format!("inputs: {e}")))?;
-        let sol = simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), &opts).map_err(sim_error)?;
-        let y = sol.get(output).ok_or_else(|| CoreError::Value(known()))?.to_vec();
-        let t = sol.t().to_vec();
-        let metrics = step_metrics(&t, &y, t_step, y0, y_final, to - d[ch])?;
-        Ok(StepResponse { metrics, t, y })
+            )));
+        }
+        let run = run_step(m, &spec, &opts).map_err(|e| match e {
+            StepRunError::Sim(e) => sim_error(e),
+            e @ (StepRunError::SteadyBefore { .. } | StepRunError::SteadyAfter { .. }) => {
+                CoreError::Runtime(e.to_string())
+            }
+            e => CoreError::Value(e.to_string()),
+        })?;
+        let metrics = run.metrics(output).map_err(|e| CoreError::Value(e.to_string()))?;
+        let y = run.sol.get(output).unwrap_or(&[]).to_vec();
+        Ok(StepResponse { metrics, t: run.sol.t().to_vec(), y })
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn metadata_lists_every_output_column_with_a_unit() {
+        let vars = variables();
+        let m = mvem::model::Engine12::published();
+        for n in m.state_names().iter().chain(Signals::NAMES) {
+            let v = vars.iter().find(|v| v.1 == *n).unwrap();
+            assert!(!v.2.is_empty(), "{n}");
+        }
+        let ps = parameters();
+        let j_t = ps.iter().find(|p| p.0 == "turbo.j_t").unwrap();
+        assert_eq!((j_t.2, j_t.4), ("kg m^2", Params::published().turbo.j_t));
+    }
 
     #[test]
     fn steady_equals_library() {

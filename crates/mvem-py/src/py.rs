@@ -416,6 +416,43 @@ fn published_params(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
 }
 
+/// Names, units and descriptions of the model's variables: a dict name -> {"kind": "time" |
+/// "input" | "state" | "signal", "unit": str, "description": str} (the states of every variant;
+/// a state and a signal of the same name, T_im, T_em, p_c, are listed once, as the state).
+#[pyfunction]
+fn variables(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let out = PyDict::new(py);
+    for (kind, name, unit, description) in core::variables() {
+        if out.contains(name)? {
+            continue;
+        }
+        let d = PyDict::new(py);
+        d.set_item("kind", kind)?;
+        d.set_item("unit", unit)?;
+        d.set_item("description", description)?;
+        out.set_item(name, d)?;
+    }
+    Ok(out)
+}
+
+/// Every scalar parameter: a list of dicts {"path": "cylinder.c_vol[1]", "symbol": "c_vol1",
+/// "unit": str, "description": str, "published": float}, in parameter-file order (the names
+/// `params` overrides and the FMU use).
+#[pyfunction]
+fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
+    let out = PyList::empty(py);
+    for (path, symbol, unit, description, value) in core::parameters() {
+        let d = PyDict::new(py);
+        d.set_item("path", path)?;
+        d.set_item("symbol", symbol)?;
+        d.set_item("unit", unit)?;
+        d.set_item("description", description)?;
+        d.set_item("published", value)?;
+        out.append(d)?;
+    }
+    Ok(out)
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
@@ -426,6 +463,8 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(linearize, m)?)?;
     m.add_function(wrap_pyfunction!(step_metrics, m)?)?;
     m.add_function(wrap_pyfunction!(step_response, m)?)?;
+    m.add_function(wrap_pyfunction!(variables, m)?)?;
+    m.add_function(wrap_pyfunction!(parameters, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -5,23 +5,30 @@
 //! parameters for capturing non-linear system dynamics", reproducing the authors' Simulink
 //! implementation by default and the paper's plain equations as an option.
 //!
-//! The crate reads like the paper, and data flows one way:
+//! The crate reads like the paper, and data flows one way (`ARCHITECTURE.md` at the
+//! repository root: what each layer may import, where each kind of change goes):
 //!
 //! ```text
-//! params (validated, immutable) -> components (pure functions, sections 3-7)
-//!        -> model (8-state assembly, eq. (1)-(2)) -> sim (inputs, delays, integrator)
-//!        -> Solution -> analysis (steady state, ...) / io (files)
+//! params ─► components ─► model ─► sim ─► io, analysis ─► tuning, control ─► front ends
 //! ```
 //!
-//! - [`params`]: one typed group per component, the published set built in, validation.
+//! - [`params`]: one typed group per component, the published set built in, validation; the
+//!   names, units and descriptions of every parameter and the registry of every scalar by name
+//!   ([`params::Params::registry`], `cylinder.c_vol[1]`).
 //! - [`components`]: manifolds, cylinder, EGR valve and actuator, turbine, VGT actuator,
-//!   compressor, turbo shaft; each function cites its equation number.
-//! - [`model`]: the assembled model behind the [`model::Model`] trait; every algebraic signal
-//!   is computed by the same function as the derivatives.
+//!   compressor, intercooler, turbo shaft: pure functions, each citing its equation number.
+//! - [`model`]: the assembled model variants behind the [`model::Model`] trait; every algebraic
+//!   signal is computed by the same function as the derivatives; names, units and descriptions
+//!   of inputs, states and signals ([`model::meta`]).
 //! - [`sim`]: input schedules (constants, steps, CSV time series), exact transport delays,
-//!   adaptive error-controlled integration that stops at input breakpoints.
-//! - [`analysis`]: steady state (equilibrium) with physical-validity flags.
-//! - [`io`]: parameter files (TOML/JSON), input CSV reading, atomic output writing.
+//!   adaptive error-controlled integration that stops at input breakpoints; knows the model
+//!   only through the trait.
+//! - [`io`]: parameter files (TOML/JSON, annotated TOML), input CSV reading, atomic output
+//!   writing.
+//! - [`analysis`]: steady state with physical-validity flags, linearization, zeros, maps,
+//!   step metrics and the step experiment ([`analysis::experiment::run_step`]) that every front
+//!   end uses.
+//! - [`tuning`]: parameter estimation (section 8).
 //!
 //! ```
 //! use mvem::{model::{Drive, Engine8}, analysis::steady::steady_state};

@@ -336,10 +336,11 @@ fn report(r: &[StepComparison], rtol: f64) -> String {
     for c in r {
         for resp in &c.responses {
             let w = &resp.w_c;
-            let nmp = if w.nmp {
-                format!("yes ({:.2}, {:.2} s after)", w.nmp_extent, w.nmp_time)
-            } else {
-                "no".into()
+            let nmp = match w.wrong_way {
+                Some(e) if w.non_minimum_phase => {
+                    format!("yes ({:.2}, {:.2} s after)", e.relative, e.time - w.t_step)
+                }
+                _ => "no".into(),
             };
             let _ = writeln!(
                 s,
@@ -347,8 +348,8 @@ fn report(r: &[StepComparison], rtol: f64) -> String {
                 c.step.u_vgt_from,
                 c.step.u_vgt_to,
                 label(resp.order),
-                w.initial,
-                w.final_value,
+                w.y0,
+                w.y_final,
                 w.dc_gain,
                 w.overshoot_pct,
                 resp.steps
@@ -366,7 +367,9 @@ fn report(r: &[StepComparison], rtol: f64) -> String {
     );
     let _ = writeln!(s, "|---|---|---|---|");
     for (order, ..) in ORDERS {
-        let nmp = r[0].response(order).is_some_and(|x| x.w_c.nmp);
+        let nmp = r[0]
+            .response(order)
+            .is_some_and(|x| x.w_c.non_minimum_phase);
         let over = r
             .get(1)
             .and_then(|c| c.response(order))

@@ -7,7 +7,8 @@ use crate::common::{self, ModelArgs};
 use crate::plot::Format;
 use crate::plot_maps::{self, Contours, Curve, Field, MapFigure, MapPanel, Points};
 use anyhow::{Context, Result};
-use mvem::components::{compressor, egr, turbine, Semantics};
+use mvem::analysis::component_maps as maps;
+use mvem::components::Semantics;
 use mvem::params::Params;
 use std::path::{Path, PathBuf};
 
@@ -129,12 +130,6 @@ pub fn read_overlay(path: &Path, max: usize) -> Result<Overlay> {
     })
 }
 
-fn linspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    (0..n)
-        .map(|i| lo + (hi - lo) * i as f64 / (n - 1) as f64)
-        .collect()
-}
-
 fn overlay_points(ov: &Overlay, x: Vec<f64>, y: Vec<f64>, what: &str) -> Points {
     Points {
         x,
@@ -146,33 +141,34 @@ fn overlay_points(ov: &Overlay, x: Vec<f64>, y: Vec<f64>, what: &str) -> Points 
     }
 }
 
-/// Turbo speeds of the speed lines [rad/s].
-pub const SPEED_LINES: [f64; 6] = [4000.0, 6000.0, 8000.0, 10000.0, 12000.0, 14000.0];
+fn curve(c: &maps::Curve, label: impl Into<String>, color: usize) -> Curve {
+    Curve {
+        x: c.x.clone(),
+        y: c.y.clone(),
+        label: label.into(),
+        color,
+        dashed: false,
+        end_text: None,
+    }
+}
 
 /// Compressor map (Fig. 7): efficiency contours, eq. (62), and speed lines, eqs (66)-(72).
 pub fn compressor_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> MapFigure {
-    let c = &p.compressor;
-    let g = &p.gas;
-    let (t_amb, p_amb) = (p.ambient.t_amb, p.ambient.p_amb);
-    let (w_max, pi_max) = (0.6, 4.0);
-    let wx = linspace(0.0, w_max, 181);
-    let py = linspace(1.0, pi_max, 181);
-    let z: Vec<f64> = wx
-        .iter()
-        .flat_map(|&w| {
-            py.iter()
-                .map(move |&pi| compressor::efficiency(c, w, pi, sem))
-        })
-        .collect();
+    let m = maps::compressor_map(p, sem);
+    let ((w_lo, w_hi), (pi_lo, pi_hi)) = maps::COMPRESSOR_RANGE;
     let mut panel = MapPanel::new(
         "Compressor map: efficiency eta_c (eq. (62)) and speed lines (eqs (66)-(72))",
         "W_c [kg/s]",
         "Pi_c [-]",
     );
-    panel.x_range = Some((0.0, w_max));
-    panel.y_range = Some((1.0, pi_max));
+    panel.x_range = Some((w_lo, w_hi));
+    panel.y_range = Some((pi_lo, pi_hi));
     panel.contours.push(Contours {
-        field: Field { x: wx, y: py, z },
+        field: Field {
+            x: m.efficiency.x,
+            y: m.efficiency.y,
+            z: m.efficiency.z,
+        },
         levels: vec![0.5, 0.6, 0.65, 0.7, 0.72, 0.73],
         label: "efficiency eta_c [-]".into(),
         color: 0,
@@ -180,30 +176,16 @@ pub fn compressor_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> Ma
         dashed: false,
         level_labels: Some(2),
     });
-    for (k, &omega) in SPEED_LINES.iter().enumerate() {
-        let pis = linspace(1.0, pi_max, 400);
-        let mut x = Vec::new();
-        let mut y = Vec::new();
-        for &pi in &pis {
-            let iso = compressor::isentropic_term(pi, g.gamma_a);
-            let f = compressor::flow(c, g.c_pa, g.r_a, t_amb, p_amb, iso, omega, sem);
-            // the speed line ends where the square root of eq. (71) reaches 0 (surge side)
-            if f.phi_c - c.c_phi2 > 1e-9 {
-                x.push(f.w_c);
-                y.push(pi);
-            }
-        }
+    for (k, (omega, line)) in m.speed_lines.iter().enumerate() {
+        let label = if k == 0 {
+            "speed lines (omega_t [rad/s])"
+        } else {
+            ""
+        };
         panel.curves.push(Curve {
-            x,
-            y,
-            label: if k == 0 {
-                "speed lines (omega_t [rad/s])".into()
-            } else {
-                String::new()
-            },
-            color: 7,
             dashed: true,
             end_text: Some(format!("{omega:.0}")),
+            ..curve(line, label, 7)
         });
     }
     if let Some(ov) = ov {
@@ -222,83 +204,41 @@ pub fn compressor_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> Ma
 
 /// Turbine (Fig. 5): f_Pi_t (eq. (53)), f_vgt (eq. (56)) and eta_tm over BSR (eqs (49)-(51)).
 pub fn turbine_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> MapFigure {
-    let t = &p.turbine;
-    let g = &p.gas;
+    let m = maps::turbine_maps(p, sem);
     let mut f = MapFigure::new(3);
     f.panel_size = (620, 520);
     f.title = Some("Turbine flow and efficiency (paper Fig. 5)".into());
-
-    let pis = linspace(0.2, 1.0, 200);
     let mut a = MapPanel::new(
         "(a) choking function f_Pi_t, eq. (53)",
         "Pi_t [-]",
         "f_Pi_t [-]",
     );
-    a.curves.push(Curve {
-        x: pis.clone(),
-        y: pis.iter().map(|&pi| turbine::f_pi_t(t, pi)).collect(),
-        label: "model".into(),
-        color: 0,
-        dashed: false,
-        end_text: None,
-    });
-    let us = linspace(20.0, 100.0, 200);
+    a.curves.push(curve(&m.f_pi_t, "model", 0));
     let mut b = MapPanel::new(
         "(b) effective area f_vgt, eq. (56)",
         "u_vgt [%]",
         "f_vgt [-]",
     );
-    b.curves.push(Curve {
-        x: us.clone(),
-        y: us.iter().map(|&u| turbine::f_vgt(t, u, sem)).collect(),
-        label: "model".into(),
-        color: 0,
-        dashed: false,
-        end_text: None,
-    });
+    b.curves.push(curve(&m.f_vgt, "model", 0));
     let mut c = MapPanel::new(
         "(c) efficiency eta_tm over BSR, eqs (49)-(51)",
         "BSR [-]",
         "eta_tm [-]",
     );
-    // eta_tm as a function of BSR at fixed omega_t: eta_tmmax - c_m(omega_t) (BSR - BSR_opt)^2;
-    // evaluated through turbine::power with T_em chosen to give each BSR
-    let pi_t = 0.5;
-    let dh = 1.0 - f64::powf(pi_t, 1.0 - 1.0 / g.gamma_e);
-    // c_m (eq. (51)) is 0 below c_m2 = 2769 rad/s, rises on the authors' linear branch up to
-    // w_tlin = 2797 rad/s and is almost constant above (c_m3 = 0.01)
-    for (k, &omega) in [2775.0, 2785.0, 2797.0, 10000.0].iter().enumerate() {
-        let bsrs = linspace(0.05, 2.0 * t.bsr_opt, 120);
-        let mut y = Vec::new();
-        for &bsr in &bsrs {
-            // BSR = R_t omega / sqrt(2 c_pe T_em dh)  =>  T_em = (R_t omega / BSR)^2 / (2 c_pe dh)
-            let t_em = (t.r_t * omega / bsr).powi(2) / (2.0 * g.c_pe * dh);
-            y.push(turbine::power(t, g.c_pe, g.gamma_e, t_em, pi_t, omega, 0.1, sem).eta_tm);
-        }
-        c.curves.push(Curve {
-            x: bsrs,
-            y,
-            label: format!("omega_t = {omega:.0} rad/s"),
-            color: [0, 2, 4, 3][k],
-            dashed: false,
-            end_text: None,
-        });
+    for (k, (omega, line)) in m.efficiency.iter().enumerate() {
+        c.curves.push(curve(
+            line,
+            format!("omega_t = {omega:.0} rad/s"),
+            [0, 2, 4, 3][k % 4],
+        ));
     }
     if let Some(ov) = ov {
-        let pit = ov.col("Pi_t");
-        a.points.push(overlay_points(
-            ov,
-            pit.to_vec(),
-            pit.iter().map(|&pi| turbine::f_pi_t(t, pi)).collect(),
-            "operating points",
-        ));
-        let u = ov.col("u_vgt_actual");
-        b.points.push(overlay_points(
-            ov,
-            u.to_vec(),
-            u.iter().map(|&u| turbine::f_vgt(t, u, sem)).collect(),
-            "operating points",
-        ));
+        let (pit, u) = (ov.col("Pi_t"), ov.col("u_vgt_actual"));
+        let (f_pi_t, f_vgt) = maps::turbine_points(p, sem, pit, u);
+        a.points
+            .push(overlay_points(ov, pit.to_vec(), f_pi_t, "operating points"));
+        b.points
+            .push(overlay_points(ov, u.to_vec(), f_vgt, "operating points"));
         c.points.push(overlay_points(
             ov,
             ov.col("BSR").to_vec(),
@@ -312,59 +252,44 @@ pub fn turbine_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> MapFi
 
 /// EGR valve (Fig. 3): Psi_egr over Pi_egr (eqs (34)-(35)) and f_egr over u_egr (eq. (38)).
 pub fn egr_figure(p: &Params, sem: Semantics, ov: Option<&Overlay>) -> MapFigure {
-    let v = &p.egr_valve;
+    let m = maps::egr_maps(p, sem);
     let mut f = MapFigure::new(2);
     f.panel_size = (700, 520);
     f.title = Some("EGR valve flow functions (paper Fig. 3)".into());
-    // p_im / p_em from 0.2 to 1.05; eq. (35) limits it to [Pi_egropt, 1]
-    let ratios = linspace(0.2, 1.05, 300);
     let mut a = MapPanel::new(
         "(a) flow function Psi_egr, eqs (34)-(35)",
         "p_im / p_em [-]",
         "Psi_egr [-]",
     );
-    a.curves.push(Curve {
-        x: ratios.clone(),
-        y: ratios
-            .iter()
-            .map(|&r| egr::psi_egr(v, egr::pi_egr(v, r, 1.0)))
-            .collect(),
-        label: "model (choked below Pi_egr,opt, no flow above 1)".into(),
-        color: 0,
-        dashed: false,
-        end_text: None,
-    });
-    let us = linspace(0.0, 100.0, 300);
+    a.curves.push(curve(
+        &m.psi_egr,
+        "model (choked below Pi_egr,opt, no flow above 1)",
+        0,
+    ));
     let mut b = MapPanel::new(
         "(b) effective area f_egr, eq. (38)",
         "u_egr [%]",
         "f_egr [-]",
     );
-    b.curves.push(Curve {
-        x: us.clone(),
-        y: us.iter().map(|&u| egr::f_egr(v, u, sem)).collect(),
-        label: "model".into(),
-        color: 0,
-        dashed: false,
-        end_text: None,
-    });
+    b.curves.push(curve(&m.f_egr, "model", 0));
     if let Some(ov) = ov {
         // only rows with EGR flow
         let flowing: Vec<usize> = (0..ov.col("W_egr").len())
             .filter(|&i| ov.col("W_egr")[i] > 1e-6)
             .collect();
         let pi: Vec<f64> = flowing.iter().map(|&i| ov.col("Pi_egr")[i]).collect();
+        let u: Vec<f64> = flowing.iter().map(|&i| ov.col("u_egr_actual")[i]).collect();
+        let (psi, f_egr) = maps::egr_points(p, sem, &pi, &u);
         a.points.push(overlay_points(
             ov,
-            pi.clone(),
-            pi.iter().map(|&x| egr::psi_egr(v, x)).collect(),
+            pi,
+            psi,
             "operating points with EGR flow",
         ));
-        let u: Vec<f64> = flowing.iter().map(|&i| ov.col("u_egr_actual")[i]).collect();
         b.points.push(overlay_points(
             ov,
-            u.clone(),
-            u.iter().map(|&x| egr::f_egr(v, x, sem)).collect(),
+            u,
+            f_egr,
             "operating points with EGR flow",
         ));
     }

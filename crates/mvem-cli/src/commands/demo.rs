@@ -5,10 +5,10 @@
 use crate::common::{self, ModelArgs, Scenario, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
-use mvem::analysis::steady::steady_state;
+use mvem::analysis::experiment::run_step;
 use mvem::analysis::step::{GainSign, StepMetrics};
 use mvem::model::{Drive, Model};
-use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use mvem::sim::{SimOptions, Solution};
 use std::path::PathBuf;
 
 /// Arguments of `mvem demo`.
@@ -106,27 +106,16 @@ fn run_case<const N: usize, M: Model<N>>(
     file: &'static str,
     opts: &SimOptions,
 ) -> Result<Case> {
-    let (before, to, t_step, t_end) = scenario
-        .vgt_step()
+    let step = scenario
+        .paper_step()
         .context("demo scenarios are VGT steps")?;
-    let sched = InputSchedule::steps(before, &[(t_step, 3, to)])?;
-    let after = Drive::new(before.n_e_rpm, before.u_delta_mg, before.u_egr_pct, to);
     let name = scenario.name();
-    let ss0 = steady_state(m, &before)
-        .with_context(|| format!("{name}: steady state before the step"))?;
-    let ss1 =
-        steady_state(m, &after).with_context(|| format!("{name}: steady state after the step"))?;
-    let sol = simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), opts)
-        .with_context(|| format!("{name}: simulation failed"))?;
-    let w_c = StepMetrics::compute(
-        sol.t(),
-        sol.get("W_c").context("no W_c column")?,
-        t_step,
-        ss0.signals.w_c,
-        ss1.signals.w_c,
-        to - before.u_vgt_pct,
-    )
-    .with_context(|| format!("{name}: W_c step metrics"))?;
+    let run = run_step(m, &step.spec(), opts).with_context(|| name.clone())?;
+    let w_c = run
+        .metrics("W_c")
+        .with_context(|| format!("{name}: W_c step metrics"))?;
+    let (before, to, t_step) = (step.before(), step.u_vgt_to, step.t_step);
+    let sol = run.sol;
     Ok(Case {
         scenario,
         before,

@@ -11,7 +11,7 @@ use anyhow::{Context, Result};
 use mvem::analysis::steady::steady_state;
 use mvem::model::{AnyModel, CylinderTemp, Drive, ModelOptions, ModelOrder};
 use mvem::params::Params;
-use mvem_fmu::vars::{FmuConfig, INPUTS};
+use mvem_fmu::vars::{FmuConfig, INPUT_STARTS};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `mvem fmu`.
@@ -100,7 +100,7 @@ pub fn run(a: &Args) -> Result<()> {
         },
     )
     .context("cannot build the model")?;
-    let d = Drive::from_array(INPUTS.map(|i| i.3));
+    let d = Drive::from_array(INPUT_STARTS);
     mvem::dispatch!(&model, m => steady_state(m, &d).map(|_| ())).with_context(|| {
         format!(
             "no steady state at the FMU's start inputs n_e = {} rpm, u_delta = {} mg, u_egr = {} %, u_vgt = {} %",

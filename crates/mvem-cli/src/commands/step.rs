@@ -6,11 +6,11 @@ use crate::common::{self, ModelArgs, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
+use mvem::analysis::experiment::{self, StepSpec};
 use mvem::analysis::linearize::DEFAULT_OUTPUTS;
-use mvem::analysis::steady::{steady_state, SteadyState};
 use mvem::analysis::step::StepMetrics;
 use mvem::model::{Drive, Model};
-use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use mvem::sim::{SimOptions, Solution};
 use serde_json::{json, Map, Value};
 use std::path::PathBuf;
 
@@ -119,20 +119,10 @@ pub struct StepCase {
     pub flags: Vec<String>,
 }
 
-/// Value of a state or signal at a steady state.
-pub fn steady_value<const N: usize, M: Model<N>>(
-    m: &M,
-    ss: &SteadyState<N>,
-    name: &str,
-) -> Option<f64> {
-    match m.state_names().iter().position(|s| *s == name) {
-        Some(i) => Some(ss.x[i]),
-        None => ss.signals.get(name),
-    }
-}
+pub use mvem::analysis::experiment::steady_value;
 
 /// Simulate a step of `input` from its value in `before` to `to` at `t_step`, up to `t_end`,
-/// and measure `outputs`.
+/// and measure `outputs` (the core's step experiment, [`experiment::run_step`]).
 #[allow(clippy::too_many_arguments)]
 pub fn run_step<const N: usize, M: Model<N>>(
     m: &M,
@@ -144,52 +134,25 @@ pub fn run_step<const N: usize, M: Model<N>>(
     outputs: &[String],
     opts: &SimOptions,
 ) -> Result<StepCase> {
-    let mut after = before.to_array();
-    after[input.slot()] = to;
-    let after = Drive::from_array(after);
-    let ss0 = steady_state(m, &before).with_context(|| {
-        format!(
-            "steady state before the step ({})",
-            common::fmt_drive(&before)
-        )
-    })?;
-    let ss1 = steady_state(m, &after).with_context(|| {
-        format!(
-            "steady state after the step ({})",
-            common::fmt_drive(&after)
-        )
-    })?;
-    let sched = InputSchedule::steps(before, &[(t_step, input.slot(), to)])?;
-    let sol =
-        simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), opts).context("simulation failed")?;
-    let du = to - before.to_array()[input.slot()];
-    let mut metrics = Vec::new();
-    for name in outputs {
-        let r = (|| -> Result<StepMetrics, String> {
-            let y = sol
-                .get(name)
-                .ok_or_else(|| format!("unknown output {name:?}"))?;
-            let y0 = steady_value(m, &ss0, name).ok_or("no steady value")?;
-            let y1 = steady_value(m, &ss1, name).ok_or("no steady value")?;
-            StepMetrics::compute(sol.t(), y, t_step, y0, y1, du).map_err(|e| e.to_string())
-        })();
-        metrics.push((name.clone(), r));
-    }
-    let mut flags = Vec::new();
-    for (when, ss) in [("before", &ss0), ("after", &ss1)] {
-        if !ss.physically_valid() {
-            flags.push(format!(
-                "steady state {when} the step: {}",
-                ss.flags.join(", ")
-            ));
-        }
-    }
+    let spec = StepSpec {
+        before,
+        input: input.slot(),
+        to,
+        t_step,
+        t_end,
+    };
+    let run = experiment::run_step(m, &spec, opts)?;
+    let metrics = outputs
+        .iter()
+        .map(|name| (name.clone(), run.metrics(name).map_err(|e| e.to_string())))
+        .collect();
+    let flags = run.flags();
     Ok(StepCase {
         input,
         before,
         to,
         t_step,
-        sol,
+        sol: run.sol,
         metrics,
         flags,
     })

@@ -11,6 +11,8 @@ in parallel):
 - step_metrics(t, y, t_step, y0, y_final, du) -> dict
 - step_response(n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", ...) -> dict
 - published_params() -> dict
+- variables() -> dict name -> {"kind", "unit", "description"} (inputs, states, signals)
+- parameters() -> list of {"path", "symbol", "unit", "description", "published"}
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
 params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
@@ -23,11 +25,13 @@ both carrying the Rust message.
 from ._mvem import (
     __version__,
     linearize,
+    parameters,
     published_params,
     simulate,
     steady,
     step_metrics,
     step_response,
+    variables,
 )
 
 INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
@@ -39,6 +43,8 @@ __all__ = [
     "step_metrics",
     "step_response",
     "published_params",
+    "variables",
+    "parameters",
     "INPUT_COLUMNS",
     "__version__",
 ]

@@ -122,3 +122,21 @@ def step_response(
 
 def published_params() -> Dict[str, Dict[str, Union[float, List[float], List[List[float]]]]]:
     """The published parameter set as a nested dict (SI units)."""
+
+class Variable(TypedDict):
+    kind: Literal["time", "input", "state", "signal"]
+    unit: str  # e.g. "Pa", "kg/s", "-" (dimensionless)
+    description: str  # one line, with the paper's equation number
+
+def variables() -> Dict[str, Variable]:
+    """Names, units and descriptions of every input, state and signal (the core's metadata)."""
+
+class Parameter(TypedDict):
+    path: str  # "cylinder.c_vol[1]" (1-based), accepted by `params` overrides as "group.field"
+    symbol: str  # the paper's symbol, e.g. "c_vol1"
+    unit: str
+    description: str
+    published: float
+
+def parameters() -> List[Parameter]:
+    """Every scalar parameter with its unit and description, in parameter-file order."""

@@ -11,114 +11,58 @@
 //!   the WHTC, `data/whtc_inputs_10hz.csv`) with the converged cylinder-out temperature and with
 //!   one fixed-point iteration per accepted step (Fig. 2), and return the relative error of T_e.
 //!
-//! The response features use the definitions of the reference data (`tests/reference/README.md`):
-//! NMP = the response's extremum opposite to its final direction exceeds 0.5 % of the final
-//! change and occurs before the first 0.5 % move in the final direction; overshoot = the largest
-//! excursion beyond the final value, in % of |final change|. The final value is the root-solved
-//! steady state at the new input.
+//! Each model order's response is the core step experiment
+//! ([`crate::analysis::experiment::run_step`]); the W_c features are its [`StepMetrics`]
+//! (definitions in [`crate::analysis::step`]), with the root-solved steady state at the new input
+//! as the final value.
 
+use crate::analysis::experiment::{run_step, StepRunError};
 use crate::analysis::steady::{steady_state, SteadyError};
+use crate::analysis::step::StepMetrics;
 use crate::model::{
-    AnyModel, CylinderTemp, Drive, Engine10, Engine12, Engine8, Model, ModelOptions, ModelOrder,
+    AnyModel, CylinderTemp, Engine10, Engine12, Engine8, Model, ModelOptions, ModelOrder,
 };
 use crate::params::{ParamIssues, Params};
 use crate::sim::{simulate, InputSchedule, ScheduleError, SimError, SimOptions, Start};
 use serde::{Deserialize, Serialize};
 
-/// A step in the VGT command from a steady state.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct VgtStep {
-    /// Engine speed n_e [rpm].
-    pub n_e_rpm: f64,
-    /// Injected fuel u_delta [mg/cycle/cylinder].
-    pub u_delta_mg: f64,
-    /// EGR command u_egr [%].
-    pub u_egr_pct: f64,
-    /// VGT command before the step [%].
-    pub u_vgt_from: f64,
-    /// VGT command after the step [%].
-    pub u_vgt_to: f64,
-    /// Step time [s] (the simulation starts at 0 from the steady state).
-    pub t_step: f64,
-    /// End of the simulation [s].
-    pub t_end: f64,
-}
+pub use super::experiment::VgtStep;
 
-impl VgtStep {
-    /// The two steps of the paper's Figs 11-14 (the authors' runSimEngine demonstration):
-    /// (1500 rpm, 110 mg, 80 %), u_vgt 75 -> 65 % (NMP, negative DC gain in W_c) and
-    /// 30 -> 25 % (overshoot, positive DC gain), at t = 1 s, simulated to 8 s.
-    pub fn paper_cases() -> [VgtStep; 2] {
-        let c = |from, to| VgtStep {
-            n_e_rpm: 1500.0,
-            u_delta_mg: 110.0,
-            u_egr_pct: 80.0,
-            u_vgt_from: from,
-            u_vgt_to: to,
-            t_step: 1.0,
-            t_end: 8.0,
-        };
-        [c(75.0, 65.0), c(30.0, 25.0)]
-    }
-
-    /// Inputs before the step.
-    pub fn before(&self) -> Drive {
-        Drive::new(
-            self.n_e_rpm,
-            self.u_delta_mg,
-            self.u_egr_pct,
-            self.u_vgt_from,
-        )
-    }
-
-    /// Inputs after the step.
-    pub fn after(&self) -> Drive {
-        Drive::new(self.n_e_rpm, self.u_delta_mg, self.u_egr_pct, self.u_vgt_to)
-    }
-
-    /// A short label, e.g. `u_vgt 75->65 % at 1500 rpm, 110 mg, u_egr 80 %`.
-    pub fn label(&self) -> String {
-        format!(
-            "u_vgt {}->{} % at {} rpm, {} mg, u_egr {} %",
-            self.u_vgt_from, self.u_vgt_to, self.n_e_rpm, self.u_delta_mg, self.u_egr_pct
-        )
-    }
-
-    fn check(&self) -> Result<(), ExtensionError> {
-        let fields = [
-            ("n_e_rpm", self.n_e_rpm),
-            ("u_delta_mg", self.u_delta_mg),
-            ("u_egr_pct", self.u_egr_pct),
-            ("u_vgt_from", self.u_vgt_from),
-            ("u_vgt_to", self.u_vgt_to),
-            ("t_step", self.t_step),
-            ("t_end", self.t_end),
-        ];
-        for (field, value) in fields {
-            if !value.is_finite() {
-                return Err(ExtensionError::BadStep {
-                    field,
-                    value,
-                    constraint: "must be finite",
-                });
-            }
-        }
-        if !(self.t_step > 0.0 && self.t_step < self.t_end) {
+/// Check a step of [`compare_vgt_steps`] (finite values, 0 < t_step < t_end, a change).
+fn check_step(step: &VgtStep) -> Result<(), ExtensionError> {
+    let fields = [
+        ("n_e_rpm", step.n_e_rpm),
+        ("u_delta_mg", step.u_delta_mg),
+        ("u_egr_pct", step.u_egr_pct),
+        ("u_vgt_from", step.u_vgt_from),
+        ("u_vgt_to", step.u_vgt_to),
+        ("t_step", step.t_step),
+        ("t_end", step.t_end),
+    ];
+    for (field, value) in fields {
+        if !value.is_finite() {
             return Err(ExtensionError::BadStep {
-                field: "t_step",
-                value: self.t_step,
-                constraint: "must lie in (0, t_end)",
+                field,
+                value,
+                constraint: "must be finite",
             });
         }
-        if self.u_vgt_from == self.u_vgt_to {
-            return Err(ExtensionError::BadStep {
-                field: "u_vgt_to",
-                value: self.u_vgt_to,
-                constraint: "must differ from u_vgt_from",
-            });
-        }
-        Ok(())
     }
+    if !(step.t_step > 0.0 && step.t_step < step.t_end) {
+        return Err(ExtensionError::BadStep {
+            field: "t_step",
+            value: step.t_step,
+            constraint: "must lie in (0, t_end)",
+        });
+    }
+    if step.u_vgt_from == step.u_vgt_to {
+        return Err(ExtensionError::BadStep {
+            field: "u_vgt_to",
+            value: step.u_vgt_to,
+            constraint: "must differ from u_vgt_from",
+        });
+    }
+    Ok(())
 }
 
 /// Signals compared by [`compare_vgt_steps`] by default (names of [`crate::sim::Solution`]
@@ -152,76 +96,8 @@ impl Default for CompareOptions {
     }
 }
 
-/// Features of one signal's step response (definitions in the module documentation).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ResponseFeatures {
-    /// Steady-state value before the step.
-    pub initial: f64,
-    /// Steady-state value at the new input.
-    pub final_value: f64,
-    /// DC gain: (final - initial) / (u_vgt_to - u_vgt_from) [signal unit per %].
-    pub dc_gain: f64,
-    /// Non-minimum-phase behaviour: an initial move opposite to the final change larger than
-    /// 0.5 % of |final change| before the first 0.5 % move in the final direction.
-    pub nmp: bool,
-    /// Size of that opposite move as a fraction of |final change| [-] (0 if none).
-    pub nmp_extent: f64,
-    /// Time of the opposite extremum after the step [s] (NaN if none).
-    pub nmp_time: f64,
-    /// Largest excursion beyond the final value, in % of |final change| (0 if none).
-    pub overshoot_pct: f64,
-}
-
-/// Features of a sampled response `y` at times `t`, for a step at `t_step` from the steady
-/// value `initial` to the steady value `final_value`; `du` is the input change (for the DC
-/// gain). Samples before `t_step` are ignored.
-pub fn response_features(
-    t: &[f64],
-    y: &[f64],
-    t_step: f64,
-    initial: f64,
-    final_value: f64,
-    du: f64,
-) -> ResponseFeatures {
-    let change = final_value - initial;
-    let dir = change.signum();
-    let mag = change.abs();
-    let thr = 0.005 * mag;
-    let mut opp = (0.0f64, f64::NAN); // (largest opposite move, time)
-    let mut moved = false;
-    let mut over = 0.0f64;
-    for (&ti, &yi) in t.iter().zip(y) {
-        if ti < t_step {
-            continue;
-        }
-        let along = dir * (yi - initial);
-        if !moved {
-            if along >= thr {
-                moved = true;
-            } else if -along > opp.0 {
-                opp = (-along, ti - t_step);
-            }
-        }
-        over = over.max(dir * (yi - final_value));
-    }
-    let nmp = mag > 0.0 && opp.0 > thr;
-    ResponseFeatures {
-        initial,
-        final_value,
-        dc_gain: change / du,
-        nmp,
-        nmp_extent: if mag > 0.0 && opp.0 > 0.0 {
-            opp.0 / mag
-        } else {
-            0.0
-        },
-        nmp_time: if opp.0 > 0.0 { opp.1 } else { f64::NAN },
-        overshoot_pct: if mag > 0.0 { 100.0 * over / mag } else { 0.0 },
-    }
-}
-
 /// One model order's response to one step.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StepResponse {
     /// Model order.
     pub order: ModelOrder,
@@ -233,8 +109,8 @@ pub struct StepResponse {
     pub steady_before: Vec<(String, f64)>,
     /// (signal name, value) at the steady state at the new input.
     pub steady_after: Vec<(String, f64)>,
-    /// Features of the compressor flow W_c response.
-    pub w_c: ResponseFeatures,
+    /// Step metrics of the compressor flow W_c (from the steady states before and after).
+    pub w_c: StepMetrics,
     /// Accepted integration steps.
     pub steps: usize,
 }
@@ -250,7 +126,7 @@ impl StepResponse {
 }
 
 /// Stationary difference of one signal between a model order and the reference order.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StationaryDifference {
     /// Model order.
     pub order: ModelOrder,
@@ -263,7 +139,7 @@ pub struct StationaryDifference {
 }
 
 /// All model orders' responses to one step.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StepComparison {
     /// The step.
     pub step: VgtStep,
@@ -319,6 +195,16 @@ pub enum ExtensionError {
         /// Cause.
         source: SteadyError,
     },
+    /// The W_c step metrics are undefined (no change).
+    #[error("{order:?}-state model, {case}: W_c: {message}")]
+    Metrics {
+        /// Model order.
+        order: ModelOrder,
+        /// Which case.
+        case: String,
+        /// Cause.
+        message: String,
+    },
     /// A simulation failed.
     #[error("{order:?}-state model, {case}: {source}")]
     Sim {
@@ -344,90 +230,81 @@ pub fn build_model(
     })
 }
 
-fn named_signal(
-    names: &[&'static str],
-    x: &[f64],
-    s: &crate::model::Signals,
-    name: &str,
-) -> Option<f64> {
-    // Same precedence as Solution columns: states first, then signals.
-    names
-        .iter()
-        .position(|n| *n == name)
-        .map(|i| x[i])
-        .or_else(|| s.get(name))
-}
-
-fn run_step<const N: usize, M: Model<N>>(
+fn run_order<const N: usize, M: Model<N>>(
     m: &M,
     order: ModelOrder,
     step: &VgtStep,
     co: &CompareOptions,
 ) -> Result<StepResponse, ExtensionError> {
-    let case = step.label();
-    let steady = |d: Drive| {
-        steady_state(m, &d).map_err(|source| ExtensionError::Steady {
-            order,
-            case: case.clone(),
-            source,
-        })
-    };
-    let before = steady(step.before())?;
-    let after = steady(step.after())?;
-    let sched = InputSchedule::steps(step.before(), &[(step.t_step, 3, step.u_vgt_to)])?;
     let sim_opts = SimOptions {
         rtol: co.rtol,
         atol: co.rtol * 1e-2,
         dt_out: co.dt_out,
         ..SimOptions::default()
     };
-    let sol = simulate(
-        m,
-        &sched,
-        0.0,
-        step.t_end,
-        Start::State(before.x),
-        &sim_opts,
-    )
-    .map_err(|source| ExtensionError::Sim {
-        order,
-        case: case.clone(),
-        source,
+    let case = step.label();
+    let run = run_step(m, &step.spec(), &sim_opts).map_err(|e| match e {
+        StepRunError::SteadyBefore { source, .. } | StepRunError::SteadyAfter { source, .. } => {
+            ExtensionError::Steady {
+                order,
+                case: case.clone(),
+                source,
+            }
+        }
+        StepRunError::Sim(source) => ExtensionError::Sim {
+            order,
+            case: case.clone(),
+            source,
+        },
+        StepRunError::Schedule(e) => ExtensionError::Schedule(e),
+        StepRunError::BadStep {
+            field,
+            value,
+            constraint,
+        } => ExtensionError::BadStep {
+            field,
+            value,
+            constraint,
+        },
     })?;
-    let names = m.state_names();
-    let pick = |x: &[f64], s: &crate::model::Signals| -> Vec<(String, f64)> {
+    let pick = |after: bool| -> Vec<(String, f64)> {
         co.signals
             .iter()
-            .map(|n| (n.clone(), named_signal(&names, x, s, n).unwrap_or(f64::NAN)))
+            .map(|n| {
+                let v = if after {
+                    run.value_after(n)
+                } else {
+                    run.value_before(n)
+                };
+                (n.clone(), v.unwrap_or(f64::NAN))
+            })
             .collect()
     };
     let series = co
         .signals
         .iter()
         .map(|n| {
-            let v = sol
+            let v = run
+                .sol
                 .get(n)
                 .map(|c| c.to_vec())
-                .unwrap_or_else(|| vec![f64::NAN; sol.len()]);
+                .unwrap_or_else(|| vec![f64::NAN; run.sol.len()]);
             (n.clone(), v)
         })
         .collect();
-    let w_c = response_features(
-        sol.t(),
-        sol.get("W_c").unwrap_or(&[]),
-        step.t_step,
-        before.signals.w_c,
-        after.signals.w_c,
-        step.u_vgt_to - step.u_vgt_from,
-    );
+    let w_c = run.metrics("W_c").map_err(|e| ExtensionError::Metrics {
+        order,
+        case: case.clone(),
+        message: e.to_string(),
+    })?;
     Ok(StepResponse {
         order,
-        t: sol.t().to_vec(),
+        t: run.sol.t().to_vec(),
         series,
-        steady_before: pick(&before.x, &before.signals),
-        steady_after: pick(&after.x, &after.signals),
+        steady_before: pick(false),
+        steady_after: pick(true),
         w_c,
-        steps: sol.stats.steps,
+        steps: run.sol.stats.steps,
     })
 }
 
@@ -468,10 +345,10 @@ pub fn compare_vgt_steps(
         .collect::<Result<Vec<_>, _>>()?;
     let mut out = Vec::with_capacity(steps.len());
     for step in steps {
-        step.check()?;
+        check_step(step)?;
         let mut responses = Vec::with_capacity(models.len());
         for (any, &order) in models.iter().zip(&co.orders) {
-            let r = crate::dispatch!(any, m => run_step(m, order, step, co))?;
+            let r = crate::dispatch!(any, m => run_order(m, order, step, co))?;
             responses.push(r);
         }
         let mut stationary = Vec::new();
@@ -614,26 +491,6 @@ pub fn cylinder_temp_study<const N: usize, M: Model<N>>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn response_features_hand_values() {
-        let t: Vec<f64> = (0..8).map(|i| i as f64).collect();
-        // step at t = 1 from 0 to 1: dips to -0.2 at t = 2, then rises without overshoot
-        let y = [0.0, 0.0, -0.2, -0.1, 0.3, 0.8, 1.0, 1.0];
-        let f = response_features(&t, &y, 1.0, 0.0, 1.0, -10.0);
-        assert!(f.nmp);
-        assert_eq!((f.nmp_extent, f.nmp_time, f.overshoot_pct), (0.2, 1.0, 0.0));
-        assert_eq!(f.dc_gain, -0.1);
-        // falling step from 2 to 1 with 30 % overshoot (down to 0.7), no dip
-        let y = [2.0, 2.0, 1.5, 0.7, 0.9, 1.0, 1.0, 1.0];
-        let f = response_features(&t, &y, 1.0, 2.0, 1.0, 5.0);
-        assert!(!f.nmp && f.nmp_extent == 0.0 && f.nmp_time.is_nan());
-        assert!((f.overshoot_pct - 30.0).abs() < 1e-12);
-        // a dip below the 0.5 % threshold is not NMP; one after the first move does not count
-        let y = [0.0, -0.004, 0.5, -0.5, 1.0, 1.0, 1.0, 1.0];
-        let f = response_features(&t, &y, 1.0, 0.0, 1.0, 1.0);
-        assert!(!f.nmp && (f.nmp_extent - 0.004).abs() < 1e-15);
-    }
 
     #[test]
     fn bad_steps_and_options_are_reported_by_name() {

@@ -2,6 +2,8 @@
 //! linearization, poles and transmission zeros, operating maps, step-response metrics, the
 //! section-9 extension comparison, the cylinder-out temperature study and the robustness sweep.
 
+pub mod component_maps;
+pub mod experiment;
 pub mod extensions;
 pub mod linearize;
 pub mod map;

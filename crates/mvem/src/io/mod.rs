@@ -4,6 +4,7 @@
 pub mod csv_inputs;
 pub mod output;
 pub mod params;
+pub mod params_toml;
 
 use std::path::PathBuf;
 

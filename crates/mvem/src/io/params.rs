@@ -166,7 +166,7 @@ pub fn load_params(path: &Path) -> Result<Params, IoError> {
 
 /// Serialize as TOML.
 pub fn to_toml(p: &Params) -> String {
-    toml::to_string_pretty(p).expect("parameters serialize")
+    super::params_toml::to_annotated_toml(p)
 }
 
 /// Serialize as (nested) JSON.

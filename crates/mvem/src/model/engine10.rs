@@ -20,6 +20,7 @@
 //! At an equilibrium the adiabatic balances give T_im = T_im,in and T_em = T_em,in, so the
 //! steady states equal those of [`Engine8`] (checked in `tests/extensions.rs`).
 
+use super::adiabatic::{self, ManifoldStates};
 use super::common::{self, embed, remap_indices, restrict, Ports, Shared};
 use super::Engine8;
 use super::{
@@ -27,7 +28,6 @@ use super::{
     Signals,
 };
 use crate::components::cylinder::SeligerIterate;
-use crate::components::manifold;
 use crate::params::{ParamIssues, Params};
 
 /// State indices of [`Engine10`].
@@ -199,23 +199,7 @@ impl Model<10> for Engine10 {
         x
     }
 
-    #[inline]
-    fn eval(&self, x: &[f64; 10], u: &ModelInput, memory: SeligerIterate) -> Evaluation<10> {
-        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
-        common::evaluation(sh, dx, at_limit)
-    }
-
-    #[inline]
-    fn derivatives(
-        &self,
-        x: &[f64; 10],
-        u: &ModelInput,
-        memory: SeligerIterate,
-    ) -> Derivatives<10> {
-        // The same code as `eval` without the signal-only work.
-        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
-        common::derivatives(&sh, dx)
-    }
+    eval_from_evaluate!(10);
 }
 
 impl Engine10 {
@@ -230,8 +214,6 @@ impl Engine10 {
     ) -> (Shared, [f64; 10], bool) {
         let p = self.params();
         let opts = self.options();
-        let gas = &p.gas;
-        let t_im_in = p.intake_manifold.t_im; // eq. (80): constant inflow temperature
 
         // States, clipped into the integrator limits (items 9-12, 37; temperature floors).
         let x = clip_state(x_raw, &self.bounds);
@@ -254,60 +236,23 @@ impl Engine10 {
         let sh = common::evaluate::<SIGNALS>(p, &self.base.cc, opts, &ports, u, memory);
         let sg = &sh.signals;
 
-        // Intake manifold, eq. (80): in W_ic + W_egr at T_im,in, out W_ei at T_im.
-        let w_in_im = sg.w_ic + sg.w_egr;
-        let im = manifold::adiabatic(
-            gas.r_a,
-            gas.c_va,
-            p.intake_manifold.v_im,
+        // The adiabatic manifolds, eqs (80), (81), (83): W_ic = W_c in, W_ei out.
+        let mx = ManifoldStates {
             p_im,
-            t_im,
-            w_in_im,
-            t_im_in * w_in_im,
-            sg.w_ei,
-        );
-        // Exhaust manifold, eq. (81): in W_eo at T_em,in (eq. (25)), out W_t + W_egr at T_em.
-        let em = manifold::adiabatic(
-            gas.r_e,
-            gas.c_ve,
-            p.exhaust_manifold.v_em,
             p_em,
-            t_em,
-            sg.w_eo,
-            sg.t_em_in * sg.w_eo,
-            sg.w_t + sg.w_egr,
-        );
-        // Oxygen mass fractions, eq. (83) (eq. (9) with the temperature states and W_ic).
-        let o_im = manifold::intake(
-            gas.r_a,
             t_im,
-            p.intake_manifold.v_im,
-            p_im,
+            t_em,
             x_oim,
             x_oem,
-            p.intake_manifold.x_oc,
-            sg.w_ic,
-            sg.w_egr,
-            sg.w_ei,
-        );
-        let o_em = manifold::exhaust(
-            gas.r_e,
-            t_em,
-            p.exhaust_manifold.v_em,
-            p_em,
-            x_oem,
-            sh.x_oe,
-            sg.w_eo,
-            sg.w_t,
-            sg.w_egr,
-        );
+        };
+        let m = adiabatic::manifolds(p, &sh, &mx, sg.w_ic, sg.w_ei);
         let mut dx = [
-            im.dp,
-            em.dp,
-            im.dt,
-            em.dt,
-            o_im.dx_o,
-            o_em.dx_o,
+            m.dp_im,
+            m.dp_em,
+            m.dt_im,
+            m.dt_em,
+            m.dx_oim,
+            m.dx_oem,
             sh.d_omega_t,
             sh.d_u_egr1,
             sh.d_u_egr2,

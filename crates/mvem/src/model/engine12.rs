@@ -23,6 +23,7 @@
 //!
 //! `k_ic` must be > 0 (k_ic -> 0 is the 10-state model, where p_c = p_im algebraically).
 
+use super::adiabatic::{self, ManifoldStates};
 use super::common::{self, embed, remap_indices, restrict, Ports, Shared};
 use super::engine10::{self, temperature_bounds, Engine10};
 use super::{
@@ -227,23 +228,7 @@ impl Model<12> for Engine12 {
         x
     }
 
-    #[inline]
-    fn eval(&self, x: &[f64; 12], u: &ModelInput, memory: SeligerIterate) -> Evaluation<12> {
-        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
-        common::evaluation(sh, dx, at_limit)
-    }
-
-    #[inline]
-    fn derivatives(
-        &self,
-        x: &[f64; 12],
-        u: &ModelInput,
-        memory: SeligerIterate,
-    ) -> Derivatives<12> {
-        // The same code as `eval` without the signal-only work.
-        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
-        common::derivatives(&sh, dx)
-    }
+    eval_from_evaluate!(12);
 }
 
 impl Engine12 {
@@ -297,62 +282,26 @@ impl Engine12 {
             sg.t_c * sg.w_c + t_im_in * w_ic_back,
             w_ic_fwd,
         );
-        // Intake manifold, eq. (80) with W_ic from eq. (86).
-        let w_in_im = w_ic_fwd + sg.w_egr;
-        let im = manifold::adiabatic(
-            gas.r_a,
-            gas.c_va,
-            p.intake_manifold.v_im,
+        // The adiabatic manifolds, eqs (80), (81), (83), with W_ic from eq. (86): the forward
+        // flow enters the intake manifold, the back flow leaves it with W_ei.
+        let mx = ManifoldStates {
             p_im,
-            t_im,
-            w_in_im,
-            t_im_in * w_in_im,
-            sg.w_ei + w_ic_back,
-        );
-        // Exhaust manifold, eq. (81).
-        let em = manifold::adiabatic(
-            gas.r_e,
-            gas.c_ve,
-            p.exhaust_manifold.v_em,
             p_em,
-            t_em,
-            sg.w_eo,
-            sg.t_em_in * sg.w_eo,
-            sg.w_t + sg.w_egr,
-        );
-        // Oxygen mass fractions, eq. (83) with W_ic (out-flows do not change a mass fraction).
-        let o_im = manifold::intake(
-            gas.r_a,
             t_im,
-            p.intake_manifold.v_im,
-            p_im,
+            t_em,
             x_oim,
             x_oem,
-            p.intake_manifold.x_oc,
-            w_ic_fwd,
-            sg.w_egr,
-            sg.w_ei,
-        );
-        let o_em = manifold::exhaust(
-            gas.r_e,
-            t_em,
-            p.exhaust_manifold.v_em,
-            p_em,
-            x_oem,
-            sh.x_oe,
-            sg.w_eo,
-            sg.w_t,
-            sg.w_egr,
-        );
+        };
+        let m = adiabatic::manifolds(p, &sh, &mx, w_ic_fwd, sg.w_ei + w_ic_back);
         let mut dx = [
-            im.dp,
-            em.dp,
+            m.dp_im,
+            m.dp_em,
             ic.dp,
-            im.dt,
-            em.dt,
+            m.dt_im,
+            m.dt_em,
             ic.dt,
-            o_im.dx_o,
-            o_em.dx_o,
+            m.dx_oim,
+            m.dx_oem,
             sh.d_omega_t,
             sh.d_u_egr1,
             sh.d_u_egr2,

@@ -162,18 +162,7 @@ impl Model<8> for Engine8 {
         x
     }
 
-    #[inline]
-    fn eval(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Evaluation<8> {
-        let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
-        common::evaluation(sh, dx, at_limit)
-    }
-
-    #[inline]
-    fn derivatives(&self, x: &[f64; 8], u: &ModelInput, memory: SeligerIterate) -> Derivatives<8> {
-        // The same code as `eval` without the signal-only work.
-        let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
-        common::derivatives(&sh, dx)
-    }
+    eval_from_evaluate!(8);
 }
 
 impl Engine8 {

@@ -4,11 +4,37 @@
 //! every algebraic signal, computed by one function, [`Model::eval`]. The 8-state model of the
 //! paper (sections 3-7) is [`Engine8`]; the section-9 extensions implement the same trait.
 
+/// `Model::eval` and `Model::derivatives` of a variant from its
+/// `evaluate::<SIGNALS>(x, u, memory) -> (Shared, dx, at_limit)`: one code path, with the
+/// signal-only work compiled out of `derivatives` (bitwise the same `dx` and memory).
+macro_rules! eval_from_evaluate {
+    ($n:literal) => {
+        #[inline]
+        fn eval(&self, x: &[f64; $n], u: &ModelInput, memory: SeligerIterate) -> Evaluation<$n> {
+            let (sh, dx, at_limit) = self.evaluate::<true>(x, u, memory);
+            common::evaluation(sh, dx, at_limit)
+        }
+
+        #[inline]
+        fn derivatives(
+            &self,
+            x: &[f64; $n],
+            u: &ModelInput,
+            memory: SeligerIterate,
+        ) -> Derivatives<$n> {
+            let (sh, dx, _) = self.evaluate::<false>(x, u, memory);
+            common::derivatives(&sh, dx)
+        }
+    };
+}
+
+mod adiabatic;
 mod any;
 mod common;
 mod engine10;
 mod engine12;
 mod engine8;
+pub mod meta;
 mod signals;
 
 pub use any::{AnyModel, ModelError, ModelOrder};
@@ -16,6 +42,7 @@ pub use any::{AnyModel, ModelError, ModelOrder};
 pub use engine10::{ix as ix10, Engine10, STATE_NAMES_10};
 pub use engine12::{ix as ix12, Engine12, STATE_NAMES_12};
 pub use engine8::{ix, Engine8, STATE_NAMES_8};
+pub use meta::VarMeta;
 pub use signals::{Guard, Signals};
 
 use crate::components::cylinder::SeligerIterate;

@@ -1,13 +1,15 @@
 //! Named algebraic signals of the model and the guard flags of the authors' implementation.
 
+use super::meta::VarMeta;
+
 macro_rules! signals {
-    ($( $(#[$doc:meta])* $field:ident => $name:literal ),* $(,)?) => {
+    ($( $field:ident => $name:literal, $unit:literal, $desc:literal; )*) => {
         /// Every algebraic signal of one model evaluation, computed in the same function as the
         /// derivatives so that logged signals cannot disagree with them. Names (see
         /// [`Signals::NAMES`]) are those of the reference data (`W_c`, `lambda_O`, ...).
         #[derive(Debug, Clone, Copy, PartialEq, Default)]
         pub struct Signals {
-            $( $(#[$doc])* pub $field: f64, )*
+            $( #[doc = concat!($desc, " [", $unit, "].")] pub $field: f64, )*
             /// Active guards and regimes ([`Guard`] bits).
             pub guards: u32,
         }
@@ -15,6 +17,12 @@ macro_rules! signals {
         impl Signals {
             /// Column names, in [`Signals::values`] order.
             pub const NAMES: &'static [&'static str] = &[$($name),*];
+            /// Name, unit and description of each signal, in [`Signals::NAMES`] order.
+            pub const META: &'static [VarMeta] = &[$(VarMeta {
+                name: $name,
+                unit: $unit,
+                description: $desc,
+            }),*];
             /// Number of named signals.
             pub const COUNT: usize = [$($name),*].len();
 
@@ -35,77 +43,76 @@ macro_rules! signals {
 }
 
 signals! {
-    /// Engine speed after the input saturation n_e [rpm] (item 1).
-    n_e => "n_e",
-    /// Injected fuel after the input saturation u_delta [mg/cycle/cylinder] (item 2).
-    u_delta => "u_delta",
-    /// EGR command after saturation, undelayed u_egr [%] (item 3).
-    u_egr => "u_egr",
-    /// VGT command after saturation, undelayed u_vgt [%] (item 4).
-    u_vgt => "u_vgt",
-    /// Effective EGR valve position used by the flow model [%] (eq. (39) or the switch, item 6).
-    u_egr_actual => "u_egr_actual",
-    /// Effective VGT position used by the flow model [%] (eq. (57) state or the switch, item 6).
-    u_vgt_actual => "u_vgt_actual",
-    /// Compressor mass flow W_c [kg/s], eq. (72).
-    w_c => "W_c",
-    /// EGR mass flow W_egr [kg/s], eq. (32).
-    w_egr => "W_egr",
-    /// Turbine mass flow W_t [kg/s], eq. (55).
-    w_t => "W_t",
-    /// Cylinder in-flow W_ei [kg/s], eq. (11).
-    w_ei => "W_ei",
-    /// Cylinder out-flow W_eo [kg/s], eq. (14).
-    w_eo => "W_eo",
-    /// Fuel flow W_f [kg/s], eq. (13).
-    w_f => "W_f",
-    /// Cylinder-out temperature T_e [K], eq. (17).
-    t_e => "T_e",
-    /// Exhaust manifold temperature T_em [K], eq. (25) (a state in the 10/12-state models).
-    t_em => "T_em",
-    /// Compressor outlet temperature T_c [K], eq. (58).
-    t_c => "T_c",
-    /// Residual gas fraction used in this evaluation x_r [-], eq. (22).
-    x_r => "x_r",
-    /// Temperature at inlet valve closing used in this evaluation T_1 [K], eq. (21).
-    t_1 => "T_1",
-    /// EGR fraction x_egr [-], eq. (7) (authors: <= 0.9).
-    x_egr => "x_egr",
-    /// Oxygen-to-fuel ratio lambda_O [-], eq. (15).
-    lambda_o => "lambda_O",
-    /// Cylinder-out oxygen mass fraction X_Oe [-], eq. (16).
-    x_oe => "X_Oe",
-    /// Engine torque M_e [Nm], eq. (26).
-    m_e => "M_e",
-    /// Turbo speed n_t [rpm].
-    n_t => "n_t",
-    /// Compressor efficiency eta_c [-], eq. (62).
-    eta_c => "eta_c",
-    /// Total turbine efficiency eta_tm [-], eq. (49).
-    eta_tm => "eta_tm",
-    /// Blade speed ratio BSR [-], eq. (50).
-    bsr => "BSR",
-    /// Compressor pressure ratio Pi_c [-], eq. (59)/(87).
-    pi_c => "Pi_c",
-    /// Turbine pressure ratio Pi_t [-], eq. (44).
-    pi_t => "Pi_t",
-    /// Compressor power P_c [W], eq. (61).
-    p_c => "P_c",
-    /// Turbine power times mechanical efficiency P_t eta_m [W], eq. (48).
-    p_t_eta_m => "P_t_eta_m",
-    /// Volumetric efficiency eta_vol [-], eq. (12).
-    eta_vol => "eta_vol",
-    /// EGR pressure ratio Pi_egr [-], eq. (35).
-    pi_egr => "Pi_egr",
-    /// Intake manifold temperature T_im [K] (constant in the 8-state model).
-    t_im => "T_im",
-    /// Pressure after the compressor p_c [Pa] (= p_im in the 8- and 10-state models).
-    p_c_out => "p_c",
-    /// Intercooler mass flow W_ic [kg/s] (= W_c in the 8- and 10-state models, eq. (82)).
-    w_ic => "W_ic",
-    /// Temperature of the flow into the exhaust manifold T_em,in [K]: the value of eq. (25)
-    /// (= T_em in the 8-state model; the inflow temperature of eq. (81) in the 10/12-state models).
-    t_em_in => "T_em_in",
+    n_e => "n_e", "rpm",
+        "Engine speed after the input saturation n_e (item 1)";
+    u_delta => "u_delta", "mg/cycle",
+        "Injected fuel per cycle and cylinder after the input saturation u_delta (item 2)";
+    u_egr => "u_egr", "%",
+        "EGR command after saturation, undelayed u_egr (item 3)";
+    u_vgt => "u_vgt", "%",
+        "VGT command after saturation, undelayed u_vgt (item 4)";
+    u_egr_actual => "u_egr_actual", "%",
+        "Effective EGR valve position used by the flow model (eq. (39) or the switch, item 6)";
+    u_vgt_actual => "u_vgt_actual", "%",
+        "Effective VGT position used by the flow model (eq. (57) state or the switch, item 6)";
+    w_c => "W_c", "kg/s",
+        "Compressor mass flow W_c, eq. (72)";
+    w_egr => "W_egr", "kg/s",
+        "EGR mass flow W_egr, eq. (32)";
+    w_t => "W_t", "kg/s",
+        "Turbine mass flow W_t, eq. (55)";
+    w_ei => "W_ei", "kg/s",
+        "Cylinder in-flow W_ei, eq. (11)";
+    w_eo => "W_eo", "kg/s",
+        "Cylinder out-flow W_eo, eq. (14)";
+    w_f => "W_f", "kg/s",
+        "Fuel flow W_f, eq. (13)";
+    t_e => "T_e", "K",
+        "Cylinder-out temperature T_e, eq. (17)";
+    t_em => "T_em", "K",
+        "Exhaust manifold temperature T_em, eq. (25) (a state in the 10/12-state models)";
+    t_c => "T_c", "K",
+        "Compressor outlet temperature T_c, eq. (58)";
+    x_r => "x_r", "-",
+        "Residual gas fraction used in this evaluation x_r, eq. (22)";
+    t_1 => "T_1", "K",
+        "Temperature at inlet valve closing used in this evaluation T_1, eq. (21)";
+    x_egr => "x_egr", "-",
+        "EGR fraction x_egr, eq. (7) (authors: <= 0.9)";
+    lambda_o => "lambda_O", "-",
+        "Oxygen-to-fuel ratio lambda_O, eq. (15)";
+    x_oe => "X_Oe", "-",
+        "Cylinder-out oxygen mass fraction X_Oe, eq. (16)";
+    m_e => "M_e", "Nm",
+        "Engine torque M_e, eq. (26)";
+    n_t => "n_t", "rpm",
+        "Turbo speed n_t";
+    eta_c => "eta_c", "-",
+        "Compressor efficiency eta_c, eq. (62)";
+    eta_tm => "eta_tm", "-",
+        "Total turbine efficiency eta_tm, eq. (49)";
+    bsr => "BSR", "-",
+        "Blade speed ratio BSR, eq. (50)";
+    pi_c => "Pi_c", "-",
+        "Compressor pressure ratio Pi_c, eq. (59)/(87)";
+    pi_t => "Pi_t", "-",
+        "Turbine pressure ratio Pi_t, eq. (44)";
+    p_c => "P_c", "W",
+        "Compressor power P_c, eq. (61)";
+    p_t_eta_m => "P_t_eta_m", "W",
+        "Turbine power times mechanical efficiency P_t eta_m, eq. (48)";
+    eta_vol => "eta_vol", "-",
+        "Volumetric efficiency eta_vol, eq. (12)";
+    pi_egr => "Pi_egr", "-",
+        "EGR pressure ratio Pi_egr, eq. (35)";
+    t_im => "T_im", "K",
+        "Intake manifold temperature T_im (constant in the 8-state model)";
+    p_c_out => "p_c", "Pa",
+        "Pressure after the compressor p_c (= p_im in the 8- and 10-state models)";
+    w_ic => "W_ic", "kg/s",
+        "Intercooler mass flow W_ic (= W_c in the 8- and 10-state models, eq. (82))";
+    t_em_in => "T_em_in", "K",
+        "Temperature of the flow into the exhaust manifold T_em,in: the value of eq. (25) (= T_em in the 8-state model; the inflow temperature of eq. (81) in the 10/12-state models)";
 }
 
 macro_rules! guards {

@@ -7,241 +7,227 @@
 //! Units are SI unless a field says otherwise; actuator positions are in percent, engine speed
 //! polynomials take rpm/1000 as the paper does (eq. (31)).
 
+mod meta;
 mod validate;
 
+pub use meta::{FieldMeta, GroupMeta, ParamInfo, Scalars};
 pub use validate::{ParamIssue, ParamIssues};
 
 use serde::{Deserialize, Serialize};
 
-/// Thermodynamic properties of air and exhaust gas (section 3).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Gas {
-    /// Specific heat of air at constant pressure c_pa [J/(kg K)].
-    pub c_pa: f64,
-    /// Specific heat of exhaust gas at constant pressure c_pe [J/(kg K)].
-    pub c_pe: f64,
-    /// Specific heat of air at constant volume c_Va [J/(kg K)] (eqs (17), (19), (80)).
-    pub c_va: f64,
-    /// Specific heat of exhaust gas at constant volume c_Ve [J/(kg K)] (eq. (81)).
-    pub c_ve: f64,
-    /// Gas constant of air R_a [J/(kg K)].
-    pub r_a: f64,
-    /// Gas constant of exhaust gas R_e [J/(kg K)].
-    pub r_e: f64,
-    /// Ratio of specific heats of air gamma_a [-].
-    pub gamma_a: f64,
-    /// Ratio of specific heats of exhaust gas gamma_e [-].
-    pub gamma_e: f64,
+/// Declares one parameter group: the struct (serde, `deny_unknown_fields`) and its metadata
+/// ([`FieldMeta`]: description and the symbol and unit of every scalar) from one list, so that
+/// names, units and descriptions are written once (the field docs are generated from them).
+macro_rules! param_group {
+    (
+        $title:literal
+        $(#[$doc:meta])*
+        $name:ident $key:literal {
+            $( $field:ident : $ty:ty { $( $sym:ident : $unit:literal ),+ } $desc:literal ; )*
+        }
+    ) => {
+        #[doc = concat!($title, ".")]
+        $(#[$doc])*
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            $(
+                #[doc = concat!($desc, ".")]
+                $( #[doc = concat!("- `", stringify!($sym), "` [", $unit, "]")] )+
+                pub $field: $ty,
+            )*
+        }
+
+        impl $name {
+            /// Metadata of the fields, in declaration (file) order.
+            pub const META: GroupMeta = GroupMeta {
+                key: $key,
+                title: $title,
+                fields: &[$(FieldMeta {
+                    name: stringify!($field),
+                    description: $desc,
+                    shape: <$ty as Scalars>::SHAPE,
+                    elements: &[$((stringify!($sym), $unit)),+],
+                }),*],
+            };
+
+            /// The scalars of field `name` in row-major order (`None` for an unknown field).
+            pub fn scalars(&self, name: &str) -> Option<&[f64]> {
+                match name {
+                    $(stringify!($field) => Some(Scalars::flat(&self.$field)),)*
+                    _ => None,
+                }
+            }
+
+            /// The scalars of field `name`, mutable.
+            pub fn scalars_mut(&mut self, name: &str) -> Option<&mut [f64]> {
+                match name {
+                    $(stringify!($field) => Some(Scalars::flat_mut(&mut self.$field)),)*
+                    _ => None,
+                }
+            }
+        }
+    };
 }
 
-/// Ambient conditions (compressor inlet and turbine outlet, eqs (44), (59)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Ambient {
-    /// Ambient pressure p_amb [Pa]; also the turbine outlet pressure p_es (eq. (44)).
-    pub p_amb: f64,
-    /// Ambient temperature T_amb [K].
-    pub t_amb: f64,
+param_group! {
+    "Thermodynamic properties of air and exhaust gas (section 3)"
+    Gas "gas" {
+        c_pa: f64 { c_pa: "J/(kg K)" } "Specific heat of air at constant pressure";
+        c_pe: f64 { c_pe: "J/(kg K)" } "Specific heat of exhaust gas at constant pressure";
+        c_va: f64 { c_va: "J/(kg K)" } "Specific heat of air at constant volume c_Va (eqs (17), (19), (80))";
+        c_ve: f64 { c_ve: "J/(kg K)" } "Specific heat of exhaust gas at constant volume c_Ve (eq. (81))";
+        r_a: f64 { r_a: "J/(kg K)" } "Gas constant of air R_a";
+        r_e: f64 { r_e: "J/(kg K)" } "Gas constant of exhaust gas R_e";
+        gamma_a: f64 { gamma_a: "-" } "Ratio of specific heats of air";
+        gamma_e: f64 { gamma_e: "-" } "Ratio of specific heats of exhaust gas";
+    }
 }
 
-/// Intake manifold control volume (eqs (6)-(9)) and the ideal intercooler (eq. (73)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IntakeManifold {
-    /// Intake manifold volume V_im [m^3] (lumped with the intercooler volume).
-    pub v_im: f64,
-    /// Intake manifold temperature T_im [K] = intercooler cooling temperature (eq. (73)).
-    pub t_im: f64,
-    /// Oxygen mass fraction of air X_Oc [-] (eq. (9)).
-    pub x_oc: f64,
+param_group! {
+    "Ambient conditions (compressor inlet and turbine outlet, eqs (44), (59))"
+    Ambient "ambient" {
+        p_amb: f64 { p_amb: "Pa" } "Ambient pressure; also the turbine outlet pressure p_es (eq. (44))";
+        t_amb: f64 { t_amb: "K" } "Ambient temperature T_amb (eq. (59))";
+    }
 }
 
-/// Exhaust manifold control volume (eqs (6), (9)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ExhaustManifold {
-    /// Exhaust manifold volume V_em [m^3].
-    pub v_em: f64,
+param_group! {
+    "Intake manifold control volume (eqs (6)-(9)) and the ideal intercooler (eq. (73))"
+    IntakeManifold "intake_manifold" {
+        v_im: f64 { v_im: "m^3" } "Intake manifold volume V_im, lumped with the intercooler volume (eq. (6))";
+        t_im: f64 { t_im: "K" } "Intake manifold temperature T_im = intercooler cooling temperature (eq. (73))";
+        x_oc: f64 { x_oc: "-" } "Oxygen mass fraction of air X_Oc (eq. (9))";
+    }
 }
 
-/// Cylinder: flow (11)-(16), cylinder-out temperature (17)-(24), torque (26)-(31).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Cylinder {
-    /// Displaced volume V_d [m^3].
-    pub v_d: f64,
-    /// Number of cylinders n_cyl [-].
-    pub n_cyl: f64,
-    /// Compression ratio r_c [-].
-    pub r_c: f64,
-    /// Heating value of the fuel q_HV [J/kg].
-    pub q_hv: f64,
-    /// Stoichiometric air-to-fuel ratio (A/F)_s [-]; (O/F)_s = afs * x_oc (authors' implementation).
-    pub afs: f64,
-    /// Volumetric efficiency coefficients [c_vol1 [Pa^-1/2], c_vol2 [rpm^-1/2], c_vol3 [-]] (eq. (12)).
-    pub c_vol: [f64; 3],
-    /// Compensation factor for non-ideal cycles eta_sc [-] (eq. (17)).
-    pub eta_sc: f64,
-    /// Ratio of fuel consumed during constant-volume combustion x_cv [-] (eq. (17)).
-    pub x_cv: f64,
-    /// Ratio of specific heats in the cylinder gamma_cyl [-] (eq. (29); `gamma_c` in the authors' files).
-    pub gamma_c: f64,
-    /// Combustion chamber efficiency eta_igch [-] (eq. (29)).
-    pub eta_igch: f64,
-    /// Friction mean effective pressure polynomial [c_fric1, c_fric2, c_fric3] [bar] in n_e/1000 (eq. (30)).
-    pub c_fric: [f64; 3],
+param_group! {
+    "Exhaust manifold control volume (eqs (6), (9))"
+    ExhaustManifold "exhaust_manifold" {
+        v_em: f64 { v_em: "m^3" } "Exhaust manifold volume V_em (eq. (6))";
+    }
 }
 
-/// Exhaust pipe heat loss between cylinder and exhaust manifold (eq. (25)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ExhaustPipe {
-    /// Wall temperature T_w [K] (the paper writes T_amb; implementation notes item 21).
-    pub t_w: f64,
-    /// Total heat transfer coefficient h_tot [W/(m^2 K)].
-    pub h_tot: f64,
-    /// Pipe diameter d_pipe [m].
-    pub d_pipe: f64,
-    /// Pipe length l_pipe [m] (omitted in the paper's eq. (25)).
-    pub l_pipe: f64,
-    /// Number of pipes n_pipe [-].
-    pub n_pipe: f64,
+param_group! {
+    "Cylinder: flow (11)-(16), cylinder-out temperature (17)-(24), torque (26)-(31)"
+    Cylinder "cylinder" {
+        v_d: f64 { v_d: "m^3" } "Displaced volume V_d (eqs (11), (27))";
+        n_cyl: f64 { n_cyl: "-" } "Number of cylinders n_cyl (eqs (11), (13))";
+        r_c: f64 { r_c: "-" } "Compression ratio r_c (eqs (12), (18), (29))";
+        q_hv: f64 { q_hv: "J/kg" } "Heating value of the fuel q_HV (eqs (17), (27))";
+        afs: f64 { afs: "-" } "Stoichiometric air-to-fuel ratio (A/F)_s; (O/F)_s = afs * x_oc (authors' implementation, eq. (15))";
+        c_vol: [f64; 3] { c_vol1: "Pa^-1/2", c_vol2: "rpm^-1/2", c_vol3: "-" } "Volumetric efficiency coefficients (eq. (12))";
+        eta_sc: f64 { eta_sc: "-" } "Compensation factor for non-ideal cycles eta_sc (eq. (17))";
+        x_cv: f64 { x_cv: "-" } "Ratio of fuel consumed during constant-volume combustion x_cv (eq. (17))";
+        gamma_c: f64 { gamma_c: "-" } "Ratio of specific heats in the cylinder gamma_cyl (eq. (29); `gamma_c` in the authors' files)";
+        eta_igch: f64 { eta_igch: "-" } "Combustion chamber efficiency eta_igch (eq. (29))";
+        c_fric: [f64; 3] { c_fric1: "bar", c_fric2: "bar", c_fric3: "bar" } "Friction mean effective pressure polynomial in n_e/1000 (eq. (30))";
+    }
 }
 
-/// EGR valve mass flow (eqs (32)-(38)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EgrValve {
-    /// Maximum effective area A_egrmax [m^2] (eq. (37)).
-    pub a_egrmax: f64,
-    /// Optimal pressure ratio Pi_egropt [-] (eqs (34)-(35)); must lie in (0, 1).
-    pub pi_egropt: f64,
-    /// Area polynomial [c_egr1 [%^-2], c_egr2 [%^-1], c_egr3 [-]] (eq. (38)).
-    pub c_egr: [f64; 3],
+param_group! {
+    "Exhaust pipe heat loss between cylinder and exhaust manifold (eq. (25))"
+    ExhaustPipe "exhaust_pipe" {
+        t_w: f64 { t_w: "K" } "Wall temperature T_w (eq. (25); the paper writes T_amb, implementation notes item 21)";
+        h_tot: f64 { h_tot: "W/(m^2 K)" } "Total heat transfer coefficient h_tot (eq. (25))";
+        d_pipe: f64 { d_pipe: "m" } "Pipe diameter d_pipe (eq. (25))";
+        l_pipe: f64 { l_pipe: "m" } "Pipe length l_pipe (omitted in the paper's eq. (25))";
+        n_pipe: f64 { n_pipe: "-" } "Number of pipes n_pipe (eq. (25))";
+    }
 }
 
-/// EGR valve actuator: two first-order systems and a transport delay (eqs (39)-(41)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EgrActuator {
-    /// Time constant tau_egr1 [s].
-    pub tau_egr1: f64,
-    /// Time constant tau_egr2 [s].
-    pub tau_egr2: f64,
-    /// Transport delay tau_degr [s].
-    pub tau_degr: f64,
-    /// Overshoot gain K_egr [-] (eq. (39)).
-    pub k_egr: f64,
+param_group! {
+    "EGR valve mass flow (eqs (32)-(38))"
+    EgrValve "egr_valve" {
+        a_egrmax: f64 { a_egrmax: "m^2" } "Maximum effective area A_egrmax (eq. (37))";
+        pi_egropt: f64 { pi_egropt: "-" } "Optimal pressure ratio Pi_egropt, in (0, 1) (eqs (34)-(35))";
+        c_egr: [f64; 3] { c_egr1: "%^-2", c_egr2: "%^-1", c_egr3: "-" } "Effective area polynomial (eq. (38))";
+    }
 }
 
-/// Turbine flow (52)-(56) and efficiency (43)-(51).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Turbine {
-    /// Maximum turbine area A_vgtmax [m^2] (eq. (52)).
-    pub a_vgtmax: f64,
-    /// Choking exponent K_t [-] (eq. (53)).
-    pub k_t: f64,
-    /// Ellipse parameter c_f1 [-] (eq. (56)).
-    pub c_f1: f64,
-    /// Ellipse parameter c_f2 [-] (eq. (56)).
-    pub c_f2: f64,
-    /// Ellipse parameter c_vgt1 [%] (eq. (56)).
-    pub c_vgt1: f64,
-    /// Ellipse parameter c_vgt2 [%] (eq. (56)).
-    pub c_vgt2: f64,
-    /// Turbine blade radius R_t [m] (eq. (50)).
-    pub r_t: f64,
-    /// Maximum turbine efficiency eta_tm,max [-] (eq. (49)).
-    pub eta_tmmax: f64,
-    /// Optimal blade speed ratio BSR_opt [-] (eq. (49)).
-    pub bsr_opt: f64,
-    /// c_m parameters [c_m1 [-], c_m2 [rad/s], c_m3 [-]] (eq. (51)).
-    pub c_m: [f64; 3],
-    /// Turbo speed below which c_m is linear in omega_t, w_tlin [rad/s] (authors' implementation, item 33).
-    pub w_tlin: f64,
-    /// Value of c_m at w_tlin for the linear branch, c_mlin [-] (authors' implementation, item 33).
-    pub c_mlin: f64,
+param_group! {
+    "EGR valve actuator: two first-order systems and a transport delay (eqs (39)-(41))"
+    EgrActuator "egr_actuator" {
+        tau_egr1: f64 { tau_egr1: "s" } "Time constant tau_egr1 (eq. (40))";
+        tau_egr2: f64 { tau_egr2: "s" } "Time constant tau_egr2 (eq. (41))";
+        tau_degr: f64 { tau_degr: "s" } "Transport delay tau_degr (eqs (40)-(41))";
+        k_egr: f64 { k_egr: "-" } "Overshoot gain K_egr (eq. (39))";
+    }
 }
 
-/// VGT actuator: first-order system with transport delay (eq. (57)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct VgtActuator {
-    /// Time constant tau_vgt [s].
-    pub tau_vgt: f64,
-    /// Transport delay tau_dvgt [s].
-    pub tau_dvgt: f64,
+param_group! {
+    "Turbine flow (52)-(56) and efficiency (43)-(51)"
+    Turbine "turbine" {
+        a_vgtmax: f64 { a_vgtmax: "m^2" } "Maximum turbine area A_vgtmax (eq. (52))";
+        k_t: f64 { k_t: "-" } "Choking exponent K_t (eq. (53))";
+        c_f1: f64 { c_f1: "-" } "Effective area ellipse parameter c_f1 (eq. (56))";
+        c_f2: f64 { c_f2: "-" } "Effective area ellipse parameter c_f2 (eq. (56))";
+        c_vgt1: f64 { c_vgt1: "%" } "Effective area ellipse parameter c_vgt1 (eq. (56))";
+        c_vgt2: f64 { c_vgt2: "%" } "Effective area ellipse parameter c_vgt2 (eq. (56))";
+        r_t: f64 { r_t: "m" } "Turbine blade radius R_t (eq. (50))";
+        eta_tmmax: f64 { eta_tmmax: "-" } "Maximum turbine efficiency eta_tm,max (eq. (49))";
+        bsr_opt: f64 { bsr_opt: "-" } "Optimal blade speed ratio BSR_opt (eq. (49))";
+        c_m: [f64; 3] { c_m1: "-", c_m2: "rad/s", c_m3: "-" } "c_m(omega_t) parameters (eq. (51))";
+        w_tlin: f64 { w_tlin: "rad/s" } "Turbo speed below which c_m is linear in omega_t (authors' implementation item 33, eq. (51))";
+        c_mlin: f64 { c_mlin: "-" } "Value of c_m at w_tlin for the linear branch (authors' implementation item 33, eq. (51))";
+    }
 }
 
-/// Compressor efficiency (58)-(65) and mass flow (66)-(72).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Compressor {
-    /// Compressor blade radius R_c [m] (eqs (66)-(67)).
-    pub r_c: f64,
-    /// Ellipse centre c_Psi2 [-] (eq. (68)).
-    pub c_psi2: f64,
-    /// Ellipse centre c_Phi2 [-] (eq. (68)).
-    pub c_phi2: f64,
-    /// c_Psi1(omega_t) polynomial [c_wPsi1 [s^2], c_wPsi2 [s], c_wPsi3 [-]] in omega_t [rad/s] (eq. (69)).
-    pub c_wpsi: [f64; 3],
-    /// c_Phi1(omega_t) polynomial [c_wPhi1 [s^2], c_wPhi2 [s], c_wPhi3 [-]] in omega_t [rad/s] (eq. (70)).
-    pub c_wphi: [f64; 3],
-    /// Maximum compressor efficiency eta_cmax [-] (eq. (62)).
-    pub eta_cmax: f64,
-    /// Optimal mass flow W_copt [kg/s] (eq. (63)).
-    pub w_copt: f64,
-    /// Optimal transformed pressure ratio pi_copt [-] (eq. (63)).
-    pub pi_copt: f64,
-    /// Pressure-ratio transformation exponent c_pi [-] (eq. (64)).
-    pub c_pi: f64,
-    /// Efficiency ellipse matrix Q_c = [[a1, a3], [a3, a2]] (eq. (65)); symmetric positive semidefinite.
-    pub q_c: [[f64; 2]; 2],
+param_group! {
+    "VGT actuator: first-order system with transport delay (eq. (57))"
+    VgtActuator "vgt_actuator" {
+        tau_vgt: f64 { tau_vgt: "s" } "Time constant tau_vgt (eq. (57))";
+        tau_dvgt: f64 { tau_dvgt: "s" } "Transport delay tau_dvgt (eq. (57))";
+    }
 }
 
-/// Turbocharger shaft (eq. (42)).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Turbo {
-    /// Turbocharger inertia J_t [kg m^2].
-    pub j_t: f64,
+param_group! {
+    "Compressor efficiency (58)-(65) and mass flow (66)-(72)"
+    Compressor "compressor" {
+        r_c: f64 { r_c: "m" } "Compressor blade radius R_c (eqs (66)-(67))";
+        c_psi2: f64 { c_psi2: "-" } "Flow ellipse centre c_Psi2 (eq. (68))";
+        c_phi2: f64 { c_phi2: "-" } "Flow ellipse centre c_Phi2 (eq. (68))";
+        c_wpsi: [f64; 3] { c_wpsi1: "s^2", c_wpsi2: "s", c_wpsi3: "-" } "c_Psi1(omega_t) polynomial in omega_t [rad/s] (eq. (69))";
+        c_wphi: [f64; 3] { c_wphi1: "s^2", c_wphi2: "s", c_wphi3: "-" } "c_Phi1(omega_t) polynomial in omega_t [rad/s] (eq. (70))";
+        eta_cmax: f64 { eta_cmax: "-" } "Maximum compressor efficiency eta_c,max (eq. (62))";
+        w_copt: f64 { w_copt: "kg/s" } "Optimal mass flow W_c,opt (eq. (63))";
+        pi_copt: f64 { pi_copt: "-" } "Optimal transformed pressure ratio pi_c,opt (eq. (63))";
+        c_pi: f64 { c_pi: "-" } "Pressure-ratio transformation exponent c_pi (eq. (64))";
+        q_c: [[f64; 2]; 2] { a1: "-", a3: "-", a3: "-", a2: "-" } "Efficiency ellipse matrix Q_c = [[a1, a3], [a3, a2]], symmetric positive semidefinite (eq. (65))";
+    }
 }
 
-/// Initial values of the authors' Simulink file (not model constants). mvem starts from the
-/// steady state by default; these are used by `--init authors` style starts and are kept so
-/// that a parameter file round-trips.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Initial {
-    /// Initial intake manifold pressure [Pa].
-    pub p_im: f64,
-    /// Initial exhaust manifold pressure [Pa].
-    pub p_em: f64,
-    /// Initial turbo speed [rad/s].
-    pub omega_t: f64,
-    /// Initial residual gas fraction memory x_r [-].
-    pub x_r: f64,
-    /// Initial T_1 memory [K].
-    pub t_1: f64,
-    /// Initial EGR actuator states and delay output [%].
-    pub u_egr: f64,
-    /// Initial VGT actuator state and delay output [%].
-    pub u_vgt: f64,
+param_group! {
+    "Turbocharger shaft (eq. (42))"
+    Turbo "turbo" {
+        j_t: f64 { j_t: "kg m^2" } "Turbocharger inertia J_t (eq. (42))";
+    }
 }
 
-/// Intercooler control volume of the 12-state extension (section 9.2, eqs (85)-(87)).
-/// Not part of the published set; the defaults are derived from physics in
-/// `docs/extensions.md` (the paper tunes both to data that are not published).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Intercooler {
-    /// Volume between compressor and intercooler V_ic [m^3] (eq. (85)); must be > 0.
-    pub v_ic: f64,
-    /// Intercooler flow restriction k_ic [Pa^2 s^2/(K kg^2)] of eq. (86),
-    /// W_ic = sqrt(p_c (p_c - p_im) / (T_ic k_ic)); must be > 0 for the 12-state model.
-    pub k_ic: f64,
+param_group! {
+    "Initial values of the authors' Simulink file (not model constants)"
+    /// mvem starts from the
+    /// steady state by default; these are used by `--init authors` style starts and are kept so
+    /// that a parameter file round-trips.
+    Initial "initial" {
+        p_im: f64 { p_im: "Pa" } "Initial intake manifold pressure (authors' file, not used by default)";
+        p_em: f64 { p_em: "Pa" } "Initial exhaust manifold pressure (authors' file, not used by default)";
+        omega_t: f64 { omega_t: "rad/s" } "Initial turbo speed (authors' file, not used by default)";
+        x_r: f64 { x_r: "-" } "Initial residual gas fraction memory (eq. (22); authors' file)";
+        t_1: f64 { t_1: "K" } "Initial T_1 memory (eq. (21); authors' file)";
+        u_egr: f64 { u_egr: "%" } "Initial EGR actuator states and delay output (authors' file)";
+        u_vgt: f64 { u_vgt: "%" } "Initial VGT actuator state and delay output (authors' file)";
+    }
+}
+
+param_group! {
+    "Intercooler control volume of the 12-state extension (section 9.2, eqs (85)-(87))"
+    /// Not part of the published set; the defaults are derived from physics in
+    /// `docs/extensions.md` (the paper tunes both to data that are not published).
+    Intercooler "intercooler" {
+        v_ic: f64 { v_ic: "m^3" } "Volume between compressor and intercooler V_ic, > 0 (12-state model, eq. (85))";
+        k_ic: f64 { k_ic: "Pa^2 s^2/(K kg^2)" } "Intercooler flow restriction k_ic of W_ic = sqrt(p_c (p_c - p_im) / (T_ic k_ic)), > 0 (12-state model, eq. (86))";
+    }
 }
 
 impl Default for Intercooler {

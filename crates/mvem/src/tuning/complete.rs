@@ -486,74 +486,16 @@ pub fn static_params(order: ModelOrder) -> Vec<StaticParam> {
     v
 }
 
-/// Mutable reference to a tunable parameter by name (the names of [`STATIC_PARAMS`], the
-/// step-2 and step-3 names and the torque parameters).
+/// Mutable reference to a tunable parameter by name: its symbol (the names of
+/// [`STATIC_PARAMS`], the step-2 and step-3 names, `c_vol1`, `a3`, ...) or its path
+/// (`cylinder.c_vol[1]`), from the parameter registry ([`Params::get_mut`]).
 pub fn param_mut<'a>(p: &'a mut Params, name: &str) -> Option<&'a mut f64> {
-    let (c, t, e, k) = (
-        &mut p.cylinder,
-        &mut p.turbine,
-        &mut p.egr_valve,
-        &mut p.compressor,
-    );
-    Some(match name {
-        "c_vol1" => &mut c.c_vol[0],
-        "c_vol2" => &mut c.c_vol[1],
-        "c_vol3" => &mut c.c_vol[2],
-        "eta_igch" => &mut c.eta_igch,
-        "c_fric1" => &mut c.c_fric[0],
-        "c_fric2" => &mut c.c_fric[1],
-        "c_fric3" => &mut c.c_fric[2],
-        "eta_sc" => &mut c.eta_sc,
-        "x_cv" => &mut c.x_cv,
-        "h_tot" => &mut p.exhaust_pipe.h_tot,
-        "pi_egropt" => &mut e.pi_egropt,
-        "c_egr1" => &mut e.c_egr[0],
-        "c_egr2" => &mut e.c_egr[1],
-        "c_egr3" => &mut e.c_egr[2],
-        "eta_tmmax" => &mut t.eta_tmmax,
-        "bsr_opt" => &mut t.bsr_opt,
-        "c_m1" => &mut t.c_m[0],
-        "c_m2" => &mut t.c_m[1],
-        "c_m3" => &mut t.c_m[2],
-        "k_t" => &mut t.k_t,
-        "c_f1" => &mut t.c_f1,
-        "c_f2" => &mut t.c_f2,
-        "c_vgt1" => &mut t.c_vgt1,
-        "c_vgt2" => &mut t.c_vgt2,
-        "eta_cmax" => &mut k.eta_cmax,
-        "w_copt" => &mut k.w_copt,
-        "pi_copt" => &mut k.pi_copt,
-        "c_pi" => &mut k.c_pi,
-        "a1" => &mut k.q_c[0][0],
-        "a2" => &mut k.q_c[1][1],
-        "a3" => &mut k.q_c[0][1],
-        "c_psi2" => &mut k.c_psi2,
-        "c_phi2" => &mut k.c_phi2,
-        "c_wpsi1" => &mut k.c_wpsi[0],
-        "c_wpsi2" => &mut k.c_wpsi[1],
-        "c_wpsi3" => &mut k.c_wpsi[2],
-        "c_wphi1" => &mut k.c_wphi[0],
-        "c_wphi2" => &mut k.c_wphi[1],
-        "c_wphi3" => &mut k.c_wphi[2],
-        "tau_egr1" => &mut p.egr_actuator.tau_egr1,
-        "tau_egr2" => &mut p.egr_actuator.tau_egr2,
-        "tau_degr" => &mut p.egr_actuator.tau_degr,
-        "k_egr" => &mut p.egr_actuator.k_egr,
-        "tau_vgt" => &mut p.vgt_actuator.tau_vgt,
-        "tau_dvgt" => &mut p.vgt_actuator.tau_dvgt,
-        "v_im" => &mut p.intake_manifold.v_im,
-        "v_em" => &mut p.exhaust_manifold.v_em,
-        "j_t" => &mut p.turbo.j_t,
-        "v_ic" => &mut p.intercooler.v_ic,
-        "k_ic" => &mut p.intercooler.k_ic,
-        _ => return None,
-    })
+    p.get_mut(name)
 }
 
 /// Value of a tunable parameter by name (see [`param_mut`]).
 pub fn param_value(p: &Params, name: &str) -> Option<f64> {
-    let mut q = p.clone();
-    param_mut(&mut q, name).map(|v| *v)
+    p.get(name)
 }
 
 /// theta of eq. (77) from a parameter set.

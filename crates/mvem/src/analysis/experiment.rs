@@ -1,0 +1,406 @@
+//! The step experiment, in one place for every front end (`mvem step`, `mvem demo`, the
+//! extension comparison, Python's `step_response`): a step in one input from the steady state
+//! before it, simulated with the nonlinear model, measured against the steady states before and
+//! after ([`StepMetrics`]). Also the paper's two VGT steps (Figs 9-14, the authors' demo).
+//!
+//! ```
+//! use mvem::analysis::experiment::{run_step, VgtStep};
+//! use mvem::model::Engine8;
+//! use mvem::sim::SimOptions;
+//! let m = Engine8::published();
+//! let spec = VgtStep::paper_cases()[0].spec();
+//! let run = run_step(&m, &spec, &SimOptions::default()).unwrap();
+//! let w_c = run.metrics("W_c").unwrap();
+//! assert!(w_c.dc_gain < 0.0 && w_c.non_minimum_phase);
+//! ```
+
+use crate::analysis::steady::{steady_state, SteadyError, SteadyState};
+use crate::analysis::step::{StepError, StepMetrics};
+use crate::model::{Drive, Model};
+use crate::sim::{simulate, InputSchedule, ScheduleError, SimError, SimOptions, Solution, Start};
+use serde::{Deserialize, Serialize};
+
+/// A step in one input from a steady state: the inputs `before`, input `input` (index in
+/// [`Drive::to_array`]: n_e, u_delta, u_egr, u_vgt) jumps to `to` at `t_step`; simulated from
+/// t = 0 (at the steady state of `before`) to `t_end`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepSpec {
+    /// Inputs before the step.
+    pub before: Drive,
+    /// The stepped input (0 n_e, 1 u_delta, 2 u_egr, 3 u_vgt).
+    pub input: usize,
+    /// Value of the stepped input after the step (its unit).
+    pub to: f64,
+    /// Step time [s].
+    pub t_step: f64,
+    /// End of the simulation [s].
+    pub t_end: f64,
+}
+
+impl StepSpec {
+    /// Inputs after the step.
+    pub fn after(&self) -> Drive {
+        let mut a = self.before.to_array();
+        a[self.input] = self.to;
+        Drive::from_array(a)
+    }
+
+    /// Value of the stepped input before the step.
+    pub fn from(&self) -> f64 {
+        self.before.to_array()[self.input]
+    }
+
+    /// Input change du = to - from (unit of the input).
+    pub fn du(&self) -> f64 {
+        self.to - self.from()
+    }
+
+    /// Name of the stepped input (`u_vgt`).
+    pub fn input_name(&self) -> &'static str {
+        Drive::NAMES[self.input]
+    }
+
+    /// Check the definition (finite values, a known input, 0 <= t_step < t_end, a change).
+    pub fn check(&self) -> Result<(), StepRunError> {
+        let bad = |field, value, constraint| {
+            Err(StepRunError::BadStep {
+                field,
+                value,
+                constraint,
+            })
+        };
+        if self.input >= 4 {
+            return bad(
+                "input",
+                self.input as f64,
+                "must be 0..3 (n_e, u_delta, u_egr, u_vgt)",
+            );
+        }
+        for (field, value) in Drive::NAMES.iter().zip(self.before.to_array()) {
+            if !value.is_finite() {
+                return bad(field, value, "must be finite");
+            }
+        }
+        for (field, value) in [
+            ("to", self.to),
+            ("t_step", self.t_step),
+            ("t_end", self.t_end),
+        ] {
+            if !value.is_finite() {
+                return bad(field, value, "must be finite");
+            }
+        }
+        if self.t_step < 0.0 {
+            return bad("t_step", self.t_step, "must be >= 0");
+        }
+        if self.t_end <= self.t_step {
+            return bad("t_end", self.t_end, "must be after t_step");
+        }
+        if self.to == self.from() {
+            return bad("to", self.to, "must differ from the value before the step");
+        }
+        Ok(())
+    }
+
+    /// The input schedule: `before`, then the step at `t_step`.
+    pub fn schedule(&self) -> Result<InputSchedule, ScheduleError> {
+        InputSchedule::steps(self.before, &[(self.t_step, self.input, self.to)])
+    }
+}
+
+/// Why a step experiment failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepRunError {
+    /// The step definition is invalid.
+    #[error("step: {field} = {value}: {constraint}")]
+    BadStep {
+        /// Field name.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Constraint.
+        constraint: &'static str,
+    },
+    /// The input schedule could not be built.
+    #[error(transparent)]
+    Schedule(#[from] ScheduleError),
+    /// No steady state before the step.
+    #[error("steady state before the step ({}): {source}", fmt_drive(.drive))]
+    SteadyBefore {
+        /// The inputs.
+        drive: Drive,
+        /// Cause.
+        source: SteadyError,
+    },
+    /// No steady state after the step.
+    #[error("steady state after the step ({}): {source}", fmt_drive(.drive))]
+    SteadyAfter {
+        /// The inputs.
+        drive: Drive,
+        /// Cause.
+        source: SteadyError,
+    },
+    /// The simulation failed.
+    #[error("simulation failed: {0}")]
+    Sim(#[source] SimError),
+}
+
+fn fmt_drive(d: &Drive) -> String {
+    format!(
+        "n_e {} rpm, u_delta {} mg, u_egr {} %, u_vgt {} %",
+        d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
+    )
+}
+
+/// Why the metrics of one output could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OutputError {
+    /// The name is neither a state nor a signal.
+    #[error("unknown output {0:?}")]
+    Unknown(String),
+    /// The metrics are undefined (e.g. no change).
+    #[error(transparent)]
+    Metrics(#[from] StepError),
+}
+
+/// A simulated step with the steady states before and after it.
+#[derive(Debug, Clone)]
+pub struct StepRun<const N: usize> {
+    /// The step.
+    pub spec: StepSpec,
+    /// State names of the model.
+    pub state_names: [&'static str; N],
+    /// Steady state at the inputs before the step (the initial state of the simulation).
+    pub steady_before: SteadyState<N>,
+    /// Steady state at the inputs after the step (the final values of the metrics).
+    pub steady_after: SteadyState<N>,
+    /// The simulation from t = 0 to `t_end`.
+    pub sol: Solution,
+}
+
+/// Value of a state or signal `name` at a steady state of a model with the states
+/// `state_names` (states first, as in the [`Solution`] columns).
+fn named<const N: usize>(state_names: &[&str; N], ss: &SteadyState<N>, name: &str) -> Option<f64> {
+    match state_names.iter().position(|s| *s == name) {
+        Some(i) => Some(ss.x[i]),
+        None => ss.signals.get(name),
+    }
+}
+
+/// Value of a state or signal `name` at the steady state `ss` of the model `m`.
+pub fn steady_value<const N: usize, M: Model<N>>(
+    m: &M,
+    ss: &SteadyState<N>,
+    name: &str,
+) -> Option<f64> {
+    named(&m.state_names(), ss, name)
+}
+
+impl<const N: usize> StepRun<N> {
+    /// Value of a state or signal at the steady state before the step.
+    pub fn value_before(&self, name: &str) -> Option<f64> {
+        named(&self.state_names, &self.steady_before, name)
+    }
+
+    /// Value of a state or signal at the steady state after the step.
+    pub fn value_after(&self, name: &str) -> Option<f64> {
+        named(&self.state_names, &self.steady_after, name)
+    }
+
+    /// Step metrics of the output `name` (a state or signal), from the steady state before
+    /// to the steady state after the step.
+    pub fn metrics(&self, name: &str) -> Result<StepMetrics, OutputError> {
+        let unknown = || OutputError::Unknown(name.to_string());
+        let y = self.sol.get(name).ok_or_else(unknown)?;
+        let y0 = self.value_before(name).ok_or_else(unknown)?;
+        let y1 = self.value_after(name).ok_or_else(unknown)?;
+        Ok(StepMetrics::compute(
+            self.sol.t(),
+            y,
+            self.spec.t_step,
+            y0,
+            y1,
+            self.spec.du(),
+        )?)
+    }
+
+    /// Why the steady states are not physical equilibria (empty if both are), e.g.
+    /// `steady state before the step: lambda_O<1`.
+    pub fn flags(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (when, ss) in [
+            ("before", &self.steady_before),
+            ("after", &self.steady_after),
+        ] {
+            if !ss.physically_valid() {
+                out.push(format!(
+                    "steady state {when} the step: {}",
+                    ss.flags.join(", ")
+                ));
+            }
+        }
+        out
+    }
+}
+
+/// Run the step experiment `spec` on the model `m`: the steady states before and after the
+/// step, and the simulation from the one before with the options `opts`.
+pub fn run_step<const N: usize, M: Model<N>>(
+    m: &M,
+    spec: &StepSpec,
+    opts: &SimOptions,
+) -> Result<StepRun<N>, StepRunError> {
+    spec.check()?;
+    let (before, after) = (spec.before, spec.after());
+    let steady_before = steady_state(m, &before).map_err(|source| StepRunError::SteadyBefore {
+        drive: before,
+        source,
+    })?;
+    let steady_after = steady_state(m, &after).map_err(|source| StepRunError::SteadyAfter {
+        drive: after,
+        source,
+    })?;
+    let sched = spec.schedule()?;
+    let sol = simulate(
+        m,
+        &sched,
+        0.0,
+        spec.t_end,
+        Start::State(steady_before.x),
+        opts,
+    )
+    .map_err(StepRunError::Sim)?;
+    Ok(StepRun {
+        spec: *spec,
+        state_names: m.state_names(),
+        steady_before,
+        steady_after,
+        sol,
+    })
+}
+
+/// A step in the VGT command from a steady state (the paper's section-9 experiment).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VgtStep {
+    /// Engine speed n_e [rpm].
+    pub n_e_rpm: f64,
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    pub u_delta_mg: f64,
+    /// EGR command u_egr [%].
+    pub u_egr_pct: f64,
+    /// VGT command before the step [%].
+    pub u_vgt_from: f64,
+    /// VGT command after the step [%].
+    pub u_vgt_to: f64,
+    /// Step time [s] (the simulation starts at 0 from the steady state).
+    pub t_step: f64,
+    /// End of the simulation [s].
+    pub t_end: f64,
+}
+
+impl VgtStep {
+    /// The two steps of the paper's Figs 11-14 (the authors' runSimEngine demonstration):
+    /// (1500 rpm, 110 mg, 80 %), u_vgt 75 -> 65 % (NMP, negative DC gain in W_c) and
+    /// 30 -> 25 % (overshoot, positive DC gain), at t = 1 s, simulated to 8 s.
+    pub fn paper_cases() -> [VgtStep; 2] {
+        let c = |from, to| VgtStep {
+            n_e_rpm: 1500.0,
+            u_delta_mg: 110.0,
+            u_egr_pct: 80.0,
+            u_vgt_from: from,
+            u_vgt_to: to,
+            t_step: 1.0,
+            t_end: 8.0,
+        };
+        [c(75.0, 65.0), c(30.0, 25.0)]
+    }
+
+    /// Inputs before the step.
+    pub fn before(&self) -> Drive {
+        Drive::new(
+            self.n_e_rpm,
+            self.u_delta_mg,
+            self.u_egr_pct,
+            self.u_vgt_from,
+        )
+    }
+
+    /// Inputs after the step.
+    pub fn after(&self) -> Drive {
+        Drive::new(self.n_e_rpm, self.u_delta_mg, self.u_egr_pct, self.u_vgt_to)
+    }
+
+    /// The step as a [`StepSpec`] (input u_vgt).
+    pub fn spec(&self) -> StepSpec {
+        StepSpec {
+            before: self.before(),
+            input: 3,
+            to: self.u_vgt_to,
+            t_step: self.t_step,
+            t_end: self.t_end,
+        }
+    }
+
+    /// A short label, e.g. `u_vgt 75->65 % at 1500 rpm, 110 mg, u_egr 80 %`.
+    pub fn label(&self) -> String {
+        format!(
+            "u_vgt {}->{} % at {} rpm, {} mg, u_egr {} %",
+            self.u_vgt_from, self.u_vgt_to, self.n_e_rpm, self.u_delta_mg, self.u_egr_pct
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Engine8;
+
+    #[test]
+    fn run_step_is_the_steady_start_simulation_and_its_metrics() {
+        // the experiment by hand (steady states, simulation from the one before, metrics)
+        // gives bitwise the same numbers
+        let m = Engine8::published();
+        let spec = VgtStep::paper_cases()[1].spec();
+        let opts = SimOptions::default();
+        let run = run_step(&m, &spec, &opts).unwrap();
+        let ss0 = steady_state(&m, &spec.before).unwrap();
+        let ss1 = steady_state(&m, &spec.after()).unwrap();
+        let sched = InputSchedule::steps(spec.before, &[(1.0, 3, 25.0)]).unwrap();
+        let sol = simulate(&m, &sched, 0.0, 8.0, Start::State(ss0.x), &opts).unwrap();
+        assert_eq!(run.sol.t(), sol.t());
+        assert_eq!(run.sol.get("W_c"), sol.get("W_c"));
+        let by_hand = StepMetrics::compute(
+            sol.t(),
+            sol.get("W_c").unwrap(),
+            1.0,
+            ss0.signals.w_c,
+            ss1.signals.w_c,
+            -5.0,
+        )
+        .unwrap();
+        assert_eq!(run.metrics("W_c").unwrap(), by_hand);
+        assert_eq!(run.value_before("p_im"), Some(ss0.x[0]));
+        assert!(run.flags().is_empty());
+        assert!(matches!(
+            run.metrics("nonsense"),
+            Err(OutputError::Unknown(_))
+        ));
+    }
+
+    #[test]
+    fn bad_steps_are_refused_naming_the_field() {
+        let m = Engine8::published();
+        let mut spec = VgtStep::paper_cases()[0].spec();
+        spec.to = spec.from();
+        let e = run_step(&m, &spec, &SimOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("to = 75"), "{e}");
+        spec.to = 65.0;
+        spec.t_end = 0.5;
+        let e = run_step(&m, &spec, &SimOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("t_end"), "{e}");
+        spec.t_end = 8.0;
+        spec.before.n_e_rpm = f64::NAN;
+        let e = run_step(&m, &spec, &SimOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("n_e"), "{e}");
+    }
+}
