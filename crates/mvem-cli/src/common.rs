@@ -375,25 +375,7 @@ pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
 }
 
 /// Unit of a state or signal column, for tables and axis labels.
-pub fn unit(name: &str) -> &'static str {
-    match name {
-        "t" => "s",
-        "p_im" | "p_em" | "p_c" => "Pa",
-        "X_Oim" | "X_Oem" | "X_Oe" | "x_r" | "x_egr" | "lambda_O" | "eta_c" | "eta_tm" | "BSR"
-        | "Pi_c" | "Pi_t" | "eta_vol" | "Pi_egr" => "-",
-        "omega_t" => "rad/s",
-        "u_egr1" | "u_egr2" | "u_vgt_act" | "u_egr" | "u_vgt" | "u_egr_actual" | "u_vgt_actual" => {
-            "%"
-        }
-        "n_e" | "n_t" => "rpm",
-        "u_delta" => "mg/cycle",
-        "W_c" | "W_egr" | "W_t" | "W_ei" | "W_eo" | "W_f" | "W_ic" => "kg/s",
-        "T_e" | "T_em" | "T_c" | "T_1" | "T_im" | "T_ic" => "K",
-        "M_e" => "Nm",
-        "P_c" | "P_t_eta_m" => "W",
-        _ => "",
-    }
-}
+pub use mvem::io::json::unit;
 
 /// A value with 8 significant digits, plain for magnitudes in [1e-3, 1e7), scientific otherwise.
 pub fn fmt_value(v: f64) -> String {
