@@ -37,6 +37,7 @@ Examples:
   mvem params check my_params.toml
   mvem fmu --out mvem.fmu --model 10
   mvem robustness --runs 10000 --model all --out robustness.md
+  mvem serve --open
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -83,6 +84,9 @@ enum Command {
     TeStudy(commands::te_study::Args),
     /// Robustness sweep: random inputs and start states; panics, NaN/inf, invariants.
     Robustness(commands::robustness::Args),
+    /// Web explorer: a local page and JSON API (steady state, linearization, steps, maps,
+    /// drive cycles).
+    Serve(commands::serve::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -127,6 +131,7 @@ fn main() -> ExitCode {
         Command::CompareModels(a) => commands::compare_models::run(a),
         Command::TeStudy(a) => commands::te_study::run(a),
         Command::Robustness(a) => commands::robustness::run(a),
+        Command::Serve(a) => commands::serve::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -4,14 +4,10 @@
 
 use crate::common::{self, ModelArgs, PointArgs};
 use anyhow::{Context, Result};
-use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeOptions};
+use mvem::analysis::linearize::{linearize_steady, LinearizeOptions};
 use mvem::analysis::steady::{steady_state, SteadyState};
-use mvem::analysis::zeros::{
-    dc_gain_matrix, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS,
-};
 use mvem::model::Model;
-use nalgebra::DMatrix;
-use serde_json::{json, Map, Value};
+use serde_json::Value;
 
 /// Arguments of `mvem linearize`.
 #[derive(Debug, clap::Args)]
@@ -104,29 +100,6 @@ pub fn options(outputs: &[String], pade: usize) -> Result<LinearizeOptions> {
     Ok(o)
 }
 
-fn cjson(z: &Complex<f64>) -> Value {
-    json!({"re": z.re, "im": z.im})
-}
-
-fn rows(m: &DMatrix<f64>) -> Value {
-    Value::Array(
-        (0..m.nrows())
-            .map(|i| json!((0..m.ncols()).map(|j| m[(i, j)]).collect::<Vec<f64>>()))
-            .collect(),
-    )
-}
-
-fn state_unit(name: &str) -> &'static str {
-    if name.starts_with("pade_") {
-        "%"
-    } else {
-        common::unit(name)
-    }
-}
-
-/// Input units in `INPUT_NAMES` order.
-const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
-
 /// The whole analysis of the steady state `ss` as the JSON object of the contract.
 pub fn analyse<const N: usize, M: Model<N>>(
     m: &M,
@@ -139,101 +112,7 @@ pub fn analyse<const N: usize, M: Model<N>>(
         }
         other => anyhow::Error::new(other).context("linearization"),
     })?;
-    Ok(to_json(&lin, ss))
-}
-
-fn to_json<const N: usize>(lin: &LinearModel, ss: &SteadyState<N>) -> Value {
-    let zo = ZeroOptions::default();
-    let mut o = Map::new();
-    let d = ss.drive;
-    o.insert(
-        "operating_point".into(),
-        json!({"n_e_rpm": d.n_e_rpm, "u_delta_mg": d.u_delta_mg, "u_egr_pct": d.u_egr_pct, "u_vgt_pct": d.u_vgt_pct}),
-    );
-    o.insert("physically_valid".into(), json!(ss.physically_valid()));
-    o.insert("flags".into(), json!(ss.flags));
-    o.insert("pade_order".into(), json!(lin.pade_order));
-    o.insert(
-        "delays_s".into(),
-        json!({"u_egr": lin.delays[0], "u_vgt": lin.delays[1]}),
-    );
-    o.insert("state_names".into(), json!(lin.state_names));
-    o.insert("input_names".into(), json!(lin.input_names));
-    o.insert("output_names".into(), json!(lin.output_names));
-    o.insert(
-        "units".into(),
-        json!({
-            "states": lin.state_names.iter().map(|s| state_unit(s)).collect::<Vec<_>>(),
-            "inputs": INPUT_UNITS,
-            "outputs": lin.output_names.iter().map(|s| common::unit(s)).collect::<Vec<_>>(),
-            "time": "s",
-            "dc_gain": "output unit per input unit",
-        }),
-    );
-    o.insert("x0".into(), json!(lin.x0));
-    o.insert("y0".into(), json!(lin.y0));
-    o.insert("A".into(), rows(&lin.a));
-    o.insert("B".into(), rows(&lin.b));
-    o.insert("C".into(), rows(&lin.c));
-    o.insert("D".into(), rows(&lin.d));
-    o.insert(
-        "eigenvalues".into(),
-        match poles(lin) {
-            Ok(p) => Value::Array(p.iter().map(cjson).collect()),
-            Err(_) => Value::Null,
-        },
-    );
-    let mut zeros = Map::new();
-    let mut errors = Map::new();
-    for i in &lin.input_names {
-        for out in &lin.output_names {
-            let key = format!("{i}->{out}");
-            match siso(lin, i, out, &zo) {
-                Ok(c) => {
-                    zeros.insert(
-                        key,
-                        Value::Array(c.zeros.finite.iter().map(cjson).collect()),
-                    );
-                }
-                Err(e) => {
-                    zeros.insert(key.clone(), Value::Null);
-                    errors.insert(key, json!(e.to_string()));
-                }
-            }
-        }
-    }
-    match mimo_zeros(lin, &MIMO_INPUTS, &MIMO_OUTPUTS, &zo) {
-        Ok(z) => {
-            zeros.insert(
-                "MIMO".into(),
-                Value::Array(z.finite.iter().map(cjson).collect()),
-            );
-        }
-        Err(e) => {
-            zeros.insert("MIMO".into(), Value::Null);
-            errors.insert("MIMO".into(), json!(e.to_string()));
-        }
-    }
-    o.insert("zeros".into(), Value::Object(zeros));
-    o.insert(
-        "mimo".into(),
-        json!({"inputs": MIMO_INPUTS, "outputs": MIMO_OUTPUTS}),
-    );
-    if !errors.is_empty() {
-        o.insert("zero_errors".into(), Value::Object(errors));
-    }
-    o.insert(
-        "dc_gain".into(),
-        match dc_gain_matrix(lin) {
-            Ok(g) => rows(&g),
-            Err(_) => Value::Null,
-        },
-    );
-    o.insert(
-        "kinks".into(),
-        json!(lin.kinks.iter().map(|k| k.to_string()).collect::<Vec<_>>()),
-    );
-    Value::Object(o)
+    Ok(mvem::io::json::linear_model_json(&lin, ss))
 }
 
 fn fmt_c(z: &Value) -> String {

@@ -11,6 +11,7 @@ pub mod map;
 pub mod params;
 pub mod report;
 pub mod robustness;
+pub mod serve;
 pub mod simulate;
 pub mod steady;
 pub mod step;

@@ -4,7 +4,6 @@ use crate::common::{self, ModelArgs};
 use anyhow::{Context, Result};
 use mvem::analysis::steady::{steady_state, SteadyState};
 use mvem::model::{Drive, Model, Signals};
-use serde_json::{json, Map, Value};
 
 /// Arguments of `mvem steady`.
 #[derive(Debug, clap::Args)]
@@ -46,7 +45,10 @@ fn report<const N: usize, M: Model<N>>(m: &M, d: &Drive, json: bool) -> Result<b
     let ss = steady_state(m, d).context("steady state")?;
     let valid = ss.physically_valid();
     if json {
-        println!("{}", serde_json::to_string_pretty(&to_json(m, &ss))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&mvem::io::json::steady_json(m, &ss))?
+        );
     } else {
         print_tables(m, &ss);
     }
@@ -57,40 +59,6 @@ fn report<const N: usize, M: Model<N>>(m: &M, d: &Drive, json: bool) -> Result<b
         );
     }
     Ok(valid)
-}
-
-/// The flat JSON object of a steady state.
-pub fn to_json<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>) -> Value {
-    let mut o = Map::new();
-    for (n, v) in m.state_names().iter().zip(ss.x) {
-        o.insert(n.to_string(), json!(v));
-    }
-    // T_im, T_em, p_c are states of the 10/12-state models: keep the state value
-    for (n, v) in Signals::NAMES.iter().zip(ss.signals.values()) {
-        o.entry(n.to_string()).or_insert(json!(v));
-    }
-    o.insert("physically_valid".into(), json!(ss.physically_valid()));
-    o.insert("flags".into(), json!(ss.flags));
-    o.insert(
-        "eigenvalues".into(),
-        Value::Array(
-            ss.eigenvalues
-                .iter()
-                .map(|(re, im)| json!({"re": re, "im": im}))
-                .collect(),
-        ),
-    );
-    o.insert(
-        "inputs".into(),
-        json!({
-            "n_e_rpm": ss.drive.n_e_rpm,
-            "u_delta_mg": ss.drive.u_delta_mg,
-            "u_egr_pct": ss.drive.u_egr_pct,
-            "u_vgt_pct": ss.drive.u_vgt_pct,
-        }),
-    );
-    o.insert("residual".into(), json!(ss.residual));
-    Value::Object(o)
 }
 
 fn print_tables<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>) {

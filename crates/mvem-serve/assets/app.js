@@ -1,0 +1,524 @@
+// mvem explorer: the single-page app of `mvem serve` (plain JS, canvas; no library, no build step).
+// Every number comes from the server's JSON API (docs/serve.md), which shares its code with the CLI.
+"use strict";
+(() => {
+  const INPUTS = ["n_e", "u_delta", "u_egr", "u_vgt"];
+  // signals of the steady-state table: name, description
+  const SIGNALS = [
+    ["p_im", "intake manifold pressure"], ["p_em", "exhaust manifold pressure"],
+    ["W_c", "compressor mass flow"], ["W_egr", "EGR mass flow"], ["W_t", "turbine mass flow"],
+    ["x_egr", "EGR fraction"], ["lambda_O", "oxygen/fuel ratio"], ["M_e", "engine torque"],
+    ["n_t", "turbo speed"], ["T_em", "exhaust manifold temperature"], ["T_im", "intake manifold temperature"],
+    ["X_Oim", "O2 fraction, intake"], ["X_Oem", "O2 fraction, exhaust"], ["Pi_c", "compressor pressure ratio"],
+    ["eta_c", "compressor efficiency"], ["eta_tm", "turbine efficiency"], ["BSR", "blade speed ratio"],
+    ["u_egr_actual", "EGR valve position"], ["u_vgt_actual", "VGT position"],
+  ];
+  const $ = (s, r = document) => r.querySelector(s);
+  const $$ = (s, r = document) => Array.from(r.querySelectorAll(s));
+  const app = { units: {}, steady: null, step: null, map: null, cycle: null, seq: 0, shown: 0, inflight: false, again: false };
+  // hook for the drive-cycle panel: modes come from the server (/api/models "modes"); a label per mode
+  const MODE_LABELS = { open: "open loop", closed: "closed loop" };
+  window.mvem = app;
+
+  // ---------------------------------------------------------------------------------------------
+  // helpers
+
+  function fmt(v) {
+    if (v === null || v === undefined) return "–";
+    if (typeof v !== "number") return String(v);
+    if (!Number.isFinite(v)) return String(v);
+    if (v === 0) return "0";
+    const a = Math.abs(v);
+    return (a >= 1e-3 && a < 1e7) ? v.toPrecision(6) : v.toExponential(5);
+  }
+  const unit = (n) => app.units[n] ?? "";
+
+  async function api(path, body) {
+    const opts = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
+    const r = await fetch(path, opts);
+    let j = null;
+    try { j = await r.json(); } catch (_) { j = null; }
+    if (!r.ok) throw new Error((j && j.error) || `HTTP ${r.status}`);
+    return j;
+  }
+
+  function setStatus(s, text) {
+    const el = $("#status");
+    el.dataset.status = s;
+    el.textContent = text || s;
+  }
+
+  function showError(id, e) {
+    const el = $(id);
+    if (e) { el.textContent = String(e.message || e); el.hidden = false; } else { el.hidden = true; el.textContent = ""; }
+  }
+
+  function point() {
+    const p = {};
+    for (const n of INPUTS) p[n] = Number($(`input[name=${n}]`).value);
+    return p;
+  }
+  const modelSel = () => ({ model: Number($("select[name=model]").value), params: $("select[name=params]").value || undefined });
+
+  function download(name, rows) {
+    const text = rows.map((r) => r.map((c) => (typeof c === "string" && /[",\n]/.test(c)) ? `"${c.replace(/"/g, '""')}"` : String(c ?? "")).join(",")).join("\n") + "\n";
+    const a = document.createElement("a");
+    a.href = URL.createObjectURL(new Blob([text], { type: "text/csv" }));
+    a.download = name;
+    document.body.appendChild(a);
+    a.click();
+    setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 0);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // steady state: debounced, at most one request in flight, the latest inputs always win
+
+  let debounce = 0;
+  function scheduleSteady() {
+    clearTimeout(debounce);
+    debounce = setTimeout(requestSteady, 10);
+  }
+
+  async function requestSteady() {
+    if (app.inflight) { app.again = true; return; }
+    app.inflight = true;
+    const seq = ++app.seq;
+    const q = new URLSearchParams({ ...point(), model: modelSel().model });
+    if (modelSel().params) q.set("params", modelSel().params);
+    try {
+      const j = await api(`/api/steady?${q}`);
+      showSteady(j, seq);
+      showError("#steady-error", null);
+    } catch (e) {
+      showError("#steady-error", e);
+      $("#validity").dataset.valid = "";
+      $("#validity").textContent = "no equilibrium";
+    } finally {
+      app.inflight = false;
+      if (app.again) { app.again = false; requestSteady(); }
+    }
+  }
+
+  function showSteady(j, seq) {
+    app.steady = j;
+    for (const [n] of SIGNALS) {
+      const td = $(`[data-signal="${n}"]`);
+      if (!td) continue;
+      const v = j[n];
+      td.dataset.value = v === undefined ? "" : String(v);
+      td.textContent = fmt(v);
+    }
+    const ok = j.physically_valid === true;
+    $("#validity").dataset.valid = String(ok);
+    $("#validity").textContent = ok ? "✓ physically valid" : "✗ NOT physically valid";
+    const flags = $("#flags");
+    flags.dataset.flags = (j.flags || []).join(";");
+    flags.replaceChildren(...(j.flags || []).map((f) => {
+      const s = document.createElement("span");
+      s.className = "flag" + (f.startsWith("saturation") || f.startsWith("lambda") ? " invalidating" : "");
+      s.textContent = f;
+      return s;
+    }));
+    if (!(j.flags || []).length) flags.textContent = "no flags";
+    $("#eigenvalues").textContent = (j.eigenvalues || []).map((e) => e.im === 0 ? fmt(e.re) : `${fmt(e.re)}${e.im < 0 ? "−" : "+"}${fmt(Math.abs(e.im))}i`).join(", ");
+    app.shown = seq;
+    document.body.dataset.steadySeq = String(seq);
+    if (document.body.dataset.state !== "ready") {
+      // time from navigation start to the first values shown (page interactive)
+      document.body.dataset.readyMs = performance.now().toFixed(1);
+      document.body.dataset.state = "ready";
+    }
+  }
+
+  function buildSignalTable() {
+    const tb = $("#signals");
+    tb.replaceChildren(...SIGNALS.map(([n, d]) => {
+      const tr = document.createElement("tr");
+      tr.innerHTML = `<td>${n}</td><td class="v" data-signal="${n}">–</td><td class="u">${unit(n)}</td><td class="d">${d}</td>`;
+      return tr;
+    }));
+  }
+
+  function wireInputs() {
+    for (const n of INPUTS) {
+      const num = $(`input[name=${n}]`);
+      const sl = $(`input[data-slider=${n}]`);
+      sl.addEventListener("input", () => { num.value = sl.value; scheduleSteady(); });
+      num.addEventListener("input", () => {
+        const v = Number(num.value);
+        if (num.value !== "" && Number.isFinite(v)) { sl.value = String(v); scheduleSteady(); }
+      });
+    }
+    $("select[name=model]").addEventListener("change", scheduleSteady);
+    $("select[name=params]").addEventListener("change", scheduleSteady);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // plotting
+
+  const COLORS = ["#1f6feb", "#d1495b", "#2e7d32", "#8e44ad", "#e67e22", "#00897b", "#6d4c41", "#546e7a"];
+
+  function niceRange(lo, hi) {
+    if (!(Number.isFinite(lo) && Number.isFinite(hi))) return [0, 1];
+    if (lo === hi) { const d = Math.abs(lo) * 0.01 || 1; return [lo - d, hi + d]; }
+    const pad = (hi - lo) * 0.08;
+    return [lo - pad, hi + pad];
+  }
+
+  function ticks(lo, hi, n) {
+    const step0 = (hi - lo) / n;
+    const mag = Math.pow(10, Math.floor(Math.log10(step0)));
+    const step = [1, 2, 5, 10].map((k) => k * mag).find((s) => s >= step0) || step0;
+    const out = [];
+    for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
+    return out;
+  }
+
+  function tickLabel(v) {
+    const a = Math.abs(v);
+    if (a !== 0 && (a < 1e-3 || a >= 1e7)) return v.toExponential(2);
+    return String(Number(v.toPrecision(6)));
+  }
+
+  // the range of the values between the quantiles q and 1 - q (spikes of a drive cycle, such as
+  // lambda_O at zero fuel, would flatten everything else)
+  function robustRange(arrays, q) {
+    const all = [];
+    for (const y of arrays) for (const v of y) if (Number.isFinite(v)) all.push(v);
+    if (!all.length) return [0, 1];
+    all.sort((a, b) => a - b);
+    const at = (p) => all[Math.min(all.length - 1, Math.max(0, Math.round(p * (all.length - 1))))];
+    return [at(q), at(1 - q)];
+  }
+
+  // one panel: frame, ticks, title; returns the coordinate maps
+  function panel(ctx, box, xr, yr, title) {
+    const [x0, y0, w, h] = box;
+    const L = 56, R = 8, T = 16, B = 18;
+    const px = (x) => x0 + L + (x - xr[0]) / (xr[1] - xr[0]) * (w - L - R);
+    const py = (y) => y0 + T + (1 - (y - yr[0]) / (yr[1] - yr[0])) * (h - T - B);
+    ctx.save();
+    ctx.strokeStyle = "#c9ced8"; ctx.lineWidth = 1;
+    ctx.strokeRect(x0 + L, y0 + T, w - L - R, h - T - B);
+    ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
+    ctx.textAlign = "right"; ctx.textBaseline = "middle";
+    for (const v of ticks(yr[0], yr[1], 3)) {
+      ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
+      ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
+    }
+    ctx.textAlign = "center"; ctx.textBaseline = "top";
+    for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
+    ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.font = "12px system-ui, sans-serif";
+    ctx.fillText(title, x0 + L + 4, y0 + 2);
+    ctx.restore();
+    return { px, py, clip: [x0 + L, y0 + T, w - L - R, h - T - B] };
+  }
+
+  function line(ctx, p, xs, ys, color, width = 1.5, dash = []) {
+    ctx.save();
+    ctx.beginPath(); ctx.rect(...p.clip); ctx.clip();
+    ctx.strokeStyle = color; ctx.lineWidth = width; ctx.setLineDash(dash);
+    ctx.beginPath();
+    let started = false;
+    for (let i = 0; i < xs.length; i++) {
+      if (!Number.isFinite(ys[i])) { started = false; continue; }
+      const X = p.px(xs[i]), Y = p.py(ys[i]);
+      if (started) ctx.lineTo(X, Y); else { ctx.moveTo(X, Y); started = true; }
+    }
+    ctx.stroke();
+    ctx.restore();
+  }
+
+  function marker(ctx, X, Y, color, label, shape) {
+    ctx.save();
+    ctx.fillStyle = color; ctx.strokeStyle = "#fff"; ctx.lineWidth = 1;
+    ctx.beginPath();
+    if (shape === "tri") { ctx.moveTo(X, Y - 6); ctx.lineTo(X - 5, Y + 4); ctx.lineTo(X + 5, Y + 4); ctx.closePath(); }
+    else ctx.arc(X, Y, 4.5, 0, 2 * Math.PI);
+    ctx.fill(); ctx.stroke();
+    ctx.font = "bold 11px system-ui, sans-serif"; ctx.textBaseline = "middle"; ctx.textAlign = "left";
+    ctx.fillText(label, X + 7, Y);
+    ctx.restore();
+  }
+
+  function clearCanvas(c) {
+    const ctx = c.getContext("2d");
+    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, c.width, c.height);
+    return ctx;
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // step panel
+
+  async function runStep() {
+    const btn = $("[data-action=step]");
+    btn.disabled = true;
+    setStatus("busy", "running step…");
+    try {
+      const body = { point: point(), input: $("select[name=step_input]").value, target: Number($("input[name=step_target]").value),
+        horizon: Number($("input[name=step_horizon]").value), ...modelSel() };
+      const j = await api("/api/step", body);
+      app.step = j;
+      drawStep(j);
+      showError("#step-error", null);
+      $("[data-download=step]").disabled = false;
+      setStatus("ok", "ready");
+    } catch (e) {
+      showError("#step-error", e);
+      setStatus("ok", "ready");
+    } finally {
+      btn.disabled = false;
+    }
+  }
+
+  function drawStep(j) {
+    const c = $("[data-plot=step]");
+    const ctx = clearCanvas(c);
+    const names = Object.keys(j.series);
+    const panels = [{ name: `${j.input} [${j.input_unit}]`, y: j.u, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
+    const cols = 2, rows = Math.ceil(panels.length / cols);
+    const w = c.width / cols, h = c.height / rows;
+    const xr = [j.t[0], j.t[j.t.length - 1]];
+    let marks = { nmp: 0, overshoot: 0, dc: 0 };
+    panels.forEach((pn, k) => {
+      const box = [(k % cols) * w, Math.floor(k / cols) * h, w, h];
+      let lo = Math.min(...pn.y), hi = Math.max(...pn.y);
+      const m = pn.m;
+      if (m && !m.error) { lo = Math.min(lo, m.y0, m.y_final); hi = Math.max(hi, m.y0, m.y_final); }
+      const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${unit(pn.name)}/${j.input_unit}` : "");
+      const p = panel(ctx, box, xr, niceRange(lo, hi), title);
+      if (m && !m.error) {
+        line(ctx, p, xr, [m.y0, m.y0], "#9aa3b2", 1, [3, 3]);
+        line(ctx, p, xr, [m.y_final, m.y_final], "#2e7d32", 1, [6, 3]);
+        marks.dc++;
+      }
+      line(ctx, p, j.t, pn.y, pn.input ? "#546e7a" : COLORS[k % COLORS.length]);
+      if (m && !m.error) {
+        if (m.wrong_way && m.non_minimum_phase) {
+          marker(ctx, p.px(m.wrong_way.time), p.py(m.wrong_way.value), "#c62828", `NMP ${(100 * m.wrong_way.relative).toFixed(1)} %`, "dot");
+          marks.nmp++;
+        }
+        if (m.peak && m.overshoot_pct > 0.05) {
+          marker(ctx, p.px(m.peak.time), p.py(m.peak.value), "#e67e22", `overshoot ${m.overshoot_pct.toFixed(1)} %`, "tri");
+          marks.overshoot++;
+        }
+      }
+    });
+    c.dataset.series = String(panels.length);
+    c.dataset.marks = JSON.stringify(marks);
+    c.dataset.drawn = String(Date.now());
+    const tb = $("#metrics");
+    tb.replaceChildren(...names.map((n) => {
+      const m = j.outputs[n];
+      const tr = document.createElement("tr");
+      tr.dataset.metric = n;
+      if (m.error) { tr.innerHTML = `<td>${n}</td><td colspan="6">${m.error}</td>`; return tr; }
+      tr.innerHTML = `<td>${n} [${unit(n)}]</td><td data-field="dc_gain">${fmt(m.dc_gain)}</td><td>${m.gain_sign}</td>` +
+        `<td data-field="nmp">${m.non_minimum_phase ? (100 * m.wrong_way.relative).toFixed(2) + " % at " + m.wrong_way.time.toFixed(3) + " s" : "–"}</td>` +
+        `<td data-field="overshoot">${m.overshoot_pct.toFixed(2)} %</td><td>${m.rise_time === null ? "–" : m.rise_time.toFixed(3) + " s"}</td>` +
+        `<td>${m.settling_time === null ? "–" : m.settling_time.toFixed(3) + " s"}</td>`;
+      return tr;
+    }));
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // map panel
+
+  async function runMap() {
+    const btn = $("[data-action=map]");
+    btn.disabled = true;
+    setStatus("busy", "computing map…");
+    const n = Math.round(Number($("input[name=map_n]").value));
+    try {
+      const body = {
+        base: point(),
+        x: { input: $("select[name=map_x]").value, lo: Number($("input[name=map_x_lo]").value), hi: Number($("input[name=map_x_hi]").value), n },
+        y: { input: $("select[name=map_y]").value, lo: Number($("input[name=map_y_lo]").value), hi: Number($("input[name=map_y_hi]").value), n },
+        channel: { input: $("select[name=map_input]").value, output: $("select[name=map_output]").value },
+        ...modelSel(),
+      };
+      const t0 = performance.now();
+      const j = await api("/api/map", body);
+      app.map = j;
+      drawMap(j);
+      $("#map-info").textContent = `${j.dc_gain.length} points in ${((performance.now() - t0) / 1000).toFixed(2)} s; ` +
+        `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.errors.length} without a gain`;
+      showError("#map-error", null);
+      $("[data-download=map]").disabled = false;
+    } catch (e) {
+      showError("#map-error", e);
+    } finally {
+      btn.disabled = false;
+      setStatus("ok", "ready");
+    }
+  }
+
+  function drawMap(j) {
+    const c = $("[data-plot=map]");
+    const ctx = clearCanvas(c);
+    const xs = j.x.values, ys = j.y.values, nx = xs.length, ny = ys.length;
+    const L = 60, R = 16, T = 28, B = 64;
+    const w = (c.width - L - R) / nx, h = (c.height - T - B) / ny;
+    for (let i = 0; i < nx; i++) {
+      for (let k = 0; k < ny; k++) {
+        const idx = i * ny + k;
+        const s = j.sign[idx];
+        ctx.fillStyle = s === 1 ? "#5b8def" : s === -1 ? "#e4575f" : "#c9ced8";
+        if (!j.physically_valid[idx] && s !== null) ctx.fillStyle = s === 1 ? "#b9cdf7" : "#f3b7ba";
+        ctx.fillRect(L + i * w, T + (ny - 1 - k) * h, Math.ceil(w), Math.ceil(h));
+      }
+    }
+    ctx.strokeStyle = "#8a93a3"; ctx.strokeRect(L, T, nx * w, ny * h);
+    ctx.fillStyle = "#1d2330"; ctx.font = "12px system-ui, sans-serif"; ctx.textAlign = "left"; ctx.textBaseline = "top";
+    ctx.fillText(`sign of the DC gain ${j.channel.input} → ${j.channel.output}`, L, 6);
+    ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
+    ctx.textAlign = "center";
+    for (const v of ticks(xs[0], xs[nx - 1], 5)) ctx.fillText(tickLabel(v), L + (v - xs[0]) / (xs[nx - 1] - xs[0]) * (nx - 1) * w + w / 2, T + ny * h + 4);
+    ctx.fillText(`${j.x.input} [${j.x.unit}]`, L + nx * w / 2, T + ny * h + 20);
+    ctx.textAlign = "right"; ctx.textBaseline = "middle";
+    for (const v of ticks(ys[0], ys[ny - 1], 5)) ctx.fillText(tickLabel(v), L - 4, T + (ny - 1 - (v - ys[0]) / (ys[ny - 1] - ys[0]) * (ny - 1)) * h + h / 2);
+    ctx.save(); ctx.translate(14, T + ny * h / 2); ctx.rotate(-Math.PI / 2); ctx.textAlign = "center"; ctx.fillText(`${j.y.input} [${j.y.unit}]`, 0, 0); ctx.restore();
+    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
+    let x = L; ctx.textAlign = "left";
+    legend.forEach(([col, lab], k) => {
+      const y = T + ny * h + 36 + (k >= 3 ? 14 : 0);
+      if (k === 3) x = L;
+      ctx.fillStyle = col; ctx.fillRect(x, y, 10, 10);
+      ctx.fillStyle = "#5d6778"; ctx.textBaseline = "top"; ctx.fillText(lab, x + 14, y);
+      x += ctx.measureText(lab).width + 30;
+    });
+    c.dataset.cells = String(nx * ny);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // drive-cycle panel
+
+  const CYCLE_PANELS = [["u_egr", "u_vgt"], ["M_e"], ["p_im", "p_em"], ["W_c"], ["x_egr"], ["lambda_O"]];
+  let cycleImage = null;
+
+  async function runCycle() {
+    const btn = $("[data-action=cycle]");
+    btn.disabled = true;
+    setStatus("busy", "simulating the cycle…");
+    try {
+      const t0 = performance.now();
+      const j = await api("/api/simulate", { cycle: $("select[name=cycle]").value, mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() });
+      app.cycle = j;
+      drawCycle(j);
+      $("#cycle-info").textContent = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
+      const sl = $("input[name=cycle_t]");
+      sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
+      scrub();
+      showError("#cycle-error", null);
+      $("[data-download=cycle]").disabled = false;
+    } catch (e) {
+      showError("#cycle-error", e);
+    } finally {
+      btn.disabled = false;
+      setStatus("ok", "ready");
+    }
+  }
+
+  function cycleValue(j, n, i) {
+    return (j.series[n] ?? j.inputs[n])[i];
+  }
+
+  function drawCycle(j) {
+    const c = $("[data-plot=cycle]");
+    const ctx = clearCanvas(c);
+    const h = c.height / CYCLE_PANELS.length;
+    const xr = [j.t[0], j.t[j.t.length - 1]];
+    app.cyclePanels = CYCLE_PANELS.map((names, k) => {
+      const ys = names.map((n) => j.series[n] ?? j.inputs[n]);
+      const [lo, hi] = robustRange(ys, 0.002);
+      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), names.map((n) => `${n} [${unit(n)}]`).join(", "));
+      ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
+      return p;
+    });
+    cycleImage = ctx.getImageData(0, 0, c.width, c.height);
+    c.dataset.drawn = String(j.t.length);
+  }
+
+  function scrub() {
+    const j = app.cycle;
+    if (!j) return;
+    const i = Number($("input[name=cycle_t]").value);
+    const c = $("[data-plot=cycle]");
+    const ctx = c.getContext("2d");
+    if (cycleImage) ctx.putImageData(cycleImage, 0, 0);
+    const X = app.cyclePanels[0].px(j.t[i]);
+    ctx.save(); ctx.strokeStyle = "rgba(198,40,40,0.8)"; ctx.beginPath(); ctx.moveTo(X, 0); ctx.lineTo(X, c.height); ctx.stroke(); ctx.restore();
+    $("#cycle-time").textContent = j.t[i].toFixed(1);
+    const names = INPUTS.concat(Object.keys(j.series));
+    $("#cycle-values").replaceChildren(...names.map((n) => {
+      const tr = document.createElement("tr");
+      tr.innerHTML = `<td>${n}</td><td class="v" data-cycle-signal="${n}">${fmt(cycleValue(j, n, i))}</td><td class="u">${unit(n)}</td>`;
+      return tr;
+    }));
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // CSV downloads (of what is shown)
+
+  function downloads() {
+    $("[data-download=steady]").addEventListener("click", () => {
+      const j = app.steady;
+      if (!j) return;
+      const rows = [["name", "value", "unit"]];
+      for (const n of INPUTS) rows.push([n, point()[n], unit(n)]);
+      for (const [k, v] of Object.entries(j)) if (typeof v === "number") rows.push([k, v, unit(k)]);
+      rows.push(["physically_valid", j.physically_valid, ""], ["flags", (j.flags || []).join(";"), ""]);
+      download("steady.csv", rows);
+    });
+    $("[data-download=step]").addEventListener("click", () => {
+      const j = app.step;
+      if (!j) return;
+      const names = Object.keys(j.series);
+      const rows = [["t", j.input, ...names]];
+      j.t.forEach((t, i) => rows.push([t, j.u[i], ...names.map((n) => j.series[n][i])]));
+      download(`step_${j.input}.csv`, rows);
+    });
+    $("[data-download=map]").addEventListener("click", () => {
+      const j = app.map;
+      if (!j) return;
+      const rows = [[j.x.input, j.y.input, `dc_gain_${j.channel.input}_${j.channel.output}`, "sign", "physically_valid"]];
+      const ny = j.y.values.length;
+      j.dc_gain.forEach((g, idx) => rows.push([j.x.values[Math.floor(idx / ny)], j.y.values[idx % ny], g, j.sign[idx], j.physically_valid[idx]]));
+      download("map.csv", rows);
+    });
+    $("[data-download=cycle]").addEventListener("click", () => {
+      const j = app.cycle;
+      if (!j) return;
+      const names = Object.keys(j.series);
+      const rows = [["t", ...INPUTS, ...names]];
+      j.t.forEach((t, i) => rows.push([t, ...INPUTS.map((n) => j.inputs[n][i]), ...names.map((n) => j.series[n][i])]));
+      download(`${j.source}_${j.mode}.csv`, rows);
+    });
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // start
+
+  async function init() {
+    wireInputs();
+    downloads();
+    $("[data-action=step]").addEventListener("click", runStep);
+    $("[data-action=map]").addEventListener("click", runMap);
+    $("[data-action=cycle]").addEventListener("click", runCycle);
+    $("input[name=cycle_t]").addEventListener("input", scrub);
+    try {
+      const m = await api("/api/models");
+      app.units = m.units || {};
+      $("select[name=params]").replaceChildren(...m.params.map((p) => new Option(p, p)));
+      if (m.cycles.length) $("select[name=cycle]").replaceChildren(...m.cycles.map((cy) => new Option(cy === "whtc" ? "WHTC (built in)" : cy, cy)));
+      $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
+      setStatus("ok", "ready");
+    } catch (e) {
+      setStatus("error", `server: ${e.message}`);
+    }
+    buildSignalTable();
+    requestSteady();
+  }
+
+  init();
+})();

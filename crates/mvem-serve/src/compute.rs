@@ -1,0 +1,612 @@
+//! The computations behind the API: each takes a checked request and a model and returns the
+//! JSON answer. They run on the blocking pool (see `api::Work`); none touches the file system.
+
+use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
+use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
+use mvem::analysis::steady::steady_state;
+use mvem::analysis::step::StepMetrics;
+use mvem::io::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
+use mvem::model::{Drive, Model, Signals};
+use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use serde::Deserialize;
+use serde_json::{json, Map, Value};
+use std::sync::Arc;
+
+/// Why a computation gave no answer.
+#[derive(Debug)]
+pub(crate) enum Fail {
+    /// The request is wrong (HTTP 400); the message names the parameter.
+    Input(String),
+    /// The model could not answer at a well-formed request, e.g. no equilibrium (HTTP 422).
+    Model(String),
+}
+
+fn input(msg: impl Into<String>) -> Fail {
+    Fail::Input(msg.into())
+}
+
+/// Largest number of points on one axis of a map.
+pub const MAX_MAP_SIDE: usize = 41;
+/// Largest number of points of a map.
+pub const MAX_MAP_POINTS: usize = 41 * 41;
+/// Longest step-response horizon [s].
+const MAX_HORIZON: f64 = 60.0;
+/// Most output samples of one simulated series.
+const MAX_SAMPLES: f64 = 50_000.0;
+/// Most output series of one simulation.
+const MAX_OUTPUTS: usize = 32;
+/// Output interval of a step response [s] (the CLI's `mvem step` default).
+const STEP_DT: f64 = 0.005;
+
+/// The state or signal `name` at a steady state (`None` if unknown).
+fn steady_value<const N: usize, M: Model<N>>(
+    m: &M,
+    ss: &mvem::analysis::steady::SteadyState<N>,
+    name: &str,
+) -> Option<f64> {
+    match m.state_names().iter().position(|s| *s == name) {
+        Some(i) => Some(ss.x[i]),
+        None => ss.signals.get(name),
+    }
+}
+
+/// Check output names against the model's states and signals.
+fn check_outputs<const N: usize, M: Model<N>>(
+    m: &M,
+    field: &str,
+    outputs: &[String],
+) -> Result<(), Fail> {
+    if outputs.len() > MAX_OUTPUTS {
+        return Err(input(format!(
+            "{field}: {} names, at most {MAX_OUTPUTS}",
+            outputs.len()
+        )));
+    }
+    for o in outputs {
+        if o != "t"
+            && !m.state_names().contains(&o.as_str())
+            && !Signals::NAMES.contains(&o.as_str())
+        {
+            return Err(input(format!(
+                "{field}: unknown output {o:?}; known: the states {} and the signals {}",
+                m.state_names().join(", "),
+                Signals::NAMES.join(", ")
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// `mvem steady --json`.
+pub(crate) fn steady<const N: usize, M: Model<N>>(m: &M, d: &Drive) -> Result<Value, Fail> {
+    let ss = steady_state(m, d).map_err(|e| Fail::Model(format!("steady state: {e}")))?;
+    Ok(steady_json(m, &ss))
+}
+
+/// `mvem linearize --json` (with `--pade K` and `--outputs`).
+pub(crate) fn linearize<const N: usize, M: Model<N>>(
+    m: &M,
+    d: &Drive,
+    pade: usize,
+    outputs: &[String],
+) -> Result<Value, Fail> {
+    let mut opts = LinearizeOptions {
+        pade_order: pade,
+        strict: false,
+        ..LinearizeOptions::default()
+    };
+    if !outputs.is_empty() {
+        opts.outputs = outputs.to_vec();
+    }
+    let ss = steady_state(m, d).map_err(|e| Fail::Model(format!("steady state: {e}")))?;
+    let lin = linearize_steady(m, &ss, &opts).map_err(|e| match e {
+        LinearizeError::UnknownOutput { .. } => input(format!("outputs: {e}")),
+        LinearizeError::BadOption { .. } => input(e.to_string()),
+        other => Fail::Model(format!("linearization: {other}")),
+    })?;
+    Ok(linear_model_json(&lin, &ss))
+}
+
+/// An operating point in a JSON body (the CLI's units).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct Point {
+    /// Engine speed [rpm].
+    pub n_e: f64,
+    /// Injected fuel [mg/cycle/cylinder].
+    pub u_delta: f64,
+    /// EGR valve command [%].
+    pub u_egr: f64,
+    /// VGT command [%].
+    pub u_vgt: f64,
+}
+
+impl Point {
+    pub(crate) fn drive(&self) -> Drive {
+        Drive::new(self.n_e, self.u_delta, self.u_egr, self.u_vgt)
+    }
+}
+
+/// Body of `POST /api/step`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct StepRequest {
+    /// Operating point before the step.
+    pub point: Point,
+    /// Stepped input: `n_e`, `u_delta`, `u_egr` or `u_vgt`.
+    pub input: String,
+    /// Its value after the step.
+    pub target: f64,
+    /// End time [s] (default 10).
+    #[serde(default = "default_horizon")]
+    pub horizon: f64,
+    /// Step time [s] (default 1).
+    #[serde(default = "default_t_step")]
+    pub t_step: f64,
+    /// Outputs (default p_im, p_em, W_c, n_t, x_egr, lambda_O, M_e).
+    #[serde(default)]
+    pub outputs: Vec<String>,
+    /// Model order 8, 10 or 12 (default 8).
+    #[serde(default)]
+    pub model: Option<u32>,
+    /// Parameter set (default: the first the server was started with).
+    #[serde(default)]
+    pub params: Option<String>,
+}
+
+fn default_horizon() -> f64 {
+    10.0
+}
+
+fn default_t_step() -> f64 {
+    1.0
+}
+
+impl StepRequest {
+    /// Checks that need no model.
+    pub(crate) fn check(&self) -> Result<usize, Fail> {
+        let slot = Drive::NAMES
+            .iter()
+            .position(|n| *n == self.input)
+            .ok_or_else(|| {
+                input(format!(
+                    "input: {:?} is not an input; one of {}",
+                    self.input,
+                    Drive::NAMES.join(", ")
+                ))
+            })?;
+        let before = self.point.drive().to_array();
+        if self.target == before[slot] {
+            return Err(input(format!(
+                "target {}: equals the value of {} before the step",
+                self.target, self.input
+            )));
+        }
+        if !(self.t_step >= 0.0 && self.t_step < self.horizon) {
+            return Err(input(format!(
+                "t_step {}: must be >= 0 and before the horizon {} s",
+                self.t_step, self.horizon
+            )));
+        }
+        if !(self.horizon > 0.0 && self.horizon <= MAX_HORIZON) {
+            return Err(input(format!(
+                "horizon {}: must lie in (0, {MAX_HORIZON}] s",
+                self.horizon
+            )));
+        }
+        Ok(slot)
+    }
+}
+
+/// A simulated step and its metrics (the steps of `mvem step`: steady states before and
+/// after, a simulation from the one before, metrics against both). One function, so that the
+/// core's step run can replace it.
+pub(crate) struct StepRun {
+    pub before: Drive,
+    pub sol: Solution,
+    pub metrics: Vec<(String, Result<StepMetrics, String>)>,
+    pub flags: Vec<String>,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn run_step<const N: usize, M: Model<N>>(
+    m: &M,
+    slot: usize,
+    before: Drive,
+    to: f64,
+    t_step: f64,
+    t_end: f64,
+    outputs: &[String],
+    opts: &SimOptions,
+) -> Result<StepRun, Fail> {
+    let mut after = before.to_array();
+    after[slot] = to;
+    let after = Drive::from_array(after);
+    let ss0 = steady_state(m, &before)
+        .map_err(|e| Fail::Model(format!("steady state before the step: {e}")))?;
+    let ss1 = steady_state(m, &after)
+        .map_err(|e| Fail::Model(format!("steady state after the step: {e}")))?;
+    let sched = InputSchedule::steps(before, &[(t_step, slot, to)])
+        .map_err(|e| input(format!("step: {e}")))?;
+    let sol = simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), opts)
+        .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?;
+    let du = to - before.to_array()[slot];
+    let metrics = outputs
+        .iter()
+        .map(|name| {
+            let r = (|| -> Result<StepMetrics, String> {
+                let y = sol
+                    .get(name)
+                    .ok_or_else(|| format!("unknown output {name:?}"))?;
+                let y0 = steady_value(m, &ss0, name).ok_or("no steady value")?;
+                let y1 = steady_value(m, &ss1, name).ok_or("no steady value")?;
+                StepMetrics::compute(sol.t(), y, t_step, y0, y1, du).map_err(|e| e.to_string())
+            })();
+            (name.clone(), r)
+        })
+        .collect();
+    let mut flags = Vec::new();
+    for (when, ss) in [("before", &ss0), ("after", &ss1)] {
+        if !ss.physically_valid() {
+            flags.push(format!(
+                "steady state {when} the step: {}",
+                ss.flags.join(", ")
+            ));
+        }
+    }
+    Ok(StepRun {
+        before,
+        sol,
+        metrics,
+        flags,
+    })
+}
+
+/// `POST /api/step`: the metrics (as `mvem step --json`) and the sampled responses.
+pub(crate) fn step<const N: usize, M: Model<N>>(
+    m: &M,
+    r: &StepRequest,
+    slot: usize,
+) -> Result<Value, Fail> {
+    let outputs: Vec<String> = if r.outputs.is_empty() {
+        mvem::analysis::linearize::DEFAULT_OUTPUTS
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    } else {
+        r.outputs.iter().map(|s| s.trim().to_string()).collect()
+    };
+    check_outputs(m, "outputs", &outputs)?;
+    let opts = SimOptions {
+        dt_out: STEP_DT,
+        ..SimOptions::default()
+    };
+    let run = run_step(
+        m,
+        slot,
+        r.point.drive(),
+        r.target,
+        r.t_step,
+        r.horizon,
+        &outputs,
+        &opts,
+    )?;
+    let mut outs = Map::new();
+    let mut series = Map::new();
+    for (n, res) in &run.metrics {
+        let mut v = match res {
+            Ok(mm) => step_metrics_json(mm),
+            Err(e) => json!({"error": e}),
+        };
+        v["unit"] = json!(unit(n));
+        outs.insert(n.clone(), v);
+        series.insert(n.clone(), json!(run.sol.get(n).unwrap_or_default()));
+    }
+    let from = run.before.to_array()[slot];
+    let u: Vec<f64> = run
+        .sol
+        .t()
+        .iter()
+        .map(|&t| if t < r.t_step { from } else { r.target })
+        .collect();
+    Ok(json!({
+        "input": r.input,
+        "input_unit": unit(&r.input),
+        "from": from,
+        "to": r.target,
+        "t_step": r.t_step,
+        "operating_point": drive_json(&run.before),
+        "warnings": run.flags,
+        "outputs": Value::Object(outs),
+        "t": run.sol.t(),
+        "u": u,
+        "series": Value::Object(series),
+    }))
+}
+
+/// How a drive cycle is run. Closed-loop control plugs in here: a new variant, its arm in
+/// [`simulate_cycle`], and its name in [`CycleMode::parse`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CycleMode {
+    /// The cycle's u_egr and u_vgt commands applied as recorded.
+    Open,
+}
+
+impl CycleMode {
+    /// From the `mode` field of `POST /api/simulate`.
+    pub(crate) fn parse(s: Option<&str>) -> Result<Self, Fail> {
+        match s.unwrap_or("open") {
+            "open" => Ok(CycleMode::Open),
+            other => Err(input(format!(
+                "mode: {other:?} is not available; \"open\" (closed-loop control is not built into this server yet)"
+            ))),
+        }
+    }
+}
+
+/// Body of `POST /api/simulate`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct SimulateRequest {
+    /// A cycle the server was started with (`"whtc"`: data/whtc_inputs_10hz.csv). Exclusive
+    /// with `csv`.
+    #[serde(default)]
+    pub cycle: Option<String>,
+    /// An input table in the CSV format of `mvem simulate --inputs` (columns time_s,
+    /// n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct).
+    #[serde(default)]
+    pub csv: Option<String>,
+    /// Output interval [s] (default 0.1).
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Series to return (default: W_c, p_im, p_em, x_egr, lambda_O, M_e, n_t, T_em).
+    #[serde(default)]
+    pub outputs: Vec<String>,
+    /// `"open"` (default).
+    #[serde(default)]
+    pub mode: Option<String>,
+    /// Model order 8, 10 or 12 (default 8).
+    #[serde(default)]
+    pub model: Option<u32>,
+    /// Parameter set.
+    #[serde(default)]
+    pub params: Option<String>,
+}
+
+/// Series of the drive-cycle panel.
+pub(crate) const CYCLE_OUTPUTS: [&str; 8] = [
+    "W_c", "p_im", "p_em", "x_egr", "lambda_O", "M_e", "n_t", "T_em",
+];
+
+impl SimulateRequest {
+    /// The schedule, its name, the output interval and the mode (checks that need no model).
+    pub(crate) fn schedule(
+        &self,
+        cycles: &[(String, Arc<InputSchedule>)],
+    ) -> Result<(Arc<InputSchedule>, String, f64, CycleMode), Fail> {
+        let mode = CycleMode::parse(self.mode.as_deref())?;
+        let (sched, name) = match (&self.cycle, &self.csv) {
+            (Some(c), None) => match cycles.iter().find(|(n, _)| n == c) {
+                Some((n, s)) => (s.clone(), n.clone()),
+                None => {
+                    return Err(input(format!(
+                        "cycle: {c:?} is not a cycle of this server; one of {}",
+                        cycles
+                            .iter()
+                            .map(|(n, _)| format!("{n:?}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )))
+                }
+            },
+            (None, Some(csv)) => (
+                Arc::new(
+                    mvem::io::csv_inputs::parse_inputs_csv(csv, std::path::Path::new("csv"))
+                        .map_err(|e| input(e.to_string()))?,
+                ),
+                "csv".to_string(),
+            ),
+            (Some(_), Some(_)) => return Err(input("cycle and csv: give one of them")),
+            (None, None) => return Err(input("cycle or csv: one is required")),
+        };
+        let dt = self.dt.unwrap_or(0.1);
+        let (t0, t1) = (sched.t_first(), sched.t_last());
+        if t1 <= t0 {
+            return Err(input(format!(
+                "{name}: the inputs span no time (first and last row at {t0} s)"
+            )));
+        }
+        if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
+            return Err(input(format!(
+                "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
+            )));
+        }
+        Ok((sched, name, dt, mode))
+    }
+}
+
+/// `POST /api/simulate`: the cycle from the steady state at its first inputs.
+pub(crate) fn simulate_cycle<const N: usize, M: Model<N>>(
+    m: &M,
+    r: &SimulateRequest,
+    sched: &InputSchedule,
+    name: &str,
+    dt: f64,
+    mode: CycleMode,
+) -> Result<Value, Fail> {
+    let outputs: Vec<String> = if r.outputs.is_empty() {
+        CYCLE_OUTPUTS.iter().map(|s| s.to_string()).collect()
+    } else {
+        r.outputs.clone()
+    };
+    check_outputs(m, "outputs", &outputs)?;
+    let opts = SimOptions {
+        dt_out: dt,
+        ..SimOptions::default()
+    };
+    let (t0, t1) = (sched.t_first(), sched.t_last());
+    let sol = match mode {
+        CycleMode::Open => simulate(m, sched, t0, t1, Start::SteadyState, &opts)
+            .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?,
+    };
+    let mut series = Map::new();
+    let mut units = Map::new();
+    for n in &outputs {
+        series.insert(n.clone(), json!(sol.get(n).unwrap_or_default()));
+        units.insert(n.clone(), json!(unit(n)));
+    }
+    let mut inputs = Map::new();
+    let rows: Vec<[f64; 4]> = sol.t().iter().map(|&t| sched.at(t).to_array()).collect();
+    for (k, n) in Drive::NAMES.iter().enumerate() {
+        inputs.insert(
+            n.to_string(),
+            json!(rows.iter().map(|r| r[k]).collect::<Vec<f64>>()),
+        );
+        units.insert(n.to_string(), json!(unit(n)));
+    }
+    Ok(json!({
+        "source": name,
+        "mode": "open",
+        "t": sol.t(),
+        "series": Value::Object(series),
+        "inputs": Value::Object(inputs),
+        "units": Value::Object(units),
+        "stats": {"steps": sol.stats.steps, "rejected": sol.stats.rejected, "rhs_evals": sol.stats.rhs_evals},
+    }))
+}
+
+/// One axis of `POST /api/map`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct AxisRequest {
+    /// Input name.
+    pub input: String,
+    /// First value.
+    pub lo: f64,
+    /// Last value.
+    pub hi: f64,
+    /// Number of values (2..=41).
+    pub n: usize,
+}
+
+/// The channel of `POST /api/map`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ChannelRequest {
+    /// Input of the channel (`u_delta`, `u_egr`, `u_vgt`, `n_e`).
+    pub input: String,
+    /// Output of the channel (a state or signal).
+    pub output: String,
+}
+
+/// Body of `POST /api/map`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct MapRequest {
+    /// The inputs held fixed (the varied two are overridden).
+    pub base: Point,
+    /// First (outer) axis.
+    pub x: AxisRequest,
+    /// Second (inner) axis.
+    pub y: AxisRequest,
+    /// Channel whose DC gain is mapped.
+    pub channel: ChannelRequest,
+    /// Model order 8, 10 or 12 (default 8).
+    #[serde(default)]
+    pub model: Option<u32>,
+    /// Parameter set.
+    #[serde(default)]
+    pub params: Option<String>,
+}
+
+impl MapRequest {
+    /// The grid (checks that need no model).
+    pub(crate) fn grid(&self) -> Result<Grid, Fail> {
+        let mut axes = Vec::new();
+        for (field, a) in [("x", &self.x), ("y", &self.y)] {
+            if !(2..=MAX_MAP_SIDE).contains(&a.n) {
+                return Err(input(format!(
+                    "{field}.n {}: must lie in [2, {MAX_MAP_SIDE}]",
+                    a.n
+                )));
+            }
+            if !(a.lo.is_finite() && a.hi.is_finite() && a.lo < a.hi) {
+                return Err(input(format!(
+                    "{field}.lo {} and {field}.hi {}: need lo < hi",
+                    a.lo, a.hi
+                )));
+            }
+            axes.push(Axis::linspace(&a.input, a.lo, a.hi, a.n));
+        }
+        if self.x.n * self.y.n > MAX_MAP_POINTS {
+            return Err(input(format!(
+                "x.n * y.n = {}: at most {MAX_MAP_POINTS} points",
+                self.x.n * self.y.n
+            )));
+        }
+        if !["u_delta", "u_egr", "u_vgt", "n_e"].contains(&self.channel.input.as_str()) {
+            return Err(input(format!(
+                "channel.input: {:?} is not an input; one of {}",
+                self.channel.input,
+                Drive::NAMES.join(", ")
+            )));
+        }
+        Grid::new(self.base.drive(), axes).map_err(|e| input(format!("x, y: {e}")))
+    }
+}
+
+/// `POST /api/map`: the DC gain of the channel at every grid point (rayon, in parallel).
+pub(crate) fn map<const N: usize, M: Model<N>>(
+    m: &M,
+    r: &MapRequest,
+    grid: &Grid,
+) -> Result<Value, Fail> {
+    check_outputs(m, "channel.output", std::slice::from_ref(&r.channel.output))?;
+    let smap = steady_map(m, grid, &MapOptions::default(), None)
+        .map_err(|e| Fail::Model(format!("map: {e}")))?;
+    let gains = dc_gain_map(
+        m,
+        &smap,
+        &r.channel.input,
+        &r.channel.output,
+        &ChannelMapOptions::default(),
+        None,
+    )
+    .map_err(|e| Fail::Model(format!("map: {e}")))?;
+    let mut gain = Vec::with_capacity(gains.len());
+    let mut sign = Vec::with_capacity(gains.len());
+    let mut errors = Vec::new();
+    let mut valid = Vec::with_capacity(gains.len());
+    for (p, g) in smap.points.iter().zip(&gains) {
+        valid.push(p.result.as_ref().is_ok_and(|s| s.physically_valid()));
+        match g {
+            Ok(v) => {
+                gain.push(json!(v));
+                sign.push(json!(if *v > 0.0 {
+                    1
+                } else if *v < 0.0 {
+                    -1
+                } else {
+                    0
+                }));
+            }
+            Err(e) => {
+                gain.push(Value::Null);
+                sign.push(Value::Null);
+                errors.push(json!({"index": p.index, "error": e}));
+            }
+        }
+    }
+    Ok(json!({
+        "x": {"input": grid.axes[0].input, "values": grid.axes[0].values, "unit": unit(&grid.axes[0].input)},
+        "y": {"input": grid.axes[1].input, "values": grid.axes[1].values, "unit": unit(&grid.axes[1].input)},
+        "channel": {"input": r.channel.input, "output": r.channel.output,
+                    "unit": format!("{} per {}", unit(&r.channel.output), unit(&r.channel.input))},
+        "base": drive_json(&grid.base),
+        "order": "row-major, y fastest: index i * y.n + j is (x.values[i], y.values[j])",
+        "dc_gain": gain,
+        "sign": sign,
+        "physically_valid": valid,
+        "errors": errors,
+    }))
+}

@@ -1,0 +1,375 @@
+//! The HTTP API of `mvem serve` on loopback: answers, errors naming the parameter, size and
+//! concurrency limits, query parsing under random input, and a load of concurrent requests.
+
+use mvem::analysis::steady::steady_state;
+use mvem::model::{Drive, Engine8};
+use mvem_serve::client::{self, Reply};
+use mvem_serve::{Config, Running};
+use proptest::prelude::*;
+use std::net::SocketAddr;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+const WHTC: &str = include_str!("../../../data/whtc_inputs_10hz.csv");
+const POINT: &str = "n_e=1500&u_delta=110&u_egr=80&u_vgt=75";
+
+/// One server for the tests of this file (each test makes its own requests).
+fn server() -> SocketAddr {
+    static S: OnceLock<Running> = OnceLock::new();
+    S.get_or_init(|| {
+        let mut c = Config::local(0);
+        c.cycles = vec![("whtc".into(), WHTC)];
+        c.params
+            .push(("second".into(), mvem::params::Params::published()));
+        mvem_serve::start(c).expect("start the server")
+    })
+    .addr
+}
+
+fn get(target: &str) -> Reply {
+    client::get(server(), target).unwrap_or_else(|e| panic!("GET {target}: {e}"))
+}
+
+fn post(target: &str, body: &str) -> Reply {
+    client::post(server(), target, body.as_bytes()).unwrap_or_else(|e| panic!("POST {target}: {e}"))
+}
+
+/// A 400 whose `error` names `name`.
+fn assert_400_naming(r: &Reply, name: &str, what: &str) {
+    let body = String::from_utf8_lossy(&r.body);
+    assert_eq!(r.status, 400, "{what}: {body}");
+    let e = r.json()["error"].as_str().unwrap_or_default().to_string();
+    assert!(e.contains(name), "{what}: error {e:?} should name {name}");
+}
+
+#[test]
+fn health_models_and_page() {
+    let h = get("/api/health");
+    assert_eq!(h.status, 200);
+    assert_eq!(h.json()["status"], "ok");
+    let m = get("/api/models").json();
+    assert_eq!(m["params"], serde_json::json!(["published", "second"]));
+    assert_eq!(m["cycles"], serde_json::json!(["whtc"]));
+    assert_eq!(m["units"]["p_im"], "Pa");
+    assert_eq!(m["units"]["T_ic"], "K", "12-state names have units");
+    for (path, ty) in [
+        ("/", "text/html"),
+        ("/app.js", "text/javascript"),
+        ("/app.css", "text/css"),
+    ] {
+        let r = get(path);
+        assert_eq!(r.status, 200, "{path}");
+        assert!(r.header("content-type").unwrap().starts_with(ty), "{path}");
+    }
+    let r = get("/nothing/here");
+    assert_eq!(r.status, 404);
+    assert!(r.json()["error"].is_string());
+}
+
+#[test]
+fn steady_equals_the_library_and_every_model_and_set_answers() {
+    let r = get(&format!("/api/steady?{POINT}"));
+    assert_eq!(r.status, 200);
+    let v = r.json();
+    let ss = steady_state(
+        &Engine8::published(),
+        &Drive::new(1500.0, 110.0, 80.0, 75.0),
+    )
+    .unwrap();
+    assert_eq!(v["p_im"].as_f64().unwrap().to_bits(), ss.x[0].to_bits());
+    assert_eq!(
+        v["W_c"].as_f64().unwrap().to_bits(),
+        ss.signals.w_c.to_bits()
+    );
+    assert_eq!(v["physically_valid"], true);
+    for (model, states) in [("8", 8), ("10", 10), ("12", 12)] {
+        let r = get(&format!("/api/steady?{POINT}&model={model}&params=second"));
+        assert_eq!(r.status, 200, "model {model}");
+        assert_eq!(
+            r.json()["eigenvalues"].as_array().unwrap().len(),
+            states - 3,
+            "model {model}: eigenvalues of the non-actuator states"
+        );
+    }
+}
+
+#[test]
+fn bad_or_missing_parameters_give_400_naming_them() {
+    let full = |drop: &str, set: &str| {
+        let mut q: Vec<String> = POINT
+            .split('&')
+            .filter(|kv| !kv.starts_with(&format!("{drop}=")))
+            .map(str::to_string)
+            .collect();
+        if !set.is_empty() {
+            q.push(set.to_string());
+        }
+        format!("/api/steady?{}", q.join("&"))
+    };
+    for name in ["n_e", "u_delta", "u_egr", "u_vgt"] {
+        assert_400_naming(&get(&full(name, "")), name, &format!("missing {name}"));
+        for bad in ["NaN", "inf", "-inf", "abc", "", "1e999", "0x10", "1,5"] {
+            let r = get(&full(name, &format!("{name}={bad}")));
+            assert_400_naming(&r, name, &format!("{name}={bad}"));
+        }
+    }
+    assert_400_naming(
+        &get(&format!("/api/steady?{POINT}&model=9")),
+        "model",
+        "model 9",
+    );
+    assert_400_naming(
+        &get(&format!("/api/steady?{POINT}&params=../etc/passwd")),
+        "params",
+        "params",
+    );
+    assert_400_naming(
+        &get(&format!("/api/steady?{POINT}&n_e=1500")),
+        "n_e",
+        "twice",
+    );
+    assert_400_naming(
+        &get(&format!("/api/steady?{POINT}&u_vtg=3")),
+        "u_vtg",
+        "unknown",
+    );
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&pade=7")),
+        "pade",
+        "pade",
+    );
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&outputs=W_c,nope")),
+        "nope",
+        "outputs",
+    );
+    // bodies
+    let step = |s: &str| post("/api/step", s);
+    assert_400_naming(&step("{"), "body", "truncated JSON");
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80}, "input": "u_vgt", "target": 65}"#,
+        ),
+        "u_vgt",
+        "missing point field",
+    );
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vtg", "target": 65}"#,
+        ),
+        "input",
+        "bad input",
+    );
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 75}"#,
+        ),
+        "target",
+        "no step",
+    );
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65, "horizon": 1e6}"#,
+        ),
+        "horizon",
+        "long horizon",
+    );
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65, "colour": 1}"#,
+        ),
+        "colour",
+        "unknown field",
+    );
+    assert_400_naming(
+        &step(
+            r#"{"point": {"n_e": 1e999, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65}"#,
+        ),
+        "body",
+        "number out of range",
+    );
+    let map = |x: &str| {
+        post(
+            "/api/map",
+            &format!(
+                r#"{{"base": {{"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}}, {x}, "y": {{"input": "u_vgt", "lo": 20.5, "hi": 100, "n": 3}}, "channel": {{"input": "u_vgt", "output": "W_c"}}}}"#
+            ),
+        )
+    };
+    assert_400_naming(
+        &map(r#""x": {"input": "u_egr", "lo": 0, "hi": 100, "n": 1000}"#),
+        "x.n",
+        "grid too large",
+    );
+    assert_400_naming(
+        &map(r#""x": {"input": "u_egr", "lo": 100, "hi": 0, "n": 3}"#),
+        "x.lo",
+        "reversed axis",
+    );
+    assert_400_naming(
+        &map(r#""x": {"input": "u_vgt", "lo": 20.5, "hi": 100, "n": 3}"#),
+        "u_vgt",
+        "same input twice",
+    );
+    assert_400_naming(
+        &post("/api/simulate", r#"{"cycle": "nedc"}"#),
+        "cycle",
+        "unknown cycle",
+    );
+    assert_400_naming(
+        &post("/api/simulate", r#"{"cycle": "whtc", "mode": "closed"}"#),
+        "mode",
+        "closed loop not built",
+    );
+    assert_400_naming(
+        &post(
+            "/api/simulate",
+            r#"{"csv": "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,abc\n"}"#,
+        ),
+        "line 2",
+        "bad CSV cell",
+    );
+    assert_400_naming(
+        &post("/api/simulate", r#"{"cycle": "whtc", "dt": 1e-6}"#),
+        "dt",
+        "too many samples",
+    );
+    // the server is fine afterwards
+    assert_eq!(get(&format!("/api/steady?{POINT}")).status, 200);
+}
+
+#[test]
+fn an_oversized_body_gets_413() {
+    let big = format!(r#"{{"csv": "{}"}}"#, "x".repeat(5 << 20));
+    let r = post("/api/simulate", &big);
+    assert_eq!(r.status, 413, "{}", String::from_utf8_lossy(&r.body));
+    assert!(r.json()["error"].as_str().unwrap().contains("too large"));
+    assert_eq!(get("/api/health").status, 200);
+}
+
+#[test]
+fn step_map_and_cycle_answer() {
+    let r = post(
+        "/api/step",
+        r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 30}, "input": "u_vgt", "target": 25, "horizon": 6, "model": 10}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    // the paper's second VGT step: W_c overshoots with a positive DC gain (Fig. 8)
+    assert_eq!(v["outputs"]["W_c"]["gain_sign"], "positive");
+    assert!(v["outputs"]["W_c"]["overshoot_pct"].as_f64().unwrap() > 1.0);
+
+    let r = post(
+        "/api/map",
+        r#"{"base": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75},
+            "x": {"input": "u_egr", "lo": 0, "hi": 100, "n": 5},
+            "y": {"input": "u_vgt", "lo": 20.5, "hi": 100, "n": 6},
+            "channel": {"input": "u_vgt", "output": "W_c"}}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    let sign = v["sign"].as_array().unwrap();
+    assert_eq!(sign.len(), 30);
+    // the sign reversal of u_vgt -> W_c: both signs occur over the map (section 8 of the paper)
+    assert!(
+        sign.iter().any(|s| s == 1) && sign.iter().any(|s| s == -1),
+        "{sign:?}"
+    );
+
+    let r = post("/api/simulate", r#"{"cycle": "whtc", "dt": 1.0}"#);
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    let t = v["t"].as_array().unwrap();
+    assert_eq!(t.len(), 1801, "0..1800 s at 1 s");
+    assert_eq!(v["series"]["M_e"].as_array().unwrap().len(), 1801);
+    assert_eq!(v["inputs"]["n_e"].as_array().unwrap().len(), 1801);
+    let csv = r#"{"csv": "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n2,1500,110,80,65\n", "dt": 0.5, "outputs": ["W_c"]}"#;
+    let v = post("/api/simulate", csv).json();
+    assert_eq!(v["t"].as_array().unwrap().len(), 5);
+    assert_eq!(v["series"].as_object().unwrap().len(), 1);
+}
+
+#[test]
+fn saturated_server_answers_503_with_retry_after() {
+    let mut c = Config::local(0);
+    c.cycles = vec![("whtc".into(), WHTC)];
+    c.limits.workers = 1;
+    c.limits.max_queue = 0;
+    let s = mvem_serve::start(c).unwrap();
+    let addr = s.addr;
+    // one long computation holds the only worker; requests meanwhile are refused, not queued
+    let long = std::thread::spawn(move || {
+        client::post(addr, "/api/simulate", br#"{"cycle": "whtc", "dt": 0.1}"#).unwrap()
+    });
+    let mut saw_503 = None;
+    for _ in 0..200 {
+        let r = client::get(addr, &format!("/api/steady?{POINT}")).unwrap();
+        if r.status == 503 {
+            saw_503 = Some(r);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let r = saw_503.expect("a 503 while the only worker is busy");
+    assert_eq!(r.header("retry-after"), Some("1"));
+    assert!(r.json()["error"].as_str().unwrap().contains("busy"));
+    assert_eq!(long.join().unwrap().status, 200);
+    assert_eq!(
+        client::get(addr, &format!("/api/steady?{POINT}"))
+            .unwrap()
+            .status,
+        200
+    );
+    s.stop().unwrap();
+}
+
+#[test]
+fn load_400_requests_from_32_threads_no_5xx_no_drop() {
+    let targets: Vec<String> = ["8", "10", "12"]
+        .iter()
+        .map(|m| format!("/api/steady?{POINT}&model={m}"))
+        .chain([
+            "/api/health".to_string(),
+            "/api/steady?n_e=oops".to_string(),
+        ])
+        .collect();
+    let r = client::load(server(), &targets, 400, 32);
+    assert_eq!(r.server_errors, 0);
+    assert_eq!(r.dropped, 0);
+    assert_eq!(r.client_errors, 80, "the bad query is 1 in 5");
+    assert_eq!(r.ok, 320);
+    assert_eq!(get("/api/health").status, 200);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Any query string (arbitrary bytes, percent-encoded or not) gets 200, 400 or 422, never a
+    /// 5xx or a dropped connection.
+    #[test]
+    fn query_parsing_never_fails_the_server(
+        raw in proptest::collection::vec(any::<u8>(), 0..80),
+        keys in proptest::collection::vec(
+            prop_oneof![Just("n_e"), Just("u_delta"), Just("u_egr"), Just("u_vgt"), Just("model"),
+                        Just("params"), Just("pade"), Just("outputs"), Just("x")], 0..7),
+        vals in proptest::collection::vec(
+            prop_oneof![any::<f64>().prop_map(|v| v.to_string()), Just("NaN".to_string()),
+                        Just("1e400".to_string()), Just("%ZZ".to_string()), Just("%00".to_string()),
+                        "[ -~]{0,12}".prop_map(|s| s)], 0..7),
+        route in prop_oneof![Just("steady"), Just("linearize")],
+    ) {
+        let mut q: String = keys.iter().zip(vals.iter()).map(|(k, v)| {
+            let enc: String = v.bytes().map(|b| match b {
+                b'a'..=b'z' | b'A'..=b'Z' | b'0'..=b'9' | b'.' | b'-' | b'%' | b',' => (b as char).to_string(),
+                _ => format!("%{b:02X}"),
+            }).collect();
+            format!("{k}={enc}")
+        }).collect::<Vec<_>>().join("&");
+        // raw bytes, escaped so that the request line stays one line
+        q.push('&');
+        q.extend(raw.iter().map(|b| format!("%{b:02X}")));
+        let r = client::get(server(), &format!("/api/{route}?{q}")).expect("an answer");
+        prop_assert!(matches!(r.status, 200 | 400 | 422), "status {} for {q}", r.status);
+        prop_assert!(r.json()["error"].is_string() || r.status == 200);
+    }
+}

@@ -1,0 +1,197 @@
+//! JSON objects of the analysis results, shared by every front end (`mvem steady --json`,
+//! `mvem linearize --json`, the HTTP API of `mvem serve`) so that they print the same numbers to
+//! the last bit. `serde_json` writes every `f64` in its shortest round-trip form.
+
+use crate::analysis::linearize::LinearModel;
+use crate::analysis::steady::SteadyState;
+use crate::analysis::step::{Excursion, StepMetrics};
+use crate::analysis::zeros::{
+    dc_gain_matrix, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS,
+};
+use crate::model::{Drive, Model, Signals};
+use nalgebra::DMatrix;
+use serde_json::{json, Map, Value};
+
+/// Unit of a state, signal or input column (the core metadata, [`crate::model::meta::unit`]).
+pub use crate::model::meta::unit;
+
+/// The operating point `{"n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"}`.
+pub fn drive_json(d: &Drive) -> Value {
+    json!({
+        "n_e_rpm": d.n_e_rpm,
+        "u_delta_mg": d.u_delta_mg,
+        "u_egr_pct": d.u_egr_pct,
+        "u_vgt_pct": d.u_vgt_pct,
+    })
+}
+
+/// The flat JSON object of a steady state (`mvem steady --json`): every state and signal by
+/// name, `physically_valid`, `flags`, `eigenvalues` [{re, im}], `inputs`, `residual`.
+pub fn steady_json<const N: usize, M: Model<N>>(m: &M, ss: &SteadyState<N>) -> Value {
+    let mut o = Map::new();
+    for (n, v) in m.state_names().iter().zip(ss.x) {
+        o.insert(n.to_string(), json!(v));
+    }
+    // T_im, T_em, p_c are states of the 10/12-state models: keep the state value
+    for (n, v) in Signals::NAMES.iter().zip(ss.signals.values()) {
+        o.entry(n.to_string()).or_insert(json!(v));
+    }
+    o.insert("physically_valid".into(), json!(ss.physically_valid()));
+    o.insert("flags".into(), json!(ss.flags));
+    o.insert(
+        "eigenvalues".into(),
+        Value::Array(
+            ss.eigenvalues
+                .iter()
+                .map(|(re, im)| json!({"re": re, "im": im}))
+                .collect(),
+        ),
+    );
+    o.insert("inputs".into(), drive_json(&ss.drive));
+    o.insert("residual".into(), json!(ss.residual));
+    Value::Object(o)
+}
+
+fn cjson(z: &Complex<f64>) -> Value {
+    json!({"re": z.re, "im": z.im})
+}
+
+fn rows(m: &DMatrix<f64>) -> Value {
+    Value::Array(
+        (0..m.nrows())
+            .map(|i| json!((0..m.ncols()).map(|j| m[(i, j)]).collect::<Vec<f64>>()))
+            .collect(),
+    )
+}
+
+fn state_unit(name: &str) -> &'static str {
+    if name.starts_with("pade_") {
+        "%"
+    } else {
+        unit(name)
+    }
+}
+
+/// Input units in [`crate::analysis::linearize`]'s input order (u_delta, u_egr, u_vgt, n_e).
+const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
+
+/// The JSON object of a linear model at the steady state `ss` (`mvem linearize --json`):
+/// matrices, poles, the transmission zeros of every SISO channel and of the MIMO system, DC
+/// gains, names, units, kinks.
+pub fn linear_model_json<const N: usize>(lin: &LinearModel, ss: &SteadyState<N>) -> Value {
+    let zo = ZeroOptions::default();
+    let mut o = Map::new();
+    o.insert("operating_point".into(), drive_json(&ss.drive));
+    o.insert("physically_valid".into(), json!(ss.physically_valid()));
+    o.insert("flags".into(), json!(ss.flags));
+    o.insert("pade_order".into(), json!(lin.pade_order));
+    o.insert(
+        "delays_s".into(),
+        json!({"u_egr": lin.delays[0], "u_vgt": lin.delays[1]}),
+    );
+    o.insert("state_names".into(), json!(lin.state_names));
+    o.insert("input_names".into(), json!(lin.input_names));
+    o.insert("output_names".into(), json!(lin.output_names));
+    o.insert(
+        "units".into(),
+        json!({
+            "states": lin.state_names.iter().map(|s| state_unit(s)).collect::<Vec<_>>(),
+            "inputs": INPUT_UNITS,
+            "outputs": lin.output_names.iter().map(|s| unit(s)).collect::<Vec<_>>(),
+            "time": "s",
+            "dc_gain": "output unit per input unit",
+        }),
+    );
+    o.insert("x0".into(), json!(lin.x0));
+    o.insert("y0".into(), json!(lin.y0));
+    o.insert("A".into(), rows(&lin.a));
+    o.insert("B".into(), rows(&lin.b));
+    o.insert("C".into(), rows(&lin.c));
+    o.insert("D".into(), rows(&lin.d));
+    o.insert(
+        "eigenvalues".into(),
+        match poles(lin) {
+            Ok(p) => Value::Array(p.iter().map(cjson).collect()),
+            Err(_) => Value::Null,
+        },
+    );
+    let mut zeros = Map::new();
+    let mut errors = Map::new();
+    for i in &lin.input_names {
+        for out in &lin.output_names {
+            let key = format!("{i}->{out}");
+            match siso(lin, i, out, &zo) {
+                Ok(c) => {
+                    zeros.insert(
+                        key,
+                        Value::Array(c.zeros.finite.iter().map(cjson).collect()),
+                    );
+                }
+                Err(e) => {
+                    zeros.insert(key.clone(), Value::Null);
+                    errors.insert(key, json!(e.to_string()));
+                }
+            }
+        }
+    }
+    match mimo_zeros(lin, &MIMO_INPUTS, &MIMO_OUTPUTS, &zo) {
+        Ok(z) => {
+            zeros.insert(
+                "MIMO".into(),
+                Value::Array(z.finite.iter().map(cjson).collect()),
+            );
+        }
+        Err(e) => {
+            zeros.insert("MIMO".into(), Value::Null);
+            errors.insert("MIMO".into(), json!(e.to_string()));
+        }
+    }
+    o.insert("zeros".into(), Value::Object(zeros));
+    o.insert(
+        "mimo".into(),
+        json!({"inputs": MIMO_INPUTS, "outputs": MIMO_OUTPUTS}),
+    );
+    if !errors.is_empty() {
+        o.insert("zero_errors".into(), Value::Object(errors));
+    }
+    o.insert(
+        "dc_gain".into(),
+        match dc_gain_matrix(lin) {
+            Ok(g) => rows(&g),
+            Err(_) => Value::Null,
+        },
+    );
+    o.insert(
+        "kinks".into(),
+        json!(lin.kinks.iter().map(|k| k.to_string()).collect::<Vec<_>>()),
+    );
+    Value::Object(o)
+}
+
+fn opt(v: Option<f64>) -> Value {
+    v.map_or(Value::Null, |x| json!(x))
+}
+
+fn excursion(e: Option<Excursion>) -> Value {
+    e.map_or(
+        Value::Null,
+        |e| json!({"value": e.value, "time": e.time, "relative": e.relative}),
+    )
+}
+
+/// The metrics of one step response (`mvem step --json`, per output).
+pub fn step_metrics_json(m: &StepMetrics) -> Value {
+    json!({
+        "y0": m.y0,
+        "y_final": m.y_final,
+        "change": m.change,
+        "dc_gain": m.dc_gain,
+        "gain_sign": m.gain_sign.to_string(),
+        "wrong_way": excursion(m.wrong_way),
+        "non_minimum_phase": m.non_minimum_phase,
+        "overshoot_pct": m.overshoot_pct,
+        "peak": excursion(m.peak),
+        "rise_time": opt(m.rise_time),
+        "settling_time": opt(m.settling_time),
+    })
+}

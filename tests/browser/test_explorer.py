@@ -1,0 +1,186 @@
+"""The page of `mvem serve` in headless Chromium (Debian's /usr/bin/chromium) driven by Playwright.
+
+Run by scripts/test-browser.sh, which sets MVEM_CLI (the built binary) and MVEM_ARTIFACTS (where the
+screenshots and measured timings go)."""
+
+import json
+import os
+import statistics
+import subprocess
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import sync_playwright
+
+CLI = os.environ.get("MVEM_CLI", "target/release/mvem")
+ART = Path(os.environ.get("MVEM_ARTIFACTS", "target/browser-artifacts"))
+CHROMIUM_FLAGS = [
+    "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+]
+SIGNALS = ["p_im", "p_em", "W_c", "x_egr", "lambda_O", "M_e", "n_t", "T_em"]
+TIMINGS = {}
+
+
+@pytest.fixture(scope="module")
+def server():
+    p = subprocess.Popen([CLI, "serve", "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = p.stdout.readline().strip()
+    assert line.startswith("listening on http://127.0.0.1:"), line
+    yield line.removeprefix("listening on ")
+    p.terminate()
+    assert p.wait(timeout=20) == 0, p.stderr.read()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_FLAGS)
+        yield b
+        b.close()
+    ART.mkdir(parents=True, exist_ok=True)
+    (ART / "timings.json").write_text(json.dumps(TIMINGS, indent=2) + "\n")
+
+
+@pytest.fixture()
+def page(browser, server):
+    ctx = browser.new_context(viewport={"width": 1400, "height": 1000}, accept_downloads=True)
+    pg = ctx.new_page()
+    errors = []
+    pg.on("console", lambda m: errors.append(f"console.{m.type}: {m.text}") if m.type == "error" else None)
+    pg.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+    pg.goto(server)
+    pg.wait_for_selector("body[data-state=ready]", timeout=15000)
+    yield pg
+    assert errors == [], errors
+    ctx.close()
+
+
+def cli_steady(n_e, u_delta, u_egr, u_vgt, model):
+    out = subprocess.run([CLI, "steady", "--json", "--n-e", str(n_e), "--u-delta", str(u_delta),
+                          "--u-egr", str(u_egr), "--u-vgt", str(u_vgt), "--model", str(model)],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def set_inputs(page, values):
+    """Type the four values into the number fields and wait for the values they give."""
+    for name, v in values.items():
+        page.fill(f"input[name={name}]", str(v))
+
+
+def shown(page):
+    return page.evaluate("""names => Object.fromEntries(names.map(n => {
+        const el = document.querySelector(`[data-signal="${n}"]`);
+        return [n, {value: el.dataset.value, text: el.textContent}];
+    }))""", SIGNALS)
+
+
+@pytest.mark.parametrize("point,model", [
+    ({"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, 8),
+    ({"n_e": 1234.5, "u_delta": 150, "u_egr": 40, "u_vgt": 60}, 8),
+    ({"n_e": 1800, "u_delta": 200, "u_egr": 30, "u_vgt": 55}, 12),
+])
+def test_shown_values_equal_the_cli(page, point, model):
+    page.select_option("select[name=model]", str(model))
+    set_inputs(page, point)
+    ref = cli_steady(point["n_e"], point["u_delta"], point["u_egr"], point["u_vgt"], model)
+    # wait until the page shows the values of these inputs (the full-precision value is kept in
+    # data-value), then compare: data-value exactly, the text to its 6 significant digits
+    page.wait_for_function("""ref => Object.entries(ref).every(([n, v]) =>
+        Number(document.querySelector(`[data-signal="${n}"]`).dataset.value) === v)""",
+        arg={n: ref[n] for n in SIGNALS}, timeout=15000)
+    got = shown(page)
+    for n in SIGNALS:
+        assert float(got[n]["value"]) == ref[n], n
+        text = float(got[n]["text"])
+        assert abs(text - ref[n]) <= 5e-6 * abs(ref[n]), f"{n}: shown {got[n]['text']} vs {ref[n]}"
+        if ref[n] == 0:
+            assert got[n]["text"] == "0", n
+            continue
+        digits = len(got[n]["text"].split("e")[0].replace("-", "").replace(".", "").lstrip("0"))
+        assert digits >= 5, f"{n}: {got[n]['text']} has fewer than 5 significant digits"
+    valid = page.get_attribute("#validity", "data-valid")
+    assert valid == str(ref["physically_valid"]).lower()
+    assert page.get_attribute("#flags", "data-flags") == ";".join(ref["flags"])
+    page.screenshot(path=str(ART / f"steady_{model}_{point['n_e']}.png"), full_page=True)
+
+
+def test_page_interactive_and_slider_to_update_times(page):
+    ready = float(page.get_attribute("body", "data-ready-ms"))
+    # slider -> values shown: set the VGT slider, dispatch the input event, wait for the next
+    # steady-state sequence number in the page
+    times = page.evaluate("""async () => {
+        const sl = document.querySelector('input[data-slider=u_vgt]');
+        const out = [];
+        for (let k = 0; k < 12; k++) {
+            const seq = document.body.dataset.steadySeq;
+            const t0 = performance.now();
+            sl.value = String(50 + 2 * k);
+            sl.dispatchEvent(new Event('input', {bubbles: true}));
+            await new Promise(res => {
+                const ob = new MutationObserver(() => {
+                    if (document.body.dataset.steadySeq !== seq) { ob.disconnect(); res(); }
+                });
+                ob.observe(document.body, {attributes: true});
+            });
+            out.push(performance.now() - t0);
+        }
+        return out;
+    }""")
+    assert page.input_value("input[name=u_vgt]") == "72"
+    TIMINGS["page_interactive_ms"] = ready
+    TIMINGS["slider_to_update_ms"] = {"median": statistics.median(times), "max": max(times), "all": times}
+    print(f"\npage interactive {ready:.0f} ms; slider-to-update median {statistics.median(times):.1f} ms, max {max(times):.1f} ms")
+
+
+def test_step_is_drawn_with_its_marks(page):
+    set_inputs(page, {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75})
+    page.select_option("select[name=step_input]", "u_vgt")
+    page.fill("input[name=step_target]", "65")
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    canvas = "canvas[data-plot=step]"
+    assert page.get_attribute(canvas, "data-series") == "8"
+    marks = json.loads(page.get_attribute(canvas, "data-marks"))
+    assert marks["nmp"] >= 1 and marks["dc"] == 7, marks
+    # pixels other than the white background: lines and marks were drawn
+    inked = page.evaluate("""sel => {
+        const c = document.querySelector(sel);
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0, red = 0;
+        for (let i = 0; i < d.length; i += 4) {
+            if (d[i] < 250 || d[i + 1] < 250 || d[i + 2] < 250) n++;
+            if (d[i] === 198 && d[i + 1] === 40 && d[i + 2] === 40) red++;
+        }
+        return {n, red, total: d.length / 4};
+    }""", canvas)
+    assert inked["n"] > 0.02 * inked["total"], inked
+    assert inked["red"] > 10, f"NMP marker drawn: {inked}"
+    row = page.text_content("[data-metric=W_c] [data-field=nmp]")
+    assert "%" in row, row
+    page.locator("#step").screenshot(path=str(ART / "step.png"))
+
+
+def test_map_cycle_and_csv(page):
+    page.fill("input[name=map_n]", "11")
+    page.click("[data-action=map]")
+    page.wait_for_selector("canvas[data-plot=map][data-cells='121']", timeout=60000)
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    assert page.get_attribute("canvas[data-plot=cycle]", "data-drawn") == "9001"
+    page.fill("input[name=cycle_t]", "4500")
+    page.dispatch_event("input[name=cycle_t]", "input")
+    assert page.text_content("#cycle-time") == "900.0"
+    m_e = page.text_content("[data-cycle-signal=M_e]")
+    float(m_e)
+    with page.expect_download() as d:
+        page.click("[data-download=steady]")
+    text = Path(d.value.path()).read_text()
+    p_im = page.get_attribute("[data-signal=p_im]", "data-value")
+    assert f"p_im,{p_im},Pa" in text, text[:300]
+    with page.expect_download() as d:
+        page.click("[data-download=cycle]")
+    lines = Path(d.value.path()).read_text().splitlines()
+    assert lines[0].startswith("t,n_e,u_delta,u_egr,u_vgt,") and len(lines) == 9002
+    page.screenshot(path=str(ART / "explorer.png"), full_page=True)
