@@ -12,12 +12,13 @@
 //!   one fixed-point iteration per accepted step (Fig. 2), and return the relative error of T_e.
 //!
 //! The response features use the definitions of the reference data (`tests/reference/README.md`):
-//! NMP = the response's extremum opposite to its final direction exceeds 0.5 % of the final
-//! change and occurs before the first 0.5 % move in the final direction; overshoot = the largest
+//! NMP = the response's extremum opposite to its final direction, anywhere after the step,
+//! exceeds 0.5 % of the final change (as [`crate::analysis::step`]); overshoot = the largest
 //! excursion beyond the final value, in % of |final change|. The final value is the root-solved
 //! steady state at the new input.
 
 use crate::analysis::steady::{steady_state, SteadyError};
+use crate::analysis::step::StepMetrics;
 use crate::model::{
     AnyModel, CylinderTemp, Drive, Engine10, Engine12, Engine8, Model, ModelOptions, ModelOrder,
 };
@@ -161,8 +162,8 @@ pub struct ResponseFeatures {
     pub final_value: f64,
     /// DC gain: (final - initial) / (u_vgt_to - u_vgt_from) [signal unit per %].
     pub dc_gain: f64,
-    /// Non-minimum-phase behaviour: an initial move opposite to the final change larger than
-    /// 0.5 % of |final change| before the first 0.5 % move in the final direction.
+    /// Non-minimum-phase (wrong-way) behaviour: a move opposite to the final change larger
+    /// than [`StepMetrics::THRESHOLD`] (0.5 %) of |final change| anywhere after the step.
     pub nmp: bool,
     /// Size of that opposite move as a fraction of |final change| [-] (0 if none).
     pub nmp_extent: f64,
@@ -183,40 +184,17 @@ pub fn response_features(
     final_value: f64,
     du: f64,
 ) -> ResponseFeatures {
-    let change = final_value - initial;
-    let dir = change.signum();
-    let mag = change.abs();
-    let thr = 0.005 * mag;
-    let mut opp = (0.0f64, f64::NAN); // (largest opposite move, time)
-    let mut moved = false;
-    let mut over = 0.0f64;
-    for (&ti, &yi) in t.iter().zip(y) {
-        if ti < t_step {
-            continue;
-        }
-        let along = dir * (yi - initial);
-        if !moved {
-            if along >= thr {
-                moved = true;
-            } else if -along > opp.0 {
-                opp = (-along, ti - t_step);
-            }
-        }
-        over = over.max(dir * (yi - final_value));
-    }
-    let nmp = mag > 0.0 && opp.0 > thr;
+    // the definitions of `mvem step` (one implementation: [`StepMetrics::compute`])
+    let m = StepMetrics::compute(t, y, t_step, initial, final_value, du).ok();
+    let wrong_way = m.and_then(|m| m.wrong_way);
     ResponseFeatures {
         initial,
         final_value,
-        dc_gain: change / du,
-        nmp,
-        nmp_extent: if mag > 0.0 && opp.0 > 0.0 {
-            opp.0 / mag
-        } else {
-            0.0
-        },
-        nmp_time: if opp.0 > 0.0 { opp.1 } else { f64::NAN },
-        overshoot_pct: if mag > 0.0 { 100.0 * over / mag } else { 0.0 },
+        dc_gain: (final_value - initial) / du,
+        nmp: m.is_some_and(|m| m.non_minimum_phase),
+        nmp_extent: wrong_way.map_or(0.0, |w| w.relative),
+        nmp_time: wrong_way.map_or(f64::NAN, |w| w.time - t_step),
+        overshoot_pct: m.map_or(0.0, |m| m.overshoot_pct),
     }
 }
 
@@ -629,10 +607,14 @@ mod tests {
         let f = response_features(&t, &y, 1.0, 2.0, 1.0, 5.0);
         assert!(!f.nmp && f.nmp_extent == 0.0 && f.nmp_time.is_nan());
         assert!((f.overshoot_pct - 30.0).abs() < 1e-12);
-        // a dip below the 0.5 % threshold is not NMP; one after the first move does not count
-        let y = [0.0, -0.004, 0.5, -0.5, 1.0, 1.0, 1.0, 1.0];
+        // a dip below the 0.5 % threshold is not NMP
+        let y = [0.0, -0.004, 0.5, 0.9, 1.0, 1.0, 1.0, 1.0];
         let f = response_features(&t, &y, 1.0, 0.0, 1.0, 1.0);
         assert!(!f.nmp && (f.nmp_extent - 0.004).abs() < 1e-15);
+        // a wrong-way swing after a first move in the final direction counts
+        let y = [0.0, 0.01, 0.5, -0.5, 1.0, 1.0, 1.0, 1.0];
+        let f = response_features(&t, &y, 1.0, 0.0, 1.0, 1.0);
+        assert!(f.nmp && f.nmp_extent == 0.5 && f.nmp_time == 2.0);
     }
 
     #[test]
