@@ -48,6 +48,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
             || c.is::<mvem::io::IoError>()
             || c.is::<mvem::params::ParamIssues>()
             || c.is::<mvem::model::ModelError>()
+            || c.is::<mvem::model::InputError>()
             || c.is::<mvem::sim::ScheduleError>()
             || matches!(
                 c.downcast_ref::<SimError>(),
@@ -55,7 +56,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
             )
             || matches!(
                 c.downcast_ref::<mvem::analysis::steady::SteadyError>(),
-                Some(mvem::analysis::steady::SteadyError::NonFiniteInput { .. })
+                Some(mvem::analysis::steady::SteadyError::Input(_))
             )
     });
     if input {

@@ -392,13 +392,15 @@ fn densify(x: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
     out
 }
 
-/// The legend corner whose region holds the fewest data points.
+/// The legend corner whose region holds the fewest data points: (position, fraction of the
+/// series inside the legend box summed over the series (0: the box covers no data), box height
+/// as a fraction of the plot height).
 fn legend_corner(
     panel: &Panel,
     x: (f64, f64),
     y: (f64, f64),
     plot_height_px: f64,
-) -> SeriesLabelPosition {
+) -> (SeriesLabelPosition, f64, f64) {
     // (position, right side, vertical place: 2 upper, 1 middle, 0 lower); ties go to the first
     let corners = [
         (SeriesLabelPosition::UpperRight, true, 2),
@@ -441,7 +443,7 @@ fn legend_corner(
             best = (count, pos);
         }
     }
-    best.1
+    (best.1, best.0, wy)
 }
 
 fn draw_panel<DB: DrawingBackend>(
@@ -451,7 +453,19 @@ fn draw_panel<DB: DrawingBackend>(
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let (x0, x1) = range(panel.series.iter().flat_map(|s| s.x.iter().copied()), 0.0);
     // extra head- and foot-room for the legend
-    let (y0, y1) = range(panel.series.iter().flat_map(|s| s.y.iter().copied()), 0.12);
+    let (y0, mut y1) = range(panel.series.iter().flat_map(|s| s.y.iter().copied()), 0.12);
+    let plot_height_px = area.dim_in_pixel().1 as f64 - 110.0;
+    let mut corner = SeriesLabelPosition::UpperRight;
+    if panel.series.iter().any(|s| !s.label.is_empty()) {
+        let (pos, covered, wy) = legend_corner(panel, (x0, x1), (y0, y1), plot_height_px);
+        corner = pos;
+        if covered > 0.0 {
+            // every corner holds data (e.g. a response between two steady-state lines): raise
+            // the top of the axes so that the data end below the legend box
+            y1 = y0 + (y1 - y0) / (1.0 - wy - 0.03).max(0.3);
+            corner = SeriesLabelPosition::UpperRight;
+        }
+    }
     let mut b = ChartBuilder::on(area);
     b.margin(8)
         .margin_right(18)
@@ -531,12 +545,7 @@ fn draw_panel<DB: DrawingBackend>(
     if panel.series.iter().any(|s| !s.label.is_empty()) {
         chart
             .configure_series_labels()
-            .position(legend_corner(
-                panel,
-                (x0, x1),
-                (y0, y1),
-                area.dim_in_pixel().1 as f64 - 110.0,
-            ))
+            .position(corner)
             .label_font((FAMILY, 16))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(160, 160, 160))

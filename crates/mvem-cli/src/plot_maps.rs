@@ -419,7 +419,7 @@ fn draw_panel<DB: DrawingBackend>(
             0.03,
         ),
     });
-    let (y0, y1) = p.y_range.unwrap_or_else(|| match &p.heat {
+    let (y0, mut y1) = p.y_range.unwrap_or_else(|| match &p.heat {
         Some(h) => {
             let e = edges(&h.field.y);
             (e[0], e[e.len() - 1])
@@ -432,6 +432,16 @@ fn draw_panel<DB: DrawingBackend>(
             0.05,
         ),
     });
+    // curves and markers are drawn up to the data top, also when the axes are raised
+    let y_top = y1;
+    if p.heat.is_none() {
+        // the legend sits in the upper right corner: when data lie under it, raise the top of
+        // the axes so that the data end below the legend box
+        let plot_h = plot_area.dim_in_pixel().1 as f64 - 100.0;
+        if let Some(wy) = legend_covers_data(p, (x0, x1), (y0, y1), plot_h) {
+            y1 = y0 + (y1 - y0) / (1.0 - wy - 0.03).max(0.3);
+        }
+    }
     let mut b = ChartBuilder::on(&plot_area);
     b.margin(10)
         .margin_right(16)
@@ -453,6 +463,8 @@ fn draw_panel<DB: DrawingBackend>(
         .axis_desc_style((FAMILY, 17))
         .draw()?;
     let mut legend = false;
+    // pixel centres of the contour level labels drawn so far (labels keep apart)
+    let mut placed: Vec<(i32, i32)> = Vec::new();
 
     if let Some(h) = &p.heat {
         let f = &h.field;
@@ -532,15 +544,29 @@ fn draw_panel<DB: DrawingBackend>(
                 first = false;
             }
             if let Some(dec) = cs.level_labels {
-                // label at the segment furthest inside the axes
+                // label at the segment furthest inside the axes whose label box does not
+                // overlap one already drawn (on a coarse grid nested contours run close
+                // together); no label if there is no such segment
                 let depth = |s: &((f64, f64), (f64, f64))| {
                     let fx = (0.5 * (s.0 .0 + s.1 .0) - x0) / (x1 - x0);
                     let fy = (0.5 * (s.0 .1 + s.1 .1) - y0) / (y1 - y0);
                     fx.min(1.0 - fx).min(fy).min(1.0 - fy)
                 };
-                if let Some((a, b)) = segs.iter().max_by(|s, t| depth(s).total_cmp(&depth(t))) {
+                let txt = format!("{level:.dec$}");
+                let half_w = 4 * txt.len() as i32 + 4;
+                let mut order: Vec<&((f64, f64), (f64, f64))> =
+                    segs.iter().filter(|s| depth(s) > 0.02).collect();
+                order.sort_by(|s, t| depth(t).total_cmp(&depth(s)));
+                let free = order.into_iter().find(|(a, b)| {
                     let mid = (0.5 * (a.0 + b.0), 0.5 * (a.1 + b.1));
-                    let txt = format!("{level:.dec$}");
+                    let (px, py) = chart.backend_coord(&mid);
+                    placed
+                        .iter()
+                        .all(|&(qx, qy)| (px - qx).abs() > 2 * half_w || (py - qy).abs() > 18)
+                });
+                if let Some((a, b)) = free {
+                    let mid = (0.5 * (a.0 + b.0), 0.5 * (a.1 + b.1));
+                    placed.push(chart.backend_coord(&mid));
                     chart.draw_series(std::iter::once(Text::new(
                         txt,
                         mid,
@@ -562,7 +588,7 @@ fn draw_panel<DB: DrawingBackend>(
         // runs of consecutive finite points inside the axes (a point outside breaks the curve,
         // so that nothing is drawn clamped onto the border)
         let inside = |x: f64, y: f64| {
-            x.is_finite() && y.is_finite() && x >= x0 && x <= x1 && y >= y0 && y <= y1
+            x.is_finite() && y.is_finite() && x >= x0 && x <= x1 && y >= y0 && y <= y_top
         };
         let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
         for (&x, &y) in c.x.iter().zip(&c.y) {
@@ -596,7 +622,12 @@ fn draw_panel<DB: DrawingBackend>(
         }
         if let Some(t) = &c.end_text {
             let last = c.x.iter().zip(&c.y).rfind(|(x, y)| {
-                x.is_finite() && y.is_finite() && **x >= x0 && **x <= x1 && **y >= y0 && **y <= y1
+                x.is_finite()
+                    && y.is_finite()
+                    && **x >= x0
+                    && **x <= x1
+                    && **y >= y0
+                    && **y <= y_top
             });
             if let Some((&x, &y)) = last {
                 chart.draw_series(std::iter::once(Text::new(
@@ -613,7 +644,7 @@ fn draw_panel<DB: DrawingBackend>(
     for pts in &p.points {
         let c = color(pts.color);
         let r = pts.radius as i32;
-        let inside = |x: f64, y: f64| x >= x0 && x <= x1 && y >= y0 && y <= y1;
+        let inside = |x: f64, y: f64| x >= x0 && x <= x1 && y >= y0 && y <= y_top;
         let xy: Vec<(f64, f64)> = pts
             .x
             .iter()
@@ -650,6 +681,45 @@ fn draw_panel<DB: DrawingBackend>(
             .draw()?;
     }
     Ok(())
+}
+
+/// If the upper-right legend box (about 45 % of the width, 22 px per entry high) would cover
+/// any curve point, contour segment or marker of `p`: the box height as a fraction of the plot
+/// height `plot_h` [px]. `None` when there is no legend or it covers nothing.
+fn legend_covers_data(p: &MapPanel, x: (f64, f64), y: (f64, f64), plot_h: f64) -> Option<f64> {
+    let entries = p.contours.iter().filter(|c| !c.label.is_empty()).count()
+        + p.curves.iter().filter(|c| !c.label.is_empty()).count()
+        + p.points.iter().filter(|c| !c.label.is_empty()).count();
+    if entries == 0 {
+        return None;
+    }
+    let wy = ((entries as f64 * 22.0 + 20.0) / plot_h.max(1.0)).min(0.9);
+    let inside = |xv: f64, yv: f64| {
+        let fx = (xv - x.0) / (x.1 - x.0);
+        let fy = (yv - y.0) / (y.1 - y.0);
+        fx > 0.55 && fx <= 1.0 && fy > 1.0 - wy && fy <= 1.0
+    };
+    let curves = p
+        .curves
+        .iter()
+        .map(|c| (&c.x, &c.y))
+        .chain(p.points.iter().map(|c| (&c.x, &c.y)));
+    for (xs, ys) in curves {
+        if xs.iter().zip(ys.iter()).any(|(a, b)| inside(*a, *b)) {
+            return Some(wy);
+        }
+    }
+    for cs in &p.contours {
+        for &level in &cs.levels {
+            let hit = contour_segments(&cs.field, level)
+                .iter()
+                .any(|(a, b)| inside(a.0, a.1) || inside(b.0, b.1));
+            if hit {
+                return Some(wy);
+            }
+        }
+    }
+    None
 }
 
 fn draw_colorbar<DB: DrawingBackend>(

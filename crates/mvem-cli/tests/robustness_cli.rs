@@ -8,7 +8,7 @@
 use std::path::Path;
 mod common;
 
-use common::{files, mvem, stderr};
+use common::{files, mvem, mvem_within, stderr};
 
 const HEADER: &str = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct";
 
@@ -207,4 +207,130 @@ fn robustness_bad_options_exit_2() {
         assert!(err.contains(what), "{args:?}: {err}");
     }
     assert!(files(d.path()).is_empty());
+}
+
+/// Inputs the paper's equations cannot evaluate (n_e <= 0: sqrt(n_e) in eq. (12), 0/0 in the
+/// cylinder temperature) used to hang `steady`, `linearize`, `map` and `simulate` in an
+/// unbounded eigenvalue iteration. Every such command now ends at once with exit code 2 and a
+/// message naming n_e, and writes nothing. (Limit 60 s for a loaded machine; they take
+/// milliseconds.)
+#[test]
+fn paper_semantics_at_zero_or_negative_speed_ends_with_exit_2() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("zero.csv"),
+        format!("{HEADER}\n0,1500,110,80,75\n1,0,110,80,75\n2,0,110,80,75\n"),
+    )
+    .unwrap();
+    let before = files(d.path());
+    let point = |n_e: &'static str| {
+        vec![
+            "--n-e",
+            n_e,
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--u-vgt",
+            "75",
+            "--semantics",
+            "paper",
+        ]
+    };
+    let mut cases: Vec<Vec<&str>> = Vec::new();
+    for n_e in ["0", "-100"] {
+        for cmd in ["steady", "linearize"] {
+            let mut c = vec![cmd];
+            c.extend(point(n_e));
+            cases.push(c);
+        }
+    }
+    cases.push(vec![
+        "map",
+        "--axis",
+        "n_e=0,1500",
+        "--u-delta",
+        "110",
+        "--u-egr",
+        "80",
+        "--u-vgt",
+        "75",
+        "--semantics",
+        "paper",
+        "--out",
+        "map.csv",
+    ]);
+    cases.push(vec![
+        "simulate",
+        "--inputs",
+        "zero.csv",
+        "--out",
+        "out.csv",
+        "--semantics",
+        "paper",
+    ]);
+    for args in &cases {
+        let o = mvem_within(d.path(), args, 60.0);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("n_e") && err.contains("paper"),
+            "{args:?}: {err}"
+        );
+    }
+    assert_eq!(files(d.path()), before, "a failed run wrote a file");
+    // the authors' semantics saturate n_e to 500 rpm (item 1): a result, with a warning flag
+    let o = mvem_within(
+        d.path(),
+        &[
+            "steady",
+            "--n-e",
+            "0",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "80",
+            "--u-vgt",
+            "75",
+        ],
+        60.0,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
+
+/// `mvem robustness --analysis`: steady, linearize and map over the whole input box (zero and
+/// negative speeds included) under both semantics, each call with a time limit: no hang, no
+/// panic, no NaN/inf (exit 0), and the report counts the calls.
+#[test]
+fn analysis_sweep_is_clean() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem_within(
+        d.path(),
+        &[
+            "robustness",
+            "--analysis",
+            "--runs",
+            "4",
+            "--model",
+            "8",
+            "--timeout",
+            "20",
+            "--json",
+        ],
+        600.0,
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // 4 points x 3 calls x 2 semantics
+    assert_eq!(v["calls"], 24, "{v}");
+    assert_eq!(
+        (
+            v["hangs"].as_u64(),
+            v["panics"].as_u64(),
+            v["nonfinite"].as_u64()
+        ),
+        (Some(0), Some(0), Some(0))
+    );
+    assert_eq!(v["clean"], true);
 }

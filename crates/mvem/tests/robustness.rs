@@ -266,3 +266,40 @@ fn too_many_steps_has_a_hint() {
     assert!(matches!(e, SimError::TooManySteps { .. }), "{e}");
     assert!(e.to_string().contains("Hint:"), "no hint: {e}");
 }
+
+/// The analysis calls (steady, linearize, map) at 40 random points of the whole input box
+/// (n_e -500..2500 rpm with 0, -100 and 1e-9 rpm drawn often) under both semantics, each call
+/// on a worker thread with a 30 s limit (they take milliseconds): no hang, no panic, no NaN/inf
+/// in any result; under the paper's semantics every point with n_e <= 0 is an error naming n_e.
+#[test]
+fn analysis_calls_never_hang_panic_or_return_nan() {
+    use mvem::analysis::robustness_analysis::{
+        analysis_point, analysis_sweep, AnalysisSweepConfig, Call,
+    };
+    let cfg = AnalysisSweepConfig {
+        points: 40,
+        orders: vec![mvem::model::ModelOrder::Eight],
+        timeout: std::time::Duration::from_secs(30),
+        ..AnalysisSweepConfig::default()
+    };
+    let r = analysis_sweep(&mvem::params::Params::published(), &cfg);
+    eprintln!("{r}");
+    assert!(r.clean(), "{r}");
+    let [calls, ok, errors, ..] = r.totals();
+    assert_eq!(calls, 40 * 3 * 2);
+    assert!(ok > 0 && errors > 0, "{r}");
+    let nonpositive = (0..40)
+        .filter(|&k| analysis_point(1, k).n_e_rpm <= 0.0)
+        .count() as u64;
+    assert!(nonpositive >= 3, "the sweep must include n_e <= 0");
+    for call in Call::ALL {
+        let c = &r.counts[&(8, "paper", call)];
+        let n_e_errors: u64 = c
+            .error_kinds
+            .iter()
+            .filter(|(msg, _)| msg.contains("n_e"))
+            .map(|(_, (n, _))| *n)
+            .sum();
+        assert!(n_e_errors >= nonpositive, "{call:?}: {r}");
+    }
+}

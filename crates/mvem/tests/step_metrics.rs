@@ -6,8 +6,10 @@
 
 mod common;
 use common::Table;
+use mvem::analysis::linearize::{linearize_steady, LinearizeOptions};
 use mvem::analysis::steady::steady_state;
 use mvem::analysis::step::{GainSign, StepMetrics};
+use mvem::analysis::zeros::{channel, ZeroOptions};
 use mvem::model::{Drive, Engine8};
 use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
 
@@ -16,6 +18,9 @@ struct Case {
     /// W_c at the steady states before and after the step [kg/s].
     w0: f64,
     w1: f64,
+    /// lambda_O at the steady states before and after the step [-].
+    l0: f64,
+    l1: f64,
 }
 
 fn run(from: f64, to: f64) -> Case {
@@ -36,6 +41,8 @@ fn run(from: f64, to: f64) -> Case {
         sol,
         w0: ss0.signals.w_c,
         w1: ss1.signals.w_c,
+        l0: ss0.signals.lambda_o,
+        l1: ss1.signals.lambda_o,
     }
 }
 
@@ -116,4 +123,38 @@ fn vgt_30_to_25_overshoots_with_positive_gain() {
     assert!((p.time - 1.31).abs() < 0.02, "{p:?}");
     // steady states of the model agree with the reference
     assert!(((c.w0 - rw0) / rw0).abs() < 1e-6 && ((c.w1 - rw1) / rw1).abs() < 1e-6);
+}
+
+/// u_vgt 75 -> 65 %: lambda_O first moves the right way (up, by about 1.4 % of its final
+/// change), then dips about 11 % of the final change below its start before it settles higher.
+/// The linearization has two right-half-plane zeros on u_vgt -> lambda_O (an even number: no
+/// initial wrong-way move, a later dip); the metric must report the dip and call it NMP.
+#[test]
+fn vgt_75_to_65_lambda_o_dips_after_a_first_move_the_right_way() {
+    let c = run(75.0, 65.0);
+    let l = c.sol.get("lambda_O").unwrap();
+    let m = StepMetrics::compute(c.sol.t(), l, 1.0, c.l0, c.l1, -10.0).unwrap();
+    eprintln!("{m:?}");
+    assert!(m.change > 0.0, "lambda_O ends higher: {m:?}");
+    // first move: the right way, beyond the 0.5 % threshold, before the dip
+    let w = m.wrong_way.expect("wrong-way excursion reported");
+    let first_up = c
+        .sol
+        .t()
+        .iter()
+        .zip(l)
+        .position(|(t, v)| *t >= 1.0 && (v - c.l0) / m.change > StepMetrics::THRESHOLD)
+        .unwrap();
+    assert!(c.sol.t()[first_up] < w.time, "{w:?}");
+    // the dip: about 11 % of the final change (lambda_O about 2.084)
+    assert!((w.relative - 0.11).abs() < 0.01, "{w:?}");
+    assert!((w.value - 2.0844).abs() < 2e-3, "{w:?}");
+    assert!(m.non_minimum_phase);
+    // the linearization at the start agrees: two right-half-plane zeros on the channel
+    let m8 = Engine8::published();
+    let ss = steady_state(&m8, &Drive::new(1500.0, 110.0, 80.0, 75.0)).unwrap();
+    let lin = linearize_steady(&m8, &ss, &LinearizeOptions::default()).unwrap();
+    let ch = channel(&lin, "u_vgt->lambda_O", &ZeroOptions::default()).unwrap();
+    assert_eq!(ch.zeros.rhp().len(), 2, "{:?}", ch.zeros);
+    assert_eq!(m.non_minimum_phase, ch.zeros.has_rhp());
 }

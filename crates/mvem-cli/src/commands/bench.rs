@@ -140,8 +140,9 @@ fn bench<const N: usize, M: Model<N>>(
         })
     });
     println!(
-        "\nModel evaluation (state at t = {tm} s, {} calls): {} per call with all signals \
+        "\nModel evaluation (state at t = {} s, {} calls): {} per call with all signals \
          (Model::eval), {} for the derivatives alone (Model::derivatives, what the integrator calls)",
+        tidy_time(tm),
         a.evals,
         common::fmt_duration(w / a.evals as f64),
         common::fmt_duration(wd / a.evals as f64)
@@ -180,9 +181,18 @@ fn bench<const N: usize, M: Model<N>>(
                 at = sol.t()[i];
             }
         }
-        println!("  {name:<8} {worst:.2e}  (scale {scale:e}, at t = {at} s)");
+        println!(
+            "  {name:<8} {worst:.2e}  (scale {scale:e}, at t = {} s)",
+            tidy_time(at)
+        );
     }
     Ok(())
+}
+
+/// A sample time for printing: rounded to 1 ns, so that the sum of output steps prints as the
+/// time it stands for (151.2, not 151.20000000000002).
+fn tidy_time(t: f64) -> f64 {
+    (t * 1e9).round() / 1e9
 }
 
 fn median(sorted: &[f64]) -> f64 {

@@ -5,6 +5,7 @@ use crate::common::{self, SemanticsArg};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use mvem::analysis::robustness::{sweep_with_progress, SweepConfig, SweepReport, ViolationMap};
+use mvem::analysis::robustness_analysis::{analysis_sweep, AnalysisSweepConfig};
 use mvem::components::Semantics;
 use mvem::model::ModelOrder;
 use mvem::sim::Method;
@@ -26,7 +27,13 @@ WHTC-like motoring/full-load jumps; n_e 300-2500 rpm, u_delta 0-300 mg, u_egr an
 alternating. Every output sample is checked for NaN/inf and the model's invariants (see
 docs/robustness.md). Run k of seed S is the same scenario at every model order.
 Exit code 1 if any run panicked, produced NaN/inf, violated an invariant or ended in an error
-without time, state and hint; runs ending in a located error are counted by class.")]
+without time, state and hint; runs ending in a located error are counted by class.
+
+With --analysis, the sweep calls the analyses behind `mvem steady`, `mvem linearize` and
+`mvem map` instead, at --runs random operating points per model order and semantics (both
+semantics unless --semantics is given explicitly), over n_e -500..2500 rpm (0, -100 and 1e-9 rpm
+included), u_delta -50..300 mg, u_egr and u_vgt -20..120 %, each call on a worker thread with
+the --timeout limit. Exit code 1 if any call hung, panicked or returned NaN/inf.")]
 pub struct Args {
     /// Runs per model order.
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
@@ -59,15 +66,22 @@ pub struct Args {
     /// Parameter file [default: the built-in published set].
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
-    /// Equations: the authors' implementation or the paper's plain equations.
-    #[arg(long, value_enum, default_value = "authors")]
-    pub semantics: SemanticsArg,
+    /// Equations: the authors' implementation or the paper's plain equations [default:
+    /// authors; with --analysis both].
+    #[arg(long, value_enum)]
+    pub semantics: Option<SemanticsArg>,
     /// Print the report as one JSON object on stdout instead of text.
     #[arg(long)]
     pub json: bool,
     /// Also write the report as Markdown to this file (atomically).
     #[arg(long, value_name = "FILE.md")]
     pub out: Option<PathBuf>,
+    /// Sweep the analysis calls (steady, linearize, map) instead of simulations.
+    #[arg(long)]
+    pub analysis: bool,
+    /// Time limit per analysis call [s] (--analysis).
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    pub timeout: f64,
 }
 
 /// `--model` of `mvem robustness`.
@@ -108,17 +122,11 @@ pub fn run(a: &Args) -> Result<()> {
         Some(p) => mvem::io::params::load_params(p)
             .with_context(|| format!("cannot use parameter file {}", p.display()))?,
     };
-    let orders = match a.model {
-        OrderArg::Eight => vec![ModelOrder::Eight],
-        OrderArg::Ten => vec![ModelOrder::Ten],
-        OrderArg::Twelve => vec![ModelOrder::Twelve],
-        OrderArg::All => vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
-    };
-    let threads = a.threads.map(|t| t as usize).unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
+    if a.analysis {
+        return run_analysis(a, &params);
+    }
+    let orders = orders_of(a.model);
+    let threads = threads_of(a);
     let base = SweepConfig {
         runs: a.runs,
         seed: a.seed,
@@ -135,10 +143,7 @@ pub fn run(a: &Args) -> Result<()> {
         ..SweepConfig::default()
     };
     let mut base = base;
-    base.model.semantics = match a.semantics {
-        SemanticsArg::Authors => Semantics::Authors,
-        SemanticsArg::Paper => Semantics::Paper,
-    };
+    base.model.semantics = semantics_of(a.semantics.unwrap_or(SemanticsArg::Authors));
     let pb = common::stderr_is_terminal().then(|| {
         let pb = indicatif::ProgressBar::new(a.runs * orders.len() as u64);
         pb.set_draw_target(indicatif::ProgressDrawTarget::stderr());
@@ -200,6 +205,96 @@ pub fn run(a: &Args) -> Result<()> {
     Ok(())
 }
 
+fn semantics_of(s: SemanticsArg) -> Semantics {
+    match s {
+        SemanticsArg::Authors => Semantics::Authors,
+        SemanticsArg::Paper => Semantics::Paper,
+    }
+}
+
+/// The model orders of `--model`.
+fn orders_of(m: OrderArg) -> Vec<ModelOrder> {
+    match m {
+        OrderArg::Eight => vec![ModelOrder::Eight],
+        OrderArg::Ten => vec![ModelOrder::Ten],
+        OrderArg::Twelve => vec![ModelOrder::Twelve],
+        OrderArg::All => vec![ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve],
+    }
+}
+
+fn threads_of(a: &Args) -> usize {
+    a.threads.map(|t| t as usize).unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    })
+}
+
+/// `mvem robustness --analysis`.
+fn run_analysis(a: &Args, params: &mvem::params::Params) -> Result<()> {
+    if !(a.timeout.is_finite() && a.timeout > 0.0) {
+        return Err(common::usage(format!(
+            "--timeout {}: must be > 0",
+            a.timeout
+        )));
+    }
+    let semantics = match a.semantics {
+        Some(s) => vec![semantics_of(s)],
+        None => vec![Semantics::Authors, Semantics::Paper],
+    };
+    let cfg = AnalysisSweepConfig {
+        points: a.runs,
+        seed: a.seed,
+        orders: orders_of(a.model),
+        semantics,
+        timeout: std::time::Duration::from_secs_f64(a.timeout),
+        threads: threads_of(a),
+    };
+    let r = common::with_spinner("analysis sweep (steady, linearize, map)", || {
+        analysis_sweep(params, &cfg)
+    });
+    if !r.unavailable.is_empty() {
+        return Err(common::usage(format!(
+            "the {:?}-state model(s) cannot be built from these parameters",
+            r.unavailable
+        )));
+    }
+    if a.json {
+        let [calls, ok, errors, nonfinite, panics, hangs] = r.totals();
+        let rows: Vec<Value> = r
+            .counts
+            .iter()
+            .map(|((n, sem, call), c)| {
+                json!({"states": n, "semantics": sem, "call": call.name(), "calls": c.calls,
+                       "ok": c.ok, "errors": c.errors, "nonfinite": c.nonfinite,
+                       "panics": c.panics, "hangs": c.hangs, "slowest_s": c.slowest})
+            })
+            .collect();
+        let v = json!({"seed": a.seed, "points": a.runs, "timeout_s": a.timeout,
+                       "calls": calls, "ok": ok, "errors": errors, "nonfinite": nonfinite,
+                       "panics": panics, "hangs": hangs, "seconds": r.seconds,
+                       "clean": r.clean(), "per_call": rows});
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!("{r}");
+    }
+    if let Some(p) = &a.out {
+        let md = format!(
+            "# mvem robustness sweep of the analysis calls\n\n`mvem robustness --analysis --runs {} --seed {} --timeout {}`, mvem {}\n\n```\n{r}```\n",
+            a.runs,
+            a.seed,
+            a.timeout,
+            env!("CARGO_PKG_VERSION")
+        );
+        mvem::io::output::write_atomic(p, md.as_bytes())
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if !r.clean() {
+        anyhow::bail!("analysis sweep not clean: hangs, panics or NaN/inf (see the report)");
+    }
+    Ok(())
+}
+
 fn violations_json(map: &ViolationMap) -> Value {
     Value::Array(
         map.iter()
@@ -245,7 +340,7 @@ fn to_json(a: &Args, reports: &[(usize, SweepReport)]) -> Value {
         "seed": a.seed,
         "runs_per_model": a.runs,
         "t_end_s": a.t_end,
-        "semantics": format!("{:?}", a.semantics).to_lowercase(),
+        "semantics": format!("{:?}", a.semantics.unwrap_or(SemanticsArg::Authors)).to_lowercase(),
         "models": models,
     })
 }
@@ -260,7 +355,7 @@ fn markdown(a: &Args, reports: &[(usize, SweepReport)]) -> String {
         a.runs,
         a.seed,
         a.t_end,
-        format!("{:?}", a.semantics).to_lowercase(),
+        format!("{:?}", a.semantics.unwrap_or(SemanticsArg::Authors)).to_lowercase(),
         env!("CARGO_PKG_VERSION")
     );
     let head: Vec<String> = reports.iter().map(|(n, _)| format!("{n} states")).collect();

@@ -439,13 +439,21 @@ pub fn figure(c: &StepCase, label: Option<&str>) -> Figure {
         .filter(|(n, _)| **n != c.input.name())
         .map(|(n, v)| format!("{n} {v} {}", short_unit(n)))
         .collect();
-    f.title = Some(format!("Step {}; {}", step_title(c), others.join(", ")));
+    // a label (e.g. the report's "Fig. 10 equivalent: ...") heads the figure, not the input
+    // panel; the operating point then moves to the input panel's title
+    f.title = Some(match label {
+        None => format!("Step {}; {}", step_title(c), others.join(", ")),
+        Some(l) => format!("{l}; {}", step_title(c)),
+    });
     let t = c.sol.t();
     let (t0, t1) = (t[0], t[t.len() - 1]);
     let inp = c.input.name();
     let col = |n: &str| c.sol.get(n).map(|v| v.to_vec()).unwrap_or_default();
     let mut p = Panel::new("t [s]", format!("{inp} [{}]", common::unit(inp)))
-        .title(label.map_or(format!("Input {inp}"), str::to_string))
+        .title(match label {
+            None => format!("Input {inp}"),
+            Some(_) => format!("Input {inp} ({})", others.join(", ")),
+        })
         .with(Series::line(format!("command {inp}"), t, &col(inp), 6));
     let actual = match c.input {
         InputArg::UEgr => Some("u_egr_actual"),

@@ -14,6 +14,31 @@ pub fn mvem(dir: &Path, args: &[&str]) -> Output {
         .expect("run mvem")
 }
 
+/// Run `mvem` with `args` in `dir`, killing it and failing the test if it has not ended after
+/// `limit` seconds (a hang).
+pub fn mvem_within(dir: &Path, args: &[&str], limit: f64) -> Output {
+    use std::time::{Duration, Instant};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mvem"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run mvem");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait for mvem").is_some() {
+            return child.wait_with_output().expect("collect mvem's output");
+        }
+        if start.elapsed().as_secs_f64() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("mvem {args:?} did not end within {limit} s (a hang)");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
 /// Standard error as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -51,7 +51,7 @@
 
 use super::steady::SteadyState;
 use crate::components::cylinder::SeligerIterate;
-use crate::model::{CylinderTemp, Drive, Guard, Model, ModelInput, Signals};
+use crate::model::{CylinderTemp, Drive, Guard, InputError, Model, ModelInput, Signals};
 use nalgebra::DMatrix;
 use std::fmt;
 
@@ -185,6 +185,10 @@ pub enum LinearizeError {
         /// Value.
         value: f64,
     },
+    /// An input the model cannot be evaluated at (n_e <= 0 with the paper's equations;
+    /// [`Drive::check`]).
+    #[error("{0}")]
+    Input(#[from] InputError),
     /// The operating point sits at (or within the difference stencil of) a kink.
     #[error("the operating point sits at a kink of the model: {}; the derivative is one-sided there (set strict = false to obtain the averaged slopes with the kinks listed)", .0.iter().map(|k| k.to_string()).collect::<Vec<_>>().join("; "))]
     Kink(Vec<Kink>),
@@ -353,6 +357,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             });
         }
     }
+    d.check(m.options().semantics)?;
     let sel = resolve_outputs(&names, &opts.outputs)?;
     let p = sel.len();
     let nrow = N + p;

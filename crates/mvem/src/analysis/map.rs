@@ -25,7 +25,7 @@
 use super::linearize::{linearize, LinearizeOptions};
 use super::steady::{steady_state_with, SteadyOptions, SteadyState};
 use super::zeros::{siso, Channel, ZeroOptions};
-use crate::model::{Drive, Model};
+use crate::model::{Drive, InputError, Model};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -70,6 +70,16 @@ pub enum MapError {
     /// The thread pool could not be built.
     #[error("thread pool: {0}")]
     Threads(String),
+    /// A grid point the model cannot be evaluated at (n_e <= 0 with the paper's equations;
+    /// checked for every point before any is solved).
+    #[error("grid point {index:?}: {source}")]
+    Input {
+        /// Multi-index of the first such point.
+        index: Vec<usize>,
+        /// What is wrong.
+        #[source]
+        source: InputError,
+    },
 }
 
 /// A grid over one to four inputs; the other inputs are held at `base`.
@@ -310,6 +320,13 @@ pub fn steady_map<const N: usize, M: Model<N>>(
     opts: &MapOptions,
     progress: Option<Progress<'_>>,
 ) -> Result<SteadyMap<N>, MapError> {
+    let sem = m.options().semantics;
+    for f in 0..grid.len() {
+        let index = grid.multi_index(f);
+        grid.drive_at(&index)
+            .check(sem)
+            .map_err(|source| MapError::Input { index, source })?;
+    }
     let dims = grid.dims();
     let total = grid.len();
     let done = AtomicUsize::new(0);

@@ -8,6 +8,7 @@ pub mod extensions;
 pub mod linearize;
 pub mod map;
 pub mod robustness;
+pub mod robustness_analysis;
 pub mod steady;
 pub mod step;
 pub mod zeros;

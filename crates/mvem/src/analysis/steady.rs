@@ -14,7 +14,8 @@
 //! linearization, and the model regimes (choked EGR, no EGR flow, linear c_m branch).
 //! [`SteadyState::physically_valid`] is false when any invalidating flag is present.
 
-use crate::model::{Drive, Guard, Model, ModelInput, Signals};
+use crate::analysis::zeros;
+use crate::model::{Drive, Guard, InputError, Model, ModelInput, Signals};
 use crate::sim::{simulate, InputSchedule, SimOptions, Start};
 use nalgebra::{DMatrix, DVector};
 
@@ -33,7 +34,8 @@ pub struct SteadyState<const N: usize> {
     pub iterations: usize,
     /// Whether a settling simulation was needed.
     pub settled: bool,
-    /// Eigenvalues (re, im) of the Jacobian of the solved (non-actuator) states [1/s].
+    /// Eigenvalues (re, im) of the Jacobian of the solved (non-actuator) states [1/s], sorted
+    /// by decreasing real part, then increasing imaginary part.
     pub eigenvalues: Vec<(f64, f64)>,
     /// Flags: guard saturations, lambda_O<1, integrator limits, `unstable`, regimes.
     pub flags: Vec<String>,
@@ -52,14 +54,10 @@ impl<const N: usize> SteadyState<N> {
 /// Why no equilibrium was returned.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SteadyError {
-    /// An input is NaN or infinite.
-    #[error("input {name} = {value} is not finite")]
-    NonFiniteInput {
-        /// Input name.
-        name: &'static str,
-        /// Value.
-        value: f64,
-    },
+    /// An input the model cannot be evaluated at (NaN, infinite, or n_e <= 0 with the paper's
+    /// equations; [`Drive::check`]).
+    #[error("{0}")]
+    Input(#[from] InputError),
     /// Neither Newton nor the settling simulations reached the tolerance.
     #[error("no equilibrium found at n_e={} rpm, u_delta={} mg, u_egr={} %, u_vgt={} %: {reason} (best residual {residual:.3e} 1/s at {state})", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
     NoConvergence {
@@ -111,11 +109,7 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
     guess: Option<&[f64; N]>,
     opts: &SteadyOptions,
 ) -> Result<SteadyState<N>, SteadyError> {
-    for (name, v) in Drive::NAMES.iter().zip(d.to_array()) {
-        if !v.is_finite() {
-            return Err(SteadyError::NonFiniteInput { name, value: v });
-        }
-    }
+    d.check(m.options().semantics)?;
     // At an equilibrium the one-iteration memory equals the fixed point: solve with the
     // converged cylinder-out temperature whatever the model's option.
     if m.options().cylinder_temp != crate::model::CylinderTemp::Converged {
@@ -148,11 +142,13 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
             *best = Some((r.x, r.residual));
         }
         if r.residual <= opts.tol {
-            let ss = solver.finish(r.x, r.residual, *iterations, settled);
-            if ss.eigenvalues.iter().all(|e| e.0 < 0.0) || !opts.settle {
-                return Some(ss);
+            match solver.finish(r.x, r.residual, *iterations, settled) {
+                Ok(ss) if ss.eigenvalues.iter().all(|e| e.0 < 0.0) || !opts.settle => {
+                    return Some(ss)
+                }
+                Ok(_) => *reason = "Newton converged to an unstable equilibrium".into(),
+                Err(why) => *reason = why,
             }
-            *reason = "Newton converged to an unstable equilibrium".into();
         } else if let Some(why) = r.why {
             *reason = why;
         }
@@ -164,14 +160,14 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
     }
     if opts.settle {
         let sched = InputSchedule::constant(*d);
-        // A budget: settling at constant inputs takes hundreds of steps; a run that needs a
-        // million (fast oscillation, equilibrium lost) fails with TooManySteps, reported as the
-        // reason, instead of running for minutes.
+        // A budget: settling at constant inputs takes hundreds of steps; a run that needs
+        // 100 000 (fast oscillation, equilibrium lost; about 0.2 s) fails with TooManySteps,
+        // reported as the reason, instead of running for minutes.
         let sim_opts = SimOptions {
             rtol: 1e-6,
             atol: 1e-8,
             dt_out: 1e9,
-            max_steps: 1_000_000,
+            max_steps: 100_000,
             ..SimOptions::default()
         };
         let mut start = x0;
@@ -389,12 +385,14 @@ impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
         residual: f64,
         iterations: usize,
         settled: bool,
-    ) -> SteadyState<N> {
+    ) -> Result<SteadyState<N>, String> {
         let ev = self.m.eval(&x, &self.u, self.memory());
         let r0 = self.residual(&x);
         let j = self.jacobian(&x, &r0);
-        let eigenvalues: Vec<(f64, f64)> = j
-            .complex_eigenvalues()
+        // bounded and checked (finite entries, balancing, an iteration limit), sorted by
+        // decreasing real part
+        let eigenvalues: Vec<(f64, f64)> = zeros::eigenvalues(&j)
+            .map_err(|e| format!("eigenvalues of the Jacobian at the solution: {e}"))?
             .iter()
             .map(|c| (c.re, c.im))
             .collect();
@@ -410,7 +408,7 @@ impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
             flags.push("unstable".into());
             invalid = true;
         }
-        SteadyState {
+        Ok(SteadyState {
             drive: self.u.now,
             x,
             signals: ev.signals,
@@ -420,6 +418,6 @@ impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
             eigenvalues,
             flags,
             invalid,
-        }
+        })
     }
 }

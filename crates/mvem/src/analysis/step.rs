@@ -7,10 +7,17 @@
 //! - **Final change** `y_final - y0` and **DC gain** `(y_final - y0) / du`; `y_final` is best
 //!   taken from the steady state at the new input ([`crate::analysis::steady`]) rather than the
 //!   last sample, so that a response that has not fully settled is still measured correctly.
-//! - **Wrong-way excursion** (non-minimum-phase undershoot): the minimum of `z` after the step
-//!   and before the first time `z` reaches [`StepMetrics::THRESHOLD`] (0.5 % of the final
-//!   change in the final direction). It counts as non-minimum-phase when its size exceeds the
-//!   same 0.5 %.
+//! - **Wrong-way excursion**: the minimum of `z` over every sample after the step, i.e. the
+//!   largest excursion opposite to the final change anywhere in the response (value and time),
+//!   not only before the first move: a response that first moves slightly the right way and
+//!   then dips (u_vgt 75 -> 65 % at 1500 rpm, 110 mg, u_egr 80 %: lambda_O rises by 1.4 % of
+//!   its final change, then falls 11 % below its start) is caught. The response counts as
+//!   **non-minimum phase** when this excursion exceeds [`StepMetrics::THRESHOLD`] = 0.5 % of
+//!   |final change| (above integration and sampling noise, below any wrong-way move a
+//!   controller would notice). For a linear system an odd number of real right-half-plane
+//!   zeros gives an initial wrong-way move; an even number (the lambda_O case: two) a later
+//!   dip, which is why the whole response is searched. An underdamped response that swings
+//!   back beyond its start also counts; [`Excursion::time`] tells them apart.
 //! - **Overshoot** `max(z - 1, 0) * 100` % over the samples after the step (the largest
 //!   excursion beyond the final value relative to |final change|).
 //! - **Rise time** from the first crossing of `z = 0.1` to the first crossing of `z = 0.9`
@@ -69,10 +76,11 @@ pub struct StepMetrics {
     pub dc_gain: f64,
     /// Sign of the DC gain.
     pub gain_sign: GainSign,
-    /// The largest wrong-way excursion before the response first moves 0.5 % in the final
-    /// direction (`None` if it never goes the wrong way by more than [`StepMetrics::NOISE`]).
+    /// The largest excursion opposite to the final change anywhere after the step (`None` if it
+    /// never goes the wrong way by more than [`StepMetrics::NOISE`]).
     pub wrong_way: Option<Excursion>,
-    /// Whether the wrong-way excursion exceeds 0.5 % of |final change| (non-minimum phase).
+    /// Whether the wrong-way excursion exceeds [`StepMetrics::THRESHOLD`] = 0.5 % of |final
+    /// change| (non-minimum phase).
     pub non_minimum_phase: bool,
     /// Overshoot beyond the final value, % of |final change| (0 if none).
     pub overshoot_pct: f64,
@@ -106,7 +114,8 @@ pub enum StepError {
 }
 
 impl StepMetrics {
-    /// Threshold for "moved" and for counting a wrong-way excursion: 0.5 % of |final change|.
+    /// Threshold for counting a wrong-way excursion as non-minimum phase: 0.5 % of |final
+    /// change|.
     pub const THRESHOLD: f64 = 0.005;
     /// Settling band: 2 % of |final change|.
     pub const BAND: f64 = 0.02;
@@ -157,12 +166,8 @@ impl StepMetrics {
         }
         let z: Vec<f64> = y.iter().map(|v| (v - y0) / change).collect();
 
-        // Wrong way: minimum of z before the first move of THRESHOLD in the final direction.
-        let moved = z
-            .iter()
-            .position(|&v| v >= Self::THRESHOLD)
-            .unwrap_or(z.len());
-        let wrong_way = argmin(&z[..moved])
+        // Wrong way: minimum of z over the whole response after the step.
+        let wrong_way = argmin(&z)
             .filter(|&i| -z[i] > Self::NOISE)
             .map(|i| Excursion {
                 value: y[i],
@@ -338,17 +343,27 @@ mod tests {
     }
 
     #[test]
-    fn small_wrong_way_is_not_nmp_and_late_undershoot_is_ignored() {
-        // A 0.3 % initial dip (below the 0.5 % threshold), then a response that overshoots and
-        // undershoots below 0 later (after having moved): neither counts as NMP.
+    fn small_wrong_way_is_not_nmp() {
+        let (t, y) = (vec![0.0, 1.0, 2.0, 3.0], vec![0.0, -0.003, 0.5, 1.0]);
+        let m = StepMetrics::compute(&t, &y, 0.0, 0.0, 1.0, 1.0).unwrap();
+        let w = m.wrong_way.unwrap();
+        assert_eq!((w.time, w.value, w.relative), (1.0, -0.003, 0.003));
+        assert!(!m.non_minimum_phase);
+    }
+
+    #[test]
+    fn late_wrong_way_excursion_counts() {
+        // A 0.3 % initial dip, a move the right way, an overshoot, then a swing 20 % below the
+        // start at t = 4: the wrong-way excursion is the late one, and it is NMP.
         let (t, y) = (
             vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
             vec![0.0, -0.003, 0.5, 1.5, -0.2, 1.01, 1.0],
         );
         let m = StepMetrics::compute(&t, &y, 0.0, 0.0, 1.0, 1.0).unwrap();
         let w = m.wrong_way.unwrap();
-        assert_eq!((w.time, w.value), (1.0, -0.003));
-        assert!(!m.non_minimum_phase);
+        assert_eq!((w.time, w.value), (4.0, -0.2));
+        assert!((w.relative - 0.2).abs() < 1e-15);
+        assert!(m.non_minimum_phase);
         assert!((m.overshoot_pct - 50.0).abs() < 1e-12);
         assert_eq!(m.peak.unwrap().time, 3.0);
         // last exit from the band between t = 4 (z = -0.2) and t = 5 (z = 1.01)

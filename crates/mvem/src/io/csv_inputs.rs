@@ -104,13 +104,25 @@ pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoErro
     if times.is_empty() {
         return Err(err(path, None, None, "no data rows".into()));
     }
+    // the schedule counts data rows from 0; the messages here name the file line only
     InputSchedule::new(times, rows).map_err(|e| match e {
-        ScheduleError::NonFinite { row, column, .. } => {
-            err(path, lines.get(row).copied(), Some(column), e.to_string())
-        }
-        ScheduleError::NonMonotonic { row, .. } => {
-            err(path, lines.get(row).copied(), Some("time_s"), e.to_string())
-        }
+        ScheduleError::NonFinite { row, column, value } => err(
+            path,
+            lines.get(row).copied(),
+            Some(column),
+            format!("{value} is not finite"),
+        ),
+        ScheduleError::NonMonotonic {
+            row,
+            t,
+            prev,
+            detail,
+        } => err(
+            path,
+            lines.get(row).copied(),
+            Some("time_s"),
+            format!("time {t} s is not monotonic (previous {prev} s){detail}"),
+        ),
         ScheduleError::Empty => err(path, None, None, e.to_string()),
     })
 }
@@ -188,7 +200,7 @@ mod tests {
         ))
         .unwrap_err();
         assert!(
-            e.starts_with("in.csv, line 4, column time_s: row 2: time 1 s is not monotonic"),
+            e.starts_with("in.csv, line 4, column time_s: time 1 s is not monotonic"),
             "{e}"
         );
         let e = parse("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct,extra\n").unwrap_err();

@@ -8,10 +8,16 @@ use std::path::{Path, PathBuf};
 
 /// Write `bytes` to `path` atomically (temporary file + fsync + rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    let file_err = |p: &Path, source| IoError::File {
-        path: p.to_path_buf(),
-        source,
-    };
+    write_atomic_with(path, |w| w.write_all(bytes))
+}
+
+/// Write to `path` atomically through a buffered writer: `fill` writes the content to a
+/// temporary file in the target's directory, which is flushed, synced and renamed over the
+/// target only when `fill` succeeded (on any error the temporary file is removed).
+pub fn write_atomic_with(
+    path: &Path,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), IoError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -22,39 +28,158 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
         .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
     let res = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let f = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, f);
+        fill(&mut w)?;
+        let f = w.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();
-    if let Err(e) = res {
+    if let Err(source) = res {
         let _ = std::fs::remove_file(&tmp);
-        return Err(file_err(path, e));
+        return Err(IoError::File {
+            path: path.to_path_buf(),
+            source,
+        });
     }
     Ok(())
 }
 
-/// The solution as CSV text (header = column names; shortest round-trip number format).
-pub fn solution_csv(sol: &Solution) -> String {
-    let mut s = String::with_capacity(sol.len() * sol.names.len() * 20);
-    s.push_str(&sol.names.join(","));
-    s.push('\n');
-    for i in 0..sol.len() {
-        for (j, c) in sol.columns.iter().enumerate() {
-            if j > 0 {
-                s.push(',');
-            }
-            use std::fmt::Write as _;
-            let _ = write!(s, "{}", c[i]);
+/// Named columns of a solution to write: `t` first, then `signals` in the order given
+/// (states or signals; `None`: every column). An unknown name is an error listing the known
+/// ones.
+pub fn select_columns<'a>(
+    sol: &'a Solution,
+    signals: Option<&[String]>,
+) -> Result<Vec<(&'a str, &'a [f64])>, String> {
+    let all = || {
+        sol.names
+            .iter()
+            .zip(&sol.columns)
+            .map(|(n, c)| (n.as_str(), c.as_slice()))
+    };
+    let Some(names) = signals else {
+        return Ok(all().collect());
+    };
+    let mut out: Vec<(&str, &[f64])> = all().take(1).collect();
+    for n in names {
+        let n = n.trim();
+        if n == "t" {
+            continue;
         }
-        s.push('\n');
+        match all().find(|(k, _)| *k == n) {
+            Some(c) if !out.iter().any(|(k, _)| *k == n) => out.push(c),
+            Some(_) => return Err(format!("signal {n:?} is listed twice")),
+            None => {
+                return Err(format!(
+                    "unknown signal {n:?}; known: {}",
+                    sol.names[1..].join(", ")
+                ))
+            }
+        }
     }
-    s
+    Ok(out)
+}
+
+/// Write columns as CSV: a header of the names, then one line per sample, each number in the
+/// shortest representation that reads back to the same f64 (ryu; `NaN`, `inf`, `-inf` for
+/// non-finite values), without an allocation per field.
+pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<()> {
+    let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
+    w.write_all(names.join(",").as_bytes())?;
+    w.write_all(b"\n")?;
+    let rows = cols.first().map_or(0, |c| c.1.len());
+    let mut buf = ryu::Buffer::new();
+    let mut line: Vec<u8> = Vec::with_capacity(cols.len() * 24);
+    for i in 0..rows {
+        line.clear();
+        for (j, (_, c)) in cols.iter().enumerate() {
+            if j > 0 {
+                line.push(b',');
+            }
+            line.extend_from_slice(buf.format(c[i]).as_bytes());
+        }
+        line.push(b'\n');
+        w.write_all(&line)?;
+    }
+    Ok(())
+}
+
+/// The solution as CSV text (every column; see [`write_csv`]).
+pub fn solution_csv(sol: &Solution) -> String {
+    let mut out = Vec::with_capacity(sol.len() * sol.names.len() * 20);
+    let cols = select_columns(sol, None).expect("every column exists");
+    write_csv(&mut out, &cols).expect("writing to memory cannot fail");
+    String::from_utf8(out).expect("ASCII")
 }
 
 /// Write the solution as CSV atomically.
 pub fn write_solution_csv(sol: &Solution, path: &Path) -> Result<(), IoError> {
-    write_atomic(path, solution_csv(sol).as_bytes())
+    let cols = select_columns(sol, None).expect("every column exists");
+    write_columns(&cols, path)
+}
+
+/// Write columns atomically to `path`: Parquet when the name ends in `.parquet` (one DOUBLE
+/// column per name, [`write_parquet`]), CSV otherwise ([`write_csv`]).
+pub fn write_columns(cols: &[(&str, &[f64])], path: &Path) -> Result<(), IoError> {
+    let parquet = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("parquet"));
+    write_atomic_with(path, |w| {
+        if parquet {
+            write_parquet(w, cols)
+        } else {
+            write_csv(w, cols)
+        }
+    })
+}
+
+/// Write columns as an Apache Parquet file: one row group, one required DOUBLE column per name
+/// (plain encoding, uncompressed: the values are the f64 bits, as in memory), readable by
+/// pyarrow, pandas and polars.
+pub fn write_parquet<W: Write + Send>(w: W, cols: &[(&str, &[f64])]) -> std::io::Result<()> {
+    use parquet::basic::{Repetition, Type as PhysicalType};
+    use parquet::column::writer::ColumnWriter;
+    use parquet::file::properties::WriterProperties;
+    use parquet::file::writer::SerializedFileWriter;
+    use parquet::schema::types::Type;
+    use std::sync::Arc;
+    let err = |e: parquet::errors::ParquetError| std::io::Error::other(e.to_string());
+    let fields = cols
+        .iter()
+        .map(|(n, _)| {
+            Type::primitive_type_builder(n, PhysicalType::DOUBLE)
+                .with_repetition(Repetition::REQUIRED)
+                .build()
+                .map(Arc::new)
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(err)?;
+    let schema = Type::group_type_builder("mvem")
+        .with_fields(fields)
+        .build()
+        .map_err(err)?;
+    let props = WriterProperties::builder()
+        .set_dictionary_enabled(false)
+        .set_created_by(format!("mvem {}", env!("CARGO_PKG_VERSION")))
+        .build();
+    let mut fw = SerializedFileWriter::new(w, Arc::new(schema), Arc::new(props)).map_err(err)?;
+    let mut rg = fw.next_row_group().map_err(err)?;
+    for (_, c) in cols {
+        let Some(mut cw) = rg.next_column().map_err(err)? else {
+            break;
+        };
+        match cw.untyped() {
+            ColumnWriter::DoubleColumnWriter(t) => {
+                t.write_batch(c, None, None).map_err(err)?;
+            }
+            _ => return Err(std::io::Error::other("parquet: column is not DOUBLE")),
+        }
+        cw.close().map_err(err)?;
+    }
+    rg.close().map_err(err)?;
+    fw.close().map_err(err)?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -104,16 +104,24 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                 e.to_string(),
             )
         })?;
-        let nested = match v.get("parameters") {
-            Some(flat) => flat_to_nested(flat, path)?,
-            None => v,
-        };
-        serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
+        match v.get("parameters") {
+            Some(flat) => serde_json::from_value(flat_to_nested(flat, path)?)
+                .map_err(|e| fmt_err(path, None, None, e.to_string()))?,
+            // nested JSON: parse the text again into the typed structure, so that an unknown
+            // or missing field is reported at its line and column
+            None => serde_json::from_str(text).map_err(|e| {
+                fmt_err(
+                    path,
+                    Some(e.line()),
+                    Some(e.column().to_string()),
+                    e.to_string(),
+                )
+            })?,
+        }
     } else {
         toml::from_str(text).map_err(|e| {
-            let line = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+            // 1-based line of the span's start: newlines before it, plus one
+            let line = e.span().map(|s| line_of(text, s.start));
             fmt_err(path, line, None, e.message().to_string())
         })?
     };
@@ -122,6 +130,16 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
         issues,
     })?;
     Ok(p)
+}
+
+/// 1-based line number of byte offset `at` in `text` (offsets past the end: the last line).
+pub(crate) fn line_of(text: &str, at: usize) -> usize {
+    let at = at.min(text.len());
+    text.as_bytes()[..at]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 fn flat_to_nested(flat: &serde_json::Value, path: &Path) -> Result<serde_json::Value, IoError> {
@@ -218,6 +236,24 @@ mod tests {
         assert!(
             e.contains("unknown field `v_imm`") && e.contains("line"),
             "{e}"
+        );
+        // the line of the typo'd key itself (not the one before it)
+        let typo = good.replace("v_im = 0.022\n", "v_imx = 0.022\n");
+        let want = typo.lines().position(|l| l.starts_with("v_imx")).unwrap() + 1;
+        let e = parse_params(&typo, Path::new("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("line {want}")), "line {want}: {e}");
+        let json = serde_json::to_string_pretty(&Params::published())
+            .unwrap()
+            .replace("\"v_im\"", "\"v_imx\"");
+        let want = json.lines().position(|l| l.contains("v_imx")).unwrap() + 1;
+        let e = parse_params(&json, Path::new("p.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("unknown field `v_imx`") && e.contains(&format!("line {want}")),
+            "line {want}: {e}"
         );
         let neg = good.replace("j_t = 0.0002", "j_t = -0.0002");
         let e = parse_params(&neg, Path::new("p.toml"))

@@ -91,6 +91,44 @@ impl Drive {
 
     /// Input names in [`Drive::to_array`] order.
     pub const NAMES: [&'static str; 4] = ["n_e", "u_delta", "u_egr", "u_vgt"];
+
+    /// Whether the model can be evaluated at these inputs under `sem`: every value finite, and
+    /// for the paper's plain equations n_e > 0 (eq. (12) takes sqrt(n_e), and at n_e = 0 the
+    /// cylinder flows (11), (13) vanish, so the in-cylinder temperature rise W_f q_HV /
+    /// (W_ei + W_f) of eq. (17) is 0/0). The authors' implementation saturates n_e to
+    /// 500-2000 rpm (item 1) and evaluates every finite input.
+    pub fn check(&self, sem: Semantics) -> Result<(), InputError> {
+        for (name, value) in Self::NAMES.iter().zip(self.to_array()) {
+            if !value.is_finite() {
+                return Err(InputError {
+                    name,
+                    value,
+                    reason: "is not finite",
+                });
+            }
+        }
+        if !sem.authors() && self.n_e_rpm <= 0.0 {
+            return Err(InputError {
+                name: "n_e",
+                value: self.n_e_rpm,
+                reason: "must be > 0 rpm with the paper's equations (sqrt(n_e) in eq. (12), \
+                         0/0 in eq. (17)); the authors' semantics saturate it to 500-2000 rpm",
+            });
+        }
+        Ok(())
+    }
+}
+
+/// An input the model cannot be evaluated at ([`Drive::check`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("input {name} = {value} {reason}")]
+pub struct InputError {
+    /// Input name (`n_e`, `u_delta`, `u_egr`, `u_vgt`).
+    pub name: &'static str,
+    /// Its value (user units: rpm, mg, %).
+    pub value: f64,
+    /// What is wrong with it.
+    pub reason: &'static str,
 }
 
 /// What one model evaluation sees of the inputs: the current values and the actuator commands
