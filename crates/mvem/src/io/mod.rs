@@ -4,6 +4,7 @@
 pub mod csv_inputs;
 pub mod output;
 pub mod params;
+pub mod test_cell;
 
 use std::path::PathBuf;
 

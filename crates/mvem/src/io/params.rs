@@ -104,12 +104,19 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                 e.to_string(),
             )
         })?;
-        let nested = match v.get("parameters") {
+        let mut nested = match v.get("parameters") {
             Some(flat) => flat_to_nested(flat, path)?,
             None => v,
         };
+        // the test-cell section is not a model parameter (read by super::test_cell)
+        if let Some(o) = nested.as_object_mut() {
+            o.remove(super::test_cell::SECTION);
+        }
         serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
     } else {
+        // the [test_cell] section (blanked, line numbers kept) is read by super::test_cell
+        let (text, _) = super::test_cell::split_toml(text);
+        let text = text.as_str();
         toml::from_str(text).map_err(|e| {
             let line = e
                 .span()
