@@ -71,7 +71,49 @@ fn lab_tune_validate_roundtrip_and_errors() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.join("t.toml").is_file() && d.join("rep/tune_report.json").is_file());
     let md = String::from_utf8_lossy(&o.stdout);
-    assert!(md.contains("| v_im |") && md.contains("| tau_me |"), "{md}");
+    assert!(
+        md.contains("| intake_manifold.v_im |") && md.contains("| test_cell.tau_me |"),
+        "{md}"
+    );
+    // uncertainty per parameter-file path
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("rep/tune_report.json")).unwrap()).unwrap();
+    for path in [
+        "intake_manifold.v_im",
+        "exhaust_manifold.v_em",
+        "turbo.j_t",
+        "test_cell.tau_me",
+    ] {
+        let e = &rep["parameters"][path];
+        assert!(e["value"].as_f64().unwrap() > 0.0, "{path}: {e}");
+        assert!(e["std_error"].as_f64().is_some(), "{path}: {e}");
+        assert!(
+            e["identifiable"].is_boolean() && e["correlated_with"].is_array(),
+            "{e}"
+        );
+    }
+    // tau_Me is written to the [test_cell] section; validate uses it (equal to --tau-me)
+    let toml = std::fs::read_to_string(d.join("t.toml")).unwrap();
+    assert!(toml.contains("[test_cell]\ntau_me = "), "{toml}");
+    let tau = rep["parameters"]["test_cell.tau_me"]["value"]
+        .as_f64()
+        .unwrap();
+    assert!((tau - 1.0).abs() < 1e-2, "{tau}");
+    let val = |extra: &[&str]| {
+        let mut args = vec!["validate", "--data", "c", "--params", "t.toml", "--json"];
+        args.extend_from_slice(extra);
+        let o = mvem(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()
+    };
+    let tau_s = format!("{tau:e}");
+    let (auto, given) = (val(&[]), val(&["--tau-me", &tau_s]));
+    assert_eq!(auto, given);
+    let unfiltered = val(&["--tau-me", "0.001"]);
+    assert_ne!(
+        auto["datasets"]["I"]["M_e"],
+        unfiltered["datasets"]["I"]["M_e"]
+    );
 
     // a failing step is named, exit code 1, nothing written (no actuator set J)
     std::fs::create_dir(d.join("noj")).unwrap();
@@ -88,7 +130,12 @@ fn lab_tune_validate_roundtrip_and_errors() {
         ],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stderr(&o).contains("tuning step 2"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("tuning step 2 (actuators from the actuator set)")
+            && stderr(&o).contains("no actuator data set"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!d.join("x.toml").exists() && !d.join("xr").exists());
 
     // bad data: a non-number in B.csv -> exit 2, message names file, line and column

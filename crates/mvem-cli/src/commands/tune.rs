@@ -2,9 +2,9 @@
 
 use crate::common;
 use anyhow::Result;
+use mvem::io::test_cell::TestCell;
 use mvem::model::ModelOrder;
 use mvem::params::Params;
-use mvem::tuning::complete::{param_value, STATIC_PARAMS};
 use mvem::tuning::pipeline::{self, Init, PipelineOptions, TuneReport};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -23,7 +23,9 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 (sets with role static + stationary points). Parameters of steps not run come from --params
 (default: the published set, which also supplies the constants that are never tuned). No
 step starts from a value of --params. The tuned dynamometer time constant tau_Me is not a
-model parameter: it is printed and written to the report (pass it to `mvem validate --tau-me`).
+model parameter: it is written to the [test_cell] section of the output file, which `mvem
+validate` reads (--tau-me overrides). DIR/tune_report.json \"parameters\": per parameter file
+path the value, standard error, identifiability and correlations (docs/tuning.md).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
 least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
 model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58
@@ -55,8 +57,10 @@ pub struct Args {
     /// beta of eq. (77).
     #[arg(long, default_value_t = 1.0)]
     pub beta: f64,
-    /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper).
-    #[arg(long = "refine-dynamics")]
+    /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper;
+    /// V_im, V_em, J_t then carry no step-1 static errors). `--refine-dynamics false`: the
+    /// paper's order only.
+    #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
@@ -105,6 +109,11 @@ pub fn run(a: &Args) -> Result<()> {
     let base = match &a.params {
         None => Params::published(),
         Some(p) => mvem::io::params::load_params(p)
+            .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
+    };
+    let base_cell = match &a.params {
+        None => None,
+        Some(p) => mvem::io::test_cell::load_test_cell(p)
             .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
     };
     let model = a.model.order();
@@ -166,10 +175,15 @@ pub fn run(a: &Args) -> Result<()> {
         .true_params
         .as_ref()
         .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
-    let md = markdown(&rep, &p, truth.as_ref(), c.manifest.true_tau_me_s);
+    let md = markdown(&rep, truth.as_ref(), c.manifest.true_tau_me_s);
     // render everything, then write
     let json = serde_json::to_string_pretty(&rep)?;
-    mvem::io::params::save_params(&p, &a.out)?;
+    // test-cell quantities next to the model parameters; a value of --params is kept when the
+    // step that estimates it is not run
+    let cell = TestCell {
+        tau_me: rep.tau_me_s.or(base_cell.and_then(|c| c.tau_me)),
+    };
+    mvem::io::test_cell::save_params_with_test_cell(&p, &cell, &a.out)?;
     if let Some(dir) = &a.report {
         std::fs::create_dir_all(dir)
             .map_err(|e| common::usage(format!("--report {}: {e}", dir.display())))?;
@@ -189,9 +203,11 @@ pub fn run(a: &Args) -> Result<()> {
             .unwrap_or_default(),
         common::fmt_duration(rep.total_seconds)
     );
-    if let Some(t) = rep.tau_me_s {
+    if let Some(t) = cell.tau_me {
         eprintln!(
-            "validate with: mvem validate --data {} --params {} --tau-me {t:.4}",
+            "tau_Me = {t:.4} s written to the [test_cell] section of {}; validate with: mvem \
+             validate --data {} --params {}",
+            a.out.display(),
             a.data.display(),
             a.out.display()
         );
@@ -205,12 +221,7 @@ fn pct(x: f64) -> String {
 
 /// The report as Markdown: per step the submodel/output errors (mean and max absolute relative
 /// error, per cent), timings, and (virtual campaigns) each tuned parameter against the truth.
-pub fn markdown(
-    rep: &TuneReport,
-    p: &Params,
-    truth: Option<&Params>,
-    tau_true: Option<f64>,
-) -> String {
+pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>) -> String {
     let mut s = String::from("# Tuning report\n\n");
     let _ = writeln!(
         s,
@@ -324,48 +335,86 @@ pub fn markdown(
             );
         }
     }
-    let mut names: Vec<&str> = vec![
-        "tau_egr1", "tau_egr2", "tau_degr", "k_egr", "tau_vgt", "tau_dvgt", "v_im", "v_em", "j_t",
-        "eta_igch", "c_fric1", "c_fric2", "c_fric3",
-    ];
-    if rep.twelve.is_some() {
-        names.extend(["v_ic", "k_ic"]);
+    parameter_table(&mut s, rep, truth, tau_true);
+    s
+}
+
+/// The uncertainty table: per tuned parameter (file path) value, standard error, whether it is
+/// identifiable and why, and (virtual campaigns) the truth and the deviation in standard errors.
+fn parameter_table(
+    s: &mut String,
+    rep: &TuneReport,
+    truth: Option<&Params>,
+    tau_true: Option<f64>,
+) {
+    if rep.parameters.is_empty() {
+        return;
     }
-    names.extend(STATIC_PARAMS.iter().map(|s| s.name));
-    let stderr = |n: &str| {
-        rep.step5
-            .as_ref()
-            .and_then(|r| r.rel_std_err.iter().find(|(m, _)| m == n).map(|x| x.1))
-    };
-    let _ = writeln!(s, "## Parameters\n\n| parameter | tuned | true | rel. deviation (%) | lin. rel. std. error step 5 (%) |\n|---|---|---|---|---|");
-    for n in names {
-        let v = param_value(p, n).unwrap_or(f64::NAN);
-        let (t, dev) = match truth.and_then(|q| param_value(q, n)) {
+    let _ = writeln!(
+        s,
+        "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
+         that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
+         error <= 25 % and no correlation > 0.99 (docs/tuning.md).\n\n| parameter | step | value | \
+         std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \
+         std. error | why / correlated with |\n|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for (path, e) in &rep.parameters {
+        let t = if path == "test_cell.tau_me" {
+            tau_true
+        } else {
+            truth.and_then(|q| lookup(q, path))
+        };
+        let (tt, dev, z) = match t {
             Some(t) => (
                 format!("{t:.6e}"),
                 if t != 0.0 {
-                    pct((v - t) / t)
+                    pct((e.value - t) / t)
                 } else {
-                    format!("abs {:.2e}", v - t)
+                    format!("abs {:.2e}", e.value - t)
                 },
+                format!("{:.2}", (e.value - t) / e.std_error),
             ),
-            None => ("-".into(), "-".into()),
+            None => ("-".into(), "-".into(), "-".into()),
         };
-        let se = stderr(n).map_or("-".into(), |x| {
-            if x.is_finite() {
-                pct(x)
+        let rel = e.std_error / e.value.abs();
+        let corr = e
+            .correlated_with
+            .iter()
+            .take(3)
+            .map(|(n, c)| format!("{n} ({c:.3})"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let _ = writeln!(
+            s,
+            "| {path} | {} | {:.6e} | {:.3e} | {} | {} | {tt} | {dev} | {z} | {}{}{} |",
+            e.step,
+            e.value,
+            e.std_error,
+            if rel.is_finite() {
+                pct(rel)
             } else {
                 "inf".into()
-            }
-        });
-        let _ = writeln!(s, "| {n} | {v:.6e} | {t} | {dev} | {se} |");
+            },
+            if e.identifiable { "yes" } else { "**no**" },
+            e.reason,
+            if corr.is_empty() { "" } else { "; " },
+            corr
+        );
     }
-    if let Some(tau) = rep.tau_me_s {
-        let (t, dev) = match tau_true {
-            Some(t) => (format!("{t:.6e}"), pct((tau - t) / t)),
-            None => ("-".into(), "-".into()),
-        };
-        let _ = writeln!(s, "| tau_me | {tau:.6e} | {t} | {dev} | - |");
+    s.push('\n');
+}
+
+/// Value at a parameter-file path ("cylinder.c_vol[1]", "compressor.q_c[0][1]").
+fn lookup(p: &Params, path: &str) -> Option<f64> {
+    let mut v = serde_json::to_value(p).ok()?;
+    for part in path.split('.') {
+        let (key, idx) = part.split_once('[').map_or((part, ""), |(k, r)| (k, r));
+        v = v.get(key)?.clone();
+        for i in idx.split('[').filter(|x| !x.is_empty()) {
+            v = v
+                .get(i.trim_end_matches(']').parse::<usize>().ok()?)?
+                .clone();
+        }
     }
-    s
+    v.as_f64()
 }

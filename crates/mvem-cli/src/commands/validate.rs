@@ -22,7 +22,8 @@ the dynamic sets (eq. (5): mean absolute relative error per set and output, per 
 paper's Tables 2-4). --json prints {\"datasets\": {SET: {OUTPUT: percent}}, \"stationary\":
 {SUBMODEL: percent}}. --report DIR writes validation.md, validation.csv, validation.json and
 one figure per set (SET.png, measured vs simulated). --tau-me applies the dynamometer lag of
-eq. (76) to the simulated torque (the value printed by `mvem tune`). --model 12 simulates the
+eq. (76) to the simulated torque; without it the value in the parameter file's [test_cell]
+section (written by `mvem tune`) is used, if any. --model 12 simulates the
 12-state model and adds the intercooler flow W_ic (eq. (86), z_8 of section 9.2.1) to the
 stationary table.")]
 pub struct Args {
@@ -32,7 +33,8 @@ pub struct Args {
     /// Parameter file to validate.
     #[arg(long, value_name = "FILE")]
     pub params: PathBuf,
-    /// Dynamometer time constant tau_Me [s] of eq. (76) (default: torque compared unfiltered).
+    /// Dynamometer time constant tau_Me [s] of eq. (76) [default: `tau_me` of the parameter
+    /// file's [test_cell] section; without it the torque is compared unfiltered].
     #[arg(long = "tau-me", value_name = "S")]
     pub tau_me: Option<f64>,
     /// Only data sets with one of these roles (comma separated: static, dynamic, actuator,
@@ -102,9 +104,19 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let p = mvem::io::params::load_params(&a.params)
         .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
+    // the tuned dynamometer constant of the file's [test_cell] section; --tau-me overrides
+    let cell = mvem::io::test_cell::load_test_cell(&a.params)
+        .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
+    let tau_me = a.tau_me.or(cell.and_then(|c| c.tau_me));
+    if let (None, Some(t)) = (a.tau_me, tau_me) {
+        eprintln!(
+            "tau_Me = {t} s from the [test_cell] section of {} (override with --tau-me)",
+            a.params.display()
+        );
+    }
     let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
     let rep = common::with_spinner("validating", || {
-        v::validate_campaign_with(a.model.order(), &c, &p, a.tau_me, roles.as_deref())
+        v::validate_campaign_with(a.model.order(), &c, &p, tau_me, roles.as_deref())
     })?;
     let md = rep.to_markdown();
     if let Some(dir) = &a.report {
@@ -123,7 +135,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
             let fig = match info.kind {
                 StepKind::Actuator => actuator_figure(&p, d),
-                _ => dynamic_figure(a.model.order(), &p, d, a.tau_me)?,
+                _ => dynamic_figure(a.model.order(), &p, d, tau_me)?,
             };
             files.push((
                 format!("{}.png", d.name),

@@ -24,6 +24,21 @@ pub fn isentropic_term(pi_c: f64, gamma_a: f64) -> f64 {
     pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0
 }
 
+/// Energy transfer coefficient Psi_c [-], eq. (66):
+/// 2 c_pa T_amb (Pi_c^(1 - 1/gamma_a) - 1) / (R_c^2 omega_t^2), `r_c` [m], `omega_t` [rad/s],
+/// `isentropic` from [`isentropic_term`].
+#[inline]
+pub fn energy_coefficient(r_c: f64, c_pa: f64, t_amb: f64, isentropic: f64, omega_t: f64) -> f64 {
+    2.0 * c_pa * t_amb * isentropic / (r_c * r_c * omega_t * omega_t)
+}
+
+/// Volumetric flow coefficient Phi_c [-] of a mass flow `w_c` [kg/s], eq. (72) solved for
+/// Phi_c (eq. (67) of the tuning): W_c R_a T_amb / (p_amb pi R_c^3 omega_t).
+#[inline]
+pub fn flow_coefficient(r_c: f64, r_a: f64, t_amb: f64, p_amb: f64, omega_t: f64, w_c: f64) -> f64 {
+    r_a * t_amb / (p_amb * PI * r_c.powi(3) * omega_t) * w_c
+}
+
 /// Signals of the compressor flow model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CompressorFlow {
@@ -56,7 +71,7 @@ pub fn flow(
     omega_t: f64,
     sem: Semantics,
 ) -> CompressorFlow {
-    let psi_c = 2.0 * c_pa * t_amb * isentropic / (c.r_c * c.r_c * omega_t * omega_t); // eq. (66)
+    let psi_c = energy_coefficient(c.r_c, c_pa, t_amb, isentropic, omega_t); // eq. (66)
     let mut c_psi1 = poly2(&c.c_wpsi, omega_t); // eq. (69)
     let mut c_phi1 = poly2(&c.c_wphi, omega_t); // eq. (70)
     if sem.authors() {

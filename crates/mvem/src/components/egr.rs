@@ -89,6 +89,18 @@ pub fn actuator_derivatives(
     )
 }
 
+/// EGR actuator unit step response of eqs (39)-(41) [-]: the output `s` seconds after a
+/// unit step of the (undelayed, saturated) command, from rest:
+/// K_egr (1 - e^(-s'/tau_egr1)) - (K_egr - 1)(1 - e^(-s'/tau_egr2)), s' = s - tau_degr (0 for
+/// s' <= 0). Used with [`super::actuator::position`] by the actuator fit and the virtual test cell.
+pub fn actuator_step_response(a: &EgrActuator, s: f64) -> f64 {
+    let s = s - a.tau_degr;
+    if s <= 0.0 {
+        return 0.0;
+    }
+    a.k_egr * (1.0 - (-s / a.tau_egr1).exp()) - (a.k_egr - 1.0) * (1.0 - (-s / a.tau_egr2).exp())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,6 +6,7 @@
 //! a saturation or switch (see `../shared/spec/authors-implementation.md`, cited as "item N"),
 //! the function takes a [`Semantics`] argument and applies it only for [`Semantics::Authors`].
 
+pub mod actuator;
 pub mod compressor;
 pub mod cylinder;
 pub mod egr;

@@ -153,6 +153,18 @@ pub fn actuator_derivative(a: &VgtActuator, u_delayed: f64, u_vgt_act: f64) -> f
     (u_delayed - u_vgt_act) / a.tau_vgt
 }
 
+/// VGT actuator unit step response of eq. (57) [-]: the output `s` seconds after a unit step of
+/// the (undelayed, saturated) command, from rest: 1 - e^(-(s - tau_dvgt)/tau_vgt) (0 for
+/// s <= tau_dvgt). Used with [`super::actuator::position`].
+pub fn actuator_step_response(a: &VgtActuator, s: f64) -> f64 {
+    let s = s - a.tau_dvgt;
+    if s <= 0.0 {
+        0.0
+    } else {
+        1.0 - (-s / a.tau_vgt).exp()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

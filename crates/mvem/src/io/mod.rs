@@ -7,6 +7,7 @@ pub mod json;
 pub mod output;
 pub mod params;
 pub mod params_toml;
+pub mod test_cell;
 
 use std::path::PathBuf;
 

@@ -105,8 +105,22 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
             )
         })?;
         match v.get("parameters") {
-            Some(flat) => serde_json::from_value(flat_to_nested(flat, path)?)
-                .map_err(|e| fmt_err(path, None, None, e.to_string()))?,
+            Some(flat) => {
+                let mut nested = flat_to_nested(flat, path)?;
+                // the test-cell section is not a model parameter (read by super::test_cell)
+                if let Some(o) = nested.as_object_mut() {
+                    o.remove(super::test_cell::SECTION);
+                }
+                serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
+            }
+            // nested JSON with a test-cell section: drop it and read the rest
+            None if v.get(super::test_cell::SECTION).is_some() => {
+                let mut nested = v;
+                if let Some(o) = nested.as_object_mut() {
+                    o.remove(super::test_cell::SECTION);
+                }
+                serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
+            }
             // nested JSON: parse the text again into the typed structure, so that an unknown
             // or missing field is reported at its line and column
             None => serde_json::from_str(text).map_err(|e| {
@@ -119,6 +133,9 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
             })?,
         }
     } else {
+        // the [test_cell] section (blanked, line numbers kept) is read by super::test_cell
+        let (text, _) = super::test_cell::split_toml(text);
+        let text = text.as_str();
         toml::from_str(text).map_err(|e| {
             // 1-based line of the span's start: newlines before it, plus one
             let line = e.span().map(|s| line_of(text, s.start));

@@ -235,14 +235,21 @@ pub const U_EGR_RANGE: (f64, f64) = (0.0, 100.0);
 /// Saturation range [%] of the VGT command in the authors' implementation (item 4).
 pub const U_VGT_RANGE: (f64, f64) = (20.0, 100.0);
 
-/// The three actuator lags (u_egr1, u_egr2, u_vgt at the given state indices).
-pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<LinearLag> {
+/// The saturations (EGR, VGT) [%] the model applies to the commands before the actuators:
+/// [`U_EGR_RANGE`], [`U_VGT_RANGE`] for the authors' implementation, none (infinite) for the
+/// paper's equations.
+pub fn command_saturation(sem: Semantics) -> ((f64, f64), (f64, f64)) {
     let none = (f64::NEG_INFINITY, f64::INFINITY);
-    let (egr, vgt) = if sem.authors() {
+    if sem.authors() {
         (U_EGR_RANGE, U_VGT_RANGE)
     } else {
         (none, none)
-    };
+    }
+}
+
+/// The three actuator lags (u_egr1, u_egr2, u_vgt at the given state indices).
+pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<LinearLag> {
+    let (egr, vgt) = command_saturation(sem);
     vec![
         LinearLag {
             state: ix[0],

@@ -25,6 +25,7 @@ use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
 use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
 use super::steps::{self, project_q_c, FitReport, StepError};
+use super::uncertainty::{estimates, ParamEstimate};
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -172,6 +173,8 @@ pub struct CompleteReport {
     pub n_eval: usize,
     /// Whether a convergence test stopped the search.
     pub converged: bool,
+    /// Standard error and identifiability of each fitted parameter ([`super::uncertainty`]).
+    pub uncertainty: Vec<(String, ParamEstimate)>,
 }
 
 /// Per-output eq. (5) errors of `p` (model `order`) on `sets` (pooled over the sets).
@@ -332,6 +335,14 @@ pub fn fit_dynamic(
     let mut p = base.clone();
     set_all(&mut p, &fit.theta);
     let errors = output_errors(f.order, &p, sets, stat, &DYN_OUTPUTS, None)?;
+    let uncertainty = estimates(
+        f.names,
+        &fit.theta,
+        f.scale,
+        &fit.jacobian,
+        &fit.residuals,
+        if f.order == ModelOrder::Twelve { 7 } else { 3 },
+    );
     Ok((
         p,
         CompleteReport {
@@ -345,6 +356,7 @@ pub fn fit_dynamic(
             cost: fit.cost,
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
+            uncertainty,
         },
     ))
 }
@@ -396,6 +408,14 @@ pub fn step4(
         .map_err(|e| solver_err(NAME, e))?;
     let tau = fit.theta[0];
     let errors = output_errors(ModelOrder::Eight, p, &[set], stat, &["M_e"], Some(tau))?;
+    let uncertainty = estimates(
+        &["tau_me"],
+        &fit.theta,
+        &[0.3],
+        &fit.jacobian,
+        &fit.residuals,
+        4,
+    );
     Ok((
         tau,
         CompleteReport {
@@ -404,6 +424,7 @@ pub fn step4(
             cost: fit.cost,
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
+            uncertainty,
         },
     ))
 }
@@ -448,7 +469,7 @@ pub const STATIC_PARAMS: [StaticParam; 35] = [
     sp("eta_tmmax", 0.3, 1.0, 0.8),
     sp("bsr_opt", 0.3, 1.5, 1.0),
     sp("c_m1", 0.0, 10.0, 1.0),
-    sp("c_m2", 0.0, 2700.0, 1000.0),
+    sp("c_m2", 0.0, 2796.0, 1000.0), // upper bound replaced by 0.999 w_tlin, static_bounds
     sp("c_m3", 0.001, 3.0, 0.1),
     sp("k_t", 0.1, 10.0, 1.0),
     sp("c_f1", 0.0, 5.0, 1.0),
@@ -486,6 +507,19 @@ pub fn static_params(order: ModelOrder) -> Vec<StaticParam> {
     v
 }
 
+/// theta of eq. (77) with the bounds that depend on the engine's fixed constants: c_m2 below
+/// 0.999 w_tlin (the authors' linear c_m branch starts at w_tlin > c_m2, item 33; the same bound
+/// as step 1), all others as in [`STATIC_PARAMS`].
+pub fn static_bounds(base: &Params, order: ModelOrder) -> Vec<StaticParam> {
+    let mut v = static_params(order);
+    for s in v.iter_mut() {
+        if s.name == "c_m2" {
+            s.hi = 0.999 * base.turbine.w_tlin;
+        }
+    }
+    v
+}
+
 /// Mutable reference to a tunable parameter by name: its symbol (the names of
 /// [`STATIC_PARAMS`], the step-2 and step-3 names, `c_vol1`, `a3`, ...) or its path
 /// (`cylinder.c_vol[1]`), from the parameter registry ([`Params::get_mut`]).
@@ -518,8 +552,15 @@ pub fn set_static_theta(p: &mut Params, th: &[f64]) {
 
 /// Write the values `th` of the parameters `list` (see [`set_static_theta`]).
 pub fn set_theta_of(list: &[StaticParam], p: &mut Params, th: &[f64]) {
-    for (s, v) in list.iter().zip(th) {
-        if let Some(x) = param_mut(p, s.name) {
+    let names: Vec<&str> = list.iter().map(|s| s.name).collect();
+    set_named(p, &names, th)
+}
+
+/// Write the values `th` of the parameters `names` ([`param_mut`] names) with the ties of
+/// [`set_static_theta`] (Q_c symmetric and projected, c_mlin tied to c_m1).
+pub fn set_named(p: &mut Params, names: &[&str], th: &[f64]) {
+    for (n, v) in names.iter().zip(th) {
+        if let Some(x) = param_mut(p, n) {
             *x = *v;
         }
     }
@@ -775,6 +816,8 @@ pub struct Step5Report {
     /// Linearized relative standard errors of the parameters (identifiability; infinite for
     /// unidentifiable directions).
     pub rel_std_err: Vec<(String, f64)>,
+    /// Standard error and identifiability of each parameter ([`super::uncertainty`]).
+    pub uncertainty: Vec<(String, ParamEstimate)>,
 }
 
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
@@ -802,7 +845,7 @@ pub fn step5(
             "no residuals (no data sets and no stationary row)",
         ));
     }
-    let list = static_params(opts.model);
+    let list = static_bounds(base, opts.model);
     let lo: Vec<f64> = list.iter().map(|s| s.lo).collect();
     let hi: Vec<f64> = list.iter().map(|s| s.hi).collect();
     let th0: Vec<f64> = theta0
@@ -821,7 +864,7 @@ pub fn step5(
         |th: &[f64]| cost.residuals(th),
         &th0,
         &Bounds::new(lo.clone(), hi.clone()),
-        &search_opts(opts.max_evaluations, scale),
+        &search_opts(opts.max_evaluations, scale.clone()),
     )
     .map_err(|e| solver_err(NAME, e))?;
     let p = cost.params(&fit.theta);
@@ -834,6 +877,19 @@ pub fn step5(
         })
         .map(|(s, _)| s.name.to_string())
         .collect();
+    let names: Vec<&str> = list.iter().map(|s| s.name).collect();
+    let uncertainty = estimates(
+        &names,
+        &theta,
+        &scale,
+        &fit.jacobian,
+        &fit.residuals,
+        if opts.model == ModelOrder::Twelve {
+            8
+        } else {
+            5
+        },
+    );
     let stats = fit.stats();
     let rel_std_err = list
         .iter()
@@ -887,6 +943,7 @@ pub fn step5(
             eval_seconds,
             at_bounds,
             rel_std_err,
+            uncertainty,
         },
     ))
 }

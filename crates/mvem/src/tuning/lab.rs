@@ -48,7 +48,7 @@ use super::data::{
     Campaign, DataError, DataSetInfo, DynamicData, Manifest, Role, StationaryPoint, StepKind,
 };
 use crate::analysis::steady::{steady_state_with, SteadyOptions};
-use crate::components::turbine;
+use crate::components::{actuator, egr, turbine, Semantics};
 use crate::model::{AnyModel, Drive, Model, ModelOptions, ModelOrder};
 use crate::params::Params;
 use rand::{Rng, SeedableRng};
@@ -289,27 +289,6 @@ pub fn stationary(
     Ok((truth, meas))
 }
 
-/// EGR unit step response of eqs (39)-(41) at time `s` after the (undelayed) command step [-].
-pub fn egr_step_response(p: &Params, s: f64) -> f64 {
-    let a = &p.egr_actuator;
-    let s = s - a.tau_degr;
-    if s <= 0.0 {
-        return 0.0;
-    }
-    a.k_egr * (1.0 - (-s / a.tau_egr1).exp()) - (a.k_egr - 1.0) * (1.0 - (-s / a.tau_egr2).exp())
-}
-
-/// VGT unit step response of eq. (57) at time `s` after the command step [-].
-pub fn vgt_step_response(p: &Params, s: f64) -> f64 {
-    let a = &p.vgt_actuator;
-    let s = s - a.tau_dvgt;
-    if s <= 0.0 {
-        0.0
-    } else {
-        1.0 - (-s / a.tau_vgt).exp()
-    }
-}
-
 /// Command levels of set J: (EGR levels, VGT levels); each change is a step.
 pub fn actuator_levels() -> (Vec<f64>, Vec<f64>) {
     let mut egr: Vec<f64> = (0..=9).map(|k| 10.0 * k as f64).collect(); // 0..90
@@ -339,7 +318,6 @@ pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
         vgt_steps.push((off + k as f64 * hold, vgt[k] - vgt[k - 1]));
     }
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_000a));
-    let (mut t, mut ue, mut uv, mut pe, mut pv) = (vec![], vec![], vec![], vec![], vec![]);
     let level = |steps: &[(f64, f64)], v0: f64, tt: f64| {
         v0 + steps
             .iter()
@@ -347,23 +325,23 @@ pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
             .map(|(_, d)| d)
             .sum::<f64>()
     };
-    for i in 0..n {
-        let tt = i as f64 / fs;
-        t.push(tt);
-        ue.push(level(&egr_steps, egr[0], tt));
-        uv.push(level(&vgt_steps, vgt[0], tt));
-        let pos_e = egr[0]
-            + egr_steps
-                .iter()
-                .map(|(ts, d)| d * egr_step_response(p, tt - ts))
-                .sum::<f64>();
-        let pos_v = vgt[0]
-            + vgt_steps
-                .iter()
-                .map(|(ts, d)| d * vgt_step_response(p, tt - ts))
-                .sum::<f64>();
-        pe.push(g.abs(pos_e, opts.noise.rel * 100.0));
-        pv.push(g.abs(pos_v, opts.noise.rel * 100.0));
+    let t: Vec<f64> = (0..n).map(|i| i as f64 / fs).collect();
+    let ue: Vec<f64> = t.iter().map(|&tt| level(&egr_steps, egr[0], tt)).collect();
+    let uv: Vec<f64> = t.iter().map(|&tt| level(&vgt_steps, vgt[0], tt)).collect();
+    // the true positions: the actuator models driven by the commands after the model's
+    // saturation (VGT commands below 20 % do not move the actuator further)
+    let (sat_egr, sat_vgt) = crate::model::command_saturation(Semantics::Authors);
+    let pos_e = actuator::position(&t, &ue, sat_egr, |s| {
+        egr::actuator_step_response(&p.egr_actuator, s)
+    });
+    let pos_v = actuator::position(&t, &uv, sat_vgt, |s| {
+        turbine::actuator_step_response(&p.vgt_actuator, s)
+    });
+    let mut pe = Vec::with_capacity(n);
+    let mut pv = Vec::with_capacity(n);
+    for (e, v) in pos_e.iter().zip(&pos_v) {
+        pe.push(g.abs(*e, opts.noise.rel * 100.0));
+        pv.push(g.abs(*v, opts.noise.rel * 100.0));
     }
     DynamicData {
         name: "J".into(),

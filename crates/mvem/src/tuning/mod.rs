@@ -8,10 +8,12 @@
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
 //! - [`data`]: campaign formats (stationary/dynamic CSV, manifest) with validated loading.
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
-//! - [`steps`]: tuning steps 1 (static submodels) and 2 (actuators) of section 8.1.
+//! - [`steps`]: tuning steps 1 (static submodels, one file per submodel) and 2 (actuators) of
+//!   section 8.1.
 //! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
 //! - [`twelve`]: the three 12-state steps of section 9.2.1 (k_ic, V_ic, cost (77) with W_ic).
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
+//! - [`uncertainty`]: standard errors and identifiability of every tuned parameter.
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
 //! Overview, results and open items: `docs/tuning.md`.
@@ -23,5 +25,6 @@ pub mod lsq;
 pub mod pipeline;
 pub mod steps;
 pub mod twelve;
+pub mod uncertainty;
 pub mod validate;
 pub mod varpro;

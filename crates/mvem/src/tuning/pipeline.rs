@@ -23,9 +23,11 @@ use super::complete::{
 use super::data::{Campaign, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
+use super::uncertainty::{step1_estimates, step2_estimates, toml_path, ParamEstimate};
 use crate::model::ModelOrder;
 use crate::params::Params;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Initialization of the static parameters of step 5.
@@ -52,7 +54,7 @@ pub struct PipelineOptions {
     pub step5: Step5Options,
     /// After step 5, run steps 3 and 4 again with the final static parameters (not in the
     /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
-    /// V_em; see docs/tuning.md).
+    /// V_em; see docs/tuning.md). Default on; only steps that are selected are repeated.
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
@@ -66,7 +68,7 @@ impl Default for PipelineOptions {
             step3: Step3Start::default(),
             step3_max_eval: 100,
             step5: Step5Options::default(),
-            refine_dynamics: false,
+            refine_dynamics: true,
             model: ModelOrder::Eight,
         }
     }
@@ -119,6 +121,10 @@ pub struct TuneReport {
     pub step4_refined: Option<CompleteReport>,
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
+    /// How well each tuned parameter is known, keyed by its path in the parameter file
+    /// ("exhaust_manifold.v_em", "cylinder.c_vol[0]"; tau_Me: "test_cell.tau_me"), from the
+    /// last step that tuned it ([`super::uncertainty`]).
+    pub parameters: BTreeMap<String, ParamEstimate>,
     /// Wall time of each step [s] (0 when not run).
     pub seconds: [f64; 5],
     /// Total wall time [s].
@@ -140,13 +146,28 @@ pub struct TwelveReport {
 
 /// A failed pipeline step.
 #[derive(Debug, thiserror::Error)]
-#[error("tuning step {step} failed: {source}")]
+#[error("tuning step {step} ({}) failed: {source}", step_title(*.step))]
 pub struct PipelineError {
     /// Step number 1-5; 6-8 for the three 12-state steps of section 9.2.1.
     pub step: u8,
     /// Cause.
     #[source]
     pub source: StepError,
+}
+
+/// What tuning step `step` estimates (for messages).
+pub fn step_title(step: u8) -> &'static str {
+    match step {
+        1 => "static submodels from the stationary points",
+        2 => "actuators from the actuator set",
+        3 => "V_im, V_em, J_t",
+        4 => "tau_Me",
+        5 => "static parameters by cost (77)",
+        6 => "k_ic",
+        7 => "V_ic, V_im, V_em, J_t of the 12-state model",
+        8 => "static parameters and k_ic of the 12-state model",
+        _ => "result",
+    }
 }
 
 fn at(step: u8) -> impl Fn(StepError) -> PipelineError {
@@ -181,14 +202,18 @@ pub fn tune(
         step3_refined: None,
         step4_refined: None,
         twelve: None,
+        parameters: BTreeMap::new(),
         seconds: [0.0; 5],
         total_seconds: 0.0,
     };
+    // estimates by tuning name; a later step overwrites an earlier one
+    let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
         let t = Instant::now();
         let (q, r) = step1(&p, &c.stationary, &Step1Start::default()).map_err(at(1))?;
         p = q;
+        est.extend(step1_estimates(&p, &c.stationary, &r));
         rep.step1 = Some(r);
         rep.seconds[0] = t.elapsed().as_secs_f64();
     }
@@ -200,6 +225,7 @@ pub fn tune(
             .ok_or_else(|| missing(2, "actuator data set (role \"actuator\")"))?;
         let (q, r) = step2(&p, j, &Step2Start::default()).map_err(at(2))?;
         p = q;
+        est.extend(step2_estimates(&p, j));
         rep.step2 = Some(r);
         rep.seconds[1] = t.elapsed().as_secs_f64();
     }
@@ -212,6 +238,7 @@ pub fn tune(
         let (q, r) =
             step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
         p = q;
+        est.extend(r.uncertainty.iter().cloned());
         rep.step3 = Some(r);
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
@@ -225,6 +252,7 @@ pub fn tune(
             .ok_or_else(|| missing(4, "fuel-step data set with role \"dynamic\""))?;
         let (tau, r) = step4(&p, set, &c.stationary).map_err(at(4))?;
         rep.tau_me_s = Some(tau);
+        est.extend(r.uncertainty.iter().cloned());
         rep.step4 = Some(r);
         rep.seconds[3] = t.elapsed().as_secs_f64();
     }
@@ -245,16 +273,18 @@ pub fn tune(
         };
         let (q, r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
         p = q;
+        est.extend(r.uncertainty.iter().cloned());
         rep.step5 = Some(r);
         rep.seconds[4] = t.elapsed().as_secs_f64();
     }
     if opts.refine_dynamics && opts.steps[4] {
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
-        if !sets.is_empty() {
+        if opts.steps[2] && !sets.is_empty() {
             let (q, r) =
                 step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
             p = q;
+            est.extend(r.uncertainty.iter().cloned());
             rep.step3_refined = Some(r);
         }
         if let Some(set) = infos
@@ -262,9 +292,11 @@ pub fn tune(
             .zip(&c.dynamic)
             .find(|(i, _)| i.roles.contains(&Role::Dynamic) && i.kind == StepKind::Fuel)
             .map(|(_, d)| d)
+            .filter(|_| opts.steps[3])
         {
             let (tau, r) = step4(&p, set, &c.stationary).map_err(at(4))?;
             rep.tau_me_s = Some(tau);
+            est.extend(r.uncertainty.iter().cloned());
             rep.step4_refined = Some(r);
         }
         rep.seconds[2] += t.elapsed().as_secs_f64();
@@ -283,6 +315,26 @@ pub fn tune(
             message: format!("the tuned parameters are invalid: {e}"),
         },
     })?;
+    if let Some(t) = &rep.twelve {
+        for r in [&t.dynamic].into_iter().flatten() {
+            est.extend(r.uncertainty.iter().cloned());
+        }
+        if let Some(r) = &t.statics {
+            est.extend(r.uncertainty.iter().cloned());
+        }
+    }
+    for (name, e) in est {
+        let key = if name == "tau_me" {
+            Some("test_cell.tau_me".to_string())
+        } else {
+            toml_path(&p, &name)
+        };
+        if let Some(k) = key {
+            // the reported value is the final one (ties such as Q_c symmetry applied)
+            let value = super::complete::param_value(&p, &name).unwrap_or(e.value);
+            rep.parameters.insert(k, ParamEstimate { value, ..e });
+        }
+    }
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
 }

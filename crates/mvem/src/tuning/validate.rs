@@ -17,7 +17,6 @@
 use super::data::{
     load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
 };
-use super::lab::{egr_step_response, vgt_step_response};
 use super::steps::{self, rel_errors, StepError};
 use crate::model::{AnyModel, ModelOptions, ModelOrder};
 use crate::params::Params;
@@ -265,7 +264,6 @@ pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, Val
         let model = steps::actuator_response(p, &d.t, u, egr);
         outputs.push(out(pos, y, &model));
     }
-    let _ = (egr_step_response, vgt_step_response);
     Ok(DataSetErrors {
         name: d.name.clone(),
         outputs,

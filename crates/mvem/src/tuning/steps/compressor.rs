@@ -1,0 +1,260 @@
+//! Step 1, compressor submodels: efficiency (eqs (58)-(65)) and mass flow (eqs (66)-(72)).
+
+use super::{
+    best_fit, derive, fit_report, linear_lsq, lsq_opts, need, solver_err, Derived, FitReport,
+    Series, StepError, SEM,
+};
+use crate::components::compressor;
+use crate::params::{Compressor, Gas, Params};
+use crate::tuning::data::StationaryPoint;
+use crate::tuning::lsq::Bounds;
+use crate::tuning::varpro::Varpro;
+use nalgebra::DMatrix;
+
+/// eta_c,meas of eq. (58): T_amb (Pi_c^(1 - 1/gamma_a) - 1) / (T_c - T_amb).
+fn eta_c_meas(gamma_a: f64, s: &StationaryPoint, d: &Derived) -> f64 {
+    s.t_amb * compressor::isentropic_term(d.pi_c, gamma_a) / (s.t_c - s.t_amb) // eq. (58)
+}
+
+/// eta_c,meas (eq. (58)) and the model of eqs (62)-(65).
+pub(super) fn eta_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
+    pts.iter()
+        .zip(d)
+        .map(|(s, d)| {
+            let model = compressor::efficiency(&p.compressor, s.w_c, d.pi_c, SEM);
+            (eta_c_meas(p.gas.gamma_a, s, d), model)
+        })
+        .unzip()
+}
+
+/// W_c of eqs (66)-(72) at a stationary point (measured Pi_c, omega_t).
+fn w_c_model(c: &Compressor, g: &Gas, s: &StationaryPoint, d: &Derived) -> f64 {
+    let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
+    compressor::flow(
+        c, g.c_pa, g.r_a, s.t_amb, s.p_amb, isentropic, d.omega_t, SEM,
+    )
+    .w_c
+}
+
+/// Measured W_c and the model of eqs (66)-(72).
+pub(super) fn w_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
+    pts.iter()
+        .zip(d)
+        .map(|(s, d)| (s.w_c, w_c_model(&p.compressor, &p.gas, s, d)))
+        .unzip()
+}
+
+/// Positive-semidefinite projection of Q_c (section 6.3.1):
+/// a3 := min(max(a3, -sqrt(a1 a2)), sqrt(a1 a2)) (a1, a2 first limited to >= 0).
+pub fn project_q_c(q: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
+    let a1 = q[0][0].max(0.0);
+    let a2 = q[1][1].max(0.0);
+    let r = (a1 * a2).sqrt();
+    let a3 = q[0][1].clamp(-r, r);
+    [[a1, a3], [a3, a2]]
+}
+
+/// Compressor efficiency, eqs (58)-(65): eta_c,meas = T_amb (Pi_c^(1-1/gamma_a) - 1) /
+/// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear;
+/// then the PSD projection of Q_c.
+pub fn fit_eta_c(
+    p: &mut Params,
+    pts: &[StationaryPoint],
+    start: [f64; 3],
+) -> Result<FitReport, StepError> {
+    need("eta_c", pts.len(), 7)?;
+    let d = derive(p, pts)?;
+    let ga = p.gas.gamma_a;
+    let mut y = Vec::with_capacity(pts.len());
+    for (i, (s, d)) in pts.iter().zip(&d).enumerate() {
+        let e = eta_c_meas(ga, s, d);
+        if !e.is_finite() {
+            return Err(StepError::BadMeasurement {
+                submodel: "eta_c",
+                point: i,
+                what: "eta_c,meas (T_c = T_amb?)",
+            });
+        }
+        y.push(e);
+    }
+    let phi = |a: &[f64]| {
+        DMatrix::from_fn(pts.len(), 4, |i, j| {
+            let x0 = pts[i].w_c - a[0]; // eq. (63)
+            let x1 = (d[i].pi_c - 1.0).powf(a[2]) - a[1]; // eqs (63)-(64)
+            match j {
+                0 => 1.0,
+                1 => -x0 * x0,       // eq. (65): a1
+                2 => -x1 * x1,       // a2
+                _ => -2.0 * x0 * x1, // a3
+            }
+        })
+    };
+    let fit = Varpro::new(&y, phi)
+        .bounds(Bounds::new(vec![0.0, 0.0, 0.05], vec![2.0, 5.0, 3.0]))
+        .options(lsq_opts())
+        .fit(&start)
+        .map_err(|e| solver_err("eta_c")(e.to_string()))?;
+    let c = &mut p.compressor;
+    c.w_copt = fit.alpha[0];
+    c.pi_copt = fit.alpha[1];
+    c.c_pi = fit.alpha[2];
+    c.eta_cmax = fit.c[0];
+    c.q_c = project_q_c([[fit.c[1], fit.c[3]], [fit.c[3], fit.c[2]]]);
+    let (meas, model) = eta_c_series(p, pts, &d);
+    let c = &p.compressor;
+    Ok(fit_report(
+        "eta_c",
+        vec![
+            ("eta_cmax", c.eta_cmax),
+            ("w_copt", c.w_copt),
+            ("pi_copt", c.pi_copt),
+            ("c_pi", c.c_pi),
+            ("a1", c.q_c[0][0]),
+            ("a2", c.q_c[1][1]),
+            ("a3", c.q_c[0][1]),
+        ],
+        &meas,
+        &model,
+        fit.lsq.n_eval,
+    ))
+}
+
+/// Compressor flow, eqs (66)-(72): Psi_c (66) and Phi_c (67) from the measurements; varpro of
+/// c_Psi1(omega)(Psi_c - c_Psi2)^2 + c_Phi1(omega)(Phi_c - c_Phi2)^2 = 1 with c_Psi2, c_Phi2
+/// nonlinear and the six polynomial coefficients (69)-(70) linear. The polynomials are fitted
+/// in omega_t/1000 and rescaled (conditioning).
+pub fn fit_w_c(
+    p: &mut Params,
+    pts: &[StationaryPoint],
+    start: [f64; 2],
+) -> Result<FitReport, StepError> {
+    need("W_c", pts.len(), 8)?;
+    let d = derive(p, pts)?;
+    let g = &p.gas.clone();
+    let c = &p.compressor;
+    let mut psi = Vec::with_capacity(pts.len());
+    let mut phic = Vec::with_capacity(pts.len());
+    for (s, d) in pts.iter().zip(&d) {
+        let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
+        psi.push(compressor::energy_coefficient(
+            c.r_c, g.c_pa, s.t_amb, isentropic, d.omega_t,
+        )); // eq. (66)
+        phic.push(compressor::flow_coefficient(
+            c.r_c, g.r_a, s.t_amb, s.p_amb, d.omega_t, s.w_c,
+        )); // eqs (67), (72)
+    }
+    let ones = vec![1.0; pts.len()];
+    let phi = |a: &[f64]| {
+        DMatrix::from_fn(pts.len(), 6, |i, j| {
+            let w = d[i].omega_t / 1000.0;
+            let dd = if j < 3 {
+                (psi[i] - a[0]).powi(2)
+            } else {
+                (phic[i] - a[1]).powi(2)
+            };
+            dd * w.powi(2 - (j % 3) as i32) // eqs (68)-(70)
+        })
+    };
+    let fit = Varpro::new(&ones, phi)
+        .options(lsq_opts())
+        .fit(&start)
+        .map_err(|e| solver_err("W_c")(e.to_string()))?;
+    let k = [1e-6, 1e-3, 1.0];
+    let set = |cm: &mut crate::params::Compressor, th: &[f64]| {
+        cm.c_psi2 = th[0];
+        cm.c_phi2 = th[1];
+        cm.c_wpsi = [th[2] * k[0], th[3] * k[1], th[4] * k[2]];
+        cm.c_wphi = [th[5] * k[0], th[6] * k[1], th[7] * k[2]];
+    };
+    let th0 = [
+        fit.alpha[0],
+        fit.alpha[1],
+        fit.c[0],
+        fit.c[1],
+        fit.c[2],
+        fit.c[3],
+        fit.c[4],
+        fit.c[5],
+    ];
+    let meas: Vec<f64> = pts.iter().map(|s| s.w_c).collect();
+    // The ellipse residual weights the points unevenly in W_c; with noisy data its minimum can
+    // put points where the authors' guards (c_Phi1 >= 0.1, Phi_c >= 0, W_c >= 1e-4) cut the
+    // flow, where the gradient of the flow is zero. Second start, free of the guards: solve
+    // eq. (71) for Phi_c, (Phi_c - c_Phi2)^2 = A(omega) - B(omega) (Psi_c - c_Psi2)^2 with
+    // A = 1/c_Phi1, B = c_Psi1/c_Phi1 quadratic in omega (linear LS, residual in Phi_c^2
+    // units, i.e. in the flow), then c_Phi1 = 1/A, c_Psi1 = B/A at the data refitted as the
+    // quadratics (69)-(70). Both starts are refined by NLS of the flow itself,
+    // W_c,model - W_c,meas; the better one is kept.
+    let w_mean = meas.iter().sum::<f64>() / meas.len() as f64;
+    let mut starts = vec![th0.to_vec()];
+    if let Some(th) = w_c_phi_start(&psi, &phic, &d, start) {
+        starts.push(th);
+    }
+    let mut cq = p.compressor.clone();
+    let mut res = |th: &[f64]| {
+        set(&mut cq, th);
+        pts.iter()
+            .zip(&d)
+            .map(|(s, dd)| (w_c_model(&cq, g, s, dd) - s.w_c) / w_mean)
+            .collect::<Vec<f64>>()
+    };
+    let refined = best_fit("W_c", &mut res, &starts, &Bounds::none(8), &lsq_opts())?;
+    let n_eval = fit.lsq.n_eval + refined.n_eval;
+    set(&mut p.compressor, &refined.theta);
+    let (meas, model) = w_c_series(p, pts, &d);
+    let cm = &p.compressor;
+    Ok(fit_report(
+        "W_c",
+        vec![
+            ("c_psi2", cm.c_psi2),
+            ("c_phi2", cm.c_phi2),
+            ("c_wpsi1", cm.c_wpsi[0]),
+            ("c_wpsi2", cm.c_wpsi[1]),
+            ("c_wpsi3", cm.c_wpsi[2]),
+            ("c_wphi1", cm.c_wphi[0]),
+            ("c_wphi2", cm.c_wphi[1]),
+            ("c_wphi3", cm.c_wphi[2]),
+        ],
+        &meas,
+        &model,
+        n_eval,
+    ))
+}
+
+/// Guard-free start of the compressor flow fit (see [`fit_w_c`]): linear LS of
+/// (Phi_c - c_Phi2)^2 = A(w) - B(w) (Psi_c - c_Psi2)^2 with A, B quadratic in w = omega_t/1000
+/// and c_Psi2, c_Phi2 at their start values; then c_Phi1 = 1/A and c_Psi1 = B/A at the data
+/// refitted as quadratics. Returns the 8 parameters in the scaled order of [`fit_w_c`], or None
+/// when A <= 0 at a data point.
+fn w_c_phi_start(psi: &[f64], phic: &[f64], d: &[Derived], start: [f64; 2]) -> Option<Vec<f64>> {
+    let n = psi.len();
+    let w: Vec<f64> = d.iter().map(|d| d.omega_t / 1000.0).collect();
+    let a = DMatrix::from_fn(n, 6, |i, j| {
+        let pw = w[i].powi(2 - (j % 3) as i32);
+        if j < 3 {
+            pw
+        } else {
+            -(psi[i] - start[0]).powi(2) * pw
+        }
+    });
+    let y: Vec<f64> = phic.iter().map(|f| (f - start[1]).powi(2)).collect();
+    let c = linear_lsq(&a, &y);
+    let poly = |k: &[f64], x: f64| k[0] * x * x + k[1] * x + k[2];
+    let mut cphi = Vec::with_capacity(n);
+    let mut cpsi = Vec::with_capacity(n);
+    for &x in &w {
+        let aa = poly(&c[0..3], x);
+        if aa <= 0.0 || !aa.is_finite() {
+            return None;
+        }
+        cphi.push(1.0 / aa);
+        cpsi.push(poly(&c[3..6], x) / aa);
+    }
+    let q = DMatrix::from_fn(n, 3, |i, j| w[i].powi(2 - j as i32));
+    let kpsi = linear_lsq(&q, &cpsi);
+    let kphi = linear_lsq(&q, &cphi);
+    let th = vec![
+        start[0], start[1], kpsi[0], kpsi[1], kpsi[2], kphi[0], kphi[1], kphi[2],
+    ];
+    th.iter().all(|v| v.is_finite()).then_some(th)
+}
