@@ -37,6 +37,7 @@ Examples:
   mvem params check my_params.toml
   mvem fmu --out mvem.fmu --model 10
   mvem robustness --runs 10000 --model all --out robustness.md
+  mvem closed-loop --cycle whtc --out out/closed-loop --plot
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -83,6 +84,9 @@ enum Command {
     TeStudy(commands::te_study::Args),
     /// Robustness sweep: random inputs and start states; panics, NaN/inf, invariants.
     Robustness(commands::robustness::Args),
+    /// A drive cycle (the WHTC or a speed/torque CSV) in closed loop: baseline EGR/VGT and
+    /// torque controllers around the model; trajectory, cycle statistics, figures.
+    ClosedLoop(commands::closed_loop::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -127,6 +131,7 @@ fn main() -> ExitCode {
         Command::CompareModels(a) => commands::compare_models::run(a),
         Command::TeStudy(a) => commands::te_study::run(a),
         Command::Robustness(a) => commands::robustness::run(a),
+        Command::ClosedLoop(a) => commands::closed_loop::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),
