@@ -9,15 +9,18 @@
 //! min/max selectors, lambda_O,s acting as a lower bound (smoke) and the VGT as open as the
 //! set-points allow (pumping work). Implemented here, every 10 ms, with `L = u_delta / u_full(n_e)`:
 //!
-//! - x_egr loop: one PI on `e_x = x_egr,s - x_egr` gives a split-range demand v in [0, 200]:
-//!   v <= 100 opens the EGR valve (`u_egr,x = min(v, 100)`), v > 100 closes the VGT from its
-//!   most open position `u_vgt,max(L)` towards 20 %. More EGR is taken first from the valve (no
-//!   pumping cost), then from the VGT; less EGR first opens the VGT.
-//! - lambda_O on the EGR valve: PI on `lambda_O - lambda_O,s`; `u_egr = min(u_egr,x, u_egr,lambda)`
-//!   (min selector: the valve closes when either loop asks).
-//! - lambda_O on the VGT: PI on `lambda_O - (lambda_O,s - d_lambda)`;
-//!   `u_vgt = min(u_vgt,x, u_vgt,lambda)` (the VGT closes for air only when closing the EGR valve
-//!   was not enough, i.e. at high load where closing the VGT raises the boost).
+//! - x_egr on the VGT (main loop): PI on `x_egr - x_egr,s` gives `u_vgt,x` (too little EGR
+//!   closes the VGT, raising p_em and the EGR flow).
+//! - lambda_O on the EGR valve (main loop): PI on `lambda_O - lambda_O,s` gives `u_egr,lambda`
+//!   (air to spare opens the valve: the valve goes as far open as lambda_O,s allows, which lets
+//!   the x_egr loop open the VGT, the pumping-work direction).
+//! - x_egr on the EGR valve (limiter): PI on `x_egr,s + d_x - x_egr` gives `u_egr,x`; min
+//!   selector `u_egr = min(u_egr,lambda, u_egr,x)`: the valve closes when there is too much EGR
+//!   even with the VGT at its most open position.
+//! - lambda_O on the VGT (limiter): PI on `lambda_O - (lambda_O,s - d_lambda)` gives
+//!   `u_vgt,lambda`; `u_vgt = min(u_vgt,x, u_vgt,lambda)` limited to [20, u_vgt,max(L)]: the VGT
+//!   closes for air only when closing the EGR valve was not enough (high load, where closing the
+//!   VGT raises the boost).
 //! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
 //!
 //! Measured signals: lambda_O and x_egr (in an engine: estimates from the air mass flow sensor,
@@ -48,8 +51,12 @@ pub struct BaselineTuning {
     pub smoke_margin: f64,
     /// Torque PI (kp [mg/Nm], ki [mg/(Nm s)]).
     pub torque: (f64, f64),
-    /// x_egr PI on the split-range demand (kp [%], ki [%/s] per unit x_egr).
-    pub x_egr: (f64, f64),
+    /// x_egr PI on the VGT (kp [%], ki [%/s] per unit x_egr).
+    pub x_egr_vgt: (f64, f64),
+    /// x_egr PI on the EGR valve (limiter; kp [%], ki [%/s] per unit x_egr).
+    pub x_egr_egr: (f64, f64),
+    /// Band d_x of the EGR valve's x_egr limiter above the set-point [-].
+    pub d_x: f64,
     /// lambda_O PI on the EGR valve (kp [%], ki [%/s] per unit lambda_O).
     pub lambda_egr: (f64, f64),
     /// lambda_O PI on the VGT (kp [%], ki [%/s] per unit lambda_O).
@@ -67,8 +74,10 @@ impl Default for BaselineTuning {
             lambda_limit: 1.2,
             smoke_margin: 0.02,
             torque: (0.02, 2.0),
-            x_egr: (150.0, 1000.0),
-            lambda_egr: (40.0, 200.0),
+            x_egr_vgt: (150.0, 800.0),
+            x_egr_egr: (150.0, 1000.0),
+            d_x: 0.02,
+            lambda_egr: (40.0, 60.0),
             lambda_vgt: (20.0, 60.0),
             d_lambda: 0.05,
             u_vgt_full_load: 35.0,
@@ -157,9 +166,31 @@ impl SetpointMaps {
         ((u_delta - U_DELTA_MIN) / (self.u_full_at(n) - U_DELTA_MIN)).clamp(0.0, 1.0)
     }
 
+    /// Interval index and weight of `n` on the speed axis (held outside).
+    fn speed_weight(&self, n: f64) -> (usize, f64) {
+        let ns = &self.n_e;
+        let k = ns.len();
+        if n <= ns[0] {
+            return (0, 0.0);
+        }
+        if n >= ns[k - 1] {
+            return (k - 2, 1.0);
+        }
+        let i = ns.partition_point(|&v| v <= n).clamp(1, k - 1) - 1;
+        (i, (n - ns[i]) / (ns[i + 1] - ns[i]))
+    }
+
+    /// `table[speed][load]` at speed `n`, load index `j` (linear in speed).
+    fn at_speed(table: &[Vec<f64>], (i, w): (usize, f64), j: usize) -> f64 {
+        (1.0 - w) * table[i][j] + w * table[i + 1][j]
+    }
+
     fn bilinear(&self, table: &[Vec<f64>], n: f64, l: f64) -> f64 {
-        let col: Vec<f64> = table.iter().map(|row| interp(&self.load, row, l)).collect();
-        interp(&self.n_e, &col, n)
+        let sw = self.speed_weight(n);
+        let ls = &self.load;
+        let j = ls.partition_point(|&v| v <= l).clamp(1, ls.len() - 1) - 1;
+        let f = ((l - ls[j]) / (ls[j + 1] - ls[j])).clamp(0.0, 1.0);
+        (1.0 - f) * Self::at_speed(table, sw, j) + f * Self::at_speed(table, sw, j + 1)
     }
 
     /// Set-points (lambda_O,s, x_egr,s) at (n_e [rpm], u_delta [mg]).
@@ -171,16 +202,24 @@ impl SetpointMaps {
         )
     }
 
-    /// Feed-forward fuel for torque `m` at `n`: the inverse of the steady torque map [mg].
+    /// Feed-forward fuel for torque `m` at `n`: the inverse of the steady torque map [mg]
+    /// (linear in the load between grid points; the torque map increases with the load).
     pub fn fuel_for_torque(&self, n: f64, m: f64) -> f64 {
-        // torque over load at this speed, then invert by interpolation
-        let m_at: Vec<f64> = (0..self.load.len())
-            .map(|k| {
-                let col: Vec<f64> = self.m_e.iter().map(|row| row[k]).collect();
-                interp(&self.n_e, &col, n)
-            })
-            .collect();
-        let l = interp(&m_at, &self.load, m);
+        let sw = self.speed_weight(n);
+        let k = self.load.len();
+        let m_at = |j: usize| Self::at_speed(&self.m_e, sw, j);
+        let l = if m <= m_at(0) {
+            self.load[0]
+        } else if m >= m_at(k - 1) {
+            self.load[k - 1]
+        } else {
+            let mut j = 0;
+            while j + 2 < k && m_at(j + 1) <= m {
+                j += 1;
+            }
+            let (m0, m1) = (m_at(j), m_at(j + 1));
+            self.load[j] + (self.load[j + 1] - self.load[j]) * (m - m0) / (m1 - m0)
+        };
         U_DELTA_MIN + l * (self.u_full_at(n) - U_DELTA_MIN)
     }
 }
@@ -193,7 +232,8 @@ pub struct Baseline {
     /// Set-point and feed-forward maps.
     pub maps: SetpointMaps,
     torque: Pid,
-    x_loop: Pid,
+    x_vgt: Pid,
+    x_egr: Pid,
     lambda_egr: Pid,
     lambda_vgt: Pid,
     /// Set-point overrides (lambda_O,s, x_egr,s) for set-point step tests (NaN: from the maps).
@@ -212,7 +252,8 @@ impl Baseline {
         let maps = SetpointMaps::compute(model, curve, &tuning)?;
         Ok(Self {
             torque: Pid::new(tuning.torque.0, tuning.torque.1, 0.0),
-            x_loop: Pid::new(tuning.x_egr.0, tuning.x_egr.1, 0.0),
+            x_vgt: Pid::new(tuning.x_egr_vgt.0, tuning.x_egr_vgt.1, 0.0),
+            x_egr: Pid::new(tuning.x_egr_egr.0, tuning.x_egr_egr.1, 0.0),
             lambda_egr: Pid::new(tuning.lambda_egr.0, tuning.lambda_egr.1, 0.0),
             lambda_vgt: Pid::new(tuning.lambda_vgt.0, tuning.lambda_vgt.1, 0.0),
             tuning,
@@ -225,15 +266,6 @@ impl Baseline {
     /// Most open VGT position at load fraction `l` [%].
     fn u_vgt_max(&self, l: f64) -> f64 {
         100.0 - (100.0 - self.tuning.u_vgt_full_load) * l
-    }
-
-    /// Split-range demand v of the applied (u_egr, u_vgt).
-    fn v_of(&self, u_egr: f64, u_vgt: f64, vmax: f64) -> f64 {
-        if u_egr < 100.0 - 1e-9 {
-            u_egr
-        } else {
-            100.0 + 100.0 * ((vmax - u_vgt) / (vmax - 20.0)).clamp(0.0, 1.0)
-        }
     }
 
     fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
@@ -263,8 +295,8 @@ impl Controller for Baseline {
         let (u_egr, u_vgt) = nominal_actuators(l);
         let u_vgt = u_vgt.min(self.u_vgt_max(l));
         self.torque.reset(0.0);
-        self.x_loop
-            .reset(self.v_of(u_egr, u_vgt, self.u_vgt_max(l)));
+        self.x_vgt.reset(u_vgt);
+        self.x_egr.reset(u_egr);
         self.lambda_egr.reset(u_egr);
         self.lambda_vgt.reset(u_vgt);
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
@@ -298,22 +330,20 @@ impl Controller for Baseline {
         let (lambda_s, x_s) = self.setpoints(m.n_e, u_delta);
         let l = self.maps.load_of(m.n_e, u_delta);
         let vmax = self.u_vgt_max(l);
-        let e_x = x_s - s.x_egr;
-        let v = self.x_loop.output(e_x, dt).clamp(0.0, 200.0);
-        let u_egr_x = v.min(100.0);
-        let u_vgt_x = vmax - (v - 100.0).max(0.0) / 100.0 * (vmax - 20.0);
+        let e_xv = s.x_egr - x_s;
+        let e_xe = x_s + self.tuning.d_x - s.x_egr;
         let e_le = s.lambda_o - lambda_s;
         let e_lv = s.lambda_o - (lambda_s - self.tuning.d_lambda);
-        let u_egr = u_egr_x
-            .min(self.lambda_egr.output(e_le, dt))
+        let u_egr = (self.lambda_egr.output(e_le, dt))
+            .min(self.x_egr.output(e_xe, dt))
             .clamp(0.0, 100.0);
-        let u_vgt = u_vgt_x
+        let u_vgt = (self.x_vgt.output(e_xv, dt))
             .min(self.lambda_vgt.output(e_lv, dt))
             .clamp(20.0, vmax);
         self.lambda_egr.commit(e_le, dt, u_egr);
+        self.x_egr.commit(e_xe, dt, u_egr);
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
-        let v_applied = self.v_of(u_egr, u_vgt, vmax);
-        self.x_loop.commit(e_x, dt, v_applied);
+        self.x_vgt.commit(e_xv, dt, u_vgt);
         Output {
             u_delta,
             u_egr,

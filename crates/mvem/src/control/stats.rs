@@ -73,7 +73,8 @@ pub struct CycleStats {
     pub lambda_below_limit_share: f64,
     /// The limit [-].
     pub lambda_limit: f64,
-    /// RMS of x_egr,s - x_egr over samples with a set-point [-].
+    /// RMS of x_egr,s - x_egr over fired samples with a set-point [-] (at motoring and minimum
+    /// fuel the EGR fraction is not controlled).
     pub x_egr_rms_error: f64,
     /// Mean pumping mean effective pressure p_em - p_im [Pa].
     pub pmep_mean_pa: f64,
@@ -132,7 +133,7 @@ impl CycleStats {
                     below += 1;
                 }
             }
-            if x_ref[i].is_finite() {
+            if was_fired && x_ref[i].is_finite() {
                 xe2 += (x_ref[i] - x[i]).powi(2);
                 nx += 1;
             }
