@@ -254,7 +254,8 @@ pub fn trajectory_csv(traj: &Trajectory) -> String {
                 if v.is_nan() {
                     "NaN".to_string()
                 } else {
-                    format!("{v:.9e}")
+                    // shortest representation that reads back exactly
+                    format!("{v}")
                 }
             })
             .collect();
@@ -289,8 +290,24 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
             .with(Series::line("M_e", &t, &dec("M_e"), 0)),
         Panel::new("t [s]", "lambda_O [-]")
             .title("oxygen/fuel ratio")
-            .with(Series::line("lambda_O,s", &t, &dec("lambda_O_ref"), 1))
-            .with(Series::line("lambda_O", &t, &dec("lambda_O"), 0))
+            .with(Series::line(
+                "lambda_O,s (clipped at 5)",
+                &t,
+                &dec("lambda_O_ref")
+                    .iter()
+                    .map(|v| v.min(5.0))
+                    .collect::<Vec<_>>(),
+                1,
+            ))
+            .with(Series::line(
+                "lambda_O (clipped at 5)",
+                &t,
+                &dec("lambda_O")
+                    .iter()
+                    .map(|v| v.min(5.0))
+                    .collect::<Vec<_>>(),
+                0,
+            ))
             .with(Series::hline("limit 1.2", t[0], *t.last().unwrap(), 1.2, 3)),
         Panel::new("t [s]", "x_egr [-]")
             .title("EGR fraction")
