@@ -38,6 +38,7 @@ Examples:
   mvem fmu --out mvem.fmu --model 10
   mvem robustness --runs 10000 --model all --out robustness.md
   mvem serve --open
+  mvem closed-loop --cycle whtc --out out/closed-loop --plot
 
 Exit codes: 0 ok, 1 runtime or solver failure, 2 usage or input-file error."
 )]
@@ -87,6 +88,9 @@ enum Command {
     /// Web explorer: a local page and JSON API (steady state, linearization, steps, maps,
     /// drive cycles).
     Serve(commands::serve::Args),
+    /// A drive cycle (the WHTC or a speed/torque CSV) in closed loop: baseline EGR/VGT and
+    /// torque controllers around the model; trajectory, cycle statistics, figures.
+    ClosedLoop(commands::closed_loop::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -132,6 +136,7 @@ fn main() -> ExitCode {
         Command::TeStudy(a) => commands::te_study::run(a),
         Command::Robustness(a) => commands::robustness::run(a),
         Command::Serve(a) => commands::serve::run(a),
+        Command::ClosedLoop(a) => commands::closed_loop::run(a),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -42,6 +42,7 @@
 
 pub mod analysis;
 pub mod components;
+pub mod control;
 pub mod error;
 pub mod io;
 pub mod model;

@@ -23,6 +23,7 @@ mod dopri5;
 pub mod input;
 mod linalg;
 mod rosw;
+pub mod stepper;
 
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 

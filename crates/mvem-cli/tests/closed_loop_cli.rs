@@ -1,0 +1,139 @@
+//! `mvem closed-loop`: a short closed-loop WHTC run end to end, and bad input (exit code 2, a
+//! clear message, nothing written).
+
+mod common;
+
+use common::{col, files, mvem, read_csv, stderr, stdout, usage_error};
+
+#[test]
+fn short_whtc_run_writes_the_trajectory_and_statistics() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "whtc",
+            "--out",
+            "cl",
+            "--duration",
+            "60",
+            "--json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        files(&d.path().join("cl")),
+        ["stats.json", "trajectory.csv"]
+    );
+    let (h, rows) = read_csv(&d.path().join("cl").join("trajectory.csv"));
+    for c in [
+        "t",
+        "n_e",
+        "u_delta",
+        "u_egr",
+        "u_vgt",
+        "M_ref",
+        "M_e",
+        "lambda_O",
+        "lambda_O_ref",
+        "x_egr",
+        "x_egr_ref",
+        "p_im",
+        "p_em",
+        "omega_t",
+        "W_c",
+    ] {
+        col(&h, c);
+    }
+    assert_eq!(rows.len(), 6001, "0..60 s every 10 ms");
+    let t = col(&h, "t");
+    assert!((rows[1][t] - 0.01).abs() < 1e-12);
+    // the torque follows the demand on the first minute (idle and the first accelerations)
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let slope = json["stats"]["torque"]["slope"].as_f64().unwrap();
+    assert!((0.83..=1.03).contains(&slope), "{json}");
+    assert!(
+        json["stats"]["lambda_o_min"].as_f64().unwrap() >= 1.05,
+        "{json}"
+    );
+}
+
+#[test]
+fn bad_input_is_exit_2_and_writes_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--out", "o", "--controller", "pid"],
+    );
+    assert!(err.contains("pid"), "{err}");
+
+    std::fs::write(d.path().join("miss.csv"), "t,n_e\n0,1000\n1,1000\n").unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "miss.csv", "--out", "o"],
+    );
+    assert!(err.contains("missing column(s) M_ref"), "{err}");
+
+    std::fs::write(
+        d.path().join("unsorted.csv"),
+        "t,n_e,M_ref\n0,1000,100\n2,1000,100\n1,1000,100\n",
+    )
+    .unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "unsorted.csv", "--out", "o"],
+    );
+    assert!(
+        err.contains("row 3") && err.contains("time must increase"),
+        "{err}"
+    );
+
+    std::fs::write(
+        d.path().join("heavy.csv"),
+        "t,n_e,M_ref\n0,1200,500\n5,1200,5000\n",
+    )
+    .unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "heavy.csv", "--out", "o"],
+    );
+    assert!(
+        err.contains("cannot follow") && err.contains("t = 5 s"),
+        "{err}"
+    );
+
+    let err = usage_error(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "heavy.csv",
+            "--controller",
+            "open-loop",
+            "--out",
+            "o",
+        ],
+    );
+    assert!(err.contains("--cycle whtc"), "{err}");
+    assert!(
+        !d.path().join("o").exists(),
+        "nothing written after bad input"
+    );
+}
+
+#[test]
+fn a_users_cycle_runs() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("c.csv"),
+        "t,n_e,M_ref\n0,1200,300\n2,1200,300\n2.5,1400,900\n6,1400,900\n",
+    )
+    .unwrap();
+    let o = mvem(d.path(), &["closed-loop", "--cycle", "c.csv", "--out", "o"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, rows) = read_csv(&d.path().join("o").join("trajectory.csv"));
+    let (m, r) = (col(&h, "M_e"), col(&h, "M_ref"));
+    let last = rows.last().unwrap();
+    assert!((last[m] - last[r]).abs() < 0.01 * last[r], "{last:?}");
+}

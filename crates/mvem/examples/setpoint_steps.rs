@@ -1,0 +1,86 @@
+//! Set-point steps of the baseline air-path controller (docs/control.md): prints rise and
+//! settling times for the default tuning, or for gains given as
+//! `KEY=VALUE` arguments (x_vgt_kp, x_vgt_ki, x_egr_kp, x_egr_ki, l_egr_kp, l_egr_ki, l_vgt_kp,
+//! l_vgt_ki), and runs the closed-loop WHTC with them when `whtc` is given.
+//!
+//! `cargo run --release -p mvem --example setpoint_steps -- x_vgt_ki=600 whtc`
+
+use mvem::analysis::steady::steady_state;
+use mvem::control::baseline::{Baseline, BaselineTuning};
+use mvem::control::cycle::{
+    parse_normalized_table, whtc_demand, MappingCurve, MappingOptions, WHTC_NORMALIZED,
+};
+use mvem::control::stats::CycleStats;
+use mvem::control::steps::setpoint_step;
+use mvem::model::{AnyModel, Drive, Engine8, ModelOrder};
+use mvem::params::Params;
+use mvem::sim::SimOptions;
+
+fn main() {
+    let mut tuning = BaselineTuning::default();
+    let mut whtc = false;
+    for a in std::env::args().skip(1) {
+        if a == "whtc" {
+            whtc = true;
+            continue;
+        }
+        let (k, v) = a.split_once('=').expect("KEY=VALUE");
+        let v: f64 = v.parse().expect("number");
+        match k {
+            "x_vgt_kp" => tuning.x_egr_vgt.0 = v,
+            "x_vgt_ki" => tuning.x_egr_vgt.1 = v,
+            "x_egr_kp" => tuning.x_egr_egr.0 = v,
+            "x_egr_ki" => tuning.x_egr_egr.1 = v,
+            "l_egr_kp" => tuning.lambda_egr.0 = v,
+            "l_egr_ki" => tuning.lambda_egr.1 = v,
+            "l_vgt_kp" => tuning.lambda_vgt.0 = v,
+            "l_vgt_ki" => tuning.lambda_vgt.1 = v,
+            _ => panic!("unknown key {k}"),
+        }
+    }
+    let m = AnyModel::new(ModelOrder::Eight, Params::published(), Default::default()).unwrap();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let e8 = Engine8::published();
+    let ss = steady_state(&e8, &Drive::new(1500.0, 110.0, 50.0, 60.0)).unwrap();
+    let (l0, x0) = (ss.signals.lambda_o, ss.signals.x_egr);
+    let x_star = steady_state(&e8, &Drive::new(1500.0, 110.0, 100.0, 50.0))
+        .unwrap()
+        .signals
+        .x_egr;
+    let cases = [
+        ("x_egr", (l0, x0), (l0, x0 + 0.02)),
+        ("lambda_O", (l0, x0), (l0 + 0.2, x0)),
+        ("x_egr", (1.05, x_star), (1.05, x_star + 0.02)),
+        ("x_egr", (1.05, x_star), (1.05, x_star - 0.02)),
+    ];
+    for (signal, before, after) in cases {
+        match setpoint_step(
+            &m, &curve, tuning, 1500.0, 110.0, before, after, signal, 10.0, 25.0,
+        ) {
+            Ok(r) => {
+                let mt = r.metrics;
+                println!(
+                    "{signal:8} {before:.3?} -> {after:.3?}: {:.4} -> {:.4}, rise {:.2?} s, settling {:.2?} s, overshoot {:.1} %, tail p-p {:.1e}, u_egr/u_vgt {:.1?}",
+                    mt.y0, mt.y_final, mt.rise_time, mt.settling_time, mt.overshoot_pct, r.tail_peak_to_peak, r.final_commands
+                );
+            }
+            Err(e) => println!("{signal}: {e}"),
+        }
+    }
+    if whtc {
+        let speeds = curve.reference_speeds(500.0);
+        let mut table = parse_normalized_table(WHTC_NORMALIZED).unwrap();
+        table.insert(0, (0.0, table[0].1, table[0].2));
+        let demand = whtc_demand(&table, &curve, &speeds).unwrap();
+        let mut ctrl = Baseline::new(&m, &curve, tuning).unwrap();
+        let t = std::time::Instant::now();
+        let (traj, _) =
+            mvem::control::run(m.clone(), &demand, &mut ctrl, &SimOptions::default()).unwrap();
+        let s = CycleStats::compute(&traj, curve.m_peak(), 1.2);
+        println!(
+            "WHTC: torque slope {:.3} R2 {:.3} SEE {:.1}; work {:+.2} %; lambda min {:.3}; x_egr rms {:.4}; pmep {:.0} Pa; bsfc {:.1}; violations {:?}; {:.2} s",
+            s.torque.slope, s.torque.r2, s.torque.see, 100.0 * s.work_error, s.lambda_o_min,
+            s.x_egr_rms_error, s.pmep_mean_pa, s.bsfc_g_kwh, s.violations(1.05), t.elapsed().as_secs_f64()
+        );
+    }
+}

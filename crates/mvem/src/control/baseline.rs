@@ -1,0 +1,389 @@
+//! Baseline controllers: the EGR/VGT air-path controller, the torque-following engine controller
+//! with a smoke limiter, and the open-loop schedule for comparison.
+//!
+//! ## Air path (after Wahlström, Eriksson, Nielsen, IEEE TCST 18(4), 2010)
+//!
+//! The authors control the oxygen/fuel ratio lambda_O with the EGR valve and the EGR fraction
+//! x_egr with the VGT (so the sign reversal of u_vgt -> lambda_O / W_c that the paper documents
+//! in section 8.3.1 is not inside a loop that needs its sign), with PID controllers combined by
+//! min/max selectors, lambda_O,s acting as a lower bound (smoke) and the VGT as open as the
+//! set-points allow (pumping work). Implemented here, every 10 ms, with `L = u_delta / u_full(n_e)`:
+//!
+//! - x_egr on the VGT (main loop): PI on `x_egr - x_egr,s` gives `u_vgt,x` (too little EGR
+//!   closes the VGT, raising p_em and the EGR flow).
+//! - lambda_O on the EGR valve (main loop): PI on `lambda_O - lambda_O,s` gives `u_egr,lambda`
+//!   (air to spare opens the valve: the valve goes as far open as lambda_O,s allows, which lets
+//!   the x_egr loop open the VGT, the pumping-work direction).
+//! - x_egr on the EGR valve (limiter): PI on `x_egr,s + d_x - x_egr` gives `u_egr,x`; min
+//!   selector `u_egr = min(u_egr,lambda, u_egr,x)`: the valve closes when there is too much EGR
+//!   even with the VGT at its most open position.
+//! - lambda_O on the VGT (limiter): PI on `lambda_O - (lambda_O,s - d_lambda)` gives
+//!   `u_vgt,lambda`; `u_vgt = min(u_vgt,x, u_vgt,lambda)` limited to [20, u_vgt,max(L)]: the VGT
+//!   closes for air only when closing the EGR valve was not enough (high load, where closing the
+//!   VGT raises the boost).
+//! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
+//!
+//! Measured signals: lambda_O and x_egr (in an engine: estimates from the air mass flow sensor,
+//! p_im, n_e and u_delta; here the model's own values, i.e. perfect estimates), u_delta and n_e.
+//!
+//! ## Engine
+//!
+//! `u_delta = u_ff(n_e, M_ref) + PI(M_ref - M_e)` with `u_ff` the inverse of the model's steady
+//! torque map at the nominal actuator positions, M_e from the dynamometer's torque sensor; a smoke
+//! limiter caps it at `u_delta lambda_O / (lambda_lim (1 + margin))` (lambda_O is inversely
+//! proportional to the fuel at a given air charge, eq. (15)), so lambda_O stays above
+//! lambda_lim (1.2) during turbo lag; motoring points get the minimum fuel.
+
+use super::cycle::{interp, steady_signals, MappingCurve, U_DELTA_MAX, U_DELTA_MIN};
+use super::pid::Pid;
+use super::{ControlError, Controller, Measurement, Output};
+use crate::model::{AnyModel, Drive};
+use crate::sim::InputSchedule;
+
+/// Tuning of the baseline controllers (see the module documentation and `docs/control.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaselineTuning {
+    /// Sample time [s].
+    pub ts: f64,
+    /// Smoke limit lambda_lim [-].
+    pub lambda_limit: f64,
+    /// Margin of the smoke limiter over lambda_lim [-] (relative).
+    pub smoke_margin: f64,
+    /// Torque PI (kp [mg/Nm], ki [mg/(Nm s)]).
+    pub torque: (f64, f64),
+    /// x_egr PI on the VGT (kp [%], ki [%/s] per unit x_egr).
+    pub x_egr_vgt: (f64, f64),
+    /// x_egr PI on the EGR valve (limiter; kp [%], ki [%/s] per unit x_egr).
+    pub x_egr_egr: (f64, f64),
+    /// Band d_x of the EGR valve's x_egr limiter above the set-point [-].
+    pub d_x: f64,
+    /// lambda_O PI on the EGR valve (kp [%], ki [%/s] per unit lambda_O).
+    pub lambda_egr: (f64, f64),
+    /// lambda_O PI on the VGT (kp [%], ki [%/s] per unit lambda_O).
+    pub lambda_vgt: (f64, f64),
+    /// Offset d_lambda of the VGT's lambda_O loop below the set-point [-].
+    pub d_lambda: f64,
+    /// Most open VGT position at full load [%] (the mapping curve's), 100 % at no load.
+    pub u_vgt_full_load: f64,
+}
+
+impl Default for BaselineTuning {
+    fn default() -> Self {
+        Self {
+            ts: 0.01,
+            lambda_limit: 1.2,
+            smoke_margin: 0.02,
+            torque: (0.02, 2.0),
+            x_egr_vgt: (150.0, 800.0),
+            x_egr_egr: (150.0, 1000.0),
+            d_x: 0.02,
+            lambda_egr: (40.0, 60.0),
+            lambda_vgt: (20.0, 60.0),
+            d_lambda: 0.05,
+            u_vgt_full_load: 35.0,
+        }
+    }
+}
+
+/// Nominal actuator map: EGR valve and VGT positions [%] at load fraction `l` in [0, 1] (the
+/// open-loop schedule of the shared WHTC inputs: u_egr = 50 (1 - L), u_vgt = 65 - 30 L).
+pub fn nominal_actuators(l: f64) -> (f64, f64) {
+    let l = l.clamp(0.0, 1.0);
+    (50.0 * (1.0 - l), 65.0 - 30.0 * l)
+}
+
+/// Steady maps over (n_e, load fraction) at the nominal actuator positions: torque (for the
+/// feed-forward inverse) and the set-points lambda_O,s and x_egr,s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetpointMaps {
+    /// Speeds [rpm].
+    pub n_e: Vec<f64>,
+    /// Load fractions L = (u_delta - 1) / (u_full - 1) [-].
+    pub load: Vec<f64>,
+    /// Steady torque [Nm], `[speed][load]`.
+    pub m_e: Vec<Vec<f64>>,
+    /// lambda_O set-point [-], `[speed][load]`.
+    pub lambda_o: Vec<Vec<f64>>,
+    /// x_egr set-point [-], `[speed][load]`.
+    pub x_egr: Vec<Vec<f64>>,
+    /// Full-load fuel over `n_e` [mg].
+    pub u_full: Vec<f64>,
+}
+
+impl SetpointMaps {
+    /// Solve the steady states on the grid. The lambda_O set-point is a lower bound:
+    /// 0.9 of the nominal steady lambda_O, at least lambda_lim (1 + 2 margin).
+    pub fn compute(
+        model: &AnyModel,
+        curve: &MappingCurve,
+        tuning: &BaselineTuning,
+    ) -> Result<Self, ControlError> {
+        let n_e: Vec<f64> = (0..7).map(|i| 500.0 + 250.0 * i as f64).collect();
+        let load = vec![0.0, 0.1, 0.25, 0.5, 0.75, 1.0];
+        let floor = tuning.lambda_limit * (1.0 + 2.0 * tuning.smoke_margin);
+        let mut maps = SetpointMaps {
+            u_full: n_e.iter().map(|&n| curve.u_full_at(n)).collect(),
+            n_e,
+            load,
+            m_e: vec![],
+            lambda_o: vec![],
+            x_egr: vec![],
+        };
+        for (i, &n) in maps.n_e.iter().enumerate() {
+            let (mut m_row, mut l_row, mut x_row) = (vec![], vec![], vec![]);
+            let mut guess = None;
+            for &l in &maps.load {
+                let u = U_DELTA_MIN + l * (maps.u_full[i] - U_DELTA_MIN);
+                let (ue, uv) = nominal_actuators(l);
+                let s =
+                    steady_signals(model, &Drive::new(n, u, ue, uv), &mut guess).map_err(|e| {
+                        ControlError::Setup(format!("set-point maps at {n} rpm, {u:.1} mg: {e}"))
+                    })?;
+                m_row.push(s.m_e);
+                l_row.push((0.9 * s.lambda_o).clamp(floor, 10.0));
+                x_row.push(s.x_egr);
+            }
+            // the torque map must increase with the fuel to be inverted
+            for k in 1..m_row.len() {
+                if m_row[k] <= m_row[k - 1] {
+                    m_row[k] = m_row[k - 1] + 1e-6;
+                }
+            }
+            maps.m_e.push(m_row);
+            maps.lambda_o.push(l_row);
+            maps.x_egr.push(x_row);
+        }
+        Ok(maps)
+    }
+
+    /// Full-load fuel at `n` [mg].
+    pub fn u_full_at(&self, n: f64) -> f64 {
+        interp(&self.n_e, &self.u_full, n)
+    }
+
+    /// Load fraction of `u_delta` at `n`.
+    pub fn load_of(&self, n: f64, u_delta: f64) -> f64 {
+        ((u_delta - U_DELTA_MIN) / (self.u_full_at(n) - U_DELTA_MIN)).clamp(0.0, 1.0)
+    }
+
+    /// Interval index and weight of `n` on the speed axis (held outside).
+    fn speed_weight(&self, n: f64) -> (usize, f64) {
+        let ns = &self.n_e;
+        let k = ns.len();
+        if n <= ns[0] {
+            return (0, 0.0);
+        }
+        if n >= ns[k - 1] {
+            return (k - 2, 1.0);
+        }
+        let i = ns.partition_point(|&v| v <= n).clamp(1, k - 1) - 1;
+        (i, (n - ns[i]) / (ns[i + 1] - ns[i]))
+    }
+
+    /// `table[speed][load]` at speed `n`, load index `j` (linear in speed).
+    fn at_speed(table: &[Vec<f64>], (i, w): (usize, f64), j: usize) -> f64 {
+        (1.0 - w) * table[i][j] + w * table[i + 1][j]
+    }
+
+    fn bilinear(&self, table: &[Vec<f64>], n: f64, l: f64) -> f64 {
+        let sw = self.speed_weight(n);
+        let ls = &self.load;
+        let j = ls.partition_point(|&v| v <= l).clamp(1, ls.len() - 1) - 1;
+        let f = ((l - ls[j]) / (ls[j + 1] - ls[j])).clamp(0.0, 1.0);
+        (1.0 - f) * Self::at_speed(table, sw, j) + f * Self::at_speed(table, sw, j + 1)
+    }
+
+    /// Set-points (lambda_O,s, x_egr,s) at (n_e [rpm], u_delta [mg]).
+    pub fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
+        let l = self.load_of(n, u_delta);
+        (
+            self.bilinear(&self.lambda_o, n, l),
+            self.bilinear(&self.x_egr, n, l),
+        )
+    }
+
+    /// Feed-forward fuel for torque `m` at `n`: the inverse of the steady torque map [mg]
+    /// (linear in the load between grid points; the torque map increases with the load).
+    pub fn fuel_for_torque(&self, n: f64, m: f64) -> f64 {
+        let sw = self.speed_weight(n);
+        let k = self.load.len();
+        let m_at = |j: usize| Self::at_speed(&self.m_e, sw, j);
+        let l = if m <= m_at(0) {
+            self.load[0]
+        } else if m >= m_at(k - 1) {
+            self.load[k - 1]
+        } else {
+            let mut j = 0;
+            while j + 2 < k && m_at(j + 1) <= m {
+                j += 1;
+            }
+            let (m0, m1) = (m_at(j), m_at(j + 1));
+            self.load[j] + (self.load[j + 1] - self.load[j]) * (m - m0) / (m1 - m0)
+        };
+        U_DELTA_MIN + l * (self.u_full_at(n) - U_DELTA_MIN)
+    }
+}
+
+/// The baseline engine + air-path controller (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct Baseline {
+    /// Tuning.
+    pub tuning: BaselineTuning,
+    /// Set-point and feed-forward maps.
+    pub maps: SetpointMaps,
+    torque: Pid,
+    x_vgt: Pid,
+    x_egr: Pid,
+    lambda_egr: Pid,
+    lambda_vgt: Pid,
+    /// Set-point overrides (lambda_O,s, x_egr,s) for set-point step tests (NaN: from the maps).
+    pub setpoint_override: (f64, f64),
+    /// Hold the fuel at this value instead of following the torque demand (NaN: follow).
+    pub fuel_override: f64,
+}
+
+impl Baseline {
+    /// Build for `model` with its mapping curve (solves the set-point maps).
+    pub fn new(
+        model: &AnyModel,
+        curve: &MappingCurve,
+        tuning: BaselineTuning,
+    ) -> Result<Self, ControlError> {
+        let maps = SetpointMaps::compute(model, curve, &tuning)?;
+        Ok(Self {
+            torque: Pid::new(tuning.torque.0, tuning.torque.1, 0.0),
+            x_vgt: Pid::new(tuning.x_egr_vgt.0, tuning.x_egr_vgt.1, 0.0),
+            x_egr: Pid::new(tuning.x_egr_egr.0, tuning.x_egr_egr.1, 0.0),
+            lambda_egr: Pid::new(tuning.lambda_egr.0, tuning.lambda_egr.1, 0.0),
+            lambda_vgt: Pid::new(tuning.lambda_vgt.0, tuning.lambda_vgt.1, 0.0),
+            tuning,
+            maps,
+            setpoint_override: (f64::NAN, f64::NAN),
+            fuel_override: f64::NAN,
+        })
+    }
+
+    /// Most open VGT position at load fraction `l` [%].
+    fn u_vgt_max(&self, l: f64) -> f64 {
+        100.0 - (100.0 - self.tuning.u_vgt_full_load) * l
+    }
+
+    fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
+        let (l, x) = self.maps.setpoints(n, u_delta);
+        let (lo, xo) = self.setpoint_override;
+        (
+            if lo.is_nan() { l } else { lo },
+            if xo.is_nan() { x } else { xo },
+        )
+    }
+}
+
+impl Controller for Baseline {
+    fn sample_time(&self) -> f64 {
+        self.tuning.ts
+    }
+
+    fn start(&mut self, _t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output {
+        let u = if !self.fuel_override.is_nan() {
+            self.fuel_override
+        } else if motoring {
+            U_DELTA_MIN
+        } else {
+            self.maps.fuel_for_torque(n_e, m_ref)
+        };
+        let l = self.maps.load_of(n_e, u);
+        let (u_egr, u_vgt) = nominal_actuators(l);
+        let u_vgt = u_vgt.min(self.u_vgt_max(l));
+        self.torque.reset(0.0);
+        self.x_vgt.reset(u_vgt);
+        self.x_egr.reset(u_egr);
+        self.lambda_egr.reset(u_egr);
+        self.lambda_vgt.reset(u_vgt);
+        let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
+        Output {
+            u_delta: u,
+            u_egr,
+            u_vgt,
+            lambda_o_ref,
+            x_egr_ref,
+        }
+    }
+
+    fn update(&mut self, m: &Measurement) -> Output {
+        let dt = self.tuning.ts;
+        let s = m.signals;
+        // engine: feed-forward + PI on the torque error, smoke limiter
+        let e_m = m.m_ref - s.m_e;
+        let u_ff = self.maps.fuel_for_torque(m.n_e, m.m_ref);
+        let u_smoke =
+            s.u_delta * s.lambda_o / (self.tuning.lambda_limit * (1.0 + self.tuning.smoke_margin));
+        let u_hi = U_DELTA_MAX.min(u_smoke).max(U_DELTA_MIN);
+        let u_delta = if !self.fuel_override.is_nan() {
+            self.fuel_override
+        } else if m.motoring {
+            U_DELTA_MIN
+        } else {
+            (u_ff + self.torque.output(e_m, dt)).clamp(U_DELTA_MIN, u_hi)
+        };
+        self.torque.commit(e_m, dt, u_delta - u_ff);
+        // air path
+        let (lambda_s, x_s) = self.setpoints(m.n_e, u_delta);
+        let l = self.maps.load_of(m.n_e, u_delta);
+        let vmax = self.u_vgt_max(l);
+        let e_xv = s.x_egr - x_s;
+        let e_xe = x_s + self.tuning.d_x - s.x_egr;
+        let e_le = s.lambda_o - lambda_s;
+        let e_lv = s.lambda_o - (lambda_s - self.tuning.d_lambda);
+        let u_egr = (self.lambda_egr.output(e_le, dt))
+            .min(self.x_egr.output(e_xe, dt))
+            .clamp(0.0, 100.0);
+        let u_vgt = (self.x_vgt.output(e_xv, dt))
+            .min(self.lambda_vgt.output(e_lv, dt))
+            .clamp(20.0, vmax);
+        self.lambda_egr.commit(e_le, dt, u_egr);
+        self.x_egr.commit(e_xe, dt, u_egr);
+        self.lambda_vgt.commit(e_lv, dt, u_vgt);
+        self.x_vgt.commit(e_xv, dt, u_vgt);
+        Output {
+            u_delta,
+            u_egr,
+            u_vgt,
+            lambda_o_ref: lambda_s,
+            x_egr_ref: x_s,
+        }
+    }
+}
+
+/// An open-loop "controller": the commands of an input schedule, sampled and held.
+#[derive(Debug, Clone)]
+pub struct OpenLoop {
+    /// The schedule (its n_e column is ignored: the demand's speed drives the plant).
+    pub schedule: InputSchedule,
+    /// Sample time [s].
+    pub ts: f64,
+}
+
+impl OpenLoop {
+    fn out(&self, t: f64) -> Output {
+        let d = self.schedule.at(t);
+        Output {
+            u_delta: d.u_delta_mg,
+            u_egr: d.u_egr_pct,
+            u_vgt: d.u_vgt_pct,
+            lambda_o_ref: f64::NAN,
+            x_egr_ref: f64::NAN,
+        }
+    }
+}
+
+impl Controller for OpenLoop {
+    fn sample_time(&self) -> f64 {
+        self.ts
+    }
+    fn start(&mut self, t0: f64, _: f64, _: f64, _: bool) -> Output {
+        self.out(t0)
+    }
+    fn update(&mut self, m: &Measurement) -> Output {
+        self.out(m.t)
+    }
+}

@@ -1,0 +1,398 @@
+//! Drive cycles for the closed loop: the engine's mapping curve, the WHTC denormalization of
+//! UN GTR No. 4 and speed/torque demands.
+//!
+//! The mapping curve is this model's full-load torque over speed with the smoke limit: at each
+//! speed the largest u_delta (<= 250 mg) whose steady state has lambda_O >= the limit, with the
+//! EGR valve closed and the VGT at [`MappingOptions::u_vgt`]; the motoring curve is the steady
+//! torque at the minimum fuel (1 mg, EGR closed, VGT open). From it the regulation's reference
+//! speeds: n_lo (lowest speed at 55 % of the maximum power), n_hi (highest speed at 70 %),
+//! n_pref (where the integral of the full-load torque from n_idle reaches 51 % of its value up to
+//! n_95h, the highest speed at 95 % power), and the denormalized speed
+//! `n = n_norm/100 (0.45 n_lo + 0.45 n_pref + 0.1 n_hi - n_idle) 2.0327 + n_idle`,
+//! torque `M = M_norm/100 M_max(n)` and, for the "m" points, the motoring torque.
+
+use super::ControlError;
+use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
+use crate::dispatch;
+use crate::model::{AnyModel, Drive, Signals};
+
+/// Minimum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
+pub const U_DELTA_MIN: f64 = 1.0;
+/// Maximum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
+pub const U_DELTA_MAX: f64 = 250.0;
+/// Speed range of the authors' input saturation [rpm] (item 1).
+pub const N_E_RANGE: (f64, f64) = (500.0, 2000.0);
+
+/// How the mapping curve is computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MappingOptions {
+    /// Smoke limit: smallest steady lambda_O at full load [-] (default 1.2).
+    pub lambda_min: f64,
+    /// VGT position at full load [%] (default 35).
+    pub u_vgt: f64,
+    /// Speed grid step [rpm] (default 100).
+    pub dn: f64,
+}
+
+impl Default for MappingOptions {
+    fn default() -> Self {
+        Self {
+            lambda_min: 1.2,
+            u_vgt: 35.0,
+            dn: 100.0,
+        }
+    }
+}
+
+/// Full-load (smoke-limited) and motoring torque over speed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MappingCurve {
+    /// Speeds [rpm].
+    pub n_e: Vec<f64>,
+    /// Full-load fuel u_delta [mg/cycle/cylinder].
+    pub u_full: Vec<f64>,
+    /// Full-load torque [Nm].
+    pub m_max: Vec<f64>,
+    /// Motoring torque at the minimum fuel [Nm] (negative: friction and pumping).
+    pub m_motor: Vec<f64>,
+    /// Options used.
+    pub opts: MappingOptions,
+}
+
+/// Linear interpolation in a sorted table, held constant outside.
+pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+    let n = xs.len();
+    if x <= xs[0] {
+        return ys[0];
+    }
+    if x >= xs[n - 1] {
+        return ys[n - 1];
+    }
+    let i = xs.partition_point(|&v| v <= x).min(n - 1);
+    let (x0, x1) = (xs[i - 1], xs[i]);
+    ys[i - 1] + (ys[i] - ys[i - 1]) * (x - x0) / (x1 - x0)
+}
+
+/// Steady signals of `model` at `d` (warm-started from `guess` when given).
+pub(crate) fn steady_signals(
+    model: &AnyModel,
+    d: &Drive,
+    guess: &mut Option<Vec<f64>>,
+) -> Result<Signals, String> {
+    dispatch!(model, m => {
+        let g = guess.as_ref().and_then(|g| g.as_slice().try_into().ok());
+        let ss = match g {
+            Some(g) => steady_state_with(m, d, Some(&g), &SteadyOptions::default())
+                .or_else(|_| steady_state(m, d)),
+            None => steady_state(m, d),
+        }
+        .map_err(|e| e.to_string())?;
+        *guess = Some(ss.x.to_vec());
+        Ok(ss.signals)
+    })
+}
+
+impl MappingCurve {
+    /// Compute the curve of `model` (see the module documentation).
+    pub fn compute(model: &AnyModel, opts: MappingOptions) -> Result<Self, ControlError> {
+        let (lo, hi) = N_E_RANGE;
+        let k = ((hi - lo) / opts.dn).round().max(1.0) as usize;
+        let mut c = MappingCurve {
+            n_e: Vec::new(),
+            u_full: Vec::new(),
+            m_max: Vec::new(),
+            m_motor: Vec::new(),
+            opts,
+        };
+        let setup = |e: String| ControlError::Setup(format!("mapping curve: {e}"));
+        let mut guess = None;
+        let mut u = U_DELTA_MAX;
+        for i in 0..=k {
+            let n = lo + (hi - lo) * i as f64 / k as f64;
+            // lambda_O ~ air / fuel and the air changes slowly with the fuel: the fixed-point
+            // iteration u <- u lambda_O(u) / lambda_min converges in a few steps
+            let mut s = Signals::default();
+            for _ in 0..30 {
+                let d = Drive::new(n, u, 0.0, opts.u_vgt);
+                s = steady_signals(model, &d, &mut guess).map_err(setup)?;
+                let u_new = (u * s.lambda_o / opts.lambda_min).clamp(U_DELTA_MIN, U_DELTA_MAX);
+                if (u_new - u).abs() < 1e-4 * u {
+                    break;
+                }
+                if u >= U_DELTA_MAX && u_new >= U_DELTA_MAX {
+                    break;
+                }
+                u = u_new;
+            }
+            let mut g0 = None;
+            let s0 = steady_signals(model, &Drive::new(n, U_DELTA_MIN, 0.0, 100.0), &mut g0)
+                .map_err(setup)?;
+            c.n_e.push(n);
+            c.u_full.push(u);
+            c.m_max.push(s.m_e);
+            c.m_motor.push(s0.m_e);
+        }
+        Ok(c)
+    }
+
+    /// Full-load torque at `n` [Nm].
+    pub fn m_max_at(&self, n: f64) -> f64 {
+        interp(&self.n_e, &self.m_max, n)
+    }
+
+    /// Full-load fuel at `n` [mg/cycle/cylinder].
+    pub fn u_full_at(&self, n: f64) -> f64 {
+        interp(&self.n_e, &self.u_full, n)
+    }
+
+    /// Motoring torque at `n` [Nm].
+    pub fn m_motor_at(&self, n: f64) -> f64 {
+        interp(&self.n_e, &self.m_motor, n)
+    }
+
+    /// Largest full-load torque [Nm].
+    pub fn m_peak(&self) -> f64 {
+        self.m_max.iter().cloned().fold(f64::MIN, f64::max)
+    }
+
+    /// The regulation's reference speeds from this curve (n_idle given).
+    pub fn reference_speeds(&self, n_idle: f64) -> ReferenceSpeeds {
+        // fine resampling of power P = M omega
+        let (lo, hi) = (self.n_e[0], *self.n_e.last().unwrap());
+        let m = 3001;
+        let ns: Vec<f64> = (0..m)
+            .map(|i| lo + (hi - lo) * i as f64 / (m - 1) as f64)
+            .collect();
+        let p: Vec<f64> = ns
+            .iter()
+            .map(|&n| self.m_max_at(n) * n * std::f64::consts::PI / 30.0)
+            .collect();
+        let p_max = p.iter().cloned().fold(f64::MIN, f64::max);
+        let first_at = |f: f64| ns[p.iter().position(|&v| v >= f * p_max).unwrap_or(0)];
+        let last_at = |f: f64| ns[p.iter().rposition(|&v| v >= f * p_max).unwrap_or(m - 1)];
+        let n_lo = first_at(0.55);
+        let n_hi = last_at(0.70);
+        let n_95h = last_at(0.95);
+        // n_pref: integral of M_max from n_idle reaches 51 % of the integral up to n_95h
+        let mut cum = vec![0.0; m];
+        for i in 1..m {
+            let inside = |n: f64| n >= n_idle && n <= n_95h;
+            let a = if inside(ns[i - 1]) && inside(ns[i]) {
+                0.5 * (self.m_max_at(ns[i - 1]) + self.m_max_at(ns[i])) * (ns[i] - ns[i - 1])
+            } else {
+                0.0
+            };
+            cum[i] = cum[i - 1] + a;
+        }
+        let total = cum[m - 1];
+        let n_pref = ns[cum.iter().position(|&v| v >= 0.51 * total).unwrap_or(0)];
+        ReferenceSpeeds {
+            n_idle,
+            n_lo,
+            n_pref,
+            n_hi,
+            n_95h,
+            p_max,
+        }
+    }
+}
+
+/// The reference speeds of UN GTR No. 4 (section 7.4.2) [rpm] and the maximum power [W].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReferenceSpeeds {
+    /// Idle speed [rpm].
+    pub n_idle: f64,
+    /// Lowest speed with 55 % of the maximum power [rpm].
+    pub n_lo: f64,
+    /// Preferred speed [rpm].
+    pub n_pref: f64,
+    /// Highest speed with 70 % of the maximum power [rpm].
+    pub n_hi: f64,
+    /// Highest speed with 95 % of the maximum power [rpm].
+    pub n_95h: f64,
+    /// Maximum power on the mapping curve [W].
+    pub p_max: f64,
+}
+
+impl ReferenceSpeeds {
+    /// Denormalize a WHTC speed [% ] to rpm.
+    pub fn denormalize(&self, n_norm_pct: f64) -> f64 {
+        n_norm_pct / 100.0
+            * (0.45 * self.n_lo + 0.45 * self.n_pref + 0.1 * self.n_hi - self.n_idle)
+            * 2.0327
+            + self.n_idle
+    }
+}
+
+/// A demand at one time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DemandPoint {
+    /// Speed [rpm].
+    pub n_e: f64,
+    /// Torque [Nm].
+    pub m_ref: f64,
+    /// Motoring point.
+    pub motoring: bool,
+}
+
+/// A speed/torque demand over time: linear between rows; the motoring flag of the last row at
+/// or before t.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Demand {
+    t: Vec<f64>,
+    n_e: Vec<f64>,
+    m_ref: Vec<f64>,
+    motoring: Vec<bool>,
+}
+
+impl Demand {
+    /// Build from rows; checks finite values, strictly increasing time, at least two rows and
+    /// speeds in the model's range [500, 2000] rpm (the message names the row, 1-based).
+    pub fn new(
+        t: Vec<f64>,
+        n_e: Vec<f64>,
+        m_ref: Vec<f64>,
+        motoring: Vec<bool>,
+    ) -> Result<Self, ControlError> {
+        let bad = |s: String| Err(ControlError::Demand(s));
+        if t.len() < 2
+            || n_e.len() != t.len()
+            || m_ref.len() != t.len()
+            || motoring.len() != t.len()
+        {
+            return bad("needs at least two rows of (t, n_e, M_ref)".into());
+        }
+        for i in 0..t.len() {
+            for (name, v) in [("t", t[i]), ("n_e", n_e[i]), ("M_ref", m_ref[i])] {
+                if !v.is_finite() {
+                    return bad(format!("row {}: {name} = {v} is not finite", i + 1));
+                }
+            }
+            if i > 0 && t[i] <= t[i - 1] {
+                return bad(format!(
+                    "row {}: time {} s is not after the previous row's {} s (time must increase)",
+                    i + 1,
+                    t[i],
+                    t[i - 1]
+                ));
+            }
+            let (lo, hi) = N_E_RANGE;
+            if !(lo..=hi).contains(&n_e[i]) {
+                return bad(format!(
+                    "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm",
+                    i + 1,
+                    t[i],
+                    n_e[i]
+                ));
+            }
+        }
+        Ok(Self {
+            t,
+            n_e,
+            m_ref,
+            motoring,
+        })
+    }
+
+    /// First and last time [s].
+    pub fn span(&self) -> (f64, f64) {
+        (self.t[0], *self.t.last().unwrap())
+    }
+
+    /// Row times [s].
+    pub fn times(&self) -> &[f64] {
+        &self.t
+    }
+
+    /// The demand at `t`.
+    pub fn at(&self, t: f64) -> DemandPoint {
+        let i = self.t.partition_point(|&v| v <= t).max(1) - 1;
+        DemandPoint {
+            n_e: interp(&self.t, &self.n_e, t),
+            m_ref: interp(&self.t, &self.m_ref, t),
+            motoring: self.motoring[i],
+        }
+    }
+
+    /// Check that the engine can follow: torque at most `tol` above the full-load curve and,
+    /// at fired points, at least the motoring torque (the message names the row and time).
+    pub fn check_feasible(&self, curve: &MappingCurve, tol: f64) -> Result<(), ControlError> {
+        for i in 0..self.t.len() {
+            let m_max = curve.m_max_at(self.n_e[i]);
+            if self.m_ref[i] > m_max * (1.0 + tol) {
+                return Err(ControlError::Demand(format!(
+                    "row {} (t = {} s): torque {:.1} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm (smoke-limited at lambda_O = {}); the engine cannot follow this demand",
+                    i + 1,
+                    self.t[i],
+                    self.m_ref[i],
+                    self.n_e[i],
+                    m_max,
+                    curve.opts.lambda_min
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The WHTC of UN GTR No. 4 denormalized for an engine: the 1 Hz table of normalized speed and
+/// torque [%] ("m" = motoring), as (time [s], speed [%], torque [%] or None for "m").
+pub fn whtc_demand(
+    table: &[(f64, f64, Option<f64>)],
+    curve: &MappingCurve,
+    speeds: &ReferenceSpeeds,
+) -> Result<Demand, ControlError> {
+    let (mut t, mut n, mut m, mut mot) = (vec![], vec![], vec![], vec![]);
+    for &(ti, n_pct, m_pct) in table {
+        let ne = speeds.denormalize(n_pct).clamp(N_E_RANGE.0, N_E_RANGE.1);
+        t.push(ti);
+        n.push(ne);
+        match m_pct {
+            Some(p) => {
+                m.push(p / 100.0 * curve.m_max_at(ne));
+                mot.push(false);
+            }
+            None => {
+                m.push(curve.m_motor_at(ne));
+                mot.push(true);
+            }
+        }
+    }
+    Demand::new(t, n, m, mot)
+}
+
+/// Parse the normalized WHTC table (tab-separated `Time Speed Torque` with a units row; "m" in
+/// the torque column for motoring). Errors name the line.
+pub fn parse_normalized_table(text: &str) -> Result<Vec<(f64, f64, Option<f64>)>, String> {
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        if f.is_empty() || f[0].parse::<f64>().is_err() {
+            continue; // header and units rows
+        }
+        if f.len() < 3 {
+            return Err(format!("line {}: expected Time, Speed, Torque", i + 1));
+        }
+        let num = |s: &str, what: &str| {
+            s.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("line {}: {what} '{s}' is not a number", i + 1))
+        };
+        let t = num(f[0], "time")?;
+        let n = num(f[1], "speed")?;
+        let m = if f[2] == "m" {
+            None
+        } else {
+            Some(num(f[2], "torque")?)
+        };
+        out.push((t, n, m));
+    }
+    if out.len() < 2 {
+        return Err("no data rows".into());
+    }
+    Ok(out)
+}
+
+/// The normalized WHTC table shipped with the crate (`data/whtc_normalized.tsv`).
+pub const WHTC_NORMALIZED: &str = include_str!("../../../../data/whtc_normalized.tsv");

@@ -1,0 +1,247 @@
+//! Closed-loop simulation: discrete-time controllers around the plant.
+//!
+//! A [`Controller`] is called every [`Controller::sample_time`] seconds (default 10 ms) with a
+//! [`Measurement`] and returns the commands u_delta, u_egr, u_vgt, held until the next sample
+//! (zero-order hold). The plant is a [`Plant`](crate::sim::stepper::Plant): the real model with
+//! exact actuator delays across samples, started at the steady state of the first commands. The
+//! engine speed n_e is an input of the model, so the dynamometer holds the reference speed.
+//!
+//! - [`pid`]: discrete PID with tracking anti-windup for selector structures.
+//! - [`baseline`]: the EGR/VGT controller (PID loops on lambda_O and x_egr combined by min
+//!   selectors, after Wahlström, Eriksson and Nielsen 2010) and the torque-following engine
+//!   controller with a smoke limiter; the open-loop schedule as a "controller" for comparison.
+//! - [`cycle`]: the engine's mapping curve, the WHTC denormalization (UN GTR No. 4), demands.
+//! - [`stats`]: the regulation's cycle statistics and the air-path figures of merit.
+//!
+//! `docs/control.md` describes the design, the tuning and the results.
+
+pub mod baseline;
+pub mod cycle;
+pub mod pid;
+pub mod stats;
+pub mod steps;
+
+use crate::model::{AnyModel, Drive, Signals};
+use crate::sim::stepper::AnyPlant;
+use crate::sim::{SimError, SimOptions};
+pub use cycle::Demand;
+
+/// What a controller sees at a sample.
+#[derive(Debug, Clone, Copy)]
+pub struct Measurement<'a> {
+    /// Sample time [s].
+    pub t: f64,
+    /// Reference speed held by the dynamometer = engine speed [rpm].
+    pub n_e: f64,
+    /// Torque demand [Nm].
+    pub m_ref: f64,
+    /// The demand is a motoring point (WHTC "m").
+    pub motoring: bool,
+    /// Every signal of the plant at this sample (the controller documents which it uses).
+    pub signals: &'a Signals,
+    /// Intake manifold pressure p_im [Pa] (state).
+    pub p_im: f64,
+    /// Exhaust manifold pressure p_em [Pa] (state).
+    pub p_em: f64,
+    /// Turbo speed omega_t [rad/s] (state).
+    pub omega_t: f64,
+    /// Oxygen mass fraction in the intake manifold X_Oim [-] (state).
+    pub x_oim: f64,
+}
+
+/// Commands for the next sample interval and the set-points behind them (for logging).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Output {
+    /// Injected fuel u_delta [mg/cycle/cylinder].
+    pub u_delta: f64,
+    /// EGR valve command u_egr [%].
+    pub u_egr: f64,
+    /// VGT command u_vgt [%].
+    pub u_vgt: f64,
+    /// Oxygen/fuel ratio set-point lambda_O,s [-] (NaN: none).
+    pub lambda_o_ref: f64,
+    /// EGR fraction set-point x_egr,s [-] (NaN: none).
+    pub x_egr_ref: f64,
+}
+
+/// A discrete-time controller.
+pub trait Controller {
+    /// Sample time [s] (default 10 ms).
+    fn sample_time(&self) -> f64 {
+        0.01
+    }
+    /// The commands before the first measurement (the plant starts in their steady state), for
+    /// the demand at the start.
+    fn start(&mut self, t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output;
+    /// The commands for the interval after the sample `m`.
+    fn update(&mut self, m: &Measurement) -> Output;
+}
+
+/// Why a closed-loop run failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ControlError {
+    /// The plant failed (time and state in the message).
+    #[error("plant: {0}")]
+    Sim(#[from] SimError),
+    /// A controller gave a NaN or infinite command.
+    #[error("controller gave {name} = {value} at t = {t} s")]
+    BadCommand {
+        /// Time [s].
+        t: f64,
+        /// Command name.
+        name: &'static str,
+        /// Value.
+        value: f64,
+    },
+    /// The sample time is not usable.
+    #[error("sample time {0} s must be finite and > 0")]
+    BadSampleTime(f64),
+    /// The demand is empty or not usable.
+    #[error("demand: {0}")]
+    Demand(String),
+    /// A set-up computation (mapping curve, steady-state maps) failed.
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// One row per controller sample: the commands given to the plant (held until the next row),
+/// the demand and the plant's outputs at the sample.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Trajectory {
+    /// Columns in [`Trajectory::NAMES`] order.
+    pub columns: Vec<Vec<f64>>,
+}
+
+impl Trajectory {
+    /// Column names (units: s, rpm, mg, %, %, Nm, Nm, -, -, -, -, Pa, Pa, rad/s, kg/s, kg/s, -).
+    pub const NAMES: [&'static str; 17] = [
+        "t",
+        "n_e",
+        "u_delta",
+        "u_egr",
+        "u_vgt",
+        "M_ref",
+        "M_e",
+        "lambda_O",
+        "lambda_O_ref",
+        "x_egr",
+        "x_egr_ref",
+        "p_im",
+        "p_em",
+        "omega_t",
+        "W_c",
+        "W_f",
+        "motoring",
+    ];
+
+    /// Column by name.
+    pub fn get(&self, name: &str) -> Option<&[f64]> {
+        Self::NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map(|i| self.columns[i].as_slice())
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.columns.first().map_or(0, Vec::len)
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Run `ctrl` on the plant `model` along `demand` from its first to its last time.
+///
+/// At every sample t_k the controller sees the plant at t_k and its commands are held on
+/// [t_k, t_k + T_s); the dynamometer holds n_e = the reference speed at t_k over the same
+/// interval. The plant starts at the steady state of [`Controller::start`]'s commands.
+pub fn run(
+    model: AnyModel,
+    demand: &Demand,
+    ctrl: &mut dyn Controller,
+    opts: &SimOptions,
+) -> Result<(Trajectory, crate::sim::SimStats), ControlError> {
+    let ts = ctrl.sample_time();
+    if !(ts.is_finite() && ts > 0.0) {
+        return Err(ControlError::BadSampleTime(ts));
+    }
+    let (t0, t1) = demand.span();
+    let n = ((t1 - t0) / ts + 1e-9).floor() as usize;
+    let d0 = demand.at(t0);
+    let out0 = ctrl.start(t0, d0.n_e, d0.m_ref, d0.motoring);
+    check_output(&out0, t0)?;
+    let drive = |n_e: f64, o: &Output| Drive::new(n_e, o.u_delta, o.u_egr, o.u_vgt);
+    let mut plant = AnyPlant::new(model, drive(d0.n_e, &out0), t0, opts)?;
+    let ix = |name: &str| {
+        plant
+            .state_names()
+            .iter()
+            .position(|s| *s == name)
+            .expect("every variant has p_im, p_em, omega_t, X_Oim")
+    };
+    let (i_pim, i_pem, i_wt, i_xo) = (ix("p_im"), ix("p_em"), ix("omega_t"), ix("X_Oim"));
+    let mut traj = Trajectory {
+        columns: vec![Vec::with_capacity(n + 1); Trajectory::NAMES.len()],
+    };
+    for k in 0..=n {
+        let t = t0 + k as f64 * ts;
+        let d = demand.at(t);
+        let s = *plant.signals();
+        let x = plant.state();
+        let m = Measurement {
+            t,
+            n_e: d.n_e,
+            m_ref: d.m_ref,
+            motoring: d.motoring,
+            signals: &s,
+            p_im: x[i_pim],
+            p_em: x[i_pem],
+            omega_t: x[i_wt],
+            x_oim: x[i_xo],
+        };
+        let o = if k == 0 { out0 } else { ctrl.update(&m) };
+        check_output(&o, t)?;
+        let row = [
+            t,
+            d.n_e,
+            o.u_delta,
+            o.u_egr,
+            o.u_vgt,
+            d.m_ref,
+            s.m_e,
+            s.lambda_o,
+            o.lambda_o_ref,
+            s.x_egr,
+            o.x_egr_ref,
+            m.p_im,
+            m.p_em,
+            m.omega_t,
+            s.w_c,
+            s.w_f,
+            if d.motoring { 1.0 } else { 0.0 },
+        ];
+        for (c, v) in traj.columns.iter_mut().zip(row) {
+            c.push(v);
+        }
+        if k < n {
+            plant.step(ts, drive(d.n_e, &o))?;
+        }
+    }
+    Ok((traj, plant.stats()))
+}
+
+fn check_output(o: &Output, t: f64) -> Result<(), ControlError> {
+    for (name, value) in [
+        ("u_delta", o.u_delta),
+        ("u_egr", o.u_egr),
+        ("u_vgt", o.u_vgt),
+    ] {
+        if !value.is_finite() {
+            return Err(ControlError::BadCommand { t, name, value });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,214 @@
+//! Acceptance tests of the closed loop (issue 13): the WHTC with the baseline controllers meets
+//! the regulation's torque regression limits, the positive work within +-5 % and the smoke
+//! limit; the logged commands fed open-loop through `simulate` reproduce the plant; set-point
+//! steps are stable.
+
+use mvem::analysis::steady::steady_state;
+use mvem::control::baseline::{Baseline, BaselineTuning};
+use mvem::control::cycle::{
+    parse_normalized_table, whtc_demand, MappingCurve, MappingOptions, WHTC_NORMALIZED,
+};
+use mvem::control::stats::CycleStats;
+use mvem::control::steps::setpoint_step;
+use mvem::control::{run, Trajectory};
+use mvem::model::{AnyModel, Drive, Engine8, ModelOrder};
+use mvem::params::Params;
+use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+
+fn model() -> AnyModel {
+    AnyModel::new(ModelOrder::Eight, Params::published(), Default::default()).unwrap()
+}
+
+fn whtc_closed_loop(m: &AnyModel) -> (Trajectory, CycleStats) {
+    let curve = MappingCurve::compute(m, MappingOptions::default()).unwrap();
+    let speeds = curve.reference_speeds(500.0);
+    let mut table = parse_normalized_table(WHTC_NORMALIZED).unwrap();
+    table.insert(0, (0.0, table[0].1, table[0].2));
+    let demand = whtc_demand(&table, &curve, &speeds).unwrap();
+    let mut ctrl = Baseline::new(m, &curve, BaselineTuning::default()).unwrap();
+    let (traj, _) = run(m.clone(), &demand, &mut ctrl, &SimOptions::default()).unwrap();
+    let stats = CycleStats::compute(&traj, curve.m_peak(), 1.2);
+    (traj, stats)
+}
+
+/// The logged commands as a zero-order-hold schedule (a change at t_k is two rows at t_k).
+fn commands_schedule(traj: &Trajectory) -> InputSchedule {
+    let g = |n: &str| traj.get(n).unwrap();
+    let (t, n, ud, ue, uv) = (g("t"), g("n_e"), g("u_delta"), g("u_egr"), g("u_vgt"));
+    let mut times = vec![t[0]];
+    let mut rows = vec![[n[0], ud[0], ue[0], uv[0]]];
+    for k in 1..t.len() {
+        let cur = [n[k], ud[k], ue[k], uv[k]];
+        let last = *rows.last().unwrap();
+        if cur != last {
+            times.push(t[k]);
+            rows.push(last);
+            times.push(t[k]);
+            rows.push(cur);
+        }
+    }
+    InputSchedule::new(times, rows).unwrap()
+}
+
+#[test]
+fn whtc_closed_loop_meets_the_regulation_and_is_the_real_model() {
+    let m = model();
+    let (traj, stats) = whtc_closed_loop(&m);
+    eprintln!("{stats:#?}");
+    let v = stats.violations(1.05);
+    assert!(v.is_empty(), "violations: {v:?}");
+    assert_eq!(traj.len(), 180_001);
+
+    // the logged commands fed open-loop through simulate reproduce the plant
+    let sched = commands_schedule(&traj);
+    let e8 = Engine8::published();
+    let t_end = *traj.get("t").unwrap().last().unwrap();
+    let sol = simulate(
+        &e8,
+        &sched,
+        0.0,
+        t_end,
+        Start::SteadyState,
+        &SimOptions::default(),
+    )
+    .unwrap();
+    let mut worst = [0.0f64; 3];
+    for (j, (name, scale)) in [("p_im", 1e5), ("p_em", 1e5), ("omega_t", 1e4)]
+        .iter()
+        .enumerate()
+    {
+        let a = traj.get(name).unwrap();
+        let b = sol.get(name).unwrap();
+        assert_eq!(a.len(), b.len());
+        for i in 0..a.len() {
+            worst[j] = worst[j].max((a[i] - b[i]).abs() / scale);
+        }
+    }
+    eprintln!("open-loop replay: worst scaled deviation p_im, p_em, omega_t = {worst:?}");
+    assert!(worst.iter().all(|w| *w < 2e-3), "{worst:?}");
+}
+
+/// Run the set-point steps `steps` at (1500 rpm, 110 mg) from `(l0, x0)`: each settles with no
+/// limit cycle on the new set-point; rise and settling times printed for docs/control.md.
+fn check_steps(m: &AnyModel, l0: f64, x0: f64, steps: &[(&str, (f64, f64))]) {
+    let curve = MappingCurve::compute(m, MappingOptions::default()).unwrap();
+    let tuning = BaselineTuning::default();
+    for &(signal, after) in steps {
+        let r = setpoint_step(
+            m,
+            &curve,
+            tuning,
+            1500.0,
+            110.0,
+            (l0, x0),
+            after,
+            signal,
+            10.0,
+            25.0,
+        )
+        .unwrap();
+        let mt = &r.metrics;
+        eprintln!(
+            "{signal}: {:?} -> {:?}: from {:.4} to {:.4}, rise {:?} s, settling {:?} s, overshoot {:.1} %, tail p-p {:.2e}, final u_egr/u_vgt {:?}",
+            (l0, x0), after, mt.y0, mt.y_final, mt.rise_time, mt.settling_time, mt.overshoot_pct, r.tail_peak_to_peak, r.final_commands
+        );
+        let target = if signal == "x_egr" { after.1 } else { after.0 };
+        assert!(
+            (mt.y_final - target).abs() < 0.02 * target.abs().max(0.1),
+            "{signal} final {} vs {target}",
+            mt.y_final
+        );
+        assert!(
+            mt.settling_time.is_some_and(|s| s < 10.0),
+            "{signal}: {mt:?}"
+        );
+        assert!(
+            r.tail_peak_to_peak < 1e-3 * target.abs().max(0.1),
+            "{signal}: limit cycle? {}",
+            r.tail_peak_to_peak
+        );
+    }
+}
+
+#[test]
+fn setpoint_steps_at_1500_rpm_110_mg_are_stable() {
+    let m = model();
+    // set-points reachable at this point: the steady state of the nominal actuator positions
+    let e8 = Engine8::published();
+    let ss = steady_state(&e8, &Drive::new(1500.0, 110.0, 50.0, 60.0)).unwrap();
+    let (l0, x0) = (ss.signals.lambda_o, ss.signals.x_egr);
+    check_steps(
+        &m,
+        l0,
+        x0,
+        &[("x_egr", (l0, x0 + 0.02)), ("lambda_O", (l0 + 0.2, x0))],
+    );
+}
+
+#[test]
+fn setpoint_steps_where_u_vgt_to_w_c_changes_sign_are_stable() {
+    // With lambda_O,s low the EGR valve opens fully and the VGT alone holds x_egr. Pick x_egr,s
+    // so that the VGT sits where the steady W_c(u_vgt) has its extremum: the DC gain
+    // u_vgt -> W_c changes sign there (the paper's section 8.3.1, Figs 9-10).
+    let e8 = Engine8::published();
+    let w = |u_vgt: f64| {
+        steady_state(&e8, &Drive::new(1500.0, 110.0, 100.0, u_vgt))
+            .unwrap()
+            .signals
+    };
+    let grid: Vec<f64> = (0..=24).map(|i| 25.0 + 2.5 * i as f64).collect();
+    let wc: Vec<f64> = grid.iter().map(|&u| w(u).w_c).collect();
+    let k = (1..grid.len() - 1)
+        .find(|&k| (wc[k] - wc[k - 1]) * (wc[k + 1] - wc[k]) <= 0.0)
+        .expect("W_c(u_vgt) has an extremum (sign reversal of the DC gain)");
+    let u_star = grid[k];
+    let x_star = w(u_star).x_egr;
+    eprintln!("sign reversal of u_vgt -> W_c at u_vgt = {u_star} % (x_egr = {x_star:.4})");
+    let m = model();
+    check_steps(
+        &m,
+        1.05,
+        x_star,
+        &[
+            ("x_egr", (1.05, x_star + 0.02)),
+            ("x_egr", (1.05, x_star - 0.02)),
+        ],
+    );
+}
+
+#[test]
+fn stepping_matches_the_open_loop_vgt_step() {
+    // the plant of the closed loop = simulate, on the paper's VGT step (75 -> 65 % at 1 s)
+    let e8 = Engine8::published();
+    let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
+    let sched = InputSchedule::steps(d0, &[(1.0, 3, 65.0)]).unwrap();
+    let sol = simulate(
+        &e8,
+        &sched,
+        0.0,
+        3.0,
+        Start::SteadyState,
+        &SimOptions::default(),
+    )
+    .unwrap();
+    let mut p = mvem::sim::stepper::Plant::new(e8, d0, 0.0, &SimOptions::default()).unwrap();
+    let w = sol.get("W_c").unwrap();
+    let span =
+        w.iter().cloned().fold(f64::MIN, f64::max) - w.iter().cloned().fold(f64::MAX, f64::min);
+    for k in 0..300 {
+        let d = if k >= 100 {
+            Drive {
+                u_vgt_pct: 65.0,
+                ..d0
+            }
+        } else {
+            d0
+        };
+        let s = p.step(0.01, d).unwrap();
+        assert!(
+            (s.w_c - w[k + 1]).abs() < 1e-3 * span,
+            "t = {}",
+            (k + 1) as f64 * 0.01
+        );
+    }
+}
