@@ -13,7 +13,7 @@ if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy
+"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy gymnasium
 
 echo "== building the CLI, the FMU library and the 8-state FMU (mvem fmu)"
 scripts/build-fmu.sh "$root/target/fmu/mvem.fmu"

@@ -501,6 +501,92 @@ pub fn step_response(
     })
 }
 
+/// A plant advanced sample by sample with held commands (`mvem.Plant`): state, cylinder
+/// temperature memory, exact actuator delays and the integrator's warm state carry over
+/// between calls (`mvem::sim::stepper`).
+pub struct CorePlant {
+    plant: mvem::sim::stepper::AnyPlant,
+    model: AnyModel,
+    names: Vec<String>,
+}
+
+impl CorePlant {
+    /// Start at t = 0 in the steady state of the commands `d` = (n_e, u_delta, u_egr, u_vgt).
+    pub fn new(d: [f64; 4], params: Option<Params>, variant: Variant) -> CoreResult<Self> {
+        check_finite(d)?;
+        let model = model(params, variant)?;
+        let plant = Self::start(&model, d)?;
+        let mut names: Vec<String> = plant.state_names().iter().map(|s| s.to_string()).collect();
+        for s in Signals::NAMES {
+            if !names.iter().any(|n| n.as_str() == *s) {
+                names.push(s.to_string());
+            }
+        }
+        Ok(Self {
+            plant,
+            model,
+            names,
+        })
+    }
+
+    fn start(model: &AnyModel, d: [f64; 4]) -> CoreResult<mvem::sim::stepper::AnyPlant> {
+        mvem::sim::stepper::AnyPlant::new(
+            model.clone(),
+            Drive::from_array(d),
+            0.0,
+            &SimOptions::default(),
+        )
+        .map_err(|e| CoreError::Runtime(e.to_string()))
+    }
+
+    /// Back to t = 0 in the steady state of `d`.
+    pub fn reset(&mut self, d: [f64; 4]) -> CoreResult<()> {
+        check_finite(d)?;
+        self.plant = Self::start(&self.model, d)?;
+        Ok(())
+    }
+
+    /// Hold `d` for `dt` seconds.
+    pub fn step(&mut self, dt: f64, d: [f64; 4]) -> CoreResult<()> {
+        self.plant
+            .step(dt, Drive::from_array(d))
+            .map(|_| ())
+            .map_err(|e| match e {
+                SimError::BadOption { .. } => CoreError::Value(e.to_string()),
+                other => CoreError::Runtime(other.to_string()),
+            })
+    }
+
+    /// Time [s].
+    pub fn t(&self) -> f64 {
+        self.plant.t()
+    }
+
+    /// State vector.
+    pub fn state(&self) -> Vec<f64> {
+        self.plant.state().to_vec()
+    }
+
+    /// Output names: the states, then the signals that are not states.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Output values in [`CorePlant::names`] order.
+    pub fn outputs(&self) -> Vec<f64> {
+        let x = self.plant.state();
+        let s = self.plant.signals();
+        let n = x.len();
+        let mut v = x.to_vec();
+        v.extend(
+            self.names[n..]
+                .iter()
+                .map(|name| s.get(name).unwrap_or(f64::NAN)),
+        );
+        v
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -453,6 +453,132 @@ fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
     Ok(out)
 }
 
+/// A plant advanced sample by sample with the commands held (zero-order hold).
+///
+/// Plant(n_e, u_delta, u_egr, u_vgt, model=8, params=None) starts at t = 0 in the steady state of
+/// these commands (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]). step(dt, n_e=,
+/// u_delta=, u_egr=, u_vgt=) holds the commands for dt [s] (a command left out keeps its last
+/// value) and returns a dict of the outputs at the end: the states (p_im [Pa], p_em [Pa], X_Oim,
+/// X_Oem [-], omega_t [rad/s], actuator states [%], ...) and every signal (W_c [kg/s], lambda_O,
+/// x_egr [-], M_e [Nm], ...). State, cylinder-temperature memory, the exact actuator delays and
+/// the integrator's warm state carry over between calls; the GIL is released while integrating.
+/// t [s] and state (numpy array) are attributes; reset(...) starts again at t = 0.
+/// ValueError for bad arguments, RuntimeError if the solver fails.
+#[pyclass(name = "Plant", module = "mvem")]
+struct Plant {
+    inner: core::CorePlant,
+    cmd: [f64; 4],
+}
+
+fn merge_cmd(
+    cur: [f64; 4],
+    n_e: Option<f64>,
+    u_delta: Option<f64>,
+    u_egr: Option<f64>,
+    u_vgt: Option<f64>,
+) -> [f64; 4] {
+    [
+        n_e.unwrap_or(cur[0]),
+        u_delta.unwrap_or(cur[1]),
+        u_egr.unwrap_or(cur[2]),
+        u_vgt.unwrap_or(cur[3]),
+    ]
+}
+
+#[pymethods]
+impl Plant {
+    #[new]
+    #[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, model=8, params=None))]
+    fn new(
+        py: Python<'_>,
+        n_e: f64,
+        u_delta: f64,
+        u_egr: f64,
+        u_vgt: f64,
+        model: i64,
+        params: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+        let p = parse_params(py, params)?;
+        let cmd = [n_e, u_delta, u_egr, u_vgt];
+        let inner = py
+            .allow_threads(move || core::CorePlant::new(cmd, p, variant))
+            .map_err(to_py_err)?;
+        Ok(Self { inner, cmd })
+    }
+
+    /// Hold the commands for dt [s]; returns the outputs at the end (dict of floats).
+    #[pyo3(signature = (dt, n_e=None, u_delta=None, u_egr=None, u_vgt=None))]
+    fn step<'py>(
+        &mut self,
+        py: Python<'py>,
+        dt: f64,
+        n_e: Option<f64>,
+        u_delta: Option<f64>,
+        u_egr: Option<f64>,
+        u_vgt: Option<f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
+        let inner = &mut self.inner;
+        py.allow_threads(|| inner.step(dt, cmd))
+            .map_err(to_py_err)?;
+        self.cmd = cmd;
+        self.outputs(py)
+    }
+
+    /// The outputs at the current time (dict of floats).
+    fn outputs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (n, v) in self.inner.names().iter().zip(self.inner.outputs()) {
+            d.set_item(n, v)?;
+        }
+        Ok(d)
+    }
+
+    /// Start again at t = 0 in the steady state of the commands (left out: the last ones).
+    #[pyo3(signature = (n_e=None, u_delta=None, u_egr=None, u_vgt=None))]
+    fn reset(
+        &mut self,
+        py: Python<'_>,
+        n_e: Option<f64>,
+        u_delta: Option<f64>,
+        u_egr: Option<f64>,
+        u_vgt: Option<f64>,
+    ) -> PyResult<()> {
+        let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
+        let inner = &mut self.inner;
+        py.allow_threads(|| inner.reset(cmd)).map_err(to_py_err)?;
+        self.cmd = cmd;
+        Ok(())
+    }
+
+    /// Time [s].
+    #[getter]
+    fn t(&self) -> f64 {
+        self.inner.t()
+    }
+
+    /// State vector (numpy array, in state_names order).
+    #[getter]
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("numpy")?
+            .call_method1("array", (self.inner.state(),))
+    }
+
+    /// State names.
+    #[getter]
+    fn state_names(&self) -> Vec<String> {
+        let n = self.inner.state().len();
+        self.inner.names()[..n].to_vec()
+    }
+
+    /// The commands held in the last step: (n_e, u_delta, u_egr, u_vgt).
+    #[getter]
+    fn commands(&self) -> (f64, f64, f64, f64) {
+        (self.cmd[0], self.cmd[1], self.cmd[2], self.cmd[3])
+    }
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
@@ -465,6 +591,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(step_response, m)?)?;
     m.add_function(wrap_pyfunction!(variables, m)?)?;
     m.add_function(wrap_pyfunction!(parameters, m)?)?;
+    m.add_class::<Plant>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -13,6 +13,10 @@ in parallel):
 - published_params() -> dict
 - variables() -> dict name -> {"kind", "unit", "description"} (inputs, states, signals)
 - parameters() -> list of {"path", "symbol", "unit", "description", "published"}
+- Plant(n_e, u_delta, u_egr, u_vgt, model=8, params=None): the model advanced sample by sample
+  with held commands (plant.step(dt, u_egr=..., u_vgt=...) -> dict; plant.t, plant.state,
+  plant.reset(...)); exact actuator delays across calls. For controllers written in Python.
+- mvem.gym.AirPathEnv: a Gymnasium environment for EGR/VGT control (needs `gymnasium`).
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
 params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
@@ -23,6 +27,7 @@ both carrying the Rust message.
 """
 
 from ._mvem import (
+    Plant,
     __version__,
     linearize,
     parameters,
@@ -37,6 +42,7 @@ from ._mvem import (
 INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
 
 __all__ = [
+    "Plant",
     "simulate",
     "steady",
     "linearize",

@@ -140,3 +140,48 @@ class Parameter(TypedDict):
 
 def parameters() -> List[Parameter]:
     """Every scalar parameter with its unit and description, in parameter-file order."""
+
+class Plant:
+    """The model advanced sample by sample with the commands held (zero-order hold).
+
+    Starts at t = 0 in the steady state of (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%],
+    u_vgt [%]). State, cylinder-temperature memory, exact actuator delays and the integrator's
+    warm state carry over between calls; the GIL is released while integrating.
+    """
+
+    def __init__(
+        self,
+        n_e: float,
+        u_delta: float,
+        u_egr: float,
+        u_vgt: float,
+        model: ModelOrder = 8,
+        params: Params = None,
+    ) -> None: ...
+    def step(
+        self,
+        dt: float,
+        n_e: Optional[float] = None,
+        u_delta: Optional[float] = None,
+        u_egr: Optional[float] = None,
+        u_vgt: Optional[float] = None,
+    ) -> Dict[str, float]:
+        """Hold the commands (left out: the last ones) for dt [s]; the outputs at the end."""
+    def outputs(self) -> Dict[str, float]:
+        """States and signals at the current time."""
+    def reset(
+        self,
+        n_e: Optional[float] = None,
+        u_delta: Optional[float] = None,
+        u_egr: Optional[float] = None,
+        u_vgt: Optional[float] = None,
+    ) -> None:
+        """Start again at t = 0 in the steady state of the commands."""
+    @property
+    def t(self) -> float: ...
+    @property
+    def state(self) -> "np.ndarray[Any, np.dtype[np.float64]]": ...
+    @property
+    def state_names(self) -> List[str]: ...
+    @property
+    def commands(self) -> Tuple[float, float, float, float]: ...
