@@ -163,6 +163,8 @@ def test_step_is_drawn_with_its_marks(page):
 
 
 def test_map_cycle_and_csv(page):
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
     page.fill("input[name=map_n]", "11")
     page.click("[data-action=map]")
     page.wait_for_selector("canvas[data-plot=map][data-cells='121']", timeout=60000)
@@ -184,3 +186,5 @@ def test_map_cycle_and_csv(page):
     lines = Path(d.value.path()).read_text().splitlines()
     assert lines[0].startswith("t,n_e,u_delta,u_egr,u_vgt,") and len(lines) == 9002
     page.screenshot(path=str(ART / "explorer.png"), full_page=True)
+    page.evaluate("window.scrollTo(0, 0)")
+    page.screenshot(path=str(ART / "explorer_top.png"))

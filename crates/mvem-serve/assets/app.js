@@ -393,7 +393,9 @@
   // ---------------------------------------------------------------------------------------------
   // drive-cycle panel
 
-  const CYCLE_PANELS = [["u_egr", "u_vgt"], ["M_e"], ["p_im", "p_em"], ["W_c"], ["x_egr"], ["lambda_O"]];
+  // names per strip; an upper display limit where spikes would flatten the rest (lambda_O is
+  // 100+ while no fuel is injected)
+  const CYCLE_PANELS = [[["u_egr", "u_vgt"]], [["M_e"]], [["p_im", "p_em"]], [["W_c"]], [["x_egr"]], [["lambda_O"], 8]];
   let cycleImage = null;
 
   async function runCycle() {
@@ -428,10 +430,13 @@
     const ctx = clearCanvas(c);
     const h = c.height / CYCLE_PANELS.length;
     const xr = [j.t[0], j.t[j.t.length - 1]];
-    app.cyclePanels = CYCLE_PANELS.map((names, k) => {
+    app.cyclePanels = CYCLE_PANELS.map(([names, cap], k) => {
       const ys = names.map((n) => j.series[n] ?? j.inputs[n]);
-      const [lo, hi] = robustRange(ys, 0.002);
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), names.map((n) => `${n} [${unit(n)}]`).join(", "));
+      let [lo, hi] = robustRange(ys, 0.002);
+      const capped = cap !== undefined && hi > cap;
+      if (capped) hi = cap;
+      const title = names.map((n) => `${n} [${unit(n)}]`).join(", ") + (capped ? ` (axis cut at ${cap})` : "");
+      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), title);
       ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
       return p;
     });
