@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Python-side tests: the FMU with FMPy and the Python package mvem (crates/mvem-py).
-# Needs only Rust, python3 and pip: creates .venv-ci, installs maturin, fmpy, pytest, numpy,
+# Needs only Rust, python3 with venv (Debian: python3-venv) and pip: creates .venv-ci, installs
+# from PyPI maturin, fmpy, pytest, numpy, pyarrow (Parquet output check),
 # builds the CLI, the FMU library and the package (release), and runs pytest on tests/python
 # (the tests build the 10/12-state FMUs with `mvem fmu` and compare with the CLI).
 set -euo pipefail
@@ -13,7 +14,7 @@ if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy gymnasium
+"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy gymnasium pyarrow
 
 echo "== building the CLI, the FMU library and the 8-state FMU (mvem fmu)"
 scripts/build-fmu.sh "$root/target/fmu/mvem.fmu"

@@ -290,9 +290,12 @@ pub fn level_decimals(l: &[f64]) -> usize {
     (-(step.log10().floor()) as i64).clamp(0, 6) as usize
 }
 
+/// A straight piece of a contour line: its two end points (x, y).
+type Segment = ((f64, f64), (f64, f64));
+
 /// Contour segments of `f` at `level` (marching squares; cells with a NaN corner are skipped;
 /// saddles are resolved by the cell average).
-pub fn contour_segments(f: &Field, level: f64) -> Vec<((f64, f64), (f64, f64))> {
+pub fn contour_segments(f: &Field, level: f64) -> Vec<Segment> {
     let (nx, ny) = (f.x.len(), f.y.len());
     let mut segs = Vec::new();
     if nx < 2 || ny < 2 || f.z.len() != nx * ny {
@@ -554,8 +557,7 @@ fn draw_panel<DB: DrawingBackend>(
                 };
                 let txt = format!("{level:.dec$}");
                 let half_w = 4 * txt.len() as i32 + 4;
-                let mut order: Vec<&((f64, f64), (f64, f64))> =
-                    segs.iter().filter(|s| depth(s) > 0.02).collect();
+                let mut order: Vec<&Segment> = segs.iter().filter(|s| depth(s) > 0.02).collect();
                 order.sort_by(|s, t| depth(t).total_cmp(&depth(s)));
                 let free = order.into_iter().find(|(a, b)| {
                     let mid = (0.5 * (a.0 + b.0), 0.5 * (a.1 + b.1));

@@ -314,7 +314,7 @@ fn analysis_sweep_is_clean() {
             "--model",
             "8",
             "--timeout",
-            "20",
+            "60",
             "--json",
         ],
         600.0,

@@ -161,13 +161,13 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
     if opts.settle {
         let sched = InputSchedule::constant(*d);
         // A budget: settling at constant inputs takes hundreds of steps; a run that needs
-        // 100 000 (fast oscillation, equilibrium lost; about 0.2 s) fails with TooManySteps,
-        // reported as the reason, instead of running for minutes.
+        // 20 000 (fast oscillation, equilibrium lost; a few tens of ms) fails with
+        // TooManySteps, reported as the reason, instead of running for minutes.
         let sim_opts = SimOptions {
             rtol: 1e-6,
             atol: 1e-8,
             dt_out: 1e9,
-            max_steps: 100_000,
+            max_steps: 20_000,
             ..SimOptions::default()
         };
         let mut start = x0;

@@ -186,6 +186,82 @@ pub fn write_parquet<W: Write + Send>(w: W, cols: &[(&str, &[f64])]) -> std::io:
 mod tests {
     use super::*;
 
+    /// A step response written as CSV and as Parquet: the same names, and every value of the
+    /// Parquet file equal to the CSV's to 1e-12 relative (the CSV's shortest round-trip
+    /// numbers read back exactly, so they are in fact identical); `--signals`-style selection.
+    #[test]
+    fn parquet_equals_csv_and_selection_keeps_t_first() {
+        use crate::model::{Drive, Engine8};
+        use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+        use parquet::file::reader::{FileReader, SerializedFileReader};
+        use parquet::record::RowAccessor;
+        let m = Engine8::published();
+        let sched =
+            InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(1.0, 3, 65.0)]).unwrap();
+        let sol = simulate(
+            &m,
+            &sched,
+            0.0,
+            3.0,
+            Start::SteadyState,
+            &SimOptions::default(),
+        )
+        .unwrap();
+        let d = tempfile::tempdir().unwrap();
+        let cols = select_columns(&sol, None).unwrap();
+        write_columns(&cols, &d.path().join("s.csv")).unwrap();
+        write_columns(&cols, &d.path().join("s.parquet")).unwrap();
+        let text = std::fs::read_to_string(d.path().join("s.csv")).unwrap();
+        let mut lines = text.lines();
+        let names: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(
+            names,
+            sol.names.iter().map(String::as_str).collect::<Vec<_>>()
+        );
+        let csv: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(csv.len(), sol.len());
+        let r = SerializedFileReader::new(std::fs::File::open(d.path().join("s.parquet")).unwrap())
+            .unwrap();
+        let fields: Vec<String> = r
+            .metadata()
+            .file_metadata()
+            .schema()
+            .get_fields()
+            .iter()
+            .map(|f| f.name().to_string())
+            .collect();
+        assert_eq!(fields, sol.names);
+        let mut rows = 0;
+        for (i, row) in r.get_row_iter(None).unwrap().enumerate() {
+            let row = row.unwrap();
+            for (j, want) in csv[i].iter().enumerate() {
+                let got = row.get_double(j).unwrap();
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1.0),
+                    "{} row {i}: {got} vs {want}",
+                    names[j]
+                );
+                // shortest round trip: the CSV text reads back to the very f64
+                assert_eq!(want.to_bits(), sol.columns[j][i].to_bits());
+            }
+            rows += 1;
+        }
+        assert_eq!(rows, sol.len());
+        let sel = select_columns(&sol, Some(&["W_c".into(), "p_im".into()])).unwrap();
+        assert_eq!(
+            sel.iter().map(|c| c.0).collect::<Vec<_>>(),
+            ["t", "W_c", "p_im"]
+        );
+        let e = select_columns(&sol, Some(&["W_cc".into()])).unwrap_err();
+        assert!(
+            e.contains("unknown signal \"W_cc\"") && e.contains("lambda_O"),
+            "{e}"
+        );
+        assert!(select_columns(&sol, Some(&["W_c".into(), "W_c".into()])).is_err());
+    }
+
     #[test]
     fn atomic_write_replaces_and_leaves_no_temp() {
         let d = tempfile::tempdir().unwrap();
