@@ -3,7 +3,7 @@
 //! model lives in [`crate::model`].
 //!
 //! Every function cites its equation number. Where the authors' Simulink implementation adds
-//! a saturation or switch (see `../shared/spec/authors-implementation.md`, cited as "item N"),
+//! a saturation or switch (see `docs/authors-implementation.md`, cited as "item N"),
 //! the function takes a [`Semantics`] argument and applies it only for [`Semantics::Authors`].
 
 pub mod actuator;
