@@ -2,7 +2,7 @@
 //! pyo3 layer only converts values.
 
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
-use mvem::analysis::steady::{steady_state, SteadyState};
+use mvem::analysis::steady::{simulate_from_steady, steady_state, SimFromSteadyError, SteadyState};
 use mvem::analysis::step::StepMetrics;
 use mvem::analysis::zeros::{self, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS};
 use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelOptions, ModelOrder, Signals};
@@ -225,8 +225,12 @@ pub fn simulate_rows(
         )));
     }
     let opts = args.options()?;
-    let sol = mvem::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &opts))
-        .map_err(sim_error)?;
+    let sol = mvem::dispatch!(&m, m => simulate_from_steady(m, &sched, t0, t_end, &opts)).map_err(
+        |e| match e {
+            SimFromSteadyError::Sim(e) => sim_error(e),
+            e => CoreError::Runtime(e.to_string()),
+        },
+    )?;
     Ok((sol.names, sol.columns))
 }
 

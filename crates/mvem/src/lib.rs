@@ -20,6 +20,8 @@
 //!   is computed by the same function as the derivatives.
 //! - [`sim`]: input schedules (constants, steps, CSV time series), exact transport delays,
 //!   adaptive error-controlled integration that stops at input breakpoints.
+//! - [`numerics`]: dense LU for the integrator, bounded nonlinear least squares and variable
+//!   projection for the tuning (no model knowledge).
 //! - [`analysis`]: steady state (equilibrium) with physical-validity flags.
 //! - [`io`]: parameter files (TOML/JSON), input CSV reading, atomic output writing.
 //!
@@ -38,6 +40,7 @@ pub mod components;
 pub mod error;
 pub mod io;
 pub mod model;
+pub mod numerics;
 pub mod params;
 pub mod sim;
 pub mod tuning;
