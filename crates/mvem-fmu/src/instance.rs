@@ -678,8 +678,8 @@ impl Instance {
 mod tests {
     use super::*;
     use crate::vars::{VR_DER, VR_INPUT, VR_PARAM, VR_SIGNAL, VR_STATE};
+    use mvem::analysis::steady::simulate_from_steady;
     use mvem::model::{Engine12, Engine8, ModelOrder};
-    use mvem::sim::{simulate, Start};
 
     fn vr_signal(name: &str) -> u32 {
         VR_SIGNAL + Signals::NAMES.iter().position(|n| *n == name).unwrap() as u32
@@ -750,7 +750,7 @@ mod tests {
             rtol: 1e-8,
             ..SimOptions::default()
         };
-        let sol = simulate(m, &sched, 0.0, 2.0, Start::SteadyState, &opts).unwrap();
+        let sol = simulate_from_steady(m, &sched, 0.0, 2.0, &opts).unwrap();
         ["p_im", "W_c", "T_em"].map(|n| *sol.get(n).unwrap().last().unwrap())
     }
 

@@ -3,12 +3,12 @@
 
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
-use mvem::analysis::steady::steady_state;
+use mvem::analysis::steady::{simulate_from_steady, steady_state, SimFromSteadyError};
 use mvem::analysis::step::StepMetrics;
 use mvem::analysis::zeros::{self, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS};
 use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelOptions, ModelOrder, Signals};
 use mvem::params::Params;
-use mvem::sim::{simulate, InputSchedule, SimError, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimError, SimOptions};
 use nalgebra::DMatrix;
 use serde_json::Value;
 use std::path::Path;
@@ -251,8 +251,12 @@ pub fn simulate_rows(
         )));
     }
     let opts = args.options()?;
-    let sol = mvem::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &opts))
-        .map_err(sim_error)?;
+    let sol = mvem::dispatch!(&m, m => simulate_from_steady(m, &sched, t0, t_end, &opts)).map_err(
+        |e| match e {
+            SimFromSteadyError::Sim(e) => sim_error(e),
+            e => CoreError::Runtime(e.to_string()),
+        },
+    )?;
     Ok((sol.names, sol.columns))
 }
 
@@ -530,7 +534,7 @@ impl CorePlant {
     }
 
     fn start(model: &AnyModel, d: [f64; 4]) -> CoreResult<mvem::sim::stepper::AnyPlant> {
-        mvem::sim::stepper::AnyPlant::new(
+        mvem::analysis::steady::any_plant_from_steady(
             model.clone(),
             Drive::from_array(d),
             0.0,

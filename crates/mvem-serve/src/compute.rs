@@ -3,7 +3,7 @@
 
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
-use mvem::analysis::steady::steady_state;
+use mvem::analysis::steady::{simulate_from_steady, steady_state};
 use mvem::analysis::step::StepMetrics;
 use mvem::io::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
 use mvem::model::{Drive, Model, Signals};
@@ -446,7 +446,7 @@ pub(crate) fn simulate_cycle<const N: usize, M: Model<N>>(
     };
     let (t0, t1) = (sched.t_first(), sched.t_last());
     let sol = match mode {
-        CycleMode::Open => simulate(m, sched, t0, t1, Start::SteadyState, &opts)
+        CycleMode::Open => simulate_from_steady(m, sched, t0, t1, &opts)
             .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?,
     };
     let mut series = Map::new();

@@ -3,20 +3,16 @@
 //! Run: `cargo bench -p mvem --bench core` (or `-- "12 states"` for one model).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use mvem::analysis::steady::steady_state;
-use mvem::components::cylinder::SeligerIterate;
+use mvem::analysis::steady::{simulate_from_steady, steady_state};
 use mvem::model::{Drive, Engine10, Engine12, Engine8, Model, ModelInput};
-use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 use std::hint::black_box;
 
 fn eval_one<const N: usize, M: Model<N>>(c: &mut Criterion, m: &M) {
     let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
     let x = steady_state(m, &d).unwrap().x;
     let u = ModelInput::constant(d);
-    let mem = SeligerIterate {
-        x_r: 0.0,
-        t_1: 300.0,
-    };
+    let mem = m.memory_start(&x, &u);
     c.bench_function(&format!("Model::eval ({N} states, converged T_e)"), |b| {
         b.iter(|| m.eval(black_box(&x), black_box(&u), mem))
     });
@@ -42,7 +38,7 @@ fn whtc_one<const N: usize, M: Model<N>>(c: &mut Criterion, m: &M, sched: &Input
         format!("WHTC 1800 s, rtol 1e-6, default method, {N} states")
     };
     g.bench_function(&name, |b| {
-        b.iter(|| simulate(m, sched, 0.0, 1800.0, Start::SteadyState, &opts).unwrap())
+        b.iter(|| simulate_from_steady(m, sched, 0.0, 1800.0, &opts).unwrap())
     });
     g.finish();
 }

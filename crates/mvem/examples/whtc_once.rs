@@ -5,8 +5,9 @@
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
 //! too). `--rtol R` sets the tolerance of the measured run.
+use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Engine8;
-use mvem::sim::{simulate, SimOptions, Solution, Start};
+use mvem::sim::{SimOptions, Solution};
 
 const COMPARE: [(&str, f64); 5] = [
     ("p_im", 1e5),
@@ -32,7 +33,7 @@ fn main() {
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();
-    let s = simulate(&m, &sched, 0.0, 1800.0, Start::SteadyState, &opts).unwrap();
+    let s = simulate_from_steady(&m, &sched, 0.0, 1800.0, &opts).unwrap();
     println!("{:?} {:?}", t.elapsed(), s.stats);
     if let Some(path) = arg("--check") {
         let reference: Vec<Vec<f64>> = match std::fs::read_to_string(&path) {
@@ -48,7 +49,7 @@ fn main() {
                     exact_actuators: false,
                     ..opts.clone()
                 };
-                let r = simulate(&m, &sched, 0.0, 1800.0, Start::SteadyState, &ro).unwrap();
+                let r = simulate_from_steady(&m, &sched, 0.0, 1800.0, &ro).unwrap();
                 let cols = columns(&r);
                 let txt: Vec<String> = cols
                     .iter()

@@ -1,4 +1,7 @@
-//! Typed errors of each layer, wrapped by [`Error`].
+//! Typed errors of the lower layers (params, sim, io), wrapped by [`Error`].
+//!
+//! The layers above keep their own typed errors (e.g. `analysis::steady::SteadyError`,
+//! `analysis::steady::SimFromSteadyError`): this module points down only.
 
 use crate::params::ParamIssues;
 
@@ -11,9 +14,6 @@ pub enum Error {
     /// Simulation failure (with time and state).
     #[error(transparent)]
     Sim(#[from] crate::sim::SimError),
-    /// Steady-state failure.
-    #[error(transparent)]
-    Steady(#[from] crate::analysis::steady::SteadyError),
     /// File or format problem (with file, line, column where known).
     #[error(transparent)]
     Io(#[from] crate::io::IoError),

@@ -28,6 +28,8 @@
 //! - [`analysis`]: steady state with physical-validity flags, linearization, zeros, maps,
 //!   step metrics and the step experiment ([`analysis::experiment::run_step`]) that every front
 //!   end uses.
+//! - [`numerics`]: dense LU for the integrator, bounded nonlinear least squares and variable
+//!   projection for the tuning (no model knowledge).
 //! - [`tuning`]: parameter estimation (section 8).
 //!
 //! ```
@@ -46,6 +48,7 @@ pub mod control;
 pub mod error;
 pub mod io;
 pub mod model;
+pub mod numerics;
 pub mod params;
 pub mod sim;
 pub mod tuning;

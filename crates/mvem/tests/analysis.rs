@@ -11,7 +11,7 @@ use mvem::analysis::map::{
     channel_map, dc_gain_map, rhp_zero_map, steady_map, Axis, ChannelMapOptions, Grid, MapError,
     MapOptions,
 };
-use mvem::analysis::steady::{steady_state, SteadyOptions, SteadyState};
+use mvem::analysis::steady::{simulate_from_steady, steady_state, SteadyOptions, SteadyState};
 use mvem::analysis::zeros::{
     self, channel, dc_gain, dc_gain_matrix, eigenvalues, frequency_response, invariant_zeros,
     mimo_zeros, minimal_realization, parse_channel, poles, rosenbrock_rank_gap, siso,
@@ -21,7 +21,7 @@ use mvem::components::cylinder::SeligerIterate;
 use mvem::components::Semantics;
 use mvem::model::{Drive, Engine8, Evaluation, Model, ModelInput, ModelOptions, Signals};
 use mvem::params::Params;
-use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 use nalgebra::{DMatrix, DVector};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -108,6 +108,10 @@ struct Toy {
 }
 
 impl Model<3> for Toy {
+    type Memory = SeligerIterate;
+    fn memory_start(&self, _x: &[f64; 3], _u: &ModelInput) -> SeligerIterate {
+        SeligerIterate { x_r: 0.0, t_1: 0.0 }
+    }
     fn state_names(&self) -> [&'static str; 3] {
         ["a", "b", "c"]
     }
@@ -484,7 +488,7 @@ fn step_mismatch(m: &Engine8, d: Drive, k: usize, ch: usize, du: f64, pade: usiz
     let run = |sign: f64| {
         let v = d.to_array()[ch] + sign * du;
         let sched = InputSchedule::steps(d, &[(t_step, ch, v)]).unwrap();
-        simulate(m, &sched, 0.0, t_end, Start::SteadyState, &opts).unwrap()
+        simulate_from_steady(m, &sched, 0.0, t_end, &opts).unwrap()
     };
     let (up, down) = (run(1.0), run(-1.0));
     // the linear model is undelayed: shift by the channel's delay (none with Padé states)

@@ -13,7 +13,7 @@ use mvem::control::steps::setpoint_step;
 use mvem::control::{run, Trajectory};
 use mvem::model::{AnyModel, Drive, Engine8, ModelOrder};
 use mvem::params::Params;
-use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 
 fn model() -> AnyModel {
     AnyModel::new(ModelOrder::Eight, Params::published(), Default::default()).unwrap()
@@ -63,12 +63,11 @@ fn whtc_closed_loop_meets_the_regulation_and_is_the_real_model() {
     let sched = commands_schedule(&traj);
     let e8 = Engine8::published();
     let t_end = *traj.get("t").unwrap().last().unwrap();
-    let sol = simulate(
+    let sol = mvem::analysis::steady::simulate_from_steady(
         &e8,
         &sched,
         0.0,
         t_end,
-        Start::SteadyState,
         &SimOptions::default(),
     )
     .unwrap();
@@ -182,16 +181,11 @@ fn stepping_matches_the_open_loop_vgt_step() {
     let e8 = Engine8::published();
     let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
     let sched = InputSchedule::steps(d0, &[(1.0, 3, 65.0)]).unwrap();
-    let sol = simulate(
-        &e8,
-        &sched,
-        0.0,
-        3.0,
-        Start::SteadyState,
-        &SimOptions::default(),
-    )
-    .unwrap();
-    let mut p = mvem::sim::stepper::Plant::new(e8, d0, 0.0, &SimOptions::default()).unwrap();
+    let sol =
+        mvem::analysis::steady::simulate_from_steady(&e8, &sched, 0.0, 3.0, &SimOptions::default())
+            .unwrap();
+    let mut p =
+        mvem::analysis::steady::plant_from_steady(e8, d0, 0.0, &SimOptions::default()).unwrap();
     let w = sol.get("W_c").unwrap();
     let span =
         w.iter().cloned().fold(f64::MIN, f64::max) - w.iter().cloned().fold(f64::MAX, f64::min);

@@ -4,6 +4,7 @@
 //! plain W-method (all states integrated numerically), also where a command crosses its
 //! saturation inside a segment (the fallback).
 
+use mvem::analysis::steady::simulate_from_steady;
 use mvem::components::cylinder::SeligerIterate;
 use mvem::components::Semantics;
 use mvem::model::{
@@ -11,7 +12,7 @@ use mvem::model::{
     ModelOptions,
 };
 use mvem::params::Params;
-use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use mvem::sim::{InputSchedule, SimOptions, Solution};
 
 fn options() -> Vec<ModelOptions> {
     let mut v = Vec::new();
@@ -29,7 +30,7 @@ fn options() -> Vec<ModelOptions> {
 
 /// `eval`'s derivative of every lag state equals (clamp(u_delayed) - x) / tau, bit for bit up
 /// to one rounding, at states and commands in and out of the saturation ranges.
-fn check_lags<const N: usize, M: Model<N>>(m: &M, x_steady: [f64; N]) {
+fn check_lags<const N: usize, M: Model<N, Memory = SeligerIterate>>(m: &M, x_steady: [f64; N]) {
     let lags: Vec<LinearLag> = m.linear_lags();
     assert_eq!(lags.len(), 3, "three actuator states");
     let d = Drive::new(1500.0, 110.0, 40.0, 60.0);
@@ -130,7 +131,7 @@ fn run(sched: &InputSchedule, t_end: f64, exact: bool, rtol: f64) -> Solution {
         exact_actuators: exact,
         ..SimOptions::default()
     };
-    simulate(&m, sched, 0.0, t_end, Start::SteadyState, &opts).unwrap()
+    simulate_from_steady(&m, sched, 0.0, t_end, &opts).unwrap()
 }
 
 /// Ramps of both commands; with `u_egr_top` > 100 the EGR command crosses its saturation inside a
@@ -225,8 +226,8 @@ fn closed_form_and_plain_w_method_agree_on_a_whtc_minute() {
         exact_actuators: exact,
         ..SimOptions::default()
     };
-    let a = simulate(&m, &sched, 600.0, 660.0, Start::SteadyState, &opts(true)).unwrap();
-    let b = simulate(&m, &sched, 600.0, 660.0, Start::SteadyState, &opts(false)).unwrap();
+    let a = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(true)).unwrap();
+    let b = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(false)).unwrap();
     let dev = max_scaled_dev(&a, &b);
     assert!(dev < 1e-6, "max scaled deviation {dev:e}");
     // and the closed form takes fewer steps at the same tolerance

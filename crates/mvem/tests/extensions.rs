@@ -10,7 +10,9 @@ use mvem::analysis::extensions::{
     compare_vgt_steps, cylinder_temp_study, sign_reversal, CompareOptions, CylinderTempOptions,
     VgtStep,
 };
-use mvem::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
+use mvem::analysis::steady::{
+    simulate_from_steady, steady_state, steady_state_with, SteadyOptions,
+};
 use mvem::components::cylinder::SeligerIterate;
 use mvem::components::{intercooler, Semantics};
 use mvem::dispatch;
@@ -19,7 +21,7 @@ use mvem::model::{
     ModelOrder, Signals,
 };
 use mvem::params::Params;
-use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 
 /// |a - b| <= rtol max(|a|, |b|) (+ a floor for values that are exactly zero in one model).
 fn close(a: f64, b: f64, rtol: f64) -> bool {
@@ -227,8 +229,7 @@ fn solution_columns_are_unique_and_states_win() {
     };
     for order in [ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve] {
         let any = AnyModel::new(order, Params::published(), ModelOptions::default()).unwrap();
-        let sol =
-            dispatch!(&any, m => simulate(m, &sched, 0.0, 0.2, Start::SteadyState, &opts)).unwrap();
+        let sol = dispatch!(&any, m => simulate_from_steady(m, &sched, 0.0, 0.2, &opts)).unwrap();
         let mut seen = std::collections::HashSet::new();
         for n in &sol.names {
             assert!(seen.insert(n.as_str()), "{order:?}: column {n} twice");
@@ -434,20 +435,12 @@ fn twelve_state_step_response_converges_to_ten_state_as_v_ic_and_k_ic_vanish() {
         dt_out: 0.01,
         ..SimOptions::default()
     };
-    let r10 = simulate(
-        &Engine10::published(),
-        &sched,
-        0.0,
-        8.0,
-        Start::SteadyState,
-        &opts,
-    )
-    .unwrap();
+    let r10 = simulate_from_steady(&Engine10::published(), &sched, 0.0, 8.0, &opts).unwrap();
     let signals = ["W_c", "p_im", "p_em", "n_t"];
     let mut errs: Vec<[f64; 4]> = Vec::new();
     for s in [1.0, 0.5, 0.25] {
         let m = engine12_scaled(s, s);
-        let r = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap();
+        let r = simulate_from_steady(&m, &sched, 0.0, 8.0, &opts).unwrap();
         let e: [f64; 4] = std::array::from_fn(|k| {
             max_distance(r10.get(signals[k]).unwrap(), r.get(signals[k]).unwrap())
         });

@@ -131,7 +131,7 @@ fn derivatives_path_equals_eval() {
     use mvem::model::{
         Actuators, CylinderTemp, Engine10, Engine12, Model, ModelInput, ModelOptions,
     };
-    fn check<const N: usize, M: Model<N>>(
+    fn check<const N: usize, M: Model<N, Memory = SeligerIterate>>(
         m: &M,
         x: &[f64; N],
         u: &ModelInput,

@@ -6,8 +6,9 @@
 
 mod common;
 use common::Table;
+use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::{Drive, Engine8};
-use mvem::sim::{simulate, InputSchedule, SimOptions, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 
 fn run(file: &str, from: f64, to: f64, rtol: f64) -> (Table, mvem::sim::Solution) {
     let t = Table::read(file);
@@ -20,7 +21,7 @@ fn run(file: &str, from: f64, to: f64, rtol: f64) -> (Table, mvem::sim::Solution
         dt_out: 0.01,
         ..SimOptions::default()
     };
-    let sol = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap();
+    let sol = simulate_from_steady(&m, &sched, 0.0, 8.0, &opts).unwrap();
     (t, sol)
 }
 

@@ -9,11 +9,20 @@
 use mvem::analysis::robustness::{
     error_is_located, scenario, start_state, sweep, StartBank, StartKind, SweepConfig,
 };
+use mvem::analysis::steady::{simulate_from_steady, SimFromSteadyError};
 use mvem::components::Semantics;
 use mvem::io::output::write_atomic;
 use mvem::model::{Drive, Engine8, ModelOptions, ModelOrder};
 use mvem::params::Params;
 use mvem::sim::{simulate, InputSchedule, Method, SimError, SimOptions, Start};
+
+/// The simulation error of a run from steady state (the steady state itself must succeed).
+fn sim_err(e: SimFromSteadyError) -> SimError {
+    match e {
+        SimFromSteadyError::Sim(e) => e,
+        e => panic!("no initial steady state: {e}"),
+    }
+}
 
 #[test]
 fn sweep_subset_is_clean() {
@@ -86,7 +95,7 @@ fn too_many_steps_is_located() {
         max_steps: 50,
         ..SimOptions::default()
     };
-    let e = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap_err();
+    let e = sim_err(simulate_from_steady(&m, &sched, 0.0, 8.0, &opts).unwrap_err());
     assert!(matches!(e, SimError::TooManySteps { max_steps: 50, t, .. } if t > 0.0 && t < 8.0));
     assert_located(&e);
 }
@@ -119,21 +128,15 @@ fn absurd_options_are_rejected() {
             "dt",
         ),
     ] {
-        let e = simulate(&m, &sched, 0.0, 1.0, Start::SteadyState, &opts).unwrap_err();
+        let e = sim_err(simulate_from_steady(&m, &sched, 0.0, 1.0, &opts).unwrap_err());
         assert!(
             matches!(e, SimError::BadOption { field: f, .. } if f == field),
             "{e}"
         );
     }
-    let e = simulate(
-        &m,
-        &sched,
-        0.0,
-        f64::NAN,
-        Start::SteadyState,
-        &SimOptions::default(),
-    )
-    .unwrap_err();
+    let e = sim_err(
+        simulate_from_steady(&m, &sched, 0.0, f64::NAN, &SimOptions::default()).unwrap_err(),
+    );
     assert!(matches!(e, SimError::BadInterval { .. }), "{e}");
     let mut x = mvem::analysis::steady::steady_state(&m, &Drive::new(1500.0, 110.0, 80.0, 30.0))
         .unwrap()
@@ -262,7 +265,7 @@ fn too_many_steps_has_a_hint() {
         max_steps: 50,
         ..SimOptions::default()
     };
-    let e = simulate(&m, &sched, 0.0, 8.0, Start::SteadyState, &opts).unwrap_err();
+    let e = sim_err(simulate_from_steady(&m, &sched, 0.0, 8.0, &opts).unwrap_err());
     assert!(matches!(e, SimError::TooManySteps { .. }), "{e}");
     assert!(e.to_string().contains("Hint:"), "no hint: {e}");
 }

@@ -4,6 +4,7 @@
 use crate::common::{self, ModelArgs, Scenario, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
+use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Model;
 use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
 use std::collections::BTreeMap;
@@ -223,15 +224,13 @@ fn run_model<const N: usize, M: Model<N>>(
     initial_path: Option<&Path>,
     opts: &SimOptions,
 ) -> Result<Solution> {
-    let start = match initial {
-        Some(map) => Start::State(state_from_map(
-            m,
-            map,
-            initial_path.unwrap_or(Path::new("initial state")),
-        )?),
-        None => Start::SteadyState,
-    };
-    simulate(m, sched, t0, t_end, start, opts).context("simulation failed")
+    match initial {
+        Some(map) => {
+            let x0 = state_from_map(m, map, initial_path.unwrap_or(Path::new("initial state")))?;
+            simulate(m, sched, t0, t_end, Start::State(x0), opts).context("simulation failed")
+        }
+        None => simulate_from_steady(m, sched, t0, t_end, opts).context("simulation failed"),
+    }
 }
 
 /// The main signals of a simulation: actuators, pressures, flows, turbo speed, lambda_O.

@@ -17,7 +17,7 @@
 //! as the final value.
 
 use crate::analysis::experiment::{run_step, StepRunError};
-use crate::analysis::steady::{steady_state, SteadyError};
+use crate::analysis::steady::{steady_state, SimFromSteadyError, SteadyError};
 use crate::analysis::step::StepMetrics;
 use crate::model::{
     AnyModel, CylinderTemp, Engine10, Engine12, Engine8, Model, ModelOptions, ModelOrder,
@@ -443,16 +443,14 @@ pub fn cylinder_temp_study<const N: usize, M: Model<N>>(
     t0: f64,
     t_end: f64,
     co: &CylinderTempOptions,
-) -> Result<CylinderTempStudy, SimError> {
+) -> Result<CylinderTempStudy, SimFromSteadyError> {
     let mut o = *m.options();
     o.cylinder_temp = CylinderTemp::Converged;
     let conv = m.with_options(o);
     o.cylinder_temp = CylinderTemp::OneIteration;
     let one = m.with_options(o);
     let d0 = sched.at(t0);
-    let x0 = steady_state(&conv, &d0)
-        .map_err(|e| SimError::Initial(e.to_string()))?
-        .x;
+    let x0 = steady_state(&conv, &d0)?.x;
     let sim_opts = SimOptions {
         rtol: co.rtol,
         atol: co.rtol * 1e-2,

@@ -50,7 +50,6 @@
 //! input-output channel (the zeros and DC-gain functions refuse such channels).
 
 use super::steady::SteadyState;
-use crate::components::cylinder::SeligerIterate;
 use crate::model::{CylinderTemp, Drive, Guard, InputError, Model, ModelInput, Signals};
 use nalgebra::DMatrix;
 use std::fmt;
@@ -410,10 +409,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
         }
     };
     let scales = m.state_scales();
-    let mem = SeligerIterate {
-        x_r: 0.0,
-        t_1: m.params().intake_manifold.t_im,
-    };
+    let mem = m.memory_start(x, &ModelInput::constant(*d));
     let u_base = ModelInput::constant(*d);
     let mut evaluations = 0usize;
 
@@ -729,7 +725,7 @@ struct Differ<'a, const N: usize, M: Model<N>> {
     m: &'a M,
     x: &'a [f64; N],
     u_base: ModelInput,
-    mem: SeligerIterate,
+    mem: M::Memory,
     rows: &'a Rows,
     f0: &'a [f64],
     g0: u32,

@@ -359,7 +359,6 @@ pub fn error_class(e: &SimError) -> String {
         SimError::NonFinite { what, name, .. } => format!("NonFinite({what} {name})"),
         SimError::StepSizeTooSmall { .. } => "StepSizeTooSmall".into(),
         SimError::TooManySteps { .. } => "TooManySteps".into(),
-        SimError::Initial(_) => "Initial".into(),
     }
 }
 

@@ -15,8 +15,11 @@
 //! [`SteadyState::physically_valid`] is false when any invalidating flag is present.
 
 use crate::analysis::zeros;
-use crate::model::{Drive, Guard, InputError, Model, ModelInput, Signals};
-use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+use crate::model::{AnyModel, Drive, Guard, InputError, Model, ModelInput, Signals};
+use crate::sim::stepper::{AnyPlant, Plant};
+use crate::sim::{
+    check_interval, simulate, InputSchedule, Side, SimError, SimOptions, Solution, Start,
+};
 use nalgebra::{DMatrix, DVector};
 
 /// A converged equilibrium.
@@ -70,6 +73,62 @@ pub enum SteadyError {
         /// What failed.
         reason: String,
     },
+}
+
+/// Why [`simulate_from_steady`] failed: no initial equilibrium, or the simulation itself.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimFromSteadyError {
+    /// The steady state at the first inputs was not found.
+    #[error("initial steady state: {0}")]
+    Steady(#[from] SteadyError),
+    /// The simulation failed (options, interval, or integration).
+    #[error("{0}")]
+    Sim(#[from] SimError),
+}
+
+/// Simulate `model` driven by `sched` from `t0` to `t_end`, starting at the steady state at
+/// the inputs at `t0` (right limit): [`steady_state`], then [`simulate`]. Options and the
+/// interval are checked first.
+pub fn simulate_from_steady<const N: usize, M: Model<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    opts: &SimOptions,
+) -> Result<Solution, SimFromSteadyError> {
+    check_interval(opts, t0, t_end)?;
+    let mut h = 0;
+    let d = Drive::from_array(std::array::from_fn(|c| {
+        sched.value_hint(c, t0, Side::Right, &mut h)
+    }));
+    let x0 = steady_state(model, &d)?.x;
+    Ok(simulate(model, sched, t0, t_end, Start::State(x0), opts)?)
+}
+
+/// A [`Plant`] (the model advanced sample by sample with held commands) started at `t0` in the
+/// steady state of the commands `d`, held since forever.
+pub fn plant_from_steady<const N: usize, M: Model<N>>(
+    model: M,
+    d: Drive,
+    t0: f64,
+    opts: &SimOptions,
+) -> Result<Plant<N, M>, SimFromSteadyError> {
+    let x0 = steady_state(&model, &d)?.x;
+    Ok(Plant::from_state(model, d, t0, x0, opts)?)
+}
+
+/// [`plant_from_steady`] for the variant chosen at run time (`--model 8|10|12`).
+pub fn any_plant_from_steady(
+    model: AnyModel,
+    d: Drive,
+    t0: f64,
+    opts: &SimOptions,
+) -> Result<AnyPlant, SimFromSteadyError> {
+    Ok(match model {
+        AnyModel::Eight(m) => AnyPlant::Eight(Box::new(plant_from_steady(m, d, t0, opts)?)),
+        AnyModel::Ten(m) => AnyPlant::Ten(Box::new(plant_from_steady(m, d, t0, opts)?)),
+        AnyModel::Twelve(m) => AnyPlant::Twelve(Box::new(plant_from_steady(m, d, t0, opts)?)),
+    })
 }
 
 /// Options of the steady-state solver.
@@ -255,16 +314,13 @@ impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
         }
     }
 
-    fn memory(&self) -> crate::components::cylinder::SeligerIterate {
-        crate::components::cylinder::SeligerIterate {
-            x_r: 0.0,
-            t_1: self.m.params().intake_manifold.t_im,
-        }
+    fn memory(&self, x: &[f64; N]) -> M::Memory {
+        self.m.memory_start(x, &self.u)
     }
 
     /// Scaled residual of the free states.
     fn residual(&self, x: &[f64; N]) -> DVector<f64> {
-        let ev = self.m.eval(x, &self.u, self.memory());
+        let ev = self.m.eval(x, &self.u, self.memory(x));
         DVector::from_iterator(
             self.free.len(),
             self.free.iter().map(|&i| ev.dx[i] / self.scale[i]),
@@ -386,7 +442,7 @@ impl<'a, const N: usize, M: Model<N>> Newton<'a, N, M> {
         iterations: usize,
         settled: bool,
     ) -> Result<SteadyState<N>, String> {
-        let ev = self.m.eval(&x, &self.u, self.memory());
+        let ev = self.m.eval(&x, &self.u, self.memory(&x));
         let r0 = self.residual(&x);
         let j = self.jacobian(&x, &r0);
         // bounded and checked (finite entries, balancing, an iteration limit), sorted by

@@ -21,8 +21,8 @@ pub mod pid;
 pub mod stats;
 pub mod steps;
 
+use crate::analysis::steady::{any_plant_from_steady, SimFromSteadyError};
 use crate::model::{AnyModel, Drive, Signals};
-use crate::sim::stepper::AnyPlant;
 use crate::sim::{SimError, SimOptions};
 pub use cycle::Demand;
 
@@ -83,6 +83,9 @@ pub enum ControlError {
     /// The plant failed (time and state in the message).
     #[error("plant: {0}")]
     Sim(#[from] SimError),
+    /// The plant's initial steady state was not found (or its start failed).
+    #[error("plant start: {0}")]
+    Start(#[from] SimFromSteadyError),
     /// A controller gave a NaN or infinite command.
     #[error("controller gave {name} = {value} at t = {t} s")]
     BadCommand {
@@ -174,7 +177,7 @@ pub fn run(
     let out0 = ctrl.start(t0, d0.n_e, d0.m_ref, d0.motoring);
     check_output(&out0, t0)?;
     let drive = |n_e: f64, o: &Output| Drive::new(n_e, o.u_delta, o.u_egr, o.u_vgt);
-    let mut plant = AnyPlant::new(model, drive(d0.n_e, &out0), t0, opts)?;
+    let mut plant = any_plant_from_steady(model, drive(d0.n_e, &out0), t0, opts)?;
     let ix = |name: &str| {
         plant
             .state_names()

@@ -196,14 +196,15 @@ mod tests {
         use parquet::file::reader::{FileReader, SerializedFileReader};
         use parquet::record::RowAccessor;
         let m = Engine8::published();
-        let sched =
-            InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(1.0, 3, 65.0)]).unwrap();
+        let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let sched = InputSchedule::steps(d0, &[(1.0, 3, 65.0)]).unwrap();
+        // io does not name analysis: start at the model's initial guess (any trajectory will do)
         let sol = simulate(
             &m,
             &sched,
             0.0,
             3.0,
-            Start::SteadyState,
+            Start::State(crate::model::Model::initial_guess(&m, &d0)),
             &SimOptions::default(),
         )
         .unwrap();

@@ -131,6 +131,8 @@ impl Engine10 {
 }
 
 impl Model<10> for Engine10 {
+    engine_memory!(10);
+
     fn state_names(&self) -> [&'static str; 10] {
         STATE_NAMES_10
     }

@@ -154,6 +154,8 @@ impl Engine12 {
 }
 
 impl Model<12> for Engine12 {
+    engine_memory!(12);
+
     fn state_names(&self) -> [&'static str; 12] {
         STATE_NAMES_12
     }

@@ -95,6 +95,8 @@ fn state_bounds_8(p: &Params, opts: &ModelOptions) -> [(f64, f64); 8] {
 }
 
 impl Model<8> for Engine8 {
+    engine_memory!(8);
+
     fn state_names(&self) -> [&'static str; 8] {
         STATE_NAMES_8
     }

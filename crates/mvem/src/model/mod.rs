@@ -28,6 +28,23 @@ macro_rules! eval_from_evaluate {
     };
 }
 
+/// The memory items of the engine models' [`Model`] impls: the cylinder-temperature iterate
+/// (x_r, T_1) of eq. (24), held between steps in [`CylinderTemp::OneIteration`] mode.
+macro_rules! engine_memory {
+    ($n:literal) => {
+        type Memory = SeligerIterate;
+        fn memory_start(&self, _x: &[f64; $n], _u: &ModelInput) -> SeligerIterate {
+            super::engine_memory_start(self.params())
+        }
+        fn initial_memory(&self, x: &[f64; $n], u: &ModelInput) -> SeligerIterate {
+            super::engine_initial_memory(self, x, u)
+        }
+        fn holds_memory(&self) -> bool {
+            self.options().cylinder_temp == super::CylinderTemp::OneIteration
+        }
+    };
+}
+
 mod adiabatic;
 mod any;
 mod common;
@@ -192,16 +209,16 @@ pub struct ModelOptions {
     pub actuators: Actuators,
 }
 
-/// Result of one model evaluation.
+/// Result of one model evaluation (`Mem`: the model's [`Model::Memory`]).
 #[derive(Debug, Clone, Copy)]
-pub struct Evaluation<const N: usize> {
+pub struct Evaluation<const N: usize, Mem = SeligerIterate> {
     /// State derivatives dx/dt (units of the state per second).
     pub dx: [f64; N],
     /// All algebraic signals.
     pub signals: Signals,
-    /// The cylinder-temperature iterate to hold after an accepted step (one-iteration mode;
-    /// the fixed point itself in converged mode).
-    pub memory_next: SeligerIterate,
+    /// The memory to hold after an accepted step (the engine models: the cylinder-temperature
+    /// iterate in one-iteration mode; the fixed point itself in converged mode).
+    pub memory_next: Mem,
 }
 
 /// The delayed input command that drives a [`LinearLag`].
@@ -274,15 +291,57 @@ pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<L
 
 /// What an integrator needs of one model evaluation: [`Evaluation`] without the signals.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Derivatives<const N: usize> {
+pub struct Derivatives<const N: usize, Mem = SeligerIterate> {
     /// State derivatives dx/dt (units of the state per second).
     pub dx: [f64; N],
-    /// The cylinder-temperature iterate to hold after an accepted step.
-    pub memory_next: SeligerIterate,
+    /// The memory to hold after an accepted step.
+    pub memory_next: Mem,
+}
+
+/// How the simulator feeds a model's inputs: the transport delays of eq. (2) and which
+/// input channels enter the dynamics undelayed.
+///
+/// A model sees the four [`Drive`] channels at time t ([`ModelInput::now`]) and two delayed
+/// lookups, channel 2 at `t - delayed[0]` ([`ModelInput::u_egr_delayed`]) and channel 3 at
+/// `t - delayed[1]` ([`ModelInput::u_vgt_delayed`]). The simulator evaluates both exactly from
+/// the schedule and stops at every breakpoint of a channel that enters the dynamics: the
+/// channels with `current[c]` at their breakpoints, channels 2 and 3 also at their breakpoints
+/// shifted by their delays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InputDelays {
+    /// Delays [s] of the delayed lookups of channels 2 and 3 (>= 0, finite).
+    pub delayed: [f64; 2],
+    /// Whether the current value of each channel (in [`Drive::to_array`] order) enters the
+    /// derivatives (its breakpoints are then stop times).
+    pub current: [bool; 4],
+}
+
+impl InputDelays {
+    /// The engine models': u_egr delayed by tau_degr (eqs (40)-(41)), u_vgt by tau_dvgt
+    /// (eq. (57)); the undelayed commands drive the dynamics only with the actuators bypassed
+    /// (item 6).
+    pub fn engine(p: &Params, actuators: Actuators) -> Self {
+        let bypass = actuators == Actuators::Bypass;
+        Self {
+            delayed: [p.egr_actuator.tau_degr, p.vgt_actuator.tau_dvgt],
+            current: [true, true, bypass, bypass],
+        }
+    }
 }
 
 /// A mean-value engine model with `N` states.
+///
+/// What the simulator uses (`sim` reads nothing else of a model): [`Model::state_names`],
+/// [`Model::state_scales`], [`Model::state_bounds`], [`Model::derivatives`] (steps) and
+/// [`Model::eval`] (output samples), [`Model::input_delays`], [`Model::linear_lags`], the memory
+/// contract ([`Model::Memory`], [`Model::initial_memory`], [`Model::holds_memory`]) and
+/// [`Model::nonfinite_hint`].
 pub trait Model<const N: usize>: Send + Sync {
+    /// State an evaluation carries from one accepted step to the next (the engine models: the
+    /// cylinder-temperature iterate (x_r, T_1) of eq. (24); `()` for a model without memory).
+    /// Opaque to the simulator, which only stores [`Evaluation::memory_next`] after accepted
+    /// steps when [`Model::holds_memory`] is true.
+    type Memory: Copy + PartialEq + std::fmt::Debug + Send + Sync;
     /// State names (reference-data names: `p_im`, `p_em`, `X_Oim`, ...).
     fn state_names(&self) -> [&'static str; N];
     /// Typical magnitudes of the states (used for scaling in solvers and error norms).
@@ -295,13 +354,23 @@ pub trait Model<const N: usize>: Send + Sync {
     fn state_bounds(&self) -> [(f64, f64); N];
     /// Evaluate derivatives and signals at state `x` and inputs `u`, with the cylinder
     /// temperature memory `memory` (used only in [`CylinderTemp::OneIteration`]).
-    fn eval(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Evaluation<N>;
+    fn eval(
+        &self,
+        x: &[f64; N],
+        u: &ModelInput,
+        memory: Self::Memory,
+    ) -> Evaluation<N, Self::Memory>;
     /// The derivatives and cylinder-temperature memory of [`Model::eval`] without the
     /// signals, for integrators and Jacobians: bitwise the same `dx` and `memory_next` (the
     /// variants compile the same code with the signal-only work - torque, guard flags, the
     /// signal record - left out).
     #[inline]
-    fn derivatives(&self, x: &[f64; N], u: &ModelInput, memory: SeligerIterate) -> Derivatives<N> {
+    fn derivatives(
+        &self,
+        x: &[f64; N],
+        u: &ModelInput,
+        memory: Self::Memory,
+    ) -> Derivatives<N, Self::Memory> {
         let ev = self.eval(x, u, memory);
         Derivatives {
             dx: ev.dx,
@@ -313,6 +382,36 @@ pub trait Model<const N: usize>: Send + Sync {
     /// The states that are first-order lags of delayed input commands (default: none).
     fn linear_lags(&self) -> Vec<LinearLag> {
         Vec::new()
+    }
+    /// The input delays and the channels that enter the dynamics undelayed (default: the
+    /// engine's, [`InputDelays::engine`] from [`Model::params`] and [`Model::options`]).
+    fn input_delays(&self) -> InputDelays {
+        InputDelays::engine(self.params(), self.options().actuators)
+    }
+    /// The memory an evaluation starts from when none is held (steady state, linearization,
+    /// the start of the converged fixed point search): for the engine models (x_r, T_1) =
+    /// (0, T_im).
+    fn memory_start(&self, x: &[f64; N], u: &ModelInput) -> Self::Memory;
+    /// The memory a simulation starting at `x`, `u` holds (default [`Model::memory_start`];
+    /// the engine models in one-iteration mode: the converged fixed point, as the authors'
+    /// runSimEngine sets x_r_Init, T_1_Init from the settling run).
+    fn initial_memory(&self, x: &[f64; N], u: &ModelInput) -> Self::Memory {
+        self.memory_start(x, u)
+    }
+    /// Whether [`Model::eval`] depends on the memory, so that the simulator must hold
+    /// [`Evaluation::memory_next`] after each accepted step (default false; the engine models:
+    /// [`CylinderTemp::OneIteration`]).
+    fn holds_memory(&self) -> bool {
+        false
+    }
+    /// What probably went wrong when a derivative is NaN or infinite (for the simulator's
+    /// error message).
+    fn nonfinite_hint(&self) -> &'static str {
+        if self.options().semantics.authors() {
+            "inputs far outside the model's range, or parameters without a physical operating point"
+        } else {
+            "the paper's equations have no guards: a pressure ratio or flow left its physical range; try --semantics authors"
+        }
     }
     /// Initial guess for the steady state at `d`, for iterative solvers.
     fn initial_guess(&self, d: &Drive) -> [f64; N];
@@ -339,17 +438,37 @@ pub trait Model<const N: usize>: Send + Sync {
 
     /// The converged cylinder-temperature fixed point (x_r, T_1) at `x`, `u` (the initial
     /// memory of a one-iteration simulation).
-    fn cylinder_fixed_point(&self, x: &[f64; N], u: &ModelInput) -> SeligerIterate
+    fn cylinder_fixed_point(&self, x: &[f64; N], u: &ModelInput) -> Self::Memory
     where
         Self: Sized,
     {
         let mut o = *self.options();
         o.cylinder_temp = CylinderTemp::Converged;
-        let start = SeligerIterate {
-            x_r: 0.0,
-            t_1: self.params().intake_manifold.t_im,
-        };
+        let start = self.memory_start(x, u);
         self.with_options(o).eval(x, u, start).memory_next
+    }
+}
+
+/// The engine models' memory at the start of an evaluation: (x_r, T_1) = (0, T_im) with the
+/// intake manifold temperature parameter T_im [K].
+pub(crate) fn engine_memory_start(p: &Params) -> SeligerIterate {
+    SeligerIterate {
+        x_r: 0.0,
+        t_1: p.intake_manifold.t_im,
+    }
+}
+
+/// The engine models' memory of a simulation starting at `x`, `u`: the converged fixed point in
+/// one-iteration mode (else the start, which converged evaluations do not read).
+pub(crate) fn engine_initial_memory<const N: usize, M: Model<N, Memory = SeligerIterate>>(
+    m: &M,
+    x: &[f64; N],
+    u: &ModelInput,
+) -> SeligerIterate {
+    if m.options().cylinder_temp == CylinderTemp::OneIteration {
+        m.cylinder_fixed_point(x, u)
+    } else {
+        m.memory_start(x, u)
     }
 }
 

@@ -1,6 +1,12 @@
 //! Dormand-Prince 5(4) coefficients with Hairer's 4th-order dense output
 //! (E. Hairer, S. P. Norsett, G. Wanner, Solving Ordinary Differential Equations I, 2nd ed.,
-//! Springer 1993, Table 5.2 of section II.5 and the dense output of section II.6; `dopri5.f`).
+//! Springer 1993, Table 5.2 of section II.5 and the dense output of section II.6; `dopri5.f`),
+//! and the method's trial step.
+
+use super::integrator::{Integrator, Trial};
+use super::segment::SegmentInputs;
+use super::SimError;
+use crate::model::Model;
 
 pub(crate) const C2: f64 = 1.0 / 5.0;
 pub(crate) const C3: f64 = 3.0 / 10.0;
@@ -86,6 +92,62 @@ impl<const N: usize> Dense<N> {
                 + theta
                     * (self.r[1][i]
                         + t1 * (self.r[2][i] + theta * (self.r[3][i] + t1 * self.r[4][i])))
+        })
+    }
+}
+
+impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
+    /// One Dormand-Prince 5(4) trial step.
+    pub(super) fn step_dopri5(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        t_new: f64,
+        f0: &[f64; N],
+    ) -> Result<Trial<N, M::Memory>, SimError> {
+        let y = self.y;
+        let k1 = *f0;
+        let mut yt = [0.0; N];
+        for i in 0..N {
+            yt[i] = y[i] + h * A21 * k1[i];
+        }
+        let k2 = self.rhs(inp, t + C2 * h, &yt)?.dx;
+        for i in 0..N {
+            yt[i] = y[i] + h * (A31 * k1[i] + A32 * k2[i]);
+        }
+        let k3 = self.rhs(inp, t + C3 * h, &yt)?.dx;
+        for i in 0..N {
+            yt[i] = y[i] + h * (A41 * k1[i] + A42 * k2[i] + A43 * k3[i]);
+        }
+        let k4 = self.rhs(inp, t + C4 * h, &yt)?.dx;
+        for i in 0..N {
+            yt[i] = y[i] + h * (A51 * k1[i] + A52 * k2[i] + A53 * k3[i] + A54 * k4[i]);
+        }
+        let k5 = self.rhs(inp, t + C5 * h, &yt)?.dx;
+        for i in 0..N {
+            yt[i] =
+                y[i] + h * (A61 * k1[i] + A62 * k2[i] + A63 * k3[i] + A64 * k4[i] + A65 * k5[i]);
+        }
+        let k6 = self.rhs(inp, t_new, &yt)?.dx;
+        let mut y1 = [0.0; N];
+        for i in 0..N {
+            y1[i] =
+                y[i] + h * (A71 * k1[i] + A73 * k3[i] + A74 * k4[i] + A75 * k5[i] + A76 * k6[i]);
+        }
+        let ev7 = self.rhs(inp, t_new, &y1)?;
+        let k7 = ev7.dx;
+        let mut e = [0.0; N];
+        for i in 0..N {
+            e[i] =
+                h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
+        }
+        Ok(Trial {
+            y1,
+            err: self.error_norm(&y, &y1, &e),
+            e,
+            dense: Some(Dense::new(&y, &y1, &k1, &k3, &k4, &k5, &k6, &k7, h)),
+            f1: Some((k7, ev7.memory_next)),
         })
     }
 }

@@ -11,8 +11,15 @@
 //! A W-method: its order does not depend on J being the exact Jacobian, so a lagged
 //! finite-difference Jacobian is reused over several steps (and the non-autonomous f_t term may
 //! be omitted). Order 3, embedded order 2, L-stable, stiffly accurate. Coefficients as published
-//! (to 17 digits).
+//! (to 17 digits). Below the tableau: the method's trial step on the [`Integrator`].
 #![allow(clippy::excessive_precision)]
+
+use super::error::dump;
+use super::integrator::{Integrator, LagSegment, Trial};
+use super::segment::SegmentInputs;
+use super::SimError;
+use crate::model::Model;
+use crate::numerics::linalg;
 
 pub(crate) const GAMMA: f64 = 0.435_866_521_508_459;
 
@@ -45,6 +52,251 @@ pub(crate) const BH4: f64 = 0.217_933_260_754_229_5;
 pub(crate) const JAC_MAX_AGE: usize = 12;
 /// A rejected step recomputes the Jacobian if it is at least this many steps old.
 pub(crate) const JAC_REFRESH_ON_REJECT: usize = 3;
+
+/// LU factors of I - gamma h J_zz, where J_zz is the Jacobian restricted to the states the
+/// W-method integrates (all states, or all but the closed-form lag states if `reduced`), and J_zz
+/// itself, both in the leading m x m block of the z coordinates.
+pub(super) struct IterationMatrix<const N: usize> {
+    /// Step size [s] the factors were made for.
+    pub(super) h: f64,
+    /// Whether the lag states are left out.
+    pub(super) reduced: bool,
+    /// The integrated states: z[0..m] are state indices.
+    pub(super) z: [usize; N],
+    pub(super) m: usize,
+    pub(super) lu: [[f64; N]; N],
+    pub(super) piv: [usize; N],
+    pub(super) jz: [[f64; N]; N],
+}
+
+impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
+    /// Finite-difference Jacobian df/dy at (t, y) with f(t, y) = f0 (forward differences,
+    /// step sqrt(eps) relative to max(|y_i|, scale_i)); the columns with `skip[c]` stay zero.
+    fn jacobian(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        f0: &[f64; N],
+        skip: &[bool; N],
+    ) -> Result<[[f64; N]; N], SimError> {
+        let y = self.y;
+        let scales = self.model.state_scales();
+        let mut j = [[0.0; N]; N];
+        for c in (0..N).filter(|&c| !skip[c]) {
+            let mut yp = y;
+            let mut d = 1.5e-8 * y[c].abs().max(scales[c]);
+            if yp[c] + d > self.bounds[c].1 {
+                d = -d;
+            }
+            yp[c] += d;
+            let fp = self.rhs(inp, t, &yp)?.dx;
+            for r in 0..N {
+                j[r][c] = (fp[r] - f0[r]) / d;
+            }
+        }
+        self.stats.jacobians += 1;
+        Ok(j)
+    }
+
+    /// One trial step of the Rosenbrock-W method ROS34PW2 (see [`rosw`]).
+    ///
+    /// On a segment with closed-form lag states (`lag_seg` not empty) the method integrates the
+    /// other states only, as the non-autonomous system dz/dt = f_z(z, a(t), u(t)) with the exact
+    /// lag solution a(t): the stages take a(t + alpha_i h), the iteration matrix is
+    /// I - gamma h J_zz (J without the lag rows and columns), and the lag states' error estimate
+    /// is zero. This is the W-method applied to the smaller system, so order and error control
+    /// are those of ROS34PW2.
+    pub(super) fn step_rosw(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        t_new: f64,
+        f0: &[f64; N],
+    ) -> Result<Trial<N, M::Memory>, SimError> {
+        // moved out for the step (the stages borrow self mutably), put back whatever happens
+        let lag_seg = std::mem::take(&mut self.lag_seg);
+        let trial = self
+            .iteration_matrix(inp, t, h, f0, &lag_seg)
+            .and_then(|()| {
+                let w = self.lu.take().expect("iteration matrix set up");
+                let trial = self.rosw_stages(inp, t, h, t_new, f0, &lag_seg, &w);
+                self.lu = Some(w);
+                trial
+            });
+        self.lag_seg = lag_seg;
+        trial
+    }
+
+    /// Make `self.lu` the iteration matrix for step size `h` (lagged Jacobian).
+    ///
+    /// (I - gamma h J) is refactored only when J, h or the set of lag states changed, e.g. not
+    /// for the second of two equal steps that split a segment remainder (h equal up to rounding:
+    /// the factors of I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
+    /// J' = (h'/h) J, a W-method admits any J', and the stage terms h J' g k use the same J').
+    fn iteration_matrix(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        f0: &[f64; N],
+        lag_seg: &[LagSegment],
+    ) -> Result<(), SimError> {
+        let reduced = !lag_seg.is_empty();
+        let mut is_lag = [false; N];
+        for l in lag_seg {
+            is_lag[l.state] = true;
+        }
+        if self.jac.is_none() || self.jac_age >= JAC_MAX_AGE || (!reduced && !self.jac_full) {
+            let j = self.jacobian(inp, t, f0, &is_lag)?;
+            self.jac = Some(j);
+            self.jac_full = !reduced;
+            self.jac_age = 0;
+            self.lu = None;
+        }
+        if let Some(w) = &self.lu {
+            if w.reduced == reduced && (w.h - h).abs() <= 1e-9 * h {
+                return Ok(());
+            }
+        }
+        let j = self.jac.as_ref().expect("Jacobian set above");
+        let mut w = self.lu.take().unwrap_or_else(|| {
+            Box::new(IterationMatrix {
+                h,
+                reduced,
+                z: [0; N],
+                m: 0,
+                lu: [[0.0; N]; N],
+                piv: [0; N],
+                jz: [[0.0; N]; N],
+            })
+        });
+        w.h = h;
+        w.reduced = reduced;
+        w.m = 0;
+        for i in (0..N).filter(|&i| !is_lag[i]) {
+            w.z[w.m] = i;
+            w.m += 1;
+        }
+        let (m, z) = (w.m, w.z);
+        for a in 0..m {
+            for b in 0..m {
+                w.jz[a][b] = j[z[a]][z[b]];
+                w.lu[a][b] = -GAMMA * h * w.jz[a][b];
+            }
+            w.lu[a][a] += 1.0;
+        }
+        let IterationMatrix { lu, piv, .. } = &mut *w;
+        if !linalg::lu_factor(lu, piv, m) {
+            return Err(self.singular(t, h));
+        }
+        self.stats.lu += 1;
+        self.lu = Some(w);
+        Ok(())
+    }
+
+    /// The four stages of ROS34PW2 with the iteration matrix `w`.
+    #[allow(clippy::too_many_arguments)]
+    fn rosw_stages(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        t_new: f64,
+        f0: &[f64; N],
+        lag_seg: &[LagSegment],
+        w: &IterationMatrix<N>,
+    ) -> Result<Trial<N, M::Memory>, SimError> {
+        let (m, z) = (w.m.min(N), &w.z);
+        let js = w.h / h;
+        let y = self.y;
+        // k = (I - gamma h J_zz)^-1 h (f + J_zz g) on the z states; 0 on the lag states
+        // (their values are exact, the increments are not used)
+        let stage = |f: &[f64; N], g: Option<&[f64; N]>| -> [f64; N] {
+            let mut r = [0.0; N];
+            match g {
+                None => {
+                    for a in 0..m {
+                        r[a] = h * f[z[a]];
+                    }
+                }
+                Some(g) => {
+                    let mut gz = [0.0; N];
+                    for b in 0..m {
+                        gz[b] = g[z[b]];
+                    }
+                    for a in 0..m {
+                        let row = &w.jz[a];
+                        let mut s = 0.0;
+                        for b in 0..m {
+                            s += row[b] * gz[b];
+                        }
+                        r[a] = h * (f[z[a]] + js * s);
+                    }
+                }
+            }
+            linalg::lu_solve(&w.lu, &w.piv, &mut r, m);
+            let mut k = [0.0; N];
+            for a in 0..m {
+                k[z[a]] = r[a];
+            }
+            k
+        };
+        // exact lag states at t + s
+        let exact = |yt: &mut [f64; N], s: f64| {
+            for l in lag_seg {
+                yt[l.state] = l.advance(t, y[l.state], s);
+            }
+        };
+        let k1 = stage(f0, None);
+        // stage 2
+        let mut y2: [f64; N] = std::array::from_fn(|i| y[i] + A21 * k1[i]);
+        exact(&mut y2, ALPHA2 * h);
+        let f2 = self.rhs(inp, t + ALPHA2 * h, &y2)?.dx;
+        let k2 = stage(&f2, Some(&std::array::from_fn(|i| G21 * k1[i])));
+        // stage 3
+        let mut y3: [f64; N] = std::array::from_fn(|i| y[i] + A31 * k1[i] + A32 * k2[i]);
+        exact(&mut y3, ALPHA3 * h);
+        let f3 = self.rhs(inp, t + ALPHA3 * h, &y3)?.dx;
+        let k3 = stage(
+            &f3,
+            Some(&std::array::from_fn(|i| G31 * k1[i] + G32 * k2[i])),
+        );
+        // stage 4 (a41 = a42 = 0, a43 = 1, alpha4 = 1)
+        let mut y4: [f64; N] = std::array::from_fn(|i| y[i] + k3[i]);
+        exact(&mut y4, t_new - t);
+        let f4 = self.rhs(inp, t_new, &y4)?.dx;
+        let g4: [f64; N] = std::array::from_fn(|i| G41 * k1[i] + G42 * k2[i] + G43 * k3[i]);
+        let k4 = stage(&f4, Some(&g4));
+        let mut y1: [f64; N] =
+            std::array::from_fn(|i| y[i] + B1 * k1[i] + B2 * k2[i] + B3 * k3[i] + B4 * k4[i]);
+        for l in lag_seg {
+            y1[l.state] = y4[l.state];
+        }
+        let e: [f64; N] = std::array::from_fn(|i| {
+            (B1 - BH1) * k1[i] + (B2 - BH2) * k2[i] + (B3 - BH3) * k3[i] + (B4 - BH4) * k4[i]
+        });
+        Ok(Trial {
+            y1,
+            err: self.error_norm(&self.y, &y1, &e),
+            e,
+            dense: None,
+            f1: None,
+        })
+    }
+
+    fn singular(&self, t: f64, h: f64) -> SimError {
+        SimError::NonFinite {
+            t,
+            what: "Newton matrix (I - gamma h J) for",
+            name: format!("step h = {h:e}"),
+            value: f64::NAN,
+            state: dump(self.model, &self.y),
+            hint:
+                "the Jacobian is singular or non-finite; the model may have left its valid region",
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

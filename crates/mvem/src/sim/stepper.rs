@@ -11,9 +11,9 @@
 //! The command history is kept as an [`InputSchedule`] of zero-order-hold rows and trimmed to
 //! the largest delay, so a step costs the same at t = 10 s and at t = 1800 s.
 
-use super::{Integrator, IterationMatrix, SimError, SimOptions, SimStats, Solution};
-use crate::components::cylinder::SeligerIterate;
-use crate::model::{AnyModel, Drive, Engine10, Engine12, Engine8, Model, ModelInput, Signals};
+use super::rosw::IterationMatrix;
+use super::{Integrator, SimError, SimOptions, SimStats, Solution};
+use crate::model::{Drive, Engine10, Engine12, Engine8, Model, ModelInput, Signals};
 use crate::sim::{InputSchedule, Side};
 
 /// The integrator's warm state carried between samples.
@@ -32,10 +32,12 @@ pub struct Plant<const N: usize, M: Model<N>> {
     opts: SimOptions,
     t: f64,
     y: [f64; N],
-    memory: SeligerIterate,
+    memory: M::Memory,
     /// Command history: zero-order-hold rows (a change at t is two rows at t).
     times: Vec<f64>,
     rows: Vec<[f64; 4]>,
+    /// The model's input delays [s] ([`Model::input_delays`]) of channels 2 and 3.
+    delays: [f64; 2],
     /// Largest transport delay [s]: history older than t - tau_max is dropped.
     tau_max: f64,
     carry: Carry<N>,
@@ -49,16 +51,9 @@ pub struct Plant<const N: usize, M: Model<N>> {
 const NO_OUTPUT: f64 = 1e300;
 
 impl<const N: usize, M: Model<N>> Plant<N, M> {
-    /// Start at `t0` in the steady state of the commands `d` (held since forever: the delayed
-    /// commands equal `d`). Errors as [`simulate`](super::simulate) with `Start::SteadyState`.
-    pub fn new(model: M, d: Drive, t0: f64, opts: &SimOptions) -> Result<Self, SimError> {
-        check_drive(&d, t0)?;
-        let ss = crate::analysis::steady::steady_state(&model, &d)
-            .map_err(|e| SimError::Initial(e.to_string()))?;
-        Self::from_state(model, d, t0, ss.x, opts)
-    }
-
-    /// Start at `t0` in the state `y0` with the commands `d` held since forever.
+    /// Start at `t0` in the state `y0` with the commands `d` held since forever (the delayed
+    /// commands equal `d`). Starting at the steady state of `d` is one layer up:
+    /// `analysis::steady::plant_from_steady`.
     pub fn from_state(
         model: M,
         d: Drive,
@@ -73,24 +68,19 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         }
         let mut opts = opts.clone();
         opts.dt_out = NO_OUTPUT;
-        let p = model.params();
-        let tau_max = p
-            .egr_actuator
-            .tau_degr
-            .max(p.vgt_actuator.tau_dvgt)
-            .max(0.0);
+        let delays = model.input_delays().delayed;
+        let tau_max = delays[0].max(delays[1]).max(0.0);
+        let memory = model.memory_start(&y0, &ModelInput::constant(d));
         let scratch = Solution::new(&model.state_names());
         let mut me = Self {
             model,
             opts,
             t: t0,
             y: y0,
-            memory: SeligerIterate {
-                x_r: 0.0,
-                t_1: 300.0,
-            },
+            memory,
             times: vec![t0],
             rows: vec![d.to_array()],
+            delays,
             tau_max,
             carry: Carry {
                 h: 0.0,
@@ -221,22 +211,11 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         self.memory = run.memory;
         self.t = t_end;
         // signals at t_end from the left: commands d, delayed commands of the history
-        let p = self.model.params();
         let mut hint = 0;
         let u = ModelInput {
             now: d,
-            u_egr_delayed: sched.value_hint(
-                2,
-                t_end - p.egr_actuator.tau_degr,
-                Side::Left,
-                &mut hint,
-            ),
-            u_vgt_delayed: sched.value_hint(
-                3,
-                t_end - p.vgt_actuator.tau_dvgt,
-                Side::Left,
-                &mut hint,
-            ),
+            u_egr_delayed: sched.value_hint(2, t_end - self.delays[0], Side::Left, &mut hint),
+            u_vgt_delayed: sched.value_hint(3, t_end - self.delays[1], Side::Left, &mut hint),
         };
         self.signals = self.model.eval(&self.y, &u, self.memory).signals;
         Ok(&self.signals)
@@ -281,15 +260,6 @@ macro_rules! each {
 }
 
 impl AnyPlant {
-    /// Start in the steady state of `d` at `t0` (see [`Plant::new`]).
-    pub fn new(model: AnyModel, d: Drive, t0: f64, opts: &SimOptions) -> Result<Self, SimError> {
-        Ok(match model {
-            AnyModel::Eight(m) => AnyPlant::Eight(Box::new(Plant::new(m, d, t0, opts)?)),
-            AnyModel::Ten(m) => AnyPlant::Ten(Box::new(Plant::new(m, d, t0, opts)?)),
-            AnyModel::Twelve(m) => AnyPlant::Twelve(Box::new(Plant::new(m, d, t0, opts)?)),
-        })
-    }
-
     /// See [`Plant::step`].
     pub fn step(&mut self, dt: f64, d: Drive) -> Result<&Signals, SimError> {
         each!(self, p => p.step(dt, d))
@@ -335,6 +305,8 @@ impl AnyPlant {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::steady::{any_plant_from_steady, plant_from_steady};
+    use crate::model::AnyModel;
     use crate::sim::{simulate, Start};
 
     /// The paper's VGT step (Fig. 9: 75 -> 65 % at 1 s, 1500 rpm, 110 mg, u_egr 80 %), stepped
@@ -346,8 +318,9 @@ mod tests {
         let d1 = Drive::new(1500.0, 110.0, 80.0, 65.0);
         let sched = InputSchedule::steps(d0, &[(1.0, 3, 65.0)]).unwrap();
         let opts = SimOptions::default();
-        let sol = simulate(&m, &sched, 0.0, 4.0, Start::SteadyState, &opts).unwrap();
-        let mut plant = Plant::new(m.clone(), d0, 0.0, &opts).unwrap();
+        let x0 = crate::analysis::steady::steady_state(&m, &d0).unwrap().x;
+        let sol = simulate(&m, &sched, 0.0, 4.0, Start::State(x0), &opts).unwrap();
+        let mut plant = plant_from_steady(m.clone(), d0, 0.0, &opts).unwrap();
         let names = m.state_names();
         let scales = m.state_scales();
         let w_c = sol.get("W_c").unwrap();
@@ -389,7 +362,7 @@ mod tests {
     fn bad_commands_and_steps_are_errors() {
         let m = Engine8::published();
         let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
-        let mut plant = Plant::new(m, d0, 0.0, &SimOptions::default()).unwrap();
+        let mut plant = plant_from_steady(m, d0, 0.0, &SimOptions::default()).unwrap();
         let e = plant.step(0.0, d0).unwrap_err().to_string();
         assert!(e.contains("dt"), "{e}");
         let e = plant
@@ -412,7 +385,7 @@ mod tests {
                 Default::default(),
             )
             .unwrap();
-            let mut p = AnyPlant::new(m, d0, 0.0, &SimOptions::default()).unwrap();
+            let mut p = any_plant_from_steady(m, d0, 0.0, &SimOptions::default()).unwrap();
             let w0 = p.signals().w_c;
             for _ in 0..50 {
                 p.step(0.01, Drive::new(1500.0, 110.0, 80.0, 65.0)).unwrap();

@@ -630,7 +630,8 @@ pub fn step_set(
     t_end: f64,
     sample_rate_hz: f64,
 ) -> Result<DynamicData, LabError> {
-    use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+    use crate::analysis::steady::simulate_from_steady;
+    use crate::sim::{InputSchedule, SimOptions};
     let m = AnyModel::new(opts.model, p.clone(), ModelOptions::default())
         .map_err(|e| LabError::Params(e.to_string()))?;
     let sched =
@@ -642,7 +643,7 @@ pub fn step_set(
         dt_out: 1.0 / (sample_rate_hz * ratio as f64),
         ..SimOptions::default()
     };
-    let sol = crate::dispatch!(&m, m => simulate(m, &sched, 0.0, t_end, Start::SteadyState, &so))
+    let sol = crate::dispatch!(&m, m => simulate_from_steady(m, &sched, 0.0, t_end, &so))
         .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
     let idx: Vec<usize> = (0..sol.len()).step_by(ratio).collect();
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(name_seed(opts.seed, name)));

@@ -1,10 +1,10 @@
 //! Parameter tuning: the least-squares machinery the tuning steps are built on.
 //!
-//! - [`lsq`]: bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
+//! - [`lsq`] (in [`crate::numerics`], re-exported here): bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
 //!   scaling), finite-difference or user Jacobians, typed errors, linearized parameter
 //!   statistics for identifiability reports. Verified on the NIST StRD nonlinear regression
 //!   problems (`tests/nist.rs`, `docs/nist.md`).
-//! - [`varpro`]: separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
+//! - [`varpro`] (in [`crate::numerics`], re-exported here): separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
 //! - [`data`]: campaign formats (stationary/dynamic CSV, manifest) with validated loading.
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
@@ -21,10 +21,10 @@
 pub mod complete;
 pub mod data;
 pub mod lab;
-pub mod lsq;
 pub mod pipeline;
 pub mod steps;
 pub mod twelve;
 pub mod uncertainty;
 pub mod validate;
-pub mod varpro;
+
+pub use crate::numerics::{lsq, varpro};

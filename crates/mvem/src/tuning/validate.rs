@@ -18,9 +18,10 @@ use super::data::{
     load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
 };
 use super::steps::{self, rel_errors, StepError};
+use crate::analysis::steady::simulate_from_steady;
 use crate::model::{AnyModel, ModelOptions, ModelOrder};
 use crate::params::Params;
-use crate::sim::{simulate, InputSchedule, SimOptions, Start};
+use crate::sim::{InputSchedule, SimOptions};
 use serde::Serialize;
 use std::path::Path;
 
@@ -132,7 +133,7 @@ pub fn simulate_set(
         rtol,
         ..SimOptions::default()
     };
-    crate::dispatch!(&m, m => simulate(m, &sched, t0, t_end, Start::SteadyState, &so))
+    crate::dispatch!(&m, m => simulate_from_steady(m, &sched, t0, t_end, &so))
         .map_err(|e| e.to_string())
 }
 

@@ -129,7 +129,7 @@ type DerivFn<'a> = Box<dyn FnMut(&[f64], usize) -> DMatrix<f64> + 'a>;
 /// A separable least-squares problem `y ~ Phi(alpha) c` (builder; see the module docs).
 ///
 /// ```
-/// use mvem::tuning::varpro::Varpro;
+/// use mvem::numerics::varpro::Varpro;
 /// use nalgebra::DMatrix;
 /// // y = 2 exp(-0.5 t) + 1 exp(-3 t): alpha = (0.5, 3), c = (2, 1).
 /// let t: Vec<f64> = (0..30).map(|i| 0.1 * i as f64).collect();
@@ -533,7 +533,7 @@ mod tests {
             })
             .fit(&[0.3, 2.0])
             .unwrap();
-        let joint = crate::tuning::lsq::least_squares(
+        let joint = crate::numerics::lsq::least_squares(
             |p: &[f64]| {
                 t.iter()
                     .enumerate()

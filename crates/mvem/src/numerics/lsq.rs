@@ -458,7 +458,7 @@ pub fn param_stats(jacobian: &DMatrix<f64>, residuals: &[f64]) -> ParamStats {
 /// Jacobian (see the module documentation).
 ///
 /// ```
-/// use mvem::tuning::lsq::{least_squares, Bounds, LsqOptions};
+/// use mvem::numerics::lsq::{least_squares, Bounds, LsqOptions};
 /// // Fit y = a exp(b t) to exact data with b bounded to [-2, 0].
 /// let t = [0.0f64, 0.5, 1.0, 1.5, 2.0];
 /// let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();

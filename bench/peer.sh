@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Side-by-side WHTC timing of mvem and a C/SUNDIALS-CVODE peer (the 8-state model hand-ported to
+# C, BDF + Newton + dense solver, stop time at every input row), alternating the two programs.
+#
+# Usage: bench/peer.sh PEER_DIR [ROUNDS]
+#   PEER_DIR  a checkout of the peer (Makefile, whtc_cvode.c, model.c, x0.txt); it is copied to a
+#             temporary directory and built there with `make` (needs libsundials-dev; Debian 12:
+#             SUNDIALS 6.4.1). Nothing of it enters this repository.
+#   ROUNDS    alternated rounds (default 7); each round runs mvem's integration, the peer's
+#             integration, and both whole processes with CSV output once.
+#   MVEM_BIN  (environment) an already built `mvem` binary to use instead of building one.
+#
+# Prints the load (uptime) before and after, per-round times, and the medians and ratios
+# mvem / peer of the integration alone (mvem: `mvem bench` wall time of one run from the steady
+# state; peer: integrate_s_min of one run) and of the whole process writing CSV (wall clock of
+# `mvem simulate --scenario whtc --dt 0.1` vs the peer with --out, both at rtol 1e-6).
+set -euo pipefail
+
+peer_src=${1:?usage: bench/peer.sh PEER_DIR [ROUNDS]}
+rounds=${2:-7}
+root=$(cd "$(dirname "$0")/.." && pwd)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+cp -r "$peer_src" "$work/peer"
+make -s -C "$work/peer" whtc_cvode >/dev/null
+if [ -z "${MVEM_BIN:-}" ]; then
+    cargo build --release -q -p mvem-cli --manifest-path "$root/Cargo.toml"
+fi
+mvem=${MVEM_BIN:-$root/target/release/mvem}
+inputs="$root/data/whtc_inputs_10hz.csv"
+params="$root/data/wahlstrom_eriksson_2011_parameters.json"
+
+now() { date +%s.%N; }
+median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
+
+echo "load before: $(uptime)"
+: >"$work/mi"; : >"$work/pi"; : >"$work/mw"; : >"$work/pw"
+for r in $(seq 1 "$rounds"); do
+    # integration alone
+    mi=$("$mvem" bench --repeat 1 --no-reference --evals 1 --dt 0.1 |
+        awk '/wall time/ {v=$4; u=$5; print (u ~ /^ms/) ? v/1000 : v}')
+    pi=$("$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
+        --dt 0.1 --mode stop --rtol 1e-6 2>&1 |
+        tr ' ' '\n' | awk -F= '/^integrate_s_min=/ {print $2}')
+    # whole process with CSV output
+    t=$(now); "$mvem" simulate --scenario whtc --dt 0.1 --out "$work/mvem.csv" >/dev/null 2>&1
+    mw=$(echo "$(now) - $t" | bc -l)
+    t=$(now); "$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
+        --dt 0.1 --mode stop --rtol 1e-6 --out "$work/peer.csv" --quiet 2>/dev/null
+    pw=$(echo "$(now) - $t" | bc -l)
+    printf 'round %d: integration mvem %.4f s, peer %.4f s; whole process mvem %.4f s, peer %.4f s\n' \
+        "$r" "$mi" "$pi" "$mw" "$pw"
+    echo "$mi" >>"$work/mi"; echo "$pi" >>"$work/pi"; echo "$mw" >>"$work/mw"; echo "$pw" >>"$work/pw"
+done
+echo "load after: $(uptime)"
+mi=$(median <"$work/mi"); pi=$(median <"$work/pi"); mw=$(median <"$work/mw"); pw=$(median <"$work/pw")
+printf 'median integration:   mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mi" "$pi" "$(echo "$mi / $pi" | bc -l)"
+printf 'median whole process: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mw" "$pw" "$(echo "$mw / $pw" | bc -l)"

@@ -1,0 +1,86 @@
+//! Simulation errors: what failed, when, and the state at that time.
+
+use crate::model::Model;
+use std::fmt;
+
+/// A failed simulation: what, when, and the state at that time.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// An option is out of range.
+    #[error("option {field} = {value}: {constraint}")]
+    BadOption {
+        /// Option name.
+        field: &'static str,
+        /// Value.
+        value: f64,
+        /// Constraint.
+        constraint: &'static str,
+    },
+    /// The end time is not after the start time.
+    #[error("end time {t_end} s must be after start time {t0} s")]
+    BadInterval {
+        /// Start.
+        t0: f64,
+        /// End.
+        t_end: f64,
+    },
+    /// A derivative or the initial state is NaN or infinite.
+    #[error("non-finite {what} {name} = {value} at t = {t} s; state: {state}. Hint: {hint}")]
+    NonFinite {
+        /// Time [s].
+        t: f64,
+        /// "derivative of" / "initial state".
+        what: &'static str,
+        /// State name.
+        name: String,
+        /// Value.
+        value: f64,
+        /// The state at that time, formatted.
+        state: StateDump,
+        /// What probably went wrong.
+        hint: &'static str,
+    },
+    /// The step size fell below the resolution of the time axis.
+    #[error("step size {h:e} s too small at t = {t} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight")]
+    StepSizeTooSmall {
+        /// Time [s].
+        t: f64,
+        /// Step size [s].
+        h: f64,
+        /// The state whose error estimate limited the step, with that error.
+        limiting: String,
+        /// State.
+        state: StateDump,
+    },
+    /// More steps than allowed.
+    #[error("more than {max_steps} steps before t = {t} s; state: {state}. Hint: raise SimOptions::max_steps for long or fast-varying inputs, loosen a very tight tolerance, or check the inputs (equilibrium lost, inputs far out of range make the model stiff)")]
+    TooManySteps {
+        /// Limit.
+        max_steps: usize,
+        /// Time reached.
+        t: f64,
+        /// State.
+        state: StateDump,
+    },
+}
+
+/// A state vector with its names, for error messages.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateDump(pub Vec<(&'static str, f64)>);
+
+impl fmt::Display for StateDump {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parts: Vec<String> = self.0.iter().map(|(n, v)| format!("{n}={v:.6e}")).collect();
+        write!(f, "[{}]", parts.join(", "))
+    }
+}
+
+pub(super) fn dump<const N: usize, M: Model<N>>(m: &M, y: &[f64; N]) -> StateDump {
+    StateDump(
+        m.state_names()
+            .iter()
+            .copied()
+            .zip(y.iter().copied())
+            .collect(),
+    )
+}

@@ -1,0 +1,524 @@
+//! The restartable integrator: step-size control, segments between stop times, dense output,
+//! closed-form lag states. Each method's stages live next to its tableau ([`super::rosw`],
+//! [`super::dopri5`]).
+
+use super::dopri5::Dense;
+use super::error::dump;
+use super::input::InputSchedule;
+use super::options::{Method, SimOptions};
+use super::rosw::{self, IterationMatrix};
+use super::segment::{stop_times, SegmentInputs};
+use super::solution::{SimStats, Solution};
+use super::SimError;
+use crate::model::{LinearLag, Model};
+
+/// Restartable integrator state (the solver does not own the model or the inputs).
+pub struct Integrator<'a, const N: usize, M: Model<N>> {
+    pub(super) model: &'a M,
+    pub(super) sched: &'a InputSchedule,
+    pub(super) opts: SimOptions,
+    /// Current time [s].
+    pub t: f64,
+    /// Current state.
+    pub y: [f64; N],
+    /// The model's memory ([`Model::Memory`]), held from the last accepted step when
+    /// [`Model::holds_memory`].
+    pub memory: M::Memory,
+    pub(super) f: Option<[f64; N]>,
+    pub(super) h: f64,
+    pub(super) err_old: f64,
+    pub(super) atol: [f64; N],
+    pub(super) bounds: [(f64, f64); N],
+    pub(super) next_out: u64,
+    pub(super) t_out0: f64,
+    pub(super) jac: Option<[[f64; N]; N]>,
+    /// Iteration matrix of the current Jacobian and step size (boxed: it is moved out and back
+    /// at every step).
+    pub(super) lu: Option<Box<IterationMatrix<N>>>,
+    pub(super) jac_age: usize,
+    /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
+    pub(super) jac_full: bool,
+    /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
+    pub(super) lags: Vec<LinearLag>,
+    /// Their closed-form solution on the current segment (empty: the segment is integrated
+    /// with the W-method in all states).
+    pub(super) lag_seg: Vec<LagSegment>,
+    /// Statistics so far.
+    pub stats: SimStats,
+}
+
+/// A lag state on one segment: `dx/dt = (c(t) - x)/tau` with the driving command
+/// `c(t) = c_a + beta (t - t_a)` (already saturated; linear on the whole segment).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LagSegment {
+    pub(super) state: usize,
+    tau: f64,
+    t_a: f64,
+    c_a: f64,
+    beta: f64,
+}
+
+impl LagSegment {
+    /// Exact solution at `t + s` from `x` at `t`:
+    /// x(t + s) = c(t + s) - beta tau + (x - c(t) + beta tau) exp(-s / tau).
+    #[inline]
+    pub(super) fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
+        let c = |t: f64| self.c_a + self.beta * (t - self.t_a);
+        let bt = self.beta * self.tau;
+        c(t + s) - bt + (x - c(t) + bt) * (-s / self.tau).exp()
+    }
+}
+
+/// What the integrator keeps of a model evaluation (not the signals, which are only needed at
+/// output samples: moving them costs more than the arithmetic of a step).
+pub(super) struct Rhs<const N: usize, Mem> {
+    pub(super) dx: [f64; N],
+    pub(super) memory_next: Mem,
+}
+
+/// Result of one trial step.
+pub(super) struct Trial<const N: usize, Mem> {
+    pub(super) y1: [f64; N],
+    pub(super) err: f64,
+    /// Local error estimate per state.
+    pub(super) e: [f64; N],
+    pub(super) dense: Option<Dense<N>>,
+    /// f(t_new, y1) and the model memory computed there, if the method has it.
+    pub(super) f1: Option<([f64; N], Mem)>,
+}
+
+/// Dense output of an accepted step.
+enum Interp<const N: usize> {
+    Dopri(Dense<N>),
+    Hermite {
+        y0: [f64; N],
+        y1: [f64; N],
+        f0: [f64; N],
+        f1: [f64; N],
+        h: f64,
+    },
+}
+
+impl<const N: usize> Interp<N> {
+    fn eval(&self, theta: f64) -> [f64; N] {
+        match self {
+            Interp::Dopri(d) => d.eval(theta),
+            Interp::Hermite { y0, y1, f0, f1, h } => {
+                // cubic Hermite interpolation (3rd order, matches ROS34PW2's order)
+                let t = theta;
+                let h00 = (1.0 + 2.0 * t) * (1.0 - t) * (1.0 - t);
+                let h10 = t * (1.0 - t) * (1.0 - t);
+                let h01 = t * t * (3.0 - 2.0 * t);
+                let h11 = t * t * (t - 1.0);
+                std::array::from_fn(|i| {
+                    h00 * y0[i] + h10 * h * f0[i] + h01 * y1[i] + h11 * h * f1[i]
+                })
+            }
+        }
+    }
+}
+
+impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
+    /// Start at `(t0, y0)` with the model's [`Model::initial_memory`] there.
+    pub fn new(
+        model: &'a M,
+        sched: &'a InputSchedule,
+        t0: f64,
+        y0: [f64; N],
+        opts: &SimOptions,
+    ) -> Result<Self, SimError> {
+        opts.validate()?;
+        for (i, v) in y0.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(SimError::NonFinite {
+                    t: t0,
+                    what: "initial state",
+                    name: model.state_names()[i].to_string(),
+                    value: *v,
+                    state: dump(model, &y0),
+                    hint: "give a finite initial state",
+                });
+            }
+        }
+        let bounds = model.state_bounds();
+        let y = crate::model::clip_state(&y0, &bounds);
+        let scales = model.state_scales();
+        // The model's memory for a simulation starting here (the engine models in one-iteration
+        // mode: the converged cylinder fixed point of the initial state, as the authors'
+        // runSimEngine sets x_r_Init, T_1_Init from the settling run).
+        let memory =
+            model.initial_memory(&y, &SegmentInputs::new(model, sched, t0, t0 + 1.0).at(t0));
+        let mut me = Self {
+            model,
+            sched,
+            opts: opts.clone(),
+            t: t0,
+            y,
+            memory,
+            f: None,
+            h: 0.0,
+            err_old: 1e-4,
+            atol: std::array::from_fn(|i| opts.atol * scales[i]),
+            bounds,
+            next_out: 0,
+            t_out0: t0,
+            jac: None,
+            lu: None,
+            jac_age: usize::MAX,
+            jac_full: false,
+            lags: Vec::new(),
+            lag_seg: Vec::new(),
+            stats: SimStats::default(),
+        };
+        if opts.exact_actuators && opts.method == Method::Rosenbrock34 {
+            let lags = model.linear_lags();
+            // the closed form knows no integrator limits: only for unbounded lag states
+            let ok = lags.iter().all(|l| {
+                l.state < N
+                    && l.tau.is_finite()
+                    && l.tau > 0.0
+                    && bounds[l.state] == (f64::NEG_INFINITY, f64::INFINITY)
+            });
+            if ok {
+                me.lag_seg.reserve(lags.len());
+                me.lags = lags;
+            }
+        }
+        Ok(me)
+    }
+
+    fn inputs(&self, a: f64, b: f64) -> SegmentInputs<'a> {
+        SegmentInputs::new(self.model, self.sched, a, b)
+    }
+
+    #[inline]
+    pub(super) fn rhs(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        y: &[f64; N],
+    ) -> Result<Rhs<N, M::Memory>, SimError> {
+        self.stats.rhs_evals += 1;
+        let u = inp.at(t);
+        let ev = self.model.derivatives(y, &u, self.memory);
+        if !ev.dx.iter().sum::<f64>().is_finite() {
+            let i = ev.dx.iter().position(|v| !v.is_finite()).unwrap_or(0);
+            return Err(SimError::NonFinite {
+                t,
+                what: "derivative of",
+                name: self.model.state_names()[i].to_string(),
+                value: ev.dx[i],
+                state: dump(self.model, y),
+                hint: self.model.nonfinite_hint(),
+            });
+        }
+        Ok(Rhs {
+            dx: ev.dx,
+            memory_next: ev.memory_next,
+        })
+    }
+
+    fn output(&mut self, inp: &mut SegmentInputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
+        let u = inp.at(t);
+        let ev = self.model.eval(y, &u, self.memory);
+        sol.push(t, y, &ev.signals);
+        self.stats.outputs += 1;
+    }
+
+    fn out_time(&self, k: u64) -> f64 {
+        self.t_out0 + k as f64 * self.opts.dt_out
+    }
+
+    /// Integrate to `t_end`, writing output samples at the output grid (and at `t_end` if
+    /// `final_sample`).
+    pub fn advance(
+        &mut self,
+        t_end: f64,
+        sol: &mut Solution,
+        final_sample: bool,
+    ) -> Result<(), SimError> {
+        let stops = if self.opts.stop_at_breakpoints {
+            stop_times(self.model, self.sched, self.t, t_end)
+        } else {
+            Vec::new()
+        };
+        let mut seg_ends: Vec<(f64, bool)> = stops;
+        seg_ends.push((t_end, false));
+        let mut inp = self.inputs(self.t, t_end);
+        for (b, jump) in seg_ends {
+            inp.set_segment(self.t, b);
+            self.plan_lags(&inp, self.t, b);
+            self.segment(&mut inp, b, sol)?;
+            if b < t_end {
+                self.stats.breakpoints += 1;
+            }
+            if jump {
+                self.f = None;
+            }
+        }
+        if final_sample {
+            // outputs strictly before t_end were written by the segments; t_end itself here,
+            // with the inputs of the last segment (left limit).
+            let mut inp = self.inputs(self.t - 1.0, self.t);
+            let y = self.y;
+            let t = self.t;
+            self.output(&mut inp, sol, t, &y);
+            while self.out_time(self.next_out) <= t_end + SegmentInputs::delta(t_end) {
+                self.next_out += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// The closed-form lag solutions on the segment `[a, b]`, if every lag's saturated command is
+    /// linear there (else none: the W-method integrates all states on this segment).
+    fn plan_lags(&mut self, inp: &SegmentInputs, a: f64, b: f64) {
+        self.lag_seg.clear();
+        for lag in &self.lags {
+            let Some((t_ref, v_ref, slope)) = inp.delayed_line(lag.command) else {
+                self.lag_seg.clear();
+                return;
+            };
+            let (va, vb) = (v_ref + slope * (a - t_ref), v_ref + slope * (b - t_ref));
+            let (lo, hi) = lag.saturation;
+            let (c_a, beta) = if lo <= va.min(vb) && va.max(vb) <= hi {
+                (va, slope)
+            } else if va.max(vb) <= lo {
+                (lo, 0.0)
+            } else if va.min(vb) >= hi {
+                (hi, 0.0)
+            } else {
+                // the command crosses its saturation inside the segment
+                self.lag_seg.clear();
+                return;
+            };
+            self.lag_seg.push(LagSegment {
+                state: lag.state,
+                tau: lag.tau,
+                t_a: a,
+                c_a,
+                beta,
+            });
+        }
+    }
+
+    fn initial_step(
+        &mut self,
+        inp: &mut SegmentInputs,
+        f0: &[f64; N],
+        span: f64,
+    ) -> Result<f64, SimError> {
+        // Hairer & Wanner's starting step (HINIT of dopri5.f), order 5.
+        let sc: [f64; N] = std::array::from_fn(|i| self.atol[i] + self.opts.rtol * self.y[i].abs());
+        let norm = |v: &[f64; N]| -> f64 {
+            (v.iter().zip(&sc).map(|(a, s)| (a / s).powi(2)).sum::<f64>() / N as f64).sqrt()
+        };
+        let d0 = norm(&self.y);
+        let d1 = norm(f0);
+        let mut h0 = if d0 < 1e-10 || d1 < 1e-10 {
+            1e-6
+        } else {
+            0.01 * d0 / d1
+        };
+        h0 = h0.min(span).min(self.opts.h_max);
+        let y1: [f64; N] = std::array::from_fn(|i| self.y[i] + h0 * f0[i]);
+        let t = self.t;
+        let f1 = self.rhs(inp, t + h0, &y1)?.dx;
+        let df: [f64; N] = std::array::from_fn(|i| f1[i] - f0[i]);
+        let d2 = norm(&df) / h0;
+        let h1 = if d1.max(d2) <= 1e-15 {
+            (h0 * 1e-3).max(1e-6)
+        } else {
+            (0.01 / d1.max(d2)).powf(0.2)
+        };
+        Ok((100.0 * h0).min(h1).min(span).min(self.opts.h_max))
+    }
+
+    /// Integrate one segment up to `b` (inputs smooth inside).
+    fn segment(
+        &mut self,
+        inp: &mut SegmentInputs,
+        b: f64,
+        sol: &mut Solution,
+    ) -> Result<(), SimError> {
+        let holds_memory = self.model.holds_memory();
+        // Output samples at the segment start (e.g. t0, or a breakpoint on the output grid).
+        while self.out_time(self.next_out) < b - SegmentInputs::delta(b)
+            && self.out_time(self.next_out) <= self.t + SegmentInputs::delta(self.t)
+        {
+            let (t, y) = (self.t, self.y);
+            self.output(inp, sol, t, &y);
+            self.next_out += 1;
+        }
+        let mut f0 = match self.f {
+            Some(f) => f,
+            None => {
+                let (t, y) = (self.t, self.y);
+                self.rhs(inp, t, &y)?.dx
+            }
+        };
+        if self.h <= 0.0 {
+            let span = b - self.t;
+            self.h = self.initial_step(inp, &f0, span)?;
+        }
+        let mut last_failure: Option<SimError> = None;
+        let mut worst_rejected: Option<(usize, f64)> = None;
+        while self.t < b {
+            if self.stats.steps + self.stats.rejected >= self.opts.max_steps {
+                return Err(SimError::TooManySteps {
+                    max_steps: self.opts.max_steps,
+                    t: self.t,
+                    state: dump(self.model, &self.y),
+                });
+            }
+            let t = self.t;
+            let mut h = self.h.min(self.opts.h_max);
+            let last = t + h * 1.01 >= b;
+            if last {
+                h = b - t;
+            } else if t + 2.0 * h > b {
+                // two equal steps instead of a full one and a short remainder (the short step
+                // would also shrink the next segment's first step)
+                h = 0.5 * (b - t);
+            }
+            if h <= 1e-14 * t.abs().max(1.0) {
+                if last {
+                    // the segment end is within rounding of t: just move there
+                    self.t = b;
+                    break;
+                }
+                let limiting = match worst_rejected {
+                    Some((i, e)) => format!(
+                        "{} (scaled local error {e:.3e} in the last rejected step)",
+                        self.model.state_names()[i]
+                    ),
+                    None => "none (no step was rejected for accuracy)".to_string(),
+                };
+                return Err(last_failure.unwrap_or(SimError::StepSizeTooSmall {
+                    t,
+                    h,
+                    limiting,
+                    state: dump(self.model, &self.y),
+                }));
+            }
+            let t_new = if last { b } else { t + h };
+            let trial = match self.opts.method {
+                Method::Dopri5 => self.step_dopri5(inp, t, h, t_new, &f0),
+                Method::Rosenbrock34 => self.step_rosw(inp, t, h, t_new, &f0),
+            };
+            let trial = match trial {
+                Ok(tr) => tr,
+                Err(e @ SimError::NonFinite { .. }) => {
+                    // A trial stage left the model's domain: shrink the step and retry.
+                    last_failure = Some(e);
+                    self.stats.rejected += 1;
+                    self.h = h * 0.25;
+                    self.jac_age = usize::MAX;
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let err = trial.err;
+            let order = self.opts.method.order() as f64;
+            if err.is_nan() || err > 1.0 {
+                self.stats.rejected += 1;
+                worst_rejected = Some(self.worst_state(&self.y, &trial.y1, &trial.e));
+                let fac = if err.is_finite() {
+                    (0.9 * err.powf(-1.0 / order)).max(0.2)
+                } else {
+                    0.2
+                };
+                self.h = h * fac;
+                if self.jac_age >= rosw::JAC_REFRESH_ON_REJECT {
+                    self.jac_age = usize::MAX; // refresh a lagged Jacobian before retrying
+                }
+                continue;
+            }
+            // accept
+            last_failure = None;
+            worst_rejected = None;
+            self.stats.steps += 1;
+            self.jac_age = self.jac_age.saturating_add(1);
+            let y = self.y;
+            let y1 = trial.y1;
+            // state and derivative at the end of the step, for dense output and the next step
+            let (f1, memory_next) = match trial.f1 {
+                Some(fm) => fm,
+                None => {
+                    let ev = self.rhs(inp, t_new, &y1)?;
+                    (ev.dx, ev.memory_next)
+                }
+            };
+            let dense = match trial.dense {
+                Some(d) => Interp::Dopri(d),
+                None => Interp::Hermite {
+                    y0: y,
+                    y1,
+                    f0,
+                    f1,
+                    h,
+                },
+            };
+            // outputs in [t, t_new) (t_new itself belongs to the next segment or the end)
+            loop {
+                let to = self.out_time(self.next_out);
+                if to >= t_new - SegmentInputs::delta(t_new) || to >= b - SegmentInputs::delta(b) {
+                    break;
+                }
+                let theta = ((to - t) / h).clamp(0.0, 1.0);
+                let mut yo = dense.eval(theta);
+                for l in &self.lag_seg {
+                    yo[l.state] = l.advance(t, y[l.state], to - t);
+                }
+                let yo = crate::model::clip_state(&yo, &self.bounds);
+                self.output(inp, sol, to, &yo);
+                self.next_out += 1;
+            }
+            let fac = if order >= 5.0 {
+                0.9 * err.max(1e-10).powf(-0.7 / order) * self.err_old.powf(0.4 / order)
+            } else {
+                0.9 * err.max(1e-10).powf(-1.0 / order)
+            };
+            self.h = h * fac.clamp(0.2, if order >= 5.0 { 10.0 } else { 5.0 });
+            self.err_old = err.max(1e-4);
+            self.t = t_new;
+            let y1c = crate::model::clip_state(&y1, &self.bounds);
+            let clipped = y1c != y1;
+            self.y = y1c;
+            if holds_memory {
+                self.memory = memory_next;
+            }
+            if holds_memory || clipped {
+                let (tt, yy) = (self.t, self.y);
+                f0 = self.rhs(inp, tt, &yy)?.dx;
+            } else {
+                f0 = f1;
+            }
+        }
+        self.f = Some(f0);
+        Ok(())
+    }
+
+    /// Error estimate of state `i` scaled by atol_i + rtol max(|y0_i|, |y1_i|).
+    #[inline]
+    fn scaled_error(&self, i: usize, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> f64 {
+        e[i] / (self.atol[i] + self.opts.rtol * y0[i].abs().max(y1[i].abs()))
+    }
+
+    /// The state with the largest scaled error estimate and that error (for failure reports).
+    fn worst_state(&self, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> (usize, f64) {
+        (0..N)
+            .map(|i| (i, self.scaled_error(i, y0, y1, e).abs()))
+            .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a })
+    }
+
+    /// RMS of the scaled error estimate.
+    pub(super) fn error_norm(&self, y0: &[f64; N], y1: &[f64; N], e: &[f64; N]) -> f64 {
+        let mut err = 0.0;
+        for i in 0..N {
+            let s = self.scaled_error(i, y0, y1, e);
+            err += s * s;
+        }
+        (err / N as f64).sqrt()
+    }
+}

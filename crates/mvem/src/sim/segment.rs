@@ -1,0 +1,218 @@
+//! The inputs of one integration segment and the stop times between segments.
+//!
+//! The transport delays act on known input functions, so they are exact: a delayed lookup is
+//! the schedule evaluated at `t - tau` (constant history before the first row). The time axis is
+//! split at every breakpoint of every channel that drives the dynamics (jumps and kinks),
+//! shifted by the delay of each delayed lookup ([`Model::input_delays`]), and each segment sees
+//! the inputs strictly from inside, so a step on either side of a jump sees one smooth input.
+
+use super::input::{BreakKind, InputSchedule, Side};
+use crate::model::{LagCommand, Model, ModelInput};
+
+/// A linear piece of a schedule channel: (t_lo, t_hi, t_ref, v_ref, slope), see
+/// [`InputSchedule::piece`].
+type Piece = (f64, f64, f64, f64, f64);
+
+/// The inputs of the model over time plus the delays: evaluates [`ModelInput`] for one
+/// integration segment `[a, b]` between consecutive stop times, always from inside the segment
+/// (so a step at `a` or `b` is seen from the correct side).
+pub struct SegmentInputs<'a> {
+    sched: &'a InputSchedule,
+    tau_egr: f64,
+    tau_vgt: f64,
+    hints: [usize; 6],
+    /// The two most recently used linear pieces per lookup: (t_lo, t_hi, t_ref, v_ref, slope).
+    /// Pieces come from the schedule alone, so the cache stays valid from one segment to the
+    /// next. Two, because the undelayed u_egr and u_vgt commands are not stop times when the
+    /// actuators are dynamic (only their delayed copies are), so a segment can straddle one of
+    /// their kinks and the stages of a step alternate between the two pieces.
+    pieces: [[Piece; 2]; 6],
+    /// Lookup window per lookup: inputs are evaluated at times clamped strictly inside the
+    /// segment (shifted back by the lookup's delay), or unclamped if the segment is too short.
+    window: [(f64, f64); 6],
+    /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
+    /// current segment, if one does (always for the lookups whose kinks are stop times).
+    linear: [Option<(f64, f64, f64)>; 6],
+    /// Chord (t_ref, v_ref, slope) of the delayed u_egr and u_vgt commands over the window of
+    /// the current segment, in lookup time. Their kinks are stop times, so on a segment they
+    /// are linear up to the schedule's collinearity tolerance (rows within
+    /// [`InputSchedule::collinear_tol`] of a line are not breakpoints).
+    chords: [Option<(f64, f64, f64)>; 2],
+}
+
+impl<'a> SegmentInputs<'a> {
+    /// Inputs of `model` driven by `sched` on the segment `[a, b]`.
+    pub fn new<const N: usize, M: Model<N>>(
+        model: &M,
+        sched: &'a InputSchedule,
+        a: f64,
+        b: f64,
+    ) -> Self {
+        let [tau_egr, tau_vgt] = model.input_delays().delayed;
+        let mut me = Self {
+            sched,
+            tau_egr,
+            tau_vgt,
+            hints: [0; 6],
+            pieces: [[(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 2]; 6],
+            window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
+            linear: [None; 6],
+            chords: [None; 2],
+        };
+        me.set_segment(a, b);
+        me
+    }
+
+    /// Move to the segment `[a, b]` (keeps the search cursors and cached pieces).
+    pub fn set_segment(&mut self, a: f64, b: f64) {
+        for k in 0..6 {
+            let shift = self.shift(k);
+            let lo = a - shift + Self::delta(a);
+            let hi = b - shift - Self::delta(b);
+            self.window[k] = if hi > lo {
+                (lo, hi)
+            } else {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            };
+        }
+        for k in 0..6 {
+            let (lo, hi) = self.window[k];
+            self.linear[k] = None;
+            if lo.is_finite() {
+                let mut pc = self.pieces[k][0];
+                if !(pc.0 <= lo && lo <= pc.1) {
+                    pc = self
+                        .sched
+                        .piece(Self::CHANNEL[k], lo, Side::Right, &mut self.hints[k]);
+                    self.pieces[k] = [pc, self.pieces[k][0]];
+                }
+                if pc.0 <= lo && hi <= pc.1 {
+                    self.linear[k] = Some((pc.2, pc.3, pc.4));
+                }
+            }
+        }
+        for (i, k) in [4, 5].into_iter().enumerate() {
+            let (lo, hi) = self.window[k];
+            self.chords[i] = match self.linear[k] {
+                Some(line) => Some(line),
+                None if lo.is_finite() => {
+                    let ch = Self::CHANNEL[k];
+                    let v_lo = self
+                        .sched
+                        .value_hint(ch, lo, Side::Right, &mut self.hints[k]);
+                    let v_hi = self
+                        .sched
+                        .value_hint(ch, hi, Side::Right, &mut self.hints[k]);
+                    Some((lo, v_lo, (v_hi - v_lo) / (hi - lo)))
+                }
+                None => None,
+            };
+        }
+    }
+
+    /// The delayed command `cmd` on the current segment as a line in simulation time t,
+    /// `v(t) = v_ref + slope (t - t_ref)` (its chord over the segment; `None` for a segment
+    /// shorter than the lookup margins).
+    pub(super) fn delayed_line(&self, cmd: LagCommand) -> Option<(f64, f64, f64)> {
+        let i = match cmd {
+            LagCommand::Egr => 0,
+            LagCommand::Vgt => 1,
+        };
+        let shift = self.shift(4 + i);
+        self.chords[i].map(|(t_ref, v_ref, slope)| (t_ref + shift, v_ref, slope))
+    }
+
+    /// Delay [s] of lookup `k` (the actuator delays for the delayed commands, else none).
+    #[inline(always)]
+    fn shift(&self, k: usize) -> f64 {
+        match k {
+            4 => self.tau_egr,
+            5 => self.tau_vgt,
+            _ => 0.0,
+        }
+    }
+
+    /// Schedule channel of each lookup (n_e, u_delta, u_egr, u_vgt, delayed u_egr, delayed
+    /// u_vgt).
+    const CHANNEL: [usize; 6] = [0, 1, 2, 3, 2, 3];
+
+    #[inline]
+    pub(super) fn delta(t: f64) -> f64 {
+        1e-12 * t.abs().max(1.0)
+    }
+
+    /// Value of lookup `k` (channel [`Self::CHANNEL`]`[k]`, delayed by [`Self::shift`]) at `t`.
+    #[inline(always)]
+    fn value(&mut self, k: usize, t: f64) -> f64 {
+        let (lo, hi) = self.window[k];
+        let tq = (t - self.shift(k)).clamp(lo, hi);
+        if let Some((t_ref, v_ref, slope)) = self.linear[k] {
+            return v_ref + slope * (tq - t_ref);
+        }
+        let p0 = &self.pieces[k][0];
+        if p0.0 <= tq && tq <= p0.1 {
+            return p0.3 + p0.4 * (tq - p0.2);
+        }
+        let p1 = &self.pieces[k][1];
+        let pc = if p1.0 <= tq && tq <= p1.1 {
+            *p1
+        } else {
+            self.sched
+                .piece(Self::CHANNEL[k], tq, Side::Right, &mut self.hints[k])
+        };
+        self.pieces[k] = [pc, self.pieces[k][0]];
+        pc.3 + pc.4 * (tq - pc.2)
+    }
+
+    /// Model inputs at `t` in the segment: current values and delayed actuator commands.
+    #[inline]
+    pub fn at(&mut self, t: f64) -> ModelInput {
+        let now = crate::model::Drive::new(
+            self.value(0, t),
+            self.value(1, t),
+            self.value(2, t),
+            self.value(3, t),
+        );
+        ModelInput {
+            now,
+            u_egr_delayed: self.value(4, t),
+            u_vgt_delayed: self.value(5, t),
+        }
+    }
+}
+
+/// Sorted stop times in (t0, t_end) with a flag for jumps: every breakpoint of every channel
+/// that drives the dynamics, shifted by the delay of the path it feeds ([`Model::input_delays`];
+/// the engine models: n_e, u_delta unshifted, u_egr by tau_degr, u_vgt by tau_dvgt, plus
+/// unshifted u_egr, u_vgt when the actuators are bypassed).
+pub fn stop_times<const N: usize, M: Model<N>>(
+    m: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+) -> Vec<(f64, bool)> {
+    let delays = m.input_delays();
+    let mut v: Vec<(f64, bool)> = Vec::new();
+    for ch in 0..4 {
+        let now = delays.current[ch].then_some(0.0);
+        let delayed = ch.checked_sub(2).map(|k| delays.delayed[k]);
+        for (tb, kind) in sched.breakpoints(ch) {
+            for s in now.into_iter().chain(delayed) {
+                v.push((tb + s, kind == BreakKind::Jump));
+            }
+        }
+    }
+    v.retain(|(t, _)| {
+        *t > t0 + SegmentInputs::delta(t0) * 10.0 && *t < t_end - SegmentInputs::delta(t_end) * 10.0
+    });
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // merge stops closer than the input evaluation margin
+    let mut out: Vec<(f64, bool)> = Vec::with_capacity(v.len());
+    for (t, jump) in v {
+        match out.last_mut() {
+            Some(last) if t - last.0 <= 10.0 * SegmentInputs::delta(t) => last.1 |= jump,
+            _ => out.push((t, jump)),
+        }
+    }
+    out
+}

@@ -1,0 +1,358 @@
+//! The integrators on ODEs with known solutions, through the same [`Model`] trait the engine
+//! models implement (as diffsol and DifferentialEquations.jl test their solvers on shared
+//! problems): a linear stiff system, Prothero-Robinson, a delayed, input-driven linear lag
+//! (closed form and W-method), and the convergence order of both methods with the step size
+//! pinned by `h_max`.
+//!
+//! The toy models hold no engine parameters the simulator could read: their `params()` are the
+//! published set with both actuator delays NaN, so any read of an engine parameter by the
+//! simulator would show up as NaN stop times or inputs. Their memory is `()`.
+
+use mvem::model::{
+    Drive, Evaluation, InputDelays, LagCommand, LinearLag, Model, ModelInput, ModelOptions, Signals,
+};
+use mvem::params::Params;
+use mvem::sim::{simulate, stop_times, InputSchedule, Method, SimOptions, Solution, Start};
+
+/// Right-hand side of a toy ODE: `dx/dt = f(x, inputs, k)` with a problem constant `k`.
+type Rhs<const N: usize> = fn(&[f64; N], &ModelInput, f64) -> [f64; N];
+
+/// A toy ODE behind the [`Model`] trait.
+#[derive(Clone)]
+struct Toy<const N: usize> {
+    f: Rhs<N>,
+    k: f64,
+    names: [&'static str; N],
+    delays: InputDelays,
+    lags: Vec<LinearLag>,
+    p: Params,
+    o: ModelOptions,
+}
+
+impl<const N: usize> Toy<N> {
+    fn new(f: Rhs<N>, k: f64, names: [&'static str; N]) -> Self {
+        let mut p = Params::published();
+        p.egr_actuator.tau_degr = f64::NAN;
+        p.vgt_actuator.tau_dvgt = f64::NAN;
+        Self {
+            f,
+            k,
+            names,
+            delays: InputDelays {
+                delayed: [0.0, 0.0],
+                current: [true; 4],
+            },
+            lags: Vec::new(),
+            p,
+            o: ModelOptions::default(),
+        }
+    }
+}
+
+impl<const N: usize> Model<N> for Toy<N> {
+    type Memory = ();
+    fn state_names(&self) -> [&'static str; N] {
+        self.names
+    }
+    fn state_scales(&self) -> [f64; N] {
+        [1.0; N]
+    }
+    fn params(&self) -> &Params {
+        &self.p
+    }
+    fn options(&self) -> &ModelOptions {
+        &self.o
+    }
+    fn state_bounds(&self) -> [(f64, f64); N] {
+        [(f64::NEG_INFINITY, f64::INFINITY); N]
+    }
+    fn eval(&self, x: &[f64; N], u: &ModelInput, _memory: ()) -> Evaluation<N, ()> {
+        Evaluation {
+            dx: (self.f)(x, u, self.k),
+            signals: Signals::default(),
+            memory_next: (),
+        }
+    }
+    fn input_delays(&self) -> InputDelays {
+        self.delays
+    }
+    fn linear_lags(&self) -> Vec<LinearLag> {
+        self.lags.clone()
+    }
+    fn memory_start(&self, _x: &[f64; N], _u: &ModelInput) {}
+    fn actuator_state_values(&self, _d: &Drive) -> Vec<(usize, f64)> {
+        Vec::new()
+    }
+    fn initial_guess(&self, _d: &Drive) -> [f64; N] {
+        [0.0; N]
+    }
+    fn with_options(&self, o: ModelOptions) -> Self {
+        Self { o, ..self.clone() }
+    }
+}
+
+/// Channel 0 (n_e) carries the time itself: a ramp with no interior breakpoint.
+fn time_ramp(t_end: f64) -> InputSchedule {
+    InputSchedule::new(vec![0.0, t_end], vec![[0.0; 4], [t_end, 0.0, 0.0, 0.0]]).unwrap()
+}
+
+fn run<const N: usize>(
+    m: &Toy<N>,
+    sched: &InputSchedule,
+    t_end: f64,
+    y0: [f64; N],
+    opts: &SimOptions,
+) -> Solution {
+    simulate(m, sched, 0.0, t_end, Start::State(y0), opts).unwrap()
+}
+
+fn opts(method: Method, tol: f64) -> SimOptions {
+    SimOptions {
+        rtol: tol,
+        atol: tol,
+        method,
+        ..SimOptions::default()
+    }
+}
+
+/// Max over the output samples of |y_i(t) - exact_i(t)|.
+fn max_error<const N: usize>(
+    sol: &Solution,
+    names: [&str; N],
+    exact: impl Fn(f64) -> [f64; N],
+) -> f64 {
+    let t = sol.t();
+    let mut e: f64 = 0.0;
+    for (i, name) in names.iter().enumerate() {
+        let y = sol.get(name).unwrap();
+        for k in 0..t.len() {
+            e = e.max((y[k] - exact(t[k])[i]).abs());
+        }
+    }
+    e
+}
+
+// ---------------------------------------------------------------------------------------------
+// linear stiff system
+
+/// y' = A y, A = [[-2, 1], [998, -999]] (eigenvalues -1 and -1000; eigenvectors (1, 1) and
+/// (1, -998)).
+fn stiff_linear(x: &[f64; 2], _u: &ModelInput, _k: f64) -> [f64; 2] {
+    [-2.0 * x[0] + x[1], 998.0 * x[0] - 999.0 * x[1]]
+}
+
+/// From y(0) = (2, -997): y = e^-t (1, 1) + e^-1000t (1, -998).
+fn stiff_linear_exact(t: f64) -> [f64; 2] {
+    let (a, b) = ((-t).exp(), (-1000.0 * t).exp());
+    [a + b, a - 998.0 * b]
+}
+
+#[test]
+fn linear_stiff_system_both_methods() {
+    let m = Toy::new(stiff_linear, 0.0, ["y1", "y2"]);
+    let sched = InputSchedule::constant(Drive::new(0.0, 0.0, 0.0, 0.0));
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let sol = run(&m, &sched, 5.0, [2.0, -997.0], &opts(method, 1e-7));
+        let e = max_error(&sol, ["y1", "y2"], stiff_linear_exact);
+        eprintln!("{method:?}: max error {e:.2e}, {:?}", sol.stats);
+        // global error at the output samples within a few tolerances of the solution's scale
+        // (|y2| ~ 1e3 in the transient; 1 afterwards)
+        assert!(e < 1e-5, "{method:?}: max error {e:.2e}");
+    }
+    // At a loose tolerance the L-stable W-method follows the slow mode with large steps; the
+    // explicit pair stays stability-limited (|h lambda| <= 3.3 with lambda = -1000 over 5 s:
+    // >= 1500 steps).
+    let steps = [Method::Rosenbrock34, Method::Dopri5].map(|method| {
+        run(&m, &sched, 5.0, [2.0, -997.0], &opts(method, 1e-3))
+            .stats
+            .steps
+    });
+    eprintln!("steps at tolerance 1e-3: {steps:?}");
+    assert!(steps[0] < 100, "ROS34PW2 steps {}", steps[0]);
+    assert!(steps[1] > 1500, "DOPRI5 steps {}", steps[1]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Prothero-Robinson
+
+/// y' = lambda (y - g(t)) + g'(t), g = sin: y = sin t from y(0) = 0 for every lambda; the time
+/// comes in on channel 0.
+fn prothero_robinson(x: &[f64; 1], u: &ModelInput, lambda: f64) -> [f64; 1] {
+    let t = u.now.n_e_rpm;
+    [lambda * (x[0] - t.sin()) + t.cos()]
+}
+
+#[test]
+fn prothero_robinson_stiff_and_nonstiff() {
+    let t_end = 10.0;
+    let sched = time_ramp(t_end);
+    let exact = |t: f64| [t.sin()];
+    // very stiff: the W-method (L-stable, stiffly accurate) is accurate at step sizes set by
+    // g alone
+    let m = Toy::new(prothero_robinson, -1e6, ["y"]);
+    let sol = run(&m, &sched, t_end, [0.0], &opts(Method::Rosenbrock34, 1e-6));
+    let e = max_error(&sol, ["y"], exact);
+    eprintln!("ROS34PW2, lambda -1e6: max error {e:.2e}, {:?}", sol.stats);
+    assert!(e < 1e-5, "max error {e:.2e}");
+    assert!(sol.stats.steps < 500, "{:?}", sol.stats);
+    // mildly stiff, both methods
+    let m = Toy::new(prothero_robinson, -100.0, ["y"]);
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let sol = run(&m, &sched, t_end, [0.0], &opts(method, 1e-8));
+        let e = max_error(&sol, ["y"], exact);
+        eprintln!(
+            "{method:?}, lambda -100: max error {e:.2e}, {:?}",
+            sol.stats
+        );
+        assert!(e < 1e-7, "{method:?}: max error {e:.2e}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// delayed, input-driven linear lag
+
+const LAG_TAU: f64 = 0.5;
+const LAG_DELAY: f64 = 0.3;
+
+/// y' = (u(t - tau_d) - y) / tau with u on channel 2, delayed by tau_d.
+fn delayed_lag(x: &[f64; 1], u: &ModelInput, tau: f64) -> [f64; 1] {
+    [(u.u_egr_delayed - x[0]) / tau]
+}
+
+/// u steps 0 -> 1 at t = 1: y = 0 before 1 + tau_d, then 1 - exp(-(t - 1 - tau_d) / tau).
+fn delayed_lag_exact(t: f64) -> [f64; 1] {
+    let s = t - 1.0 - LAG_DELAY;
+    [if s <= 0.0 {
+        0.0
+    } else {
+        -(-s / LAG_TAU).exp_m1()
+    }]
+}
+
+#[test]
+fn delayed_input_driven_lag() {
+    let mut m = Toy::new(delayed_lag, LAG_TAU, ["y"]);
+    // only the delayed lookup of channel 2 drives the dynamics
+    m.delays = InputDelays {
+        delayed: [LAG_DELAY, 0.0],
+        current: [false; 4],
+    };
+    let sched = InputSchedule::steps(Drive::new(0.0, 0.0, 0.0, 0.0), &[(1.0, 2, 1.0)]).unwrap();
+    // the step is a stop time at its delayed time only
+    let stops = stop_times(&m, &sched, 0.0, 3.0);
+    assert_eq!(stops.len(), 1, "{stops:?}");
+    assert!((stops[0].0 - 1.3).abs() < 1e-12 && stops[0].1, "{stops:?}");
+    let tol = 1e-8;
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let sol = run(&m, &sched, 3.0, [0.0], &opts(method, tol));
+        let e = max_error(&sol, ["y"], delayed_lag_exact);
+        eprintln!("{method:?}: max error {e:.2e}, {:?}", sol.stats);
+        assert!(e < 10.0 * tol, "{method:?}: max error {e:.2e}");
+    }
+    // declared as a linear lag: integrated in closed form (exact to rounding)
+    m.lags = vec![LinearLag {
+        state: 0,
+        tau: LAG_TAU,
+        command: LagCommand::Egr,
+        saturation: (f64::NEG_INFINITY, f64::INFINITY),
+    }];
+    let sol = run(&m, &sched, 3.0, [0.0], &opts(Method::Rosenbrock34, tol));
+    let e = max_error(&sol, ["y"], delayed_lag_exact);
+    eprintln!("closed form: max error {e:.2e}, {:?}", sol.stats);
+    assert!(e < 1e-13, "closed form: max error {e:.2e}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// convergence order and error vs tolerance
+
+/// y' = -y^2 (nonlinear, so the W-method's lagged Jacobian is not exact): y = 1 / (1 + t).
+fn riccati(x: &[f64; 1], _u: &ModelInput, _k: f64) -> [f64; 1] {
+    [-x[0] * x[0]]
+}
+
+/// y1' = y2, y2' = -y1: y = (cos t, -sin t) from (1, 0). Linear, so the error of a Runge-Kutta
+/// step is that of its stability function (DOPRI5: e^z - R(z) = z^6 / 3600 + ...).
+fn oscillator(x: &[f64; 2], _u: &ModelInput, _k: f64) -> [f64; 2] {
+    [x[1], -x[0]]
+}
+
+/// Error at t = 4 with the step size pinned at `h` (tolerances so loose that no step is
+/// rejected or shortened, apart from the first few and the split of the last).
+fn pinned_error<const N: usize>(
+    m: &Toy<N>,
+    y0: [f64; N],
+    exact: [f64; N],
+    method: Method,
+    h: f64,
+) -> f64 {
+    let sched = InputSchedule::constant(Drive::new(0.0, 0.0, 0.0, 0.0));
+    let o = SimOptions {
+        rtol: 0.5,
+        atol: 1e3,
+        h_max: h,
+        dt_out: 4.0,
+        method,
+        ..SimOptions::default()
+    };
+    let sol = run(m, &sched, 4.0, y0, &o);
+    assert_eq!(sol.stats.rejected, 0);
+    (0..N)
+        .map(|i| (sol.get(m.names[i]).unwrap().last().unwrap() - exact[i]).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn convergence_order() {
+    // ROS34PW2 on a nonlinear problem (its lagged Jacobian is not the exact one: the W-method
+    // keeps order 3 all the same)
+    let riccati_toy = Toy::new(riccati, 0.0, ["y"]);
+    let osc = Toy::new(oscillator, 0.0, ["y1", "y2"]);
+    let cases: [(Method, [f64; 3], f64); 2] = [
+        (Method::Rosenbrock34, [0.1, 0.05, 0.025], 3.0),
+        (Method::Dopri5, [0.2, 0.1, 0.05], 5.0),
+    ];
+    for (method, hs, order) in cases {
+        let e: Vec<f64> = hs
+            .iter()
+            .map(|&h| match method {
+                Method::Rosenbrock34 => pinned_error(&riccati_toy, [1.0], [0.2], method, h),
+                Method::Dopri5 => {
+                    pinned_error(&osc, [1.0, 0.0], [4f64.cos(), -4f64.sin()], method, h)
+                }
+            })
+            .collect();
+        let p: Vec<f64> = (0..2).map(|i| (e[i] / e[i + 1]).log2()).collect();
+        eprintln!("{method:?}: h {hs:?}, errors {e:?}, observed orders {p:.2?}");
+        for q in p {
+            assert!(
+                (q - order).abs() < 0.35,
+                "{method:?}: observed order {q:.2}"
+            );
+        }
+    }
+}
+
+#[test]
+fn error_follows_tolerance() {
+    let m = Toy::new(riccati, 0.0, ["y"]);
+    let sched = InputSchedule::constant(Drive::new(0.0, 0.0, 0.0, 0.0));
+    let exact = |t: f64| [1.0 / (1.0 + t)];
+    for method in [Method::Rosenbrock34, Method::Dopri5] {
+        let mut prev = f64::INFINITY;
+        for tol in [1e-4, 1e-6, 1e-8, 1e-10] {
+            let sol = run(&m, &sched, 4.0, [1.0], &opts(method, tol));
+            let e = max_error(&sol, ["y"], exact);
+            eprintln!(
+                "{method:?}, tol {tol:e}: max error {e:.2e}, {} steps",
+                sol.stats.steps
+            );
+            assert!(e < 10.0 * tol, "{method:?}, tol {tol:e}: max error {e:.2e}");
+            // tighter tolerance, smaller error (at least a factor 10 per 100x)
+            assert!(
+                e < prev / 10.0,
+                "{method:?}, tol {tol:e}: {e:.2e} vs {prev:.2e}"
+            );
+            prev = e;
+        }
+    }
+}
