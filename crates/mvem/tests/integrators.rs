@@ -125,8 +125,8 @@ fn max_error<const N: usize>(
     let mut e: f64 = 0.0;
     for (i, name) in names.iter().enumerate() {
         let y = sol.get(name).unwrap();
-        for k in 0..t.len() {
-            e = e.max((y[k] - exact(t[k])[i]).abs());
+        for (tk, yk) in t.iter().zip(y) {
+            e = e.max((yk - exact(*tk)[i]).abs());
         }
     }
     e
