@@ -25,7 +25,7 @@ use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
 use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
 use super::steps::{self, project_q_c, FitReport, StepError};
-use super::uncertainty::{estimates, ParamEstimate};
+use super::uncertainty::{estimates, estimates_blocks, ParamEstimate};
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -335,12 +335,18 @@ pub fn fit_dynamic(
     let mut p = base.clone();
     set_all(&mut p, &fit.theta);
     let errors = output_errors(f.order, &p, sets, stat, &DYN_OUTPUTS, None)?;
-    let uncertainty = estimates(
+    // residual blocks: each set's outputs (different noise levels and step amplitudes)
+    let blocks: Vec<usize> = segs
+        .iter()
+        .flat_map(|sg| std::iter::repeat_n(count_segment_samples(sg), DYN_OUTPUTS.len()))
+        .collect();
+    let uncertainty = estimates_blocks(
         f.names,
         &fit.theta,
         f.scale,
         &fit.jacobian,
         &fit.residuals,
+        &blocks,
         if f.order == ModelOrder::Twelve { 7 } else { 3 },
     );
     Ok((
@@ -707,6 +713,21 @@ impl Cost77 {
         }
     }
 
+    /// Lengths of the residual blocks in the order of [`Cost77::residuals`]: per data set its four
+    /// outputs, then per submodel its stationary points.
+    pub fn blocks(&self) -> Vec<usize> {
+        let mut b = Vec::new();
+        if self.opts.dynamic_row {
+            for (d, _) in &self.sets {
+                b.extend(std::iter::repeat_n(d.t.len(), DYN_OUTPUTS.len()));
+            }
+        }
+        if self.opts.static_row {
+            b.extend(std::iter::repeat_n(self.stat.len(), self.n_z()));
+        }
+        b
+    }
+
     /// Number of residuals.
     pub fn len(&self) -> usize {
         self.n_res
@@ -878,12 +899,13 @@ pub fn step5(
         .map(|(s, _)| s.name.to_string())
         .collect();
     let names: Vec<&str> = list.iter().map(|s| s.name).collect();
-    let uncertainty = estimates(
+    let uncertainty = estimates_blocks(
         &names,
         &theta,
         &scale,
         &fit.jacobian,
         &fit.residuals,
+        &cost.blocks(),
         if opts.model == ModelOrder::Twelve {
             8
         } else {

@@ -6,15 +6,20 @@
 //! over the numerically identifiable subspace) with the residual variance
 //! `s^2 = ||r||^2 / (m - n)`. Two corrections keep it honest:
 //!
-//! * **Correlated residuals.** Samples of a dynamic response are not independent (the model
-//!   errors left by the other parameters are smooth in time), so s^2 is multiplied by the AR(1)
-//!   variance-inflation factor `(1 + rho) / (1 - rho)` with rho the lag-1 autocorrelation of the
-//!   residuals (0 for white noise: no change; rho is limited to [0, 0.98]).
+//! * **Rows of different noise levels and correlated residuals.** The residuals are split in
+//!   blocks (per data set and output, per submodel); the covariance is the sandwich
+//!   `(J^T J)^-1 J^T S J (J^T J)^-1` with `S` the block's mean square residual times the AR(1)
+//!   variance-inflation factor `(1 + rho) / (1 - rho)`, rho the block's lag-1 autocorrelation
+//!   (samples of a dynamic response are not independent; 0 for white noise, limited to
+//!   [0, 0.98]) ([`block_covariance`]).
 //! * **Identifiability.** A parameter is reported identifiable when its standard error is
-//!   finite, its relative standard error `se / max(|value|, scale)` is at most
+//!   finite, its relative standard error `se / |value|` is at most
 //!   [`MAX_REL_STD_ERR`] (25 %) and no other parameter of the same step correlates with it by more
 //!   than [`MAX_CORRELATION`] in absolute value. The reason is stated ("rel. std. error 290 %",
-//!   "correlation 0.998 with c_m3", "not in the column space of J (singular value 0)").
+//!   "correlation 0.998 with c_m3", "not in the column space of J (singular value 0)"). A
+//!   parameter whose remaining Gauss-Newton step at the returned point exceeds its standard
+//!   error is not at an optimum (a search stopped by its evaluation limit, or a bound) and is
+//!   reported not identifiable: its standard error says nothing about its distance to the truth.
 //!   `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
 //!
 //! The estimate of a parameter tuned by several steps is that of the last one (step 5 replaces
@@ -92,7 +97,8 @@ pub fn fd_jacobian(
 }
 
 /// Estimates of the parameters `names` (values `theta`, typical magnitudes `scale`) from the
-/// Jacobian and residuals at the optimum of step `step` (module documentation).
+/// Jacobian and residuals at the optimum of step `step`, the residuals in one block (one noise
+/// level). See [`estimates_blocks`].
 pub fn estimates(
     names: &[&str],
     theta: &[f64],
@@ -101,18 +107,108 @@ pub fn estimates(
     residuals: &[f64],
     step: u8,
 ) -> Vec<(String, ParamEstimate)> {
+    estimates_blocks(names, theta, scale, jacobian, residuals, &[], step)
+}
+
+/// Block-sandwich covariance: `(J^T J)^-1 J^T S J (J^T J)^-1` with `S` diagonal, constant in
+/// each block of residuals (lengths `blocks`, the rest one block): the block's mean square
+/// residual times its AR(1) inflation `(1 + rho)/(1 - rho)`. With one block of white residuals
+/// this is the Gauss-Newton covariance `s^2 (J^T J)^-1` (up to the degrees of freedom). Blocks
+/// are the rows of a cost with different noise levels (a data set's output, a submodel).
+pub fn block_covariance(
+    jacobian: &DMatrix<f64>,
+    residuals: &[f64],
+    blocks: &[usize],
+) -> DMatrix<f64> {
+    block_covariance_and_step(jacobian, residuals, blocks).0
+}
+
+/// [`block_covariance`] and the remaining Gauss-Newton step `-(J^T J)^+ J^T r` at the point
+/// (zero at an interior optimum; large where the search stopped before converging).
+pub fn block_covariance_and_step(
+    jacobian: &DMatrix<f64>,
+    residuals: &[f64],
+    blocks: &[usize],
+) -> (DMatrix<f64>, Vec<f64>) {
+    let (m, n) = jacobian.shape();
     let st: ParamStats = param_stats(jacobian, residuals);
-    let rho = lag1_autocorrelation(residuals).clamp(0.0, 0.98);
-    let inflate = ((1.0 + rho) / (1.0 - rho)).sqrt();
+    // (J^T J)^+ = cov / sigma2 (pseudo-inverse over the identifiable subspace)
+    let inv = st.covariance.map(|c| c / st.sigma2);
+    let mut w = vec![0.0; m];
+    let mut start = 0;
+    let mut lens: Vec<usize> = blocks.to_vec();
+    let used: usize = lens.iter().sum();
+    if used < m {
+        lens.push(m - used);
+    }
+    let dof = (m as f64 / m.saturating_sub(n).max(1) as f64).max(1.0);
+    for len in lens {
+        let end = (start + len).min(m);
+        if end <= start {
+            continue;
+        }
+        let r = &residuals[start..end];
+        let ms = r.iter().map(|x| x * x).sum::<f64>() / r.len() as f64;
+        let rho = lag1_autocorrelation(r).clamp(0.0, 0.98);
+        let v = ms * dof * (1.0 + rho) / (1.0 - rho);
+        for x in &mut w[start..end] {
+            *x = v;
+        }
+        start = end;
+    }
+    let mut jsj = DMatrix::zeros(n, n);
+    for i in 0..m {
+        let row = jacobian.row(i);
+        for a in 0..n {
+            let ra = row[a] * w[i];
+            if ra == 0.0 {
+                continue;
+            }
+            for b in 0..n {
+                jsj[(a, b)] += ra * row[b];
+            }
+        }
+    }
+    let g = jacobian.tr_mul(&nalgebra::DVector::from_column_slice(residuals));
+    let step = (&inv * g).iter().map(|x| -x).collect();
+    (&inv * jsj * &inv, step)
+}
+
+/// Estimates of the parameters `names` (see [`estimates`]) with residual `blocks` of different
+/// noise levels ([`block_covariance`]).
+pub fn estimates_blocks(
+    names: &[&str],
+    theta: &[f64],
+    scale: &[f64],
+    jacobian: &DMatrix<f64>,
+    residuals: &[f64],
+    blocks: &[usize],
+    step: u8,
+) -> Vec<(String, ParamEstimate)> {
+    let (cov, gn_step) = block_covariance_and_step(jacobian, residuals, blocks);
+    let n = names.len();
+    let se: Vec<f64> = (0..n)
+        .map(|k| {
+            let v = cov[(k, k)];
+            if v.is_finite() && v > 0.0 {
+                v.sqrt()
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    let corr_of = |a: usize, b: usize| cov[(a, b)] / (se[a] * se[b]);
     names
         .iter()
         .enumerate()
         .map(|(k, n)| {
-            let se = st.std_err[k] * inflate;
-            let rel = se / theta[k].abs().max(scale[k]);
+            let se = se[k];
+            // relative to the value: a parameter not distinguishable from 0 is not identifiable
+            let _ = scale;
+            let rel = se / theta[k].abs();
             let mut corr: Vec<(String, f64)> = (0..names.len())
                 .filter(|&i| i != k)
-                .map(|i| (names[i].to_string(), st.correlation[(k, i)]))
+                .map(|i| (names[i].to_string(), corr_of(k, i)))
                 .filter(|(_, c)| c.is_finite() && c.abs() > LIST_CORRELATION)
                 .collect();
             corr.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
@@ -123,23 +219,21 @@ pub fn estimates(
                     "not determined by the data (a zero singular value of the Jacobian involves it)"
                         .to_string(),
                 )
+            } else if gn_step[k].abs() > se {
+                (
+                    false,
+                    format!(
+                        "not at an optimum: the remaining Gauss-Newton step is {:.1} std. errors \
+                         (search stopped before converging, or at a bound)",
+                        gn_step[k].abs() / se
+                    ),
+                )
             } else if rel > MAX_REL_STD_ERR {
                 (false, format!("rel. std. error {:.0} %", 100.0 * rel))
             } else if let Some((w, c)) = worst.filter(|(_, c)| c.abs() > MAX_CORRELATION) {
                 (false, format!("correlation {c:.4} with {w}"))
             } else {
-                (
-                    true,
-                    format!(
-                        "rel. std. error {:.2} %{}",
-                        100.0 * rel,
-                        if rho > 0.05 {
-                            format!(" (residual autocorrelation {rho:.2} accounted)")
-                        } else {
-                            String::new()
-                        }
-                    ),
-                )
+                (true, format!("rel. std. error {:.2} %", 100.0 * rel))
             };
             (
                 n.to_string(),
@@ -342,7 +436,7 @@ mod tests {
             .std_error;
         let ns: f64 = smooth.iter().map(|v| v * v).sum::<f64>();
         let nw: f64 = white.iter().map(|v| v * v).sum::<f64>();
-        let rho = lag1_autocorrelation(&smooth);
+        let rho = lag1_autocorrelation(&smooth).min(0.98);
         assert!(rho > 0.9, "{rho}");
         let want = (ns / nw).sqrt() * ((1.0 + rho) / (1.0 - rho)).sqrt();
         assert!((a / b / want - 1.0).abs() < 1e-9, "{a} {b} {want}");
