@@ -96,4 +96,4 @@ for signal, delta in [("x_egr", 0.02), ("lambda_O", 0.2)]:
           f"settling {settle if settle is None else round(settle, 2)} s, "
           f"overshoot {m['overshoot_pct']:.1f} %, final u_egr/u_vgt {u[0]:.1f}/{u[1]:.1f} %")
 print("baseline (docs/control.md, same point, from its own steady set-points): "
-      "x_egr +0.02 rise 0.77 s settling 2.38 s; lambda_O +0.2 rise 1.68 s settling 8.23 s")
+      "x_egr +0.02 rise 0.75 s settling 2.32 s; lambda_O +0.2 rise 1.98 s settling 9.14 s")

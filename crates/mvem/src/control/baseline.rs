@@ -75,7 +75,7 @@ impl Default for BaselineTuning {
             smoke_margin: 0.02,
             torque: (0.02, 2.0),
             x_egr_vgt: (150.0, 800.0),
-            x_egr_egr: (150.0, 1000.0),
+            x_egr_egr: (50.0, 300.0),
             d_x: 0.02,
             lambda_egr: (40.0, 60.0),
             lambda_vgt: (20.0, 60.0),
