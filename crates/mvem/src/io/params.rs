@@ -111,7 +111,8 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                 if let Some(o) = nested.as_object_mut() {
                     o.remove(super::test_cell::SECTION);
                 }
-                serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
+                serde_json::from_value(nested)
+                    .map_err(|e| fmt_err(path, None, None, e.to_string()))?
             }
             // nested JSON with a test-cell section: drop it and read the rest
             None if v.get(super::test_cell::SECTION).is_some() => {
@@ -119,7 +120,8 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                 if let Some(o) = nested.as_object_mut() {
                     o.remove(super::test_cell::SECTION);
                 }
-                serde_json::from_value(nested).map_err(|e| fmt_err(path, None, None, e.to_string()))?
+                serde_json::from_value(nested)
+                    .map_err(|e| fmt_err(path, None, None, e.to_string()))?
             }
             // nested JSON: parse the text again into the typed structure, so that an unknown
             // or missing field is reported at its line and column
