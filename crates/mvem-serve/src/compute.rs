@@ -1,13 +1,13 @@
 //! The computations behind the API: each takes a checked request and a model and returns the
 //! JSON answer. They run on the blocking pool (see `api::Work`); none touches the file system.
 
+use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
-use mvem::analysis::step::StepMetrics;
 use mvem::io::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
 use mvem::model::{Drive, Model, Signals};
-use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
 use serde_json::{json, Map, Value};
 use std::sync::Arc;
@@ -37,18 +37,6 @@ const MAX_SAMPLES: f64 = 50_000.0;
 const MAX_OUTPUTS: usize = 32;
 /// Output interval of a step response [s] (the CLI's `mvem step` default).
 const STEP_DT: f64 = 0.005;
-
-/// The state or signal `name` at a steady state (`None` if unknown).
-fn steady_value<const N: usize, M: Model<N>>(
-    m: &M,
-    ss: &mvem::analysis::steady::SteadyState<N>,
-    name: &str,
-) -> Option<f64> {
-    match m.state_names().iter().position(|s| *s == name) {
-        Some(i) => Some(ss.x[i]),
-        None => ss.signals.get(name),
-    }
-}
 
 /// Check output names against the model's states and signals.
 fn check_outputs<const N: usize, M: Model<N>>(
@@ -198,70 +186,6 @@ impl StepRequest {
     }
 }
 
-/// A simulated step and its metrics (the steps of `mvem step`: steady states before and
-/// after, a simulation from the one before, metrics against both). One function, so that the
-/// core's step run can replace it.
-pub(crate) struct StepRun {
-    pub before: Drive,
-    pub sol: Solution,
-    pub metrics: Vec<(String, Result<StepMetrics, String>)>,
-    pub flags: Vec<String>,
-}
-
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn run_step<const N: usize, M: Model<N>>(
-    m: &M,
-    slot: usize,
-    before: Drive,
-    to: f64,
-    t_step: f64,
-    t_end: f64,
-    outputs: &[String],
-    opts: &SimOptions,
-) -> Result<StepRun, Fail> {
-    let mut after = before.to_array();
-    after[slot] = to;
-    let after = Drive::from_array(after);
-    let ss0 = steady_state(m, &before)
-        .map_err(|e| Fail::Model(format!("steady state before the step: {e}")))?;
-    let ss1 = steady_state(m, &after)
-        .map_err(|e| Fail::Model(format!("steady state after the step: {e}")))?;
-    let sched = InputSchedule::steps(before, &[(t_step, slot, to)])
-        .map_err(|e| input(format!("step: {e}")))?;
-    let sol = simulate(m, &sched, 0.0, t_end, Start::State(ss0.x), opts)
-        .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?;
-    let du = to - before.to_array()[slot];
-    let metrics = outputs
-        .iter()
-        .map(|name| {
-            let r = (|| -> Result<StepMetrics, String> {
-                let y = sol
-                    .get(name)
-                    .ok_or_else(|| format!("unknown output {name:?}"))?;
-                let y0 = steady_value(m, &ss0, name).ok_or("no steady value")?;
-                let y1 = steady_value(m, &ss1, name).ok_or("no steady value")?;
-                StepMetrics::compute(sol.t(), y, t_step, y0, y1, du).map_err(|e| e.to_string())
-            })();
-            (name.clone(), r)
-        })
-        .collect();
-    let mut flags = Vec::new();
-    for (when, ss) in [("before", &ss0), ("after", &ss1)] {
-        if !ss.physically_valid() {
-            flags.push(format!(
-                "steady state {when} the step: {}",
-                ss.flags.join(", ")
-            ));
-        }
-    }
-    Ok(StepRun {
-        before,
-        sol,
-        metrics,
-        flags,
-    })
-}
-
 /// `POST /api/step`: the metrics (as `mvem step --json`) and the sampled responses.
 pub(crate) fn step<const N: usize, M: Model<N>>(
     m: &M,
@@ -281,28 +205,29 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
         dt_out: STEP_DT,
         ..SimOptions::default()
     };
-    let run = run_step(
-        m,
-        slot,
-        r.point.drive(),
-        r.target,
-        r.t_step,
-        r.horizon,
-        &outputs,
-        &opts,
-    )?;
+    let spec = StepSpec {
+        before: r.point.drive(),
+        input: slot,
+        to: r.target,
+        t_step: r.t_step,
+        t_end: r.horizon,
+    };
+    let run = run_step(m, &spec, &opts).map_err(|e| match e {
+        StepRunError::BadStep { .. } | StepRunError::Schedule(_) => input(e.to_string()),
+        other => Fail::Model(other.to_string()),
+    })?;
     let mut outs = Map::new();
     let mut series = Map::new();
-    for (n, res) in &run.metrics {
-        let mut v = match res {
-            Ok(mm) => step_metrics_json(mm),
-            Err(e) => json!({"error": e}),
+    for n in &outputs {
+        let mut v = match run.metrics(n) {
+            Ok(mm) => step_metrics_json(&mm),
+            Err(e) => json!({"error": e.to_string()}),
         };
         v["unit"] = json!(unit(n));
         outs.insert(n.clone(), v);
         series.insert(n.clone(), json!(run.sol.get(n).unwrap_or_default()));
     }
-    let from = run.before.to_array()[slot];
+    let from = spec.from();
     let u: Vec<f64> = run
         .sol
         .t()
@@ -315,8 +240,8 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
         "from": from,
         "to": r.target,
         "t_step": r.t_step,
-        "operating_point": drive_json(&run.before),
-        "warnings": run.flags,
+        "operating_point": drive_json(&spec.before),
+        "warnings": run.flags(),
         "outputs": Value::Object(outs),
         "t": run.sol.t(),
         "u": u,

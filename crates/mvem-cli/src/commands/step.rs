@@ -9,6 +9,7 @@ use clap::ValueEnum;
 use mvem::analysis::experiment::{self, StepSpec};
 use mvem::analysis::linearize::DEFAULT_OUTPUTS;
 use mvem::analysis::step::StepMetrics;
+use mvem::io::json::{drive_json, step_metrics_json};
 use mvem::model::{Drive, Model};
 use mvem::sim::{SimOptions, Solution};
 use serde_json::{json, Map, Value};
@@ -267,38 +268,11 @@ pub fn run(a: &Args) -> Result<()> {
     Ok(())
 }
 
-fn opt(v: Option<f64>) -> Value {
-    v.map_or(Value::Null, |x| json!(x))
-}
-
-/// The metrics of one output as JSON.
-pub fn metrics_json(m: &StepMetrics) -> Value {
-    let exc = |e: Option<mvem::analysis::step::Excursion>| {
-        e.map_or(
-            Value::Null,
-            |e| json!({"value": e.value, "time": e.time, "relative": e.relative}),
-        )
-    };
-    json!({
-        "y0": m.y0,
-        "y_final": m.y_final,
-        "change": m.change,
-        "dc_gain": m.dc_gain,
-        "gain_sign": m.gain_sign.to_string(),
-        "wrong_way": exc(m.wrong_way),
-        "non_minimum_phase": m.non_minimum_phase,
-        "overshoot_pct": m.overshoot_pct,
-        "peak": exc(m.peak),
-        "rise_time": opt(m.rise_time),
-        "settling_time": opt(m.settling_time),
-    })
-}
-
 fn to_json(c: &StepCase) -> Value {
     let mut outs = Map::new();
     for (n, r) in &c.metrics {
         let mut v = match r {
-            Ok(m) => metrics_json(m),
+            Ok(m) => step_metrics_json(m),
             Err(e) => json!({"error": e}),
         };
         v["unit"] = json!(common::unit(n));
@@ -311,7 +285,7 @@ fn to_json(c: &StepCase) -> Value {
         "from": d.to_array()[c.input.slot()],
         "to": c.to,
         "t_step": c.t_step,
-        "operating_point": {"n_e_rpm": d.n_e_rpm, "u_delta_mg": d.u_delta_mg, "u_egr_pct": d.u_egr_pct, "u_vgt_pct": d.u_vgt_pct},
+        "operating_point": drive_json(&d),
         "warnings": c.flags,
         "outputs": Value::Object(outs),
     })
