@@ -308,7 +308,7 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
     names.extend(mvem::model::Signals::NAMES);
     let units: serde_json::Map<String, Value> = names
         .into_iter()
-        .map(|n| (n.to_string(), json!(mvem::io::json::unit(n))))
+        .map(|n| (n.to_string(), json!(mvem::analysis::json::unit(n))))
         .collect();
     Json(json!({
         "units": units,

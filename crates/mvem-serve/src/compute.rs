@@ -2,10 +2,10 @@
 //! JSON answer. They run on the blocking pool (see `api::Work`); none touches the file system.
 
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
+use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
-use mvem::io::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
 use mvem::model::{Drive, Model, Signals};
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;

@@ -2,7 +2,7 @@
 //!
 //! One HTTP server (axum on tokio, HTTP/1.1) serves a single-page app whose files are embedded
 //! in the binary (`assets/`) and a JSON API that returns the same numbers as the CLI (the JSON
-//! objects are built by [`mvem::io::json`] for both):
+//! objects are built by [`mvem::analysis::json`] for both):
 //!
 //! | route | answer |
 //! | --- | --- |

@@ -112,7 +112,7 @@ pub fn analyse<const N: usize, M: Model<N>>(
         }
         other => anyhow::Error::new(other).context("linearization"),
     })?;
-    Ok(mvem::io::json::linear_model_json(&lin, ss))
+    Ok(mvem::analysis::json::linear_model_json(&lin, ss))
 }
 
 fn fmt_c(z: &Value) -> String {

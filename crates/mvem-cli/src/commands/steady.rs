@@ -47,7 +47,7 @@ fn report<const N: usize, M: Model<N>>(m: &M, d: &Drive, json: bool) -> Result<b
     if json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&mvem::io::json::steady_json(m, &ss))?
+            serde_json::to_string_pretty(&mvem::analysis::json::steady_json(m, &ss))?
         );
     } else {
         print_tables(m, &ss);

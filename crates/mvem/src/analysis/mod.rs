@@ -5,6 +5,7 @@
 pub mod component_maps;
 pub mod experiment;
 pub mod extensions;
+pub mod json;
 pub mod linearize;
 pub mod map;
 pub mod robustness;

@@ -1,9 +1,8 @@
 //! Files: parameter sets (TOML/JSON), input time series (CSV), results (CSV), written
-//! atomically (temporary file + rename) so that a failure never leaves a partial file; the JSON
-//! objects of the analysis results shared by the front ends.
+//! atomically (temporary file + rename) so that a failure never leaves a partial file. (The JSON
+//! objects of analysis results are built one layer up, in `analysis::json`.)
 
 pub mod csv_inputs;
-pub mod json;
 pub mod output;
 pub mod params;
 pub mod params_toml;
