@@ -30,7 +30,7 @@ fn options() -> Vec<ModelOptions> {
 
 /// `eval`'s derivative of every lag state equals (clamp(u_delayed) - x) / tau, bit for bit up
 /// to one rounding, at states and commands in and out of the saturation ranges.
-fn check_lags<const N: usize, M: Model<N>>(m: &M, x_steady: [f64; N]) {
+fn check_lags<const N: usize, M: Model<N, Memory = SeligerIterate>>(m: &M, x_steady: [f64; N]) {
     let lags: Vec<LinearLag> = m.linear_lags();
     assert_eq!(lags.len(), 3, "three actuator states");
     let d = Drive::new(1500.0, 110.0, 40.0, 60.0);
