@@ -387,26 +387,27 @@ pub fn param_stats(jacobian: &DMatrix<f64>, residuals: &[f64]) -> ParamStats {
     let mut cov = DMatrix::from_element(n, n, f64::NAN);
     let mut std_err = vec![f64::INFINITY; n];
     let mut corr = DMatrix::from_element(n, n, f64::NAN);
-    let (sv, vecs, rank) = match SVD::try_new(js, false, true, f64::EPSILON * 5.0, 0) {
-        Some(svd) if m > 0 && n > 0 => {
-            let s: Vec<f64> = svd.singular_values.iter().copied().collect();
-            let vt = svd.v_t.expect("v_t requested");
-            let tol = f64::EPSILON * m.max(n) as f64 * s.first().copied().unwrap_or(0.0);
-            let rank = s.iter().filter(|&&x| x > tol).count();
-            // Right singular vectors as columns (n x k); pad to n x n for a full basis.
-            let k = vt.nrows();
-            let mut v = DMatrix::zeros(n, n);
-            for i in 0..k {
-                for j in 0..n {
-                    v[(j, i)] = vt[(i, j)];
+    let (sv, vecs, rank) =
+        match SVD::try_new(js, false, true, f64::EPSILON * 5.0, super::SVD_MAX_ITER) {
+            Some(svd) if m > 0 && n > 0 => {
+                let s: Vec<f64> = svd.singular_values.iter().copied().collect();
+                let vt = svd.v_t.expect("v_t requested");
+                let tol = f64::EPSILON * m.max(n) as f64 * s.first().copied().unwrap_or(0.0);
+                let rank = s.iter().filter(|&&x| x > tol).count();
+                // Right singular vectors as columns (n x k); pad to n x n for a full basis.
+                let k = vt.nrows();
+                let mut v = DMatrix::zeros(n, n);
+                for i in 0..k {
+                    for j in 0..n {
+                        v[(j, i)] = vt[(i, j)];
+                    }
                 }
+                let mut s_full = s.clone();
+                s_full.resize(n, 0.0);
+                (s_full, v, rank.min(k))
             }
-            let mut s_full = s.clone();
-            s_full.resize(n, 0.0);
-            (s_full, v, rank.min(k))
-        }
-        _ => (vec![0.0; n], DMatrix::identity(n, n), 0),
-    };
+            _ => (vec![0.0; n], DMatrix::identity(n, n), 0),
+        };
     // Unidentifiable parameters: a non-negligible weight in a null direction.
     let mut identifiable = vec![true; n];
     for j in 0..n {
@@ -909,8 +910,8 @@ impl Trf<'_> {
             }
             let mut f_aug = DVector::zeros(m + n);
             f_aug.rows_mut(0, m).copy_from(&f);
-            let svd =
-                SVD::try_new(j_aug, true, true, f64::EPSILON * 5.0, 0).ok_or(LsqError::Svd)?;
+            let svd = SVD::try_new(j_aug, true, true, f64::EPSILON * 5.0, super::SVD_MAX_ITER)
+                .ok_or(LsqError::Svd)?;
             let u = svd.u.as_ref().expect("u requested");
             let v_t = svd.v_t.as_ref().expect("v_t requested");
             let s = &svd.singular_values;

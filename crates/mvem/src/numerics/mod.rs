@@ -11,3 +11,8 @@
 pub(crate) mod linalg;
 pub mod lsq;
 pub mod varpro;
+
+/// Iteration limit of every SVD in the crate (`nalgebra::SVD::try_new`; 0 would mean no limit,
+/// and a non-finite matrix would then never converge). A decomposition that needs more is
+/// reported as failed instead of running forever.
+pub const SVD_MAX_ITER: usize = 10_000;

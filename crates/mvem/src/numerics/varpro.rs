@@ -358,7 +358,13 @@ impl State<'_> {
         if self.cache.as_ref().is_none_or(|c| c.alpha != a) {
             self.cache = None;
             let aw = self.weighted_basis(a)?;
-            let svd = SVD::try_new(aw.clone(), true, true, f64::EPSILON * 5.0, 0)?;
+            let svd = SVD::try_new(
+                aw.clone(),
+                true,
+                true,
+                f64::EPSILON * 5.0,
+                super::SVD_MAX_ITER,
+            )?;
             let u = svd.u?;
             let v_t = svd.v_t?;
             let s = svd.singular_values;

@@ -175,7 +175,16 @@ pub fn linear_lsq(a: &DMatrix<f64>, y: &[f64]) -> Vec<f64> {
         a.column_mut(j).scale_mut(1.0 / s);
     }
     let dim = a.nrows().max(a.ncols()) as f64;
-    let svd = a.svd(true, true);
+    let Some(svd) = nalgebra::SVD::try_new(
+        a,
+        true,
+        true,
+        f64::EPSILON * 5.0,
+        crate::numerics::SVD_MAX_ITER,
+    ) else {
+        // not converged (non-finite data): no fit, as when the solve fails below
+        return vec![0.0; scale.len()];
+    };
     let tol = f64::EPSILON * dim * svd.singular_values.max();
     let c = svd
         .solve(&DVector::from_column_slice(y), tol)
