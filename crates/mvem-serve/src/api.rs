@@ -315,7 +315,7 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
         "orders": [8, 10, 12],
         "params": app.models.names(),
         "cycles": app.models.cycles.iter().map(|(n, _)| n).collect::<Vec<_>>(),
-        "modes": ["open"],
+        "modes": compute::CycleMode::NAMES,
         "limits": {
             "max_body": app.work.limits.max_body,
             "map_side": compute::MAX_MAP_SIDE,
@@ -391,9 +391,7 @@ async fn simulate(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -
     let (sched, name, dt, mode) = r.schedule(&app.models.cycles)?;
     let v = app
         .work
-        .run(move || {
-            mvem::dispatch!(&m, m => compute::simulate_cycle(m, &r, &sched, &name, dt, mode))
-        })
+        .run(move || compute::simulate_cycle(&m, &r, &sched, &name, dt, mode))
         .await??;
     Ok(Json(v))
 }

@@ -6,7 +6,10 @@ use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_metr
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
-use mvem::model::{Drive, Model, Signals};
+use mvem::control::baseline::BaselineTuning;
+use mvem::control::drive::{self, CycleSource, Scheme};
+use mvem::control::Trajectory;
+use mvem::model::{AnyModel, Drive, Model, Signals};
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
 use serde_json::{json, Map, Value};
@@ -249,21 +252,27 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
     }))
 }
 
-/// How a drive cycle is run. Closed-loop control plugs in here: a new variant, its arm in
-/// [`simulate_cycle`], and its name in [`CycleMode::parse`].
+/// How a drive cycle is run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CycleMode {
     /// The cycle's u_egr and u_vgt commands applied as recorded.
     Open,
+    /// The WHTC driven by the baseline EGR/VGT and engine controllers of `mvem::control`
+    /// (`mvem closed-loop --cycle whtc`).
+    Closed,
 }
 
 impl CycleMode {
+    /// Names of the modes (`/api/models` "modes").
+    pub const NAMES: [&'static str; 2] = ["open", "closed"];
+
     /// From the `mode` field of `POST /api/simulate`.
     pub(crate) fn parse(s: Option<&str>) -> Result<Self, Fail> {
         match s.unwrap_or("open") {
             "open" => Ok(CycleMode::Open),
+            "closed" => Ok(CycleMode::Closed),
             other => Err(input(format!(
-                "mode: {other:?} is not available; \"open\" (closed-loop control is not built into this server yet)"
+                "mode: {other:?} is not a mode; one of \"open\", \"closed\""
             ))),
         }
     }
@@ -287,7 +296,8 @@ pub(crate) struct SimulateRequest {
     /// Series to return (default: W_c, p_im, p_em, x_egr, lambda_O, M_e, n_t, T_em).
     #[serde(default)]
     pub outputs: Vec<String>,
-    /// `"open"` (default).
+    /// `"open"` (default) or `"closed"` (the WHTC with the baseline controllers; `cycle`
+    /// `"whtc"` only).
     #[serde(default)]
     pub mode: Option<String>,
     /// Model order 8, 10 or 12 (default 8).
@@ -334,6 +344,11 @@ impl SimulateRequest {
             (Some(_), Some(_)) => return Err(input("cycle and csv: give one of them")),
             (None, None) => return Err(input("cycle or csv: one is required")),
         };
+        if mode == CycleMode::Closed && (name != "whtc" || self.csv.is_some()) {
+            return Err(input(
+                "mode \"closed\": runs the WHTC only (the baseline controllers follow its speed and torque demand); give \"cycle\": \"whtc\"",
+            ));
+        }
         let dt = self.dt.unwrap_or(0.1);
         let (t0, t1) = (sched.t_first(), sched.t_last());
         if t1 <= t0 {
@@ -350,14 +365,28 @@ impl SimulateRequest {
     }
 }
 
-/// `POST /api/simulate`: the cycle from the steady state at its first inputs.
-pub(crate) fn simulate_cycle<const N: usize, M: Model<N>>(
-    m: &M,
+/// `POST /api/simulate` in `mode`.
+pub(crate) fn simulate_cycle(
+    model: &AnyModel,
     r: &SimulateRequest,
     sched: &InputSchedule,
     name: &str,
     dt: f64,
     mode: CycleMode,
+) -> Result<Value, Fail> {
+    match mode {
+        CycleMode::Open => mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt)),
+        CycleMode::Closed => closed_cycle(model, r, name, dt),
+    }
+}
+
+/// The open-loop cycle from the steady state at its first inputs.
+fn open_cycle<const N: usize, M: Model<N>>(
+    m: &M,
+    r: &SimulateRequest,
+    sched: &InputSchedule,
+    name: &str,
+    dt: f64,
 ) -> Result<Value, Fail> {
     let outputs: Vec<String> = if r.outputs.is_empty() {
         CYCLE_OUTPUTS.iter().map(|s| s.to_string()).collect()
@@ -370,10 +399,8 @@ pub(crate) fn simulate_cycle<const N: usize, M: Model<N>>(
         ..SimOptions::default()
     };
     let (t0, t1) = (sched.t_first(), sched.t_last());
-    let sol = match mode {
-        CycleMode::Open => simulate_from_steady(m, sched, t0, t1, &opts)
-            .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?,
-    };
+    let sol = simulate_from_steady(m, sched, t0, t1, &opts)
+        .map_err(|e| Fail::Model(format!("simulation failed: {e}")))?;
     let mut series = Map::new();
     let mut units = Map::new();
     for n in &outputs {
@@ -397,6 +424,88 @@ pub(crate) fn simulate_cycle<const N: usize, M: Model<N>>(
         "inputs": Value::Object(inputs),
         "units": Value::Object(units),
         "stats": {"steps": sol.stats.steps, "rejected": sol.stats.rejected, "rhs_evals": sol.stats.rhs_evals},
+    }))
+}
+
+/// Series of the closed-loop mode: the plant's outputs and the references.
+pub(crate) const CLOSED_OUTPUTS: [&str; 9] = [
+    "W_c",
+    "p_im",
+    "p_em",
+    "x_egr",
+    "x_egr_ref",
+    "lambda_O",
+    "lambda_O_ref",
+    "M_e",
+    "M_ref",
+];
+
+/// The WHTC with the baseline controllers (the core's [`drive::run_cycle`], as `mvem
+/// closed-loop --cycle whtc`): the trajectory every `dt` (rounded to a whole number of 10 ms
+/// controller samples), the cycle statistics and the regulation check.
+fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> Result<Value, Fail> {
+    let outputs: Vec<String> = if r.outputs.is_empty() {
+        CLOSED_OUTPUTS.iter().map(|s| s.to_string()).collect()
+    } else {
+        r.outputs.clone()
+    };
+    if outputs.len() > MAX_OUTPUTS {
+        return Err(input(format!(
+            "outputs: {} names, at most {MAX_OUTPUTS}",
+            outputs.len()
+        )));
+    }
+    let columns: Vec<&str> = Trajectory::NAMES
+        .iter()
+        .filter(|n| **n != "t" && !Drive::NAMES.contains(n))
+        .copied()
+        .collect();
+    if let Some(o) = outputs.iter().find(|o| !columns.contains(&o.as_str())) {
+        return Err(input(format!(
+            "outputs: {o:?} is not a closed-loop series; known: {}",
+            columns.join(", ")
+        )));
+    }
+    let run = drive::run_cycle(
+        model,
+        CycleSource::Whtc,
+        Scheme::Baseline(BaselineTuning::default()),
+        None,
+    )
+    .map_err(|e| Fail::Model(format!("closed loop: {e}")))?;
+    let every = ((dt / drive::SAMPLE_TIME).round() as usize).max(1);
+    let col = |n: &str| -> Vec<f64> {
+        run.traj
+            .get(n)
+            .unwrap_or_default()
+            .iter()
+            .step_by(every)
+            .copied()
+            .collect()
+    };
+    let mut series = Map::new();
+    let mut units = Map::new();
+    for n in &outputs {
+        series.insert(n.clone(), json!(col(n)));
+        units.insert(n.clone(), json!(unit(n)));
+    }
+    let mut inputs = Map::new();
+    for n in Drive::NAMES {
+        inputs.insert(n.to_string(), json!(col(n)));
+        units.insert(n.to_string(), json!(unit(n)));
+    }
+    Ok(json!({
+        "source": name,
+        "mode": "closed",
+        "t": col("t"),
+        "series": Value::Object(series),
+        "inputs": Value::Object(inputs),
+        "units": Value::Object(units),
+        "stats": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
+        "sample_time_s": drive::SAMPLE_TIME,
+        "cycle_stats": run.stats,
+        "violations": run.violations,
+        "passes": run.violations.is_empty(),
     }))
 }
 

@@ -2,7 +2,9 @@
 //! concurrency limits, query parsing under random input, and a load of concurrent requests.
 
 use mvem::analysis::steady::steady_state;
-use mvem::model::{Drive, Engine8};
+use mvem::control::baseline::BaselineTuning;
+use mvem::control::drive::{self, CycleSource, Scheme};
+use mvem::model::{AnyModel, Drive, Engine8};
 use mvem_serve::client::{self, Reply};
 use mvem_serve::{Config, Running};
 use proptest::prelude::*;
@@ -217,9 +219,25 @@ fn bad_or_missing_parameters_give_400_naming_them() {
         "unknown cycle",
     );
     assert_400_naming(
-        &post("/api/simulate", r#"{"cycle": "whtc", "mode": "closed"}"#),
+        &post("/api/simulate", r#"{"cycle": "whtc", "mode": "mpc"}"#),
         "mode",
-        "closed loop not built",
+        "unknown mode",
+    );
+    assert_400_naming(
+        &post(
+            "/api/simulate",
+            r#"{"csv": "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n2,1500,110,80,65\n", "mode": "closed"}"#,
+        ),
+        "mode",
+        "closed loop on a CSV",
+    );
+    assert_400_naming(
+        &post(
+            "/api/simulate",
+            r#"{"cycle": "whtc", "mode": "closed", "outputs": ["T_em"]}"#,
+        ),
+        "outputs",
+        "not a closed-loop series",
     );
     assert_400_naming(
         &post(
@@ -287,6 +305,53 @@ fn step_map_and_cycle_answer() {
     let v = post("/api/simulate", csv).json();
     assert_eq!(v["t"].as_array().unwrap().len(), 5);
     assert_eq!(v["series"].as_object().unwrap().len(), 1);
+}
+
+#[test]
+fn closed_loop_mode_answers_with_the_cores_trajectory() {
+    let m = get("/api/models").json();
+    assert_eq!(m["modes"], serde_json::json!(["open", "closed"]));
+    let r = post(
+        "/api/simulate",
+        r#"{"cycle": "whtc", "mode": "closed", "dt": 1.0}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    assert_eq!(v["mode"], "closed");
+    let t: Vec<f64> = serde_json::from_value(v["t"].clone()).unwrap();
+    assert_eq!(t.len(), 1801, "0..1800 s at 1 s");
+    // the same run as `mvem closed-loop --cycle whtc`, every 100th 10 ms sample, to the bit
+    let run = drive::run_cycle(
+        &AnyModel::Eight(Engine8::published()),
+        CycleSource::Whtc,
+        Scheme::Baseline(BaselineTuning::default()),
+        None,
+    )
+    .unwrap();
+    let every100 = |n: &str| -> Vec<f64> {
+        run.traj
+            .get(n)
+            .unwrap()
+            .iter()
+            .step_by(100)
+            .copied()
+            .collect()
+    };
+    assert_eq!(t, every100("t"));
+    for (key, n) in [
+        ("series", "M_e"),
+        ("series", "M_ref"),
+        ("series", "lambda_O"),
+        ("inputs", "u_vgt"),
+    ] {
+        let got: Vec<f64> = serde_json::from_value(v[key][n].clone()).unwrap();
+        assert_eq!(got, every100(n), "{n}");
+    }
+    assert_eq!(v["passes"], run.violations.is_empty());
+    assert_eq!(
+        v["cycle_stats"]["torque"]["r2"].as_f64().unwrap(),
+        run.stats.torque.r2
+    );
 }
 
 #[test]

@@ -4,17 +4,13 @@
 use crate::common::{self, ModelArgs};
 use crate::outdir::{self, Files};
 use crate::plot::{Figure, Panel, Series};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::ValueEnum;
-use mvem::control::baseline::{Baseline, BaselineTuning, OpenLoop};
-use mvem::control::cycle::{
-    parse_normalized_table, whtc_demand, Demand, MappingCurve, MappingOptions, ReferenceSpeeds,
-    WHTC_NORMALIZED,
-};
-use mvem::control::stats::CycleStats;
-use mvem::control::{self, Controller, Trajectory};
+use mvem::control::baseline::BaselineTuning;
+use mvem::control::cycle::Demand;
+use mvem::control::drive::{self, CycleRun, CycleSource, Scheme};
+use mvem::control::{ControlError, Trajectory};
 use mvem::model::AnyModel;
-use mvem::sim::{SimOptions, SimStats};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `mvem closed-loop`.
@@ -67,29 +63,12 @@ pub enum ControllerArg {
     OpenLoop,
 }
 
-/// A finished run.
+/// A finished run: the core's [`CycleRun`] and its wall time.
 pub struct Run {
-    /// One row per sample.
-    pub traj: Trajectory,
-    /// Statistics.
-    pub stats: CycleStats,
-    /// Regulation limit violations (empty: pass).
-    pub violations: Vec<String>,
-    /// Reference speeds of the mapping curve.
-    pub speeds: ReferenceSpeeds,
-    /// Solver statistics of the plant.
-    pub solver: SimStats,
+    /// The run.
+    pub run: CycleRun,
     /// Wall time of the run [s].
     pub wall_s: f64,
-}
-
-/// The WHTC table with the first sample repeated at t = 0 (as data/whtc_inputs_10hz.csv).
-fn whtc_table() -> Result<Vec<(f64, f64, Option<f64>)>> {
-    let mut table = parse_normalized_table(WHTC_NORMALIZED)
-        .map_err(|e| anyhow::anyhow!("built-in WHTC table: {e}"))?;
-    let first = table[0];
-    table.insert(0, (0.0, first.1, first.2));
-    Ok(table)
 }
 
 /// Read a user's cycle CSV: columns t, n_e, M_ref.
@@ -145,7 +124,8 @@ fn read_cycle_csv(path: &Path) -> Result<Demand> {
         .map_err(|e| common::usage(format!("{name}: {e} (rows counted after the header)")))
 }
 
-/// Build the demand and controller, run the loop and compute the statistics.
+/// Run the cycle `cycle` (`whtc` or a CSV file) with `controller` (the core's
+/// [`drive::run_cycle`]).
 pub fn run_cycle(
     model: &AnyModel,
     cycle: &str,
@@ -153,92 +133,39 @@ pub fn run_cycle(
     duration: Option<f64>,
 ) -> Result<Run> {
     let start = std::time::Instant::now();
-    let curve = MappingCurve::compute(model, MappingOptions::default())
-        .context("cannot compute the engine's mapping curve")?;
-    let speeds = curve.reference_speeds(500.0);
     let whtc = cycle == "whtc";
-    let demand =
-        match (whtc, controller) {
-            (true, ControllerArg::Baseline) => whtc_demand(&whtc_table()?, &curve, &speeds)?,
-            (true, ControllerArg::OpenLoop) => {
-                // the open-loop schedule has its own speed trace: the reference torque is the
-                // normalized torque on this engine's curve at that speed
-                let sched = common::whtc_schedule()?;
-                let table = whtc_table()?;
-                let (mut t, mut n, mut m, mut mot) = (vec![], vec![], vec![], vec![]);
-                for &(ti, _, tq) in &table {
-                    let ne = sched.at(ti).n_e_rpm;
-                    t.push(ti);
-                    n.push(ne);
-                    m.push(match tq {
-                        Some(p) => p / 100.0 * curve.m_max_at(ne),
-                        None => curve.m_motor_at(ne),
-                    });
-                    mot.push(tq.is_none());
-                }
-                Demand::new(t, n, m, mot)?
-            }
-            (false, ControllerArg::OpenLoop) => return Err(common::usage(
-                "--controller open-loop runs the open-loop WHTC schedule only: use --cycle whtc",
-            )),
-            (false, ControllerArg::Baseline) => {
-                let d = read_cycle_csv(Path::new(cycle))?;
-                d.check_feasible(&curve, 0.01)
-                    .map_err(|e| common::usage(format!("--cycle {cycle}: {e}")))?;
-                d
-            }
-        };
-    let demand = match duration {
-        None => demand,
-        Some(s) => {
-            let (t0, t1) = demand.span();
-            if !(s.is_finite() && s > 0.0) {
-                return Err(common::usage(format!("--duration {s}: must be > 0")));
-            }
-            truncate(&demand, (t0 + s).min(t1))?
+    if !whtc && controller == ControllerArg::OpenLoop {
+        return Err(common::usage(
+            "--controller open-loop runs the open-loop WHTC schedule only: use --cycle whtc",
+        ));
+    }
+    if let Some(s) = duration {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(common::usage(format!("--duration {s}: must be > 0")));
         }
+    }
+    let source = if whtc {
+        CycleSource::Whtc
+    } else {
+        CycleSource::Demand(read_cycle_csv(Path::new(cycle))?)
     };
-    let mut ctrl: Box<dyn Controller> = match controller {
-        ControllerArg::Baseline => Box::new(
-            Baseline::new(model, &curve, BaselineTuning::default())
-                .context("cannot set up the baseline controller")?,
-        ),
-        ControllerArg::OpenLoop => Box::new(OpenLoop {
-            schedule: common::whtc_schedule()?,
-            ts: 0.01,
-        }),
+    let scheme = match controller {
+        ControllerArg::Baseline => Scheme::Baseline(BaselineTuning::default()),
+        ControllerArg::OpenLoop => Scheme::OpenLoop(common::whtc_schedule()?),
     };
-    let (traj, solver) = control::run(
-        model.clone(),
-        &demand,
-        ctrl.as_mut(),
-        &SimOptions::default(),
-    )
-    .context("closed-loop simulation failed")?;
-    let stats = CycleStats::compute(&traj, curve.m_peak(), 1.2);
-    let violations = stats.violations(1.05);
+    let run = match drive::run_cycle(model, source, scheme, duration) {
+        Ok(r) => r,
+        // a user's demand the engine cannot follow
+        Err(e @ ControlError::Demand(_)) if !whtc => {
+            return Err(common::usage(format!("--cycle {cycle}: {e}")))
+        }
+        Err(e @ ControlError::Setup(_)) => return Err(e.into()),
+        Err(e) => return Err(anyhow::Error::new(e).context("closed-loop simulation failed")),
+    };
     Ok(Run {
-        traj,
-        stats,
-        violations,
-        speeds,
-        solver,
+        run,
         wall_s: start.elapsed().as_secs_f64(),
     })
-}
-
-/// The demand up to `t_end` (linear at the cut).
-fn truncate(d: &Demand, t_end: f64) -> Result<Demand> {
-    let ts: Vec<f64> = d.times().iter().cloned().filter(|&t| t < t_end).collect();
-    let mut t = ts.clone();
-    t.push(t_end);
-    let pts: Vec<_> = t.iter().map(|&x| d.at(x)).collect();
-    Ok(Demand::new(
-        t,
-        pts.iter().map(|p| p.n_e).collect(),
-        pts.iter().map(|p| p.m_ref).collect(),
-        pts.iter().map(|p| p.motoring).collect(),
-    )?)
 }
 
 /// The trajectory as CSV text.
@@ -326,18 +253,19 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
     fig
 }
 
-fn stats_json(a: &Args, r: &Run) -> serde_json::Value {
+fn stats_json(a: &Args, w: &Run) -> serde_json::Value {
+    let r = &w.run;
     serde_json::json!({
         "cycle": a.cycle,
         "controller": a.controller.to_possible_value().map(|v| v.get_name().to_string()),
         "model_states": a.model.order().states(),
-        "sample_time_s": 0.01,
+        "sample_time_s": drive::SAMPLE_TIME,
         "reference_speeds_rpm": r.speeds,
         "stats": r.stats,
         "violations": r.violations,
         "passes": r.violations.is_empty(),
         "solver": {"steps": r.solver.steps, "rejected": r.solver.rejected, "rhs_evals": r.solver.rhs_evals},
-        "wall_time_s": r.wall_s,
+        "wall_time_s": w.wall_s,
     })
 }
 
@@ -345,8 +273,9 @@ fn stats_json(a: &Args, r: &Run) -> serde_json::Value {
 pub fn run(a: &Args) -> Result<()> {
     outdir::check(&a.out)?;
     let model = a.model.build()?;
-    let r = run_cycle(&model, &a.cycle, a.controller, a.duration)?;
-    let json = stats_json(a, &r);
+    let w = run_cycle(&model, &a.cycle, a.controller, a.duration)?;
+    let json = stats_json(a, &w);
+    let r = &w.run;
     let mut files = Files::default();
     files.add("trajectory.csv", trajectory_csv(&r.traj));
     files.add(
@@ -401,7 +330,7 @@ pub fn run(a: &Args) -> Result<()> {
         } else {
             println!("regulation limits: FAIL: {}", r.violations.join("; "));
         }
-        println!("{} samples in {:.2} s", r.traj.len(), r.wall_s);
+        println!("{} samples in {:.2} s", r.traj.len(), w.wall_s);
     }
     eprintln!("{}", outdir::wrote(&written));
     Ok(())
