@@ -228,12 +228,8 @@ mod tests {
         let e = parse_params(&mid, Path::new("p.toml"))
             .unwrap_err()
             .to_string();
-        // toml names the line of the table that holds the unknown key
-        let want = mid
-            .lines()
-            .position(|l| l.starts_with("[intake_manifold]"))
-            .unwrap()
-            + 1;
+        // the loader names the line of the unknown key itself
+        let want = mid.lines().position(|l| l.starts_with("v_imm")).unwrap() + 1;
         assert!(
             e.contains(&format!("line {want},")) || e.contains(&format!("line {want}:")),
             "{e}"
