@@ -362,10 +362,19 @@ fn saturated_server_answers_503_with_retry_after() {
     c.limits.max_queue = 0;
     let s = mvem_serve::start(c).unwrap();
     let addr = s.addr;
-    // one long computation holds the only worker; requests meanwhile are refused, not queued
+    // one long computation (the closed-loop WHTC: seconds, not the ~0.1 s of an open-loop run
+    // on a quiet machine) holds the only worker; requests meanwhile are refused, not queued
     let long = std::thread::spawn(move || {
-        client::post(addr, "/api/simulate", br#"{"cycle": "whtc", "dt": 0.1}"#).unwrap()
+        client::post(
+            addr,
+            "/api/simulate",
+            br#"{"cycle": "whtc", "mode": "closed", "dt": 1.0}"#,
+        )
+        .unwrap()
     });
+    // let it take the worker first (a steady request polled at once could hold the worker
+    // and have the long one refused instead)
+    std::thread::sleep(Duration::from_millis(300));
     let mut saw_503 = None;
     for _ in 0..200 {
         let r = client::get(addr, &format!("/api/steady?{POINT}")).unwrap();

@@ -309,6 +309,11 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             "Step 6: k_ic (linear least squares of p_c - p_im, eq. (86))",
             std::slice::from_ref(&t.k_ic),
         );
+        let _ = writeln!(s, "| parameter | value |\n|---|---|");
+        for (n, v) in &t.k_ic.params {
+            let _ = writeln!(s, "| {n} | {v:.6e} |");
+        }
+        s.push('\n');
         if let Some(r) = &t.dynamic {
             let _ = writeln!(
                 s,
