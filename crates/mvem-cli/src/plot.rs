@@ -459,12 +459,16 @@ fn draw_panel<DB: DrawingBackend>(
     if panel.series.iter().any(|s| !s.label.is_empty()) {
         let (pos, covered, wy) = legend_corner(panel, (x0, x1), (y0, y1), plot_height_px);
         corner = pos;
-        if covered > 0.0 {
+        let keep = 1.0 - wy - 0.03;
+        if covered > 0.0 && keep >= 0.6 {
             // every corner holds data (e.g. a response between two steady-state lines): raise
             // the top of the axes so that the data end below the legend box
-            y1 = y0 + (y1 - y0) / (1.0 - wy - 0.03).max(0.3);
+            y1 = y0 + (y1 - y0) / keep;
             corner = SeriesLabelPosition::UpperRight;
         }
+        // A legend taller than 40 % of a short panel (a dense drive-cycle trace covers every
+        // corner) stays over the data in the least covered corner on its translucent
+        // background: raising the axes would flatten the data into the lower half.
     }
     let mut b = ChartBuilder::on(area);
     b.margin(8)
