@@ -187,6 +187,19 @@ mod tests {
     }
 
     #[test]
+    fn blanks_around_names_and_numbers_are_ignored() {
+        let s = parse(
+            " time_s , n_e_rpm,u_delta_mg ,u_egr_pct,\tu_vgt_pct\n 0 ,1500, 110,80 ,75\n# note\n1,\t1500,110,80,65 \n",
+        )
+        .unwrap();
+        assert_eq!(s.at(0.5).u_vgt_pct, 70.0);
+        assert_eq!(s.at(1.0).n_e_rpm, 1500.0);
+        let e =
+            parse("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0, ,110,80,75\n").unwrap_err();
+        assert_eq!(e, "in.csv, line 2, column n_e_rpm: `` is not a number");
+    }
+
+    #[test]
     fn errors_name_line_and_column() {
         let h = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n";
         let e = parse(&format!("{h}0,1500,110,80,75\n1,1500,abc,80,75\n")).unwrap_err();
