@@ -19,7 +19,7 @@ fn err(path: &Path, line: Option<usize>, column: Option<&str>, message: String) 
 pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoError> {
     let mut rdr = csv::ReaderBuilder::new()
         .has_headers(true)
-        .trim(csv::Trim::All)
+        .trim(csv::Trim::Headers) // fields are trimmed where they are parsed (cheaper)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
     let headers = rdr
@@ -62,11 +62,12 @@ pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoErro
     let mut times = Vec::new();
     let mut rows = Vec::new();
     let mut lines = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            let line = e.position().map(|p| p.line() as usize);
-            err(path, line, None, format!("malformed CSV: {e}"))
-        })?;
+    // one record reused for every row (no allocation per row)
+    let mut rec = csv::StringRecord::new();
+    while rdr.read_record(&mut rec).map_err(|e| {
+        let line = e.position().map(|p| p.line() as usize);
+        err(path, line, None, format!("malformed CSV: {e}"))
+    })? {
         let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
         if rec.len() != headers.len() {
             return Err(err(
@@ -78,7 +79,7 @@ pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoErro
         }
         let mut vals = [0.0; 5];
         for k in 0..5 {
-            let s = &rec[index[k]];
+            let s = rec[index[k]].trim();
             let v: f64 = s.parse().map_err(|_| {
                 err(
                     path,
@@ -183,6 +184,19 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.at(0.5).u_vgt_pct, 70.0);
+    }
+
+    #[test]
+    fn blanks_around_names_and_numbers_are_ignored() {
+        let s = parse(
+            " time_s , n_e_rpm,u_delta_mg ,u_egr_pct,\tu_vgt_pct\n 0 ,1500, 110,80 ,75\n# note\n1,\t1500,110,80,65 \n",
+        )
+        .unwrap();
+        assert_eq!(s.at(0.5).u_vgt_pct, 70.0);
+        assert_eq!(s.at(1.0).n_e_rpm, 1500.0);
+        let e =
+            parse("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0, ,110,80,75\n").unwrap_err();
+        assert_eq!(e, "in.csv, line 2, column n_e_rpm: `` is not a number");
     }
 
     #[test]

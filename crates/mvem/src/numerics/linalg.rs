@@ -39,30 +39,31 @@ pub(crate) fn lu_factor<const N: usize>(
     true
 }
 
-/// Solve A x = b in place for the leading `n` x `n` block factored by [`lu_factor`] (the first
-/// `n` entries of `b`).
+/// Solve A x = b in place for the matrix factored by [`lu_factor`] (with `n = N`), given
+/// `dinv[k] = 1 / U_kk` (a multiplication instead of a division per row; fixed loop bounds, so
+/// the compiler unrolls the small systems completely).
 pub(crate) fn lu_solve<const N: usize>(
     lu: &[[f64; N]; N],
     piv: &[usize; N],
+    dinv: &[f64; N],
     b: &mut [f64; N],
-    n: usize,
 ) {
-    for k in 0..n {
+    for k in 0..N {
         b.swap(k, piv[k]);
     }
-    for r in 1..n {
+    for r in 1..N {
         let mut s = b[r];
         for c in 0..r {
             s -= lu[r][c] * b[c];
         }
         b[r] = s;
     }
-    for r in (0..n).rev() {
+    for r in (0..N).rev() {
         let mut s = b[r];
-        for c in r + 1..n {
+        for c in r + 1..N {
             s -= lu[r][c] * b[c];
         }
-        b[r] = s / lu[r][r];
+        b[r] = s * dinv[r];
     }
 }
 
@@ -83,18 +84,18 @@ mod tests {
         let mut a = a0;
         let mut piv = [0; 3];
         assert!(lu_factor(&mut a, &mut piv, 3));
-        lu_solve(&a, &piv, &mut b, 3);
+        let dinv: [f64; 3] = std::array::from_fn(|k| 1.0 / a[k][k]);
+        lu_solve(&a, &piv, &dinv, &mut b);
         for i in 0..3 {
             assert!((b[i] - x[i]).abs() < 1e-14);
         }
         let mut s = [[1.0, 2.0], [2.0, 4.0]];
         assert!(!lu_factor(&mut s, &mut [0; 2], 2));
-        // the leading 2x2 block of a 3x3 matrix
+        // the leading 2x2 block of a 3x3 matrix is factored alone
         let mut a = [[2.0, 1.0, 9.0], [1.0, 3.0, 9.0], [9.0, 9.0, 9.0]];
-        let mut b = [3.0, 5.0, 7.0];
         let mut piv = [0; 3];
         assert!(lu_factor(&mut a, &mut piv, 2));
-        lu_solve(&a, &piv, &mut b, 2);
-        assert!((b[0] - 0.8).abs() < 1e-15 && (b[1] - 1.4).abs() < 1e-15 && b[2] == 7.0);
+        assert_eq!(a[2], [9.0, 9.0, 9.0]);
+        assert!((a[1][0] - 0.5).abs() < 1e-15 && (a[1][1] - 2.5).abs() < 1e-15);
     }
 }

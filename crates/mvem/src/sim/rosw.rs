@@ -53,20 +53,112 @@ pub(crate) const JAC_MAX_AGE: usize = 12;
 /// A rejected step recomputes the Jacobian if it is at least this many steps old.
 pub(crate) const JAC_REFRESH_ON_REJECT: usize = 3;
 
-/// LU factors of I - gamma h J_zz, where J_zz is the Jacobian restricted to the states the
-/// W-method integrates (all states, or all but the closed-form lag states if `reduced`), and J_zz
-/// itself, both in the leading m x m block of the z coordinates.
+/// The tableau in the transformed stage variables u_i = sum_j Gamma_ij k_j (Hairer & Wanner,
+/// Solving ODEs II, IV.7, eq. (7.25)), Gamma = (g_ij) + gamma I:
+///
+/// ```text
+/// (I - gamma h J) u_i = gamma (h f(t + alpha_i h, y + sum_j a~_ij u_j) + sum_j c_ij u_j)
+/// y_new = y + sum_i m_i u_i,   error estimate = sum_i e_i u_i
+/// ```
+///
+/// with a~ = A Gamma^-1, c = diag(1/gamma) - Gamma^-1 (below the diagonal), m = b Gamma^-1 and
+/// e = (b - bh) Gamma^-1. The same method as the k form for any J (a change of variables), but
+/// without the products J sum_j g_ij k_j.
+pub(crate) struct Transformed {
+    pub(crate) a21: f64,
+    pub(crate) a31: f64,
+    pub(crate) a32: f64,
+    pub(crate) a41: f64,
+    pub(crate) a42: f64,
+    pub(crate) a43: f64,
+    pub(crate) c21: f64,
+    pub(crate) c31: f64,
+    pub(crate) c32: f64,
+    pub(crate) c41: f64,
+    pub(crate) c42: f64,
+    pub(crate) c43: f64,
+    pub(crate) m: [f64; 4],
+    pub(crate) e: [f64; 4],
+}
+
+impl Transformed {
+    /// The transformed coefficients computed from the published tableau.
+    pub(crate) fn new() -> Self {
+        let gam = [
+            [GAMMA, 0.0, 0.0, 0.0],
+            [G21, GAMMA, 0.0, 0.0],
+            [G31, G32, GAMMA, 0.0],
+            [G41, G42, G43, GAMMA],
+        ];
+        // Gamma^-1 by forward substitution, column by column
+        let mut gi = [[0.0; 4]; 4];
+        for col in 0..4 {
+            for r in col..4 {
+                let rhs = if r == col { 1.0 } else { 0.0 };
+                let s: f64 = (col..r).map(|j| gam[r][j] * gi[j][col]).sum();
+                gi[r][col] = (rhs - s) / gam[r][r];
+            }
+        }
+        let a = [
+            [0.0; 4],
+            [A21, 0.0, 0.0, 0.0],
+            [A31, A32, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ];
+        let at = |i: usize, j: usize| (0..4).map(|k| a[i][k] * gi[k][j]).sum::<f64>();
+        let row = |v: [f64; 4]| -> [f64; 4] {
+            std::array::from_fn(|j| (0..4).map(|k| v[k] * gi[k][j]).sum())
+        };
+        Self {
+            a21: at(1, 0),
+            a31: at(2, 0),
+            a32: at(2, 1),
+            a41: at(3, 0),
+            a42: at(3, 1),
+            a43: at(3, 2),
+            c21: -gi[1][0],
+            c31: -gi[2][0],
+            c32: -gi[2][1],
+            c41: -gi[3][0],
+            c42: -gi[3][1],
+            c43: -gi[3][2],
+            m: row([B1, B2, B3, B4]),
+            e: row([B1 - BH1, B2 - BH2, B3 - BH3, B4 - BH4]),
+        }
+    }
+}
+
+/// [`Transformed`], computed once.
+pub(crate) static TRANSFORMED: std::sync::LazyLock<Transformed> =
+    std::sync::LazyLock::new(Transformed::new);
+
+/// LU factors of I - gamma h J_zz, where J_zz is the Jacobian with the rows and columns of the
+/// closed-form lag states (if `reduced`) replaced by those of the identity: on the other states
+/// (z) the iteration matrix of the W-method, decoupled from the lag states, which the solve
+/// leaves at 0. Full N x N with fixed loop bounds: for N = 8 faster than a 5 x 5 block of
+/// run-time size.
 pub(super) struct IterationMatrix<const N: usize> {
     /// Step size [s] the factors were made for.
     pub(super) h: f64,
     /// Whether the lag states are left out.
     pub(super) reduced: bool,
-    /// The integrated states: z[0..m] are state indices.
-    pub(super) z: [usize; N],
-    pub(super) m: usize,
     pub(super) lu: [[f64; N]; N],
     pub(super) piv: [usize; N],
-    pub(super) jz: [[f64; N]; N],
+    /// 1 / U_aa: the back substitution multiplies instead of dividing.
+    pub(super) dinv: [f64; N],
+    /// 1 on the z states, 0 on the lag states of a reduced matrix.
+    pub(super) mask: [f64; N],
+}
+
+impl<const N: usize> IterationMatrix<N> {
+    /// Solve (I - gamma h J_zz) x = r on the z states in place; the lag entries of `r` become 0.
+    #[inline]
+    fn solve(&self, r: &mut [f64; N]) {
+        for (v, m) in r.iter_mut().zip(&self.mask) {
+            *v *= m;
+        }
+        linalg::lu_solve(&self.lu, &self.piv, &self.dinv, r);
+    }
 }
 
 impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
@@ -133,7 +225,8 @@ impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
     /// (I - gamma h J) is refactored only when J, h or the set of lag states changed, e.g. not
     /// for the second of two equal steps that split a segment remainder (h equal up to rounding:
     /// the factors of I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
-    /// J' = (h'/h) J, a W-method admits any J', and the stage terms h J' g k use the same J').
+    /// J' = (h'/h) J, and a W-method admits any J'; in the transformed stage variables J
+    /// appears nowhere else).
     fn iteration_matrix(
         &mut self,
         inp: &mut SegmentInputs,
@@ -164,38 +257,40 @@ impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
             Box::new(IterationMatrix {
                 h,
                 reduced,
-                z: [0; N],
-                m: 0,
                 lu: [[0.0; N]; N],
                 piv: [0; N],
-                jz: [[0.0; N]; N],
+                dinv: [0.0; N],
+                mask: [1.0; N],
             })
         });
         w.h = h;
         w.reduced = reduced;
-        w.m = 0;
-        for i in (0..N).filter(|&i| !is_lag[i]) {
-            w.z[w.m] = i;
-            w.m += 1;
-        }
-        let (m, z) = (w.m, w.z);
-        for a in 0..m {
-            for b in 0..m {
-                w.jz[a][b] = j[z[a]][z[b]];
-                w.lu[a][b] = -GAMMA * h * w.jz[a][b];
+        for a in 0..N {
+            w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
+            for b in 0..N {
+                w.lu[a][b] = if is_lag[a] || is_lag[b] {
+                    0.0
+                } else {
+                    -GAMMA * h * j[a][b]
+                };
             }
             w.lu[a][a] += 1.0;
         }
-        let IterationMatrix { lu, piv, .. } = &mut *w;
-        if !linalg::lu_factor(lu, piv, m) {
+        let IterationMatrix { lu, piv, dinv, .. } = &mut *w;
+        if !linalg::lu_factor(lu, piv, N) {
             return Err(self.singular(t, h));
+        }
+        for a in 0..N {
+            dinv[a] = 1.0 / lu[a][a];
         }
         self.stats.lu += 1;
         self.lu = Some(w);
         Ok(())
     }
 
-    /// The four stages of ROS34PW2 with the iteration matrix `w`.
+    /// The four stages of ROS34PW2 with the iteration matrix `w`, in the transformed stage
+    /// variables u_i = sum_j Gamma_ij k_j of Hairer & Wanner IV.7 (eq. (7.25)), which need no
+    /// products J k (see [`Transformed`]).
     #[allow(clippy::too_many_arguments)]
     fn rosw_stages(
         &mut self,
@@ -207,40 +302,15 @@ impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
         lag_seg: &[LagSegment],
         w: &IterationMatrix<N>,
     ) -> Result<Trial<N, M::Memory>, SimError> {
-        let (m, z) = (w.m.min(N), &w.z);
-        let js = w.h / h;
+        let c = &*TRANSFORMED;
         let y = self.y;
-        // k = (I - gamma h J_zz)^-1 h (f + J_zz g) on the z states; 0 on the lag states
-        // (their values are exact, the increments are not used)
-        let stage = |f: &[f64; N], g: Option<&[f64; N]>| -> [f64; N] {
-            let mut r = [0.0; N];
-            match g {
-                None => {
-                    for a in 0..m {
-                        r[a] = h * f[z[a]];
-                    }
-                }
-                Some(g) => {
-                    let mut gz = [0.0; N];
-                    for b in 0..m {
-                        gz[b] = g[z[b]];
-                    }
-                    for a in 0..m {
-                        let row = &w.jz[a];
-                        let mut s = 0.0;
-                        for b in 0..m {
-                            s += row[b] * gz[b];
-                        }
-                        r[a] = h * (f[z[a]] + js * s);
-                    }
-                }
-            }
-            linalg::lu_solve(&w.lu, &w.piv, &mut r, m);
-            let mut k = [0.0; N];
-            for a in 0..m {
-                k[z[a]] = r[a];
-            }
-            k
+        // u_i = (I - gamma h J_zz)^-1 gamma (h f_i + sum_j c_ij u_j) on the z states; 0 on the
+        // lag states (their values are exact, the increments are not used). The factors were
+        // made for w.h, i.e. for the Jacobian (w.h / h) J: a W-method admits any.
+        let stage = |f: &[f64; N], cu: [f64; N]| -> [f64; N] {
+            let mut r: [f64; N] = std::array::from_fn(|i| GAMMA * (h * f[i] + cu[i]));
+            w.solve(&mut r);
+            r
         };
         // exact lag states at t + s
         let exact = |yt: &mut [f64; N], s: f64| {
@@ -248,34 +318,35 @@ impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
                 yt[l.state] = l.advance(t, y[l.state], s);
             }
         };
-        let k1 = stage(f0, None);
+        let u1 = stage(f0, [0.0; N]);
         // stage 2
-        let mut y2: [f64; N] = std::array::from_fn(|i| y[i] + A21 * k1[i]);
+        let mut y2: [f64; N] = std::array::from_fn(|i| y[i] + c.a21 * u1[i]);
         exact(&mut y2, ALPHA2 * h);
         let f2 = self.rhs(inp, t + ALPHA2 * h, &y2)?.dx;
-        let k2 = stage(&f2, Some(&std::array::from_fn(|i| G21 * k1[i])));
+        let u2 = stage(&f2, std::array::from_fn(|i| c.c21 * u1[i]));
         // stage 3
-        let mut y3: [f64; N] = std::array::from_fn(|i| y[i] + A31 * k1[i] + A32 * k2[i]);
+        let mut y3: [f64; N] = std::array::from_fn(|i| y[i] + c.a31 * u1[i] + c.a32 * u2[i]);
         exact(&mut y3, ALPHA3 * h);
         let f3 = self.rhs(inp, t + ALPHA3 * h, &y3)?.dx;
-        let k3 = stage(
-            &f3,
-            Some(&std::array::from_fn(|i| G31 * k1[i] + G32 * k2[i])),
-        );
-        // stage 4 (a41 = a42 = 0, a43 = 1, alpha4 = 1)
-        let mut y4: [f64; N] = std::array::from_fn(|i| y[i] + k3[i]);
+        let u3 = stage(&f3, std::array::from_fn(|i| c.c31 * u1[i] + c.c32 * u2[i]));
+        // stage 4 (alpha4 = 1)
+        let mut y4: [f64; N] =
+            std::array::from_fn(|i| y[i] + c.a41 * u1[i] + c.a42 * u2[i] + c.a43 * u3[i]);
         exact(&mut y4, t_new - t);
         let f4 = self.rhs(inp, t_new, &y4)?.dx;
-        let g4: [f64; N] = std::array::from_fn(|i| G41 * k1[i] + G42 * k2[i] + G43 * k3[i]);
-        let k4 = stage(&f4, Some(&g4));
+        let u4 = stage(
+            &f4,
+            std::array::from_fn(|i| c.c41 * u1[i] + c.c42 * u2[i] + c.c43 * u3[i]),
+        );
+        let [m1, m2, m3, m4] = c.m;
         let mut y1: [f64; N] =
-            std::array::from_fn(|i| y[i] + B1 * k1[i] + B2 * k2[i] + B3 * k3[i] + B4 * k4[i]);
+            std::array::from_fn(|i| y[i] + m1 * u1[i] + m2 * u2[i] + m3 * u3[i] + m4 * u4[i]);
         for l in lag_seg {
             y1[l.state] = y4[l.state];
         }
-        let e: [f64; N] = std::array::from_fn(|i| {
-            (B1 - BH1) * k1[i] + (B2 - BH2) * k2[i] + (B3 - BH3) * k3[i] + (B4 - BH4) * k4[i]
-        });
+        let [e1, e2, e3, e4] = c.e;
+        let e: [f64; N] =
+            std::array::from_fn(|i| e1 * u1[i] + e2 * u2[i] + e3 * u3[i] + e4 * u4[i]);
         Ok(Trial {
             y1,
             err: self.error_norm(&self.y, &y1, &e),
@@ -301,6 +372,42 @@ impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One step of the k form (module docs) and of the transformed form ([`Transformed`]) on
+    /// y' = lambda y with a W-matrix mu != lambda agree to rounding (both y_new and the error
+    /// estimate).
+    #[test]
+    fn transformed_stages_equal_k_form() {
+        let (lambda, mu, h, y0) = (-3.0_f64, -2.2_f64, 0.37_f64, 1.3_f64);
+        let f = |y: f64| lambda * y;
+        let d = 1.0 - GAMMA * h * mu;
+        // k form
+        let k1 = h * f(y0) / d;
+        let k2 = (h * f(y0 + A21 * k1) + h * mu * G21 * k1) / d;
+        let k3 = (h * f(y0 + A31 * k1 + A32 * k2) + h * mu * (G31 * k1 + G32 * k2)) / d;
+        let k4 = (h * f(y0 + k3) + h * mu * (G41 * k1 + G42 * k2 + G43 * k3)) / d;
+        let y_k = y0 + B1 * k1 + B2 * k2 + B3 * k3 + B4 * k4;
+        let e_k = (B1 - BH1) * k1 + (B2 - BH2) * k2 + (B3 - BH3) * k3 + (B4 - BH4) * k4;
+        // transformed form
+        let c = Transformed::new();
+        let u1 = GAMMA * h * f(y0) / d;
+        let u2 = GAMMA * (h * f(y0 + c.a21 * u1) + c.c21 * u1) / d;
+        let u3 = GAMMA * (h * f(y0 + c.a31 * u1 + c.a32 * u2) + c.c31 * u1 + c.c32 * u2) / d;
+        let u4 = GAMMA
+            * (h * f(y0 + c.a41 * u1 + c.a42 * u2 + c.a43 * u3)
+                + c.c41 * u1
+                + c.c42 * u2
+                + c.c43 * u3)
+            / d;
+        let y_u = y0 + c.m[0] * u1 + c.m[1] * u2 + c.m[2] * u3 + c.m[3] * u4;
+        let e_u = c.e[0] * u1 + c.e[1] * u2 + c.e[2] * u3 + c.e[3] * u4;
+        assert!((y_u - y_k).abs() < 1e-14, "{y_u} {y_k}");
+        assert!((e_u - e_k).abs() < 1e-14, "{e_u} {e_k}");
+        assert!(
+            e_k.abs() > 1e-4,
+            "the test must exercise the error estimate: {e_k}"
+        );
+    }
 
     #[test]
     fn order_conditions() {
