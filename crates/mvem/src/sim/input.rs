@@ -74,6 +74,18 @@ pub enum ScheduleError {
 /// Column names of a schedule row (CSV header of the input files).
 pub const INPUT_COLUMNS: [&str; 5] = ["time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"];
 
+/// The values of row `i` must be finite (the error names the row and the column).
+fn check_values(i: usize, r: &[f64; 4]) -> Result<(), ScheduleError> {
+    match r.iter().position(|v| !v.is_finite()) {
+        Some(c) => Err(ScheduleError::NonFinite {
+            row: i,
+            column: INPUT_COLUMNS[c + 1],
+            value: r[c],
+        }),
+        None => Ok(()),
+    }
+}
+
 impl InputSchedule {
     /// Build from rows `(t, [n_e, u_delta, u_egr, u_vgt])`; times must be non-decreasing, at most
     /// two rows may share a time (a step).
@@ -89,15 +101,7 @@ impl InputSchedule {
                     value: *t,
                 });
             }
-            for (c, v) in r.iter().enumerate() {
-                if !v.is_finite() {
-                    return Err(ScheduleError::NonFinite {
-                        row: i,
-                        column: INPUT_COLUMNS[c + 1],
-                        value: *v,
-                    });
-                }
-            }
+            check_values(i, r)?;
             if i > 0 {
                 let prev = times[i - 1];
                 if *t < prev {
@@ -175,17 +179,9 @@ impl InputSchedule {
         if row == last {
             return Ok(());
         }
-        for (c, v) in row.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(ScheduleError::NonFinite {
-                    row: n,
-                    column: INPUT_COLUMNS[c + 1],
-                    value: *v,
-                });
-            }
-        }
+        check_values(n, &row)?;
         let prev = self.times[n - 1];
-        if !(t >= prev) {
+        if t.is_nan() || t < prev {
             return Err(ScheduleError::NonMonotonic {
                 row: n,
                 t,
