@@ -1,8 +1,10 @@
 """VGT step responses at several operating points on a local dask.distributed cluster or ray.
 
 The path for sweeps that outgrow one machine: the same code runs on a remote cluster by giving
-dask's Client the scheduler address (or ray.init(address=...)). Each task is one
-mvem.step_response call (simulation plus the step metrics of mvem demo). Run:
+dask's Client the scheduler address (or ray.init(address=...)). The cases are split into one
+chunk per worker; each task runs its chunk with one mvem.simulate_many call (all the worker's
+cores, the GIL released) and computes the step metrics of mvem demo (mvem.step_metrics, the
+final value from mvem.steady). Run:
 
     python examples/python/sweep_ray_or_dask.py [--backend auto|dask|ray] [--model 8|10|12]
 
@@ -16,33 +18,49 @@ import sys
 import mvem
 
 CASES = [(n, d) for n in (1200.0, 1500.0, 1800.0) for d in (80.0, 110.0, 150.0)]
+WORKERS = 2
 
 
-def step(n_e, u_delta, model=8):
-    """W_c response to a VGT step 75 -> 65 % at 1 s (n_e [rpm], u_delta [mg/cycle/cylinder])."""
-    r = mvem.step_response(n_e, u_delta, 80.0, 75.0, input="u_vgt", to=65.0, output="W_c",
-                           t_step=1.0, t_end=8.0, dt=0.05, model=model)
-    return {"n_e_rpm": n_e, "u_delta_mg": u_delta, "W_c_start": r["y0"], "W_c_end": r["y_final"],
-            "dc_gain": r["dc_gain"], "non_minimum_phase": r["non_minimum_phase"],
-            "wrong_way_pct": 100 * r["wrong_way"]["relative"] if r["wrong_way"] else 0.0}
+def vgt_step(n_e, u_delta):
+    """Inputs of a VGT step 75 -> 65 % at 1 s, u_egr 80 % (n_e [rpm], u_delta [mg])."""
+    return {"time_s": [0.0, 1.0, 1.0, 8.0], "n_e_rpm": [n_e] * 4, "u_delta_mg": [u_delta] * 4,
+            "u_egr_pct": [80.0] * 4, "u_vgt_pct": [75.0, 75.0, 65.0, 65.0]}
+
+
+def steps(chunk, model=8):
+    """W_c responses of a chunk of (n_e, u_delta) cases: one simulate_many call per task."""
+    runs = mvem.simulate_many([vgt_step(n, d) for n, d in chunk], dt=0.05, model=model)
+    rows = []
+    for (n_e, u_delta), r in zip(chunk, runs):
+        y_final = mvem.steady(n_e, u_delta, 80.0, 65.0, model=model)["W_c"]
+        m = mvem.step_metrics(r["t"], r["W_c"], 1.0, r["W_c"][0], y_final, -10.0)
+        rows.append({"n_e_rpm": n_e, "u_delta_mg": u_delta, "W_c_start": m["y0"],
+                     "W_c_end": m["y_final"], "dc_gain": m["dc_gain"],
+                     "non_minimum_phase": m["non_minimum_phase"],
+                     "wrong_way_pct": 100 * m["wrong_way"]["relative"] if m["wrong_way"] else 0.0})
+    return rows
+
+
+def chunks():
+    return [CASES[i::WORKERS] for i in range(WORKERS)]
 
 
 def with_dask(model):
     from dask.distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True) as cluster, \
+    with LocalCluster(n_workers=WORKERS, threads_per_worker=1, processes=True) as cluster, \
             Client(cluster) as client:
-        futures = [client.submit(step, n, d, model) for n, d in CASES]
-        return client.gather(futures)
+        futures = [client.submit(steps, c, model) for c in chunks()]
+        return [r for rows in client.gather(futures) for r in rows]
 
 
 def with_ray(model):
     import ray
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(num_cpus=WORKERS, include_dashboard=False, log_to_driver=False)
     try:
-        remote = ray.remote(step)
-        return ray.get([remote.remote(n, d, model) for n, d in CASES])
+        remote = ray.remote(steps)
+        return [r for rows in ray.get([remote.remote(c, model) for c in chunks()]) for r in rows]
     finally:
         ray.shutdown()
 

@@ -1,6 +1,7 @@
 //! The Python API in plain Rust (no Python types), so it is tested by `cargo test` and the
 //! pyo3 layer only converts values.
 
+use mvem::analysis::ensemble::{simulate_many, Case};
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state, SimFromSteadyError};
@@ -237,6 +238,21 @@ pub fn simulate_rows(
     params: Option<Params>,
     variant: Variant,
 ) -> CoreResult<(Vec<String>, Vec<Vec<f64>>)> {
+    let c = case(rows, &args, params, variant)?;
+    let opts = args.options()?;
+    let t_end = c.t_end.expect("set by case()");
+    let sol = mvem::dispatch!(&c.model, m => simulate_from_steady(m, &c.inputs, c.inputs.t_first(), t_end, &opts))
+        .map_err(steady_sim_error)?;
+    Ok((sol.names, sol.columns))
+}
+
+/// The model, the schedule and the end time of one simulation (checked).
+fn case(
+    rows: &[[f64; 5]],
+    args: &SimArgs,
+    params: Option<Params>,
+    variant: Variant,
+) -> CoreResult<Case> {
     let m = model(params, variant)?;
     let sched = InputSchedule::new(
         rows.iter().map(|r| r[0]).collect(),
@@ -250,14 +266,70 @@ pub fn simulate_rows(
             "t_end = {t_end} must be finite and after the first input time {t0} (give t_end, or inputs spanning a time interval)"
         )));
     }
+    Ok(Case {
+        model: m,
+        inputs: sched,
+        t_end: Some(t_end),
+    })
+}
+
+fn steady_sim_error(e: SimFromSteadyError) -> CoreError {
+    match e {
+        SimFromSteadyError::Sim(e) => sim_error(e),
+        e => CoreError::Runtime(e.to_string()),
+    }
+}
+
+/// Columns of one simulation: names and values.
+pub type Columns = (Vec<String>, Vec<Vec<f64>>);
+
+/// Many simulations at once on `threads` worker threads (`None`: one per core), each from the
+/// steady state at its first input row ([`mvem::analysis::ensemble::simulate_many`]). Run `i`
+/// has the input rows `runs[i].0` and the parameters `runs[i].1`; its result or its error
+/// (prefixed "run i: ") is in slot `i`. The outer error is a bad option (threads, tolerances).
+pub fn simulate_many_rows(
+    runs: Vec<(Vec<[f64; 5]>, Option<Params>)>,
+    args: SimArgs,
+    variant: Variant,
+    threads: Option<usize>,
+) -> CoreResult<Vec<CoreResult<Columns>>> {
     let opts = args.options()?;
-    let sol = mvem::dispatch!(&m, m => simulate_from_steady(m, &sched, t0, t_end, &opts)).map_err(
-        |e| match e {
-            SimFromSteadyError::Sim(e) => sim_error(e),
-            e => CoreError::Runtime(e.to_string()),
-        },
-    )?;
-    Ok((sol.names, sol.columns))
+    if threads == Some(0) {
+        return Err(CoreError::Value(
+            "threads = 0: give at least 1 (or None: one per core)".into(),
+        ));
+    }
+    let prefix = |i: usize, e: CoreError| match e {
+        CoreError::Value(m) => CoreError::Value(format!("run {i}: {m}")),
+        CoreError::Runtime(m) => CoreError::Runtime(format!("run {i}: {m}")),
+    };
+    // checked cases; a bad one keeps its error and is not run
+    let mut out: Vec<Option<CoreResult<Columns>>> = Vec::with_capacity(runs.len());
+    let mut cases = Vec::new();
+    let mut index = Vec::new();
+    for (i, (rows, p)) in runs.into_iter().enumerate() {
+        match case(&rows, &args, p, variant) {
+            Ok(c) => {
+                cases.push(c);
+                index.push(i);
+                out.push(None);
+            }
+            Err(e) => out.push(Some(Err(prefix(i, e)))),
+        }
+    }
+    let sols = simulate_many(&cases, &opts, threads.unwrap_or(0))
+        .map_err(|e| CoreError::Runtime(e.to_string()))?;
+    for (k, r) in sols.into_iter().enumerate() {
+        let i = index[k];
+        out[i] = Some(
+            r.map(|s| (s.names, s.columns))
+                .map_err(|e| prefix(i, steady_sim_error(e.error))),
+        );
+    }
+    Ok(out
+        .into_iter()
+        .map(|r| r.expect("every run has a result"))
+        .collect())
 }
 
 fn sim_error(e: SimError) -> CoreError {

@@ -6,7 +6,7 @@ use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyString};
+use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
 fn to_py_err(e: CoreError) -> PyErr {
     match e {
@@ -136,22 +136,141 @@ fn simulate<'py>(
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
     let p = parse_params(py, params)?;
-    let args = SimArgs {
+    let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
+    let cols = py
+        .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
+        .map_err(to_py_err)?;
+    columns_dict(py, cols)
+}
+
+/// The simulation options of simulate and simulate_many (atol defaults to rtol).
+fn sim_args(
+    t_end: Option<f64>,
+    dt: f64,
+    rtol: f64,
+    atol: Option<f64>,
+    numeric_actuators: bool,
+) -> SimArgs {
+    SimArgs {
         t_end,
         dt,
         rtol,
         atol: atol.unwrap_or(rtol),
         numeric_actuators,
-    };
-    let (names, cols) = py
-        .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
-        .map_err(to_py_err)?;
+    }
+}
+
+/// A simulation's columns as a dict of numpy arrays.
+fn columns_dict(py: Python<'_>, (names, cols): core::Columns) -> PyResult<Bound<'_, PyDict>> {
     let np = py.import("numpy")?;
     let out = PyDict::new(py);
     // a signal named like a state (T_em in the 10-state model) comes after it: keep the state
     for (n, c) in names.into_iter().zip(cols) {
         if !out.contains(&n)? {
             out.set_item(n, np.call_method1("array", (c,))?)?;
+        }
+    }
+    Ok(out)
+}
+
+/// Many simulations at once on all cores (parameter or input variations).
+///
+/// inputs: a list of inputs, each as in simulate (a dict of columns or a 2-D array); run i
+///     simulates inputs[i] from the steady state at its first row.
+/// params: None (published set), one dict of overrides or path for every run, or a list with one
+///     entry (None, dict or path) per run (parameter variations: repeat the inputs).
+/// threads: worker threads (None: one per core). The GIL is released while the runs execute.
+/// on_error: "raise" (default): after all runs, raise the first failed run's error (ValueError
+///     or RuntimeError, "run i: ..."); "return": a failed run's slot holds its exception object
+///     instead of a dict, the other runs are returned as usual.
+/// t_end, dt, rtol, atol, model, cylinder_temp, numeric_actuators: as in simulate, for every run.
+///
+/// Returns a list of dicts of numpy arrays, in the order of the inputs; each equals
+/// simulate(inputs[i], ...) of the same arguments.
+#[pyfunction]
+#[pyo3(signature = (inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=8, cylinder_temp="converged", numeric_actuators=false))]
+#[allow(clippy::too_many_arguments)]
+fn simulate_many<'py>(
+    py: Python<'py>,
+    inputs: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyAny>>,
+    threads: Option<i64>,
+    on_error: &str,
+    t_end: Option<f64>,
+    dt: f64,
+    rtol: f64,
+    atol: Option<f64>,
+    model: i64,
+    cylinder_temp: &str,
+    numeric_actuators: bool,
+) -> PyResult<Bound<'py, PyList>> {
+    let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
+    let raise = match on_error {
+        "raise" => true,
+        "return" => false,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "on_error = {other:?}: expected \"raise\" or \"return\""
+            )))
+        }
+    };
+    let threads = match threads {
+        None => None,
+        Some(n) if n >= 1 => Some(n as usize),
+        Some(n) => {
+            return Err(PyValueError::new_err(format!(
+                "threads = {n}: give at least 1 (or None: one per core)"
+            )))
+        }
+    };
+    if inputs.is_instance_of::<PyDict>() || inputs.is_instance_of::<PyString>() {
+        return Err(PyValueError::new_err(
+            "inputs: expected a list of inputs (one dict or 2-D array per run)",
+        ));
+    }
+    let items: Vec<Bound<'py, PyAny>> = inputs
+        .try_iter()
+        .map_err(|_| PyValueError::new_err("inputs: expected a list of inputs (one per run)"))?
+        .collect::<PyResult<_>>()?;
+    let mut rows = Vec::with_capacity(items.len());
+    for (i, item) in items.iter().enumerate() {
+        rows.push(
+            input_rows(py, item)
+                .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?,
+        );
+    }
+    let per_run: Vec<Option<Params>> = match params {
+        Some(list) if list.is_instance_of::<PyList>() || list.is_instance_of::<PyTuple>() => {
+            let list: Vec<Bound<'py, PyAny>> = list.try_iter()?.collect::<PyResult<_>>()?;
+            if list.len() != rows.len() {
+                return Err(PyValueError::new_err(format!(
+                    "params: a list of {} entries for {} inputs (give one per run, or one for all)",
+                    list.len(),
+                    rows.len()
+                )));
+            }
+            let mut v = Vec::with_capacity(list.len());
+            for (i, p) in list.iter().enumerate() {
+                v.push(
+                    parse_params(py, Some(p))
+                        .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?,
+                );
+            }
+            v
+        }
+        p => vec![parse_params(py, p)?; rows.len()],
+    };
+    let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
+    let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
+    let results = py
+        .allow_threads(move || core::simulate_many_rows(runs, args, variant, threads))
+        .map_err(to_py_err)?;
+    let out = PyList::empty(py);
+    for r in results {
+        match r {
+            Ok(cols) => out.append(columns_dict(py, cols)?)?,
+            Err(e) if raise => return Err(to_py_err(e)),
+            Err(e) => out.append(to_py_err(e).into_value(py))?,
         }
     }
     Ok(out)
@@ -584,6 +703,7 @@ impl Plant {
 #[pyo3(name = "_mvem")]
 fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;

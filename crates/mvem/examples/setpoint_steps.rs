@@ -7,9 +7,8 @@
 
 use mvem::analysis::steady::steady_state;
 use mvem::control::baseline::{Baseline, BaselineTuning};
-use mvem::control::cycle::{
-    parse_normalized_table, whtc_demand, MappingCurve, MappingOptions, WHTC_NORMALIZED,
-};
+use mvem::control::cycle::{whtc_demand, MappingCurve, MappingOptions};
+use mvem::control::drive::whtc_table;
 use mvem::control::stats::CycleStats;
 use mvem::control::steps::setpoint_step;
 use mvem::model::{AnyModel, Drive, Engine8, ModelOrder};
@@ -69,9 +68,7 @@ fn main() {
     }
     if whtc {
         let speeds = curve.reference_speeds(500.0);
-        let mut table = parse_normalized_table(WHTC_NORMALIZED).unwrap();
-        table.insert(0, (0.0, table[0].1, table[0].2));
-        let demand = whtc_demand(&table, &curve, &speeds).unwrap();
+        let demand = whtc_demand(&whtc_table().unwrap(), &curve, &speeds).unwrap();
         let mut ctrl = Baseline::new(&m, &curve, tuning).unwrap();
         let t = std::time::Instant::now();
         let (traj, _) =

@@ -3,7 +3,8 @@
 
 use crate::common::{self, ModelArgs, SolverArgs};
 use anyhow::{Context, Result};
-use mvem::model::{Model, ModelInput};
+use mvem::analysis::ensemble::{simulate_many, Case};
+use mvem::model::{AnyModel, Model, ModelInput};
 use mvem::sim::{simulate, InputSchedule, SimOptions, SimStats, Solution, Start};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -16,11 +17,16 @@ Examples:
   mvem bench
   mvem bench --rtol 1e-8 --repeat 3
   mvem bench --inputs my_cycle.csv --dt 0.01 --evals 100000
+  mvem bench --ensemble 8
 
 Prints wall time (min and median over the repeats), solver statistics, the real-time factor
 (simulated seconds per wall second), the time of one model evaluation, and the deviation from a
 tight (rtol 1e-10, every state integrated numerically) reference run of p_im, p_em (scaled by
-1e5 Pa), X_Oim, X_Oem (by 0.1) and omega_t (by 1e4 rad/s) over the output samples.")]
+1e5 Pa), X_Oim, X_Oem (by 0.1) and omega_t (by 1e4 rad/s) over the output samples.
+
+--ensemble N times N runs of the cycle (each from its steady start) with the library's
+ensemble call (mvem::analysis::ensemble::simulate_many, as mvem.simulate_many in Python) on
+1 worker thread and on one thread per core, alternately, and prints the speed-up.")]
 pub struct Args {
     /// Input CSV [default: the built-in WHTC cycle, 1800 s at 10 Hz]
     #[arg(long, value_name = "FILE.csv")]
@@ -34,6 +40,9 @@ pub struct Args {
     /// Skip the rtol 1e-10 accuracy reference run.
     #[arg(long)]
     pub no_reference: bool,
+    /// Instead: time N runs of the cycle at once on 1 thread and on all cores (the scaling).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
+    pub ensemble: Option<u32>,
     #[command(flatten)]
     pub solver: SolverArgs,
     #[command(flatten)]
@@ -55,6 +64,9 @@ pub fn run(a: &Args) -> Result<()> {
     let model = a.model.build()?;
     let (sched, source, t0, t_end) = common::cycle_inputs(a.inputs.as_deref())?;
     common::check_samples(t0, t_end, opts.dt_out)?;
+    if let Some(n) = a.ensemble {
+        return ensemble(&model, n as usize, a.repeat, &sched, &source, &opts);
+    }
     println!(
         "mvem bench: {source}, t = {t0} .. {t_end} s, rtol {:e}, atol {:e}, output every {} s",
         opts.rtol, opts.atol, opts.dt_out
@@ -186,6 +198,60 @@ fn bench<const N: usize, M: Model<N>>(
             tidy_time(at)
         );
     }
+    Ok(())
+}
+
+/// `--ensemble N`: N runs of the cycle with [`simulate_many`] on 1 thread and on all cores,
+/// alternately `repeat` times; min and median wall times and the speed-up of the minima.
+fn ensemble(
+    model: &AnyModel,
+    n: usize,
+    repeat: u32,
+    sched: &InputSchedule,
+    source: &str,
+    opts: &SimOptions,
+) -> Result<()> {
+    let cores = rayon::current_num_threads();
+    println!(
+        "mvem bench --ensemble {n}: {n} runs of {source} (each from its steady start), rtol {:e}, \
+         output every {} s; 1 thread vs {cores} threads (one per core), {repeat} alternated repeats",
+        opts.rtol, opts.dt_out
+    );
+    let cases: Vec<Case> = (0..n)
+        .map(|_| Case {
+            model: model.clone(),
+            inputs: sched.clone(),
+            t_end: None,
+        })
+        .collect();
+    let mut walls = [Vec::new(), Vec::new()];
+    for i in 0..repeat {
+        for (k, threads) in [1, cores].into_iter().enumerate() {
+            let msg = format!("repeat {}/{repeat}, {threads} thread(s)", i + 1);
+            let (runs, w) =
+                common::with_spinner(&msg, || timed(|| simulate_many(&cases, opts, threads)));
+            for r in runs? {
+                r.context("ensemble run failed")?;
+            }
+            walls[k].push(w);
+        }
+    }
+    for w in &mut walls {
+        w.sort_by(f64::total_cmp);
+    }
+    for (w, threads) in walls.iter().zip([1, cores]) {
+        println!(
+            "  {threads:>2} thread(s)   min {}, median {}  ({} per run)",
+            common::fmt_duration(w[0]),
+            common::fmt_duration(median(w)),
+            common::fmt_duration(w[0] / n as f64)
+        );
+    }
+    println!(
+        "  speed-up      {:.2}x (min), {:.2}x (median) on {cores} threads",
+        walls[0][0] / walls[1][0],
+        median(&walls[0]) / median(&walls[1])
+    );
     Ok(())
 }
 

@@ -168,28 +168,17 @@ pub fn run_cycle(
     })
 }
 
-/// The trajectory as CSV text.
+/// The trajectory as CSV text (each number in the shortest representation that reads back
+/// exactly, `NaN` for a missing set-point; [`mvem::io::output::write_csv`]).
 pub fn trajectory_csv(traj: &Trajectory) -> String {
-    let mut s = Trajectory::NAMES.join(",");
-    s.push('\n');
-    for i in 0..traj.len() {
-        let row: Vec<String> = traj
-            .columns
-            .iter()
-            .map(|c| {
-                let v = c[i];
-                if v.is_nan() {
-                    "NaN".to_string()
-                } else {
-                    // shortest representation that reads back exactly
-                    format!("{v}")
-                }
-            })
-            .collect();
-        s.push_str(&row.join(","));
-        s.push('\n');
-    }
-    s
+    let cols: Vec<(&str, &[f64])> = Trajectory::NAMES
+        .iter()
+        .zip(&traj.columns)
+        .map(|(n, c)| (*n, c.as_slice()))
+        .collect();
+    let mut out = Vec::with_capacity(traj.len() * cols.len() * 12);
+    mvem::io::output::write_csv(&mut out, &cols).expect("writing to memory cannot fail");
+    String::from_utf8(out).expect("ASCII")
 }
 
 fn figure(traj: &Trajectory, title: &str) -> Figure {

@@ -5,6 +5,9 @@ in parallel):
 
 - simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8,
   cylinder_temp="converged") -> dict of numpy arrays
+- simulate_many(list_of_inputs, params=None, threads=None, on_error="raise", ...) -> list of
+  dicts: many simulations at once on all cores (input or parameter variations), each equal to
+  simulate() of its inputs
 - steady(n_e, u_delta, u_egr, u_vgt, params=None, model=8) -> dict
 - linearize(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None,
   model=8) -> dict with A, B, C, D, eigenvalues, dc_gain, zeros, ...
@@ -33,6 +36,7 @@ from ._mvem import (
     parameters,
     published_params,
     simulate,
+    simulate_many,
     steady,
     step_metrics,
     step_response,
@@ -44,6 +48,7 @@ INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
 __all__ = [
     "Plant",
     "simulate",
+    "simulate_many",
     "steady",
     "linearize",
     "step_metrics",

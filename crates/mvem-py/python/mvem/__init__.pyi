@@ -38,6 +38,27 @@ def simulate(
     ValueError: bad inputs/options/params; RuntimeError: solver failure.
     """
 
+def simulate_many(
+    inputs: Sequence[Union[Mapping[str, npt.ArrayLike], npt.ArrayLike]],
+    params: Union[Params, Sequence[Params]] = None,
+    threads: Optional[int] = None,
+    on_error: Literal["raise", "return"] = "raise",
+    t_end: Optional[float] = None,
+    dt: float = 0.01,
+    rtol: float = 1e-6,
+    atol: Optional[float] = None,
+    model: ModelOrder = 8,
+    cylinder_temp: Literal["converged", "one-iteration"] = "converged",
+    numeric_actuators: bool = False,
+) -> List[Union[Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"], Exception]]:
+    """Many simulations at once on `threads` worker threads (None: one per core), GIL released.
+
+    Run i simulates inputs[i] (as simulate) with params (one for all runs, or a list with one
+    entry per run). on_error="raise": after all runs, raise the first failure ("run i: ...");
+    "return": a failed run's slot holds its ValueError/RuntimeError. Results in input order,
+    each equal to simulate(inputs[i], ...) with the same arguments.
+    """
+
 def steady(
     n_e: float,
     u_delta: float,

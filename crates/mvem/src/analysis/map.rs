@@ -277,15 +277,7 @@ impl<const N: usize> SteadyMap<N> {
 pub type Progress<'a> = &'a (dyn Fn(usize, usize) + Sync);
 
 fn run_in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> Result<T, MapError> {
-    if threads == 0 {
-        Ok(f())
-    } else {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| MapError::Threads(e.to_string()))?;
-        Ok(pool.install(f))
-    }
+    super::ensemble::in_pool(threads, f).map_err(|e| MapError::Threads(e.reason))
 }
 
 /// Solve one point: warm start from `guess` (Newton only), else the full procedure.

@@ -1,8 +1,10 @@
 //! Analysis computed from the model: steady state (equilibrium) with validity flags,
-//! linearization, poles and transmission zeros, operating maps, step-response metrics, the
-//! section-9 extension comparison, the cylinder-out temperature study and the robustness sweep.
+//! linearization, poles and transmission zeros, operating maps, ensembles of simulations on all
+//! cores, step-response metrics, the section-9 extension comparison, the cylinder-out
+//! temperature study and the robustness sweep.
 
 pub mod component_maps;
+pub mod ensemble;
 pub mod experiment;
 pub mod extensions;
 pub mod json;

@@ -74,6 +74,18 @@ pub enum ScheduleError {
 /// Column names of a schedule row (CSV header of the input files).
 pub const INPUT_COLUMNS: [&str; 5] = ["time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"];
 
+/// The values of row `i` must be finite (the error names the row and the column).
+fn check_values(i: usize, r: &[f64; 4]) -> Result<(), ScheduleError> {
+    match r.iter().position(|v| !v.is_finite()) {
+        Some(c) => Err(ScheduleError::NonFinite {
+            row: i,
+            column: INPUT_COLUMNS[c + 1],
+            value: r[c],
+        }),
+        None => Ok(()),
+    }
+}
+
 impl InputSchedule {
     /// Build from rows `(t, [n_e, u_delta, u_egr, u_vgt])`; times must be non-decreasing, at most
     /// two rows may share a time (a step).
@@ -89,15 +101,7 @@ impl InputSchedule {
                     value: *t,
                 });
             }
-            for (c, v) in r.iter().enumerate() {
-                if !v.is_finite() {
-                    return Err(ScheduleError::NonFinite {
-                        row: i,
-                        column: INPUT_COLUMNS[c + 1],
-                        value: *v,
-                    });
-                }
-            }
+            check_values(i, r)?;
             if i > 0 {
                 let prev = times[i - 1];
                 if *t < prev {
@@ -164,6 +168,50 @@ impl InputSchedule {
             cur = next;
         }
         Self::new(times, rows)
+    }
+
+    /// Hold the row `row` from `t` on (zero-order hold, appended in place): a change at `t` adds
+    /// the pair (t, previous row), (t, row); an unchanged row adds nothing. `t` must not be
+    /// before the last row.
+    pub fn hold(&mut self, t: f64, row: [f64; 4]) -> Result<(), ScheduleError> {
+        let n = self.times.len();
+        let last = self.rows[n - 1];
+        if row == last {
+            return Ok(());
+        }
+        check_values(n, &row)?;
+        let prev = self.times[n - 1];
+        if t.is_nan() || t < prev {
+            return Err(ScheduleError::NonMonotonic {
+                row: n,
+                t,
+                prev,
+                detail: " (a held row must not be before the last row)",
+            });
+        }
+        if prev == t {
+            if n >= 2 && self.times[n - 2] == t {
+                // already a step at t: the new row replaces its right value
+                self.rows[n - 1] = row;
+                return Ok(());
+            }
+        } else {
+            self.times.push(t);
+            self.rows.push(last);
+        }
+        self.times.push(t);
+        self.rows.push(row);
+        Ok(())
+    }
+
+    /// Drop the rows that no lookup at or after `t` can reach: every row before the last row
+    /// at or before `t` (that row stays, so the values from `t` on are unchanged).
+    pub fn drop_before(&mut self, t: f64) {
+        let k = self.times.partition_point(|&s| s <= t);
+        if k >= 2 {
+            self.times.drain(..k - 1);
+            self.rows.drain(..k - 1);
+        }
     }
 
     /// Row times [s].
@@ -437,6 +485,28 @@ mod tests {
         assert!(e.to_string().contains("row 2: time 1 s is not monotonic"));
         let e = InputSchedule::new(vec![0.0, 1.0, 1.0, 1.0], vec![[1.0; 4]; 4]).unwrap_err();
         assert!(e.to_string().contains("more than two rows"));
+    }
+
+    #[test]
+    fn hold_appends_zero_order_hold_rows_and_drop_before_keeps_the_values() {
+        let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let mut s = InputSchedule::constant(d);
+        s.hold(1.0, d.to_array()).unwrap(); // unchanged: nothing
+        assert_eq!(s.times(), &[0.0]);
+        s.hold(1.0, [1500.0, 110.0, 80.0, 65.0]).unwrap();
+        s.hold(1.0, [1500.0, 110.0, 80.0, 60.0]).unwrap(); // replaces the step's right value
+        s.hold(2.0, [1500.0, 120.0, 80.0, 60.0]).unwrap();
+        let built = InputSchedule::steps(d, &[(1.0, 3, 60.0), (2.0, 1, 120.0)]).unwrap();
+        assert_eq!(s.times(), built.times());
+        assert_eq!(s.rows(), built.rows());
+        let e = s.hold(1.5, [0.0; 4]).unwrap_err();
+        assert!(e.to_string().contains("before the last row"), "{e}");
+        let e = s.hold(3.0, [f64::NAN, 0.0, 0.0, 0.0]).unwrap_err();
+        assert_eq!(e.to_string(), "row 5: n_e_rpm = NaN is not finite");
+        let before = [1.5, 2.0, 2.5].map(|t| s.at(t));
+        s.drop_before(1.5);
+        assert_eq!(s.times(), &[1.0, 2.0, 2.0]);
+        assert_eq!([1.5, 2.0, 2.5].map(|t| s.at(t)), before);
     }
 
     #[test]

@@ -8,22 +8,32 @@
 //! with the same [`Integrator`] as [`simulate`](super::simulate), so stepping a schedule sample by
 //! sample gives the same trajectory as simulating it (up to the integration tolerance).
 //!
-//! The command history is kept as an [`InputSchedule`] of zero-order-hold rows and trimmed to
-//! the largest delay, so a step costs the same at t = 10 s and at t = 1800 s.
+//! The command history is one [`InputSchedule`] of zero-order-hold rows, appended in place
+//! ([`InputSchedule::hold`]: the delayed copies of a command change become stop times at
+//! t + tau) and trimmed to the largest delay, so a step costs the same at t = 10 s and at
+//! t = 1800 s. The integrator is not rebuilt per sample: its owned state (step size, error
+//! history, lagged Jacobian, LU factors, tolerances, limits, the closed-form lag plans) moves
+//! into the [`Integrator`] for the step and back, so a step allocates nothing and repeats no
+//! set-up (no option checks, no initial memory, no copy or re-validation of the history).
 
+use super::integrator::LagSegment;
 use super::rosw::IterationMatrix;
 use super::{Integrator, SimError, SimOptions, SimStats, Solution};
-use crate::model::{Drive, Engine10, Engine12, Engine8, Model, ModelInput, Signals};
+use crate::model::{Drive, Engine10, Engine12, Engine8, LinearLag, Model, ModelInput, Signals};
 use crate::sim::{InputSchedule, Side};
 
-/// The integrator's warm state carried between samples.
+/// The integrator's owned state carried between samples (see the module docs).
 struct Carry<const N: usize> {
     h: f64,
     err_old: f64,
+    atol: [f64; N],
+    bounds: [(f64, f64); N],
     jac: Option<[[f64; N]; N]>,
     jac_age: usize,
     jac_full: bool,
     lu: Option<Box<IterationMatrix<N>>>,
+    lags: Vec<LinearLag>,
+    lag_seg: Vec<LagSegment>,
 }
 
 /// An `N`-state model advanced sample by sample with held commands (see the module docs).
@@ -34,8 +44,7 @@ pub struct Plant<const N: usize, M: Model<N>> {
     y: [f64; N],
     memory: M::Memory,
     /// Command history: zero-order-hold rows (a change at t is two rows at t).
-    times: Vec<f64>,
-    rows: Vec<[f64; 4]>,
+    sched: InputSchedule,
     /// The model's input delays [s] ([`Model::input_delays`]) of channels 2 and 3.
     delays: [f64; 2],
     /// Largest transport delay [s]: history older than t - tau_max is dropped.
@@ -70,40 +79,40 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         opts.dt_out = NO_OUTPUT;
         let delays = model.input_delays().delayed;
         let tau_max = delays[0].max(delays[1]).max(0.0);
-        let memory = model.memory_start(&y0, &ModelInput::constant(d));
         let scratch = Solution::new(&model.state_names());
-        let mut me = Self {
+        let sched = InputSchedule::new(vec![t0], vec![d.to_array()])
+            .expect("commands and time checked finite");
+        // the integrator checks the state, sets the initial memory (fixed point) and its
+        // tolerances, limits and lag states, which the plant then carries
+        let run = Integrator::new(&model, &sched, t0, y0, &opts)?;
+        let (y, memory) = (run.y, run.memory);
+        let carry = Carry {
+            h: 0.0,
+            err_old: 1e-4,
+            atol: run.atol,
+            bounds: run.bounds,
+            jac: None,
+            jac_age: usize::MAX,
+            jac_full: false,
+            lu: None,
+            lags: run.lags,
+            lag_seg: run.lag_seg,
+        };
+        let signals = model.eval(&y, &ModelInput::constant(d), memory).signals;
+        Ok(Self {
             model,
             opts,
             t: t0,
-            y: y0,
+            y,
             memory,
-            times: vec![t0],
-            rows: vec![d.to_array()],
+            sched,
             delays,
             tau_max,
-            carry: Carry {
-                h: 0.0,
-                err_old: 1e-4,
-                jac: None,
-                jac_age: usize::MAX,
-                jac_full: false,
-                lu: None,
-            },
+            carry,
             stats: SimStats::default(),
-            signals: Signals::default(),
+            signals,
             scratch,
-        };
-        // the integrator checks the state and sets the initial memory (fixed point)
-        let sched = me.schedule();
-        let run = Integrator::new(&me.model, &sched, t0, y0, &me.opts)?;
-        me.y = run.y;
-        me.memory = run.memory;
-        me.signals = me
-            .model
-            .eval(&me.y, &ModelInput::constant(d), me.memory)
-            .signals;
-        Ok(me)
+        })
     }
 
     /// Current time [s].
@@ -128,7 +137,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
 
     /// The commands held during the last step (the initial commands before the first step).
     pub fn command(&self) -> Drive {
-        Drive::from_array(*self.rows.last().expect("history never empty"))
+        Drive::from_array(*self.sched.rows().last().expect("history never empty"))
     }
 
     /// Solver statistics summed over all steps.
@@ -138,12 +147,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
 
     /// Number of history rows kept (for tests of the trimming).
     pub fn history_len(&self) -> usize {
-        self.times.len()
-    }
-
-    fn schedule(&self) -> InputSchedule {
-        InputSchedule::new(self.times.clone(), self.rows.clone())
-            .expect("history rows are finite and sorted")
+        self.sched.times().len()
     }
 
     /// Hold the commands `d` for `dt` seconds and integrate; returns the signals at the end
@@ -162,35 +166,36 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         if t_end <= t {
             return Err(SimError::BadInterval { t0: t, t_end });
         }
-        // zero-order hold: a command change at t is the pair (t, old), (t, new)
-        let cur = d.to_array();
-        let last = *self.rows.last().expect("history never empty");
-        if cur != last {
-            if *self.times.last().expect("history never empty") != t {
-                self.times.push(t);
-                self.rows.push(last);
-            }
-            self.times.push(t);
-            self.rows.push(cur);
-        }
+        // zero-order hold: a change at t is the pair (t, old), (t, new)
+        self.sched
+            .hold(t, d.to_array())
+            .expect("commands checked finite, time increasing");
         // drop rows no delayed lookup in [t, t_end] can reach (before t - tau_max)
-        let cut = t - self.tau_max - 1e-9 * t.abs().max(1.0);
-        let k = self.times.partition_point(|&s| s <= cut);
-        if k >= 2 {
-            self.times.drain(..k - 1);
-            self.rows.drain(..k - 1);
-        }
-        let sched = self.schedule();
-        let mut run = Integrator::new(&self.model, &sched, t, self.y, &self.opts)?;
-        run.memory = self.memory;
-        run.next_out = 1; // no output samples (the interval is NO_OUTPUT)
+        self.sched
+            .drop_before(t - self.tau_max - 1e-9 * t.abs().max(1.0));
         let c = &mut self.carry;
-        run.h = c.h;
-        run.err_old = c.err_old;
-        run.jac = c.jac.take();
-        run.jac_age = c.jac_age;
-        run.jac_full = c.jac_full;
-        run.lu = c.lu.take();
+        let mut run = Integrator {
+            model: &self.model,
+            sched: &self.sched,
+            opts: self.opts.clone(),
+            t,
+            y: self.y,
+            memory: self.memory,
+            f: None,
+            h: c.h,
+            err_old: c.err_old,
+            atol: c.atol,
+            bounds: c.bounds,
+            next_out: 1, // no output samples (the interval is NO_OUTPUT)
+            t_out0: t,
+            jac: c.jac.take(),
+            lu: c.lu.take(),
+            jac_age: c.jac_age,
+            jac_full: c.jac_full,
+            lags: std::mem::take(&mut c.lags),
+            lag_seg: std::mem::take(&mut c.lag_seg),
+            stats: SimStats::default(),
+        };
         let res = run.advance(t_end, &mut self.scratch, false);
         c.h = run.h;
         c.err_old = run.err_old;
@@ -198,14 +203,16 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         c.jac_age = run.jac_age;
         c.jac_full = run.jac_full;
         c.lu = run.lu.take();
-        let s = run.stats;
-        let st = &mut self.stats;
-        st.steps += s.steps;
-        st.rejected += s.rejected;
-        st.rhs_evals += s.rhs_evals;
-        st.breakpoints += s.breakpoints;
-        st.jacobians += s.jacobians;
-        st.lu += s.lu;
+        c.lags = std::mem::take(&mut run.lags);
+        c.lag_seg = std::mem::take(&mut run.lag_seg);
+        let st = run.stats;
+        let s = &mut self.stats;
+        s.steps += st.steps;
+        s.rejected += st.rejected;
+        s.rhs_evals += st.rhs_evals;
+        s.breakpoints += st.breakpoints;
+        s.jacobians += st.jacobians;
+        s.lu += st.lu;
         res?;
         self.y = run.y;
         self.memory = run.memory;
@@ -214,8 +221,12 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         let mut hint = 0;
         let u = ModelInput {
             now: d,
-            u_egr_delayed: sched.value_hint(2, t_end - self.delays[0], Side::Left, &mut hint),
-            u_vgt_delayed: sched.value_hint(3, t_end - self.delays[1], Side::Left, &mut hint),
+            u_egr_delayed: self
+                .sched
+                .value_hint(2, t_end - self.delays[0], Side::Left, &mut hint),
+            u_vgt_delayed: self
+                .sched
+                .value_hint(3, t_end - self.delays[1], Side::Left, &mut hint),
         };
         self.signals = self.model.eval(&self.y, &u, self.memory).signals;
         Ok(&self.signals)

@@ -1,0 +1,79 @@
+"""mvem.simulate_many: many simulations at once on all cores, each equal to mvem.simulate."""
+
+import numpy as np
+import pytest
+
+mvem = pytest.importorskip("mvem")
+
+
+def vgt_step(to, n_e=1500.0):
+    return {
+        "time_s": [0.0, 1.0, 1.0, 3.0],
+        "n_e_rpm": [n_e] * 4,
+        "u_delta_mg": [110.0] * 4,
+        "u_egr_pct": [80.0] * 4,
+        "u_vgt_pct": [75.0, 75.0, to, to],
+    }
+
+
+def assert_same(a, b):
+    assert set(a) == set(b)
+    for k in a:
+        # the same computation on another thread: identical numbers
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
+@pytest.mark.parametrize("threads", [None, 1, 2])
+def test_each_run_equals_simulate_of_its_inputs(threads):
+    inputs = [vgt_step(65.0), vgt_step(55.0, n_e=1200.0), np.array(
+        [[0.0, 1800.0, 150.0, 40.0, 50.0], [2.0, 1800.0, 150.0, 40.0, 60.0]])]
+    runs = mvem.simulate_many(inputs, threads=threads, dt=0.05, model=10)
+    assert len(runs) == 3
+    for inp, r in zip(inputs, runs):
+        assert_same(r, mvem.simulate(inp, dt=0.05, model=10))
+
+
+def test_parameter_variations_one_params_entry_per_run():
+    j_t = mvem.published_params()["turbo"]["j_t"]
+    params = [None, {"turbo.j_t": 2.0 * j_t}, {"turbo": {"j_t": 0.5 * j_t}}]
+    runs = mvem.simulate_many([vgt_step(65.0)] * 3, params=params)
+    for p, r in zip(params, runs):
+        assert_same(r, mvem.simulate(vgt_step(65.0), params=p))
+    # a heavier turbo responds more slowly: the runs differ
+    k = np.searchsorted(runs[0]["t"], 1.2)
+    assert runs[1]["W_c"][k] != runs[0]["W_c"][k]
+    # one params entry for all runs
+    same = mvem.simulate_many([vgt_step(65.0)] * 2, params={"turbo.j_t": 2.0 * j_t})
+    assert_same(same[1], runs[1])
+
+
+def test_a_failing_run_does_not_sink_the_others():
+    bad = vgt_step(65.0)
+    bad["u_delta_mg"] = [110.0, float("nan"), 110.0, 110.0]
+    inputs = [vgt_step(65.0), bad, vgt_step(60.0, n_e=1200.0)]
+    runs = mvem.simulate_many(inputs, on_error="return", threads=2)
+    assert isinstance(runs[1], ValueError)
+    assert str(runs[1]).startswith("run 1: inputs: row 1: u_delta_mg = NaN")
+    # the runs before and after the failed one are complete
+    assert_same(runs[0], mvem.simulate(inputs[0]))
+    assert_same(runs[2], mvem.simulate(inputs[2]))
+    # default: raise the first failure after all runs, naming its index
+    with pytest.raises(ValueError, match="^run 1: inputs"):
+        mvem.simulate_many(inputs)
+
+
+@pytest.mark.parametrize("kwargs, msg", [
+    ({"threads": 0}, "threads = 0"),
+    ({"on_error": "ignore"}, "on_error"),
+    ({"params": [None]}, "params: a list of 1 entries for 2 inputs"),
+    ({"rtol": -1.0}, "rtol"),
+])
+def test_bad_options_raise_value_error(kwargs, msg):
+    with pytest.raises(ValueError, match=msg):
+        mvem.simulate_many([vgt_step(65.0)] * 2, **kwargs)
+
+
+def test_inputs_must_be_a_list():
+    with pytest.raises(ValueError, match="list of inputs"):
+        mvem.simulate_many(vgt_step(65.0))
+    assert mvem.simulate_many([]) == []
