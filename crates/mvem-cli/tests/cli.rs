@@ -458,6 +458,8 @@ fn params_show_is_annotated_and_loads_back_identically() {
     let o = mvem(d.path(), &["params", "show", "--format", "toml"]);
     assert!(o.status.success());
     let text = stdout(&o);
+    // the built-in parameter file is exactly this output (regenerate it with this command)
+    assert_eq!(text, mvem::params::PUBLISHED_TOML);
     // units, one-line descriptions and equation numbers as comments; short numbers
     assert!(
         text.contains("# Turbocharger inertia J_t (eq. (42)) [kg m^2]\nj_t = "),

@@ -487,12 +487,12 @@ fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> R
     let mut units = Map::new();
     for n in &outputs {
         series.insert(n.clone(), json!(col(n)));
-        units.insert(n.clone(), json!(unit(n)));
+        units.insert(n.clone(), json!(Trajectory::unit(n)));
     }
     let mut inputs = Map::new();
     for n in Drive::NAMES {
         inputs.insert(n.to_string(), json!(col(n)));
-        units.insert(n.to_string(), json!(unit(n)));
+        units.insert(n.to_string(), json!(Trajectory::unit(n)));
     }
     Ok(json!({
         "source": name,
