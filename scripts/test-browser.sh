@@ -2,7 +2,8 @@
 # Browser tests of `mvem serve`: Playwright (Python) driving Debian's Chromium, headless.
 # Installs what it needs on a fresh Debian machine: the chromium package (apt-get, as root) if
 # /usr/bin/chromium is missing, and playwright + pytest into .venv-browser (no browser download:
-# Playwright is pointed at /usr/bin/chromium). Builds the CLI, then runs tests/browser with pytest.
+# Playwright is pointed at /usr/bin/chromium). Builds the CLI (Cargo profile $MVEM_PROFILE, default
+# release; scripts/test-all.sh sets ci), then runs tests/browser with pytest.
 # Screenshots and timings go to target/browser-artifacts/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,9 +28,10 @@ fi
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
 "$venv/bin/python" -m pip install -q "playwright>=1.40,<2" pytest
 
-echo "== building the CLI"
-cargo build -q --release -p mvem-cli
-export MVEM_CLI="$root/target/release/mvem"
+profile="${MVEM_PROFILE:-release}"
+echo "== building the CLI (profile $profile)"
+cargo build -q --profile "$profile" -p mvem-cli
+export MVEM_CLI="$root/target/$profile/mvem"
 export MVEM_ARTIFACTS="$root/target/browser-artifacts"
 mkdir -p "$MVEM_ARTIFACTS"
 

@@ -519,7 +519,12 @@ fn draw_panel<DB: DrawingBackend>(
         };
         let mut first = true;
         for &level in &cs.levels {
-            let segs = contour_segments(&cs.field, level);
+            // left to right: plotters' bitmap backend drops the end pixels of a one-pixel
+            // horizontal line drawn right to left, which made flat contours look dashed
+            let segs: Vec<Segment> = contour_segments(&cs.field, level)
+                .into_iter()
+                .map(|(a, b)| if a.0 <= b.0 { (a, b) } else { (b, a) })
+                .collect();
             if segs.is_empty() {
                 continue;
             }

@@ -13,13 +13,7 @@ use serde_json::Value;
 use std::path::Path;
 mod common;
 
-use common::{mvem, stderr};
-use std::process::Output;
-
-fn json_of(o: &Output) -> Value {
-    assert!(o.status.success(), "{}", stderr(o));
-    serde_json::from_slice(&o.stdout).expect("JSON on stdout")
-}
+use common::{json_of, mvem, stderr};
 
 fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
     let mut args = vec![

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{col, files, mvem, read_csv, reference, stderr, stdout};
+use common::{col, files, json_of, mvem, read_csv, reference, stderr, stdout};
 use mvem::model::{Signals, STATE_NAMES_8};
 use std::path::PathBuf;
 
@@ -89,8 +89,7 @@ fn simulate_csv_with_png_plot_and_initial_state() {
             "--json",
         ],
     );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let v = json_of(&o);
     let state: serde_json::Map<String, serde_json::Value> = STATE_NAMES_8
         .iter()
         .map(|n| (n.to_string(), v[*n].clone()))
@@ -177,8 +176,7 @@ fn steady_json_matches_reference_row_1() {
             "--json",
         ],
     );
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("one JSON object");
+    let v = json_of(&o);
     let obj = v.as_object().unwrap();
     for k in STATE_NAMES_8.iter().chain(Signals::NAMES) {
         assert!(obj[*k].is_number(), "key {k}");
@@ -458,6 +456,8 @@ fn params_show_is_annotated_and_loads_back_identically() {
     let o = mvem(d.path(), &["params", "show", "--format", "toml"]);
     assert!(o.status.success());
     let text = stdout(&o);
+    // the built-in parameter file is exactly this output (regenerate it with this command)
+    assert_eq!(text, mvem::params::PUBLISHED_TOML);
     // units, one-line descriptions and equation numbers as comments; short numbers
     assert!(
         text.contains("# Turbocharger inertia J_t (eq. (42)) [kg m^2]\nj_t = "),
@@ -473,11 +473,7 @@ fn params_show_is_annotated_and_loads_back_identically() {
     }
     // the file loads back to the same parameter set (compared as JSON, exact numbers)
     std::fs::write(d.path().join("p.toml"), &text).unwrap();
-    let json = |args: &[&str]| -> serde_json::Value {
-        let o = mvem(d.path(), args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        serde_json::from_str(&stdout(&o)).unwrap()
-    };
+    let json = |args: &[&str]| json_of(&mvem(d.path(), args));
     assert_eq!(
         json(&["params", "show", "--params", "p.toml", "--format", "json"]),
         json(&["params", "show", "--format", "json"])

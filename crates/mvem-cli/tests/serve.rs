@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{mvem, stderr, stdout};
+use common::{json_of, mvem, stderr};
 use mvem_serve::client;
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
@@ -23,9 +23,7 @@ const POINTS: [(f64, f64, f64, f64, &str); 6] = [
 
 fn cli_json(args: &[&str]) -> Value {
     let dir = tempfile::tempdir().unwrap();
-    let o = mvem(dir.path(), args);
-    assert!(o.status.success(), "mvem {args:?}: {}", stderr(&o));
-    serde_json::from_str(&stdout(&o)).expect("CLI JSON")
+    json_of(&mvem(dir.path(), args))
 }
 
 /// Every number of `a` equals the one of `b` bit for bit (and the structure is the same).

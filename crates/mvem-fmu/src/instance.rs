@@ -341,24 +341,25 @@ impl Instance {
         }
     }
 
+    /// The model's transport delays [s] of u_egr and u_vgt ([`Model::input_delays`]).
+    fn delays(&self) -> [f64; 2] {
+        mvem::dispatch!(&self.model, m => m.input_delays().delayed)
+    }
+
     fn model_input(&self) -> ModelInput {
-        let p = self.params();
         if self.phase == Phase::Initialization || self.history.is_empty() {
             return ModelInput::constant(Drive::from_array(self.inputs));
         }
+        let [tau_egr, tau_vgt] = self.delays();
         ModelInput {
             now: Drive::from_array(self.inputs),
-            u_egr_delayed: self.history_at(self.t - p.egr_actuator.tau_degr, 2),
-            u_vgt_delayed: self.history_at(self.t - p.vgt_actuator.tau_dvgt, 3),
+            u_egr_delayed: self.history_at(self.t - tau_egr, 2),
+            u_vgt_delayed: self.history_at(self.t - tau_vgt, 3),
         }
     }
 
     fn evaluate(&self) -> (Vec<f64>, Signals) {
         eval_any(&self.model, &self.x, &self.model_input(), self.memory)
-    }
-
-    fn params(&self) -> &Params {
-        mvem::dispatch!(&self.model, m => m.params())
     }
 
     /// fmi2GetReal for a batch of value references.
@@ -584,8 +585,8 @@ impl Instance {
 
     /// The first time after the current one at which a delayed actuator command jumps.
     pub fn next_delayed_jump(&self) -> Option<f64> {
-        let p = self.params();
-        let taus = [(2, p.egr_actuator.tau_degr), (3, p.vgt_actuator.tau_dvgt)];
+        let [tau_egr, tau_vgt] = self.delays();
+        let taus = [(2, tau_egr), (3, tau_vgt)];
         let eps = 1e-12 * self.t.abs().max(1.0);
         let mut next: Option<f64> = None;
         for w in self.history.windows(2) {

@@ -406,6 +406,7 @@
       const t0 = performance.now();
       const j = await api("/api/simulate", { cycle: $("select[name=cycle]").value, mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() });
       app.cycle = j;
+      Object.assign(app.units, j.units || {});
       drawCycle(j);
       $("#cycle-info").textContent = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
       const sl = $("input[name=cycle_t]");

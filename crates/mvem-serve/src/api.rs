@@ -306,10 +306,16 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
         names.extend(mvem::dispatch!(m, m => m.state_names().to_vec()));
     }
     names.extend(mvem::model::Signals::NAMES);
-    let units: serde_json::Map<String, Value> = names
+    let mut units: serde_json::Map<String, Value> = names
         .into_iter()
         .map(|n| (n.to_string(), json!(mvem::analysis::json::unit(n))))
         .collect();
+    // the closed loop's own columns (references, motoring flag)
+    for n in mvem::control::Trajectory::NAMES {
+        units
+            .entry(n)
+            .or_insert_with(|| json!(mvem::control::Trajectory::unit(n)));
+    }
     Json(json!({
         "units": units,
         "orders": [8, 10, 12],

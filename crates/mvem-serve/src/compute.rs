@@ -2,7 +2,7 @@
 //! JSON answer. They run on the blocking pool (see `api::Work`); none touches the file system.
 
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
-use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_metrics_json, unit};
+use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_json, unit};
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
@@ -219,15 +219,10 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
         StepRunError::BadStep { .. } | StepRunError::Schedule(_) => input(e.to_string()),
         other => Fail::Model(other.to_string()),
     })?;
-    let mut outs = Map::new();
     let mut series = Map::new();
+    let mut metrics = Vec::with_capacity(outputs.len());
     for n in &outputs {
-        let mut v = match run.metrics(n) {
-            Ok(mm) => step_metrics_json(&mm),
-            Err(e) => json!({"error": e.to_string()}),
-        };
-        v["unit"] = json!(unit(n));
-        outs.insert(n.clone(), v);
+        metrics.push((n.clone(), run.metrics(n).map_err(|e| e.to_string())));
         series.insert(n.clone(), json!(run.sol.get(n).unwrap_or_default()));
     }
     let from = spec.from();
@@ -237,19 +232,11 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
         .iter()
         .map(|&t| if t < r.t_step { from } else { r.target })
         .collect();
-    Ok(json!({
-        "input": r.input,
-        "input_unit": unit(&r.input),
-        "from": from,
-        "to": r.target,
-        "t_step": r.t_step,
-        "operating_point": drive_json(&spec.before),
-        "warnings": run.flags(),
-        "outputs": Value::Object(outs),
-        "t": run.sol.t(),
-        "u": u,
-        "series": Value::Object(series),
-    }))
+    let mut v = step_json(&spec, &run.flags(), &metrics);
+    v["t"] = json!(run.sol.t());
+    v["u"] = json!(u);
+    v["series"] = Value::Object(series);
+    Ok(v)
 }
 
 /// How a drive cycle is run.
@@ -487,12 +474,12 @@ fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> R
     let mut units = Map::new();
     for n in &outputs {
         series.insert(n.clone(), json!(col(n)));
-        units.insert(n.clone(), json!(unit(n)));
+        units.insert(n.clone(), json!(Trajectory::unit(n)));
     }
     let mut inputs = Map::new();
     for n in Drive::NAMES {
         inputs.insert(n.to_string(), json!(col(n)));
-        units.insert(n.to_string(), json!(unit(n)));
+        units.insert(n.to_string(), json!(Trajectory::unit(n)));
     }
     Ok(json!({
         "source": name,

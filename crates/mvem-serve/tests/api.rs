@@ -54,6 +54,10 @@ fn health_models_and_page() {
     assert_eq!(m["cycles"], serde_json::json!(["whtc"]));
     assert_eq!(m["units"]["p_im"], "Pa");
     assert_eq!(m["units"]["T_ic"], "K", "12-state names have units");
+    // the closed loop's references have units too
+    assert_eq!(m["units"]["M_ref"], "Nm");
+    assert_eq!(m["units"]["lambda_O_ref"], "-");
+    assert_eq!(m["units"]["x_egr_ref"], "-");
     for (path, ty) in [
         ("/", "text/html"),
         ("/app.js", "text/javascript"),
@@ -347,6 +351,7 @@ fn closed_loop_mode_answers_with_the_cores_trajectory() {
         let got: Vec<f64> = serde_json::from_value(v[key][n].clone()).unwrap();
         assert_eq!(got, every100(n), "{n}");
     }
+    assert_eq!(v["units"]["M_ref"], "Nm");
     assert_eq!(v["passes"], run.violations.is_empty());
     assert_eq!(
         v["cycle_stats"]["torque"]["r2"].as_f64().unwrap(),

@@ -1,23 +1,21 @@
-//! The integrators on ODEs with known solutions, through the same [`Model`] trait the engine
-//! models implement (as diffsol and DifferentialEquations.jl test their solvers on shared
-//! problems): a linear stiff system, Prothero-Robinson, a delayed, input-driven linear lag
-//! (closed form and W-method), and the convergence order of both methods with the step size
-//! pinned by `h_max`.
+//! The integrators on ODEs with known solutions, through the simulator's [`Dynamics`] trait
+//! (which every engine model implements through `Model`; as diffsol and DifferentialEquations.jl
+//! test their solvers on shared problems): a linear stiff system, Prothero-Robinson, a delayed,
+//! input-driven linear lag (closed form and W-method), and the convergence order of both methods
+//! with the step size pinned by `h_max`.
 //!
-//! The toy models hold no engine parameters the simulator could read: their `params()` are the
-//! published set with both actuator delays NaN, so any read of an engine parameter by the
-//! simulator would show up as NaN stop times or inputs. Their memory is `()`.
+//! The toy models have no engine parameters and no model options at all (they implement
+//! `Dynamics`, not `Model`), so the simulator cannot read any. Their memory is `()`.
 
 use mvem::model::{
-    Drive, Evaluation, InputDelays, LagCommand, LinearLag, Model, ModelInput, ModelOptions, Signals,
+    Drive, Dynamics, Evaluation, InputDelays, LagCommand, LinearLag, ModelInput, Signals,
 };
-use mvem::params::Params;
 use mvem::sim::{simulate, stop_times, InputSchedule, Method, SimOptions, Solution, Start};
 
 /// Right-hand side of a toy ODE: `dx/dt = f(x, inputs, k)` with a problem constant `k`.
 type Rhs<const N: usize> = fn(&[f64; N], &ModelInput, f64) -> [f64; N];
 
-/// A toy ODE behind the [`Model`] trait.
+/// A toy ODE behind the simulator's [`Dynamics`] trait.
 #[derive(Clone)]
 struct Toy<const N: usize> {
     f: Rhs<N>,
@@ -25,15 +23,10 @@ struct Toy<const N: usize> {
     names: [&'static str; N],
     delays: InputDelays,
     lags: Vec<LinearLag>,
-    p: Params,
-    o: ModelOptions,
 }
 
 impl<const N: usize> Toy<N> {
     fn new(f: Rhs<N>, k: f64, names: [&'static str; N]) -> Self {
-        let mut p = Params::published();
-        p.egr_actuator.tau_degr = f64::NAN;
-        p.vgt_actuator.tau_dvgt = f64::NAN;
         Self {
             f,
             k,
@@ -43,25 +36,17 @@ impl<const N: usize> Toy<N> {
                 current: [true; 4],
             },
             lags: Vec::new(),
-            p,
-            o: ModelOptions::default(),
         }
     }
 }
 
-impl<const N: usize> Model<N> for Toy<N> {
+impl<const N: usize> Dynamics<N> for Toy<N> {
     type Memory = ();
     fn state_names(&self) -> [&'static str; N] {
         self.names
     }
     fn state_scales(&self) -> [f64; N] {
         [1.0; N]
-    }
-    fn params(&self) -> &Params {
-        &self.p
-    }
-    fn options(&self) -> &ModelOptions {
-        &self.o
     }
     fn state_bounds(&self) -> [(f64, f64); N] {
         [(f64::NEG_INFINITY, f64::INFINITY); N]
@@ -80,15 +65,6 @@ impl<const N: usize> Model<N> for Toy<N> {
         self.lags.clone()
     }
     fn memory_start(&self, _x: &[f64; N], _u: &ModelInput) {}
-    fn actuator_state_values(&self, _d: &Drive) -> Vec<(usize, f64)> {
-        Vec::new()
-    }
-    fn initial_guess(&self, _d: &Drive) -> [f64; N] {
-        [0.0; N]
-    }
-    fn with_options(&self, o: ModelOptions) -> Self {
-        Self { o, ..self.clone() }
-    }
 }
 
 /// Channel 0 (n_e) carries the time itself: a ramp with no interior breakpoint.

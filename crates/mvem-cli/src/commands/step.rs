@@ -7,12 +7,12 @@ use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
 use mvem::analysis::experiment::{self, StepSpec};
-use mvem::analysis::json::{drive_json, step_metrics_json};
+use mvem::analysis::json::step_json;
 use mvem::analysis::linearize::DEFAULT_OUTPUTS;
 use mvem::analysis::step::StepMetrics;
 use mvem::model::{Drive, Model};
 use mvem::sim::{SimOptions, Solution};
-use serde_json::{json, Map, Value};
+use serde_json::Value;
 use std::path::PathBuf;
 
 /// An input channel.
@@ -269,26 +269,15 @@ pub fn run(a: &Args) -> Result<()> {
 }
 
 fn to_json(c: &StepCase) -> Value {
-    let mut outs = Map::new();
-    for (n, r) in &c.metrics {
-        let mut v = match r {
-            Ok(m) => step_metrics_json(m),
-            Err(e) => json!({"error": e}),
-        };
-        v["unit"] = json!(common::unit(n));
-        outs.insert(n.clone(), v);
-    }
-    let d = c.before;
-    json!({
-        "input": c.input.name(),
-        "input_unit": common::unit(c.input.name()),
-        "from": d.to_array()[c.input.slot()],
-        "to": c.to,
-        "t_step": c.t_step,
-        "operating_point": drive_json(&d),
-        "warnings": c.flags,
-        "outputs": Value::Object(outs),
-    })
+    let t_end = c.sol.t().last().copied().unwrap_or(c.t_step);
+    let spec = StepSpec {
+        before: c.before,
+        input: c.input.slot(),
+        to: c.to,
+        t_step: c.t_step,
+        t_end,
+    };
+    step_json(&spec, &c.flags, &c.metrics)
 }
 
 fn fmt_opt(v: Option<f64>) -> String {

@@ -2,6 +2,7 @@
 //! `mvem linearize --json`, the HTTP API of `mvem serve`) so that they print the same numbers to
 //! the last bit. `serde_json` writes every `f64` in its shortest round-trip form.
 
+use crate::analysis::experiment::StepSpec;
 use crate::analysis::linearize::LinearModel;
 use crate::analysis::steady::SteadyState;
 use crate::analysis::step::{Excursion, StepMetrics};
@@ -177,6 +178,36 @@ fn excursion(e: Option<Excursion>) -> Value {
         Value::Null,
         |e| json!({"value": e.value, "time": e.time, "relative": e.relative}),
     )
+}
+
+/// The step experiment (`mvem step --json`, `/api/step` of `mvem serve`, which adds the
+/// series): the stepped input with its unit, from, to, t_step, the operating point before the
+/// step, the steady-state warnings and, per output, its metrics (or why there are none) and unit.
+pub fn step_json(
+    spec: &StepSpec,
+    warnings: &[String],
+    metrics: &[(String, Result<StepMetrics, String>)],
+) -> Value {
+    let mut outs = Map::new();
+    for (n, r) in metrics {
+        let mut v = match r {
+            Ok(m) => step_metrics_json(m),
+            Err(e) => json!({"error": e}),
+        };
+        v["unit"] = json!(unit(n));
+        outs.insert(n.clone(), v);
+    }
+    let input = Drive::NAMES[spec.input];
+    json!({
+        "input": input,
+        "input_unit": unit(input),
+        "from": spec.from(),
+        "to": spec.to,
+        "t_step": spec.t_step,
+        "operating_point": drive_json(&spec.before),
+        "warnings": warnings,
+        "outputs": Value::Object(outs),
+    })
 }
 
 /// The metrics of one step response (`mvem step --json`, per output).

@@ -119,7 +119,7 @@ pub struct Trajectory {
 }
 
 impl Trajectory {
-    /// Column names (units: s, rpm, mg, %, %, Nm, Nm, -, -, -, -, Pa, Pa, rad/s, kg/s, kg/s, -).
+    /// Column names (units: [`Trajectory::UNITS`]).
     pub const NAMES: [&'static str; 17] = [
         "t",
         "n_e",
@@ -139,6 +139,21 @@ impl Trajectory {
         "W_f",
         "motoring",
     ];
+
+    /// Unit of each column, in [`Trajectory::NAMES`] order (`motoring` is 1 on samples where
+    /// the engine is motored, else 0).
+    pub const UNITS: [&'static str; 17] = [
+        "s", "rpm", "mg/cycle", "%", "%", "Nm", "Nm", "-", "-", "-", "-", "Pa", "Pa", "rad/s",
+        "kg/s", "kg/s", "-",
+    ];
+
+    /// Unit of the column `name` (`""` for a name that is not a column).
+    pub fn unit(name: &str) -> &'static str {
+        Self::NAMES
+            .iter()
+            .position(|n| *n == name)
+            .map_or("", |i| Self::UNITS[i])
+    }
 
     /// Column by name.
     pub fn get(&self, name: &str) -> Option<&[f64]> {
@@ -250,4 +265,26 @@ fn check_output(o: &Output, t: f64) -> Result<(), ControlError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Trajectory;
+
+    #[test]
+    fn trajectory_units_agree_with_the_model_metadata() {
+        let mut own = 0;
+        for (n, u) in Trajectory::NAMES.iter().zip(Trajectory::UNITS) {
+            let model = crate::model::meta::unit(n);
+            if model.is_empty() {
+                own += 1; // a column of the closed loop only (references, motoring flag)
+            } else {
+                assert_eq!(u, model, "{n}");
+            }
+            assert_eq!(Trajectory::unit(n), u);
+        }
+        assert_eq!(own, 4);
+        assert_eq!(Trajectory::unit("M_ref"), "Nm");
+        assert_eq!(Trajectory::unit("nope"), "");
+    }
 }

@@ -78,6 +78,16 @@ mod tests {
     }
 
     #[test]
+    fn built_in_file_is_the_annotated_output() {
+        // crates/mvem/data/published.toml is `mvem params show --format toml` of the published
+        // set: after a change of the metadata, regenerate it with that command
+        assert_eq!(
+            crate::params::PUBLISHED_TOML,
+            to_annotated_toml(&Params::published())
+        );
+    }
+
+    #[test]
     fn annotated_file_loads_back_identically() {
         let mut p = Params::published();
         // a perturbed set: values of every magnitude, every scalar changed

@@ -48,6 +48,7 @@ macro_rules! engine_memory {
 mod adiabatic;
 mod any;
 mod common;
+mod dynamics;
 mod engine10;
 mod engine12;
 mod engine8;
@@ -55,6 +56,7 @@ pub mod meta;
 mod signals;
 
 pub use any::{AnyModel, ModelError, ModelOrder};
+pub use dynamics::Dynamics;
 
 pub use engine10::{ix as ix10, Engine10, STATE_NAMES_10};
 pub use engine12::{ix as ix12, Engine12, STATE_NAMES_12};
@@ -331,11 +333,12 @@ impl InputDelays {
 
 /// A mean-value engine model with `N` states.
 ///
-/// What the simulator uses (`sim` reads nothing else of a model): [`Model::state_names`],
-/// [`Model::state_scales`], [`Model::state_bounds`], [`Model::derivatives`] (steps) and
-/// [`Model::eval`] (output samples), [`Model::input_delays`], [`Model::linear_lags`], the memory
-/// contract ([`Model::Memory`], [`Model::initial_memory`], [`Model::holds_memory`]) and
-/// [`Model::nonfinite_hint`].
+/// The simulator sees a model only through [`Dynamics`] (implemented for every `Model` by
+/// forwarding): [`Model::state_names`], [`Model::state_scales`], [`Model::state_bounds`],
+/// [`Model::derivatives`] (steps) and [`Model::eval`] (output samples), [`Model::input_delays`],
+/// [`Model::linear_lags`], the memory contract ([`Model::Memory`], [`Model::initial_memory`],
+/// [`Model::holds_memory`]) and [`Model::nonfinite_hint`]. The rest (parameters, options, steady
+/// state guesses, the extensions' links to the 8-state model) is for the analyses above `sim`.
 pub trait Model<const N: usize>: Send + Sync {
     /// State an evaluation carries from one accepted step to the next (the engine models: the
     /// cylinder-temperature iterate (x_r, T_1) of eq. (24); `()` for a model without memory).

@@ -267,7 +267,10 @@ pub struct Params {
     pub intercooler: Intercooler,
 }
 
-/// The authors' published parameter set as a TOML document (the project file that holds it).
+/// The authors' published parameter set (from their LGPL-3.0 Simulink package,
+/// parameterData.mat; the same values as `data/wahlstrom_eriksson_2011_parameters.json`) as the
+/// annotated TOML document of `mvem params show --format toml` (the project file that holds it;
+/// a test checks that it is exactly that output).
 pub const PUBLISHED_TOML: &str = include_str!("../../data/published.toml");
 
 impl Params {

@@ -6,7 +6,7 @@
 use super::integrator::{Integrator, Trial};
 use super::segment::SegmentInputs;
 use super::SimError;
-use crate::model::Model;
+use crate::model::Dynamics;
 
 pub(crate) const C2: f64 = 1.0 / 5.0;
 pub(crate) const C3: f64 = 3.0 / 10.0;
@@ -96,7 +96,7 @@ impl<const N: usize> Dense<N> {
     }
 }
 
-impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
+impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// One Dormand-Prince 5(4) trial step.
     pub(super) fn step_dopri5(
         &mut self,

@@ -1,6 +1,6 @@
 //! Simulation errors: what failed, when, and the state at that time.
 
-use crate::model::Model;
+use crate::model::Dynamics;
 use std::fmt;
 
 /// A failed simulation: what, when, and the state at that time.
@@ -75,7 +75,7 @@ impl fmt::Display for StateDump {
     }
 }
 
-pub(super) fn dump<const N: usize, M: Model<N>>(m: &M, y: &[f64; N]) -> StateDump {
+pub(super) fn dump<const N: usize, M: Dynamics<N>>(m: &M, y: &[f64; N]) -> StateDump {
     StateDump(
         m.state_names()
             .iter()

@@ -10,10 +10,10 @@ use super::rosw::{self, IterationMatrix};
 use super::segment::{stop_times, SegmentInputs};
 use super::solution::{SimStats, Solution};
 use super::SimError;
-use crate::model::{LinearLag, Model};
+use crate::model::{Dynamics, LinearLag};
 
 /// Restartable integrator state (the solver does not own the model or the inputs).
-pub struct Integrator<'a, const N: usize, M: Model<N>> {
+pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) model: &'a M,
     pub(super) sched: &'a InputSchedule,
     pub(super) opts: SimOptions,
@@ -21,8 +21,8 @@ pub struct Integrator<'a, const N: usize, M: Model<N>> {
     pub t: f64,
     /// Current state.
     pub y: [f64; N],
-    /// The model's memory ([`Model::Memory`]), held from the last accepted step when
-    /// [`Model::holds_memory`].
+    /// The model's memory ([`Dynamics::Memory`]), held from the last accepted step when
+    /// [`Dynamics::holds_memory`].
     pub memory: M::Memory,
     pub(super) f: Option<[f64; N]>,
     pub(super) h: f64,
@@ -128,8 +128,8 @@ impl<const N: usize> Interp<N> {
     }
 }
 
-impl<'a, const N: usize, M: Model<N>> Integrator<'a, N, M> {
-    /// Start at `(t0, y0)` with the model's [`Model::initial_memory`] there.
+impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
+    /// Start at `(t0, y0)` with the model's [`Dynamics::initial_memory`] there.
     pub fn new(
         model: &'a M,
         sched: &'a InputSchedule,

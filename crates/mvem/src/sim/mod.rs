@@ -7,20 +7,20 @@
 //! -72 1/s along the WHTC), so the explicit pair is stability-limited; the W-method is not, and
 //! takes far fewer steps on smooth stretches.
 //!
-//! The transport delays ([`Model::input_delays`]) act on known input functions, so they are
+//! The transport delays ([`Dynamics::input_delays`]) act on known input functions, so they are
 //! exact: the delayed command is the schedule evaluated at `t - tau` (constant history before
 //! the first row). The integrator never steps over an input change: the time axis is split at
 //! every breakpoint of every channel (jumps and kinks), shifted by the delay of each channel that
 //! feeds a delay, and each segment is integrated with the inputs evaluated strictly inside the
 //! segment, so a step on either side of a jump sees one smooth input.
 //!
-//! The actuator states ([`Model::linear_lags`]) are first-order lags of those delayed commands;
+//! The actuator states ([`Dynamics::linear_lags`]) are first-order lags of those delayed commands;
 //! on a segment the command is linear, so by default they are integrated in closed form there and
 //! the W-method integrates the other states only ([`SimOptions::exact_actuators`],
 //! `docs/integrator.md`).
 //!
-//! The simulator depends on [`crate::model`] only, through the [`Model`] trait (names, scales,
-//! bounds, derivatives, output signals, input delays, lag states, the opaque [`Model::Memory`]);
+//! The simulator depends on [`crate::model`] only, through the [`Dynamics`] trait (names, scales,
+//! bounds, derivatives, output signals, input delays, lag states, the opaque [`Dynamics::Memory`]);
 //! it reads no parameter and names no component. Starting at a steady state is a convenience
 //! one layer up (`simulate_from_steady`, next to the steady-state solver).
 //!
@@ -46,7 +46,7 @@ pub use options::{Method, SimOptions};
 pub use segment::{stop_times, SegmentInputs};
 pub use solution::{SimStats, Solution};
 
-use crate::model::Model;
+use crate::model::Dynamics;
 
 /// Where the simulation starts (the steady-state start is `simulate_from_steady`, one layer up).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,7 +59,7 @@ pub enum Start<const N: usize> {
 ///
 /// The result has an output sample every `opts.dt_out` from `t0` and at `t_end`. Output samples
 /// at an input step show the value after the step (inputs are right-continuous).
-pub fn simulate<const N: usize, M: Model<N>>(
+pub fn simulate<const N: usize, M: Dynamics<N>>(
     model: &M,
     sched: &InputSchedule,
     t0: f64,

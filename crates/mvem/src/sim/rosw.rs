@@ -18,7 +18,7 @@ use super::error::dump;
 use super::integrator::{Integrator, LagSegment, Trial};
 use super::segment::SegmentInputs;
 use super::SimError;
-use crate::model::Model;
+use crate::model::Dynamics;
 use crate::numerics::linalg;
 
 pub(crate) const GAMMA: f64 = 0.435_866_521_508_459;
@@ -161,7 +161,7 @@ impl<const N: usize> IterationMatrix<N> {
     }
 }
 
-impl<const N: usize, M: Model<N>> Integrator<'_, N, M> {
+impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// Finite-difference Jacobian df/dy at (t, y) with f(t, y) = f0 (forward differences,
     /// step sqrt(eps) relative to max(|y_i|, scale_i)); the columns with `skip[c]` stay zero.
     fn jacobian(

@@ -3,11 +3,11 @@
 //! The transport delays act on known input functions, so they are exact: a delayed lookup is
 //! the schedule evaluated at `t - tau` (constant history before the first row). The time axis is
 //! split at every breakpoint of every channel that drives the dynamics (jumps and kinks),
-//! shifted by the delay of each delayed lookup ([`Model::input_delays`]), and each segment sees
+//! shifted by the delay of each delayed lookup ([`Dynamics::input_delays`]), and each segment sees
 //! the inputs strictly from inside, so a step on either side of a jump sees one smooth input.
 
 use super::input::{BreakKind, InputSchedule, Side};
-use crate::model::{LagCommand, Model, ModelInput};
+use crate::model::{Dynamics, LagCommand, ModelInput};
 
 /// A linear piece of a schedule channel: (t_lo, t_hi, t_ref, v_ref, slope), see
 /// [`InputSchedule::piece`].
@@ -42,7 +42,7 @@ pub struct SegmentInputs<'a> {
 
 impl<'a> SegmentInputs<'a> {
     /// Inputs of `model` driven by `sched` on the segment `[a, b]`.
-    pub fn new<const N: usize, M: Model<N>>(
+    pub fn new<const N: usize, M: Dynamics<N>>(
         model: &M,
         sched: &'a InputSchedule,
         a: f64,
@@ -182,10 +182,10 @@ impl<'a> SegmentInputs<'a> {
 }
 
 /// Sorted stop times in (t0, t_end) with a flag for jumps: every breakpoint of every channel
-/// that drives the dynamics, shifted by the delay of the path it feeds ([`Model::input_delays`];
+/// that drives the dynamics, shifted by the delay of the path it feeds ([`Dynamics::input_delays`];
 /// the engine models: n_e, u_delta unshifted, u_egr by tau_degr, u_vgt by tau_dvgt, plus
 /// unshifted u_egr, u_vgt when the actuators are bypassed).
-pub fn stop_times<const N: usize, M: Model<N>>(
+pub fn stop_times<const N: usize, M: Dynamics<N>>(
     m: &M,
     sched: &InputSchedule,
     t0: f64,
