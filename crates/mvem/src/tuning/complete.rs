@@ -851,7 +851,7 @@ impl Cost77 {
                     let w = g / (k_j * d.t.len() as f64).sqrt();
                     let fail = vec![10.0; 4 * d.t.len()];
                     let Ok(sim) =
-                        simulate_set(self.opts.model, &q, d, sample_interval(d), SEARCH_RTOL)
+                        simulate_set(self.opts.model, q, d, sample_interval(d), SEARCH_RTOL)
                     else {
                         return fail;
                     };
@@ -874,11 +874,11 @@ impl Cost77 {
         if self.opts.static_row {
             let n_m = (self.n_z() * self.stat.len()) as f64;
             let w = 1.0 / (self.opts.beta * n_m).sqrt();
-            match steps::submodel_series(&q, &self.stat) {
+            match steps::submodel_series(q, &self.stat) {
                 Ok(mut series) => {
                     if self.opts.model == ModelOrder::Twelve {
                         // z_8 = W_ic (section 9.2.1): eq. (86) against the measured W_c
-                        let (meas, model) = super::twelve::w_ic_series(&q, &self.stat);
+                        let (meas, model) = super::twelve::w_ic_series(q, &self.stat);
                         series.push(("W_ic".into(), meas, model));
                     }
                     for (name, meas, model) in series.iter().filter(|s| s.0 != "M_e") {
