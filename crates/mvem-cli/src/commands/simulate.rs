@@ -23,7 +23,13 @@ Examples:
   mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.parquet --signals p_im,W_c,lambda_O
 
 Input CSV header (any column order): time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct
-Rows are interpolated linearly; two rows with the same time are a step."
+Rows are interpolated linearly; two rows with the same time are a step.
+
+Dynamometer: M_e is the engine torque of the model. A test cell measures it through the
+dynamometer lag of eq. (76), a test-cell property that `mvem tune` writes to the [test_cell]
+section of its output file (tau_me). When that section is present in --params, or with
+--tau-me, the output gets a column M_dynamo: M_e through that first-order lag (what `mvem
+validate` compares with the measured torque); --tau-me overrides the file."
 )]
 pub struct Args {
     /// Input time series (CSV: time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct).
@@ -50,6 +56,10 @@ pub struct Args {
     /// at the first inputs.
     #[arg(long, value_name = "FILE.json")]
     pub initial_state: Option<PathBuf>,
+    /// Dynamometer time constant tau_Me [s] of eq. (76): adds the column M_dynamo [default:
+    /// `tau_me` of the [test_cell] section of --params; without it no M_dynamo].
+    #[arg(long = "tau-me", value_name = "S")]
+    pub tau_me: Option<f64>,
     #[command(flatten)]
     pub model: ModelArgs,
     #[command(flatten)]
@@ -65,7 +75,21 @@ pub fn run(a: &Args) -> Result<()> {
         common::check_output_path(p, "--plot")?;
     }
     let opts = a.solver.options(0.01)?;
+    if let Some(t) = a.tau_me {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(common::usage(format!("--tau-me {t}: must be > 0")));
+        }
+    }
     let model = a.model.build()?;
+    // the tuned dynamometer constant of the parameter file's [test_cell] section; --tau-me
+    // overrides
+    let tau_me = match (&a.tau_me, &a.model.params) {
+        (Some(t), _) => Some(*t),
+        (None, Some(p)) => mvem::io::test_cell::load_test_cell(p)
+            .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?
+            .and_then(|c| c.tau_me),
+        (None, None) => None,
+    };
     let (sched, default_end, source) = match (&a.inputs, a.scenario) {
         (Some(path), _) => {
             let s = common::load_inputs(path)?;
@@ -105,10 +129,16 @@ pub fn run(a: &Args) -> Result<()> {
 
     let started = Instant::now();
     let msg = format!("simulating {source} from {t0} s to {t_end} s");
-    let sol = common::with_spinner(
+    let mut sol = common::with_spinner(
         &msg,
         || mvem::dispatch!(&model, m => run_model(m, &sched, t0, t_end, initial.as_ref(), a.initial_state.as_deref(), &opts)),
     )?;
+    if let (Some(tau), Some(m_e)) = (tau_me, sol.get("M_e").map(<[f64]>::to_vec)) {
+        // eq. (76): the torque the dynamometer measures
+        let m_dynamo = mvem::tuning::lab::first_order_lag(sol.t(), &m_e, tau);
+        sol.names.push("M_dynamo".into());
+        sol.columns.push(m_dynamo);
+    }
     let wall = started.elapsed().as_secs_f64();
 
     // Render the figure before writing anything, so that a failure leaves no file behind.

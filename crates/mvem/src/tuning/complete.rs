@@ -25,7 +25,9 @@ use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
 use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
 use super::steps::{self, project_q_c, FitReport, StepError};
-use super::uncertainty::{estimates, estimates_blocks, ParamEstimate};
+use super::uncertainty::{
+    block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,
+};
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -175,6 +177,9 @@ pub struct CompleteReport {
     pub converged: bool,
     /// Standard error and identifiability of each fitted parameter ([`super::uncertainty`]).
     pub uncertainty: Vec<(String, ParamEstimate)>,
+    /// Jacobian and covariance at the estimate (not serialized).
+    #[serde(skip)]
+    pub linearization: Option<Linearization>,
 }
 
 /// Per-output eq. (5) errors of `p` (model `order`) on `sets` (pooled over the sets).
@@ -287,7 +292,6 @@ pub fn fit_dynamic(
             }
         }
     };
-    let means = stationary_means(stat);
     let segs: Vec<_> = sets.iter().map(|d| segments(d)).collect();
     let n_res: usize = segs.iter().map(|s| 4 * count_segment_samples(s)).sum();
     if n_res == 0 {
@@ -296,34 +300,11 @@ pub fn fit_dynamic(
             "the dynamic sets contain no command steps",
         ));
     }
+    let res_at = dynamic_residuals(f.order, sets, stat, f.amp_floor);
     let res = |th: &[f64]| -> Vec<f64> {
         let mut q = base.clone();
         set_all(&mut q, th);
-        let parts: Vec<Option<Vec<f64>>> = sets
-            .par_iter()
-            .zip(&segs)
-            .map(|(d, sg)| {
-                let sim = simulate_set(f.order, &q, d, sample_interval(d), SEARCH_RTOL).ok()?;
-                let w = 1.0 / (count_segment_samples(sg).max(1) as f64).sqrt(); // 1/L_j, eq. (75)
-                let mut r = Vec::new();
-                for (k, name) in DYN_OUTPUTS.iter().enumerate() {
-                    let meas = d.get(name)?;
-                    let s = sim.get(name)?;
-                    let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), s, t)).collect();
-                    let floor = f.amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
-                    normalized_residuals(&d.t, meas, &simv, sg, floor, w, &mut r);
-                }
-                Some(r)
-            })
-            .collect();
-        let mut out = Vec::with_capacity(n_res);
-        for p in parts {
-            match p {
-                Some(v) => out.extend(v),
-                None => return vec![10.0; n_res], // failed simulation: large, finite cost
-            }
-        }
-        out
+        res_at(&q)
     };
     let fit = least_squares(
         res,
@@ -340,15 +321,18 @@ pub fn fit_dynamic(
         .iter()
         .flat_map(|sg| std::iter::repeat_n(count_segment_samples(sg), DYN_OUTPUTS.len()))
         .collect();
-    let uncertainty = estimates_blocks(
+    let covariance = block_covariance(&fit.jacobian, &fit.residuals, &blocks);
+    let uncertainty = estimates_from_cov(
         f.names,
         &fit.theta,
-        f.scale,
-        &fit.jacobian,
-        &fit.residuals,
-        &blocks,
+        &covariance,
         if f.order == ModelOrder::Twelve { 7 } else { 3 },
     );
+    let linearization = Some(Linearization {
+        names: f.names.iter().map(|s| s.to_string()).collect(),
+        jacobian: fit.jacobian.clone(),
+        covariance,
+    });
     Ok((
         p,
         CompleteReport {
@@ -363,8 +347,51 @@ pub fn fit_dynamic(
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
             uncertainty,
+            linearization,
         },
     ))
+}
+
+/// Residuals of a problem of the form (74)-(75) ([`fit_dynamic`]) on `sets` as a function of
+/// the whole parameter set: the normalized step responses of p_im, p_em, W_c, n_t of the
+/// model `order` (amplitude floor `amp_floor`, [`Step3Start`]); residuals of 10 (large,
+/// finite) when a set does not simulate.
+pub fn dynamic_residuals<'a>(
+    order: ModelOrder,
+    sets: &'a [&'a DynamicData],
+    stat: &[StationaryPoint],
+    amp_floor: f64,
+) -> impl Fn(&Params) -> Vec<f64> + 'a {
+    let means = stationary_means(stat);
+    let segs: Vec<_> = sets.iter().map(|d| segments(d)).collect();
+    let n_res: usize = segs.iter().map(|s| 4 * count_segment_samples(s)).sum();
+    move |q: &Params| -> Vec<f64> {
+        let parts: Vec<Option<Vec<f64>>> = sets
+            .par_iter()
+            .zip(&segs)
+            .map(|(d, sg)| {
+                let sim = simulate_set(order, q, d, sample_interval(d), SEARCH_RTOL).ok()?;
+                let w = 1.0 / (count_segment_samples(sg).max(1) as f64).sqrt(); // 1/L_j, eq. (75)
+                let mut r = Vec::new();
+                for (k, name) in DYN_OUTPUTS.iter().enumerate() {
+                    let meas = d.get(name)?;
+                    let s = sim.get(name)?;
+                    let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), s, t)).collect();
+                    let floor = amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
+                    normalized_residuals(&d.t, meas, &simv, sg, floor, w, &mut r);
+                }
+                Some(r)
+            })
+            .collect();
+        let mut out = Vec::with_capacity(n_res);
+        for p in parts {
+            match p {
+                Some(v) => out.extend(v),
+                None => return vec![10.0; n_res], // failed simulation: large, finite cost
+            }
+        }
+        out
+    }
 }
 
 /// Step 4: tau_Me of eq. (76) on the normalized torque step responses of `set` (the fuel-step
@@ -431,6 +458,7 @@ pub fn step4(
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
             uncertainty,
+            linearization: None,
         },
     ))
 }
@@ -460,6 +488,8 @@ const fn sp(name: &'static str, lo: f64, hi: f64, scale: f64) -> StaticParam {
 
 /// The static parameters theta of eq. (77) with their bounds (our choice: physically plausible
 /// boxes wide enough for a 6-cylinder heavy-duty engine; the paper does not list its bounds).
+/// Step 5 widens a box that excludes the step-1 estimate ([`bounds_containing`]), except for
+/// the physical bounds ([`PHYSICAL_BOUNDS`]).
 /// The torque parameters are not in theta (paper section 8.1: M_e is not in y_k, z_n).
 pub const STATIC_PARAMS: [StaticParam; 35] = [
     sp("c_vol1", -0.01, 0.01, 1e-4),
@@ -524,6 +554,47 @@ pub fn static_bounds(base: &Params, order: ModelOrder) -> Vec<StaticParam> {
         }
     }
     v
+}
+
+/// Parameters of theta of eq. (77) whose bounds are physical (the model's or the parameter
+/// file's validity: x_cv in [0, 1], Pi_egropt < 1, c_egr1 < 0, efficiencies <= 1, c_m2 <
+/// w_tlin, c_m3 > 0, K_t > 0, c_Pi > 0, Q_c positive semidefinite, k_ic > 0). The bounds of the
+/// others are plausibility boxes ([`bounds_containing`]).
+pub const PHYSICAL_BOUNDS: [&str; 12] = [
+    "x_cv",
+    "pi_egropt",
+    "c_egr1",
+    "eta_tmmax",
+    "c_m2",
+    "c_m3",
+    "k_t",
+    "eta_cmax",
+    "c_pi",
+    "a1",
+    "a2",
+    "k_ic",
+];
+
+/// The bounds of step 5 for the start `theta0` (the step-1 estimates): a plausibility box (not
+/// in [`PHYSICAL_BOUNDS`]) that excludes the start is widened to contain it with a margin of
+/// |start| (or the typical magnitude for a start of 0). The compressor-flow ellipse (c_Psi2,
+/// c_Phi2 and the polynomials (69)-(70)) is flat along directions where these parameters trade
+/// off, so step 1 can land anywhere along them (e.g. c_Phi2 = -0.7 on an engine with
+/// c_Phi2 = 0): clamping the start into the box would break the fit that step 1 found.
+pub fn bounds_containing(mut list: Vec<StaticParam>, theta0: &[f64]) -> Vec<StaticParam> {
+    for (s, &v) in list.iter_mut().zip(theta0) {
+        if PHYSICAL_BOUNDS.contains(&s.name) || !v.is_finite() {
+            continue;
+        }
+        let margin = if v != 0.0 { v.abs() } else { s.scale };
+        if v <= s.lo {
+            s.lo = v - margin;
+        }
+        if v >= s.hi {
+            s.hi = v + margin;
+        }
+    }
+    list
 }
 
 /// Mutable reference to a tunable parameter by name: its symbol (the names of
@@ -728,6 +799,23 @@ impl Cost77 {
         b
     }
 
+    /// Residual blocks of the covariance ([`super::uncertainty::block_covariance`]): per data set
+    /// and output one block (AR(1) inflation), every submodel residual its own block (a
+    /// variance per stationary point: the derived measurements of eq. (4) are heteroscedastic,
+    /// e.g. eta_c,meas of eq. (58) divides by T_c - T_amb, a few kelvin at light load).
+    pub fn covariance_blocks(&self) -> Vec<usize> {
+        let mut b = Vec::new();
+        if self.opts.dynamic_row {
+            for (d, _) in &self.sets {
+                b.extend(std::iter::repeat_n(d.t.len(), DYN_OUTPUTS.len()));
+            }
+        }
+        if self.opts.static_row {
+            b.extend(std::iter::repeat_n(1, self.stat_len()));
+        }
+        b
+    }
+
     /// Number of residuals.
     pub fn len(&self) -> usize {
         self.n_res
@@ -748,7 +836,11 @@ impl Cost77 {
     /// Residuals r with V(theta) = sum r^2 (eq. (77)); a failed simulation gives residuals of 10
     /// (finite, large) for its set.
     pub fn residuals(&self, th: &[f64]) -> Vec<f64> {
-        let q = self.params(th);
+        self.residuals_at(&self.params(th))
+    }
+
+    /// Residuals of (77) at the whole parameter set `q` (see [`Cost77::residuals`]).
+    pub fn residuals_at(&self, q: &Params) -> Vec<f64> {
         let mut out = Vec::with_capacity(self.n_res);
         if self.opts.dynamic_row {
             let k_j = (4 * self.sets.len()) as f64;
@@ -759,7 +851,7 @@ impl Cost77 {
                     let w = g / (k_j * d.t.len() as f64).sqrt();
                     let fail = vec![10.0; 4 * d.t.len()];
                     let Ok(sim) =
-                        simulate_set(self.opts.model, &q, d, sample_interval(d), SEARCH_RTOL)
+                        simulate_set(self.opts.model, q, d, sample_interval(d), SEARCH_RTOL)
                     else {
                         return fail;
                     };
@@ -782,11 +874,11 @@ impl Cost77 {
         if self.opts.static_row {
             let n_m = (self.n_z() * self.stat.len()) as f64;
             let w = 1.0 / (self.opts.beta * n_m).sqrt();
-            match steps::submodel_series(&q, &self.stat) {
+            match steps::submodel_series(q, &self.stat) {
                 Ok(mut series) => {
                     if self.opts.model == ModelOrder::Twelve {
                         // z_8 = W_ic (section 9.2.1): eq. (86) against the measured W_c
-                        let (meas, model) = super::twelve::w_ic_series(&q, &self.stat);
+                        let (meas, model) = super::twelve::w_ic_series(q, &self.stat);
                         series.push(("W_ic".into(), meas, model));
                     }
                     for (name, meas, model) in series.iter().filter(|s| s.0 != "M_e") {
@@ -839,6 +931,9 @@ pub struct Step5Report {
     pub rel_std_err: Vec<(String, f64)>,
     /// Standard error and identifiability of each parameter ([`super::uncertainty`]).
     pub uncertainty: Vec<(String, ParamEstimate)>,
+    /// Jacobian and covariance at the estimate (not serialized).
+    #[serde(skip)]
+    pub linearization: Option<Linearization>,
 }
 
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
@@ -866,7 +961,7 @@ pub fn step5(
             "no residuals (no data sets and no stationary row)",
         ));
     }
-    let list = static_bounds(base, opts.model);
+    let list = bounds_containing(static_bounds(base, opts.model), theta0);
     let lo: Vec<f64> = list.iter().map(|s| s.lo).collect();
     let hi: Vec<f64> = list.iter().map(|s| s.hi).collect();
     let th0: Vec<f64> = theta0
@@ -899,19 +994,22 @@ pub fn step5(
         .map(|(s, _)| s.name.to_string())
         .collect();
     let names: Vec<&str> = list.iter().map(|s| s.name).collect();
-    let uncertainty = estimates_blocks(
+    let covariance = block_covariance(&fit.jacobian, &fit.residuals, &cost.covariance_blocks());
+    let uncertainty = estimates_from_cov(
         &names,
         &theta,
-        &scale,
-        &fit.jacobian,
-        &fit.residuals,
-        &cost.blocks(),
+        &covariance,
         if opts.model == ModelOrder::Twelve {
             8
         } else {
             5
         },
     );
+    let linearization = Some(Linearization {
+        names: names.iter().map(|s| s.to_string()).collect(),
+        jacobian: fit.jacobian.clone(),
+        covariance,
+    });
     let stats = fit.stats();
     let rel_std_err = list
         .iter()
@@ -966,6 +1064,7 @@ pub fn step5(
             at_bounds,
             rel_std_err,
             uncertainty,
+            linearization,
         },
     ))
 }

@@ -30,7 +30,8 @@
 //! mechanical losses lumped into eta_tm). No tuning step uses it.
 //!
 //! - **Dynamic sets A-I, Q-V** (Table 1, [`TABLE1`]): at the speeds, loads, step counts and
-//!   sample rates of the table. VGT/EGR sets: constant speed and fuel, each step changes the
+//!   sample rates of the table, each starting from a physically valid equilibrium (else redrawn).
+//!   VGT/EGR sets: constant speed and fuel, each step changes the
 //!   VGT or the EGR command (alternating at random) to a new level drawn uniformly (EGR 0 % to
 //!   the vertex of the area polynomial, VGT 25-100 %, at least 5 % change), held
 //!   [`Table1Row::hold_s`] (6 s at 1 Hz, 4 s for the 100 Hz sets B and Q, 6 s for C, 10 s for
@@ -643,6 +644,17 @@ pub fn step_set(
         dt_out: 1.0 / (sample_rate_hz * ratio as f64),
         ..SimOptions::default()
     };
+    // like a stationary point, a set starts from a physically valid equilibrium (near the smoke
+    // limit the turbocharger can have a second, slow equilibrium with lambda_O < 1 and
+    // saturated efficiencies, from which a tuned model would start on the other branch)
+    let valid = crate::dispatch!(&m, m => crate::analysis::steady::steady_state(m, &initial)
+        .map(|ss| ss.physically_valid()))
+    .map_err(|e| LabError::Params(format!("set {name}: no initial steady state: {e}")))?;
+    if !valid {
+        return Err(LabError::Params(format!(
+            "set {name}: the initial steady state is not physically valid"
+        )));
+    }
     let sol = crate::dispatch!(&m, m => simulate_from_steady(m, &sched, 0.0, t_end, &so))
         .map_err(|e| LabError::Params(format!("simulation of set {name} failed: {e}")))?;
     let idx: Vec<usize> = (0..sol.len()).step_by(ratio).collect();

@@ -17,13 +17,17 @@
 //! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
 
 use super::complete::{
-    fit_dynamic, naive_theta, sets_with_role, static_params, static_theta, step3, step4, step5,
-    theta_of, CompleteReport, DynamicFit, Step3Start, Step5Options, Step5Report,
+    dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
+    step3, step4, step5, theta_of, CompleteReport, Cost77, DynamicFit, Step3Start, Step5Options,
+    Step5Report,
 };
 use super::data::{Campaign, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
-use super::uncertainty::{step1_estimates, step2_estimates, toml_path, ParamEstimate};
+use super::uncertainty::{
+    estimates_from_cov, fd_jacobian_named, step1_estimates, step2_estimates, toml_path, with_fixed,
+    Linearization, NamedCov, ParamEstimate,
+};
 use crate::model::ModelOrder;
 use crate::params::Params;
 use serde::Serialize;
@@ -208,12 +212,16 @@ pub fn tune(
     };
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
+    // covariance of every estimate so far (blocks of the steps), carried into the later steps
+    let mut cov = NamedCov::default();
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
         let t = Instant::now();
         let (q, r) = step1(&p, &c.stationary, &Step1Start::default()).map_err(at(1))?;
         p = q;
-        est.extend(step1_estimates(&p, &c.stationary, &r));
+        let (e, k) = step1_estimates(&p, &c.stationary, &r);
+        est.extend(e);
+        cov.set_block(&k);
         rep.step1 = Some(r);
         rep.seconds[0] = t.elapsed().as_secs_f64();
     }
@@ -225,7 +233,9 @@ pub fn tune(
             .ok_or_else(|| missing(2, "actuator data set (role \"actuator\")"))?;
         let (q, r) = step2(&p, j, &Step2Start::default()).map_err(at(2))?;
         p = q;
-        est.extend(step2_estimates(&p, j));
+        let (e, k) = step2_estimates(&p, j);
+        est.extend(e);
+        cov.set_block(&k);
         rep.step2 = Some(r);
         rep.seconds[1] = t.elapsed().as_secs_f64();
     }
@@ -235,9 +245,16 @@ pub fn tune(
         if sets.is_empty() {
             return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
         }
-        let (q, r) =
+        let (q, mut r) =
             step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
         p = q;
+        let res = dynamic_residuals(
+            ModelOrder::Eight,
+            &sets,
+            &c.stationary,
+            opts.step3.amp_floor,
+        );
+        add_fixed(&mut r.uncertainty, &r.linearization, &mut cov, res, &p, 3);
         est.extend(r.uncertainty.iter().cloned());
         rep.step3 = Some(r);
         rep.seconds[2] = t.elapsed().as_secs_f64();
@@ -271,8 +288,17 @@ pub fn tune(
             Init::Step1 => static_theta(&p),
             Init::Naive => naive_theta(),
         };
-        let (q, r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
+        let (q, mut r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
         p = q;
+        let cost = Cost77::new(&p, &c.stationary, &sets, &opts.step5);
+        add_fixed(
+            &mut r.uncertainty,
+            &r.linearization,
+            &mut cov,
+            |q: &Params| cost.residuals_at(q),
+            &p,
+            5,
+        );
         est.extend(r.uncertainty.iter().cloned());
         rep.step5 = Some(r);
         rep.seconds[4] = t.elapsed().as_secs_f64();
@@ -281,9 +307,16 @@ pub fn tune(
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
-            let (q, r) =
+            let (q, mut r) =
                 step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
             p = q;
+            let res = dynamic_residuals(
+                ModelOrder::Eight,
+                &sets,
+                &c.stationary,
+                opts.step3.amp_floor,
+            );
+            add_fixed(&mut r.uncertainty, &r.linearization, &mut cov, res, &p, 3);
             est.extend(r.uncertainty.iter().cloned());
             rep.step3_refined = Some(r);
         }
@@ -337,6 +370,38 @@ pub fn tune(
     }
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
+}
+
+/// Add to a step's covariance the uncertainty of the parameters it held fixed (every earlier
+/// estimate in `cov`; [`super::uncertainty`]), with the step's residual function `res` at the
+/// whole parameter set `p` (the estimate); replace the step's `estimates` and insert its
+/// covariance into `cov`.
+fn add_fixed(
+    estimates: &mut Vec<(String, ParamEstimate)>,
+    lin: &Option<Linearization>,
+    cov: &mut NamedCov,
+    res: impl Fn(&Params) -> Vec<f64>,
+    p: &Params,
+    step: u8,
+) {
+    let Some(lin) = lin else { return };
+    let own: Vec<&str> = lin.names.iter().map(String::as_str).collect();
+    let fixed = cov.without(&own);
+    let total = if fixed.names.is_empty() {
+        lin.covariance.clone()
+    } else {
+        let r0 = res(p);
+        let j_fixed = fd_jacobian_named(&res, p, &fixed.names, &r0);
+        with_fixed(&lin.jacobian, &lin.covariance, &j_fixed, &fixed.cov)
+    };
+    let theta: Vec<f64> = estimates.iter().map(|(_, e)| e.value).collect();
+    if theta.len() == own.len() {
+        *estimates = estimates_from_cov(&own, &theta, &total, step);
+    }
+    cov.set_block(&NamedCov {
+        names: lin.names.clone(),
+        cov: total,
+    });
 }
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.

@@ -17,8 +17,17 @@
 //!   [`MAX_REL_STD_ERR`] (25 %) and no other parameter of the same step correlates with it by more
 //!   than [`MAX_CORRELATION`] in absolute value. The reason is stated ("rel. std. error 290 %",
 //!   "correlation 0.998 with c_m3", "not in the column space of J (singular value 0)").
-//!   The standard errors are conditional on the parameters the step holds fixed and assume the
-//!   search reached its optimum (docs/tuning.md lists where this fails).
+//! * **Parameters a step holds fixed.** Steps 3 and 5 hold the estimates of the earlier steps
+//!   fixed (step 3 the static and actuator parameters, step 5 the actuators, V_im, V_em, J_t);
+//!   their errors move the step's optimum. With the step's Jacobian J, the Jacobian J_f of its
+//!   residuals with respect to the fixed parameters (forward differences at the estimate) and
+//!   their covariance C_f (from the steps that estimated them, [`NamedCov`]), the sensitivity
+//!   of the optimum is `dtheta/dphi = -S`, `S = (J^T J)^+ J^T J_f`, and the reported covariance
+//!   is `Cov + S C_f S^T` ([`with_fixed`]). The pipeline carries the full covariance of every
+//!   step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
+//!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
+//!   turn carries that of step 1. The standard errors still assume that the search reached its
+//!   optimum; a step stopped by its evaluation limit says so in the report.
 //!   `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
 //!
 //! The estimate of a parameter tuned by several steps is that of the last one (step 5 replaces
@@ -184,7 +193,131 @@ pub fn estimates_blocks(
     blocks: &[usize],
     step: u8,
 ) -> Vec<(String, ParamEstimate)> {
-    let (cov, _) = block_covariance_and_step(jacobian, residuals, blocks);
+    let _ = scale;
+    let cov = block_covariance(jacobian, residuals, blocks);
+    estimates_from_cov(names, theta, &cov, step)
+}
+
+/// The linearization of a step at its estimate (not serialized): what the pipeline needs to
+/// add the uncertainty of the parameters the step held fixed ([`with_fixed`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Linearization {
+    /// Names of the step's parameters (columns of `jacobian`).
+    pub names: Vec<String>,
+    /// Jacobian of the step's residuals (m x n).
+    pub jacobian: DMatrix<f64>,
+    /// Covariance of the step's parameters, conditional on the fixed ones.
+    pub covariance: DMatrix<f64>,
+}
+
+/// Covariance of named parameters (the names of [`param_mut`]), in their units.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NamedCov {
+    /// Parameter names (order of the rows and columns of `cov`).
+    pub names: Vec<String>,
+    /// Covariance matrix.
+    pub cov: DMatrix<f64>,
+}
+
+impl NamedCov {
+    /// A covariance of `names`.
+    pub fn new(names: &[&str], cov: DMatrix<f64>) -> Self {
+        Self {
+            names: names.iter().map(|s| s.to_string()).collect(),
+            cov,
+        }
+    }
+
+    /// Insert the block `other`, replacing the rows and columns of its names (a later estimate
+    /// of the same parameters); cross-covariances between the blocks are zero.
+    pub fn set_block(&mut self, other: &NamedCov) {
+        let keep: Vec<usize> = (0..self.names.len())
+            .filter(|&i| !other.names.contains(&self.names[i]))
+            .collect();
+        let (k, n) = (keep.len(), other.names.len());
+        let mut cov = DMatrix::zeros(k + n, k + n);
+        for (a, &i) in keep.iter().enumerate() {
+            for (b, &j) in keep.iter().enumerate() {
+                cov[(a, b)] = self.cov[(i, j)];
+            }
+        }
+        cov.view_mut((k, k), (n, n)).copy_from(&other.cov);
+        let mut names: Vec<String> = keep.iter().map(|&i| self.names[i].clone()).collect();
+        names.extend(other.names.iter().cloned());
+        *self = NamedCov { names, cov };
+    }
+
+    /// The block of the parameters not in `exclude` (non-finite entries set to zero).
+    pub fn without(&self, exclude: &[&str]) -> NamedCov {
+        let idx: Vec<usize> = (0..self.names.len())
+            .filter(|&i| !exclude.contains(&self.names[i].as_str()))
+            .collect();
+        let cov = DMatrix::from_fn(idx.len(), idx.len(), |a, b| {
+            let v = self.cov[(idx[a], idx[b])];
+            if v.is_finite() {
+                v
+            } else {
+                0.0
+            }
+        });
+        NamedCov {
+            names: idx.iter().map(|&i| self.names[i].clone()).collect(),
+            cov,
+        }
+    }
+}
+
+/// Covariance of a step's estimates including the uncertainty of the parameters it holds fixed
+/// (module documentation): `cov + S cov_fixed S^T`, `S = (J^T J)^+ J^T J_fixed`, with `jacobian`
+/// J (m x n) of the step's own parameters and `j_fixed` (m x k) of the fixed ones.
+pub fn with_fixed(
+    jacobian: &DMatrix<f64>,
+    cov: &DMatrix<f64>,
+    j_fixed: &DMatrix<f64>,
+    cov_fixed: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let m = jacobian.nrows();
+    if j_fixed.ncols() == 0 || j_fixed.nrows() != m {
+        return cov.clone();
+    }
+    // (J^T J)^+ over the identifiable subspace (param_stats with unit residuals: cov / sigma2)
+    let st = param_stats(jacobian, &vec![1.0; m]);
+    let pinv = st.covariance.map(|c| if c.is_finite() { c } else { 0.0 }) / st.sigma2;
+    let s = pinv * jacobian.tr_mul(j_fixed);
+    cov + &s * cov_fixed * s.transpose()
+}
+
+/// Forward-difference Jacobian (m x k) of `res` at `p` with respect to the parameters `names`
+/// ([`param_mut`] names, ties of [`set_named`] applied), `r0 = res(p)`; steps
+/// `1e-4 max(|value|, typical magnitude)`. Columns of parameters `p` does not have are zero.
+pub fn fd_jacobian_named(
+    res: impl Fn(&Params) -> Vec<f64>,
+    p: &Params,
+    names: &[String],
+    r0: &[f64],
+) -> DMatrix<f64> {
+    let mut j = DMatrix::zeros(r0.len(), names.len());
+    for (k, n) in names.iter().enumerate() {
+        let Some(v) = param_value(p, n) else { continue };
+        let h = 1e-4 * typical_scale(n, v).max(v.abs());
+        let mut q = p.clone();
+        set_named(&mut q, &[n.as_str()], &[v + h]);
+        let r = res(&q);
+        for i in 0..r0.len().min(r.len()) {
+            j[(i, k)] = (r[i] - r0[i]) / h;
+        }
+    }
+    j
+}
+
+/// Estimates of the parameters `names` (values `theta`) from their covariance `cov` (step
+/// `step`): standard errors, correlations, identifiability (module documentation).
+pub fn estimates_from_cov(
+    names: &[&str],
+    theta: &[f64],
+    cov: &DMatrix<f64>,
+    step: u8,
+) -> Vec<(String, ParamEstimate)> {
     let n = names.len();
     let se: Vec<f64> = (0..n)
         .map(|k| {
@@ -203,7 +336,6 @@ pub fn estimates_blocks(
         .map(|(k, n)| {
             let se = se[k];
             // relative to the value: a parameter not distinguishable from 0 is not identifiable
-            let _ = scale;
             let rel = se / theta[k].abs();
             let mut corr: Vec<(String, f64)> = (0..names.len())
                 .filter(|&i| i != k)
@@ -250,13 +382,15 @@ fn typical_scale(name: &str, value: f64) -> f64 {
 }
 
 /// Estimates of the step-1 parameters: per submodel, the Jacobian of its residuals
-/// (measured - modelled, eq. (4) units) by central differences at the fitted values.
+/// (measured - modelled, eq. (4) units) by central differences at the fitted values; and their
+/// covariance (one block per submodel).
 pub fn step1_estimates(
     p: &Params,
     pts: &[StationaryPoint],
     rep: &Step1Report,
-) -> Vec<(String, ParamEstimate)> {
+) -> (Vec<(String, ParamEstimate)>, NamedCov) {
     let mut out = Vec::new();
+    let mut all = NamedCov::default();
     for f in &rep.fits {
         let names: Vec<&str> = f.params.iter().map(|(n, _)| n.as_str()).collect();
         let theta: Vec<f64> = names
@@ -282,15 +416,19 @@ pub fn step1_estimates(
         };
         let r = res(&theta);
         let j = fd_jacobian(res, &theta, &scale);
-        out.extend(estimates(&names, &theta, &scale, &j, &r, 1));
+        // a variance per point (heteroscedastic derived measurements, Cost77::covariance_blocks)
+        let cov = block_covariance(&j, &r, &vec![1; r.len()]);
+        out.extend(estimates_from_cov(&names, &theta, &cov, 1));
+        all.set_block(&NamedCov::new(&names, cov));
     }
-    out
+    (out, all)
 }
 
 /// Estimates of the step-2 actuator parameters from the actuator set `j` (positions against
-/// the responses to the saturated commands).
-pub fn step2_estimates(p: &Params, j: &DynamicData) -> Vec<(String, ParamEstimate)> {
+/// the responses to the saturated commands), and their covariance.
+pub fn step2_estimates(p: &Params, j: &DynamicData) -> (Vec<(String, ParamEstimate)>, NamedCov) {
     let mut out = Vec::new();
+    let mut all = NamedCov::default();
     for (names, cmd, pos, egr) in [
         (
             &["tau_egr1", "tau_egr2", "tau_degr", "k_egr"][..],
@@ -319,9 +457,11 @@ pub fn step2_estimates(p: &Params, j: &DynamicData) -> Vec<(String, ParamEstimat
         };
         let r = res(&theta);
         let jac = fd_jacobian(res, &theta, &scale);
-        out.extend(estimates(names, &theta, &scale, &jac, &r, 2));
+        let cov = block_covariance(&jac, &r, &[]);
+        out.extend(estimates_from_cov(names, &theta, &cov, 2));
+        all.set_block(&NamedCov::new(names, cov));
     }
-    out
+    (out, all)
 }
 
 /// The TOML path of a tunable parameter in a parameter file ("exhaust_manifold.v_em",
@@ -374,6 +514,62 @@ mod tests {
             Some("vgt_actuator.tau_vgt")
         );
         assert_eq!(toml_path(&p, "nonsense"), None);
+    }
+
+    #[test]
+    fn fixed_parameter_uncertainty_by_hand() {
+        // r = y - a x - b z with b fixed: the optimum a*(b) = (x.y - b x.z)/(x.x), so
+        // da*/db = -(x.z)/(x.x) and Var(a) = Var(a | b) + (x.z / x.x)^2 Var(b)
+        let x: Vec<f64> = (0..20).map(|i| 1.0 + i as f64).collect();
+        let z: Vec<f64> = (0..20).map(|i| ((i * 7) % 5) as f64).collect();
+        let j = DMatrix::from_fn(20, 1, |i, _| -x[i]);
+        let jf = DMatrix::from_fn(20, 1, |i, _| -z[i]);
+        let cov = DMatrix::from_element(1, 1, 0.04);
+        let var_b = 0.25;
+        let got = with_fixed(&j, &cov, &jf, &DMatrix::from_element(1, 1, var_b));
+        let xz: f64 = x.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let xx: f64 = x.iter().map(|a| a * a).sum();
+        let want = 0.04 + (xz / xx).powi(2) * var_b;
+        assert!((got[(0, 0)] / want - 1.0).abs() < 1e-12, "{got} {want}");
+        // no fixed parameters: unchanged
+        assert_eq!(
+            with_fixed(&j, &cov, &DMatrix::zeros(20, 0), &DMatrix::zeros(0, 0)),
+            cov
+        );
+    }
+
+    #[test]
+    fn named_covariance_blocks_replace_and_restrict() {
+        let mut c = NamedCov::new(
+            &["a", "b"],
+            DMatrix::from_row_slice(2, 2, &[1.0, 0.5, 0.5, 2.0]),
+        );
+        c.set_block(&NamedCov::new(
+            &["b", "c"],
+            DMatrix::from_row_slice(2, 2, &[3.0, 0.1, 0.1, 4.0]),
+        ));
+        assert_eq!(c.names, ["a", "b", "c"]);
+        // b replaced, its old cross-covariance with a dropped
+        assert_eq!(c.cov[(0, 0)], 1.0);
+        assert_eq!(c.cov[(0, 1)], 0.0);
+        assert_eq!(c.cov[(1, 1)], 3.0);
+        assert_eq!(c.cov[(2, 1)], 0.1);
+        let w = c.without(&["b"]);
+        assert_eq!(w.names, ["a", "c"]);
+        assert_eq!(w.cov, DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 4.0]));
+    }
+
+    #[test]
+    fn step5_bounds_contain_the_step1_start() {
+        use crate::tuning::complete::{bounds_containing, STATIC_PARAMS};
+        let mut th: Vec<f64> = STATIC_PARAMS.iter().map(|s| 0.5 * (s.lo + s.hi)).collect();
+        let k = |n: &str| STATIC_PARAMS.iter().position(|s| s.name == n).unwrap();
+        th[k("c_phi2")] = -0.72; // plausibility box [-0.1, 0.1]: widened
+        th[k("c_egr1")] = 1.0; // physical bound (< 0): kept
+        let b = bounds_containing(STATIC_PARAMS.to_vec(), &th);
+        assert_eq!((b[k("c_phi2")].lo, b[k("c_phi2")].hi), (-1.44, 0.1));
+        assert_eq!(b[k("c_egr1")].hi, -1e-8);
+        assert_eq!(b[k("c_vol3")], STATIC_PARAMS[k("c_vol3")]);
     }
 
     #[test]

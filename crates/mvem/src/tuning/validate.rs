@@ -18,10 +18,10 @@ use super::data::{
     load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
 };
 use super::steps::{self, rel_errors, StepError};
-use crate::analysis::steady::simulate_from_steady;
-use crate::model::{AnyModel, ModelOptions, ModelOrder};
+use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
+use crate::model::{AnyModel, Drive, Model, ModelOptions, ModelOrder};
 use crate::params::Params;
-use crate::sim::{InputSchedule, SimOptions};
+use crate::sim::{simulate, InputSchedule, SimOptions, Start};
 use serde::Serialize;
 use std::path::Path;
 
@@ -99,8 +99,8 @@ pub fn stationary_errors(
 
 /// Simulate the model `order` (8, 10 or 12 states) driven by the commands of a dynamic set
 /// (n_e, u_delta, u_egr, u_vgt held between samples: a change between two samples happens at
-/// the later one) from the steady state of the first sample, output every `dt_out` [s],
-/// relative tolerance `rtol`.
+/// the later one) from the steady state of the first sample (on the branch of the measured
+/// initial state, see [`start_state`]), output every `dt_out` [s], relative tolerance `rtol`.
 pub fn simulate_set(
     order: ModelOrder,
     p: &Params,
@@ -124,6 +124,7 @@ pub fn simulate_set(
         times.push(d.t[i]);
         rows.push(r);
     }
+    let drive = Drive::from_array(rows[0]);
     let sched = InputSchedule::new(times, rows).map_err(|e| e.to_string())?;
     let m = AnyModel::new(order, p.clone(), ModelOptions::default()).map_err(|e| e.to_string())?;
     let t0 = d.t[0];
@@ -133,8 +134,78 @@ pub fn simulate_set(
         rtol,
         ..SimOptions::default()
     };
-    crate::dispatch!(&m, m => simulate_from_steady(m, &sched, t0, t_end, &so))
-        .map_err(|e| e.to_string())
+    crate::dispatch!(&m, m => {
+        let x0 = start_state(m, &drive, d)?;
+        simulate(m, &sched, t0, t_end, Start::State(x0), &so).map_err(|e| e.to_string())
+    })
+}
+
+/// Measured initial p_im [Pa], p_em [Pa] and omega_t [rad/s] of `d` (by state name; means over
+/// the samples of the first 0.2 s), each None without its column.
+fn measured_start(d: &DynamicData) -> [(&'static str, Option<f64>); 3] {
+    let k = ((0.2 / sample_interval(d)).round() as usize).clamp(1, d.t.len().max(1));
+    let mean = |c: &str| {
+        d.get(c)
+            .filter(|v| v.len() >= k)
+            .map(|v| v[..k].iter().sum::<f64>() / k as f64)
+    };
+    [
+        ("p_im", mean("p_im")),
+        ("p_em", mean("p_em")),
+        (
+            "omega_t",
+            mean("n_t").map(|n| n * std::f64::consts::PI / 30.0),
+        ),
+    ]
+}
+
+/// Initial state of a simulation of the set `d`: the steady state at its first commands
+/// `drive`. Near the smoke limit the turbocharger can have two equilibria at the same commands
+/// (a slow one with lambda_O < 1 and a fast one); when the equilibrium the solver finds first
+/// is more than 10 % from the measured initial p_im, p_em or n_t, the solver is restarted from
+/// the measured values and the equilibrium closer to the measurements is used (the engine was
+/// measured on that branch).
+fn start_state<const N: usize, M: Model<N>>(
+    m: &M,
+    drive: &Drive,
+    d: &DynamicData,
+) -> Result<[f64; N], String> {
+    const TOL: f64 = 0.1;
+    let names = m.state_names();
+    let meas = measured_start(d);
+    // largest relative deviation of a state from the measured initial values
+    let miss = |x: &[f64; N]| {
+        meas.iter()
+            .filter_map(|(n, v)| {
+                let v = (*v)?;
+                Some(((x[names.iter().position(|s| s == n)?] - v) / v).abs())
+            })
+            .fold(0.0, f64::max)
+    };
+    let first = steady_state(m, drive);
+    if let Ok(ss) = &first {
+        if miss(&ss.x) <= TOL {
+            return Ok(ss.x);
+        }
+    }
+    // restart from the measured values (the other states from the first solution or the
+    // model's generic guess)
+    let mut guess = match &first {
+        Ok(ss) => ss.x,
+        Err(_) => m.initial_guess(drive),
+    };
+    for (n, v) in &meas {
+        if let (Some(i), Some(v)) = (names.iter().position(|s| s == n), v) {
+            guess[i] = *v;
+        }
+    }
+    let second = steady_state_with(m, drive, Some(&guess), &SteadyOptions::default());
+    match (first, second) {
+        (Ok(a), Ok(b)) => Ok(if miss(&b.x) < miss(&a.x) { b.x } else { a.x }),
+        (Ok(a), Err(_)) => Ok(a.x),
+        (Err(_), Ok(b)) => Ok(b.x),
+        (Err(e), Err(_)) => Err(format!("no steady state at the first commands: {e}")),
+    }
 }
 
 /// Mean sample interval of a set [s].

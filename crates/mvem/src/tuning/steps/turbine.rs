@@ -97,7 +97,8 @@ pub fn fit_eta_tm(
     let hi_cm2 = 0.999 * w_tlin;
     // c_m2 and c_m3 are weakly identified (c_m is nearly flat in omega_t for small c_m3): a
     // single start often ends in a local minimum, so the search is repeated from a small grid
-    // around the start (c_m2 at fractions of its upper bound, c_m3 scaled) and the best kept.
+    // around the start (c_m2 at fractions of its upper bound, c_m3 scaled) and the best
+    // physically valid fit kept (with noisy data the lowest residual can have eta_tm,max > 1).
     let mut best: Option<crate::tuning::varpro::VarproResult> = None;
     let mut n_eval = 0;
     for f2 in [start[1] / hi_cm2, 0.2, 0.6, 0.9, 0.98] {
@@ -113,9 +114,14 @@ pub fn fit_eta_tm(
                 .fit(&s0);
             if let Ok(r) = r {
                 n_eval += r.lsq.n_eval;
+                // a physically valid fit (eta_tm,max <= 1, c_m1 >= 0; parameter validation)
+                // beats an invalid one whatever the residuals, then the lower residual wins
+                let valid = |r: &crate::tuning::varpro::VarproResult| {
+                    r.c[0] > 0.0 && r.c[0] <= 1.0 && r.c[1] >= 0.0
+                };
                 if best
                     .as_ref()
-                    .is_none_or(|b| r.residual_norm < b.residual_norm)
+                    .is_none_or(|b| (valid(&r), -r.residual_norm) > (valid(b), -b.residual_norm))
                 {
                     best = Some(r);
                 }
@@ -123,10 +129,38 @@ pub fn fit_eta_tm(
         }
     }
     let fit = best.ok_or_else(|| solver_err("eta_tm")("no start converged".into()))?;
+    // [eta_tmmax, bsr_opt, c_m1, c_m2, c_m3]
+    let mut th = [fit.c[0], fit.alpha[0], fit.c[1], fit.alpha[1], fit.alpha[2]];
+    if !(th[0] > 0.0 && th[0] <= 1.0 && th[2] >= 0.0) {
+        // no valid varpro fit: all five by bounded NLS (eta_tm,max <= 1, c_m1 >= 0) from the
+        // best fit moved into the bounds
+        let res = |a: &[f64]| -> Vec<f64> {
+            (0..pts.len())
+                .map(|i| {
+                    let db = bsr[i] - a[1];
+                    a[0] - a[2] * c_m_shape(omega[i], a[3], a[4], w_tlin) * db * db - y[i]
+                })
+                .collect()
+        };
+        let lo = [0.3, 0.2, 0.0, 0.0, 1e-4];
+        let hi = [1.0, 2.0, 10.0, hi_cm2, 3.0];
+        let s0: Vec<f64> = (0..5)
+            .map(|k| th[k].clamp(lo[k], hi[k] - 1e-6 * (hi[k] - lo[k])))
+            .collect();
+        let r = super::best_fit(
+            "eta_tm",
+            res,
+            &[s0],
+            &Bounds::new(lo.to_vec(), hi.to_vec()),
+            &lsq_opts(),
+        )?;
+        n_eval += r.n_eval;
+        th.copy_from_slice(&r.theta);
+    }
     let t = &mut p.turbine;
-    t.bsr_opt = fit.alpha[0];
-    t.c_m = [fit.c[1], fit.alpha[1], fit.alpha[2]];
-    t.eta_tmmax = fit.c[0];
+    t.bsr_opt = th[1];
+    t.c_m = [th[2], th[3], th[4]];
+    t.eta_tmmax = th[0];
     t.c_mlin = t.c_m[0] * (t.w_tlin - t.c_m[1]).powf(t.c_m[2]);
     let model: Vec<f64> = (0..pts.len())
         .map(|i| {
