@@ -102,8 +102,12 @@ fn lost_equilibrium_is_located_for_10_and_12_states() {
             msg.contains("no equilibrium found at n_e=2500 rpm"),
             "{msg}"
         );
+        // how the blow-up ends depends on round-off (step size collapse, non-finite state, or
+        // the step budget running out within a fraction of a second): each names time and state
         assert!(
-            msg.contains("too small at t = ") || msg.contains("non-finite"),
+            msg.contains("too small at t = ")
+                || msg.contains("non-finite")
+                || msg.contains("steps before t = "),
             "{msg}"
         );
         assert!(msg.contains(state) && msg.contains("Hint:"), "{msg}");
