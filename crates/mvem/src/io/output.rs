@@ -3,6 +3,7 @@
 
 use super::IoError;
 use crate::sim::Solution;
+use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -85,14 +86,14 @@ pub fn select_columns<'a>(
 /// Write columns as CSV: a header of the names, then one line per sample, each number in the
 /// shortest representation that reads back to the same f64 (ryu; `NaN`, `inf`, `-inf` for
 /// non-finite values), without an allocation per field. Long outputs are formatted in row
-/// blocks on up to 4 threads (formatting, not the simulation, dominates writing) and written in
+/// blocks on up to 4 rayon workers (formatting, not the simulation, dominates writing) and written in
 /// order: the same bytes as one thread.
 pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<()> {
     let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
     w.write_all(names.join(",").as_bytes())?;
     w.write_all(b"\n")?;
     let rows = cols.first().map_or(0, |c| c.1.len());
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(4));
+    let threads = rayon::current_num_threads().min(4);
     // below about 100 k numbers a thread costs more than it saves
     if threads < 2 || rows * cols.len() < 100_000 {
         let mut out = Vec::with_capacity(cols.len() * 24 * rows.min(4096));
@@ -103,24 +104,19 @@ pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<
         }
         return Ok(());
     }
+    // one block per worker of rayon's pool (the crate's one parallelism mechanism: inside an
+    // ensemble or a map the blocks share that pool instead of starting threads of their own)
     let per = rows.div_ceil(threads);
-    let blocks = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..rows)
-            .step_by(per)
-            .map(|a| {
-                s.spawn(move || {
-                    let r = a..(a + per).min(rows);
-                    let mut out = Vec::with_capacity(cols.len() * 20 * r.len());
-                    csv_rows(cols, r, &mut out);
-                    out
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("CSV formatting thread"))
-            .collect::<Vec<_>>()
-    });
+    let blocks: Vec<Vec<u8>> = (0..rows)
+        .into_par_iter()
+        .step_by(per)
+        .map(|a| {
+            let r = a..(a + per).min(rows);
+            let mut out = Vec::with_capacity(cols.len() * 20 * r.len());
+            csv_rows(cols, r, &mut out);
+            out
+        })
+        .collect();
     for b in blocks {
         w.write_all(&b)?;
     }
