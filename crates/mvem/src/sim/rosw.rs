@@ -135,13 +135,18 @@ pub(crate) static TRANSFORMED: std::sync::LazyLock<Transformed> =
 /// LU factors of I - gamma h J_zz, where J_zz is the Jacobian with the rows and columns of the
 /// closed-form lag states (if `reduced`) replaced by those of the identity: on the other states
 /// (z) the iteration matrix of the W-method, decoupled from the lag states, which the solve
-/// leaves at 0. Full N x N with fixed loop bounds: for N = 8 faster than a 5 x 5 block of
-/// run-time size.
+/// leaves at 0. When the lag states are the trailing ones (the engine models), only the leading
+/// `nz` x `nz` block is factored and solved, with loop bounds fixed at compile time for the
+/// block sizes of the engine models ([`block_size`]); otherwise the full N x N matrix is, the lag
+/// entries masked to 0. Full N x N storage with fixed loop bounds: for N = 8 faster than a
+/// 5 x 5 block of run-time size.
 pub(super) struct IterationMatrix<const N: usize> {
     /// Step size [s] the factors were made for.
     pub(super) h: f64,
     /// Whether the lag states are left out.
     pub(super) reduced: bool,
+    /// Size of the factored leading block (N: all of it).
+    pub(super) nz: usize,
     pub(super) lu: [[f64; N]; N],
     pub(super) piv: [usize; N],
     /// 1 / U_aa: the back substitution multiplies instead of dividing.
@@ -150,14 +155,56 @@ pub(super) struct IterationMatrix<const N: usize> {
     pub(super) mask: [f64; N],
 }
 
+/// The leading block of an `N`-state iteration matrix without the lag states `is_lag`: their
+/// count subtracted from N if they are the trailing states and the result is one of the block
+/// sizes compiled in (5, 7, 9: the 8-, 10- and 12-state engine models without their three
+/// actuator states), else N (the whole matrix, lag entries masked).
+pub(super) fn block_size<const N: usize>(is_lag: &[bool; N]) -> usize {
+    let n_lag = is_lag.iter().filter(|&&l| l).count();
+    let nz = N - n_lag;
+    let trailing = is_lag.iter().enumerate().all(|(i, &l)| l == (i >= nz));
+    if trailing && matches!(nz, 5 | 7 | 9) {
+        nz
+    } else {
+        N
+    }
+}
+
 impl<const N: usize> IterationMatrix<N> {
+    /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block; false if singular.
+    fn factor(&mut self) -> bool {
+        let (lu, piv) = (&mut self.lu, &mut self.piv);
+        let ok = match self.nz {
+            5 => linalg::lu_factor::<N, 5>(lu, piv),
+            7 => linalg::lu_factor::<N, 7>(lu, piv),
+            9 => linalg::lu_factor::<N, 9>(lu, piv),
+            _ => linalg::lu_factor::<N, N>(lu, piv),
+        };
+        for a in 0..N {
+            self.dinv[a] = 1.0 / self.lu[a][a];
+        }
+        ok
+    }
+
     /// Solve (I - gamma h J_zz) x = r on the z states in place; the lag entries of `r` become 0.
     #[inline]
     fn solve(&self, r: &mut [f64; N]) {
-        for (v, m) in r.iter_mut().zip(&self.mask) {
-            *v *= m;
+        let (lu, piv, dinv) = (&self.lu, &self.piv, &self.dinv);
+        match self.nz {
+            5 => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
+            7 => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
+            9 => linalg::lu_solve::<N, 9>(lu, piv, dinv, r),
+            _ => {
+                for (v, m) in r.iter_mut().zip(&self.mask) {
+                    *v *= m;
+                }
+                linalg::lu_solve::<N, N>(lu, piv, dinv, r);
+                return;
+            }
         }
-        linalg::lu_solve(&self.lu, &self.piv, &self.dinv, r);
+        for v in r.iter_mut().skip(self.nz) {
+            *v = 0.0;
+        }
     }
 }
 
@@ -257,6 +304,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             Box::new(IterationMatrix {
                 h,
                 reduced,
+                nz: N,
                 lu: [[0.0; N]; N],
                 piv: [0; N],
                 dinv: [0.0; N],
@@ -265,6 +313,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         });
         w.h = h;
         w.reduced = reduced;
+        w.nz = block_size(&is_lag);
         for a in 0..N {
             w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
             for b in 0..N {
@@ -276,12 +325,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             }
             w.lu[a][a] += 1.0;
         }
-        let IterationMatrix { lu, piv, dinv, .. } = &mut *w;
-        if !linalg::lu_factor(lu, piv, N) {
+        if !w.factor() {
             return Err(self.singular(t, h));
-        }
-        for a in 0..N {
-            dinv[a] = 1.0 / lu[a][a];
         }
         self.stats.lu += 1;
         self.lu = Some(w);
