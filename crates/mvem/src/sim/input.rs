@@ -351,7 +351,8 @@ impl InputSchedule {
         let v = |k: usize| self.rows[k][channel];
         let tol = self.collinear_tol[channel];
         let n = ts.len();
-        let mut out = Vec::new();
+        // at most one breakpoint per row (sized once: a plant asks every sample)
+        let mut out = Vec::with_capacity(n);
         // Start of the current linear piece; before the first row the value is constant.
         let mut s_t = f64::NEG_INFINITY;
         let mut s_v = v(0);
@@ -405,6 +406,12 @@ impl InputSchedule {
         tol: f64,
     ) -> bool {
         let ts = &self.times;
+        let v = |i: usize| self.rows[i][channel];
+        // a constant piece continued by a constant (the zero-order-hold rows of a plant's
+        // command history): on the line exactly, without the divisions below
+        if v(k) == s_v && nv == s_v {
+            return true;
+        }
         let line = |t: f64| -> f64 {
             if s_t.is_infinite() || nt.is_infinite() {
                 // constant piece (before the first or after the last row)
@@ -427,7 +434,6 @@ impl InputSchedule {
         }
         // O(1) per row: the rows before k were checked against earlier chords of this piece.
         let first = s_idx.unwrap_or(0);
-        let v = |i: usize| self.rows[i][channel];
         (v(first) - line(ts[first])).abs() <= tol && (v(k) - line(ts[k])).abs() <= tol
     }
 }

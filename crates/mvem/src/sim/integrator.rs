@@ -252,8 +252,8 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         } else {
             Vec::new()
         };
-        let mut seg_ends: Vec<(f64, bool)> = stops;
-        seg_ends.push((t_end, false));
+        // the stops, then t_end (chained: a push would reallocate the exactly sized list)
+        let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
         let mut inp = self.inputs(self.t, t_end);
         for (b, jump) in seg_ends {
             inp.set_segment(self.t, b);
