@@ -253,10 +253,14 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             Vec::new()
         };
         // the stops, then t_end (chained: a push would reallocate the exactly sized list)
+        let first_end = stops.first().map_or(t_end, |s| s.0);
         let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
-        let mut inp = self.inputs(self.t, t_end);
-        for (b, jump) in seg_ends {
-            inp.set_segment(self.t, b);
+        // made for the first segment (a plant step has one to three: set up once, not twice)
+        let mut inp = self.inputs(self.t, first_end);
+        for (k, (b, jump)) in seg_ends.enumerate() {
+            if k > 0 {
+                inp.set_segment(self.t, b);
+            }
             self.plan_lags(&inp, self.t, b);
             // f(b, y) from the left is the next segment's first derivative only at a kink; at a
             // jump the next segment recomputes it with the new inputs, and after t_end nobody
