@@ -61,6 +61,11 @@ pub struct MappingCurve {
 
 /// Linear interpolation in a sorted table, held constant outside.
 pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+    interp_at(xs, ys, x, xs.partition_point(|&v| v <= x))
+}
+
+/// [`interp`] with `k = xs.partition_point(|&v| v <= x)` already known.
+fn interp_at(xs: &[f64], ys: &[f64], x: f64, k: usize) -> f64 {
     let n = xs.len();
     if x <= xs[0] {
         return ys[0];
@@ -68,7 +73,7 @@ pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
     if x >= xs[n - 1] {
         return ys[n - 1];
     }
-    let i = xs.partition_point(|&v| v <= x).min(n - 1);
+    let i = k.min(n - 1);
     let (x0, x1) = (xs[i - 1], xs[i]);
     ys[i - 1] + (ys[i] - ys[i - 1]) * (x - x0) / (x1 - x0)
 }
@@ -306,10 +311,12 @@ impl Demand {
 
     /// The demand at `t`.
     pub fn at(&self, t: f64) -> DemandPoint {
-        let i = self.t.partition_point(|&v| v <= t).max(1) - 1;
+        // one search for the three columns (the loop asks every sample)
+        let k = self.t.partition_point(|&v| v <= t);
+        let i = k.max(1) - 1;
         DemandPoint {
-            n_e: interp(&self.t, &self.n_e, t),
-            m_ref: interp(&self.t, &self.m_ref, t),
+            n_e: interp_at(&self.t, &self.n_e, t, k),
+            m_ref: interp_at(&self.t, &self.m_ref, t, k),
             motoring: self.motoring[i],
         }
     }

@@ -104,6 +104,18 @@ pub fn run_cycle(
     scheme: Scheme,
     duration: Option<f64>,
 ) -> Result<CycleRun, ControlError> {
+    run_cycle_with(model, cycle, scheme, duration, &mut |_| {})
+}
+
+/// [`run_cycle`], calling `on_row` with the trajectory so far after each row (see
+/// [`super::run_with`]; not called when the set-up fails).
+pub fn run_cycle_with(
+    model: &AnyModel,
+    cycle: CycleSource,
+    scheme: Scheme,
+    duration: Option<f64>,
+    on_row: &mut dyn FnMut(&Trajectory),
+) -> Result<CycleRun, ControlError> {
     if let Some(s) = duration {
         if !(s.is_finite() && s > 0.0) {
             return Err(ControlError::Demand(format!("duration {s} s: must be > 0")));
@@ -144,11 +156,12 @@ pub fn run_cycle(
             ts: SAMPLE_TIME,
         }),
     };
-    let (traj, solver) = super::run(
+    let (traj, solver) = super::run_with(
         model.clone(),
         &demand,
         ctrl.as_mut(),
         &SimOptions::default(),
+        on_row,
     )?;
     let stats = CycleStats::compute(&traj, curve.m_peak(), LAMBDA_LIMIT);
     let violations = stats.violations(LAMBDA_FLOOR);

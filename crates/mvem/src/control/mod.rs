@@ -185,6 +185,18 @@ pub fn run(
     ctrl: &mut dyn Controller,
     opts: &SimOptions,
 ) -> Result<(Trajectory, crate::sim::SimStats), ControlError> {
+    run_with(model, demand, ctrl, opts, &mut |_| {})
+}
+
+/// [`run`], calling `on_row` with the trajectory so far after each row is appended (e.g. to
+/// write the rows out while the loop runs).
+pub fn run_with(
+    model: AnyModel,
+    demand: &Demand,
+    ctrl: &mut dyn Controller,
+    opts: &SimOptions,
+    on_row: &mut dyn FnMut(&Trajectory),
+) -> Result<(Trajectory, crate::sim::SimStats), ControlError> {
     let ts = ctrl.sample_time();
     if !(ts.is_finite() && ts > 0.0) {
         return Err(ControlError::BadSampleTime(ts));
@@ -205,7 +217,10 @@ pub fn run(
     };
     let (i_pim, i_pem, i_wt, i_xo) = (ix("p_im"), ix("p_em"), ix("omega_t"), ix("X_Oim"));
     let mut traj = Trajectory {
-        columns: vec![Vec::with_capacity(n + 1); Trajectory::NAMES.len()],
+        // (not vec![..; k]: a cloned Vec does not keep the capacity)
+        columns: (0..Trajectory::NAMES.len())
+            .map(|_| Vec::with_capacity(n + 1))
+            .collect(),
     };
     for k in 0..=n {
         let t = t0 + k as f64 * ts;
@@ -247,6 +262,7 @@ pub fn run(
         for (c, v) in traj.columns.iter_mut().zip(row) {
             c.push(v);
         }
+        on_row(&traj);
         if k < n {
             plant.step(ts, drive(d.n_e, &o))?;
         }

@@ -347,22 +347,24 @@ impl InputSchedule {
     /// changes by more than the collinearity tolerance allows.
     pub fn breakpoints(&self, channel: usize) -> Vec<(f64, BreakKind)> {
         let ts = &self.times;
-        let v: Vec<f64> = self.rows.iter().map(|r| r[channel]).collect();
+        // the channel's values read in place (no copy: the closed loop's plant asks every sample)
+        let v = |k: usize| self.rows[k][channel];
         let tol = self.collinear_tol[channel];
         let n = ts.len();
-        let mut out = Vec::new();
+        // at most one breakpoint per row (sized once: a plant asks every sample)
+        let mut out = Vec::with_capacity(n);
         // Start of the current linear piece; before the first row the value is constant.
         let mut s_t = f64::NEG_INFINITY;
-        let mut s_v = v[0];
+        let mut s_v = v(0);
         let mut s_idx: Option<usize> = None; // first row index within the piece
         let mut k = 0;
         while k < n {
             if k + 1 < n && ts[k + 1] == ts[k] {
                 // a step at ts[k]
-                if v[k + 1] != v[k] {
+                if v(k + 1) != v(k) {
                     out.push((ts[k], BreakKind::Jump));
                     s_t = ts[k];
-                    s_v = v[k + 1];
+                    s_v = v(k + 1);
                     s_idx = Some(k + 1);
                     k += 2;
                     continue;
@@ -372,15 +374,15 @@ impl InputSchedule {
             }
             // does row k+1 (or the constant continuation after the last row) keep the piece linear?
             let (nt, nv) = if k + 1 < n {
-                (ts[k + 1], v[k + 1])
+                (ts[k + 1], v(k + 1))
             } else {
-                (f64::INFINITY, v[k])
+                (f64::INFINITY, v(k))
             };
-            let linear = self.piece_is_linear(s_t, s_v, s_idx, k, nt, nv, &v, tol);
+            let linear = self.piece_is_linear(s_t, s_v, s_idx, k, nt, nv, channel, tol);
             if !linear {
                 out.push((ts[k], BreakKind::Kink));
                 s_t = ts[k];
-                s_v = v[k];
+                s_v = v(k);
                 s_idx = Some(k);
             }
             k += 1;
@@ -400,10 +402,16 @@ impl InputSchedule {
         k: usize,
         nt: f64,
         nv: f64,
-        v: &[f64],
+        channel: usize,
         tol: f64,
     ) -> bool {
         let ts = &self.times;
+        let v = |i: usize| self.rows[i][channel];
+        // a constant piece continued by a constant (the zero-order-hold rows of a plant's
+        // command history): on the line exactly, without the divisions below
+        if v(k) == s_v && nv == s_v {
+            return true;
+        }
         let line = |t: f64| -> f64 {
             if s_t.is_infinite() || nt.is_infinite() {
                 // constant piece (before the first or after the last row)
@@ -426,7 +434,7 @@ impl InputSchedule {
         }
         // O(1) per row: the rows before k were checked against earlier chords of this piece.
         let first = s_idx.unwrap_or(0);
-        (v[first] - line(ts[first])).abs() <= tol && (v[k] - line(ts[k])).abs() <= tol
+        (v(first) - line(ts[first])).abs() <= tol && (v(k) - line(ts[k])).abs() <= tol
     }
 }
 

@@ -252,13 +252,21 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         } else {
             Vec::new()
         };
-        let mut seg_ends: Vec<(f64, bool)> = stops;
-        seg_ends.push((t_end, false));
-        let mut inp = self.inputs(self.t, t_end);
-        for (b, jump) in seg_ends {
-            inp.set_segment(self.t, b);
+        // the stops, then t_end (chained: a push would reallocate the exactly sized list)
+        let first_end = stops.first().map_or(t_end, |s| s.0);
+        let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
+        // made for the first segment (a plant step has one to three: set up once, not twice)
+        let mut inp = self.inputs(self.t, first_end);
+        for (k, (b, jump)) in seg_ends.enumerate() {
+            if k > 0 {
+                inp.set_segment(self.t, b);
+            }
             self.plan_lags(&inp, self.t, b);
-            self.segment(&mut inp, b, sol)?;
+            // f(b, y) from the left is the next segment's first derivative only at a kink; at a
+            // jump the next segment recomputes it with the new inputs, and after t_end nobody
+            // uses it (the final sample is evaluated on its own)
+            let f_at_end = !jump && b < t_end;
+            self.segment(&mut inp, b, sol, f_at_end)?;
             if b < t_end {
                 self.stats.breakpoints += 1;
             }
@@ -344,12 +352,16 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         Ok((100.0 * h0).min(h1).min(span).min(self.opts.h_max))
     }
 
-    /// Integrate one segment up to `b` (inputs smooth inside).
+    /// Integrate one segment up to `b` (inputs smooth inside). Without `f_at_end` the
+    /// derivative at `b` is not needed afterwards (a jump or the end follows): the last step
+    /// skips its end-of-step evaluation unless dense output or the model's memory needs it, and
+    /// `self.f` is left `None`.
     fn segment(
         &mut self,
         inp: &mut SegmentInputs,
         b: f64,
         sol: &mut Solution,
+        f_at_end: bool,
     ) -> Result<(), SimError> {
         let holds_memory = self.model.holds_memory();
         // Output samples at the segment start (e.g. t0, or a breakpoint on the output grid).
@@ -451,6 +463,19 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             self.jac_age = self.jac_age.saturating_add(1);
             let y = self.y;
             let y1 = trial.y1;
+            // the segment's last step before a jump or the end, without output samples in it:
+            // f(t_new, y1) is needed neither for dense output nor as the next step's f0
+            let to = self.out_time(self.next_out);
+            let no_dense =
+                to >= t_new - SegmentInputs::delta(t_new) || to >= b - SegmentInputs::delta(b);
+            let f_unused = last && !f_at_end && no_dense;
+            if f_unused && !holds_memory && trial.f1.is_none() {
+                self.h = h * Self::step_factor(err, self.err_old, order);
+                self.err_old = err.max(1e-4);
+                self.t = t_new;
+                self.y = crate::model::clip_state(&y1, &self.bounds);
+                break;
+            }
             // state and derivative at the end of the step, for dense output and the next step
             let (f1, memory_next) = match trial.f1 {
                 Some(fm) => fm,
@@ -484,12 +509,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 self.output(inp, sol, to, &yo);
                 self.next_out += 1;
             }
-            let fac = if order >= 5.0 {
-                0.9 * err.max(1e-10).powf(-0.7 / order) * self.err_old.powf(0.4 / order)
-            } else {
-                0.9 * inv_root(err.max(1e-10), order)
-            };
-            self.h = h * fac.clamp(0.2, if order >= 5.0 { 10.0 } else { 5.0 });
+            self.h = h * Self::step_factor(err, self.err_old, order);
             self.err_old = err.max(1e-4);
             self.t = t_new;
             let y1c = crate::model::clip_state(&y1, &self.bounds);
@@ -498,6 +518,9 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             if holds_memory {
                 self.memory = memory_next;
             }
+            if f_unused {
+                break;
+            }
             if holds_memory || clipped {
                 let (tt, yy) = (self.t, self.y);
                 f0 = self.rhs(inp, tt, &yy)?.dx;
@@ -505,8 +528,24 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 f0 = f1;
             }
         }
-        self.f = Some(f0);
+        self.f = if self.t >= b && !f_at_end {
+            None
+        } else {
+            Some(f0)
+        };
         Ok(())
+    }
+
+    /// Step-size factor after an accepted step with error `err` (the previous accepted step's
+    /// `err_old`), limited to [0.2, 5] (order < 5) or [0.2, 10].
+    #[inline]
+    fn step_factor(err: f64, err_old: f64, order: f64) -> f64 {
+        let fac = if order >= 5.0 {
+            0.9 * err.max(1e-10).powf(-0.7 / order) * err_old.powf(0.4 / order)
+        } else {
+            0.9 * inv_root(err.max(1e-10), order)
+        };
+        fac.clamp(0.2, if order >= 5.0 { 10.0 } else { 5.0 })
     }
 
     /// Error estimate of state `i` scaled by atol_i + rtol max(|y0_i|, |y1_i|).

@@ -192,7 +192,7 @@ pub fn stop_times<const N: usize, M: Dynamics<N>>(
     t_end: f64,
 ) -> Vec<(f64, bool)> {
     let delays = m.input_delays();
-    let mut v: Vec<(f64, bool)> = Vec::new();
+    let mut v: Vec<(f64, bool)> = Vec::with_capacity(8 * sched.times().len());
     for ch in 0..4 {
         let now = delays.current[ch].then_some(0.0);
         let delayed = ch.checked_sub(2).map(|k| delays.delayed[k]);
