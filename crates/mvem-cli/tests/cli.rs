@@ -155,6 +155,42 @@ fn simulate_csv_with_png_plot_and_initial_state() {
     assert!(!d.path().join("o2.csv").exists());
 }
 
+/// Without `--plot` the output is written while the simulation runs (blocks of samples to a
+/// writer thread); with it, after. Both give the same bytes, also with `--signals` and the
+/// dynamometer column M_dynamo (`--tau-me`, a filter carried from block to block), over more
+/// samples than one block.
+#[test]
+fn streamed_output_equals_written_after() {
+    let d = tempfile::tempdir().unwrap();
+    let base = [
+        "simulate",
+        "--scenario",
+        "vgt-step-nmp",
+        "--t-end",
+        "3",
+        "--dt",
+        "0.001",
+        "--tau-me",
+        "0.4",
+        "--signals",
+        "M_dynamo,p_im,M_e,lambda_O",
+    ];
+    let run = |extra: &[&str]| {
+        let o = mvem(d.path(), &[&base[..], extra].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    run(&["--out", "streamed.csv"]);
+    run(&["--out", "after.csv", "--plot", "fig.svg"]);
+    let streamed = std::fs::read(d.path().join("streamed.csv")).unwrap();
+    assert!(streamed == std::fs::read(d.path().join("after.csv")).unwrap());
+    let (h, rows) = read_csv(&d.path().join("streamed.csv"));
+    assert_eq!(h, ["t", "M_dynamo", "p_im", "M_e", "lambda_O"]);
+    assert_eq!(rows.len(), 3001);
+    // the lag starts at M_e and follows it
+    assert_eq!(rows[0][1], rows[0][3]);
+    assert!(rows.iter().any(|r| (r[1] - r[3]).abs() > 1e-3 * r[3].abs()));
+}
+
 #[test]
 fn steady_json_matches_reference_row_1() {
     let d = tempfile::tempdir().unwrap();

@@ -72,6 +72,46 @@ fn solver_failure_is_located_exits_1_and_writes_nothing() {
     assert_eq!(files(d.path()), before, "a failed run wrote a file");
 }
 
+/// A failure after output blocks were already written (streamed: at t = 2.15 s, more than
+/// 2000 samples of 1 ms in): exit 1 with the located error, and neither the output file nor
+/// its temporary file is left; an existing file of that name is kept as it was.
+#[test]
+fn failure_while_streaming_leaves_no_file() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("in.csv"),
+        format!(
+            "{HEADER}\n0,1500,110,80,75\n2,1500,110,80,75\n2,2500,300,120,-20\n4,300,0,120,-20\n"
+        ),
+    )
+    .unwrap();
+    let args = [
+        "simulate",
+        "--inputs",
+        "in.csv",
+        "--dt",
+        "0.001",
+        "--semantics",
+        "paper",
+        "--out",
+    ];
+    let before = files(d.path());
+    for out in ["out.csv", "out.parquet"] {
+        let o = mvem(d.path(), &[&args[..], &[out]].concat());
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("at t = 2.1"), "{err}");
+        assert_eq!(files(d.path()), before, "a failed run left a file");
+    }
+    std::fs::write(d.path().join("out.csv"), "old").unwrap();
+    let o = mvem(d.path(), &[&args[..], &["out.csv"]].concat());
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(
+        std::fs::read_to_string(d.path().join("out.csv")).unwrap(),
+        "old"
+    );
+}
+
 /// The extended models with the paper's equations have no equilibrium at these inputs: the
 /// settling simulation's step size collapses. Exit 1, the message names the time, every state
 /// (including the temperatures and, at 12 states, p_c) and the hint; nothing is written.

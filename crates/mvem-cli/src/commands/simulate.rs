@@ -4,9 +4,11 @@
 use crate::common::{self, ModelArgs, Scenario, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
-use mvem::analysis::steady::simulate_from_steady;
+use mvem::analysis::steady::{simulate_from_steady, simulate_from_steady_into};
 use mvem::model::Model;
-use mvem::sim::{simulate, InputSchedule, SimOptions, Solution, Start};
+use mvem::sim::{
+    simulate, simulate_into, Block, InputSchedule, SimOptions, SimStats, Solution, Start,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -129,36 +131,57 @@ pub fn run(a: &Args) -> Result<()> {
 
     let started = Instant::now();
     let msg = format!("simulating {source} from {t0} s to {t_end} s");
-    let mut sol = common::with_spinner(
-        &msg,
-        || mvem::dispatch!(&model, m => run_model(m, &sched, t0, t_end, initial.as_ref(), a.initial_state.as_deref(), &opts)),
-    )?;
-    if let (Some(tau), Some(m_e)) = (tau_me, sol.get("M_e").map(<[f64]>::to_vec)) {
-        // eq. (76): the torque the dynamometer measures
-        let m_dynamo = mvem::tuning::lab::first_order_lag(sol.t(), &m_e, tau);
-        sol.names.push("M_dynamo".into());
-        sol.columns.push(m_dynamo);
-    }
-    let wall = started.elapsed().as_secs_f64();
-
-    // Render the figure before writing anything, so that a failure leaves no file behind.
-    let figure = match &a.plot {
-        Some(p) => Some((
-            p,
-            plot::render(&solution_figure(&sol), plot::Format::of(p)?)?,
-        )),
-        None => None,
+    let initial_path = a.initial_state.as_deref();
+    let written = match &a.plot {
+        // the figure needs every sample, and is rendered before anything is written
+        Some(p) => {
+            let mut sol = common::with_spinner(
+                &msg,
+                || mvem::dispatch!(&model, m => run_model(m, &sched, t0, t_end, initial.as_ref(), initial_path, &opts, None)),
+            )?;
+            if let (Some(tau), Some(m_e)) = (tau_me, sol.get("M_e").map(<[f64]>::to_vec)) {
+                // eq. (76): the torque the dynamometer measures
+                let m_dynamo = mvem::tuning::lab::first_order_lag(sol.t(), &m_e, tau);
+                sol.names.push("M_dynamo".into());
+                sol.columns.push(m_dynamo);
+            }
+            let wall = started.elapsed().as_secs_f64();
+            // Render the figure before writing anything, so that a failure leaves no file
+            // behind.
+            let figure = plot::render(&solution_figure(&sol), plot::Format::of(p)?)?;
+            let cols = mvem::io::output::select_columns(&sol, a.signals.as_deref())
+                .map_err(|e| common::usage(format!("--signals: {e}")))?;
+            mvem::io::output::write_columns(&cols, &a.out)
+                .with_context(|| format!("cannot write {}", a.out.display()))?;
+            mvem::io::output::write_atomic(p, &figure)
+                .with_context(|| format!("cannot write {}", p.display()))?;
+            Written {
+                stats: sol.stats,
+                guards_seen: sol.guards_seen,
+                columns: cols.len(),
+                wall,
+            }
+        }
+        None => {
+            let w = stream_to_file(
+                a,
+                &model,
+                &sched,
+                t0,
+                t_end,
+                initial.as_ref(),
+                tau_me,
+                &opts,
+                &msg,
+            )?;
+            Written {
+                wall: started.elapsed().as_secs_f64(),
+                ..w
+            }
+        }
     };
-    let cols = mvem::io::output::select_columns(&sol, a.signals.as_deref())
-        .map_err(|e| common::usage(format!("--signals: {e}")))?;
-    mvem::io::output::write_columns(&cols, &a.out)
-        .with_context(|| format!("cannot write {}", a.out.display()))?;
-    if let Some((p, bytes)) = figure {
-        mvem::io::output::write_atomic(p, &bytes)
-            .with_context(|| format!("cannot write {}", p.display()))?;
-    }
-
-    let st = sol.stats;
+    let wall = written.wall;
+    let st = written.stats;
     eprintln!(
         "simulated {source}, t = {t0} .. {t_end} s, in {} wall time: {} steps ({} rejected), {} RHS evaluations, {} input breakpoints",
         common::fmt_duration(wall),
@@ -169,8 +192,8 @@ pub fn run(a: &Args) -> Result<()> {
     );
     eprintln!(
         "wrote {} samples x {} columns to {}{}",
-        sol.len(),
-        cols.len(),
+        st.outputs,
+        written.columns,
         a.out.display(),
         a.plot
             .as_ref()
@@ -179,7 +202,7 @@ pub fn run(a: &Args) -> Result<()> {
     );
     let guards: Vec<&str> = mvem::model::Guard::ALL
         .iter()
-        .filter(|g| sol.guards_seen & (**g as u32) != 0 && g.invalidates())
+        .filter(|g| written.guards_seen & (**g as u32) != 0 && g.invalidates())
         .map(|g| g.label())
         .collect();
     if !guards.is_empty() {
@@ -245,6 +268,9 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
     Ok(x)
 }
 
+/// Simulate from `initial` (or the steady state at the first inputs) into `into` (a streaming
+/// solution), or into a new solution that keeps every sample.
+#[allow(clippy::too_many_arguments)]
 fn run_model<const N: usize, M: Model<N>>(
     m: &M,
     sched: &InputSchedule,
@@ -253,14 +279,117 @@ fn run_model<const N: usize, M: Model<N>>(
     initial: Option<&BTreeMap<String, f64>>,
     initial_path: Option<&Path>,
     opts: &SimOptions,
+    into: Option<Solution>,
 ) -> Result<Solution> {
-    match initial {
-        Some(map) => {
-            let x0 = state_from_map(m, map, initial_path.unwrap_or(Path::new("initial state")))?;
-            simulate(m, sched, t0, t_end, Start::State(x0), opts).context("simulation failed")
+    let start = match initial {
+        Some(map) => Some(Start::State(state_from_map(
+            m,
+            map,
+            initial_path.unwrap_or(Path::new("initial state")),
+        )?)),
+        None => None,
+    };
+    match (start, into) {
+        (Some(x0), None) => simulate(m, sched, t0, t_end, x0, opts).context("simulation failed"),
+        (Some(x0), Some(sol)) => {
+            simulate_into(m, sched, t0, t_end, x0, opts, sol).context("simulation failed")
         }
-        None => simulate_from_steady(m, sched, t0, t_end, opts).context("simulation failed"),
+        (None, None) => {
+            simulate_from_steady(m, sched, t0, t_end, opts).context("simulation failed")
+        }
+        (None, Some(sol)) => {
+            simulate_from_steady_into(m, sched, t0, t_end, opts, sol).context("simulation failed")
+        }
     }
+}
+
+/// What `mvem simulate` wrote.
+struct Written {
+    stats: SimStats,
+    guards_seen: u32,
+    /// Columns written.
+    columns: usize,
+    /// Wall time of the simulation [s] (with the overlapping writing when streamed).
+    wall: f64,
+}
+
+/// Samples per block of a streamed simulation: CSV blocks are formatted while the next ones
+/// are computed (small blocks: little formatting left when the simulation ends); Parquet
+/// blocks are row groups (larger: fewer, fuller row groups for readers).
+const CSV_BLOCK_ROWS: usize = 1024;
+const PARQUET_BLOCK_ROWS: usize = 8192;
+
+/// Simulate and write `--out` at the same time: the simulation sends blocks of samples to a
+/// writer thread that selects the columns (`--signals`), adds M_dynamo (eq. (76)) and formats
+/// them (`io::output::write_streaming`: the file appears only if everything succeeded).
+#[allow(clippy::too_many_arguments)]
+fn stream_to_file(
+    a: &Args,
+    model: &mvem::model::AnyModel,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    initial: Option<&BTreeMap<String, f64>>,
+    tau_me: Option<f64>,
+    opts: &SimOptions,
+    msg: &str,
+) -> Result<Written> {
+    use mvem::io::output::{select_names, write_streaming, StreamError};
+    let state_names = mvem::dispatch!(model, m => m.state_names().to_vec());
+    let mut names = Solution::new(&state_names).names;
+    let m_e = names.iter().position(|n| n == "M_e");
+    let mut lag = match (tau_me, m_e) {
+        (Some(tau), Some(_)) => {
+            names.push("M_dynamo".into());
+            Some(mvem::tuning::lab::FirstOrderLag::new(tau))
+        }
+        _ => None,
+    };
+    let selected = select_names(&names, a.signals.as_deref())
+        .map_err(|e| common::usage(format!("--signals: {e}")))?;
+    let header: Vec<&str> = selected.iter().map(|i| names[*i].as_str()).collect();
+    let map = |mut block: Block| -> Block {
+        if let (Some(lag), Some(m_e)) = (&mut lag, m_e) {
+            // eq. (76): the torque the dynamometer measures
+            let m_dynamo = block[0]
+                .iter()
+                .zip(&block[m_e])
+                .map(|(t, u)| lag.next(*t, *u))
+                .collect();
+            block.push(m_dynamo);
+        }
+        // each column is selected at most once
+        selected
+            .iter()
+            .map(|i| std::mem::take(&mut block[*i]))
+            .collect()
+    };
+    let rows = if mvem::io::output::is_parquet(&a.out) {
+        PARQUET_BLOCK_ROWS
+    } else {
+        CSV_BLOCK_ROWS
+    };
+    let initial_path = a.initial_state.as_deref();
+    let sol = write_streaming(&a.out, &header, 4, map, |tx| {
+        common::with_spinner(msg, || {
+            mvem::dispatch!(model, m => {
+                let into = Solution::streaming(&m.state_names(), rows, tx);
+                run_model(m, sched, t0, t_end, initial, initial_path, opts, Some(into))
+            })
+        })
+    })
+    .map_err(|e| match e {
+        StreamError::Produce(e) => e,
+        StreamError::Io(e) => {
+            anyhow::Error::new(e).context(format!("cannot write {}", a.out.display()))
+        }
+    })?;
+    Ok(Written {
+        stats: sol.stats,
+        guards_seen: sol.guards_seen,
+        columns: header.len(),
+        wall: 0.0,
+    })
 }
 
 /// The main signals of a simulation: actuators, pressures, flows, turbo speed, lambda_O.

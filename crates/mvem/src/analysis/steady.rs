@@ -18,7 +18,8 @@ use crate::analysis::zeros;
 use crate::model::{AnyModel, Drive, Guard, InputError, Model, ModelInput, Signals};
 use crate::sim::stepper::{AnyPlant, Plant};
 use crate::sim::{
-    check_interval, simulate, InputSchedule, Side, SimError, SimOptions, Solution, Start,
+    check_interval, simulate, simulate_into, InputSchedule, Side, SimError, SimOptions, Solution,
+    Start,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -96,13 +97,39 @@ pub fn simulate_from_steady<const N: usize, M: Model<N>>(
     t_end: f64,
     opts: &SimOptions,
 ) -> Result<Solution, SimFromSteadyError> {
+    let start = steady_start(model, sched, t0, t_end, opts)?;
+    Ok(simulate(model, sched, t0, t_end, start, opts)?)
+}
+
+/// [`simulate_from_steady`] writing its samples to `sol` (e.g. a [`Solution::streaming`] one;
+/// see [`simulate_into`]). A failure of the steady state drops `sol` and its sender.
+pub fn simulate_from_steady_into<const N: usize, M: Model<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    opts: &SimOptions,
+    sol: Solution,
+) -> Result<Solution, SimFromSteadyError> {
+    let start = steady_start(model, sched, t0, t_end, opts)?;
+    Ok(simulate_into(model, sched, t0, t_end, start, opts, sol)?)
+}
+
+/// The steady state at the inputs at `t0` (right limit), after checking the options and the
+/// interval.
+fn steady_start<const N: usize, M: Model<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    opts: &SimOptions,
+) -> Result<Start<N>, SimFromSteadyError> {
     check_interval(opts, t0, t_end)?;
     let mut h = 0;
     let d = Drive::from_array(std::array::from_fn(|c| {
         sched.value_hint(c, t0, Side::Right, &mut h)
     }));
-    let x0 = steady_state(model, &d)?.x;
-    Ok(simulate(model, sched, t0, t_end, Start::State(x0), opts)?)
+    Ok(Start::State(steady_state(model, &d)?.x))
 }
 
 /// A [`Plant`] (the model advanced sample by sample with held commands) started at `t0` in the

@@ -2,10 +2,11 @@
 //! directory, which is renamed over the target only when complete.
 
 use super::IoError;
-use crate::sim::Solution;
+use crate::sim::{Block, Solution};
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, SyncSender};
 
 /// Write `bytes` to `path` atomically (temporary file + rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
@@ -54,28 +55,30 @@ pub fn select_columns<'a>(
     sol: &'a Solution,
     signals: Option<&[String]>,
 ) -> Result<Vec<(&'a str, &'a [f64])>, String> {
-    let all = || {
-        sol.names
-            .iter()
-            .zip(&sol.columns)
-            .map(|(n, c)| (n.as_str(), c.as_slice()))
+    Ok(select_names(&sol.names, signals)?
+        .into_iter()
+        .map(|i| (sol.names[i].as_str(), sol.columns[i].as_slice()))
+        .collect())
+}
+
+/// The indices in `names` (`t` first) of the columns [`select_columns`] selects.
+pub fn select_names(names: &[String], signals: Option<&[String]>) -> Result<Vec<usize>, String> {
+    let Some(wanted) = signals else {
+        return Ok((0..names.len()).collect());
     };
-    let Some(names) = signals else {
-        return Ok(all().collect());
-    };
-    let mut out: Vec<(&str, &[f64])> = all().take(1).collect();
-    for n in names {
+    let mut out = vec![0];
+    for n in wanted {
         let n = n.trim();
         if n == "t" {
             continue;
         }
-        match all().find(|(k, _)| *k == n) {
-            Some(c) if !out.iter().any(|(k, _)| *k == n) => out.push(c),
+        match names.iter().position(|k| k == n) {
+            Some(i) if !out.contains(&i) => out.push(i),
             Some(_) => return Err(format!("signal {n:?} is listed twice")),
             None => {
                 return Err(format!(
                     "unknown signal {n:?}; known: {}",
-                    sol.names[1..].join(", ")
+                    names[1..].join(", ")
                 ))
             }
         }
@@ -84,14 +87,15 @@ pub fn select_columns<'a>(
 }
 
 /// Write columns as CSV: a header of the names, then one line per sample, each number in the
-/// shortest representation that reads back to the same f64 (ryu; `NaN`, `inf`, `-inf` for
-/// non-finite values), without an allocation per field. Long outputs are formatted in row
+/// shortest representation that reads back to the same f64 (ryu's format; `NaN`, `inf`, `-inf`
+/// for non-finite values), without an allocation per field. Long outputs are formatted in row
 /// blocks on up to 4 rayon workers (formatting, not the simulation, dominates writing) and written in
 /// order: the same bytes as one thread.
 pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<()> {
     let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
     w.write_all(names.join(",").as_bytes())?;
     w.write_all(b"\n")?;
+    let data: Vec<&[f64]> = cols.iter().map(|c| c.1).collect();
     let rows = cols.first().map_or(0, |c| c.1.len());
     let threads = rayon::current_num_threads().min(4);
     // below about 100 k numbers a thread costs more than it saves
@@ -99,7 +103,7 @@ pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<
         let mut out = Vec::with_capacity(cols.len() * 24 * rows.min(4096));
         for block in (0..rows).step_by(4096) {
             out.clear();
-            csv_rows(cols, block..(block + 4096).min(rows), &mut out);
+            csv_rows(&data, block..(block + 4096).min(rows), &mut out);
             w.write_all(&out)?;
         }
         return Ok(());
@@ -113,7 +117,7 @@ pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<
         .map(|a| {
             let r = a..(a + per).min(rows);
             let mut out = Vec::with_capacity(cols.len() * 20 * r.len());
-            csv_rows(cols, r, &mut out);
+            csv_rows(&data, r, &mut out);
             out
         })
         .collect();
@@ -124,16 +128,30 @@ pub fn write_csv(w: &mut dyn Write, cols: &[(&str, &[f64])]) -> std::io::Result<
 }
 
 /// The CSV lines of the rows `r` of `cols` appended to `out` (see [`write_csv`]).
-fn csv_rows(cols: &[(&str, &[f64])], r: std::ops::Range<usize>, out: &mut Vec<u8>) {
-    let mut buf = ryu::Buffer::new();
+fn csv_rows(cols: &[&[f64]], r: std::ops::Range<usize>, out: &mut Vec<u8>) {
+    let mut buf = zmij::Buffer::new();
     for i in r {
-        for (j, (_, c)) in cols.iter().enumerate() {
+        for (j, c) in cols.iter().enumerate() {
             if j > 0 {
                 out.push(b',');
             }
-            out.extend_from_slice(buf.format(c[i]).as_bytes());
+            push_number(&mut buf, c[i], out);
         }
         out.push(b'\n');
+    }
+}
+
+/// `x` in the shortest representation that reads back to the same f64, appended to `out`:
+/// ryu's format (`1.0`, `0.00001`, `1e-6`, `1e16`, `NaN`, `inf`), formatted by zmij (about twice
+/// as fast), which writes the same digits but a positive exponent with a sign (`1e+16`).
+#[inline]
+fn push_number(buf: &mut zmij::Buffer, x: f64, out: &mut Vec<u8>) {
+    let s = buf.format(x).as_bytes();
+    // positive exponents start at 1e16
+    if x.abs() >= 1e16 {
+        out.extend(s.iter().filter(|&&b| b != b'+'));
+    } else {
+        out.extend_from_slice(s);
     }
 }
 
@@ -154,11 +172,8 @@ pub fn write_solution_csv(sol: &Solution, path: &Path) -> Result<(), IoError> {
 /// Write columns atomically to `path`: Parquet when the name ends in `.parquet` (one DOUBLE
 /// column per name, [`write_parquet`]), CSV otherwise ([`write_csv`]).
 pub fn write_columns(cols: &[(&str, &[f64])], path: &Path) -> Result<(), IoError> {
-    let parquet = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("parquet"));
     write_atomic_with(path, |w| {
-        if parquet {
+        if is_parquet(path) {
             write_parquet(w, cols)
         } else {
             write_csv(w, cols)
@@ -170,48 +185,199 @@ pub fn write_columns(cols: &[(&str, &[f64])], path: &Path) -> Result<(), IoError
 /// (plain encoding, uncompressed: the values are the f64 bits, as in memory), readable by
 /// pyarrow, pandas and polars.
 pub fn write_parquet<W: Write + Send>(w: W, cols: &[(&str, &[f64])]) -> std::io::Result<()> {
-    use parquet::basic::{Repetition, Type as PhysicalType};
-    use parquet::column::writer::ColumnWriter;
-    use parquet::file::properties::WriterProperties;
-    use parquet::file::writer::SerializedFileWriter;
-    use parquet::schema::types::Type;
-    use std::sync::Arc;
-    let err = |e: parquet::errors::ParquetError| std::io::Error::other(e.to_string());
-    let fields = cols
-        .iter()
-        .map(|(n, _)| {
-            Type::primitive_type_builder(n, PhysicalType::DOUBLE)
-                .with_repetition(Repetition::REQUIRED)
-                .build()
-                .map(Arc::new)
+    let names: Vec<&str> = cols.iter().map(|c| c.0).collect();
+    let data: Vec<&[f64]> = cols.iter().map(|c| c.1).collect();
+    let mut t = TableWriter::parquet(w, &names)?;
+    t.write(&data)?;
+    t.finish().map(drop)
+}
+
+/// A table of named f64 columns written block by block (the blocks are consecutive rows):
+/// CSV, a header and then each block's lines exactly as [`write_csv`] formats them, or
+/// Parquet, one row group per block with the column types of [`write_parquet`].
+pub struct TableWriter<W: Write + Send> {
+    format: Table<W>,
+    columns: usize,
+}
+
+enum Table<W: Write + Send> {
+    Csv { w: W, line: Vec<u8> },
+    Parquet(parquet::file::writer::SerializedFileWriter<W>),
+}
+
+fn parquet_err(e: parquet::errors::ParquetError) -> std::io::Error {
+    std::io::Error::other(e.to_string())
+}
+
+impl<W: Write + Send> TableWriter<W> {
+    /// A CSV table with the header `names`.
+    pub fn csv(mut w: W, names: &[&str]) -> std::io::Result<Self> {
+        w.write_all(names.join(",").as_bytes())?;
+        w.write_all(b"\n")?;
+        Ok(Self {
+            format: Table::Csv {
+                w,
+                line: Vec::new(),
+            },
+            columns: names.len(),
         })
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(err)?;
-    let schema = Type::group_type_builder("mvem")
-        .with_fields(fields)
-        .build()
-        .map_err(err)?;
-    let props = WriterProperties::builder()
-        .set_dictionary_enabled(false)
-        .set_created_by(format!("mvem {}", env!("CARGO_PKG_VERSION")))
-        .build();
-    let mut fw = SerializedFileWriter::new(w, Arc::new(schema), Arc::new(props)).map_err(err)?;
-    let mut rg = fw.next_row_group().map_err(err)?;
-    for (_, c) in cols {
-        let Some(mut cw) = rg.next_column().map_err(err)? else {
-            break;
-        };
-        match cw.untyped() {
-            ColumnWriter::DoubleColumnWriter(t) => {
-                t.write_batch(c, None, None).map_err(err)?;
-            }
-            _ => return Err(std::io::Error::other("parquet: column is not DOUBLE")),
-        }
-        cw.close().map_err(err)?;
     }
-    rg.close().map_err(err)?;
-    fw.close().map_err(err)?;
-    Ok(())
+
+    /// A Parquet table of required DOUBLE columns `names` (plain encoding, no dictionary, no
+    /// compression).
+    pub fn parquet(w: W, names: &[&str]) -> std::io::Result<Self> {
+        use parquet::basic::{Repetition, Type as PhysicalType};
+        use parquet::file::properties::WriterProperties;
+        use parquet::file::writer::SerializedFileWriter;
+        use parquet::schema::types::Type;
+        use std::sync::Arc;
+        let fields = names
+            .iter()
+            .map(|n| {
+                Type::primitive_type_builder(n, PhysicalType::DOUBLE)
+                    .with_repetition(Repetition::REQUIRED)
+                    .build()
+                    .map(Arc::new)
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(parquet_err)?;
+        let schema = Type::group_type_builder("mvem")
+            .with_fields(fields)
+            .build()
+            .map_err(parquet_err)?;
+        let props = WriterProperties::builder()
+            .set_dictionary_enabled(false)
+            .set_created_by(format!("mvem {}", env!("CARGO_PKG_VERSION")))
+            .build();
+        let fw =
+            SerializedFileWriter::new(w, Arc::new(schema), Arc::new(props)).map_err(parquet_err)?;
+        Ok(Self {
+            format: Table::Parquet(fw),
+            columns: names.len(),
+        })
+    }
+
+    /// A Parquet table if `path` ends in `.parquet` (any case), else a CSV table.
+    pub fn for_path(w: W, path: &Path, names: &[&str]) -> std::io::Result<Self> {
+        if is_parquet(path) {
+            Self::parquet(w, names)
+        } else {
+            Self::csv(w, names)
+        }
+    }
+
+    /// Append the rows of `cols`: one slice per name, all of the same length.
+    pub fn write(&mut self, cols: &[&[f64]]) -> std::io::Result<()> {
+        let rows = cols.first().map_or(0, |c| c.len());
+        if cols.len() != self.columns || cols.iter().any(|c| c.len() != rows) {
+            return Err(std::io::Error::other(format!(
+                "table block: {} columns of lengths {:?}, expected {} columns of one length",
+                cols.len(),
+                cols.iter().map(|c| c.len()).collect::<Vec<_>>(),
+                self.columns
+            )));
+        }
+        match &mut self.format {
+            Table::Csv { w, line } => {
+                line.clear();
+                csv_rows(cols, 0..rows, line);
+                w.write_all(line)
+            }
+            Table::Parquet(fw) => {
+                use parquet::column::writer::ColumnWriter;
+                let mut rg = fw.next_row_group().map_err(parquet_err)?;
+                for c in cols {
+                    let Some(mut cw) = rg.next_column().map_err(parquet_err)? else {
+                        break;
+                    };
+                    match cw.untyped() {
+                        ColumnWriter::DoubleColumnWriter(t) => {
+                            t.write_batch(c, None, None).map_err(parquet_err)?;
+                        }
+                        _ => return Err(std::io::Error::other("parquet: column is not DOUBLE")),
+                    }
+                    cw.close().map_err(parquet_err)?;
+                }
+                rg.close().map_err(parquet_err).map(drop)
+            }
+        }
+    }
+
+    /// Complete the table (Parquet: the footer) and return the writer.
+    pub fn finish(self) -> std::io::Result<W> {
+        match self.format {
+            Table::Csv { w, .. } => Ok(w),
+            Table::Parquet(fw) => fw.into_inner().map_err(parquet_err),
+        }
+    }
+}
+
+/// Whether `path` names a Parquet file (ends in `.parquet`, any case).
+pub fn is_parquet(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("parquet"))
+}
+
+/// Why [`write_streaming`] failed.
+#[derive(Debug)]
+pub enum StreamError<E> {
+    /// The computation producing the blocks failed.
+    Produce(E),
+    /// Writing failed.
+    Io(IoError),
+}
+
+/// Write a table to `path` atomically while `produce` computes it. `produce` runs on the
+/// calling thread and sends blocks of consecutive rows (for example a
+/// [`Solution::streaming`] simulation, `crate::sim::simulate_into`); a second thread passes
+/// each block through `map` (to select or add columns: the result has one column per entry
+/// of `names`) and appends it to the file as it arrives, CSV or Parquet by the file name as in
+/// [`write_columns`]: formatting overlaps the computation, and at most `in_flight` blocks wait
+/// in between. The channel must be closed (every sender dropped) when `produce` returns.
+///
+/// The file appears, renamed from its temporary file, only if `produce` returned `Ok` and every
+/// write succeeded; otherwise the temporary file is removed and nothing is left behind. A
+/// failure of `produce` is reported before a write error.
+pub fn write_streaming<T, E>(
+    path: &Path,
+    names: &[&str],
+    in_flight: usize,
+    mut map: impl FnMut(Block) -> Block + Send,
+    produce: impl FnOnce(SyncSender<Block>) -> Result<T, E>,
+) -> Result<T, StreamError<E>> {
+    let (tx, rx) = sync_channel::<Block>(in_flight.max(1));
+    let mut produced: Option<Result<T, E>> = None;
+    let written = write_atomic_with(path, |w| {
+        std::thread::scope(|s| {
+            // a plain scoped thread, not rayon's pool: it blocks on the channel
+            let writer = s.spawn(move || -> std::io::Result<()> {
+                let mut table = TableWriter::for_path(w, path, names)?;
+                for block in rx {
+                    let block = map(block);
+                    let cols: Vec<&[f64]> = block.iter().map(Vec::as_slice).collect();
+                    table.write(&cols)?;
+                }
+                table.finish().map(drop)
+            });
+            let r = produce(tx);
+            let failed = r.is_err();
+            produced = Some(r);
+            let w = writer
+                .join()
+                .unwrap_or_else(|p| std::panic::resume_unwind(p));
+            if failed {
+                // remove the temporary file: the computation did not complete
+                return Err(std::io::Error::other("the computation failed"));
+            }
+            w
+        })
+    });
+    match (produced, written) {
+        (Some(Err(e)), _) => Err(StreamError::Produce(e)),
+        (Some(Ok(t)), Ok(())) => Ok(t),
+        (_, Err(e)) => Err(StreamError::Io(e)),
+        (None, Ok(())) => unreachable!("write_atomic_with ran the closure"),
+    }
 }
 
 #[cfg(test)]
@@ -235,7 +401,7 @@ mod tests {
         let mut threaded = Vec::new();
         write_csv(&mut threaded, &cols).unwrap();
         let mut one = b"t,x,y,z\n".to_vec();
-        csv_rows(&cols, 0..rows, &mut one);
+        csv_rows(&[&a, &b, &a, &b], 0..rows, &mut one);
         assert!(rows * cols.len() >= 100_000, "must take the threaded path");
         assert_eq!(threaded.len(), one.len());
         assert!(threaded == one);
@@ -317,6 +483,171 @@ mod tests {
             "{e}"
         );
         assert!(select_columns(&sol, Some(&["W_c".into(), "W_c".into()])).is_err());
+    }
+
+    /// The CSV numbers are ryu's text (the format before zmij formatted them): random bit
+    /// patterns (every exponent, NaN payloads, subnormals), decimal magnitudes around the
+    /// switches to exponent notation, integers.
+    #[test]
+    fn numbers_are_ryu_text() {
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            1e15,
+            1e16,
+            -1e16,
+            1e17,
+            1e-5,
+            1e-6,
+            1e16 - 2.0, // the largest f64 below 1e16
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            f64::MIN,
+        ];
+        for _ in 0..200_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let m = (state >> 11) as f64 / (1u64 << 53) as f64;
+            let e = (state % 45) as i32 - 22;
+            values.extend([
+                f64::from_bits(state),
+                m * 10f64.powi(e),
+                -m * 10f64.powi(e),
+                (state % 1_000_000) as f64 * 0.1,
+            ]);
+        }
+        let (mut zb, mut rb) = (zmij::Buffer::new(), ryu::Buffer::new());
+        let mut out = Vec::new();
+        for x in values {
+            out.clear();
+            push_number(&mut zb, x, &mut out);
+            assert_eq!(std::str::from_utf8(&out).unwrap(), rb.format(x), "{x:e}");
+        }
+    }
+
+    /// A simulation streamed block by block into CSV and Parquet files (`write_streaming`,
+    /// a streaming `Solution`): the CSV is byte for byte the one of the kept solution, the
+    /// Parquet file (one row group per block) holds the same values bit for bit, the statistics
+    /// are the same, and a `map` that selects columns selects them.
+    #[test]
+    fn streamed_simulation_equals_kept() {
+        use crate::model::{Drive, Engine8, Model};
+        use crate::sim::{simulate, simulate_into, InputSchedule, SimOptions, Start};
+        use parquet::file::reader::{FileReader, SerializedFileReader};
+        use parquet::record::RowAccessor;
+        let m = Engine8::published();
+        let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let sched = InputSchedule::steps(d0, &[(0.7, 3, 65.0), (1.3, 1, 60.0)]).unwrap();
+        let opts = SimOptions {
+            dt_out: 1e-3,
+            ..SimOptions::default()
+        };
+        let x0 = Start::State(m.initial_guess(&d0));
+        let kept = simulate(&m, &sched, 0.0, 2.5, x0, &opts).unwrap();
+        assert!(kept.len() > 5 * 300, "several blocks");
+        let d = tempfile::tempdir().unwrap();
+        let names: Vec<&str> = kept.names.iter().map(String::as_str).collect();
+        let run = |path: &Path, sel: &[usize]| {
+            let header: Vec<&str> = sel.iter().map(|i| names[*i]).collect();
+            let map = |mut b: Block| sel.iter().map(|i| std::mem::take(&mut b[*i])).collect();
+            write_streaming(path, &header, 2, map, |tx| {
+                let into = Solution::streaming(&m.state_names(), 300, tx);
+                simulate_into(&m, &sched, 0.0, 2.5, x0, &opts, into)
+            })
+            .unwrap()
+        };
+        let all: Vec<usize> = (0..names.len()).collect();
+        let streamed = run(&d.path().join("s.csv"), &all);
+        assert_eq!(streamed.stats, kept.stats);
+        assert_eq!(streamed.guards_seen, kept.guards_seen);
+        assert!(streamed.is_empty() && !streamed.is_streaming());
+        write_solution_csv(&kept, &d.path().join("k.csv")).unwrap();
+        let (s, k) = (
+            std::fs::read(d.path().join("s.csv")).unwrap(),
+            std::fs::read(d.path().join("k.csv")).unwrap(),
+        );
+        assert!(s == k, "streamed CSV differs from the kept solution's");
+
+        let sel = [0, 3, 20];
+        run(&d.path().join("s.parquet"), &sel);
+        let r = SerializedFileReader::new(std::fs::File::open(d.path().join("s.parquet")).unwrap())
+            .unwrap();
+        assert_eq!(r.metadata().num_row_groups(), kept.len().div_ceil(300));
+        let mut rows = 0;
+        for (i, row) in r.get_row_iter(None).unwrap().enumerate() {
+            let row = row.unwrap();
+            for (j, c) in sel.iter().enumerate() {
+                assert_eq!(
+                    row.get_double(j).unwrap().to_bits(),
+                    kept.columns[*c][i].to_bits()
+                );
+            }
+            rows += 1;
+        }
+        assert_eq!(rows, kept.len());
+    }
+
+    /// Nothing is left behind when the computation fails after blocks were written, nor when
+    /// writing fails (here: blocks of the wrong width) while the computation goes on; the
+    /// computation's error comes first.
+    #[test]
+    fn streaming_failure_leaves_nothing() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("x.csv");
+        let block = || vec![vec![1.0; 1000], vec![2.0; 1000]];
+        let e = write_streaming(
+            &p,
+            &["t", "a"],
+            1,
+            |b| b,
+            |tx| {
+                for _ in 0..5 {
+                    tx.send(block()).unwrap();
+                }
+                Err::<(), _>("diverged")
+            },
+        )
+        .unwrap_err();
+        assert!(matches!(e, StreamError::Produce("diverged")), "{e:?}");
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 0);
+
+        // the writer fails at the first block; the producer's later sends find the channel
+        // closed and it still ends
+        let sent = write_streaming(
+            &p,
+            &["t", "a", "b"],
+            1,
+            |b| b,
+            |tx| Ok::<_, ()>((0..50).filter(|_| tx.send(block()).is_ok()).count()),
+        );
+        match sent {
+            Err(StreamError::Io(e)) => assert!(e.to_string().contains("columns"), "{e}"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 0);
+
+        // an existing file is kept when the new one fails
+        std::fs::write(&p, "old").unwrap();
+        let _ = write_streaming(
+            &p,
+            &["t", "a"],
+            1,
+            |b| b,
+            |tx| {
+                tx.send(block()).unwrap();
+                Err::<(), _>(())
+            },
+        );
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "old");
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
     }
 
     #[test]

@@ -44,7 +44,7 @@ pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 pub use integrator::Integrator;
 pub use options::{Method, SimOptions};
 pub use segment::{stop_times, SegmentInputs};
-pub use solution::{SimStats, Solution};
+pub use solution::{Block, SimStats, Solution};
 
 use crate::model::Dynamics;
 
@@ -68,13 +68,32 @@ pub fn simulate<const N: usize, M: Dynamics<N>>(
     opts: &SimOptions,
 ) -> Result<Solution, SimError> {
     check_interval(opts, t0, t_end)?;
-    let Start::State(y0) = start;
-    let mut run = Integrator::new(model, sched, t0, y0, opts)?;
     let mut sol = Solution::new(&model.state_names());
     let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
     sol.reserve(samples.min(1e7) as usize);
+    simulate_into(model, sched, t0, t_end, start, opts, sol)
+}
+
+/// [`simulate`] writing its samples to `sol`, an empty solution of `model`'s states (e.g. a
+/// [`Solution::streaming`] one, whose blocks a writer consumes while the integration goes on),
+/// returned with the statistics. On success a streaming solution's last block is sent and its
+/// sender dropped ([`Solution::finish_stream`]); on failure `sol` is dropped with its sender,
+/// so in both cases a receiver reading until the channel closes ends.
+pub fn simulate_into<const N: usize, M: Dynamics<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    start: Start<N>,
+    opts: &SimOptions,
+    mut sol: Solution,
+) -> Result<Solution, SimError> {
+    check_interval(opts, t0, t_end)?;
+    let Start::State(y0) = start;
+    let mut run = Integrator::new(model, sched, t0, y0, opts)?;
     run.advance(t_end, &mut sol, true)?;
     sol.stats = run.stats;
+    sol.finish_stream();
     Ok(sol)
 }
 

@@ -1,6 +1,12 @@
-//! The simulation result: named columns at the output times, and solver statistics.
+//! The simulation result: named columns at the output times, and solver statistics; or, for a
+//! streaming solution, the same samples handed on in blocks while the simulation runs.
 
 use crate::model::Signals;
+use std::sync::mpsc::SyncSender;
+
+/// A block of consecutive output samples of a [`Solution::streaming`] simulation: one vector per
+/// entry of [`Solution::names`], all of the same length.
+pub type Block = Vec<Vec<f64>>;
 
 /// Solver statistics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -22,7 +28,11 @@ pub struct SimStats {
 }
 
 /// Simulation result: named columns sampled at the output times.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// A [`Solution::streaming`] solution keeps only the block of samples being filled and sends
+/// every completed block to a receiver (a writer on another thread formats the output while the
+/// integration goes on; memory stays bounded however long the run).
+#[derive(Debug, Clone)]
 pub struct Solution {
     /// Column names: `t`, the states, then the [`Signals::NAMES`] that are not state names
     /// (each name once; `T_im`, `T_em`, `p_c` are states of the 10/12-state models).
@@ -35,6 +45,29 @@ pub struct Solution {
     pub guards_seen: u32,
     /// Column of each entry of [`Signals::NAMES`] (`None`: the signal is a state column).
     signal_columns: Vec<Option<usize>>,
+    /// Where completed blocks go (`None`: the columns keep every sample).
+    stream: Option<Stream>,
+}
+
+/// The receiving end of a streaming solution.
+#[derive(Debug, Clone)]
+struct Stream {
+    tx: SyncSender<Block>,
+    /// Samples per block.
+    rows: usize,
+    /// The receiver hung up (e.g. its writer failed): later samples are dropped.
+    closed: bool,
+}
+
+/// Two solutions are equal when their names, samples, statistics and guards are (where a
+/// streaming solution sends its blocks is not part of its value).
+impl PartialEq for Solution {
+    fn eq(&self, o: &Self) -> bool {
+        self.names == o.names
+            && self.columns == o.columns
+            && self.stats == o.stats
+            && self.guards_seen == o.guards_seen
+    }
 }
 
 impl Solution {
@@ -67,6 +100,57 @@ impl Solution {
             stats: SimStats::default(),
             guards_seen: 0,
             signal_columns,
+            stream: None,
+        }
+    }
+
+    /// An empty solution like [`Solution::new`] that sends every `rows` samples as one
+    /// [`Block`] to `tx` and keeps only the block being filled. The simulation blocks while the
+    /// channel is full (bounded memory); if the receiver hung up, later samples are dropped (the
+    /// receiver's side reports its failure). [`Solution::finish_stream`] (called by
+    /// [`super::simulate_into`] on success) sends the last, partial block and drops `tx`, so a
+    /// receiver that reads until the channel closes ends when the simulation does.
+    pub fn streaming(state_names: &[&'static str], rows: usize, tx: SyncSender<Block>) -> Self {
+        let mut s = Self::new(state_names);
+        let rows = rows.max(1);
+        s.stream = Some(Stream {
+            tx,
+            rows,
+            closed: false,
+        });
+        s.reserve(rows);
+        s
+    }
+
+    /// Whether the samples are sent on in blocks ([`Solution::streaming`]) rather than kept.
+    pub fn is_streaming(&self) -> bool {
+        self.stream.is_some()
+    }
+
+    /// Send the samples held (the last, partial block) and drop the sender: the solution keeps
+    /// its names, statistics and guards, no samples, and is no longer streaming. No effect on a
+    /// solution that is not streaming.
+    pub fn finish_stream(&mut self) {
+        self.send_block();
+        self.stream = None;
+    }
+
+    /// Send the samples held as one block (streaming solutions with samples only).
+    fn send_block(&mut self) {
+        let Some(s) = &mut self.stream else {
+            return;
+        };
+        if self.columns[0].is_empty() {
+            return;
+        }
+        let fresh = || Vec::with_capacity(s.rows);
+        let block: Block = self
+            .columns
+            .iter_mut()
+            .map(|c| std::mem::replace(c, fresh()))
+            .collect();
+        if !s.closed && s.tx.send(block).is_err() {
+            s.closed = true;
         }
     }
 
@@ -89,6 +173,11 @@ impl Solution {
             }
         }
         self.guards_seen |= s.guards;
+        if let Some(st) = &self.stream {
+            if self.columns[0].len() >= st.rows {
+                self.send_block();
+            }
+        }
     }
 
     /// Column by name.
@@ -104,7 +193,7 @@ impl Solution {
         &self.columns[0]
     }
 
-    /// Number of samples.
+    /// Number of samples held (of a streaming solution: in the block being filled).
     pub fn len(&self) -> usize {
         self.columns[0].len()
     }

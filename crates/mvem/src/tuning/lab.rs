@@ -589,23 +589,45 @@ pub fn dynamic_sets(
 /// First-order lag dy/dt = (u - y)/tau on samples `(t, u)`, exact for u linear between samples,
 /// starting at y = u[0] (steady state) [same unit as u]. tau <= 0 returns u.
 pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
-    if tau <= 0.0 || u.is_empty() {
-        return u.to_vec();
+    let mut lag = FirstOrderLag::new(tau);
+    t.iter().zip(u).map(|(t, u)| lag.next(*t, *u)).collect()
+}
+
+/// [`first_order_lag`] sample by sample, for signals that arrive in pieces (the same numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirstOrderLag {
+    /// Time constant [s].
+    tau: f64,
+    /// The previous sample: time [s], input, output.
+    last: Option<(f64, f64, f64)>,
+}
+
+impl FirstOrderLag {
+    /// A lag with time constant `tau` [s] before its first sample.
+    pub fn new(tau: f64) -> Self {
+        Self { tau, last: None }
     }
-    let mut y = Vec::with_capacity(u.len());
-    y.push(u[0]);
-    for k in 1..u.len() {
-        let h = t[k] - t[k - 1];
-        let a = (-h / tau).exp();
-        let b = if h > 0.0 {
-            1.0 - tau * (1.0 - a) / h
-        } else {
-            1.0
+
+    /// The output at the next sample `(t, u)` (the first sample's output is `u`).
+    pub fn next(&mut self, t: f64, u: f64) -> f64 {
+        let tau = self.tau;
+        let y = match self.last {
+            _ if tau <= 0.0 => u,
+            None => u,
+            Some((t0, u0, prev)) => {
+                let h = t - t0;
+                let a = (-h / tau).exp();
+                let b = if h > 0.0 {
+                    1.0 - tau * (1.0 - a) / h
+                } else {
+                    1.0
+                };
+                a * prev + (1.0 - a) * u0 + b * (u - u0)
+            }
         };
-        let prev = y[k - 1];
-        y.push(a * prev + (1.0 - a) * u[k - 1] + b * (u[k] - u[k - 1]));
+        self.last = Some((t, u, y));
+        y
     }
-    y
 }
 
 /// Generate a campaign and write it to `out_dir` (manifest, CSVs, `true_params.toml`).
