@@ -137,3 +137,40 @@ fn a_users_cycle_runs() {
     let last = rows.last().unwrap();
     assert!((last[m] - last[r]).abs() < 0.01 * last[r], "{last:?}");
 }
+
+/// A run that fails after the trajectory writer started (the paper's plain equations find no
+/// idle equilibrium for the mapping curve: exit 1, a message naming the operating point) leaves
+/// nothing: no directory it created, and no file or temporary file in one that existed.
+#[test]
+fn runtime_failure_writes_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let args = |out: &'static str| {
+        [
+            "closed-loop",
+            "--cycle",
+            "whtc",
+            "--semantics",
+            "paper",
+            "--duration",
+            "60",
+            "--out",
+            out,
+        ]
+    };
+    let o = mvem(d.path(), &args("new"));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("mapping curve") && stderr(&o).contains("n_e=500 rpm"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("new").exists(), "created directory removed");
+
+    std::fs::create_dir(d.path().join("old")).unwrap();
+    let o = mvem(d.path(), &args("old"));
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        files(&d.path().join("old")).is_empty(),
+        "no file or temporary file left"
+    );
+}

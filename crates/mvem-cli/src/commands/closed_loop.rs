@@ -4,16 +4,17 @@
 use crate::common::{self, ModelArgs};
 use crate::outdir::{self, Files};
 use crate::plot::{Figure, Panel, Series};
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::ValueEnum;
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::cycle::Demand;
 use mvem::control::drive::{self, CycleRun, CycleSource, Scheme};
 use mvem::control::{ControlError, Trajectory};
+use mvem::io::output::{write_streaming, StreamError};
 use mvem::model::AnyModel;
-use std::io::Write;
+use mvem::sim::Block;
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
+use std::sync::mpsc::SyncSender;
 
 /// Arguments of `mvem closed-loop`.
 #[derive(Debug, clap::Args)]
@@ -174,125 +175,17 @@ pub fn run_cycle(
 /// Rows per block handed to the trajectory writer.
 const BLOCK: usize = 4096;
 
-/// What the loop sends to the trajectory writer.
-enum Msg {
-    /// The next rows, one vector per column in [`Trajectory::NAMES`] order.
-    Rows(Vec<Vec<f64>>),
-    /// Everything else succeeded: put `trajectory.csv` in place.
-    Commit,
-}
-
-/// `DIR/trajectory.csv` (every column, each number in the shortest representation that reads
-/// back exactly, `NaN` for a missing set-point; [`mvem::io::output::write_csv`]) formatted and
-/// written on a thread of its own while the loop runs: the loop is sequential, so formatting
-/// the 180 001 WHTC rows and writing the 50 MB overlap with it instead of following it.
-///
-/// The writer starts with the first block (after every set-up check, so bad input still writes
-/// nothing) and writes a temporary file that becomes `trajectory.csv` only at
-/// [`TrajectoryStream::commit`]. Dropped without a commit (the run failed), the writer removes
-/// its temporary file, and `DIR` if it created it, so nothing partial is left.
-struct TrajectoryStream {
-    out: PathBuf,
-    tx: Option<mpsc::Sender<Msg>>,
-    writer: Option<std::thread::JoinHandle<Result<()>>>,
-    /// Rows sent so far.
-    sent: usize,
-}
-
-impl TrajectoryStream {
-    fn new(out: &Path) -> Self {
-        Self {
-            out: out.to_path_buf(),
-            tx: None,
-            writer: None,
-            sent: 0,
-        }
+/// Send the trajectory rows not sent yet (`sent` of them were) as one block when a whole
+/// block is waiting, or whatever is left with `all`. A writer that stopped on an error has
+/// closed the channel; [`write_streaming`] reports its error, so a failed send is ignored.
+fn send_rows(traj: &Trajectory, sent: &mut usize, tx: &SyncSender<Block>, all: bool) {
+    let n = traj.len();
+    if n == *sent || (!all && n - *sent < BLOCK) {
+        return;
     }
-
-    /// Send the rows not sent yet when a whole block is waiting (or any, with `all`).
-    fn feed(&mut self, traj: &Trajectory, all: bool) {
-        let n = traj.len();
-        if n == self.sent || (!all && n - self.sent < BLOCK) {
-            return;
-        }
-        let rows = traj
-            .columns
-            .iter()
-            .map(|c| c[self.sent..n].to_vec())
-            .collect();
-        self.sent = n;
-        let tx = self.tx.get_or_insert_with(|| {
-            let (tx, rx) = mpsc::channel();
-            let out = self.out.clone();
-            self.writer = Some(std::thread::spawn(move || write_stream(&out, rx)));
-            tx
-        });
-        // a writer that stopped on an error reports it at the commit
-        let _ = tx.send(Msg::Rows(rows));
-    }
-
-    /// Send the last rows and put `trajectory.csv` in place; returns its path.
-    fn commit(mut self, traj: &Trajectory) -> Result<PathBuf> {
-        self.feed(traj, true);
-        if let Some(tx) = self.tx.take() {
-            let _ = tx.send(Msg::Commit);
-        }
-        match self.writer.take() {
-            Some(h) => h
-                .join()
-                .map_err(|_| anyhow::anyhow!("the trajectory writer failed"))??,
-            None => anyhow::bail!("the trajectory has no rows"),
-        }
-        Ok(self.out.join("trajectory.csv"))
-    }
-}
-
-impl Drop for TrajectoryStream {
-    fn drop(&mut self) {
-        // no commit: the writer sees the channel close and removes its temporary file
-        self.tx.take();
-        if let Some(h) = self.writer.take() {
-            let _ = h.join();
-        }
-    }
-}
-
-/// The writer thread of [`TrajectoryStream`].
-fn write_stream(out: &Path, rx: mpsc::Receiver<Msg>) -> Result<()> {
-    let created = !out.exists();
-    std::fs::create_dir_all(out)
-        .map_err(|e| common::usage(format!("--out {}: {e}", out.display())))?;
-    let path = out.join("trajectory.csv");
-    let mut block = Vec::new();
-    let mut first = true;
-    let res = mvem::io::output::write_atomic_with(&path, |w| {
-        for msg in rx.iter() {
-            let cols = match msg {
-                Msg::Commit => return Ok(()),
-                Msg::Rows(cols) => cols,
-            };
-            let named: Vec<(&str, &[f64])> = Trajectory::NAMES
-                .iter()
-                .zip(&cols)
-                .map(|(n, c)| (*n, c.as_slice()))
-                .collect();
-            block.clear();
-            mvem::io::output::write_csv(&mut block, &named)?;
-            // write_csv starts with the header line: only the first block keeps it
-            let skip = if first {
-                0
-            } else {
-                block.iter().position(|&b| b == b'\n').map_or(0, |i| i + 1)
-            };
-            first = false;
-            w.write_all(&block[skip..])?;
-        }
-        Err(std::io::Error::other("the run failed"))
-    });
-    if res.is_err() && created {
-        let _ = std::fs::remove_dir(out); // only if still empty
-    }
-    res.with_context(|| format!("cannot write {}", path.display()))
+    let rows = traj.columns.iter().map(|c| c[*sent..n].to_vec()).collect();
+    *sent = n;
+    let _ = tx.send(rows);
 }
 
 fn figure(traj: &Trajectory, title: &str) -> Figure {
@@ -376,28 +269,62 @@ fn stats_json(a: &Args, w: &Run) -> serde_json::Value {
 pub fn run(a: &Args) -> Result<()> {
     outdir::check(&a.out)?;
     let model = a.model.build()?;
-    let mut stream = TrajectoryStream::new(&a.out);
-    let w = run_cycle(&model, &a.cycle, a.controller, a.duration, &mut |traj| {
-        stream.feed(traj, false)
-    })?;
-    let json = stats_json(a, &w);
-    let r = &w.run;
-    let mut files = Files::default();
-    files.add(
-        "stats.json",
-        serde_json::to_string_pretty(&json).expect("serializable") + "\n",
+    // DIR/trajectory.csv (every column, shortest round-trip numbers, `NaN` for a missing
+    // set-point) is formatted and written on a second thread while the loop runs
+    // (`io::output::write_streaming`): the loop is sequential, so formatting the 180 001 WHTC
+    // rows (50 MB) overlaps it instead of following it. The file appears only once the loop,
+    // the statistics and the figure have succeeded; on a failure the temporary file is
+    // removed, and DIR too if this run created it, so nothing partial is left.
+    let created = !a.out.exists();
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| common::usage(format!("--out {}: {e}", a.out.display())))?;
+    let path = a.out.join("trajectory.csv");
+    let produced = write_streaming(
+        &path,
+        &Trajectory::NAMES,
+        4,
+        |b| b,
+        |tx| {
+            let mut sent = 0;
+            let w = run_cycle(&model, &a.cycle, a.controller, a.duration, &mut |traj| {
+                send_rows(traj, &mut sent, &tx, false)
+            })?;
+            send_rows(&w.run.traj, &mut sent, &tx, true);
+            let json = stats_json(a, &w);
+            let mut files = Files::default();
+            files.add(
+                "stats.json",
+                serde_json::to_string_pretty(&json).expect("serializable") + "\n",
+            );
+            if a.plot {
+                let title = format!(
+                    "{} on the {} ({}-state model)",
+                    json["controller"].as_str().unwrap_or(""),
+                    a.cycle,
+                    a.model.order().states()
+                );
+                files.figure("closed_loop", &figure(&w.run.traj, &title))?;
+            }
+            Ok((w, json, files))
+        },
     );
-    if a.plot {
-        let title = format!(
-            "{} on the {} ({}-state model)",
-            json["controller"].as_str().unwrap_or(""),
-            a.cycle,
-            a.model.order().states()
-        );
-        files.figure("closed_loop", &figure(&r.traj, &title))?;
-    }
-    // trajectory.csv last but one: it becomes visible once everything else is computed
-    let mut written = vec![stream.commit(&r.traj)?];
+    let (w, json, files) = match produced {
+        Ok(v) => v,
+        Err(e) => {
+            if created {
+                let _ = std::fs::remove_dir(&a.out); // only if still empty
+            }
+            return Err(match e {
+                StreamError::Produce(e) => e,
+                StreamError::Io(e) => {
+                    anyhow::Error::new(e).context(format!("cannot write {}", path.display()))
+                }
+            });
+        }
+    };
+    let r = &w.run;
+    // trajectory.csv first: the other files are written once everything is computed
+    let mut written = vec![path];
     written.extend(files.write(&a.out)?);
     if a.json {
         println!(
