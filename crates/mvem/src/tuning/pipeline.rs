@@ -390,8 +390,7 @@ fn add_fixed(
     let total = if fixed.names.is_empty() {
         lin.covariance.clone()
     } else {
-        let r0 = res(p);
-        let j_fixed = fd_jacobian_named(&res, p, &fixed.names, &r0);
+        let j_fixed = fd_jacobian_named(&res, p, &fixed.names);
         with_fixed(&lin.jacobian, &lin.covariance, &j_fixed, &fixed.cov)
     };
     let theta: Vec<f64> = estimates.iter().map(|(_, e)| e.value).collect();
