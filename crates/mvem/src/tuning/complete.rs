@@ -8,9 +8,9 @@
 //! - [`step5`]: the static parameters by the combined cost (77): dynamic errors of the complete
 //!   model on the static-tuning sets (A-I, 10 Hz) normalized by the stationary means and
 //!   weighted by gamma_j, plus the submodel errors z_1..z_7 (W_ei, T_em, W_egr, eta_tm, W_t,
-//!   eta_c, W_c) at the stationary points weighted by 1/beta (eta_tm and eta_c as the relative
-//!   error of the compressor temperature rise T_c - T_amb they imply, [`steps::fit_series`]:
-//!   not in the paper, which compares the derived efficiencies); box bounds, Q_c projected on the
+//!   eta_c, W_c) at the stationary points weighted by 1/beta (eta_tm as the relative error of
+//!   the compressor temperature rise T_c - T_amb it implies, [`steps::fit_series`]: not in the
+//!   paper, which compares the derived efficiency); box bounds, Q_c projected on the
 //!   positive semidefinite cone at every evaluation. Data sets are simulated in parallel (rayon).
 //!
 //! **Normalized step responses** (eq. (75)): "each output and each step response is normalized

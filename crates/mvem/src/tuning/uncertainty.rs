@@ -23,21 +23,19 @@
 //!   residuals with respect to the fixed parameters and their covariance C_f (from the steps
 //!   that estimated them, [`NamedCov`]), the sensitivity of the optimum is `dtheta/dphi = -S`,
 //!   `S = (J^T J)^+ J^T J_f`, and the reported covariance is `Cov + S C_f S^T` ([`with_fixed`]).
-//!   J_f by forward differences at the estimate ([`fd_jacobian_named`]). The pipeline carries the full covariance of every
-//!   step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
+//!   J_f by forward differences at the estimate ([`fd_jacobian_named`]). The pipeline carries
+//!   the full covariance of every step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
 //!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
 //!   turn carries that of step 1.
 //! * **A search stopped by its evaluation limit** (step 5 on the standard campaigns) reports
 //!   the covariance at its end point and says `converged: false`. Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
 //!   directions of cost (77) that step is 1e3-1e7 times the parameters and flagged everything.
-//! * **Derived measurements in the T_c domain.** Step 1 fits eta_tm and eta_c to the compressor
-//!   temperature rise they imply, and the submodel row of step 5 compares them so
-//!   ([`super::steps::fit_series`]). Their step-1 covariance is still that of the unweighted
-//!   residuals in efficiency units (the estimator the paper's step 1 uses, less efficient, so
-//!   the standard error is conservative): the T_c-domain covariance, propagated into step 3,
-//!   gave V_im, V_em standard errors of 1e3 m^3 (not understood yet, docs/tuning.md).
-//!   `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
+//! * **eta_tm in the T_c domain.** Step 1 fits eta_tm to the compressor temperature rise it
+//!   implies, and the submodel row of step 5 compares it so ([`super::steps::fit_series`]). Its
+//!   step-1 covariance is still that of the unweighted residuals in efficiency units (the
+//!   estimator the paper's step 1 uses, less efficient, so the standard error is conservative).
+//! * `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
 //!
 //! The estimate of a parameter tuned by several steps is that of the last one (step 5 replaces
 //! the step-1 values of the static parameters; the dynamics steps 3-4 repeated after step 5

@@ -27,22 +27,6 @@ pub(super) fn eta_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -
         .unzip()
 }
 
-/// The eta_c fit in the T_c domain: the measured compressor temperature rise T_c - T_amb and
-/// the one the model implies, T_amb (Pi_c^(1 - 1/gamma_a) - 1) / eta_c (eq. (58) solved for
-/// T_c). eta_c,meas divides by T_c - T_amb (a few kelvin at light load, 1 K sensor noise): its
-/// noise is large there and, through the division, biased upwards; the temperature rise is
-/// the measured quantity.
-pub(super) fn eta_c_dt_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
-    pts.iter()
-        .zip(d)
-        .map(|(s, d)| {
-            let eta = compressor::efficiency(&p.compressor, s.w_c, d.pi_c, SEM);
-            let dt = s.t_amb * compressor::isentropic_term(d.pi_c, p.gas.gamma_a) / eta;
-            (s.t_c - s.t_amb, if dt.is_finite() { dt } else { 1e6 })
-        })
-        .unzip()
-}
-
 /// W_c of eqs (66)-(72) at a stationary point (measured Pi_c, omega_t).
 fn w_c_model(c: &Compressor, g: &Gas, s: &StationaryPoint, d: &Derived) -> f64 {
     let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
@@ -71,9 +55,8 @@ pub fn project_q_c(q: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
 }
 
 /// Compressor efficiency, eqs (58)-(65): eta_c,meas = T_amb (Pi_c^(1-1/gamma_a) - 1) /
-/// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear
-/// (variable projection, weighted to first order as the T_c domain), then all seven by NLS of
-/// the T_c-domain residual ([`eta_c_dt_series`]), Q_c projected on the PSD cone.
+/// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear;
+/// then the PSD projection of Q_c.
 pub fn fit_eta_c(
     p: &mut Params,
     pts: &[StationaryPoint],
@@ -106,66 +89,17 @@ pub fn fit_eta_c(
             }
         })
     };
-    // start: weighted by dT_c/deta_c = (T_c - T_amb) / eta_c,meas at the data (the T_c domain
-    // to first order), then all seven refined by NLS of the T_c-domain residual itself
-    let wts: Vec<f64> = pts
-        .iter()
-        .zip(&y)
-        .map(|(s, e)| ((s.t_c - s.t_amb) / e).abs())
-        .collect();
-    let (lo, hi) = ([0.0, 0.0, 0.05], [2.0, 5.0, 3.0]);
     let fit = Varpro::new(&y, phi)
-        .weights(&wts)
-        .bounds(Bounds::new(lo.to_vec(), hi.to_vec()))
+        .bounds(Bounds::new(vec![0.0, 0.0, 0.05], vec![2.0, 5.0, 3.0]))
         .options(lsq_opts())
         .fit(&start)
         .map_err(|e| solver_err("eta_c")(e.to_string()))?;
-    // [w_copt, pi_copt, c_pi, eta_cmax, a1, a2, a3]
-    let set = |c: &mut Compressor, th: &[f64]| {
-        c.w_copt = th[0];
-        c.pi_copt = th[1];
-        c.c_pi = th[2];
-        c.eta_cmax = th[3];
-        c.q_c = project_q_c([[th[4], th[6]], [th[6], th[5]]]);
-    };
-    let th0 = [
-        fit.alpha[0],
-        fit.alpha[1],
-        fit.alpha[2],
-        fit.c[0],
-        fit.c[1],
-        fit.c[2],
-        fit.c[3],
-    ];
-    let dt_mean = pts.iter().map(|s| s.t_c - s.t_amb).sum::<f64>() / pts.len() as f64;
-    let mut q = p.clone();
-    let res = |th: &[f64]| {
-        set(&mut q.compressor, th);
-        let (meas, model) = eta_c_dt_series(&q, pts, &d);
-        meas.iter()
-            .zip(&model)
-            .map(|(a, b)| (b - a) / dt_mean)
-            .collect::<Vec<f64>>()
-    };
-    let inf = f64::INFINITY;
-    let bounds = Bounds::new(
-        [&lo[..], &[0.0, 0.0, 0.0, -inf]].concat(),
-        [&hi[..], &[1.0, inf, inf, inf]].concat(),
-    );
-    let th0: Vec<f64> = th0
-        .iter()
-        .zip(bounds.lo.iter().zip(&bounds.hi))
-        .map(|(v, (l, h))| {
-            v.max(*l).min(if h.is_finite() {
-                h - 1e-9 * (h - l)
-            } else {
-                *h
-            })
-        })
-        .collect();
-    let refined = best_fit("eta_c", res, &[th0], &bounds, &lsq_opts())?;
-    set(&mut p.compressor, &refined.theta);
-    let n_eval = fit.lsq.n_eval + refined.n_eval;
+    let c = &mut p.compressor;
+    c.w_copt = fit.alpha[0];
+    c.pi_copt = fit.alpha[1];
+    c.c_pi = fit.alpha[2];
+    c.eta_cmax = fit.c[0];
+    c.q_c = project_q_c([[fit.c[1], fit.c[3]], [fit.c[3], fit.c[2]]]);
     let (meas, model) = eta_c_series(p, pts, &d);
     let c = &p.compressor;
     Ok(fit_report(
@@ -181,7 +115,7 @@ pub fn fit_eta_c(
         ],
         &meas,
         &model,
-        n_eval,
+        fit.lsq.n_eval,
     ))
 }
 
