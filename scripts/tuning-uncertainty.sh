@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Heavy acceptance checks of the tuning pipeline's uncertainty (docs/tuning.md, issue 14), not
 # run by CI (minutes on 2 cores):
-#  1. the #[ignore]d test tests/tuning_uncertainty.rs: `mvem lab` campaigns with seeds 1-3
+#  1. the #[ignore]d test tests/tuning_uncertainty.rs: `mvem lab` campaigns with seeds 1-4
 #     (published engine, realistic noise) tuned; every parameter reported identifiable lies
 #     within 3 standard errors of the truth (rel. std. error <= 25 %), the volumes, J_t,
 #     actuator constants, peak efficiencies and tau_Me are identifiable;

@@ -8,7 +8,9 @@
 //! - [`step5`]: the static parameters by the combined cost (77): dynamic errors of the complete
 //!   model on the static-tuning sets (A-I, 10 Hz) normalized by the stationary means and
 //!   weighted by gamma_j, plus the submodel errors z_1..z_7 (W_ei, T_em, W_egr, eta_tm, W_t,
-//!   eta_c, W_c) at the stationary points weighted by 1/beta; box bounds, Q_c projected on the
+//!   eta_c, W_c) at the stationary points weighted by 1/beta (eta_tm as the relative error of
+//!   the compressor temperature rise T_c - T_amb it implies, [`steps::fit_series`]: not in the
+//!   paper, which compares the derived efficiency); box bounds, Q_c projected on the
 //!   positive semidefinite cone at every evaluation. Data sets are simulated in parallel (rayon).
 //!
 //! **Normalized step responses** (eq. (75)): "each output and each step response is normalized
@@ -874,7 +876,7 @@ impl Cost77 {
         if self.opts.static_row {
             let n_m = (self.n_z() * self.stat.len()) as f64;
             let w = 1.0 / (self.opts.beta * n_m).sqrt();
-            match steps::submodel_series(q, &self.stat) {
+            match steps::fit_series(q, &self.stat) {
                 Ok(mut series) => {
                     if self.opts.model == ModelOrder::Twelve {
                         // z_8 = W_ic (section 9.2.1): eq. (86) against the measured W_c

@@ -20,15 +20,22 @@
 //! * **Parameters a step holds fixed.** Steps 3 and 5 hold the estimates of the earlier steps
 //!   fixed (step 3 the static and actuator parameters, step 5 the actuators, V_im, V_em, J_t);
 //!   their errors move the step's optimum. With the step's Jacobian J, the Jacobian J_f of its
-//!   residuals with respect to the fixed parameters (forward differences at the estimate) and
-//!   their covariance C_f (from the steps that estimated them, [`NamedCov`]), the sensitivity
-//!   of the optimum is `dtheta/dphi = -S`, `S = (J^T J)^+ J^T J_f`, and the reported covariance
-//!   is `Cov + S C_f S^T` ([`with_fixed`]). The pipeline carries the full covariance of every
-//!   step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
+//!   residuals with respect to the fixed parameters and their covariance C_f (from the steps
+//!   that estimated them, [`NamedCov`]), the sensitivity of the optimum is `dtheta/dphi = -S`,
+//!   `S = (J^T J)^+ J^T J_f`, and the reported covariance is `Cov + S C_f S^T` ([`with_fixed`]).
+//!   J_f by forward differences at the estimate ([`fd_jacobian_named`]). The pipeline carries
+//!   the full covariance of every step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
 //!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
-//!   turn carries that of step 1. The standard errors still assume that the search reached its
-//!   optimum; a step stopped by its evaluation limit says so in the report.
-//!   `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
+//!   turn carries that of step 1.
+//! * **A search stopped by its evaluation limit** (step 5 on the standard campaigns) reports
+//!   the covariance at its end point and says `converged: false`. Adding the remaining
+//!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
+//!   directions of cost (77) that step is 1e3-1e7 times the parameters and flagged everything.
+//! * **eta_tm in the T_c domain.** Step 1 fits eta_tm to the compressor temperature rise it
+//!   implies, and the submodel row of step 5 compares it so ([`super::steps::fit_series`]). Its
+//!   step-1 covariance is still that of the unweighted residuals in efficiency units (the
+//!   estimator the paper's step 1 uses, less efficient, so the standard error is conservative).
+//! * `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
 //!
 //! The estimate of a parameter tuned by several steps is that of the last one (step 5 replaces
 //! the step-1 values of the static parameters; the dynamics steps 3-4 repeated after step 5
@@ -36,7 +43,7 @@
 
 use super::complete::{param_mut, param_value, set_named, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
-use super::lsq::{param_stats, ParamStats};
+use super::lsq::{param_stats, FiniteDiff, ParamStats};
 use super::steps::{actuator_response, submodel_series, Step1Report};
 use crate::params::Params;
 use nalgebra::DMatrix;
@@ -81,27 +88,45 @@ pub fn lag1_autocorrelation(r: &[f64]) -> f64 {
     c1 / c0
 }
 
-/// Central-difference Jacobian of `res` at `theta` (steps `1e-6 max(|theta_i|, scale_i)`).
+/// Finite-difference Jacobian of `res` at `theta` with the steps `h`, the one used for every
+/// linearization of this module: `Central` (2 n evaluations) or `Forward` (n + 1). Rows
+/// missing from a shorter evaluation stay zero.
 pub fn fd_jacobian(
     mut res: impl FnMut(&[f64]) -> Vec<f64>,
     theta: &[f64],
-    scale: &[f64],
+    h: &[f64],
+    method: FiniteDiff,
 ) -> DMatrix<f64> {
-    let m = res(theta).len();
+    let r0 = res(theta);
+    let m = r0.len();
     let mut j = DMatrix::zeros(m, theta.len());
     let mut th = theta.to_vec();
     for k in 0..theta.len() {
-        let h = 1e-6 * theta[k].abs().max(scale[k]);
-        th[k] = theta[k] + h;
+        th[k] = theta[k] + h[k];
         let rp = res(&th);
-        th[k] = theta[k] - h;
-        let rm = res(&th);
+        let (rm, den) = match method {
+            FiniteDiff::Central => {
+                th[k] = theta[k] - h[k];
+                (res(&th), 2.0 * h[k])
+            }
+            FiniteDiff::Forward => (r0.clone(), h[k]),
+        };
         th[k] = theta[k];
         for i in 0..m.min(rp.len()).min(rm.len()) {
-            j[(i, k)] = (rp[i] - rm[i]) / (2.0 * h);
+            j[(i, k)] = (rp[i] - rm[i]) / den;
         }
     }
     j
+}
+
+/// Central-difference steps of the step-1 and step-2 linearizations (cheap, smooth residuals):
+/// `1e-6 max(|theta_k|, scale_k)`.
+fn central_steps(theta: &[f64], scale: &[f64]) -> Vec<f64> {
+    theta
+        .iter()
+        .zip(scale)
+        .map(|(t, s)| 1e-6 * t.abs().max(*s))
+        .collect()
 }
 
 /// Estimates of the parameters `names` (values `theta`, typical magnitudes `scale`) from the
@@ -287,25 +312,37 @@ pub fn with_fixed(
     cov + &s * cov_fixed * s.transpose()
 }
 
-/// Forward-difference Jacobian (m x k) of `res` at `p` with respect to the parameters `names`
-/// ([`param_mut`] names, ties of [`set_named`] applied), `r0 = res(p)`; steps
-/// `1e-4 max(|value|, typical magnitude)`. Columns of parameters `p` does not have are zero.
+/// Forward-difference Jacobian (m x k, [`fd_jacobian`]) of `res` at `p` with respect to the
+/// parameters `names` ([`param_mut`] names, ties of [`set_named`] applied); steps
+/// `FD_STEP max(|value|, typical magnitude)`. Columns of parameters `p` does not have are zero.
 pub fn fd_jacobian_named(
     res: impl Fn(&Params) -> Vec<f64>,
     p: &Params,
     names: &[String],
-    r0: &[f64],
 ) -> DMatrix<f64> {
-    let mut j = DMatrix::zeros(r0.len(), names.len());
-    for (k, n) in names.iter().enumerate() {
-        let Some(v) = param_value(p, n) else { continue };
-        let h = 1e-4 * typical_scale(n, v).max(v.abs());
-        let mut q = p.clone();
-        set_named(&mut q, &[n.as_str()], &[v + h]);
-        let r = res(&q);
-        for i in 0..r0.len().min(r.len()) {
-            j[(i, k)] = (r[i] - r0[i]) / h;
-        }
+    let have: Vec<usize> = (0..names.len())
+        .filter(|&k| param_value(p, &names[k]).is_some())
+        .collect();
+    let own: Vec<&str> = have.iter().map(|&k| names[k].as_str()).collect();
+    let theta: Vec<f64> = own.iter().filter_map(|n| param_value(p, n)).collect();
+    let h: Vec<f64> = own
+        .iter()
+        .zip(&theta)
+        .map(|(n, v)| super::complete::FD_STEP * typical_scale(n, *v).max(v.abs()))
+        .collect();
+    let jh = fd_jacobian(
+        |th: &[f64]| {
+            let mut q = p.clone();
+            set_named(&mut q, &own, th);
+            res(&q)
+        },
+        &theta,
+        &h,
+        FiniteDiff::Forward,
+    );
+    let mut j = DMatrix::zeros(jh.nrows(), names.len());
+    for (c, &k) in have.iter().enumerate() {
+        j.set_column(k, &jh.column(c));
     }
     j
 }
@@ -402,6 +439,7 @@ pub fn step1_estimates(
             .zip(&theta)
             .map(|(n, v)| typical_scale(n, *v))
             .collect();
+        // eta_tm, eta_c in efficiency units (conservative, module documentation)
         let res = |th: &[f64]| -> Vec<f64> {
             let mut q = p.clone();
             set_named(&mut q, &names, th);
@@ -415,7 +453,12 @@ pub fn step1_estimates(
             }
         };
         let r = res(&theta);
-        let j = fd_jacobian(res, &theta, &scale);
+        let j = fd_jacobian(
+            res,
+            &theta,
+            &central_steps(&theta, &scale),
+            FiniteDiff::Central,
+        );
         // a variance per point (heteroscedastic derived measurements, Cost77::covariance_blocks)
         let cov = block_covariance(&j, &r, &vec![1; r.len()]);
         out.extend(estimates_from_cov(&names, &theta, &cov, 1));
@@ -456,7 +499,12 @@ pub fn step2_estimates(p: &Params, j: &DynamicData) -> (Vec<(String, ParamEstima
                 .collect()
         };
         let r = res(&theta);
-        let jac = fd_jacobian(res, &theta, &scale);
+        let jac = fd_jacobian(
+            res,
+            &theta,
+            &central_steps(&theta, &scale),
+            FiniteDiff::Central,
+        );
         let cov = block_covariance(&jac, &r, &[]);
         out.extend(estimates_from_cov(names, &theta, &cov, 2));
         all.set_block(&NamedCov::new(names, cov));

@@ -331,6 +331,23 @@ pub fn submodel_series(
         .collect())
 }
 
+/// The quantities the step-1 fits compare, (name, measured, modelled) per submodel in the order
+/// of [`submodel_series`]: the same, except that eta_tm is compared in the T_c domain, as the
+/// measured compressor temperature rise T_c - T_amb against the rise its model implies (eq.
+/// (47) solved for T_c; `turbine::eta_tm_weights`). Step 5's submodel row uses these.
+pub fn fit_series(p: &Params, pts: &[StationaryPoint]) -> Result<Vec<SubmodelSeries>, StepError> {
+    let d = derive(p, pts)?;
+    let mut all = submodel_series(p, pts)?;
+    for s in all.iter_mut() {
+        let (meas, model) = match s.0.as_str() {
+            "eta_tm" => turbine::eta_tm_dt_series(p, pts, &d),
+            _ => continue,
+        };
+        (s.1, s.2) = (meas, model);
+    }
+    Ok(all)
+}
+
 /// Bounded nonlinear least squares of `res` from each of `starts` ([`super::lsq`]); the fit
 /// with the lowest cost is returned, its `n_eval` counting the evaluations of all starts.
 /// Solver errors name `submodel`.

@@ -19,6 +19,27 @@ fn eta_tm_meas(p: &Params, s: &StationaryPoint, d: &Derived) -> (f64, f64) {
     (eta, dh)
 }
 
+/// Weights of the eta_tm fit: dT_c/deta_tm = W_t c_pe T_em dh / (W_c c_pa) [K] at each point
+/// (eq. (47) solved for T_c), so that the weighted residual (eta_tm,meas - eta_tm) w is the
+/// error of the measured compressor temperature rise T_c - T_amb in kelvin (the "T_c domain").
+/// eta_tm,meas is T_c - T_amb (a few kelvin at idle, 1 K sensor noise) divided by w: its noise
+/// is 10-30 % at idle and below 1 % at full load, and an unweighted fit is decided by the idle
+/// points (at the authors' c_m = 0 below c_m2 they fix eta_tm,max alone).
+pub(crate) fn eta_tm_weights(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Vec<f64> {
+    pts.iter()
+        .zip(d)
+        .map(|(s, d)| {
+            let (eta, _) = eta_tm_meas(p, s, d);
+            let w = (s.t_c - s.t_amb) / eta; // = W_t c_pe T_em dh / (W_c c_pa), eq. (47)
+            if w.is_finite() {
+                w.abs()
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// eta_tm,meas (eq. (47)) and the model of eqs (43)-(51) with the authors' limits.
 pub(super) fn eta_tm_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
     let g = &p.gas;
@@ -30,6 +51,17 @@ pub(super) fn eta_tm_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) 
             );
             (eta_tm_meas(p, s, d).0, pw.eta_tm)
         })
+        .unzip()
+}
+
+/// The eta_tm fit in the T_c domain: the measured compressor temperature rise T_c - T_amb
+/// and the one the model implies, eta_tm [`eta_tm_weights`] (eq. (47) solved for T_c).
+pub(super) fn eta_tm_dt_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
+    let (_, model) = eta_tm_series(p, pts, d);
+    let w = eta_tm_weights(p, pts, d);
+    pts.iter()
+        .zip(model.iter().zip(&w))
+        .map(|(s, (m, w))| (s.t_c - s.t_amb, m * w))
         .unzip()
 }
 
@@ -59,6 +91,8 @@ fn c_m_shape(omega: f64, c_m2: f64, c_m3: f64, w_tlin: f64) -> f64 {
 /// Turbine efficiency, eqs (43)-(51): varpro with BSR_opt, c_m2, c_m3 nonlinear and
 /// eta_tm,max, c_m1 linear; eta_tm,meas by eq. (47) with P_t eta_m = P_c at steady state:
 /// W_c c_pa (T_c - T_amb) / (W_t c_pe T_em (1 - Pi_t^(1 - 1/gamma_e))), W_t = W_c + W_f.
+/// Weighted by [`eta_tm_weights`]: least squares of the measured T_c, not of the derived
+/// eta_tm,meas.
 pub fn fit_eta_tm(
     p: &mut Params,
     pts: &[StationaryPoint],
@@ -84,6 +118,8 @@ pub fn fit_eta_tm(
     }
     let w_tlin = p.turbine.w_tlin;
     let omega: Vec<f64> = d.iter().map(|d| d.omega_t).collect();
+    // residuals in the T_c domain (kelvin), see eta_tm_weights
+    let wts = eta_tm_weights(p, pts, &d);
     let phi = |a: &[f64]| {
         DMatrix::from_fn(pts.len(), 2, |i, j| {
             if j == 0 {
@@ -109,6 +145,7 @@ pub fn fit_eta_tm(
                 start[2] * f3,
             ];
             let r = Varpro::new(&y, phi)
+                .weights(&wts)
                 .bounds(Bounds::new(vec![0.2, 0.0, 1e-4], vec![2.0, hi_cm2, 3.0]))
                 .options(lsq_opts())
                 .fit(&s0);
@@ -138,7 +175,8 @@ pub fn fit_eta_tm(
             (0..pts.len())
                 .map(|i| {
                     let db = bsr[i] - a[1];
-                    a[0] - a[2] * c_m_shape(omega[i], a[3], a[4], w_tlin) * db * db - y[i]
+                    wts[i]
+                        * (a[0] - a[2] * c_m_shape(omega[i], a[3], a[4], w_tlin) * db * db - y[i])
                 })
                 .collect()
         };
