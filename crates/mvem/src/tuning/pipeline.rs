@@ -21,7 +21,7 @@ use super::complete::{
     step3, step4, step5, theta_of, CompleteReport, Cost77, DynamicFit, Step3Start, Step5Options,
     Step5Report,
 };
-use super::data::{Campaign, Role, StepKind};
+use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
 use super::uncertainty::{
@@ -245,18 +245,7 @@ pub fn tune(
         if sets.is_empty() {
             return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
         }
-        let (q, mut r) =
-            step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
-        p = q;
-        let res = dynamic_residuals(
-            ModelOrder::Eight,
-            &sets,
-            &c.stationary,
-            opts.step3.amp_floor,
-        );
-        add_fixed(&mut r.uncertainty, &r.linearization, &mut cov, res, &p, 3);
-        est.extend(r.uncertainty.iter().cloned());
-        rep.step3 = Some(r);
+        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
@@ -319,18 +308,7 @@ pub fn tune(
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
-            let (q, mut r) =
-                step3(&p, &sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
-            p = q;
-            let res = dynamic_residuals(
-                ModelOrder::Eight,
-                &sets,
-                &c.stationary,
-                opts.step3.amp_floor,
-            );
-            add_fixed(&mut r.uncertainty, &r.linearization, &mut cov, res, &p, 3);
-            est.extend(r.uncertainty.iter().cloned());
-            rep.step3_refined = Some(r);
+            rep.step3_refined = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
         }
         if let Some(set) = infos
             .iter()
@@ -382,6 +360,25 @@ pub fn tune(
     }
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
+}
+
+/// Step 3 on `sets` from `p` (replaced by the result), its uncertainty with that of the
+/// parameters it holds fixed ([`add_fixed`]) added to `cov` and `est`; the step's report.
+fn run_step3(
+    p: &mut Params,
+    sets: &[&DynamicData],
+    c: &Campaign,
+    opts: &PipelineOptions,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+) -> Result<CompleteReport, PipelineError> {
+    let (q, mut r) =
+        step3(p, sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
+    *p = q;
+    let res = dynamic_residuals(ModelOrder::Eight, sets, &c.stationary, opts.step3.amp_floor);
+    add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
+    est.extend(r.uncertainty.iter().cloned());
+    Ok(r)
 }
 
 /// Add to a step's covariance the uncertainty of the parameters it held fixed (every earlier
