@@ -465,15 +465,14 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             let y1 = trial.y1;
             // the segment's last step before a jump or the end, without output samples in it:
             // f(t_new, y1) is needed neither for dense output nor as the next step's f0
-            let to = self.out_time(self.next_out);
-            let no_dense =
-                to >= t_new - SegmentInputs::delta(t_new) || to >= b - SegmentInputs::delta(b);
-            let f_unused = last && !f_at_end && no_dense;
+            // output times at or past this are not in [t, t_new) (t_new itself belongs to the
+            // next segment or the end)
+            let beyond_step = |to: f64| {
+                to >= t_new - SegmentInputs::delta(t_new) || to >= b - SegmentInputs::delta(b)
+            };
+            let f_unused = last && !f_at_end && beyond_step(self.out_time(self.next_out));
             if f_unused && !holds_memory && trial.f1.is_none() {
-                self.h = h * Self::step_factor(err, self.err_old, order);
-                self.err_old = err.max(1e-4);
-                self.t = t_new;
-                self.y = crate::model::clip_state(&y1, &self.bounds);
+                self.accept(h, err, order, t_new, &y1);
                 break;
             }
             // state and derivative at the end of the step, for dense output and the next step
@@ -494,10 +493,10 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                     h,
                 },
             };
-            // outputs in [t, t_new) (t_new itself belongs to the next segment or the end)
+            // outputs in [t, t_new)
             loop {
                 let to = self.out_time(self.next_out);
-                if to >= t_new - SegmentInputs::delta(t_new) || to >= b - SegmentInputs::delta(b) {
+                if beyond_step(to) {
                     break;
                 }
                 let theta = ((to - t) / h).clamp(0.0, 1.0);
@@ -509,12 +508,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 self.output(inp, sol, to, &yo);
                 self.next_out += 1;
             }
-            self.h = h * Self::step_factor(err, self.err_old, order);
-            self.err_old = err.max(1e-4);
-            self.t = t_new;
-            let y1c = crate::model::clip_state(&y1, &self.bounds);
-            let clipped = y1c != y1;
-            self.y = y1c;
+            let clipped = self.accept(h, err, order, t_new, &y1);
             if holds_memory {
                 self.memory = memory_next;
             }
@@ -534,6 +528,20 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             Some(f0)
         };
         Ok(())
+    }
+
+    /// Move to the end of an accepted step of size `h` and scaled error `err`: the next step
+    /// size, the error memory, the time `t_new` and the state `y1` clipped into the integrator
+    /// limits. Returns whether the clip changed the state.
+    #[inline]
+    fn accept(&mut self, h: f64, err: f64, order: f64, t_new: f64, y1: &[f64; N]) -> bool {
+        self.h = h * Self::step_factor(err, self.err_old, order);
+        self.err_old = err.max(1e-4);
+        self.t = t_new;
+        let y1c = crate::model::clip_state(y1, &self.bounds);
+        let clipped = y1c != *y1;
+        self.y = y1c;
+        clipped
     }
 
     /// Step-size factor after an accepted step with error `err` (the previous accepted step's
