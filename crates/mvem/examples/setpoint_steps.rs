@@ -34,6 +34,7 @@ fn main() {
             "l_egr_ki" => tuning.lambda_egr.1 = v,
             "l_vgt_kp" => tuning.lambda_vgt.0 = v,
             "l_vgt_ki" => tuning.lambda_vgt.1 = v,
+            "l_cap" => tuning.lambda_error_cap = v,
             _ => panic!("unknown key {k}"),
         }
     }

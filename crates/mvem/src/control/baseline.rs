@@ -63,6 +63,9 @@ pub struct BaselineTuning {
     pub lambda_vgt: (f64, f64),
     /// Offset d_lambda of the VGT's lambda_O loop below the set-point [-].
     pub d_lambda: f64,
+    /// Upper limit of the lambda_O errors of both lambda_O loops [-] (lambda_O,s is a lower
+    /// bound: air beyond it says nothing about how far to move; see the module documentation).
+    pub lambda_error_cap: f64,
     /// Most open VGT position at full load [%] (the mapping curve's), 100 % at no load.
     pub u_vgt_full_load: f64,
 }
@@ -80,6 +83,7 @@ impl Default for BaselineTuning {
             lambda_egr: (40.0, 60.0),
             lambda_vgt: (20.0, 60.0),
             d_lambda: 0.05,
+            lambda_error_cap: 1.0,
             u_vgt_full_load: 35.0,
         }
     }
@@ -332,8 +336,9 @@ impl Controller for Baseline {
         let vmax = self.u_vgt_max(l);
         let e_xv = s.x_egr - x_s;
         let e_xe = x_s + self.tuning.d_x - s.x_egr;
-        let e_le = s.lambda_o - lambda_s;
-        let e_lv = s.lambda_o - (lambda_s - self.tuning.d_lambda);
+        let cap = self.tuning.lambda_error_cap;
+        let e_le = (s.lambda_o - lambda_s).min(cap);
+        let e_lv = (s.lambda_o - (lambda_s - self.tuning.d_lambda)).min(cap);
         let u_egr = (self.lambda_egr.output(e_le, dt))
             .min(self.x_egr.output(e_xe, dt))
             .clamp(0.0, 100.0);
