@@ -28,6 +28,7 @@ pub fn write_atomic_with(
         .file_name()
         .map(|n| n.to_string_lossy().to_string())
         .unwrap_or_else(|| "out".into());
+    remove_stale_temporaries(&dir, &name);
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
     let res = (|| {
         let f = std::fs::File::create(&tmp)?;
@@ -46,6 +47,40 @@ pub fn write_atomic_with(
         });
     }
     Ok(())
+}
+
+/// Remove the temporary files `.NAME.tmp-PID` that an earlier writer of `dir/NAME` left behind
+/// when it was killed before it could rename or remove them (a signal, a power loss), if that
+/// process no longer runs and the file was last written more than 10 minutes ago (a writer in
+/// another PID namespace sharing the directory is invisible in `/proc`, but it writes its file
+/// at least every block). Linux only (it asks `/proc/PID`); elsewhere nothing is removed. Errors
+/// are ignored: this is housekeeping, the write itself does not depend on it.
+fn remove_stale_temporaries(dir: &Path, name: &str) {
+    if !cfg!(target_os = "linux") {
+        return;
+    }
+    let prefix = format!(".{name}.tmp-");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let Some(pid) = file.to_str().and_then(|f| f.strip_prefix(&prefix)) else {
+            continue;
+        };
+        let Ok(pid) = pid.parse::<u32>() else {
+            continue;
+        };
+        let idle = e
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|m| m.elapsed().ok())
+            .is_some_and(|age| age > std::time::Duration::from_secs(600));
+        if idle && pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
 }
 
 /// Named columns of a solution to write: `t` first, then `signals` in the order given
@@ -593,6 +628,40 @@ mod tests {
             rows += 1;
         }
         assert_eq!(rows, kept.len());
+    }
+
+    /// A killed writer's `.NAME.tmp-PID` is removed by the next write of NAME.
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn stale_temporaries_of_dead_writers_are_removed() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("x.csv");
+        // a pid above the kernel's maximum (4194304) never runs; our own pid does (a write
+        // going on in another thread of this process)
+        let dead = d.path().join(".x.csv.tmp-4999999");
+        let live = d.path().join(format!(".x.csv.tmp-{}", std::process::id()));
+        let other = d.path().join(".y.csv.tmp-4999999");
+        let not_pid = d.path().join(".x.csv.tmp-abc");
+        let recent = d.path().join(".x.csv.tmp-4999998");
+        let old = std::time::SystemTime::now() - std::time::Duration::from_secs(3600);
+        for f in [&dead, &other, &not_pid, &live, &recent] {
+            std::fs::write(f, b"partial").unwrap();
+            if f != &recent {
+                let h = std::fs::File::options().write(true).open(f).unwrap();
+                h.set_modified(old).unwrap();
+            }
+        }
+        remove_stale_temporaries(d.path(), "x.csv");
+        assert!(!dead.exists(), "the dead writer's temporary is removed");
+        assert!(
+            recent.exists(),
+            "a temporary written in the last 10 minutes stays"
+        );
+        assert!(live.exists(), "this process's temporary stays");
+        assert!(other.exists(), "another file's temporary stays");
+        assert!(not_pid.exists(), "a name that is not .NAME.tmp-PID stays");
+        write_atomic(&p, b"a\n1\n").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"a\n1\n");
     }
 
     /// Nothing is left behind when the computation fails after blocks were written, nor when
