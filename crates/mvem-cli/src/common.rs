@@ -368,8 +368,18 @@ pub const MAX_SAMPLES: f64 = 5e7;
 pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
     let n = (t_end - t0) / dt + 1.0;
     if n > MAX_SAMPLES {
+        // plain times unless they are huge (a 1e308 s input row printed in full is 309 digits)
+        let t = |v: f64| {
+            if v.abs() < 1e9 {
+                format!("{v}")
+            } else {
+                format!("{v:e}")
+            }
+        };
         return Err(usage(format!(
-            "--dt {dt}: {n:.3e} output samples from {t0} s to {t_end} s (at most {MAX_SAMPLES:e}); use a larger --dt"
+            "--dt {dt}: {n:.3e} output samples from {} s to {} s (at most {MAX_SAMPLES:e}); use a larger --dt",
+            t(t0),
+            t(t_end)
         )));
     }
     Ok(())

@@ -103,6 +103,21 @@ fn bad_input_is_exit_2_and_writes_nothing() {
         "{err}"
     );
 
+    // a time column that would take forever: refused before the loop starts
+    std::fs::write(
+        d.path().join("long.csv"),
+        "t,n_e,M_ref\n0,1500,500\n1e308,1500,600\n",
+    )
+    .unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "long.csv", "--out", "o"],
+    );
+    assert!(
+        err.contains("controller samples") && err.contains("at most 5e7"),
+        "{err}"
+    );
+
     let err = usage_error(
         d.path(),
         &[

@@ -188,8 +188,13 @@ pub fn run(
     run_with(model, demand, ctrl, opts, &mut |_| {})
 }
 
+/// Most controller samples one closed-loop run may take (the trajectory has one row per
+/// sample: about 20 GB of CSV); more is certainly a mistaken time column.
+pub const MAX_SAMPLES: f64 = 5e7;
+
 /// [`run`], calling `on_row` with the trajectory so far after each row is appended (e.g. to
-/// write the rows out while the loop runs).
+/// write the rows out while the loop runs). A demand longer than [`MAX_SAMPLES`] samples is
+/// refused before anything runs.
 pub fn run_with(
     model: AnyModel,
     demand: &Demand,
@@ -202,6 +207,14 @@ pub fn run_with(
         return Err(ControlError::BadSampleTime(ts));
     }
     let (t0, t1) = demand.span();
+    let samples = (t1 - t0) / ts + 1.0;
+    if samples > MAX_SAMPLES {
+        return Err(ControlError::Demand(format!(
+            "{samples:.3e} controller samples of {ts} s from {t0} s to {t1:e} s (at most \
+             {MAX_SAMPLES:e}, about {:.0} days at 10 ms); shorten the cycle",
+            MAX_SAMPLES * 0.01 / 86400.0
+        )));
+    }
     let n = ((t1 - t0) / ts + 1e-9).floor() as usize;
     let d0 = demand.at(t0);
     let out0 = ctrl.start(t0, d0.n_e, d0.m_ref, d0.motoring);
