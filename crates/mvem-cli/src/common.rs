@@ -236,7 +236,10 @@ impl SolverArgs {
                 field,
                 value,
                 constraint,
-            } => usage(format!("invalid option --{field} {value}: {constraint}")),
+            } => usage(format!(
+                "invalid option --{field} {}: {constraint}",
+                mvem::numerics::Num(value)
+            )),
             other => usage(other.to_string()),
         })?;
         Ok(o)
@@ -368,18 +371,12 @@ pub const MAX_SAMPLES: f64 = 5e7;
 pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
     let n = (t_end - t0) / dt + 1.0;
     if n > MAX_SAMPLES {
-        // plain times unless they are huge (a 1e308 s input row printed in full is 309 digits)
-        let t = |v: f64| {
-            if v.abs() < 1e9 {
-                format!("{v}")
-            } else {
-                format!("{v:e}")
-            }
-        };
+        let num = mvem::numerics::Num;
         return Err(usage(format!(
-            "--dt {dt}: {n:.3e} output samples from {} s to {} s (at most {MAX_SAMPLES:e}); use a larger --dt",
-            t(t0),
-            t(t_end)
+            "--dt {}: {n:.3e} output samples from {} s to {} s (at most {MAX_SAMPLES:e}); use a larger --dt",
+            num(dt),
+            num(t0),
+            num(t_end)
         )));
     }
     Ok(())
@@ -509,7 +506,8 @@ pub fn check_drive(d: &Drive) -> Result<()> {
     for ((name, lo, hi), v) in csv_inputs::INPUT_RANGES.iter().zip(d.to_array()) {
         if v < *lo || v > *hi {
             eprintln!(
-                "warning: {name} = {v} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given)"
+                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given)",
+                mvem::numerics::Num(v)
             );
         }
     }

@@ -112,7 +112,7 @@ impl StepSpec {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum StepRunError {
     /// The step definition is invalid.
-    #[error("step: {field} = {value}: {constraint}")]
+    #[error("step: {field} = {}: {constraint}", crate::numerics::Num(*value))]
     BadStep {
         /// Field name.
         field: &'static str,

@@ -163,7 +163,7 @@ pub enum ExtensionError {
     #[error(transparent)]
     Params(#[from] ParamIssues),
     /// A step definition is invalid.
-    #[error("VGT step: {field} = {value}: {constraint}")]
+    #[error("VGT step: {field} = {}: {constraint}", crate::numerics::Num(*value))]
     BadStep {
         /// Field name.
         field: &'static str,
@@ -173,7 +173,7 @@ pub enum ExtensionError {
         constraint: &'static str,
     },
     /// An option is invalid.
-    #[error("option {field} = {value}: {constraint}")]
+    #[error("option {field} = {}: {constraint}", crate::numerics::Num(*value))]
     BadOption {
         /// Field name.
         field: &'static str,

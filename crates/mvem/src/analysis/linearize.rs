@@ -157,7 +157,7 @@ impl fmt::Display for Kink {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LinearizeError {
     /// An option is out of range.
-    #[error("linearize option {field} = {value}: {constraint}")]
+    #[error("linearize option {field} = {}: {constraint}", crate::numerics::Num(*value))]
     BadOption {
         /// Option name.
         field: &'static str,

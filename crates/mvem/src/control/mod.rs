@@ -26,6 +26,7 @@ pub mod steps;
 
 use crate::analysis::steady::{any_plant_from_steady, SimFromSteadyError};
 use crate::model::{AnyModel, Drive, Signals};
+use crate::numerics::Num;
 use crate::sim::{SimError, SimOptions};
 pub use cycle::Demand;
 
@@ -210,9 +211,12 @@ pub fn run_with(
     let samples = (t1 - t0) / ts + 1.0;
     if samples > MAX_SAMPLES {
         return Err(ControlError::Demand(format!(
-            "{samples:.3e} controller samples of {ts} s from {t0} s to {t1:e} s (at most \
+            "{samples:.3e} controller samples of {} s from {} s to {} s (at most \
              {MAX_SAMPLES:e}, about {:.0} days at 10 ms); shorten the cycle",
-            MAX_SAMPLES * 0.01 / 86400.0
+            Num(ts),
+            Num(t0),
+            Num(t1),
+            MAX_SAMPLES * 0.01 / 86400.0,
         )));
     }
     let n = ((t1 - t0) / ts + 1e-9).floor() as usize;

@@ -3,6 +3,7 @@
 //! time are a step. Every problem is reported with file, line and column.
 
 use super::IoError;
+use crate::numerics::Num;
 use crate::sim::input::{InputSchedule, ScheduleError, INPUT_COLUMNS};
 use std::path::Path;
 
@@ -162,7 +163,10 @@ pub fn range_warnings(s: &InputSchedule) -> Vec<String> {
         }
         if let Some(t) = first {
             out.push(format!(
-                "{name} leaves [{lo}, {hi}] first at t = {t} s (values from {vmin} to {vmax}); the authors' saturation clamps it (the paper's semantics use it as given)"
+                "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given)",
+                Num(t),
+                Num(vmin),
+                Num(vmax)
             ));
         }
     }

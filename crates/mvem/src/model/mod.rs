@@ -140,7 +140,7 @@ impl Drive {
 
 /// An input the model cannot be evaluated at ([`Drive::check`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("input {name} = {value} {reason}")]
+#[error("input {name} = {} {reason}", crate::numerics::Num(*value))]
 pub struct InputError {
     /// Input name (`n_e`, `u_delta`, `u_egr`, `u_vgt`).
     pub name: &'static str,

@@ -251,7 +251,7 @@ pub enum LsqError {
         hi: f64,
     },
     /// An option is out of range.
-    #[error("option {name} = {value} is out of range ({rule})")]
+    #[error("option {name} = {} is out of range ({rule})", crate::numerics::Num(*value))]
     InvalidOption {
         /// Option name.
         name: &'static str,

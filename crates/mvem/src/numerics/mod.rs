@@ -16,3 +16,43 @@ pub mod varpro;
 /// and a non-finite matrix would then never converge). A decomposition that needs more is
 /// reported as failed instead of running forever.
 pub const SVD_MAX_ITER: usize = 10_000;
+
+/// A number for messages: as Rust prints it (shortest round trip) for magnitudes in
+/// [1e-6, 1e12) and zero, in scientific notation otherwise, so a user's `1e300` is echoed as
+/// `1e300` and not as 301 digits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let v = self.0;
+        if v == 0.0 || !v.is_finite() || (1e-6..1e12).contains(&v.abs()) {
+            write!(f, "{v}")
+        } else {
+            write!(f, "{v:e}")
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Num;
+
+    #[test]
+    fn numbers_in_messages_stay_short() {
+        let cases = [
+            (75.0, "75"),
+            (0.1, "0.1"),
+            (1800.0, "1800"),
+            (1e300, "1e300"),
+            (-2.5e-300, "-2.5e-300"),
+            (1e-7, "1e-7"),
+            (0.0, "0"),
+            (f64::NAN, "NaN"),
+            (f64::NEG_INFINITY, "-inf"),
+        ];
+        for (v, text) in cases {
+            assert_eq!(Num(v).to_string(), text);
+        }
+    }
+}

@@ -7,7 +7,7 @@ use std::fmt;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SimError {
     /// An option is out of range.
-    #[error("option {field} = {value}: {constraint}")]
+    #[error("option {field} = {}: {constraint}", crate::numerics::Num(*value))]
     BadOption {
         /// Option name.
         field: &'static str,
