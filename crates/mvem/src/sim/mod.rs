@@ -27,13 +27,14 @@
 //! Files: `options` ([`SimOptions`], [`Method`]), `error` ([`SimError`]), `solution`
 //! ([`Solution`], [`SimStats`]), `segment` ([`SegmentInputs`], [`stop_times`]), `integrator`
 //! (the restartable [`Integrator`]: step control, segments, dense output, closed-form lags),
-//! `rosw` and `dopri5` (each method's tableau and trial step), [`input`] (schedules).
+//! `rosw`, `rodas` and `dopri5` (each method's tableau and trial step), [`input`] (schedules).
 
 mod dopri5;
 mod error;
 pub mod input;
 mod integrator;
 mod options;
+mod rodas;
 mod rosw;
 mod segment;
 mod solution;
