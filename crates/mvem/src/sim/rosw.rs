@@ -170,6 +170,23 @@ pub(super) fn block_size<const N: usize>(is_lag: &[bool; N]) -> usize {
     }
 }
 
+/// Set the leading `Z` x `Z` block of `lu` to I - `gh` J (the same arithmetic as the full
+/// masked matrix on that block; the rest of `lu` is left as it is, unread by
+/// `lu_factor::<N, Z>` and `lu_solve::<N, Z>` apart from being moved with its rows).
+#[inline]
+fn leading_block<const N: usize, const Z: usize>(
+    lu: &mut [[f64; N]; N],
+    j: &[[f64; N]; N],
+    gh: f64,
+) {
+    for a in 0..Z.min(N) {
+        for b in 0..Z.min(N) {
+            lu[a][b] = -gh * j[a][b];
+        }
+        lu[a][a] += 1.0;
+    }
+}
+
 impl<const N: usize> IterationMatrix<N> {
     /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block; false if singular.
     fn factor(&mut self) -> bool {
@@ -180,7 +197,7 @@ impl<const N: usize> IterationMatrix<N> {
             9 => linalg::lu_factor::<N, 9>(lu, piv),
             _ => linalg::lu_factor::<N, N>(lu, piv),
         };
-        for a in 0..N {
+        for a in 0..self.nz {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
         ok
@@ -322,16 +339,25 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         w.h = h;
         w.reduced = reduced;
         w.nz = block_size(&is_lag);
-        for a in 0..N {
-            w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
-            for b in 0..N {
-                w.lu[a][b] = if is_lag[a] || is_lag[b] {
-                    0.0
-                } else {
-                    -gamma * h * j[a][b]
-                };
+        let gh = gamma * h;
+        match w.nz {
+            // leading block only: the factor and the solve of a leading block read nothing else
+            5 => leading_block::<N, 5>(&mut w.lu, j, gh),
+            7 => leading_block::<N, 7>(&mut w.lu, j, gh),
+            9 => leading_block::<N, 9>(&mut w.lu, j, gh),
+            _ => {
+                for a in 0..N {
+                    w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
+                    for b in 0..N {
+                        w.lu[a][b] = if is_lag[a] || is_lag[b] {
+                            0.0
+                        } else {
+                            -gamma * h * j[a][b]
+                        };
+                    }
+                    w.lu[a][a] += 1.0;
+                }
             }
-            w.lu[a][a] += 1.0;
         }
         if !w.factor() {
             return Err(self.singular(t, h));
