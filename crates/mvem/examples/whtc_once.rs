@@ -4,10 +4,11 @@
 //! With `--check REF.csv` it also prints the largest scaled deviation (p_im, p_em by 1e5 Pa,
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
-//! too). `--rtol R` sets the tolerance of the measured run.
+//! too). `--rtol R` sets the tolerance of the measured run, `--method ros34pw2|rodas4|dopri5`
+//! its method (default: the library default).
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Engine8;
-use mvem::sim::{SimOptions, Solution};
+use mvem::sim::{Method, SimOptions, Solution};
 
 const COMPARE: [(&str, f64); 5] = [
     ("p_im", 1e5),
@@ -30,6 +31,13 @@ fn main() {
     let opts = SimOptions {
         dt_out: 0.1,
         rtol: arg("--rtol").map_or(1e-6, |r| r.parse().expect("--rtol")),
+        method: match arg("--method").as_deref() {
+            None => Method::default(),
+            Some("ros34pw2") => Method::Rosenbrock34,
+            Some("rodas4") => Method::Rodas4,
+            Some("dopri5") => Method::Dopri5,
+            Some(other) => panic!("--method {other}: ros34pw2, rodas4 or dopri5"),
+        },
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();

@@ -3,7 +3,7 @@
 //! Springer 1993, Table 5.2 of section II.5 and the dense output of section II.6; `dopri5.f`),
 //! and the method's trial step.
 
-use super::integrator::{Integrator, Trial};
+use super::integrator::{Integrator, Interp, Trial};
 use super::segment::SegmentInputs;
 use super::SimError;
 use crate::model::Dynamics;
@@ -146,7 +146,9 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             y1,
             err: self.error_norm(&y, &y1, &e),
             e,
-            dense: Some(Dense::new(&y, &y1, &k1, &k3, &k4, &k5, &k6, &k7, h)),
+            dense: Some(Interp::Dopri(Dense::new(
+                &y, &y1, &k1, &k3, &k4, &k5, &k6, &k7, h,
+            ))),
             f1: Some((k7, ev7.memory_next)),
         })
     }

@@ -10,7 +10,7 @@ use super::rosw::{self, IterationMatrix};
 use super::segment::{stop_times, SegmentInputs};
 use super::solution::{SimStats, Solution};
 use super::SimError;
-use crate::model::{Dynamics, LinearLag};
+use crate::model::{Dynamics, LinearLag, ModelInput};
 
 /// Restartable integrator state (the solver does not own the model or the inputs).
 pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
@@ -32,10 +32,14 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) next_out: u64,
     pub(super) t_out0: f64,
     pub(super) jac: Option<[[f64; N]; N]>,
+    /// df/dt at the point of `jac` (RODAS4 only: the non-autonomous term).
+    pub(super) ft: [f64; N],
     /// Iteration matrix of the current Jacobian and step size (boxed: it is moved out and back
     /// at every step).
     pub(super) lu: Option<Box<IterationMatrix<N>>>,
     pub(super) jac_age: usize,
+    /// RODAS4: step size proposed after the first accepted step of the last segment (0: none).
+    pub(super) h_first: f64,
     /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
     pub(super) jac_full: bool,
     /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
@@ -67,6 +71,12 @@ impl LagSegment {
         let bt = self.beta * self.tau;
         c(t + s) - bt + (x - c(t) + bt) * (-s / self.tau).exp()
     }
+
+    /// Rate dx/dt = (c(t) - x) / tau of the lag at `t` with state `x` (eqs (40), (41), (57)).
+    #[inline]
+    pub(super) fn rate(&self, t: f64, x: f64) -> f64 {
+        (self.c_a + self.beta * (t - self.t_a) - x) / self.tau
+    }
 }
 
 /// What the integrator keeps of a model evaluation (not the signals, which are only needed at
@@ -82,24 +92,41 @@ pub(super) struct Trial<const N: usize, Mem> {
     pub(super) err: f64,
     /// Local error estimate per state.
     pub(super) e: [f64; N],
-    pub(super) dense: Option<Dense<N>>,
+    /// The method's own dense output (else cubic Hermite from the end points and derivatives).
+    pub(super) dense: Option<Interp<N>>,
     /// f(t_new, y1) and the model memory computed there, if the method has it.
     pub(super) f1: Option<([f64; N], Mem)>,
 }
+
+/// RODAS4: the last step of a segment may be up to this factor longer than the proposed step
+/// (unless a step of the segment was rejected), instead of two steps; its error grows by at most
+/// 1.3^5 = 3.7 where the proposal came from an error far below 1.
+const RODAS_STRETCH: f64 = 1.3;
 
 /// err^(-1/order), by `cbrt` for the third-order method (a fraction of `powf`'s cost).
 #[inline]
 fn inv_root(err: f64, order: f64) -> f64 {
     if order == 3.0 {
         1.0 / err.cbrt()
+    } else if order == 4.0 {
+        1.0 / err.sqrt().sqrt()
     } else {
         err.powf(-1.0 / order)
     }
 }
 
 /// Dense output of an accepted step.
-enum Interp<const N: usize> {
+pub(super) enum Interp<const N: usize> {
     Dopri(Dense<N>),
+    /// RODAS4's continuous extension of order 3 (`rodas.f`, `CONTRO`):
+    /// y(t + s h) = (1 - s) y0 + s (y1 + (1 - s) (c3 + s c4)). It uses the stages, not f at the
+    /// end points, whose errors a stiff problem amplifies by |lambda|.
+    Rodas {
+        y0: [f64; N],
+        y1: [f64; N],
+        c3: [f64; N],
+        c4: [f64; N],
+    },
     Hermite {
         y0: [f64; N],
         y1: [f64; N],
@@ -113,6 +140,12 @@ impl<const N: usize> Interp<N> {
     fn eval(&self, theta: f64) -> [f64; N] {
         match self {
             Interp::Dopri(d) => d.eval(theta),
+            Interp::Rodas { y0, y1, c3, c4 } => {
+                let s = theta;
+                std::array::from_fn(|i| {
+                    (1.0 - s) * y0[i] + s * (y1[i] + (1.0 - s) * (c3[i] + s * c4[i]))
+                })
+            }
             Interp::Hermite { y0, y1, f0, f1, h } => {
                 // cubic Hermite interpolation (3rd order, matches ROS34PW2's order)
                 let t = theta;
@@ -173,14 +206,16 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             next_out: 0,
             t_out0: t0,
             jac: None,
+            ft: [0.0; N],
             lu: None,
             jac_age: usize::MAX,
+            h_first: 0.0,
             jac_full: false,
             lags: Vec::new(),
             lag_seg: Vec::new(),
             stats: SimStats::default(),
         };
-        if opts.exact_actuators && opts.method == Method::Rosenbrock34 {
+        if opts.exact_actuators && opts.method.is_rosenbrock() {
             let lags = model.linear_lags();
             // the closed form knows no integrator limits: only for unbounded lag states
             let ok = lags.iter().all(|l| {
@@ -208,9 +243,20 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         t: f64,
         y: &[f64; N],
     ) -> Result<Rhs<N, M::Memory>, SimError> {
-        self.stats.rhs_evals += 1;
         let u = inp.at(t);
-        let ev = self.model.derivatives(y, &u, self.memory);
+        self.rhs_with(t, y, &u)
+    }
+
+    /// [`Self::rhs`] with the inputs `u` given (`t` only for error reports).
+    #[inline]
+    pub(super) fn rhs_with(
+        &mut self,
+        t: f64,
+        y: &[f64; N],
+        u: &ModelInput,
+    ) -> Result<Rhs<N, M::Memory>, SimError> {
+        self.stats.rhs_evals += 1;
+        let ev = self.model.derivatives(y, u, self.memory);
         if !ev.dx.iter().sum::<f64>().is_finite() {
             let i = ev.dx.iter().position(|v| !v.is_finite()).unwrap_or(0);
             return Err(SimError::NonFinite {
@@ -262,6 +308,10 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 inp.set_segment(self.t, b);
             }
             self.plan_lags(&inp, self.t, b);
+            if self.opts.method == Method::Rodas4 {
+                // J and f_t belong to one point and one segment's inputs
+                self.jac_age = usize::MAX;
+            }
             // f(b, y) from the left is the next segment's first derivative only at a kink; at a
             // jump the next segment recomputes it with the new inputs, and after t_end nobody
             // uses it (the final sample is evaluated on its own)
@@ -385,6 +435,17 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         }
         let mut last_failure: Option<SimError> = None;
         let mut worst_rejected: Option<(usize, f64)> = None;
+        // RODAS4: the first step after a stop (in the transient the kink starts) is limited far
+        // more than the steps after it, so it starts from the proposal of the last segment's
+        // first step, and the last step of a segment may stretch to 1.3 x the proposal while no
+        // step of the segment was rejected (docs/integrator.md; ROS34PW2 keeps one step size)
+        let rodas = self.opts.method == Method::Rodas4;
+        let max_stretch = if rodas { RODAS_STRETCH } else { 1.01 };
+        let mut first = rodas;
+        let mut rejected_here = false;
+        if rodas && self.h_first > 0.0 {
+            self.h = self.h.min(self.h_first);
+        }
         while self.t < b {
             if self.stats.steps + self.stats.rejected >= self.opts.max_steps {
                 return Err(SimError::TooManySteps {
@@ -395,7 +456,13 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             }
             let t = self.t;
             let mut h = self.h.min(self.opts.h_max);
-            let last = t + h * 1.01 >= b;
+            // (never beyond h_max)
+            let stretch = if rejected_here || b - t > self.opts.h_max {
+                1.01
+            } else {
+                max_stretch
+            };
+            let last = t + h * stretch >= b;
             if last {
                 h = b - t;
             } else if t + 2.0 * h > b {
@@ -427,6 +494,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             let trial = match self.opts.method {
                 Method::Dopri5 => self.step_dopri5(inp, t, h, t_new, &f0),
                 Method::Rosenbrock34 => self.step_rosw(inp, t, h, t_new, &f0),
+                Method::Rodas4 => self.step_rodas4(inp, t, h, t_new, &f0),
             };
             let trial = match trial {
                 Ok(tr) => tr,
@@ -443,6 +511,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             let err = trial.err;
             let order = self.opts.method.order() as f64;
             if err.is_nan() || err > 1.0 {
+                rejected_here = true;
                 self.stats.rejected += 1;
                 worst_rejected = Some(self.worst_state(&self.y, &trial.y1, &trial.e));
                 let fac = if err.is_finite() {
@@ -484,7 +553,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 }
             };
             let dense = match trial.dense {
-                Some(d) => Interp::Dopri(d),
+                Some(d) => d,
                 None => Interp::Hermite {
                     y0: y,
                     y1,
@@ -509,6 +578,10 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 self.next_out += 1;
             }
             let clipped = self.accept(h, err, order, t_new, &y1);
+            if first {
+                self.h_first = self.h;
+                first = false;
+            }
             if holds_memory {
                 self.memory = memory_next;
             }

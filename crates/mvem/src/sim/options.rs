@@ -25,8 +25,8 @@ pub struct SimOptions {
     /// Integrate the actuator states ([`Model::linear_lags`]: first-order lags of the delayed,
     /// saturated commands, eqs (40), (41), (57)) in closed form on every segment where their
     /// driving command is linear, and the other states by the W-method with them as known
-    /// functions of time (default true; [`Method::Rosenbrock34`] only). `false` integrates all
-    /// states with the W-method, for comparison.
+    /// functions of time (default true; the Rosenbrock methods [`Method::Rosenbrock34`] and
+    /// [`Method::Rodas4`] only). `false` integrates all states numerically, for comparison.
     pub exact_actuators: bool,
 }
 
@@ -41,6 +41,11 @@ pub enum Method {
     Rosenbrock34,
     /// Dormand-Prince 5(4), explicit, with 4th-order dense output (Hairer's DOPRI5).
     Dopri5,
+    /// Rosenbrock method RODAS4 (Hairer & Wanner): 6 stages, order 4(3), L-stable, stiffly
+    /// accurate, all stages inside the step. Not a W-method: a fresh finite-difference Jacobian
+    /// and the time derivative along the (piecewise linear) inputs at every step; see
+    /// `docs/integrator.md` for the measured comparison with ROS34PW2.
+    Rodas4,
 }
 
 impl Method {
@@ -49,7 +54,14 @@ impl Method {
         match self {
             Method::Rosenbrock34 => 3,
             Method::Dopri5 => 5,
+            Method::Rodas4 => 4,
         }
+    }
+
+    /// Whether the method is linearly implicit (a Rosenbrock method: Jacobian, iteration
+    /// matrix; closed-form lag states available, see [`SimOptions::exact_actuators`]).
+    pub fn is_rosenbrock(self) -> bool {
+        matches!(self, Method::Rosenbrock34 | Method::Rodas4)
     }
 }
 

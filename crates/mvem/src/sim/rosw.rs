@@ -170,6 +170,23 @@ pub(super) fn block_size<const N: usize>(is_lag: &[bool; N]) -> usize {
     }
 }
 
+/// Set the leading `Z` x `Z` block of `lu` to I - `gh` J (the same arithmetic as the full
+/// masked matrix on that block; the rest of `lu` is left as it is, unread by
+/// `lu_factor::<N, Z>` and `lu_solve::<N, Z>` apart from being moved with its rows).
+#[inline]
+fn leading_block<const N: usize, const Z: usize>(
+    lu: &mut [[f64; N]; N],
+    j: &[[f64; N]; N],
+    gh: f64,
+) {
+    for a in 0..Z.min(N) {
+        for b in 0..Z.min(N) {
+            lu[a][b] = -gh * j[a][b];
+        }
+        lu[a][a] += 1.0;
+    }
+}
+
 impl<const N: usize> IterationMatrix<N> {
     /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block; false if singular.
     fn factor(&mut self) -> bool {
@@ -180,7 +197,7 @@ impl<const N: usize> IterationMatrix<N> {
             9 => linalg::lu_factor::<N, 9>(lu, piv),
             _ => linalg::lu_factor::<N, N>(lu, piv),
         };
-        for a in 0..N {
+        for a in 0..self.nz {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
         ok
@@ -188,7 +205,7 @@ impl<const N: usize> IterationMatrix<N> {
 
     /// Solve (I - gamma h J_zz) x = r on the z states in place; the lag entries of `r` become 0.
     #[inline]
-    fn solve(&self, r: &mut [f64; N]) {
+    pub(super) fn solve(&self, r: &mut [f64; N]) {
         let (lu, piv, dinv) = (&self.lu, &self.piv, &self.dinv);
         match self.nz {
             5 => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
@@ -256,8 +273,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         // moved out for the step (the stages borrow self mutably), put back whatever happens
         let lag_seg = std::mem::take(&mut self.lag_seg);
         let trial = self
-            .iteration_matrix(inp, t, h, f0, &lag_seg)
-            .and_then(|()| {
+            .iteration_matrix(inp, t, h, f0, &lag_seg, GAMMA, JAC_MAX_AGE)
+            .and_then(|_| {
                 let w = self.lu.take().expect("iteration matrix set up");
                 let trial = self.rosw_stages(inp, t, h, t_new, f0, &lag_seg, &w);
                 self.lu = Some(w);
@@ -267,27 +284,35 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         trial
     }
 
-    /// Make `self.lu` the iteration matrix for step size `h` (lagged Jacobian).
+    /// Make `self.lu` the iteration matrix I - `gamma` h J for step size `h`, with the Jacobian
+    /// J recomputed at (t, y) when it is missing or `max_age` or more accepted steps old (a
+    /// Rosenbrock method that needs the exact Jacobian passes 1: a fresh one at every step, kept
+    /// for the retries of a rejected step, which start from the same point). Returns whether J
+    /// was recomputed.
     ///
     /// (I - gamma h J) is refactored only when J, h or the set of lag states changed, e.g. not
     /// for the second of two equal steps that split a segment remainder (h equal up to rounding:
     /// the factors of I - gamma h' J with |h'/h - 1| <= 1e-9 are those of I - gamma h J' with
     /// J' = (h'/h) J, and a W-method admits any J'; in the transformed stage variables J
     /// appears nowhere else).
-    fn iteration_matrix(
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn iteration_matrix(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,
         h: f64,
         f0: &[f64; N],
         lag_seg: &[LagSegment],
-    ) -> Result<(), SimError> {
+        gamma: f64,
+        max_age: usize,
+    ) -> Result<bool, SimError> {
         let reduced = !lag_seg.is_empty();
         let mut is_lag = [false; N];
         for l in lag_seg {
             is_lag[l.state] = true;
         }
-        if self.jac.is_none() || self.jac_age >= JAC_MAX_AGE || (!reduced && !self.jac_full) {
+        let fresh = self.jac.is_none() || self.jac_age >= max_age || (!reduced && !self.jac_full);
+        if fresh {
             let j = self.jacobian(inp, t, f0, &is_lag)?;
             self.jac = Some(j);
             self.jac_full = !reduced;
@@ -296,7 +321,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         }
         if let Some(w) = &self.lu {
             if w.reduced == reduced && (w.h - h).abs() <= 1e-9 * h {
-                return Ok(());
+                return Ok(fresh);
             }
         }
         let j = self.jac.as_ref().expect("Jacobian set above");
@@ -314,23 +339,32 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         w.h = h;
         w.reduced = reduced;
         w.nz = block_size(&is_lag);
-        for a in 0..N {
-            w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
-            for b in 0..N {
-                w.lu[a][b] = if is_lag[a] || is_lag[b] {
-                    0.0
-                } else {
-                    -GAMMA * h * j[a][b]
-                };
+        let gh = gamma * h;
+        match w.nz {
+            // leading block only: the factor and the solve of a leading block read nothing else
+            5 => leading_block::<N, 5>(&mut w.lu, j, gh),
+            7 => leading_block::<N, 7>(&mut w.lu, j, gh),
+            9 => leading_block::<N, 9>(&mut w.lu, j, gh),
+            _ => {
+                for a in 0..N {
+                    w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
+                    for b in 0..N {
+                        w.lu[a][b] = if is_lag[a] || is_lag[b] {
+                            0.0
+                        } else {
+                            -gamma * h * j[a][b]
+                        };
+                    }
+                    w.lu[a][a] += 1.0;
+                }
             }
-            w.lu[a][a] += 1.0;
         }
         if !w.factor() {
             return Err(self.singular(t, h));
         }
         self.stats.lu += 1;
         self.lu = Some(w);
-        Ok(())
+        Ok(fresh)
     }
 
     /// The four stages of ROS34PW2 with the iteration matrix `w`, in the transformed stage
@@ -401,7 +435,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         })
     }
 
-    fn singular(&self, t: f64, h: f64) -> SimError {
+    pub(super) fn singular(&self, t: f64, h: f64) -> SimError {
         SimError::NonFinite {
             t,
             what: "Newton matrix (I - gamma h J) for",

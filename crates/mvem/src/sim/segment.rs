@@ -164,6 +164,43 @@ impl<'a> SegmentInputs<'a> {
         pc.3 + pc.4 * (tq - pc.2)
     }
 
+    /// Time derivative of lookup `k` at `t`: the slope of the linear piece [`Self::value`]
+    /// uses there (the one inside the segment: `t` is clamped to the window as for the value).
+    fn rate(&mut self, k: usize, t: f64) -> f64 {
+        if let Some((_, _, slope)) = self.linear[k] {
+            return slope;
+        }
+        let (lo, hi) = self.window[k];
+        let tq = (t - self.shift(k)).clamp(lo, hi);
+        for p in &self.pieces[k] {
+            if p.0 <= tq && tq <= p.1 {
+                return p.4;
+            }
+        }
+        let pc = self
+            .sched
+            .piece(Self::CHANNEL[k], tq, Side::Right, &mut self.hints[k]);
+        self.pieces[k] = [pc, self.pieces[k][0]];
+        pc.4
+    }
+
+    /// Time derivatives of the model inputs at `t` in the segment (the inputs are linear
+    /// between stop times, so this is the slope of each lookup's piece inside the segment;
+    /// nothing outside the segment's input window is read).
+    pub fn rates(&mut self, t: f64) -> ModelInput {
+        let now = crate::model::Drive::new(
+            self.rate(0, t),
+            self.rate(1, t),
+            self.rate(2, t),
+            self.rate(3, t),
+        );
+        ModelInput {
+            now,
+            u_egr_delayed: self.rate(4, t),
+            u_vgt_delayed: self.rate(5, t),
+        }
+    }
+
     /// Model inputs at `t` in the segment: current values and delayed actuator commands.
     #[inline]
     pub fn at(&mut self, t: f64) -> ModelInput {
