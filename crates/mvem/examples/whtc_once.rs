@@ -4,7 +4,8 @@
 //! With `--check REF.csv` it also prints the largest scaled deviation (p_im, p_em by 1e5 Pa,
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
-//! too). `--rtol R` sets the tolerance of the measured run.
+//! too). `--rtol R` sets the tolerance of the measured run; `--lags-across` runs it with
+//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same).
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Engine8;
 use mvem::sim::{SimOptions, Solution};
@@ -30,6 +31,7 @@ fn main() {
     let opts = SimOptions {
         dt_out: 0.1,
         rtol: arg("--rtol").map_or(1e-6, |r| r.parse().expect("--rtol")),
+        stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();
