@@ -99,11 +99,15 @@ impl LagSegment {
     pub(super) fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
         let p = &self.pieces;
         let end = t + s;
-        let mut k = if p.len() == 1 {
-            0
-        } else {
-            p.partition_point(|q| q.t0 <= t).saturating_sub(1)
-        };
+        // the piece holding t (a segment has few: a linear scan)
+        let mut k = 0;
+        while k + 1 < p.len() && p[k + 1].t0 <= t {
+            k += 1;
+        }
+        if k + 1 == p.len() || p[k + 1].t0 >= end {
+            // within one piece (the offset s itself, not (t + s) - t)
+            return p[k].advance(self.tau, t, x, s);
+        }
         let (mut t, mut x) = (t, x);
         while k + 1 < p.len() && p[k + 1].t0 < end {
             let tb = p[k + 1].t0;
@@ -293,8 +297,9 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         sol: &mut Solution,
         final_sample: bool,
     ) -> Result<(), SimError> {
+        let skip = self.skip_lag_stops();
         let stops = if self.opts.stop_at_breakpoints {
-            stop_times_except(self.model, self.sched, self.t, t_end, self.skip_lag_stops())
+            stop_times_except(self.model, self.sched, self.t, t_end, skip)
         } else {
             Vec::new()
         };
@@ -302,7 +307,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         let first_end = stops.first().map_or(t_end, |s| s.0);
         let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
         // made for the first segment (a plant step has one to three: set up once, not twice)
-        let mut inp = self.inputs(self.t, first_end);
+        let mut inp = SegmentInputs::with_lag_only(self.model, self.sched, self.t, first_end, skip);
         for (k, (b, jump)) in seg_ends.enumerate() {
             if k > 0 {
                 inp.set_segment(self.t, b);

@@ -34,6 +34,11 @@ pub struct SegmentInputs<'a> {
     /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
     /// current segment, if one does (always for the lookups whose kinks are stop times).
     linear: [Option<(f64, f64, f64)>; 6],
+    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states whose
+    /// breakpoints are no stop times ([`super::SimOptions::stop_at_lag_breakpoints`] off): its
+    /// value enters only derivatives the integrator does not use (the closed form gives those
+    /// states), so it is read from the line of its first piece on the segment, without searches.
+    lag_only: [bool; 2],
 }
 
 impl<'a> SegmentInputs<'a> {
@@ -44,6 +49,18 @@ impl<'a> SegmentInputs<'a> {
         a: f64,
         b: f64,
     ) -> Self {
+        Self::with_lag_only(model, sched, a, b, [false; 2])
+    }
+
+    /// [`SegmentInputs::new`] with the delayed lookups marked in `lag_only` read from their
+    /// first piece (see the field).
+    pub(super) fn with_lag_only<const N: usize, M: Dynamics<N>>(
+        model: &M,
+        sched: &'a InputSchedule,
+        a: f64,
+        b: f64,
+        lag_only: [bool; 2],
+    ) -> Self {
         let [tau_egr, tau_vgt] = model.input_delays().delayed;
         let mut me = Self {
             sched,
@@ -53,6 +70,7 @@ impl<'a> SegmentInputs<'a> {
             pieces: [[(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 2]; 6],
             window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
             linear: [None; 6],
+            lag_only,
         };
         me.set_segment(a, b);
         me
@@ -81,7 +99,8 @@ impl<'a> SegmentInputs<'a> {
                         .piece(Self::CHANNEL[k], lo, Side::Right, &mut self.hints[k]);
                     self.pieces[k] = [pc, self.pieces[k][0]];
                 }
-                if pc.0 <= lo && hi <= pc.1 {
+                let lag_only = k >= 4 && self.lag_only[k - 4];
+                if pc.0 <= lo && (hi <= pc.1 || lag_only) {
                     self.linear[k] = Some((pc.2, pc.3, pc.4));
                 }
             }
