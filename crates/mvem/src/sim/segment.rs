@@ -140,7 +140,7 @@ impl<'a> SegmentInputs<'a> {
                 self.sched.piece(ch, tq, Side::Right, &mut self.hints[k]);
             // the first piece from a on (its line extended back over the margin); the last to b
             let start = if out.is_empty() { lo } else { tq };
-            let last = !(t_hi < hi - m_b);
+            let last = t_hi >= hi - m_b;
             let end = if last { hi } else { t_hi };
             push_saturated(
                 out,
