@@ -2,7 +2,9 @@
 //! description of every model matches its `eval`, the simulated actuator states equal an
 //! independent fine-step integration of the lag, and the full simulation agrees with the
 //! plain W-method (all states integrated numerically), also where a command crosses its
-//! saturation inside a segment (the fallback).
+//! saturation inside a segment and with the delayed commands' breakpoints inside steps
+//! (`SimOptions::stop_at_lag_breakpoints` off); the delayed commands drive the actuator states
+//! only.
 
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::components::cylinder::SeligerIterate;
