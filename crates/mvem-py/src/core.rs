@@ -610,7 +610,7 @@ impl CorePlant {
             model.clone(),
             Drive::from_array(d),
             0.0,
-            &SimOptions::default(),
+            &mvem::sim::stepper::plant_options(),
         )
         .map_err(|e| CoreError::Runtime(e.to_string()))
     }

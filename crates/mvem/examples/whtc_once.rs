@@ -5,7 +5,8 @@
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
 //! too). `--rtol R` sets the tolerance of the measured run, `--method ros34pw2|rodas4|dopri5`
-//! its method (default: the library default).
+//! its method (default: the library default); `--lags-across` runs it with
+//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same).
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Engine8;
 use mvem::sim::{Method, SimOptions, Solution};
@@ -38,6 +39,7 @@ fn main() {
             Some("dopri5") => Method::Dopri5,
             Some(other) => panic!("--method {other}: ros34pw2, rodas4 or dopri5"),
         },
+        stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();

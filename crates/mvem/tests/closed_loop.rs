@@ -12,6 +12,7 @@ use mvem::control::steps::setpoint_step;
 use mvem::control::{run, Trajectory};
 use mvem::model::{AnyModel, Drive, Engine8, ModelOrder};
 use mvem::params::Params;
+use mvem::sim::stepper::plant_options;
 use mvem::sim::{InputSchedule, SimOptions};
 
 fn model() -> AnyModel {
@@ -23,7 +24,9 @@ fn whtc_closed_loop(m: &AnyModel) -> (Trajectory, CycleStats) {
     let speeds = curve.reference_speeds(500.0);
     let demand = whtc_demand(&whtc_table().unwrap(), &curve, &speeds).unwrap();
     let mut ctrl = Baseline::new(m, &curve, BaselineTuning::default()).unwrap();
-    let (traj, _) = run(m.clone(), &demand, &mut ctrl, &SimOptions::default()).unwrap();
+    // the plant's options, as `mvem closed-loop` runs it
+    let (traj, solver) = run(m.clone(), &demand, &mut ctrl, &plant_options()).unwrap();
+    eprintln!("{solver:?}");
     let stats = CycleStats::compute(&traj, curve.m_peak(), 1.2);
     (traj, stats)
 }

@@ -2,7 +2,9 @@
 //! description of every model matches its `eval`, the simulated actuator states equal an
 //! independent fine-step integration of the lag, and the full simulation agrees with the
 //! plain W-method (all states integrated numerically), also where a command crosses its
-//! saturation inside a segment (the fallback).
+//! saturation inside a segment and with the delayed commands' breakpoints inside steps
+//! (`SimOptions::stop_at_lag_breakpoints` off); the delayed commands drive the actuator states
+//! only.
 
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::components::cylinder::SeligerIterate;
@@ -87,6 +89,64 @@ fn lag_description_matches_eval_for_8_10_12_states() {
     }
 }
 
+/// The delayed commands enter the derivatives of the actuator states only (the contract of
+/// `LinearLag` that lets a step run across their breakpoints): changing them leaves every other
+/// derivative bit for bit unchanged, and changes every lag state's derivative.
+fn check_delayed_drive_only_lags<const N: usize, M: Model<N, Memory = SeligerIterate>>(
+    m: &M,
+    x: [f64; N],
+) {
+    let lags = m.linear_lags();
+    let d = Drive::new(1500.0, 110.0, 40.0, 60.0);
+    let memory = SeligerIterate {
+        x_r: 0.0,
+        t_1: 300.0,
+    };
+    let at = |ue: f64, uv: f64| {
+        m.eval(
+            &x,
+            &ModelInput {
+                now: d,
+                u_egr_delayed: ue,
+                u_vgt_delayed: uv,
+            },
+            memory,
+        )
+        .dx
+    };
+    let base = at(40.0, 60.0);
+    for (ue, uv) in [(70.0, 60.0), (40.0, 90.0), (10.0, 30.0)] {
+        let dx = at(ue, uv);
+        for i in 0..N {
+            match lags.iter().find(|l| l.state == i) {
+                None => assert_eq!(dx[i], base[i], "state {i} ({:?})", m.options()),
+                Some(l) => {
+                    let moved = match l.command {
+                        LagCommand::Egr => ue != 40.0,
+                        LagCommand::Vgt => uv != 60.0,
+                    };
+                    assert_eq!(dx[i] != base[i], moved, "lag state {i} ({:?})", m.options());
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn delayed_commands_drive_only_the_actuator_states() {
+    let d = Drive::new(1500.0, 110.0, 40.0, 60.0);
+    for o in options() {
+        let m8 = Engine8::new(Params::published(), o).unwrap();
+        let x8 = mvem::analysis::steady::steady_state(&m8, &d).unwrap().x;
+        check_delayed_drive_only_lags(&m8, x8);
+        let m10 = Engine10::new(Params::published(), o).unwrap();
+        check_delayed_drive_only_lags(&m10, Engine10::from_8_state(&x8, 320.0, 900.0));
+        let m12 = Engine12::new(Params::published(), o).unwrap();
+        let x12 = mvem::analysis::steady::steady_state(&m12, &d).unwrap().x;
+        check_delayed_drive_only_lags(&m12, x12);
+    }
+}
+
 /// Scalar lag dx/dt = (c(t) - x)/tau by classical RK4 with a fine fixed step (independent of the
 /// simulator's closed form), sampled at `times`.
 fn rk4_lag(c: impl Fn(f64) -> f64, tau: f64, x0: f64, times: &[f64]) -> Vec<f64> {
@@ -122,20 +182,23 @@ fn linear_interp(times: &[f64], vals: &[f64], t: f64) -> f64 {
     *vals.last().unwrap()
 }
 
-fn run(sched: &InputSchedule, t_end: f64, exact: bool, rtol: f64) -> Solution {
+/// `stop`: [`SimOptions::stop_at_lag_breakpoints`] (false: steps run across the delayed
+/// commands' breakpoints, the closed form follows them inside the step).
+fn run(sched: &InputSchedule, t_end: f64, exact: bool, stop: bool, rtol: f64) -> Solution {
     let m = Engine8::published();
     let opts = SimOptions {
         rtol,
         atol: rtol,
         dt_out: 0.01,
         exact_actuators: exact,
+        stop_at_lag_breakpoints: stop,
         ..SimOptions::default()
     };
     simulate_from_steady(&m, sched, 0.0, t_end, &opts).unwrap()
 }
 
 /// Ramps of both commands; with `u_egr_top` > 100 the EGR command crosses its saturation inside a
-/// segment (there the simulator falls back to the W-method for all states).
+/// segment (the closed form splits the command's piece there).
 fn ramp_schedule(u_egr_top: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>, InputSchedule) {
     let times = vec![0.0, 0.5, 1.3, 2.0, 4.0];
     let u_egr = vec![40.0, 40.0, 60.0, u_egr_top, u_egr_top];
@@ -152,8 +215,19 @@ fn ramp_schedule(u_egr_top: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>, InputSchedule
 #[test]
 fn simulated_actuator_states_equal_a_fine_step_integration_of_the_lags() {
     let p = Params::published();
-    let (times, u_egr, u_vgt, sched) = ramp_schedule(95.0);
-    let sol = run(&sched, 5.0, true, 1e-6);
+    // 95 %: inside the range; 140 %: the EGR command crosses its saturation in a segment
+    for (top, stop) in [(95.0, true), (95.0, false), (140.0, true), (140.0, false)] {
+        check_fine_step(&p, top, stop);
+    }
+}
+
+fn check_fine_step(p: &Params, top: f64, stop: bool) {
+    let (times, u_egr, u_vgt, sched) = ramp_schedule(top);
+    let sol = run(&sched, 5.0, true, stop, 1e-6);
+    if !stop {
+        // the delayed commands' kinks are no stop times (the undelayed ones drive nothing)
+        assert_eq!(sol.stats.breakpoints, 0, "{:?}", sol.stats);
+    }
     let t = sol.t();
     let (te, tv) = (p.egr_actuator.tau_degr, p.vgt_actuator.tau_dvgt);
     let egr = |t: f64| linear_interp(&times, &u_egr, t - te).clamp(0.0, 100.0);
@@ -177,7 +251,10 @@ fn simulated_actuator_states_equal_a_fine_step_integration_of_the_lags() {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         // RK4 at 1e-5 s is accurate to ~1e-12 % here; the closed form to rounding
-        assert!(worst < 1e-8, "{name}: max |sim - rk4| = {worst:e} %");
+        assert!(
+            worst < 1e-8,
+            "{name} (top {top} %, stop {stop}): max |sim - rk4| = {worst:e} %"
+        );
     }
 }
 
@@ -208,10 +285,12 @@ fn max_scaled_dev(a: &Solution, b: &Solution) -> f64 {
 #[test]
 fn closed_form_and_plain_w_method_agree_through_a_saturation_crossing() {
     let (_, _, _, sched) = ramp_schedule(140.0);
-    let exact = run(&sched, 5.0, true, 1e-9);
-    let plain = run(&sched, 5.0, false, 1e-9);
-    let dev = max_scaled_dev(&exact, &plain);
-    assert!(dev < 1e-7, "max scaled deviation {dev:e}");
+    let plain = run(&sched, 5.0, false, true, 1e-9);
+    for stop in [true, false] {
+        let exact = run(&sched, 5.0, true, stop, 1e-9);
+        let dev = max_scaled_dev(&exact, &plain);
+        assert!(dev < 1e-7, "stop {stop}: max scaled deviation {dev:e}");
+    }
 }
 
 #[test]
@@ -219,17 +298,31 @@ fn closed_form_and_plain_w_method_agree_on_a_whtc_minute() {
     let text = include_str!("../../../data/whtc_inputs_10hz.csv");
     let sched = mvem::io::csv_inputs::parse_inputs_csv(text, std::path::Path::new("whtc")).unwrap();
     let m = Engine8::published();
-    let opts = |exact| SimOptions {
+    let opts = |exact, stop| SimOptions {
         rtol: 1e-9,
         atol: 1e-9,
         dt_out: 0.1,
         exact_actuators: exact,
+        stop_at_lag_breakpoints: stop,
         ..SimOptions::default()
     };
-    let a = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(true)).unwrap();
-    let b = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(false)).unwrap();
+    let a = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(true, true)).unwrap();
+    let b = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(false, true)).unwrap();
     let dev = max_scaled_dev(&a, &b);
     assert!(dev < 1e-6, "max scaled deviation {dev:e}");
+    // steps across the delayed commands' breakpoints: as accurate
+    let c = simulate_from_steady(&m, &sched, 600.0, 660.0, &opts(true, false)).unwrap();
+    let dev = max_scaled_dev(&c, &b);
+    assert!(
+        dev < 1e-6,
+        "across breakpoints: max scaled deviation {dev:e}"
+    );
+    assert!(
+        c.stats.breakpoints < a.stats.breakpoints,
+        "{:?} vs {:?}",
+        c.stats,
+        a.stats
+    );
     // and the closed form takes fewer steps at the same tolerance
     assert!(
         a.stats.steps < b.stats.steps,

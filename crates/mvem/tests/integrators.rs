@@ -255,7 +255,42 @@ fn delayed_input_driven_lag() {
             sol.stats
         );
         assert!(e < 1e-13, "{method:?}, closed form: max error {e:.2e}");
+        assert_eq!(sol.stats.breakpoints, 1, "{method:?}: {:?}", sol.stats);
     }
+    // the delayed step is no stop time: the closed form follows it inside a step, still exact
+    for method in [Method::Rosenbrock34, Method::Rodas4] {
+        let across = SimOptions {
+            stop_at_lag_breakpoints: false,
+            ..opts(method, tol)
+        };
+        let sol = run(&m, &sched, 3.0, [0.0], &across);
+        let e = max_error(&sol, ["y"], delayed_lag_exact);
+        eprintln!(
+            "{method:?}, closed form across the step: max error {e:.2e}, {:?}",
+            sol.stats
+        );
+        assert!(
+            e < 1e-13,
+            "{method:?}, closed form across the step: max error {e:.2e}"
+        );
+        assert_eq!(sol.stats.breakpoints, 0, "{method:?}: {:?}", sol.stats);
+    }
+    // the plain W-method ignores the switch: it needs the stop
+    let across = SimOptions {
+        stop_at_lag_breakpoints: false,
+        ..opts(Method::Rosenbrock34, tol)
+    };
+    let sol = run(
+        &m,
+        &sched,
+        3.0,
+        [0.0],
+        &SimOptions {
+            exact_actuators: false,
+            ..across
+        },
+    );
+    assert_eq!(sol.stats.breakpoints, 1, "{:?}", sol.stats);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ use super::cycle::{
 use super::stats::CycleStats;
 use super::{ControlError, Controller, Trajectory};
 use crate::model::AnyModel;
-use crate::sim::{InputSchedule, SimOptions, SimStats};
+use crate::sim::{InputSchedule, SimStats};
 
 /// Controller sample time of a cycle run [s].
 pub const SAMPLE_TIME: f64 = 0.01;
@@ -160,7 +160,7 @@ pub fn run_cycle_with(
         model.clone(),
         &demand,
         ctrl.as_mut(),
-        &SimOptions::default(),
+        &crate::sim::stepper::plant_options(),
         on_row,
     )?;
     let stats = CycleStats::compute(&traj, curve.m_peak(), LAMBDA_LIMIT);

@@ -5,7 +5,6 @@ use super::cycle::{Demand, MappingCurve};
 use super::{run, ControlError, Controller, Measurement, Output, Trajectory};
 use crate::analysis::step::StepMetrics;
 use crate::model::AnyModel;
-use crate::sim::SimOptions;
 
 /// The baseline controller with its set-points overridden, stepped at `t_step`.
 struct Stepped {
@@ -72,7 +71,12 @@ pub fn setpoint_step(
         vec![0.0, 0.0],
         vec![false, false],
     )?;
-    let (traj, _) = run(model.clone(), &demand, &mut c, &SimOptions::default())?;
+    let (traj, _) = run(
+        model.clone(),
+        &demand,
+        &mut c,
+        &crate::sim::stepper::plant_options(),
+    )?;
     let t = traj.get("t").expect("column");
     let y = traj.get(signal).ok_or_else(|| {
         ControlError::Setup(format!("unknown signal {signal} (lambda_O or x_egr)"))

@@ -236,7 +236,10 @@ pub enum LagCommand {
 /// `dx/dt = (clamp(u(t - tau_d), lo, hi) - x) / tau`: the actuator states u_egr1, u_egr2
 /// (eqs (40), (41)) and u_vgt (eq. (57)). They depend on nothing but the inputs, so the simulator
 /// can integrate them in closed form (see `sim`); [`Model::eval`] must give exactly this derivative
-/// (tested for every model).
+/// (tested for every model). The delayed lookup of a command that drives a lag must enter no
+/// other state's derivative (the engine models: the delayed u_egr and u_vgt drive the actuator
+/// states only; tested), so that the simulator may run a step across its breakpoints
+/// (`SimOptions::stop_at_lag_breakpoints`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinearLag {
     /// State index.

@@ -7,10 +7,10 @@ use super::error::dump;
 use super::input::InputSchedule;
 use super::options::{Method, SimOptions};
 use super::rosw::{self, IterationMatrix};
-use super::segment::{stop_times, SegmentInputs};
+use super::segment::{stop_times_except, SegmentInputs};
 use super::solution::{SimStats, Solution};
 use super::SimError;
-use crate::model::{Dynamics, LinearLag, ModelInput};
+use crate::model::{Dynamics, LagCommand, LinearLag, ModelInput};
 
 /// Restartable integrator state (the solver does not own the model or the inputs).
 pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
@@ -44,38 +44,95 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) jac_full: bool,
     /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
     pub(super) lags: Vec<LinearLag>,
-    /// Their closed-form solution on the current segment (empty: the segment is integrated
-    /// with the W-method in all states).
+    /// Their closed-form solution on the current segment (empty: no lags, all states are
+    /// integrated with the W-method).
     pub(super) lag_seg: Vec<LagSegment>,
     /// Statistics so far.
     pub stats: SimStats,
 }
 
-/// A lag state on one segment: `dx/dt = (c(t) - x)/tau` with the driving command
-/// `c(t) = c_a + beta (t - t_a)` (already saturated; linear on the whole segment).
-#[derive(Debug, Clone, Copy)]
-pub(super) struct LagSegment {
-    pub(super) state: usize,
-    tau: f64,
-    t_a: f64,
-    c_a: f64,
+/// One linear piece of a lag's saturated, delayed driving command in simulation time:
+/// `c(t) = c0 + beta (t - t0)` from `t0` to the next piece's `t0`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct LagPiece {
+    t0: f64,
+    c0: f64,
     beta: f64,
 }
 
-impl LagSegment {
-    /// Exact solution at `t + s` from `x` at `t`:
+impl LagPiece {
+    pub(super) fn new(t0: f64, c0: f64, beta: f64) -> Self {
+        Self { t0, c0, beta }
+    }
+
+    pub(super) fn constant(t0: f64, c: f64) -> Self {
+        Self::new(t0, c, 0.0)
+    }
+
+    /// Whether `next` is this piece continued (both constant at the same value).
+    pub(super) fn continues_as(&self, next: &LagPiece) -> bool {
+        self.beta == 0.0 && next.beta == 0.0 && self.c0 == next.c0
+    }
+
+    /// Exact solution of dx/dt = (c(t) - x) / tau at `t + s` from `x` at `t` on this piece:
     /// x(t + s) = c(t + s) - beta tau + (x - c(t) + beta tau) exp(-s / tau).
     #[inline]
+    fn advance(&self, tau: f64, t: f64, x: f64, s: f64) -> f64 {
+        let c = |t: f64| self.c0 + self.beta * (t - self.t0);
+        let bt = self.beta * tau;
+        c(t + s) - bt + (x - c(t) + bt) * (-s / tau).exp()
+    }
+}
+
+/// A lag state on one segment: `dx/dt = (c(t) - x)/tau` with the driving command `c(t)`
+/// (delayed, saturated) piecewise linear on the segment: one piece when the command's
+/// breakpoints are stop times, more when a step may run across them
+/// ([`SimOptions::stop_at_lag_breakpoints`]).
+#[derive(Debug, Clone)]
+pub(super) struct LagSegment {
+    pub(super) state: usize,
+    tau: f64,
+    /// Sorted by start time; the first covers everything before the second.
+    pieces: Vec<LagPiece>,
+}
+
+impl LagSegment {
+    /// Exact solution at `t + s` from `x` at `t` (piece by piece across the command's
+    /// breakpoints in between: the solution of a linear ODE with a piecewise-linear input).
+    #[inline]
     pub(super) fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
-        let c = |t: f64| self.c_a + self.beta * (t - self.t_a);
-        let bt = self.beta * self.tau;
-        c(t + s) - bt + (x - c(t) + bt) * (-s / self.tau).exp()
+        let p = &self.pieces;
+        let end = t + s;
+        // the piece holding t (a segment has few: a linear scan)
+        let mut k = 0;
+        while k + 1 < p.len() && p[k + 1].t0 <= t {
+            k += 1;
+        }
+        if k + 1 == p.len() || p[k + 1].t0 >= end {
+            // within one piece (the offset s itself, not (t + s) - t)
+            return p[k].advance(self.tau, t, x, s);
+        }
+        let (mut t, mut x) = (t, x);
+        while k + 1 < p.len() && p[k + 1].t0 < end {
+            let tb = p[k + 1].t0;
+            x = p[k].advance(self.tau, t, x, tb - t);
+            t = tb;
+            k += 1;
+        }
+        p[k].advance(self.tau, t, x, end - t)
     }
 
     /// Rate dx/dt = (c(t) - x) / tau of the lag at `t` with state `x` (eqs (40), (41), (57)).
     #[inline]
     pub(super) fn rate(&self, t: f64, x: f64) -> f64 {
-        (self.c_a + self.beta * (t - self.t_a) - x) / self.tau
+        let p = &self.pieces;
+        // the piece holding t (as in `advance`); at a piece boundary the later piece's command
+        let mut k = 0;
+        while k + 1 < p.len() && p[k + 1].t0 <= t {
+            k += 1;
+        }
+        let c = p[k].c0 + p[k].beta * (t - p[k].t0);
+        (c - x) / self.tau
     }
 }
 
@@ -293,8 +350,9 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         sol: &mut Solution,
         final_sample: bool,
     ) -> Result<(), SimError> {
+        let skip = self.skip_lag_stops();
         let stops = if self.opts.stop_at_breakpoints {
-            stop_times(self.model, self.sched, self.t, t_end)
+            stop_times_except(self.model, self.sched, self.t, t_end, skip)
         } else {
             Vec::new()
         };
@@ -302,12 +360,12 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         let first_end = stops.first().map_or(t_end, |s| s.0);
         let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
         // made for the first segment (a plant step has one to three: set up once, not twice)
-        let mut inp = self.inputs(self.t, first_end);
+        let mut inp = SegmentInputs::with_lag_only(self.model, self.sched, self.t, first_end, skip);
         for (k, (b, jump)) in seg_ends.enumerate() {
             if k > 0 {
                 inp.set_segment(self.t, b);
             }
-            self.plan_lags(&inp, self.t, b);
+            self.plan_lags(&mut inp, self.t, b);
             if self.opts.method == Method::Rodas4 {
                 // J and f_t belong to one point and one segment's inputs
                 self.jac_age = usize::MAX;
@@ -338,36 +396,54 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         Ok(())
     }
 
-    /// The closed-form lag solutions on the segment `[a, b]`, if every lag's saturated command is
-    /// linear there (else none: the W-method integrates all states on this segment).
-    fn plan_lags(&mut self, inp: &SegmentInputs, a: f64, b: f64) {
-        self.lag_seg.clear();
-        for lag in &self.lags {
-            let Some((t_ref, v_ref, slope)) = inp.delayed_line(lag.command) else {
-                self.lag_seg.clear();
-                return;
-            };
-            let (va, vb) = (v_ref + slope * (a - t_ref), v_ref + slope * (b - t_ref));
-            let (lo, hi) = lag.saturation;
-            let (c_a, beta) = if lo <= va.min(vb) && va.max(vb) <= hi {
-                (va, slope)
-            } else if va.max(vb) <= lo {
-                (lo, 0.0)
-            } else if va.min(vb) >= hi {
-                (hi, 0.0)
-            } else {
-                // the command crosses its saturation inside the segment
-                self.lag_seg.clear();
-                return;
-            };
-            self.lag_seg.push(LagSegment {
-                state: lag.state,
-                tau: lag.tau,
-                t_a: a,
-                c_a,
-                beta,
-            });
+    /// The closed-form lag solutions on the segment `[a, b]`: each lag's saturated, delayed
+    /// command as linear pieces ([`SegmentInputs::lag_pieces`]; the lags of one command with the
+    /// same saturation share them).
+    fn plan_lags(&mut self, inp: &mut SegmentInputs, a: f64, b: f64) {
+        if self.lags.is_empty() {
+            return;
         }
+        if self.lag_seg.len() != self.lags.len() {
+            self.lag_seg = self
+                .lags
+                .iter()
+                .map(|l| LagSegment {
+                    state: l.state,
+                    tau: l.tau,
+                    pieces: Vec::with_capacity(4),
+                })
+                .collect();
+        }
+        for i in 0..self.lags.len() {
+            let lag = self.lags[i];
+            let same = i > 0
+                && self.lags[i - 1].command == lag.command
+                && self.lags[i - 1].saturation == lag.saturation;
+            let (done, rest) = self.lag_seg.split_at_mut(i);
+            let seg = &mut rest[0];
+            seg.state = lag.state;
+            seg.tau = lag.tau;
+            if same {
+                seg.pieces.clone_from(&done[i - 1].pieces);
+            } else {
+                inp.lag_pieces(lag.command, a, b, lag.saturation, &mut seg.pieces);
+            }
+        }
+    }
+
+    /// Whether the stop times at the delayed channels 2 and 3 are left out: they drive only
+    /// closed-form lag states and [`SimOptions::stop_at_lag_breakpoints`] is off.
+    fn skip_lag_stops(&self) -> [bool; 2] {
+        let mut skip = [false; 2];
+        if !self.opts.stop_at_lag_breakpoints {
+            for l in &self.lags {
+                match l.command {
+                    LagCommand::Egr => skip[0] = true,
+                    LagCommand::Vgt => skip[1] = true,
+                }
+            }
+        }
+        skip
     }
 
     fn initial_step(

@@ -17,9 +17,12 @@
 //! segment, so a step on either side of a jump sees one smooth input.
 //!
 //! The actuator states ([`Dynamics::linear_lags`]) are first-order lags of those delayed commands;
-//! on a segment the command is linear, so by default they are integrated in closed form there and
-//! the W-method integrates the other states only ([`SimOptions::exact_actuators`],
-//! `docs/integrator.md`).
+//! on a segment the command is piecewise linear, so by default they are integrated in closed form
+//! there and the W-method integrates the other states only ([`SimOptions::exact_actuators`],
+//! `docs/integrator.md`). The delayed commands drive nothing else, so their breakpoints need not
+//! be stop times: with [`SimOptions::stop_at_lag_breakpoints`] off (the plant stepper's default,
+//! [`stepper::plant_options`]) a step runs across them and the closed form follows the command
+//! piece by piece inside the step.
 //!
 //! The simulator depends on [`crate::model`] only, through the [`Dynamics`] trait (names, scales,
 //! bounds, derivatives, output signals, input delays, lag states, the opaque [`Dynamics::Memory`]);

@@ -28,6 +28,14 @@ pub struct SimOptions {
     /// functions of time (default true; the Rosenbrock methods [`Method::Rosenbrock34`] and
     /// [`Method::Rodas4`] only). `false` integrates all states numerically, for comparison.
     pub exact_actuators: bool,
+    /// With the actuator states in closed form ([`SimOptions::exact_actuators`]): stop at the
+    /// breakpoints of the delayed commands that drive them (default true). `false` lets a step
+    /// run across a delayed command's jump or kink: the closed form follows the piecewise-linear,
+    /// saturated delayed command exactly inside the step, and the other states see a kink in the
+    /// actuator state there, which the error control handles. A plant stepped with held commands
+    /// (closed loop) then makes one segment per sample instead of about two (the EGR delay puts
+    /// the delayed copy of every command change inside a sample); `docs/control.md`.
+    pub stop_at_lag_breakpoints: bool,
 }
 
 /// Integration method (see `docs/integrator.md` for the measured comparison).
@@ -76,6 +84,7 @@ impl Default for SimOptions {
             max_steps: 50_000_000,
             method: Method::default(),
             exact_actuators: true,
+            stop_at_lag_breakpoints: true,
         }
     }
 }

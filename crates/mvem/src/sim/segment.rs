@@ -7,6 +7,7 @@
 //! the inputs strictly from inside, so a step on either side of a jump sees one smooth input.
 
 use super::input::{BreakKind, InputSchedule, Side};
+use super::integrator::LagPiece;
 use crate::model::{Dynamics, LagCommand, ModelInput};
 
 /// A linear piece of a schedule channel: (t_lo, t_hi, t_ref, v_ref, slope), see
@@ -33,11 +34,11 @@ pub struct SegmentInputs<'a> {
     /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
     /// current segment, if one does (always for the lookups whose kinks are stop times).
     linear: [Option<(f64, f64, f64)>; 6],
-    /// Chord (t_ref, v_ref, slope) of the delayed u_egr and u_vgt commands over the window of
-    /// the current segment, in lookup time. Their kinks are stop times, so on a segment they
-    /// are linear up to the schedule's collinearity tolerance (rows within
-    /// [`InputSchedule::collinear_tol`] of a line are not breakpoints).
-    chords: [Option<(f64, f64, f64)>; 2],
+    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states whose
+    /// breakpoints are no stop times ([`super::SimOptions::stop_at_lag_breakpoints`] off): its
+    /// value enters only derivatives the integrator does not use (the closed form gives those
+    /// states), so it is read from the line of its first piece on the segment, without searches.
+    lag_only: [bool; 2],
 }
 
 impl<'a> SegmentInputs<'a> {
@@ -48,6 +49,18 @@ impl<'a> SegmentInputs<'a> {
         a: f64,
         b: f64,
     ) -> Self {
+        Self::with_lag_only(model, sched, a, b, [false; 2])
+    }
+
+    /// [`SegmentInputs::new`] with the delayed lookups marked in `lag_only` read from their
+    /// first piece (see the field).
+    pub(super) fn with_lag_only<const N: usize, M: Dynamics<N>>(
+        model: &M,
+        sched: &'a InputSchedule,
+        a: f64,
+        b: f64,
+        lag_only: [bool; 2],
+    ) -> Self {
         let [tau_egr, tau_vgt] = model.input_delays().delayed;
         let mut me = Self {
             sched,
@@ -57,7 +70,7 @@ impl<'a> SegmentInputs<'a> {
             pieces: [[(f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0, 0.0); 2]; 6],
             window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
             linear: [None; 6],
-            chords: [None; 2],
+            lag_only,
         };
         me.set_segment(a, b);
         me
@@ -86,40 +99,62 @@ impl<'a> SegmentInputs<'a> {
                         .piece(Self::CHANNEL[k], lo, Side::Right, &mut self.hints[k]);
                     self.pieces[k] = [pc, self.pieces[k][0]];
                 }
-                if pc.0 <= lo && hi <= pc.1 {
+                let lag_only = k >= 4 && self.lag_only[k - 4];
+                if pc.0 <= lo && (hi <= pc.1 || lag_only) {
                     self.linear[k] = Some((pc.2, pc.3, pc.4));
                 }
             }
         }
-        for (i, k) in [4, 5].into_iter().enumerate() {
-            let (lo, hi) = self.window[k];
-            self.chords[i] = match self.linear[k] {
-                Some(line) => Some(line),
-                None if lo.is_finite() => {
-                    let ch = Self::CHANNEL[k];
-                    let v_lo = self
-                        .sched
-                        .value_hint(ch, lo, Side::Right, &mut self.hints[k]);
-                    let v_hi = self
-                        .sched
-                        .value_hint(ch, hi, Side::Right, &mut self.hints[k]);
-                    Some((lo, v_lo, (v_hi - v_lo) / (hi - lo)))
-                }
-                None => None,
-            };
-        }
     }
 
-    /// The delayed command `cmd` on the current segment as a line in simulation time t,
-    /// `v(t) = v_ref + slope (t - t_ref)` (its chord over the segment; `None` for a segment
-    /// shorter than the lookup margins).
-    pub(super) fn delayed_line(&self, cmd: LagCommand) -> Option<(f64, f64, f64)> {
-        let i = match cmd {
-            LagCommand::Egr => 0,
-            LagCommand::Vgt => 1,
+    /// The delayed command `cmd` on the segment `[a, b]`, saturated to `sat`, as linear pieces in
+    /// simulation time (written to `out`, sorted, the first starting at `a`): the schedule's rows
+    /// shifted by the delay, split where the command crosses a saturation limit, so that the
+    /// closed-form lag follows it exactly across jumps and kinks inside a step. Breakpoints within
+    /// 10 [`Self::delta`] of either end belong to that end (as [`stop_times`] merges them).
+    pub(super) fn lag_pieces(
+        &mut self,
+        cmd: LagCommand,
+        a: f64,
+        b: f64,
+        sat: (f64, f64),
+        out: &mut Vec<LagPiece>,
+    ) {
+        out.clear();
+        let k = match cmd {
+            LagCommand::Egr => 4,
+            LagCommand::Vgt => 5,
         };
-        let shift = self.shift(4 + i);
-        self.chords[i].map(|(t_ref, v_ref, slope)| (t_ref + shift, v_ref, slope))
+        let (ch, shift) = (Self::CHANNEL[k], self.shift(k));
+        let (m_a, m_b) = (10.0 * Self::delta(a), 10.0 * Self::delta(b));
+        let (lo, hi) = (a - shift, b - shift);
+        // the first lookup strictly inside the segment (its middle if the segment is shorter
+        // than the margins)
+        let mut tq = if hi - lo > m_a + m_b {
+            lo + m_a
+        } else {
+            0.5 * (lo + hi)
+        };
+        loop {
+            let (_, t_hi, t_ref, v_ref, slope) =
+                self.sched.piece(ch, tq, Side::Right, &mut self.hints[k]);
+            // the first piece from a on (its line extended back over the margin); the last to b
+            let start = if out.is_empty() { lo } else { tq };
+            let last = t_hi >= hi - m_b;
+            let end = if last { hi } else { t_hi };
+            push_saturated(
+                out,
+                start + shift,
+                end + shift,
+                v_ref + slope * (start - t_ref),
+                slope,
+                sat,
+            );
+            if last {
+                break;
+            }
+            tq = t_hi;
+        }
     }
 
     /// Delay [s] of lookup `k` (the actuator delays for the delayed commands, else none).
@@ -218,6 +253,49 @@ impl<'a> SegmentInputs<'a> {
     }
 }
 
+/// The saturated line `c0 + beta (t - t0)` on `[t0, t1]` appended to `out` as pieces: split
+/// where it crosses a finite limit of `sat`, constant at the limit outside, a constant equal to
+/// the last piece merged into it.
+fn push_saturated(
+    out: &mut Vec<LagPiece>,
+    t0: f64,
+    t1: f64,
+    c0: f64,
+    beta: f64,
+    (lo, hi): (f64, f64),
+) {
+    let line = |t: f64| c0 + beta * (t - t0);
+    // crossings of the limits strictly inside (t0, t1), in time order
+    let mut cuts = [f64::INFINITY; 2];
+    if beta != 0.0 {
+        for (c, limit) in cuts.iter_mut().zip([lo, hi]) {
+            let tc = t0 + (limit - c0) / beta;
+            if limit.is_finite() && tc > t0 && tc < t1 {
+                *c = tc;
+            }
+        }
+        if cuts[1] < cuts[0] {
+            cuts.swap(0, 1);
+        }
+    }
+    let mut u0 = t0;
+    for u1 in cuts.into_iter().filter(|c| c.is_finite()).chain([t1]) {
+        let mid = line(0.5 * (u0 + u1));
+        let piece = if mid < lo {
+            LagPiece::constant(u0, lo)
+        } else if mid > hi {
+            LagPiece::constant(u0, hi)
+        } else {
+            LagPiece::new(u0, line(u0), beta)
+        };
+        match out.last() {
+            Some(p) if p.continues_as(&piece) => {}
+            _ => out.push(piece),
+        }
+        u0 = u1;
+    }
+}
+
 /// Sorted stop times in (t0, t_end) with a flag for jumps: every breakpoint of every channel
 /// that drives the dynamics, shifted by the delay of the path it feeds ([`Dynamics::input_delays`];
 /// the engine models: n_e, u_delta unshifted, u_egr by tau_degr, u_vgt by tau_dvgt, plus
@@ -228,11 +306,43 @@ pub fn stop_times<const N: usize, M: Dynamics<N>>(
     t0: f64,
     t_end: f64,
 ) -> Vec<(f64, bool)> {
+    stop_times_except(m, sched, t0, t_end, [false; 2])
+}
+
+/// [`stop_times`] without the delayed lookups of channels 2 and 3 marked in `skip_delayed`
+/// (those that drive only closed-form lag states, [`super::SimOptions::stop_at_lag_breakpoints`]).
+pub(super) fn stop_times_except<const N: usize, M: Dynamics<N>>(
+    m: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    skip_delayed: [bool; 2],
+) -> Vec<(f64, bool)> {
     let delays = m.input_delays();
+    // no row after t0 - (the largest shift in use): no stop (a plant's history ends at its t;
+    // with the delayed lookups skipped, every sample gets here without scanning the rows)
+    let max_shift = (0..4)
+        .filter(|&ch| delays.current[ch])
+        .map(|_| 0.0)
+        .chain(
+            (0..2)
+                .filter(|&k| !skip_delayed[k])
+                .map(|k| delays.delayed[k]),
+        )
+        .fold(f64::NEG_INFINITY, f64::max);
+    if sched.t_last() + max_shift <= t0 + SegmentInputs::delta(t0) * 10.0 {
+        return Vec::new();
+    }
     let mut v: Vec<(f64, bool)> = Vec::with_capacity(8 * sched.times().len());
     for ch in 0..4 {
         let now = delays.current[ch].then_some(0.0);
-        let delayed = ch.checked_sub(2).map(|k| delays.delayed[k]);
+        let delayed = ch
+            .checked_sub(2)
+            .filter(|&k| !skip_delayed[k])
+            .map(|k| delays.delayed[k]);
+        if now.is_none() && delayed.is_none() {
+            continue;
+        }
         for (tb, kind) in sched.breakpoints(ch) {
             for s in now.into_iter().chain(delayed) {
                 v.push((tb + s, kind == BreakKind::Jump));

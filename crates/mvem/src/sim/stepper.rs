@@ -56,6 +56,18 @@ pub struct Plant<const N: usize, M: Model<N>> {
     scratch: Solution,
 }
 
+/// The options a plant stepped with held commands runs with by default (the closed loop, the
+/// Python `Plant`): [`SimOptions::default`] with [`SimOptions::stop_at_lag_breakpoints`] off, so
+/// the delayed copy of a command change (tau_degr = 65 ms puts it 5 ms into a 10 ms sample) is no
+/// stop time: the actuator states follow it in closed form inside the step, and a sample is one
+/// integrator segment instead of about two (`docs/control.md`, performance).
+pub fn plant_options() -> SimOptions {
+    SimOptions {
+        stop_at_lag_breakpoints: false,
+        ..SimOptions::default()
+    }
+}
+
 /// Output interval that never comes: the stepper reads the state, not output samples.
 const NO_OUTPUT: f64 = 1e300;
 
