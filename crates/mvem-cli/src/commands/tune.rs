@@ -67,7 +67,7 @@ pub struct Args {
     pub max_evals: usize,
     /// Step 5: most consecutive Broyden (secant) updates of the finite-difference Jacobian of
     /// (77) before it is recomputed (0: recomputed after every accepted step, 35 evaluations).
-    #[arg(long = "broyden", default_value_t = 4, value_name = "K")]
+    #[arg(long = "broyden", default_value_t = 0, value_name = "K")]
     pub broyden: usize,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]

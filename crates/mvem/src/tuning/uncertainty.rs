@@ -31,10 +31,10 @@
 //!   the covariance at its end point and says `converged: false`. Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
 //!   directions of cost (77) that step is 1e3-1e7 times the parameters and flagged everything.
-//! * **eta_tm and eta_c in the T_c domain.** Step 1 fits both efficiencies to the compressor
-//!   temperature rise they imply, the submodel row of step 5 compares them so, and their step-1
-//!   covariance is that of those residuals ([`super::steps::fit_series`]): the covariance of
-//!   the estimator actually used.
+//! * **eta_tm in the T_c domain.** Step 1 fits eta_tm to the compressor temperature rise it
+//!   implies, and the submodel row of step 5 compares it so ([`super::steps::fit_series`]). Its
+//!   step-1 covariance is still that of the unweighted residuals in efficiency units (the
+//!   estimator the paper's step 1 uses, less efficient, so the standard error is conservative).
 //! * `correlated_with` lists the parameters with |correlation| > [`LIST_CORRELATION`].
 //!
 //! The estimate of a parameter tuned by several steps is that of the last one (step 5 replaces
@@ -44,7 +44,7 @@
 use super::complete::{param_mut, param_value, set_named, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
 use super::lsq::{param_stats, FiniteDiff, ParamStats};
-use super::steps::{actuator_response, fit_series, Step1Report};
+use super::steps::{actuator_response, submodel_series, Step1Report};
 use crate::params::Params;
 use nalgebra::DMatrix;
 use serde::Serialize;
@@ -439,11 +439,11 @@ pub fn step1_estimates(
             .zip(&theta)
             .map(|(n, v)| typical_scale(n, *v))
             .collect();
-        // the residuals the fits minimize (eta_tm, eta_c in the T_c domain, fit_series)
+        // eta_tm, eta_c in efficiency units (conservative, module documentation)
         let res = |th: &[f64]| -> Vec<f64> {
             let mut q = p.clone();
             set_named(&mut q, &names, th);
-            match fit_series(&q, pts) {
+            match submodel_series(&q, pts) {
                 Ok(all) => all
                     .into_iter()
                     .find(|s| s.0 == f.submodel)

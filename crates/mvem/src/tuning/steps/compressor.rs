@@ -27,22 +27,6 @@ pub(super) fn eta_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -
         .unzip()
 }
 
-/// The eta_c fit in the T_c domain: the measured compressor temperature rise T_c - T_amb and
-/// the rise the model implies, T_amb (Pi_c^(1 - 1/gamma_a) - 1) / eta_c (eq. (58) solved for
-/// T_c). The temperature sensor's noise is additive here; in eta_c,meas it is divided by
-/// T_c - T_amb (a few kelvin at light load), which makes that noise heteroscedastic and, through
-/// the reciprocal, biased (E[1/x] > 1/E[x]).
-pub(super) fn eta_c_dt_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
-    pts.iter()
-        .zip(d)
-        .map(|(s, d)| {
-            let eta = compressor::efficiency(&p.compressor, s.w_c, d.pi_c, SEM);
-            let rise = s.t_amb * compressor::isentropic_term(d.pi_c, p.gas.gamma_a) / eta; // eq. (58)
-            (s.t_c - s.t_amb, rise)
-        })
-        .unzip()
-}
-
 /// W_c of eqs (66)-(72) at a stationary point (measured Pi_c, omega_t).
 fn w_c_model(c: &Compressor, g: &Gas, s: &StationaryPoint, d: &Derived) -> f64 {
     let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
@@ -71,10 +55,8 @@ pub fn project_q_c(q: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
 }
 
 /// Compressor efficiency, eqs (58)-(65): eta_c,meas = T_amb (Pi_c^(1-1/gamma_a) - 1) /
-/// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear
-/// (variable projection on eta_c,meas, which gives the start); then all seven by least squares
-/// in the T_c domain ([`eta_c_dt_series`]: residuals in kelvin, without the bias of the
-/// reciprocal); then the PSD projection of Q_c.
+/// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear;
+/// then the PSD projection of Q_c.
 pub fn fit_eta_c(
     p: &mut Params,
     pts: &[StationaryPoint],
@@ -112,40 +94,12 @@ pub fn fit_eta_c(
         .options(lsq_opts())
         .fit(&start)
         .map_err(|e| solver_err("eta_c")(e.to_string()))?;
-    let set = |c: &mut Compressor, th: &[f64]| {
-        (c.w_copt, c.pi_copt, c.c_pi, c.eta_cmax) = (th[0], th[1], th[2], th[3]);
-        c.q_c = [[th[4], th[6]], [th[6], th[5]]];
-    };
-    let start = [
-        fit.alpha[0],
-        fit.alpha[1],
-        fit.alpha[2],
-        fit.c[0],
-        fit.c[1],
-        fit.c[2],
-        fit.c[3],
-    ];
-    let mut q = p.clone();
-    let res = |th: &[f64]| -> Vec<f64> {
-        set(&mut q.compressor, th);
-        let (meas, model) = eta_c_dt_series(&q, pts, &d);
-        meas.iter().zip(&model).map(|(a, b)| a - b).collect()
-    };
-    let inf = f64::INFINITY;
-    let dt_fit = best_fit(
-        "eta_c",
-        res,
-        &[start.to_vec()],
-        &Bounds::new(
-            vec![0.0, 0.0, 0.05, -inf, -inf, -inf, -inf],
-            vec![2.0, 5.0, 3.0, inf, inf, inf, inf],
-        ),
-        &lsq_opts(),
-    )?;
     let c = &mut p.compressor;
-    set(c, &dt_fit.theta);
-    c.q_c = project_q_c(c.q_c);
-    let n_eval = fit.lsq.n_eval + dt_fit.n_eval;
+    c.w_copt = fit.alpha[0];
+    c.pi_copt = fit.alpha[1];
+    c.c_pi = fit.alpha[2];
+    c.eta_cmax = fit.c[0];
+    c.q_c = project_q_c([[fit.c[1], fit.c[3]], [fit.c[3], fit.c[2]]]);
     let (meas, model) = eta_c_series(p, pts, &d);
     let c = &p.compressor;
     Ok(fit_report(
@@ -161,7 +115,7 @@ pub fn fit_eta_c(
         ],
         &meas,
         &model,
-        n_eval,
+        fit.lsq.n_eval,
     ))
 }
 

@@ -332,17 +332,15 @@ pub fn submodel_series(
 }
 
 /// The quantities the step-1 fits compare, (name, measured, modelled) per submodel in the order
-/// of [`submodel_series`]: the same, except that eta_tm and eta_c are compared in the T_c
-/// domain, as the measured compressor temperature rise T_c - T_amb against the rise their models
-/// imply (eq. (47) resp. eq. (58) solved for T_c; `turbine::eta_tm_weights`,
-/// `compressor::eta_c_dt_series`). Step 5's submodel row and the step-1 covariance use these.
+/// of [`submodel_series`]: the same, except that eta_tm is compared in the T_c domain, as the
+/// measured compressor temperature rise T_c - T_amb against the rise its model implies (eq.
+/// (47) solved for T_c; `turbine::eta_tm_weights`). Step 5's submodel row uses these.
 pub fn fit_series(p: &Params, pts: &[StationaryPoint]) -> Result<Vec<SubmodelSeries>, StepError> {
     let d = derive(p, pts)?;
     let mut all = submodel_series(p, pts)?;
     for s in all.iter_mut() {
         let (meas, model) = match s.0.as_str() {
             "eta_tm" => turbine::eta_tm_dt_series(p, pts, &d),
-            "eta_c" => compressor::eta_c_dt_series(p, pts, &d),
             _ => continue,
         };
         (s.1, s.2) = (meas, model);
