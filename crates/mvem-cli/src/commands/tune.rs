@@ -65,6 +65,10 @@ pub struct Args {
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
     pub max_evals: usize,
+    /// Step 5: most consecutive Broyden (secant) updates of the finite-difference Jacobian of
+    /// (77) before it is recomputed (0: recomputed after every accepted step, 35 evaluations).
+    #[arg(long = "broyden", default_value_t = 0, value_name = "K")]
+    pub broyden: usize,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
@@ -136,6 +140,7 @@ pub fn run(a: &Args) -> Result<()> {
     opts.step5.beta = a.beta;
     opts.refine_dynamics = a.refine_dynamics;
     opts.step5.max_evaluations = a.max_evals;
+    opts.step5.broyden_updates = a.broyden;
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
     let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
@@ -280,10 +285,12 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
     if let Some(r) = &rep.step5 {
         let _ = writeln!(
             s,
-            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations, converged {}, one evaluation {:.3} s; at bounds: {}\n",
+            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations, {} finite-difference Jacobians), converged {}, one evaluation {:.3} s; at bounds: {}\n",
             r.cost_start,
             r.cost_end,
             r.n_eval,
+            r.n_iter,
+            r.n_jacobians,
             r.converged,
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }

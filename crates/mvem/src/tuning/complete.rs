@@ -681,6 +681,11 @@ pub struct Step5Options {
     pub sample_hz: f64,
     /// Limit on cost evaluations (finite differences included).
     pub max_evaluations: usize,
+    /// Most consecutive Broyden updates of the finite-difference Jacobian of (77) between two
+    /// recomputations ([`super::lsq::LsqOptions::broyden_updates`]; 0, the default: none, a new
+    /// Jacobian, n = 35 evaluations, after every accepted step). Measured on `mvem lab` seeds
+    /// 1, 2, 4 with 4: no fewer evaluations to convergence (docs/tuning.md).
+    pub broyden_updates: usize,
     /// Model of the first row. With 12 states theta gets k_ic and the second row z_8 = W_ic
     /// (N = 8, section 9.2.1).
     pub model: ModelOrder,
@@ -695,6 +700,7 @@ impl Default for Step5Options {
             static_row: true,
             sample_hz: 10.0,
             max_evaluations: 600,
+            broyden_updates: 0,
             model: ModelOrder::Eight,
         }
     }
@@ -918,6 +924,11 @@ pub struct Step5Report {
     pub cost_end: f64,
     /// Evaluations of (77) (finite differences included).
     pub n_eval: usize,
+    /// Iterations (trust-region steps) of the search.
+    pub n_iter: usize,
+    /// Finite-difference Jacobians of (77) computed (n evaluations each; the others of the
+    /// iterations were Broyden updates, [`Step5Options::broyden_updates`]).
+    pub n_jacobians: usize,
     /// Whether a convergence test stopped the search.
     pub converged: bool,
     /// Submodel errors (eq. (4)) after step 5.
@@ -982,7 +993,10 @@ pub fn step5(
         |th: &[f64]| cost.residuals(th),
         &th0,
         &Bounds::new(lo.clone(), hi.clone()),
-        &search_opts(opts.max_evaluations, scale.clone()),
+        &LsqOptions {
+            broyden_updates: opts.broyden_updates,
+            ..search_opts(opts.max_evaluations, scale.clone())
+        },
     )
     .map_err(|e| solver_err(NAME, e))?;
     let p = cost.params(&fit.theta);
@@ -1059,6 +1073,8 @@ pub fn step5(
             cost_start,
             cost_end: fit.cost,
             n_eval: fit.n_eval,
+            n_iter: fit.n_iter,
+            n_jacobians: fit.n_jac,
             converged: fit.termination.converged(),
             submodels,
             dynamic,
