@@ -1071,7 +1071,8 @@ pub fn step5(
                 .map(|(s, v)| (s.name.to_string(), *v))
                 .collect(),
             cost_start,
-            cost_end: fit.cost,
+            // the solver's cost is 0.5 ||r||^2; (77) and `cost_start` are ||r||^2
+            cost_end: 2.0 * fit.cost,
             n_eval: fit.n_eval,
             n_iter: fit.n_iter,
             n_jacobians: fit.n_jac,
