@@ -358,8 +358,68 @@ pub fn tune(
             rep.parameters.insert(k, ParamEstimate { value, ..e });
         }
     }
+    flag_extrapolated_efficiency_peak(&p.compressor, &c.stationary, &mut rep.parameters);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
+}
+
+/// The parameters of the compressor-efficiency ellipse (eqs (62)-(65)), by TOML path.
+const EFFICIENCY_ELLIPSE: [&str; 7] = [
+    "compressor.eta_cmax",
+    "compressor.w_copt",
+    "compressor.pi_copt",
+    "compressor.c_pi",
+    "compressor.q_c[0][0]",
+    "compressor.q_c[0][1]",
+    "compressor.q_c[1][1]",
+];
+
+/// Flag the efficiency-ellipse parameters as not identifiable when the fitted peak
+/// (W_copt, pi_copt) of eqs (62)-(63) lies outside the measured region, the range of W_c and of
+/// pi_c = (Pi_c - 1)^c_pi (eq. (64), Pi_c = p_c / p_amb) over the campaign's stationary points.
+/// The peak, its value eta_c,max and the ellipse's shape are then an extrapolation of the data:
+/// the linearized standard errors describe the curvature of the fit inside the measured region,
+/// not how far the extrapolated peak may be from the truth (a `mvem lab` campaign, seed 4, put
+/// W_copt at 1.77 kg/s, pi_copt 2.58 for a true 0.275 and 1.05 with measured W_c 0.077-0.638
+/// kg/s, as the least-squares optimum of its data).
+fn flag_extrapolated_efficiency_peak(
+    c: &crate::params::Compressor,
+    pts: &[super::data::StationaryPoint],
+    parameters: &mut BTreeMap<String, ParamEstimate>,
+) {
+    let range = |v: &mut dyn Iterator<Item = f64>| {
+        v.filter(|x| x.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let w = range(&mut pts.iter().map(|s| s.w_c));
+    let pi = range(
+        &mut pts
+            .iter()
+            .map(|s| s.p_c / s.p_amb - 1.0)
+            .filter(|&x| x > 0.0)
+            .map(|x| x.powf(c.c_pi)), // eq. (64)
+    );
+    if !(w.0 <= w.1 && pi.0 <= pi.1) {
+        return; // no usable stationary points: nothing to compare with
+    }
+    let inside = |x: f64, (lo, hi): (f64, f64)| (lo..=hi).contains(&x);
+    if inside(c.w_copt, w) && inside(c.pi_copt, pi) {
+        return;
+    }
+    for key in EFFICIENCY_ELLIPSE {
+        if let Some(e) = parameters.get_mut(key).filter(|e| e.identifiable) {
+            e.identifiable = false;
+            e.reason = format!(
+                "the fitted efficiency peak (W_copt = {:.4} kg/s, pi_copt = {:.4}) lies outside \
+                 the measured region (W_c {:.4}-{:.4} kg/s, pi_c {:.4}-{:.4}): the peak and the \
+                 ellipse are extrapolated, which the linearized standard error does not bound \
+                 ({})",
+                c.w_copt, c.pi_copt, w.0, w.1, pi.0, pi.1, e.reason
+            );
+        }
+    }
 }
 
 /// Step 3 on `sets` from `p` (replaced by the result), its uncertainty with that of the
@@ -487,4 +547,77 @@ fn tune_twelve(
         statics,
         seconds: t.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tuning::data::StationaryPoint;
+
+    fn estimate() -> ParamEstimate {
+        ParamEstimate {
+            value: 1.0,
+            std_error: 0.01,
+            identifiable: true,
+            correlated_with: vec![],
+            reason: "rel. std. error 1 %".into(),
+            step: 5,
+        }
+    }
+
+    /// Points over W_c in [w0, w1] kg/s and Pi_c in [1.1, 2.5].
+    fn points(w0: f64, w1: f64) -> Vec<StationaryPoint> {
+        (0..10)
+            .map(|k| {
+                let f = k as f64 / 9.0;
+                StationaryPoint {
+                    w_c: w0 + f * (w1 - w0),
+                    p_amb: 1.0e5,
+                    p_c: 1.0e5 * (1.1 + 1.4 * f),
+                    ..Default::default()
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn an_efficiency_peak_outside_the_measured_region_is_flagged() {
+        let mut c = Params::published().compressor;
+        c.c_pi = 1.0;
+        c.pi_copt = 1.0; // pi_c = Pi_c - 1 spans 0.1-1.5 in `points`
+        let all = || {
+            let mut m: BTreeMap<String, ParamEstimate> = EFFICIENCY_ELLIPSE
+                .iter()
+                .map(|k| (k.to_string(), estimate()))
+                .collect();
+            m.insert("compressor.r_c".into(), estimate());
+            m
+        };
+        // peak inside: nothing changes
+        c.w_copt = 0.3;
+        let mut m = all();
+        flag_extrapolated_efficiency_peak(&c, &points(0.1, 0.6), &mut m);
+        assert!(m.values().all(|e| e.identifiable));
+        // W_copt beyond the largest measured flow: the ellipse's parameters are flagged, with
+        // the reason; the flow parameter r_c is not
+        c.w_copt = 1.77;
+        let mut m = all();
+        flag_extrapolated_efficiency_peak(&c, &points(0.1, 0.6), &mut m);
+        for k in EFFICIENCY_ELLIPSE {
+            assert!(!m[k].identifiable, "{k}");
+            assert!(m[k].reason.contains("outside the measured region"), "{k}");
+            assert!(m[k].reason.contains("rel. std. error 1 %"), "{k}");
+        }
+        assert!(m["compressor.r_c"].identifiable);
+        // pi_copt beyond the measured pressure ratios
+        c.w_copt = 0.3;
+        c.pi_copt = 2.58;
+        let mut m = all();
+        flag_extrapolated_efficiency_peak(&c, &points(0.1, 0.6), &mut m);
+        assert!(!m["compressor.pi_copt"].identifiable);
+        // no stationary points: nothing to compare with, nothing flagged
+        let mut m = all();
+        flag_extrapolated_efficiency_peak(&c, &[], &mut m);
+        assert!(m.values().all(|e| e.identifiable));
+    }
 }
