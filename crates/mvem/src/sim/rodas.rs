@@ -182,20 +182,20 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         t_new: f64,
         f0: &[f64; N],
     ) -> Result<Trial<N, M::Memory>, SimError> {
-        let lag_seg = std::mem::take(&mut self.lag_seg);
-        let trial = self
-            .iteration_matrix(inp, t, h, f0, &lag_seg, TABLEAU.gamma, 1)
-            .and_then(|fresh| {
+        self.with_iteration_matrix(
+            inp,
+            t,
+            h,
+            f0,
+            TABLEAU.gamma,
+            1,
+            |s, inp, fresh, lag_seg, w| {
                 if fresh {
-                    self.ft = self.time_derivative(inp, t, f0, &lag_seg)?;
+                    s.ft = s.time_derivative(inp, t, f0, lag_seg)?;
                 }
-                let w = self.lu.take().expect("iteration matrix set up");
-                let trial = self.rodas4_stages(inp, t, h, t_new, f0, &lag_seg, &w);
-                self.lu = Some(w);
-                trial
-            });
-        self.lag_seg = lag_seg;
-        trial
+                s.rodas4_stages(inp, t, h, t_new, f0, lag_seg, w)
+            },
+        )
     }
 
     #[allow(clippy::too_many_arguments)]

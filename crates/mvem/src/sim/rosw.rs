@@ -270,13 +270,47 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         t_new: f64,
         f0: &[f64; N],
     ) -> Result<Trial<N, M::Memory>, SimError> {
-        // moved out for the step (the stages borrow self mutably), put back whatever happens
+        self.with_iteration_matrix(
+            inp,
+            t,
+            h,
+            f0,
+            GAMMA,
+            JAC_MAX_AGE,
+            |s, inp, _, lag_seg, w| s.rosw_stages(inp, t, h, t_new, f0, lag_seg, w),
+        )
+    }
+
+    /// Set up the iteration matrix I - `gamma` h J ([`Integrator::iteration_matrix`], J at most
+    /// `max_age` steps old) and run a Rosenbrock method's `stages` with it, the segment's lag
+    /// states and whether J was just recomputed. The lag states and the factors are moved out
+    /// of `self` for the stages (which borrow it mutably) and put back whatever happens.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn with_iteration_matrix<F>(
+        &mut self,
+        inp: &mut SegmentInputs,
+        t: f64,
+        h: f64,
+        f0: &[f64; N],
+        gamma: f64,
+        max_age: usize,
+        stages: F,
+    ) -> Result<Trial<N, M::Memory>, SimError>
+    where
+        F: FnOnce(
+            &mut Self,
+            &mut SegmentInputs,
+            bool,
+            &[LagSegment],
+            &IterationMatrix<N>,
+        ) -> Result<Trial<N, M::Memory>, SimError>,
+    {
         let lag_seg = std::mem::take(&mut self.lag_seg);
         let trial = self
-            .iteration_matrix(inp, t, h, f0, &lag_seg, GAMMA, JAC_MAX_AGE)
-            .and_then(|_| {
+            .iteration_matrix(inp, t, h, f0, &lag_seg, gamma, max_age)
+            .and_then(|fresh| {
                 let w = self.lu.take().expect("iteration matrix set up");
-                let trial = self.rosw_stages(inp, t, h, t_new, f0, &lag_seg, &w);
+                let trial = stages(self, inp, fresh, &lag_seg, &w);
                 self.lu = Some(w);
                 trial
             });
