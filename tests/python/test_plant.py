@@ -62,3 +62,33 @@ def test_air_path_env_passes_check_env():
     assert np.isfinite(total)
     assert env.observation_space.contains(obs)
     assert isinstance(gym.__version__, str)
+
+
+def test_out_of_range_commands_are_clamped_with_a_warning():
+    import warnings
+
+    # in range: no warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p = mvem.Plant(n_e=1500.0, u_delta=110.0, u_egr=80.0, u_vgt=75.0)
+        p.step(0.01, u_vgt=65.0)
+        mvem.steady(1500.0, 110.0, 80.0, 75.0)
+    # the authors' saturation clamps u_vgt = 10 % to 20 %: a UserWarning names input and range,
+    # and the plant runs as with 20 %
+    with pytest.warns(UserWarning, match=r"Plant.step: u_vgt_pct = 10 is outside \[20, 100\]"):
+        out10 = p.step(0.5, u_vgt=10.0)
+    q = mvem.Plant(n_e=1500.0, u_delta=110.0, u_egr=80.0, u_vgt=75.0)
+    q.step(0.01, u_vgt=65.0)
+    out20 = q.step(0.5, u_vgt=20.0)
+    assert out10["W_c"] == pytest.approx(out20["W_c"], rel=1e-12)
+    with pytest.warns(UserWarning, match=r"steady: n_e_rpm = 1e300 is outside \[500, 2000\]"):
+        mvem.steady(1e300, 110.0, 80.0, 75.0)
+    rows = {
+        "time_s": [0.0, 1.0, 2.0],
+        "n_e_rpm": [1500.0, 1500.0, 1500.0],
+        "u_delta_mg": [110.0, 300.0, 110.0],
+        "u_egr_pct": [80.0, 80.0, 80.0],
+        "u_vgt_pct": [75.0, 75.0, 75.0],
+    }
+    with pytest.warns(UserWarning, match=r"simulate: u_delta_mg leaves \[1, 250\] \(up to 300\)"):
+        mvem.simulate(rows, dt=0.5)

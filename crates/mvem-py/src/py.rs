@@ -2,9 +2,11 @@
 
 use crate::core::{self, CoreError, LinArgs, SimArgs, Variant};
 use mvem::analysis::step::{Excursion, StepMetrics};
+use mvem::io::csv_inputs::INPUT_RANGES;
+use mvem::numerics::Num;
 use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyString, PyTuple};
 
@@ -41,6 +43,49 @@ fn parse_params(py: Python<'_>, params: Option<&Bound<'_, PyAny>>) -> PyResult<O
     core::params_from_path(std::path::Path::new(&path))
         .map(Some)
         .map_err(to_py_err)
+}
+
+/// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::INPUT_RANGES`):
+/// a value outside its range is used clamped, and Python is told so by a `UserWarning` naming
+/// the input, its value and the range (the CLI prints the same on stderr). `what` says where.
+fn warn_out_of_range(py: Python<'_>, what: &str, values: [f64; 4]) -> PyResult<()> {
+    for ((name, lo, hi), v) in INPUT_RANGES.iter().zip(values) {
+        if v < *lo || v > *hi {
+            let msg = format!(
+                "{what}: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it",
+                Num(v)
+            );
+            let msg = std::ffi::CString::new(msg).unwrap_or_default();
+            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)?;
+        }
+    }
+    Ok(())
+}
+
+/// [`warn_out_of_range`] for input rows (t, n_e, u_delta, u_egr, u_vgt): one warning per channel
+/// that leaves its range, at its most extreme value.
+fn warn_rows_out_of_range(py: Python<'_>, what: &str, rows: &[[f64; 5]]) -> PyResult<()> {
+    let mut worst = [f64::NAN; 4];
+    for r in rows {
+        for (c, (_, lo, hi)) in INPUT_RANGES.iter().enumerate() {
+            let v = r[c + 1];
+            let out = |x: f64| (lo - x).max(x - hi);
+            if out(v) > 0.0 && (worst[c].is_nan() || out(v) > out(worst[c])) {
+                worst[c] = v;
+            }
+        }
+    }
+    for (c, (name, lo, hi)) in INPUT_RANGES.iter().enumerate() {
+        if !worst[c].is_nan() {
+            let msg = format!(
+                "{what}: {name} leaves [{lo}, {hi}] (up to {}); the authors' saturation clamps it",
+                Num(worst[c])
+            );
+            let msg = std::ffi::CString::new(msg).unwrap_or_default();
+            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)?;
+        }
+    }
+    Ok(())
 }
 
 fn float_list(np: &Bound<'_, PyModule>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
@@ -135,6 +180,7 @@ fn simulate<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
+    warn_rows_out_of_range(py, "simulate", &rows)?;
     let p = parse_params(py, params)?;
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
     let cols = py
@@ -234,10 +280,10 @@ fn simulate_many<'py>(
         .collect::<PyResult<_>>()?;
     let mut rows = Vec::with_capacity(items.len());
     for (i, item) in items.iter().enumerate() {
-        rows.push(
-            input_rows(py, item)
-                .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?,
-        );
+        let r = input_rows(py, item)
+            .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?;
+        warn_rows_out_of_range(py, &format!("simulate_many run {i}"), &r)?;
+        rows.push(r);
     }
     let per_run: Vec<Option<Params>> = match params {
         Some(list) if list.is_instance_of::<PyList>() || list.is_instance_of::<PyTuple>() => {
@@ -295,6 +341,7 @@ fn steady<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    warn_out_of_range(py, "steady", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
     let s = py
         .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p, variant))
@@ -362,6 +409,7 @@ fn linearize<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    warn_out_of_range(py, "linearize", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
     let args = LinArgs {
         outputs,
@@ -496,6 +544,7 @@ fn step_response<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    warn_out_of_range(py, "step_response", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
     let args = SimArgs {
         t_end: None,
@@ -620,6 +669,7 @@ impl Plant {
         let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
         let p = parse_params(py, params)?;
         let cmd = [n_e, u_delta, u_egr, u_vgt];
+        warn_out_of_range(py, "Plant", cmd)?;
         let inner = py
             .allow_threads(move || core::CorePlant::new(cmd, p, variant))
             .map_err(to_py_err)?;
@@ -638,6 +688,9 @@ impl Plant {
         u_vgt: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
+        if cmd != self.cmd {
+            warn_out_of_range(py, "Plant.step", cmd)?;
+        }
         let inner = &mut self.inner;
         py.allow_threads(|| inner.step(dt, cmd))
             .map_err(to_py_err)?;
@@ -665,6 +718,7 @@ impl Plant {
         u_vgt: Option<f64>,
     ) -> PyResult<()> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
+        warn_out_of_range(py, "Plant.reset", cmd)?;
         let inner = &mut self.inner;
         py.allow_threads(|| inner.reset(cmd)).map_err(to_py_err)?;
         self.cmd = cmd;
