@@ -103,11 +103,7 @@ impl LagSegment {
     pub(super) fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
         let p = &self.pieces;
         let end = t + s;
-        // the piece holding t (a segment has few: a linear scan)
-        let mut k = 0;
-        while k + 1 < p.len() && p[k + 1].t0 <= t {
-            k += 1;
-        }
+        let mut k = self.piece_at(t);
         if k + 1 == p.len() || p[k + 1].t0 >= end {
             // within one piece (the offset s itself, not (t + s) - t)
             return p[k].advance(self.tau, t, x, s);
@@ -125,14 +121,36 @@ impl LagSegment {
     /// Rate dx/dt = (c(t) - x) / tau of the lag at `t` with state `x` (eqs (40), (41), (57)).
     #[inline]
     pub(super) fn rate(&self, t: f64, x: f64) -> f64 {
+        let p = &self.pieces[self.piece_at(t)];
+        let c = p.c0 + p.beta * (t - p.t0);
+        (c - x) / self.tau
+    }
+
+    /// Index of the piece holding `t` (at a piece boundary the later piece; a segment has few
+    /// pieces: a linear scan).
+    #[inline]
+    fn piece_at(&self, t: f64) -> usize {
         let p = &self.pieces;
-        // the piece holding t (as in `advance`); at a piece boundary the later piece's command
         let mut k = 0;
         while k + 1 < p.len() && p[k + 1].t0 <= t {
             k += 1;
         }
-        let c = p[k].c0 + p[k].beta * (t - p[k].t0);
-        (c - x) / self.tau
+        k
+    }
+
+    /// Every lag state of `lag_seg` at `t + s` from `y` at `t`, written into `yt` (the stages
+    /// of the Rosenbrock methods take the exact lag values).
+    #[inline]
+    pub(super) fn advance_all<const N: usize>(
+        lag_seg: &[LagSegment],
+        t: f64,
+        y: &[f64; N],
+        yt: &mut [f64; N],
+        s: f64,
+    ) {
+        for l in lag_seg {
+            yt[l.state] = l.advance(t, y[l.state], s);
+        }
     }
 }
 

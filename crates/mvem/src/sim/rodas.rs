@@ -220,11 +220,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             w.solve(&mut r);
             r
         };
-        let exact = |yt: &mut [f64; N], s: f64| {
-            for l in lag_seg {
-                yt[l.state] = l.advance(t, y[l.state], s);
-            }
-        };
+        // exact lag states at t + s
+        let exact = |yt: &mut [f64; N], s: f64| LagSegment::advance_all(lag_seg, t, &y, yt, s);
         let [c2, c3, c4] = m.c;
         let [d1, d2, d3, d4] = m.d;
         let u1 = stage(f0, [0.0; N], d1);

@@ -426,11 +426,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             r
         };
         // exact lag states at t + s
-        let exact = |yt: &mut [f64; N], s: f64| {
-            for l in lag_seg {
-                yt[l.state] = l.advance(t, y[l.state], s);
-            }
-        };
+        let exact = |yt: &mut [f64; N], s: f64| LagSegment::advance_all(lag_seg, t, &y, yt, s);
         let u1 = stage(f0, [0.0; N]);
         // stage 2
         let mut y2: [f64; N] = std::array::from_fn(|i| y[i] + c.a21 * u1[i]);

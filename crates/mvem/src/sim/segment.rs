@@ -179,14 +179,31 @@ impl<'a> SegmentInputs<'a> {
     /// Value of lookup `k` (channel [`Self::CHANNEL`]`[k]`, delayed by [`Self::shift`]) at `t`.
     #[inline(always)]
     fn value(&mut self, k: usize, t: f64) -> f64 {
+        let (tq, (t_ref, v_ref, slope)) = self.line_at(k, t);
+        v_ref + slope * (tq - t_ref)
+    }
+
+    /// Time derivative of lookup `k` at `t`: the slope of the linear piece [`Self::value`]
+    /// uses there (the one inside the segment: `t` is clamped to the window as for the value).
+    fn rate(&mut self, k: usize, t: f64) -> f64 {
+        let (_, (_, _, slope)) = self.line_at(k, t);
+        slope
+    }
+
+    /// The lookup time of lookup `k` at `t` (shifted by its delay, clamped to the segment's
+    /// window) and the line (t_ref, v_ref, slope) of the schedule piece there: the segment's
+    /// line if one covers the window, else one of the two cached pieces, else a search (which
+    /// replaces the older cached piece).
+    #[inline(always)]
+    fn line_at(&mut self, k: usize, t: f64) -> (f64, (f64, f64, f64)) {
         let (lo, hi) = self.window[k];
         let tq = (t - self.shift(k)).clamp(lo, hi);
-        if let Some((t_ref, v_ref, slope)) = self.linear[k] {
-            return v_ref + slope * (tq - t_ref);
+        if let Some(line) = self.linear[k] {
+            return (tq, line);
         }
         let p0 = &self.pieces[k][0];
         if p0.0 <= tq && tq <= p0.1 {
-            return p0.3 + p0.4 * (tq - p0.2);
+            return (tq, (p0.2, p0.3, p0.4));
         }
         let p1 = &self.pieces[k][1];
         let pc = if p1.0 <= tq && tq <= p1.1 {
@@ -196,27 +213,7 @@ impl<'a> SegmentInputs<'a> {
                 .piece(Self::CHANNEL[k], tq, Side::Right, &mut self.hints[k])
         };
         self.pieces[k] = [pc, self.pieces[k][0]];
-        pc.3 + pc.4 * (tq - pc.2)
-    }
-
-    /// Time derivative of lookup `k` at `t`: the slope of the linear piece [`Self::value`]
-    /// uses there (the one inside the segment: `t` is clamped to the window as for the value).
-    fn rate(&mut self, k: usize, t: f64) -> f64 {
-        if let Some((_, _, slope)) = self.linear[k] {
-            return slope;
-        }
-        let (lo, hi) = self.window[k];
-        let tq = (t - self.shift(k)).clamp(lo, hi);
-        for p in &self.pieces[k] {
-            if p.0 <= tq && tq <= p.1 {
-                return p.4;
-            }
-        }
-        let pc = self
-            .sched
-            .piece(Self::CHANNEL[k], tq, Side::Right, &mut self.hints[k]);
-        self.pieces[k] = [pc, self.pieces[k][0]];
-        pc.4
+        (tq, (pc.2, pc.3, pc.4))
     }
 
     /// Time derivatives of the model inputs at `t` in the segment (the inputs are linear
