@@ -364,16 +364,14 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Most output rows a run may produce (about 20 GB of CSV); more is certainly a mistaken `--dt`.
-pub const MAX_SAMPLES: f64 = 5e7;
-
-/// Refuse an output grid with more than [`MAX_SAMPLES`] rows before simulating.
+/// Refuse an output grid with more than [`mvem::sim::MAX_ROWS`] rows before simulating.
 pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
+    use mvem::sim::MAX_ROWS;
     let n = (t_end - t0) / dt + 1.0;
-    if n > MAX_SAMPLES {
+    if n > MAX_ROWS {
         let num = mvem::numerics::Num;
         return Err(usage(format!(
-            "--dt {}: {n:.3e} output samples from {} s to {} s (at most {MAX_SAMPLES:e}); use a larger --dt",
+            "--dt {}: {n:.3e} output samples from {} s to {} s (at most {MAX_ROWS:e}); use a larger --dt",
             num(dt),
             num(t0),
             num(t_end)

@@ -27,7 +27,7 @@ pub mod steps;
 use crate::analysis::steady::{any_plant_from_steady, SimFromSteadyError};
 use crate::model::{AnyModel, Drive, Signals};
 use crate::numerics::Num;
-use crate::sim::{SimError, SimOptions};
+use crate::sim::{SimError, SimOptions, MAX_ROWS};
 pub use cycle::Demand;
 
 /// What a controller sees at a sample.
@@ -189,13 +189,9 @@ pub fn run(
     run_with(model, demand, ctrl, opts, &mut |_| {})
 }
 
-/// Most controller samples one closed-loop run may take (the trajectory has one row per
-/// sample: about 20 GB of CSV); more is certainly a mistaken time column.
-pub const MAX_SAMPLES: f64 = 5e7;
-
 /// [`run`], calling `on_row` with the trajectory so far after each row is appended (e.g. to
-/// write the rows out while the loop runs). A demand longer than [`MAX_SAMPLES`] samples is
-/// refused before anything runs.
+/// write the rows out while the loop runs). A demand longer than [`MAX_ROWS`] samples (one
+/// trajectory row each) is refused before anything runs.
 pub fn run_with(
     model: AnyModel,
     demand: &Demand,
@@ -209,14 +205,14 @@ pub fn run_with(
     }
     let (t0, t1) = demand.span();
     let samples = (t1 - t0) / ts + 1.0;
-    if samples > MAX_SAMPLES {
+    if samples > MAX_ROWS {
         return Err(ControlError::Demand(format!(
             "{samples:.3e} controller samples of {} s from {} s to {} s (at most \
-             {MAX_SAMPLES:e}, about {:.0} days at 10 ms); shorten the cycle",
+             {MAX_ROWS:e}, about {:.0} days at 10 ms); shorten the cycle",
             Num(ts),
             Num(t0),
             Num(t1),
-            MAX_SAMPLES * 0.01 / 86400.0,
+            MAX_ROWS * 0.01 / 86400.0,
         )));
     }
     let n = ((t1 - t0) / ts + 1e-9).floor() as usize;

@@ -8,6 +8,11 @@ use std::sync::mpsc::SyncSender;
 /// entry of [`Solution::names`], all of the same length.
 pub type Block = Vec<Vec<f64>>;
 
+/// Most rows a run may be asked to produce (output samples of a simulation, controller samples
+/// of a closed loop): about 20 GB of CSV, certainly a mistaken output interval or time column.
+/// The front ends and the closed loop refuse more before anything runs.
+pub const MAX_ROWS: f64 = 5e7;
+
 /// Solver statistics.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SimStats {

@@ -22,12 +22,13 @@ use super::complete::{
     Step5Report,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
-use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError};
+use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
 use super::uncertainty::{
     estimates_from_cov, fd_jacobian_named, step1_estimates, step2_estimates, toml_path, with_fixed,
     Linearization, NamedCov, ParamEstimate,
 };
+use crate::components::{compressor, pow_ln};
 use crate::model::ModelOrder;
 use crate::params::Params;
 use serde::Serialize;
@@ -397,9 +398,9 @@ fn flag_extrapolated_efficiency_peak(
     let pi = range(
         &mut pts
             .iter()
-            .map(|s| s.p_c / s.p_amb - 1.0)
+            .map(|s| compressor::pi_c(s.p_c, s.p_amb, SEM) - 1.0) // eq. (59)
             .filter(|&x| x > 0.0)
-            .map(|x| x.powf(c.c_pi)), // eq. (64)
+            .map(|x| pow_ln(x, c.c_pi)), // eq. (64), as in compressor::efficiency
     );
     if !(w.0 <= w.1 && pi.0 <= pi.1) {
         return; // no usable stationary points: nothing to compare with
