@@ -45,6 +45,12 @@ fn parse_params(py: Python<'_>, params: Option<&Bound<'_, PyAny>>) -> PyResult<O
         .map_err(to_py_err)
 }
 
+/// Issue `msg` as a Python `UserWarning` (attributed to the caller's line).
+fn user_warning(py: Python<'_>, msg: String) -> PyResult<()> {
+    let msg = std::ffi::CString::new(msg).unwrap_or_default();
+    PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)
+}
+
 /// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::INPUT_RANGES`):
 /// a value outside its range is used clamped, and Python is told so by a `UserWarning` naming
 /// the input, its value and the range (the CLI prints the same on stderr). `what` says where.
@@ -55,8 +61,7 @@ fn warn_out_of_range(py: Python<'_>, what: &str, values: [f64; 4]) -> PyResult<(
                 "{what}: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it",
                 Num(v)
             );
-            let msg = std::ffi::CString::new(msg).unwrap_or_default();
-            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)?;
+            user_warning(py, msg)?;
         }
     }
     Ok(())
@@ -81,8 +86,7 @@ fn warn_rows_out_of_range(py: Python<'_>, what: &str, rows: &[[f64; 5]]) -> PyRe
                 "{what}: {name} leaves [{lo}, {hi}] (up to {}); the authors' saturation clamps it",
                 Num(worst[c])
             );
-            let msg = std::ffi::CString::new(msg).unwrap_or_default();
-            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)?;
+            user_warning(py, msg)?;
         }
     }
     Ok(())
