@@ -135,6 +135,8 @@ def test_fmu_start_value_agrees_with_python_params():
     (lambda: mvem.simulate(STEP, rtol=-1), ValueError, "rtol"),
     (lambda: mvem.simulate(STEP, dt=0), ValueError, "dt"),
     (lambda: mvem.simulate(STEP, t_end=float("nan")), ValueError, "t_end"),
+    # 1e8 output rows would take hours and tens of GB: refused before anything runs
+    (lambda: mvem.simulate(STEP, t_end=1e6), ValueError, "1.000e8 output rows"),
 ])
 def test_bad_input_raises(call, exc, msg):
     with pytest.raises(exc, match=msg):
@@ -340,6 +342,7 @@ def test_step_metrics_of_a_first_order_response():
     (lambda: mvem.step_response(*POINT, output="W_x"), ValueError, "output \"W_x\""),
     (lambda: mvem.step_response(*POINT, t_step=5, t_end=2), ValueError, "t_step"),
     (lambda: mvem.step_response(*POINT, to=float("inf")), ValueError, "to = inf"),
+    (lambda: mvem.step_response(*POINT, t_end=1e6), ValueError, "output rows"),
 ])
 def test_bad_input_raises_with_rust_message(call, exc, msg):
     with pytest.raises(exc, match=msg.replace("(", r"\(")):

@@ -266,11 +266,37 @@ fn case(
             "t_end = {t_end} must be finite and after the first input time {t0} (give t_end, or inputs spanning a time interval)"
         )));
     }
+    check_rows(t0, t_end, args.dt)?;
     Ok(Case {
         model: m,
         inputs: sched,
         t_end: Some(t_end),
     })
+}
+
+/// Most output rows a simulation returned to Python may have: every column is kept in memory
+/// (and copied into a numpy array), so 1e7 rows of the 8-state model's 44 columns are about
+/// 3.5 GB, twice that while copied. The command line streams to a file instead and allows
+/// [`mvem::sim::MAX_ROWS`].
+pub const MAX_KEPT_ROWS: f64 = 1e7;
+
+/// Refuse an output grid from `t0` to `t_end` every `dt` seconds with more than
+/// [`MAX_KEPT_ROWS`] rows, before anything is simulated (`dt` itself is checked with the other
+/// options).
+fn check_rows(t0: f64, t_end: f64, dt: f64) -> CoreResult<()> {
+    let rows = (t_end - t0) / dt + 1.0;
+    if dt > 0.0 && rows > MAX_KEPT_ROWS {
+        let num = mvem::numerics::Num;
+        return Err(CoreError::Value(format!(
+            "dt = {}: {rows:.3e} output rows from {} s to {} s, more than the {MAX_KEPT_ROWS:e} \
+             a simulation returned to Python may hold in memory; use a larger dt or a shorter \
+             t_end (or `mvem simulate`, which streams to a file)",
+            num(dt),
+            num(t0),
+            num(t_end)
+        )));
+    }
+    Ok(())
 }
 
 fn steady_sim_error(e: SimFromSteadyError) -> CoreError {
@@ -548,6 +574,7 @@ pub fn step_response(
         )));
     }
     let opts = args.options()?;
+    check_rows(0.0, t_end, args.dt)?;
     let spec = StepSpec {
         before: Drive::from_array(d),
         input: ch,
@@ -741,6 +768,33 @@ mod tests {
             simulate_rows(&one, SimArgs::default(), None, Variant::default()),
             Err(CoreError::Value(_))
         ));
+        // 1e8 + 1 output rows are refused before anything runs (the run would take hours and
+        // its columns tens of GB); the message names dt and the interval
+        let long = SimArgs {
+            t_end: Some(1e6),
+            ..SimArgs::default()
+        };
+        match simulate_rows(&rows, long, None, Variant::default()) {
+            Err(CoreError::Value(m)) => {
+                assert!(m.contains("dt = 0.01") && m.contains("1.000e8"), "{m}")
+            }
+            other => panic!("expected a refusal, got {:?}", other.map(|r| r.0)),
+        }
+        let runs = vec![(rows.to_vec(), None)];
+        let many = simulate_many_rows(runs, long, Variant::default(), Some(1)).unwrap();
+        assert!(matches!(&many[0], Err(CoreError::Value(m)) if m.starts_with("run 0: dt = 0.01")));
+        let step = step_response(
+            [1500.0, 110.0, 80.0, 75.0],
+            "u_vgt",
+            65.0,
+            "p_im",
+            1.0,
+            1e6,
+            SimArgs::default(),
+            None,
+            Variant::default(),
+        );
+        assert!(matches!(step, Err(CoreError::Value(m)) if m.contains("dt = 0.01")));
     }
 
     #[test]
