@@ -2,7 +2,7 @@
 
 use crate::core::{self, CoreError, LinArgs, SimArgs, Variant};
 use mvem::analysis::step::{Excursion, StepMetrics};
-use mvem::io::csv_inputs::INPUT_RANGES;
+use mvem::io::csv_inputs::{range_warnings_of_rows, INPUT_RANGES};
 use mvem::numerics::Num;
 use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
@@ -68,26 +68,12 @@ fn warn_out_of_range(py: Python<'_>, what: &str, values: [f64; 4]) -> PyResult<(
 }
 
 /// [`warn_out_of_range`] for input rows (t, n_e, u_delta, u_egr, u_vgt): one warning per channel
-/// that leaves its range, at its most extreme value.
+/// that leaves its range, with the first time and the values outside, as the CLI prints them
+/// (`mvem::io::csv_inputs::range_warnings_of_rows`).
 fn warn_rows_out_of_range(py: Python<'_>, what: &str, rows: &[[f64; 5]]) -> PyResult<()> {
-    let mut worst = [f64::NAN; 4];
-    for r in rows {
-        for (c, (_, lo, hi)) in INPUT_RANGES.iter().enumerate() {
-            let v = r[c + 1];
-            let out = |x: f64| (lo - x).max(x - hi);
-            if out(v) > 0.0 && (worst[c].is_nan() || out(v) > out(worst[c])) {
-                worst[c] = v;
-            }
-        }
-    }
-    for (c, (name, lo, hi)) in INPUT_RANGES.iter().enumerate() {
-        if !worst[c].is_nan() {
-            let msg = format!(
-                "{what}: {name} leaves [{lo}, {hi}] (up to {}); the authors' saturation clamps it",
-                Num(worst[c])
-            );
-            user_warning(py, msg)?;
-        }
+    let rows = rows.iter().map(|r| (r[0], [r[1], r[2], r[3], r[4]]));
+    for w in range_warnings_of_rows(rows) {
+        user_warning(py, format!("{what}: {w}"))?;
     }
     Ok(())
 }

@@ -149,28 +149,39 @@ pub const INPUT_RANGES: [(&str, f64, f64); 4] = [
 /// For each channel whose values leave the authors' saturation range, one warning naming the
 /// first time it happens and the extreme value.
 pub fn range_warnings(s: &InputSchedule) -> Vec<String> {
-    let mut out = Vec::new();
-    for (c, (name, lo, hi)) in INPUT_RANGES.iter().enumerate() {
-        let mut first: Option<f64> = None;
-        let (mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for (t, r) in s.times().iter().zip(s.rows()) {
+    range_warnings_of_rows(s.times().iter().copied().zip(s.rows().iter().copied()))
+}
+
+/// [`range_warnings`] of input rows `(t [s], [n_e, u_delta, u_egr, u_vgt])` that are not (yet) an
+/// [`InputSchedule`] (the Python API checks its rows so).
+pub fn range_warnings_of_rows(rows: impl IntoIterator<Item = (f64, [f64; 4])>) -> Vec<String> {
+    let mut first: [Option<f64>; 4] = [None; 4];
+    let mut vmin = [f64::INFINITY; 4];
+    let mut vmax = [f64::NEG_INFINITY; 4];
+    for (t, r) in rows {
+        for (c, (_, lo, hi)) in INPUT_RANGES.iter().enumerate() {
             let v = r[c];
             if v < *lo || v > *hi {
-                first.get_or_insert(*t);
-                vmin = vmin.min(v);
-                vmax = vmax.max(v);
+                first[c].get_or_insert(t);
+                vmin[c] = vmin[c].min(v);
+                vmax[c] = vmax[c].max(v);
             }
         }
-        if let Some(t) = first {
-            out.push(format!(
-                "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given)",
-                Num(t),
-                Num(vmin),
-                Num(vmax)
-            ));
-        }
     }
-    out
+    INPUT_RANGES
+        .iter()
+        .enumerate()
+        .filter_map(|(c, (name, lo, hi))| {
+            first[c].map(|t| {
+                format!(
+                    "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given)",
+                    Num(t),
+                    Num(vmin[c]),
+                    Num(vmax[c])
+                )
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]
