@@ -636,6 +636,10 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             let f_unused = last && !f_at_end && beyond_step(self.out_time(self.next_out));
             if f_unused && !holds_memory && trial.f1.is_none() {
                 self.accept(h, err, order, t_new, &y1);
+                if first {
+                    // a segment of one step: its first step's proposal too (RODAS4)
+                    self.h_first = self.h;
+                }
                 break;
             }
             // state and derivative at the end of the step, for dense output and the next step
