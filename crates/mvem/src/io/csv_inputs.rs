@@ -184,16 +184,15 @@ fn plain_table(text: &str) -> Option<Table> {
     while p < b.len() {
         let mut vals = [0.0; 5];
         for (k, v) in vals.iter_mut().enumerate() {
-            let start = p;
-            while p < b.len() && b[p] != b',' && b[p] != b'\n' {
-                p += 1;
-            }
-            let end = b.get(p).copied().unwrap_or(b'\n');
-            if end != if k < 4 { b',' } else { b'\n' } {
+            let (end, x) = scan_decimal(b, p);
+            if b.get(end).copied().unwrap_or(b'\n') != if k < 4 { b',' } else { b'\n' } {
                 return None;
             }
-            *v = plain_field(&text[start..p])?;
-            p += 1;
+            *v = match x {
+                Some(x) => x,
+                None => plain_field(&text[p..end])?,
+            };
+            p = end + 1;
         }
         let v = |k: usize| vals[index[k]];
         times.push(v(0));
@@ -224,33 +223,46 @@ const POW10: [f64; 23] = [
 /// numbers, one correctly rounded division (Clinger's fast path), i.e. the nearest f64, which
 /// is what `str::parse` returns. `None` for anything else (exponents, more digits, text).
 fn plain_decimal(s: &[u8]) -> Option<f64> {
-    let (neg, s) = match s.first() {
-        Some(b'-') => (true, &s[1..]),
-        Some(b'+') => (false, &s[1..]),
-        _ => (false, s),
-    };
-    let (mut m, mut digits, mut frac) = (0u64, 0usize, None::<usize>);
-    for &b in s {
-        match b {
+    let (end, x) = scan_decimal(s, 0);
+    if end == s.len() {
+        x
+    } else {
+        None
+    }
+}
+
+/// The field of `b` from `p` to the next `,`, `\n` or the end: that position, and the field's
+/// value if it is a decimal [`plain_decimal`] reads (one pass over the bytes).
+fn scan_decimal(b: &[u8], mut p: usize) -> (usize, Option<f64>) {
+    let neg = b.get(p) == Some(&b'-');
+    if neg || b.get(p) == Some(&b'+') {
+        p += 1;
+    }
+    let (mut m, mut digits, mut frac, mut plain) = (0u64, 0usize, None::<usize>, true);
+    while let Some(&c) = b.get(p) {
+        match c {
             b'0'..=b'9' => {
-                if digits == 19 {
-                    return None;
+                if digits < 19 {
+                    m = m * 10 + u64::from(c - b'0');
+                } else {
+                    plain = false;
                 }
-                m = m * 10 + u64::from(b - b'0');
                 digits += 1;
                 if let Some(k) = &mut frac {
                     *k += 1;
                 }
             }
             b'.' if frac.is_none() => frac = Some(0),
-            _ => return None,
+            b',' | b'\n' => break,
+            _ => plain = false,
         }
+        p += 1;
     }
-    if digits == 0 || m >= 1 << 53 {
-        return None;
+    if !plain || digits == 0 || m >= 1 << 53 {
+        return (p, None);
     }
-    let x = m as f64 / *POW10.get(frac.unwrap_or(0))?;
-    Some(if neg { -x } else { x })
+    let x = POW10.get(frac.unwrap_or(0)).map(|d| m as f64 / d);
+    (p, x.map(|x| if neg { -x } else { x }))
 }
 
 /// Read an input CSV file.
