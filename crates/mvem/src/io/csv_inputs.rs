@@ -67,10 +67,10 @@ fn csv_table(text: &str, path: &Path) -> Result<Table, IoError> {
     // one record reused for every row (no allocation per row)
     let mut rec = csv::StringRecord::new();
     while rdr.read_record(&mut rec).map_err(|e| {
-        let line = e.position().map(|p| p.line() as usize);
+        let line = e.position().map(|p| file_line(text, p));
         err(path, line, None, format!("malformed CSV: {e}"))
     })? {
-        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
+        let line = rec.position().map(|p| file_line(text, p)).unwrap_or(0);
         if rec.len() != headers.len() {
             return Err(err(
                 path,
@@ -105,6 +105,19 @@ fn csv_table(text: &str, path: &Path) -> Result<Table, IoError> {
         lines.push(line);
     }
     Ok((times, rows, lines))
+}
+
+/// The file line of a csv crate record position. The crate takes a record's position where
+/// the previous record ended, before its line end and any blank lines (line and byte), i.e.
+/// one line early after a CRLF line end and one per blank line: the record starts after the
+/// line-end bytes at that position, and each `\n` among them is one more line.
+fn file_line(text: &str, p: &csv::Position) -> usize {
+    let skipped = text.as_bytes()[(p.byte() as usize).min(text.len())..]
+        .iter()
+        .take_while(|b| matches!(b, b'\r' | b'\n'))
+        .filter(|b| **b == b'\n')
+        .count();
+    p.line() as usize + skipped
 }
 
 /// Times, the inputs (n_e, u_delta, u_egr, u_vgt) and the file line of each data row.
@@ -368,6 +381,25 @@ mod tests {
         assert!(e.contains("line 2"), "{e}");
         let e = parse(h).unwrap_err();
         assert!(e.contains("no data rows"), "{e}");
+        // CRLF line ends: the same lines (the csv crate alone said one line early)
+        let crlf = |s: String| parse(&s.replace('\n', "\r\n")).unwrap_err();
+        let e = crlf(format!("{h}0,1500,110,80,75\n1,1500,abc,80,75\n"));
+        assert_eq!(
+            e,
+            "in.csv, line 3, column u_delta_mg: `abc` is not a number"
+        );
+        let e = crlf(format!(
+            "{h}0,1500,110,80,75\n2,1500,110,80,75\n1,1500,110,80,75\n"
+        ));
+        assert!(e.starts_with("in.csv, line 4, column time_s"), "{e}");
+        let e = crlf(format!("{h}# note\n0,1500,110,80,75\n1,1500,110,80\n"));
+        assert!(e.starts_with("in.csv, line 4"), "{e}");
+        // blank lines, LF and CRLF
+        let blank = format!("{h}0,1500,110,80,75\n\n\n1,1500,abc,80,75\n");
+        let e = parse(&blank).unwrap_err();
+        assert!(e.starts_with("in.csv, line 5, column u_delta_mg"), "{e}");
+        let e = crlf(blank);
+        assert!(e.starts_with("in.csv, line 5, column u_delta_mg"), "{e}");
     }
 
     /// The direct reader's decimals are `str::parse`'s bit for bit: 200 000 random decimals
@@ -465,12 +497,10 @@ mod tests {
                     .collect()
             };
             assert!(bits(&plain) == bits(&full));
-            // the file line of each row; the csv crate counts one less after a CRLF line end
-            // (its record position is taken before the `\n`), so CRLF is compared by values
-            let crlf = c.contains('\r');
+            // the file line of each row (CRLF too: `file_line`)
             let lines: Vec<usize> = (2..plain.0.len() + 2).collect();
             assert!(plain.2 == lines);
-            assert!(crlf || full.2 == lines, "csv crate line numbers");
+            assert!(full.2 == lines, "csv crate line numbers");
         }
         assert_eq!(cases[0].lines().count(), 18_002);
         for c in [
