@@ -7,7 +7,8 @@ use anyhow::{Context, Result};
 use mvem::analysis::steady::{simulate_from_steady, simulate_from_steady_into};
 use mvem::model::Model;
 use mvem::sim::{
-    simulate, simulate_into, Block, InputSchedule, SimOptions, SimStats, Solution, Start,
+    simulate, simulate_into, Block, InputSchedule, SignalEvaluator, SimOptions, SimStats, Solution,
+    Start,
 };
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -320,8 +321,10 @@ const CSV_BLOCK_ROWS: usize = 1024;
 const PARQUET_BLOCK_ROWS: usize = 8192;
 
 /// Simulate and write `--out` at the same time: the simulation sends blocks of samples to a
-/// writer thread that selects the columns (`--signals`), adds M_dynamo (eq. (76)) and formats
-/// them (`io::output::write_streaming`: the file appears only if everything succeeded).
+/// writer thread that evaluates their output signals (`Solution::streaming_deferred`: the
+/// model evaluations of the samples leave the integrating thread), selects the columns
+/// (`--signals`), adds M_dynamo (eq. (76)) and formats them (`io::output::write_streaming`:
+/// the file appears only if everything succeeded).
 #[allow(clippy::too_many_arguments)]
 fn stream_to_file(
     a: &Args,
@@ -334,9 +337,24 @@ fn stream_to_file(
     opts: &SimOptions,
     msg: &str,
 ) -> Result<Written> {
+    mvem::dispatch!(model, m => stream_model(a, m, sched, t0, t_end, initial, tau_me, opts, msg))
+}
+
+/// [`stream_to_file`] for one model variant.
+#[allow(clippy::too_many_arguments)]
+fn stream_model<const N: usize, M: Model<N>>(
+    a: &Args,
+    m: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    initial: Option<&BTreeMap<String, f64>>,
+    tau_me: Option<f64>,
+    opts: &SimOptions,
+    msg: &str,
+) -> Result<Written> {
     use mvem::io::output::{select_names, write_streaming, StreamError};
-    let state_names = mvem::dispatch!(model, m => m.state_names().to_vec());
-    let mut names = Solution::new(&state_names).names;
+    let mut names = Solution::new(&m.state_names()).names;
     let m_e = names.iter().position(|n| n == "M_e");
     let mut lag = match (tau_me, m_e) {
         (Some(tau), Some(_)) => {
@@ -348,7 +366,9 @@ fn stream_to_file(
     let selected = select_names(&names, a.signals.as_deref())
         .map_err(|e| common::usage(format!("--signals: {e}")))?;
     let header: Vec<&str> = selected.iter().map(|i| names[*i].as_str()).collect();
-    let map = |mut block: Block| -> Block {
+    let mut signals = SignalEvaluator::new(m);
+    let map = |raw: Block| -> Block {
+        let mut block = signals.block(raw);
         if let (Some(lag), Some(m_e)) = (&mut lag, m_e) {
             // eq. (76): the torque the dynamometer measures
             let m_dynamo = block[0]
@@ -372,10 +392,8 @@ fn stream_to_file(
     let initial_path = a.initial_state.as_deref();
     let sol = write_streaming(&a.out, &header, 4, map, |tx| {
         common::with_spinner(msg, || {
-            mvem::dispatch!(model, m => {
-                let into = Solution::streaming(&m.state_names(), rows, tx);
-                run_model(m, sched, t0, t_end, initial, initial_path, opts, Some(into))
-            })
+            let into = Solution::streaming_deferred(m, rows, tx);
+            run_model(m, sched, t0, t_end, initial, initial_path, opts, Some(into))
         })
     })
     .map_err(|e| match e {
@@ -386,7 +404,8 @@ fn stream_to_file(
     })?;
     Ok(Written {
         stats: sol.stats,
-        guards_seen: sol.guards_seen,
+        // a deferred simulation's guards are seen where its signals are evaluated
+        guards_seen: sol.guards_seen | signals.guards_seen(),
         columns: header.len(),
         wall: 0.0,
     })

@@ -571,7 +571,9 @@ mod tests {
     /// A simulation streamed block by block into CSV and Parquet files (`write_streaming`,
     /// a streaming `Solution`): the CSV is byte for byte the one of the kept solution, the
     /// Parquet file (one row group per block) holds the same values bit for bit, the statistics
-    /// are the same, and a `map` that selects columns selects them.
+    /// are the same, and a `map` that selects columns selects them. The same with the signals
+    /// evaluated on the writer's thread (`Solution::streaming_deferred`): the same bytes and
+    /// guards (the fuel cut to 2 mg at 1.3 s activates some).
     #[test]
     fn streamed_simulation_equals_kept() {
         use crate::model::{Drive, Engine8, Model};
@@ -580,7 +582,7 @@ mod tests {
         use parquet::record::RowAccessor;
         let m = Engine8::published();
         let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
-        let sched = InputSchedule::steps(d0, &[(0.7, 3, 65.0), (1.3, 1, 60.0)]).unwrap();
+        let sched = InputSchedule::steps(d0, &[(0.7, 3, 65.0), (1.3, 1, 2.0)]).unwrap();
         let opts = SimOptions {
             dt_out: 1e-3,
             ..SimOptions::default()
@@ -610,6 +612,59 @@ mod tests {
             std::fs::read(d.path().join("k.csv")).unwrap(),
         );
         assert!(s == k, "streamed CSV differs from the kept solution's");
+
+        // the signals evaluated by the writer from raw blocks (`Solution::streaming_deferred`,
+        // `SignalEvaluator`): the same bytes and guards, the raw blocks 1 + 8 + 6 wide
+        let mut eval = crate::sim::SignalEvaluator::new(&m);
+        let mut widths = Vec::new();
+        let map = |raw: Block| {
+            widths.push(raw.len());
+            eval.block(raw)
+        };
+        let deferred = write_streaming(&d.path().join("d.csv"), &names, 2, map, |tx| {
+            let into = Solution::streaming_deferred(&m, 300, tx);
+            simulate_into(&m, &sched, 0.0, 2.5, x0, &opts, into)
+        })
+        .unwrap();
+        assert_eq!(deferred.stats, kept.stats);
+        assert_eq!(deferred.guards_seen, 0, "seen by the evaluator");
+        assert_eq!(eval.guards_seen(), kept.guards_seen);
+        assert_ne!(kept.guards_seen, 0, "a test of the guards needs some");
+        assert_eq!(deferred.columns.len(), names.len());
+        assert_eq!(widths.len(), kept.len().div_ceil(300));
+        assert!(widths.iter().all(|w| *w == 15), "{widths:?}");
+        let dd = std::fs::read(d.path().join("d.csv")).unwrap();
+        assert!(dd == k, "deferred signals differ from the kept solution's");
+
+        // a model whose evaluation reads its memory (one-iteration cylinder temperature) is
+        // evaluated while it integrates: full blocks, passed through, the same as kept
+        let one = Engine8::new(
+            m.params().clone(),
+            crate::model::ModelOptions {
+                cylinder_temp: crate::model::CylinderTemp::OneIteration,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let kept1 = simulate(&one, &sched, 0.0, 2.5, x0, &opts).unwrap();
+        let mut eval1 = crate::sim::SignalEvaluator::new(&one);
+        let mut widths1 = Vec::new();
+        let map1 = |raw: Block| {
+            widths1.push(raw.len());
+            eval1.block(raw)
+        };
+        let d1 = write_streaming(&d.path().join("d1.csv"), &names, 2, map1, |tx| {
+            let into = Solution::streaming_deferred(&one, 300, tx);
+            simulate_into(&one, &sched, 0.0, 2.5, x0, &opts, into)
+        })
+        .unwrap();
+        assert_eq!(d1.guards_seen, kept1.guards_seen);
+        assert!(widths1.iter().all(|w| *w == names.len()), "{widths1:?}");
+        write_solution_csv(&kept1, &d.path().join("k1.csv")).unwrap();
+        assert!(
+            std::fs::read(d.path().join("d1.csv")).unwrap()
+                == std::fs::read(d.path().join("k1.csv")).unwrap()
+        );
 
         let sel = [0, 3, 20];
         run(&d.path().join("s.parquet"), &sel);

@@ -351,8 +351,13 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
 
     fn output(&mut self, inp: &mut SegmentInputs, sol: &mut Solution, t: f64, y: &[f64; N]) {
         let u = inp.at(t);
-        let ev = self.model.eval(y, &u, self.memory);
-        sol.push(t, y, &ev.signals);
+        if sol.defers_signals() {
+            // the receiver evaluates the signals (`Solution::streaming_deferred`)
+            sol.push_deferred(t, y, &u);
+        } else {
+            let ev = self.model.eval(y, &u, self.memory);
+            sol.push(t, y, &ev.signals);
+        }
         self.stats.outputs += 1;
     }
 

@@ -50,7 +50,7 @@ pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 pub use integrator::Integrator;
 pub use options::{Method, SimOptions};
 pub use segment::{stop_times, SegmentInputs};
-pub use solution::{Block, SimStats, Solution, MAX_ROWS};
+pub use solution::{Block, SignalEvaluator, SimStats, Solution, MAX_ROWS};
 
 use crate::model::Dynamics;
 

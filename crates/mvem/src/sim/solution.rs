@@ -1,7 +1,7 @@
 //! The simulation result: named columns at the output times, and solver statistics; or, for a
 //! streaming solution, the same samples handed on in blocks while the simulation runs.
 
-use crate::model::Signals;
+use crate::model::{Dynamics, ModelInput, Signals};
 use std::sync::mpsc::SyncSender;
 
 /// A block of consecutive output samples of a [`Solution::streaming`] simulation: one vector per
@@ -62,7 +62,14 @@ struct Stream {
     rows: usize,
     /// The receiver hung up (e.g. its writer failed): later samples are dropped.
     closed: bool,
+    /// The blocks hold what the signals are computed from, not the signals
+    /// ([`Solution::streaming_deferred`]).
+    deferred: bool,
 }
+
+/// Columns of a deferred block after `t` and the states: the [`ModelInput`] of each sample
+/// (n_e, u_delta, u_egr, u_vgt at t, then u_egr and u_vgt delayed).
+const INPUT_COLUMNS: usize = 6;
 
 /// Two solutions are equal when their names, samples, statistics and guards are (where a
 /// streaming solution sends its blocks is not part of its value).
@@ -122,9 +129,40 @@ impl Solution {
             tx,
             rows,
             closed: false,
+            deferred: false,
         });
         s.reserve(rows);
         s
+    }
+
+    /// A streaming solution like [`Solution::streaming`] whose blocks hold, per sample, only
+    /// what the output signals are computed from: `t`, the state and the [`ModelInput`] (raw
+    /// blocks of 1 + N + 6 columns). The receiver turns each block into the columns of
+    /// [`Solution::names`] with a [`SignalEvaluator`] of the same model, bit for bit the block
+    /// [`Solution::streaming`] would have sent: the model evaluations of the output samples
+    /// move to the receiver's thread. A model whose evaluation depends on its memory
+    /// ([`Dynamics::holds_memory`]) gets the plain [`Solution::streaming`] (the evaluator then
+    /// passes its blocks through), so the simulation must use this `model`.
+    pub fn streaming_deferred<const N: usize, M: Dynamics<N>>(
+        model: &M,
+        rows: usize,
+        tx: SyncSender<Block>,
+    ) -> Self {
+        let mut s = Self::streaming(&model.state_names(), rows, tx);
+        if !model.holds_memory() {
+            let rows = rows.max(1);
+            s.columns = vec![Vec::with_capacity(rows); 1 + N + INPUT_COLUMNS];
+            if let Some(st) = &mut s.stream {
+                st.deferred = true;
+            }
+        }
+        s
+    }
+
+    /// Whether output samples are pushed without their signals
+    /// ([`Solution::streaming_deferred`]).
+    pub(super) fn defers_signals(&self) -> bool {
+        self.stream.as_ref().is_some_and(|s| s.deferred)
     }
 
     /// Whether the samples are sent on in blocks ([`Solution::streaming`]) rather than kept.
@@ -137,6 +175,9 @@ impl Solution {
     /// solution that is not streaming.
     pub fn finish_stream(&mut self) {
         self.send_block();
+        if self.defers_signals() {
+            self.columns = vec![Vec::new(); self.names.len()];
+        }
         self.stream = None;
     }
 
@@ -178,6 +219,32 @@ impl Solution {
             }
         }
         self.guards_seen |= s.guards;
+        self.block_full();
+    }
+
+    /// A sample of a [`Solution::streaming_deferred`] solution: `t`, the state and the inputs
+    /// the signals are computed from.
+    pub(super) fn push_deferred<const N: usize>(&mut self, t: f64, y: &[f64; N], u: &ModelInput) {
+        self.columns[0].push(t);
+        for i in 0..N {
+            self.columns[1 + i].push(y[i]);
+        }
+        let inputs = [
+            u.now.n_e_rpm,
+            u.now.u_delta_mg,
+            u.now.u_egr_pct,
+            u.now.u_vgt_pct,
+            u.u_egr_delayed,
+            u.u_vgt_delayed,
+        ];
+        for (k, v) in inputs.into_iter().enumerate() {
+            self.columns[1 + N + k].push(v);
+        }
+        self.block_full();
+    }
+
+    /// Send the block if it is full (streaming solutions).
+    fn block_full(&mut self) {
         if let Some(st) = &self.stream {
             if self.columns[0].len() >= st.rows {
                 self.send_block();
@@ -215,5 +282,57 @@ impl Solution {
             .zip(&self.columns)
             .map(|(n, c)| (n.as_str(), c[i]))
             .collect()
+    }
+}
+
+/// The receiving end of a [`Solution::streaming_deferred`] simulation: evaluates the output
+/// signals of each raw block, on the thread that calls [`SignalEvaluator::block`], and returns
+/// the block [`Solution::streaming`] would have sent (the same function on the same state and
+/// inputs: the same bits).
+#[derive(Debug)]
+pub struct SignalEvaluator<'m, const N: usize, M: Dynamics<N>> {
+    model: &'m M,
+    /// Fills the columns of [`Solution::names`] as the integrator would.
+    out: Solution,
+    deferred: bool,
+}
+
+impl<'m, const N: usize, M: Dynamics<N>> SignalEvaluator<'m, N, M> {
+    /// The evaluator of `model`'s [`Solution::streaming_deferred`] blocks.
+    pub fn new(model: &'m M) -> Self {
+        Self {
+            model,
+            out: Solution::new(&model.state_names()),
+            deferred: !model.holds_memory(),
+        }
+    }
+
+    /// The block of [`Solution::names`] columns of the raw block `raw` (a block that is not
+    /// raw, of a model holding memory, is returned as it is).
+    pub fn block(&mut self, raw: Block) -> Block {
+        if !self.deferred {
+            return raw;
+        }
+        let rows = raw[0].len();
+        self.out.reserve(rows);
+        for i in 0..rows {
+            let y: [f64; N] = std::array::from_fn(|k| raw[1 + k][i]);
+            let v = |k: usize| raw[1 + N + k][i];
+            let u = ModelInput {
+                now: crate::model::Drive::new(v(0), v(1), v(2), v(3)),
+                u_egr_delayed: v(4),
+                u_vgt_delayed: v(5),
+            };
+            // the model's memory is not read when it holds none (`Dynamics::holds_memory`)
+            let ev = self.model.eval(&y, &u, self.model.memory_start(&y, &u));
+            self.out.push(raw[0][i], &y, &ev.signals);
+        }
+        self.out.columns.iter_mut().map(std::mem::take).collect()
+    }
+
+    /// Guards of the authors' implementation active at any sample evaluated so far (the
+    /// [`Solution::guards_seen`] of a deferred simulation).
+    pub fn guards_seen(&self) -> u32 {
+        self.out.guards_seen
     }
 }
