@@ -62,6 +62,11 @@ pub struct Args {
     /// paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
+    /// With --refine-dynamics: standard errors of the static parameters and V_im, V_em, J_t
+    /// from their joint covariance at the fixed point of step 5 and the repeated step 3
+    /// (`false`: the steps' covariances chained, docs/tuning.md).
+    #[arg(long = "joint-uncertainty", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
     pub max_evals: usize,
@@ -139,6 +144,7 @@ pub fn run(a: &Args) -> Result<()> {
     };
     opts.step5.beta = a.beta;
     opts.refine_dynamics = a.refine_dynamics;
+    opts.joint_uncertainty = a.joint_uncertainty;
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
     opts.step5.dynamic_row = a.cost != CostArg::Static;

@@ -25,7 +25,7 @@
 
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
-use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
+use super::lsq::{least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
     block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,
@@ -989,7 +989,9 @@ pub fn step5(
     let cost_start = cost.cost(&th0);
     let eval_seconds = t0.elapsed().as_secs_f64();
     let scale: Vec<f64> = list.iter().map(|s| s.scale).collect();
-    let fit: LsqResult = least_squares(
+    // the finite-difference columns in parallel (each evaluation also runs its data sets in
+    // parallel): the same search, evaluation by evaluation, as `least_squares`
+    let fit: LsqResult = least_squares_par(
         |th: &[f64]| cost.residuals(th),
         &th0,
         &Bounds::new(lo.clone(), hi.clone()),

@@ -25,9 +25,10 @@ use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
 use super::uncertainty::{
-    estimates_from_cov, fd_jacobian_named, step1_estimates, step2_estimates, toml_path, with_fixed,
-    Linearization, NamedCov, ParamEstimate,
+    estimates_from_cov, fd_jacobian_named, joint_covariance, sensitivity, step1_estimates,
+    step2_estimates, toml_path, Conditional, Linearization, NamedCov, ParamEstimate,
 };
+use nalgebra::DMatrix;
 use crate::components::{compressor, pow_ln};
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -63,6 +64,11 @@ pub struct PipelineOptions {
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
+    /// With `refine_dynamics`: report the static parameters and V_im, V_em, J_t with their
+    /// joint covariance at the fixed point of step 5 and the repeated step 3
+    /// ([`super::uncertainty::joint_covariance`]) instead of chaining the steps' covariances
+    /// (default on; docs/tuning.md).
+    pub joint_uncertainty: bool,
 }
 
 impl Default for PipelineOptions {
@@ -75,6 +81,7 @@ impl Default for PipelineOptions {
             step5: Step5Options::default(),
             refine_dynamics: true,
             model: ModelOrder::Eight,
+            joint_uncertainty: true,
         }
     }
 }
@@ -124,6 +131,10 @@ pub struct TuneReport {
     pub step3_refined: Option<CompleteReport>,
     /// Step 4 repeated after step 5 (option `refine_dynamics`).
     pub step4_refined: Option<CompleteReport>,
+    /// Whether the uncertainty of the static parameters and V_im, V_em, J_t is their joint
+    /// covariance at the fixed point of step 5 and the repeated step 3 (option
+    /// `joint_uncertainty`; false when not computed or singular: then chained step by step).
+    pub joint_uncertainty: bool,
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
     /// How well each tuned parameter is known, keyed by its path in the parameter file
@@ -206,6 +217,7 @@ pub fn tune(
         step5: None,
         step3_refined: None,
         step4_refined: None,
+        joint_uncertainty: false,
         twelve: None,
         parameters: BTreeMap::new(),
         seconds: [0.0; 5],
@@ -215,6 +227,8 @@ pub fn tune(
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
     let mut cov = NamedCov::default();
+    // step 5's linearization, for the joint covariance with the repeated step 3
+    let mut cond5: Option<Conditional> = None;
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
         let t = Instant::now();
@@ -246,7 +260,7 @@ pub fn tune(
         if sets.is_empty() {
             return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
         }
-        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
+        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?.0);
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
@@ -281,7 +295,7 @@ pub fn tune(
         let (q, mut r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
         p = q;
         let cost = Cost77::new(&p, &c.stationary, &sets, &opts.step5);
-        add_fixed(
+        cond5 = add_fixed(
             &mut r.uncertainty,
             &r.linearization,
             &mut cov,
@@ -290,16 +304,7 @@ pub fn tune(
             5,
         );
         if !r.converged {
-            // a search stopped by its evaluation limit is not at an optimum: the linearized
-            // covariance at its end point does not describe the estimate (seeds 2 and 4 of
-            // `mvem lab` put some such parameters 60-360 standard errors from the truth)
-            for (_, e) in r.uncertainty.iter_mut().filter(|(_, e)| e.identifiable) {
-                e.identifiable = false;
-                e.reason = format!(
-                    "step 5 stopped at its evaluation limit before converging ({} at its end point)",
-                    e.reason
-                );
-            }
+            flag_unconverged(&mut r.uncertainty);
         }
         est.extend(r.uncertainty.iter().cloned());
         rep.step5 = Some(r);
@@ -309,7 +314,14 @@ pub fn tune(
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
-            rep.step3_refined = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
+            let (r, cond3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+            rep.step3_refined = Some(r);
+            if opts.joint_uncertainty {
+                if let (Some(c5), Some(c3), Some(r5)) = (&cond5, &cond3, &rep.step5) {
+                    rep.joint_uncertainty =
+                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, r5.converged);
+                }
+            }
         }
         if let Some(set) = infos
             .iter()
@@ -432,20 +444,22 @@ fn run_step3(
     opts: &PipelineOptions,
     cov: &mut NamedCov,
     est: &mut Vec<(String, ParamEstimate)>,
-) -> Result<CompleteReport, PipelineError> {
+) -> Result<(CompleteReport, Option<Conditional>), PipelineError> {
     let (q, mut r) =
         step3(p, sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
     *p = q;
     let res = dynamic_residuals(ModelOrder::Eight, sets, &c.stationary, opts.step3.amp_floor);
-    add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
+    let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
     est.extend(r.uncertainty.iter().cloned());
-    Ok(r)
+    Ok((r, cond))
 }
 
 /// Add to a step's covariance the uncertainty of the parameters it held fixed (every earlier
 /// estimate in `cov`; [`super::uncertainty`]), with the step's residual function `res` at the
 /// whole parameter set `p` (the estimate); replace the step's `estimates` and insert its
 /// covariance into `cov`.
+/// Returns the step's conditional linearization ([`Conditional`]) for
+/// [`joint_covariance`].
 fn add_fixed(
     estimates: &mut Vec<(String, ParamEstimate)>,
     lin: &Option<Linearization>,
@@ -453,24 +467,84 @@ fn add_fixed(
     res: impl Fn(&Params) -> Vec<f64>,
     p: &Params,
     step: u8,
-) {
-    let Some(lin) = lin else { return };
+) -> Option<Conditional> {
+    let lin = lin.as_ref()?;
     let own: Vec<&str> = lin.names.iter().map(String::as_str).collect();
     let fixed = cov.without(&own);
-    let total = if fixed.names.is_empty() {
-        lin.covariance.clone()
+    let n = own.len();
+    let (total, s) = if fixed.names.is_empty() {
+        (lin.covariance.clone(), DMatrix::zeros(n, 0))
     } else {
         let j_fixed = fd_jacobian_named(&res, p, &fixed.names);
-        with_fixed(&lin.jacobian, &lin.covariance, &j_fixed, &fixed.cov)
+        let s = sensitivity(&lin.jacobian, &j_fixed);
+        (&lin.covariance + &s * &fixed.cov * s.transpose(), s)
     };
     let theta: Vec<f64> = estimates.iter().map(|(_, e)| e.value).collect();
-    if theta.len() == own.len() {
+    if theta.len() == n {
         *estimates = estimates_from_cov(&own, &theta, &total, step);
     }
     cov.set_block(&NamedCov {
         names: lin.names.clone(),
         cov: total,
     });
+    Some(Conditional {
+        names: lin.names.clone(),
+        cov: lin.covariance.clone(),
+        fixed: fixed.names,
+        s,
+    })
+}
+
+/// Replace the estimates of step 5 and of the repeated step 3 by their joint covariance at the
+/// fixed point of the alternation ([`joint_covariance`]; `ext` the covariance of every other
+/// estimate). Each step's parameters keep their values, their standard errors and flags come
+/// from their block of the joint covariance (correlations within the step, as before). Returns
+/// false (nothing changed) when the alternation's linearization is singular.
+fn joint_step5_step3(
+    c5: &Conditional,
+    c3: &Conditional,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+    p: &Params,
+    step5_converged: bool,
+) -> bool {
+    let mut own: Vec<&str> = c5.names.iter().map(String::as_str).collect();
+    own.extend(c3.names.iter().map(String::as_str));
+    let ext = cov.without(&own);
+    let Some(joint) = joint_covariance(&[c5, c3], &ext) else {
+        return false;
+    };
+    let mut row0 = 0;
+    for (c, step) in [(c5, 5u8), (c3, 3u8)] {
+        let nb = c.names.len();
+        let sub = joint.cov.view((row0, row0), (nb, nb)).into_owned();
+        let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
+        let theta: Vec<f64> = names
+            .iter()
+            .map(|n| super::complete::param_value(p, n).unwrap_or(f64::NAN))
+            .collect();
+        let mut e = estimates_from_cov(&names, &theta, &sub, step);
+        if step == 5 && !step5_converged {
+            flag_unconverged(&mut e);
+        }
+        est.extend(e);
+        row0 += nb;
+    }
+    cov.set_block(&joint);
+    true
+}
+
+/// Flag the estimates of a step-5 search stopped by its evaluation limit: it is not at an
+/// optimum, so the linearized covariance at its end point does not describe the estimate (seeds
+/// 2 and 4 of `mvem lab` put some such parameters 60-360 standard errors from the truth).
+fn flag_unconverged(e: &mut [(String, ParamEstimate)]) {
+    for (_, e) in e.iter_mut().filter(|(_, e)| e.identifiable) {
+        e.identifiable = false;
+        e.reason = format!(
+            "step 5 stopped at its evaluation limit before converging ({} at its end point)",
+            e.reason
+        );
+    }
 }
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.

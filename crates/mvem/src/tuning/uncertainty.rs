@@ -301,15 +301,103 @@ pub fn with_fixed(
     j_fixed: &DMatrix<f64>,
     cov_fixed: &DMatrix<f64>,
 ) -> DMatrix<f64> {
-    let m = jacobian.nrows();
-    if j_fixed.ncols() == 0 || j_fixed.nrows() != m {
+    if j_fixed.ncols() == 0 || j_fixed.nrows() != jacobian.nrows() {
         return cov.clone();
     }
+    let s = sensitivity(jacobian, j_fixed);
+    cov + &s * cov_fixed * s.transpose()
+}
+
+/// Sensitivity `S = (J^T J)^+ J^T J_fixed` of a step's optimum to the parameters it holds fixed
+/// (`d(own)/d(fixed) = -S`), the pseudo-inverse over the identifiable subspace.
+pub fn sensitivity(jacobian: &DMatrix<f64>, j_fixed: &DMatrix<f64>) -> DMatrix<f64> {
+    let m = jacobian.nrows();
     // (J^T J)^+ over the identifiable subspace (param_stats with unit residuals: cov / sigma2)
     let st = param_stats(jacobian, &vec![1.0; m]);
     let pinv = st.covariance.map(|c| if c.is_finite() { c } else { 0.0 }) / st.sigma2;
-    let s = pinv * jacobian.tr_mul(j_fixed);
-    cov + &s * cov_fixed * s.transpose()
+    pinv * jacobian.tr_mul(j_fixed)
+}
+
+/// The linearization of one step of a block-coordinate estimator: the step's parameters
+/// `names`, their covariance `cov` conditional on the parameters the step held fixed, and the
+/// sensitivity `s` of its optimum to those (`fixed`): `d(own)/d(fixed) = -s`,
+/// `s = (J^T J)^+ J^T J_fixed` (as in [`with_fixed`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Conditional {
+    /// The step's own parameters.
+    pub names: Vec<String>,
+    /// Their covariance with the fixed parameters held at their values.
+    pub cov: DMatrix<f64>,
+    /// The parameters the step held fixed (columns of `s`).
+    pub fixed: Vec<String>,
+    /// Sensitivity of the optimum (n x k).
+    pub s: DMatrix<f64>,
+}
+
+/// Joint covariance of steps that each held the others' parameters fixed, at a fixed point of
+/// their alternation (step 5 holds V_im, V_em, J_t fixed, the repeated step 3 the static
+/// parameters): linearized, every step b satisfies
+/// `d_b + sum_{c != b} S_bc d_c + S_b,ext d_ext = e_b`, `Cov(e_b)` = its conditional
+/// covariance, so with `K = I + [S_bc]` the joint covariance is
+/// `K^-1 (diag(Cov_b) + S_ext C_ext S_ext^T) K^-T` (cross-covariances of the e_b neglected, as
+/// between all steps). Chaining instead (`Cov_b + S C_f S^T` with C_f the covariance the
+/// other step had when it ran) counts an earlier estimate of the same parameters: step 5's
+/// covariance then carries the uncertainty of the *first* step-3 pass (on the step-1 static
+/// parameters), which the repeated step 3 replaces, and hands it back to V_im, V_em, J_t.
+/// `ext` is the covariance of every other estimate (the actuators, ...); fixed parameters in
+/// neither contribute nothing (as in [`NamedCov::without`]). A parameter with an infinite own
+/// variance (not determined by its step's data) keeps an infinite variance. `None` when `K` is
+/// singular (the alternation does not contract in some direction).
+pub fn joint_covariance(blocks: &[&Conditional], ext: &NamedCov) -> Option<NamedCov> {
+    let names: Vec<String> = blocks.iter().flat_map(|b| b.names.clone()).collect();
+    let n = names.len();
+    let pos = |name: &str| names.iter().position(|x| x == name);
+    let epos = |name: &str| ext.names.iter().position(|x| x == name);
+    let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
+    let mut k = DMatrix::<f64>::identity(n, n);
+    let mut e = DMatrix::<f64>::zeros(n, ext.names.len());
+    let mut d = DMatrix::<f64>::zeros(n, n);
+    let mut undetermined = vec![false; n];
+    let mut row0 = 0;
+    for b in blocks {
+        let nb = b.names.len();
+        for i in 0..nb {
+            for j in 0..nb {
+                d[(row0 + i, row0 + j)] = finite(b.cov[(i, j)]);
+            }
+            let v = b.cov[(i, i)];
+            undetermined[row0 + i] = !(v.is_finite() && v > 0.0);
+        }
+        for (c, f) in b.fixed.iter().enumerate() {
+            // a parameter of this step itself is not a fixed one
+            if b.names.contains(f) {
+                continue;
+            }
+            if let Some(col) = pos(f) {
+                for i in 0..nb {
+                    k[(row0 + i, col)] += finite(b.s[(i, c)]);
+                }
+            } else if let Some(col) = epos(f) {
+                for i in 0..nb {
+                    e[(row0 + i, col)] += finite(b.s[(i, c)]);
+                }
+            }
+        }
+        row0 += nb;
+    }
+    let c_ext = ext.cov.map(finite);
+    let k_inv = k.try_inverse()?;
+    let mid = d + &e * c_ext * e.transpose();
+    let mut cov = &k_inv * mid * k_inv.transpose();
+    if cov.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    for (i, u) in undetermined.iter().enumerate() {
+        if *u {
+            cov[(i, i)] = f64::INFINITY;
+        }
+    }
+    Some(NamedCov { names, cov })
 }
 
 /// Forward-difference Jacobian (m x k, [`fd_jacobian`]) of `res` at `p` with respect to the
@@ -584,6 +672,48 @@ mod tests {
             with_fixed(&j, &cov, &DMatrix::zeros(20, 0), &DMatrix::zeros(0, 0)),
             cov
         );
+    }
+
+    #[test]
+    fn joint_covariance_of_two_alternating_steps_by_hand() {
+        // a = e_a - 0.5 b - 2 x, b = e_b - 0.4 a (x external): K = [[1, .5], [.4, 1]],
+        // det 0.8, K^-1 = [[1, -.5], [-.4, 1]] / 0.8
+        let a = Conditional {
+            names: vec!["a".into()],
+            cov: DMatrix::from_element(1, 1, 4.0),
+            fixed: vec!["b".into(), "x".into(), "unknown".into()],
+            s: DMatrix::from_row_slice(1, 3, &[0.5, 2.0, 7.0]),
+        };
+        let b = Conditional {
+            names: vec!["b".into()],
+            cov: DMatrix::from_element(1, 1, 9.0),
+            fixed: vec!["a".into()],
+            s: DMatrix::from_element(1, 1, 0.4),
+        };
+        let ext = NamedCov::new(&["x"], DMatrix::from_element(1, 1, 0.25));
+        let got = joint_covariance(&[&a, &b], &ext).unwrap();
+        assert_eq!(got.names, ["a", "b"]);
+        // middle: diag(4 + 2^2 0.25, 9) = diag(5, 9)
+        let ki = DMatrix::from_row_slice(2, 2, &[1.0, -0.5, -0.4, 1.0]) / 0.8;
+        let want = &ki * DMatrix::from_row_slice(2, 2, &[5.0, 0.0, 0.0, 9.0]) * ki.transpose();
+        for (g, w) in got.cov.iter().zip(want.iter()) {
+            assert!((g - w).abs() < 1e-12 * w.abs().max(1.0), "{g} {w}");
+        }
+        // by hand: var a = (5 + 0.25 * 9) / 0.64
+        assert!((got.cov[(0, 0)] - 7.25 / 0.64).abs() < 1e-12);
+        // a loop that does not contract: K singular
+        let b1 = Conditional {
+            s: DMatrix::from_element(1, 1, 2.0),
+            ..b.clone()
+        };
+        assert!(joint_covariance(&[&a, &b1], &ext).is_none());
+        // an undetermined own parameter stays undetermined
+        let a_inf = Conditional {
+            cov: DMatrix::from_element(1, 1, f64::INFINITY),
+            ..a
+        };
+        let got = joint_covariance(&[&a_inf, &b], &ext).unwrap();
+        assert!(got.cov[(0, 0)].is_infinite() && got.cov[(1, 1)].is_finite());
     }
 
     #[test]
