@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long = "joint-uncertainty", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
-    #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
+    #[arg(long = "max-evals", default_value_t = 3600, value_name = "N")]
     pub max_evals: usize,
     /// Step 5: most consecutive Broyden (secant) updates of the finite-difference Jacobian of
     /// (77) before it is recomputed (0: recomputed after every accepted step, 35 evaluations).

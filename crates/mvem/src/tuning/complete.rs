@@ -679,7 +679,10 @@ pub struct Step5Options {
     pub static_row: bool,
     /// Sample rate of the dynamic terms [Hz] (paper: 10 Hz; sets sampled slower stay as they are).
     pub sample_hz: f64,
-    /// Limit on cost evaluations (finite differences included).
+    /// Limit on cost evaluations (finite differences included). Default 3600 = 100 (n + 1)
+    /// for the n = 35 static parameters: 100 finite-difference Jacobians, half the general
+    /// default of [`super::lsq::LsqOptions`] (was 600 until the Jacobian columns ran in
+    /// parallel; `mvem lab` seeds 2 and 4 need 1814 and 1161, docs/tuning.md).
     pub max_evaluations: usize,
     /// Most consecutive Broyden updates of the finite-difference Jacobian of (77) between two
     /// recomputations ([`super::lsq::LsqOptions::broyden_updates`]; 0, the default: none, a new
@@ -699,7 +702,7 @@ impl Default for Step5Options {
             dynamic_row: true,
             static_row: true,
             sample_hz: 10.0,
-            max_evaluations: 600,
+            max_evaluations: 3600,
             broyden_updates: 0,
             model: ModelOrder::Eight,
         }

@@ -27,6 +27,13 @@
 //!   the full covariance of every step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
 //!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
 //!   turn carries that of step 1.
+//! * **Step 5 and the repeated step 3 jointly.** Chained, step 5's covariance carries that of
+//!   the first step-3 pass (V_im, V_em, J_t on the step-1 static parameters, rel. std. errors
+//!   of 100-270 % on `mvem lab` seed 2), and the repeated step 3 receives it back through the
+//!   static parameters although it re-estimates V_im, V_em, J_t: on seed 2 (step 5 converged)
+//!   that made the step-5 standard errors 10-100 times their own and V_im's 720 %. The
+//!   pipeline therefore reports both steps with their joint covariance at the fixed point of
+//!   the alternation ([`joint_covariance`]), which counts each estimate once.
 //! * **A search stopped by its evaluation limit** (step 5 on the standard campaigns) reports
 //!   the covariance at its end point and says `converged: false`. Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
