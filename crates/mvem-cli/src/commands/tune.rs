@@ -155,6 +155,7 @@ pub fn run(a: &Args) -> Result<()> {
         (3, rep.step3.as_ref().map(|r| r.converged)),
         (4, rep.step4.as_ref().map(|r| r.converged)),
         (5, rep.step5.as_ref().map(|r| r.converged)),
+        (5, rep.step5_refined.as_ref().map(|r| r.converged)),
         (
             7,
             rep.twelve
@@ -306,6 +307,13 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             &mut s,
             "Step 5: complete model on the static-tuning sets (eq. (5))",
             &r.dynamic,
+        );
+    }
+    if let Some(r) = &rep.step5_refined {
+        let _ = writeln!(
+            s,
+            "Step 5 repeated on the repeated step 3's V_im, V_em, J_t: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations), converged {}\n",
+            r.cost_start, r.cost_end, r.n_eval, r.n_iter, r.converged
         );
     }
     if let Some(r) = &rep.step3_refined {

@@ -64,8 +64,9 @@ pub struct PipelineOptions {
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
-    /// With `refine_dynamics`: report the static parameters and V_im, V_em, J_t with their
-    /// joint covariance at the fixed point of step 5 and the repeated step 3
+    /// With `refine_dynamics`: run a second round of steps 5 and 3 (step 5 on the repeated
+    /// step 3's V_im, V_em, J_t, then step 3 again) and report the static parameters and V_im,
+    /// V_em, J_t with their joint covariance at that fixed point of the alternation
     /// ([`super::uncertainty::joint_covariance`]) instead of chaining the steps' covariances
     /// (default on; docs/tuning.md).
     pub joint_uncertainty: bool,
@@ -127,8 +128,12 @@ pub struct TuneReport {
     pub tau_me_s: Option<f64>,
     /// Step 5.
     pub step5: Option<Step5Report>,
-    /// Step 3 repeated after step 5 (option `refine_dynamics`).
+    /// Step 3 repeated after step 5 (option `refine_dynamics`; with `joint_uncertainty` the
+    /// last of its two repetitions).
     pub step3_refined: Option<CompleteReport>,
+    /// Step 5 repeated on the V_im, V_em, J_t of the repeated step 3 (options
+    /// `refine_dynamics` and `joint_uncertainty`: the second round of the alternation).
+    pub step5_refined: Option<Step5Report>,
     /// Step 4 repeated after step 5 (option `refine_dynamics`).
     pub step4_refined: Option<CompleteReport>,
     /// Whether the uncertainty of the static parameters and V_im, V_em, J_t is their joint
@@ -216,6 +221,7 @@ pub fn tune(
         tau_me_s: None,
         step5: None,
         step3_refined: None,
+        step5_refined: None,
         step4_refined: None,
         joint_uncertainty: false,
         twelve: None,
@@ -279,34 +285,12 @@ pub fn tune(
     }
     if opts.steps[4] {
         let t = Instant::now();
-        let sets: Vec<_> = infos
-            .iter()
-            .zip(&c.dynamic)
-            .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
-            .map(|(_, d)| d)
-            .collect();
-        if sets.is_empty() && opts.step5.dynamic_row {
-            return Err(missing(5, "data set with role \"static\""));
-        }
         let th0 = match opts.init {
             Init::Step1 => static_theta(&p),
             Init::Naive => naive_theta(),
         };
-        let (q, mut r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
-        p = q;
-        let cost = Cost77::new(&p, &c.stationary, &sets, &opts.step5);
-        cond5 = add_fixed(
-            &mut r.uncertainty,
-            &r.linearization,
-            &mut cov,
-            |q: &Params| cost.residuals_at(q),
-            &p,
-            5,
-        );
-        if !r.converged {
-            flag_unconverged(&mut r.uncertainty);
-        }
-        est.extend(r.uncertainty.iter().cloned());
+        let (r, c5) = run_step5(&mut p, c, &th0, opts, &mut cov, &mut est)?;
+        cond5 = c5;
         rep.step5 = Some(r);
         rep.seconds[4] = t.elapsed().as_secs_f64();
     }
@@ -314,12 +298,22 @@ pub fn tune(
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
-            let (r, cond3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+            let (r, _) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
             rep.step3_refined = Some(r);
-            if opts.joint_uncertainty {
-                if let (Some(c5), Some(c3), Some(r5)) = (&cond5, &cond3, &rep.step5) {
+            if opts.joint_uncertainty && cond5.is_some() {
+                // a second round, step 5 on the repeated step 3's V_im, V_em, J_t, then step 3
+                // again: the first step 5 ran on the first step-3 pass (on the step-1 static
+                // parameters), so its result depends on those volumes and is not yet the
+                // fixed point the joint covariance describes
+                let th0 = static_theta(&p);
+                let (r5, c5) = run_step5(&mut p, c, &th0, opts, &mut cov, &mut est)?;
+                let converged = r5.converged;
+                rep.step5_refined = Some(r5);
+                let (r, c3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+                rep.step3_refined = Some(r);
+                if let (Some(c5), Some(c3)) = (&c5, &c3) {
                     rep.joint_uncertainty =
-                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, r5.converged);
+                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, converged);
                 }
             }
         }
@@ -433,6 +427,46 @@ fn flag_extrapolated_efficiency_peak(
             );
         }
     }
+}
+
+/// Step 5 from `th0` on `p` (replaced by the result), its uncertainty with that of the
+/// parameters it holds fixed ([`add_fixed`]) added to `cov` and `est` (flagged when the search
+/// stopped at its evaluation limit); the step's report and linearization.
+fn run_step5(
+    p: &mut Params,
+    c: &Campaign,
+    th0: &[f64],
+    opts: &PipelineOptions,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+) -> Result<(Step5Report, Option<Conditional>), PipelineError> {
+    let sets: Vec<_> = c
+        .manifest
+        .datasets
+        .iter()
+        .zip(&c.dynamic)
+        .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
+        .map(|(_, d)| d)
+        .collect();
+    if sets.is_empty() && opts.step5.dynamic_row {
+        return Err(missing(5, "data set with role \"static\""));
+    }
+    let (q, mut r) = step5(p, &c.stationary, &sets, th0, &opts.step5).map_err(at(5))?;
+    *p = q;
+    let cost = Cost77::new(p, &c.stationary, &sets, &opts.step5);
+    let cond = add_fixed(
+        &mut r.uncertainty,
+        &r.linearization,
+        cov,
+        |q: &Params| cost.residuals_at(q),
+        p,
+        5,
+    );
+    if !r.converged {
+        flag_unconverged(&mut r.uncertainty);
+    }
+    est.extend(r.uncertainty.iter().cloned());
+    Ok((r, cond))
 }
 
 /// Step 3 on `sets` from `p` (replaced by the result), its uncertainty with that of the
