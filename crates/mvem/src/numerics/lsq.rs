@@ -586,7 +586,7 @@ type EvalFn<'a> = &'a mut dyn FnMut(&DVector<f64>) -> Result<DVector<f64>, LsqEr
 
 /// Residuals at `x + t e_j` (None if not finite).
 fn shifted(
-    eval: &mut dyn FnMut(&DVector<f64>) -> Result<DVector<f64>, LsqError>,
+    eval: EvalFn,
     x: &DVector<f64>,
     j: usize,
     t: f64,

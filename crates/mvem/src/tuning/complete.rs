@@ -25,7 +25,9 @@
 
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
-use super::lsq::{least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
+use super::lsq::{
+    least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale,
+};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
     block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,

@@ -28,10 +28,10 @@ use super::uncertainty::{
     estimates_from_cov, fd_jacobian_named, joint_covariance, sensitivity, step1_estimates,
     step2_estimates, toml_path, Conditional, Linearization, NamedCov, ParamEstimate,
 };
-use nalgebra::DMatrix;
 use crate::components::{compressor, pow_ln};
 use crate::model::ModelOrder;
 use crate::params::Params;
+use nalgebra::DMatrix;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Instant;
