@@ -64,8 +64,9 @@ pub struct Args {
     pub refine_dynamics: bool,
     /// With --refine-dynamics: standard errors of the static parameters and V_im, V_em, J_t
     /// from their joint covariance at the fixed point of step 5 and the repeated step 3
-    /// (`false`: the steps' covariances chained, docs/tuning.md).
-    #[arg(long = "joint-uncertainty", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    /// after a second round of steps 5 and 3 (default `false`: the steps' covariances chained,
+    /// docs/tuning.md).
+    #[arg(long = "joint-uncertainty", default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 3600, value_name = "N")]

@@ -27,13 +27,16 @@
 //!   the full covariance of every step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
 //!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
 //!   turn carries that of step 1.
-//! * **Step 5 and the repeated step 3 jointly.** Chained, step 5's covariance carries that of
-//!   the first step-3 pass (V_im, V_em, J_t on the step-1 static parameters, rel. std. errors
-//!   of 100-270 % on `mvem lab` seed 2), and the repeated step 3 receives it back through the
-//!   static parameters although it re-estimates V_im, V_em, J_t: on seed 2 (step 5 converged)
-//!   that made the step-5 standard errors 10-100 times their own and V_im's 720 %. The
-//!   pipeline therefore reports both steps with their joint covariance at the fixed point of
-//!   the alternation ([`joint_covariance`]), which counts each estimate once.
+//! * **Step 5 and the repeated step 3 jointly.** The first step 5 runs on the V_im, V_em, J_t
+//!   of the first step-3 pass (on the step-1 static parameters; rel. std. errors 100-270 % on
+//!   `mvem lab` seed 2), so chained, its covariance carries theirs and the repeated step 3
+//!   receives it back through the static parameters (seed 2, step 5 converged: step-5 standard
+//!   errors 10-100 times their own, V_im 720 %). That is right for a result that depends on
+//!   the first pass. With `PipelineOptions::joint_uncertainty` (`mvem tune
+//!   --joint-uncertainty true`; off by default, see docs/tuning.md) the pipeline runs a second
+//!   round (step 5 on the repeated step 3's volumes, then step 3 again), whose result is, to
+//!   first order, the fixed point of the alternation and no longer depends on the first pass,
+//!   and reports both steps with their joint covariance there ([`joint_covariance`]).
 //! * **A search stopped by its evaluation limit** (step 5 on the standard campaigns) reports
 //!   the covariance at its end point and says `converged: false`. Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
@@ -347,11 +350,9 @@ pub struct Conditional {
 /// `d_b + sum_{c != b} S_bc d_c + S_b,ext d_ext = e_b`, `Cov(e_b)` = its conditional
 /// covariance, so with `K = I + [S_bc]` the joint covariance is
 /// `K^-1 (diag(Cov_b) + S_ext C_ext S_ext^T) K^-T` (cross-covariances of the e_b neglected, as
-/// between all steps). Chaining instead (`Cov_b + S C_f S^T` with C_f the covariance the
-/// other step had when it ran) counts an earlier estimate of the same parameters: step 5's
-/// covariance then carries the uncertainty of the *first* step-3 pass (on the step-1 static
-/// parameters), which the repeated step 3 replaces, and hands it back to V_im, V_em, J_t.
-/// `ext` is the covariance of every other estimate (the actuators, ...); fixed parameters in
+/// between all steps). It describes estimates at a fixed point of the alternation (each the
+/// optimum of its step given the others' final values); chaining (`Cov_b + S C_f S^T`, C_f
+/// the covariance of the values the step held fixed when it ran) describes one pass. `ext` is the covariance of every other estimate (the actuators, ...); fixed parameters in
 /// neither contribute nothing (as in [`NamedCov::without`]). A parameter with an infinite own
 /// variance (not determined by its step's data) keeps an infinite variance. `None` when `K` is
 /// singular (the alternation does not contract in some direction).
