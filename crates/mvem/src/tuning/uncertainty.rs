@@ -37,8 +37,9 @@
 //!   round (step 5 on the repeated step 3's volumes, then step 3 again), whose result is, to
 //!   first order, the fixed point of the alternation and no longer depends on the first pass,
 //!   and reports both steps with their joint covariance there ([`joint_covariance`]).
-//! * **A search stopped by its evaluation limit** (step 5 on the standard campaigns) reports
-//!   the covariance at its end point and says `converged: false`. Adding the remaining
+//! * **A search stopped by its evaluation limit** (step 5 on `mvem lab` seeds 2 and 4 with the
+//!   former limit of 600 evaluations) reports the covariance at its end point and says
+//!   `converged: false`; the pipeline then flags step 5's parameters. Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
 //!   directions of cost (77) that step is 1e3-1e7 times the parameters and flagged everything.
 //! * **eta_tm in the T_c domain.** Step 1 fits eta_tm to the compressor temperature rise it
