@@ -62,8 +62,14 @@ pub struct Args {
     /// paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
+    /// With --refine-dynamics: standard errors of the static parameters and V_im, V_em, J_t
+    /// from their joint covariance at the fixed point of step 5 and the repeated step 3
+    /// after a second round of steps 5 and 3 (default `false`: the steps' covariances chained,
+    /// docs/tuning.md).
+    #[arg(long = "joint-uncertainty", default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
-    #[arg(long = "max-evals", default_value_t = 600, value_name = "N")]
+    #[arg(long = "max-evals", default_value_t = 3600, value_name = "N")]
     pub max_evals: usize,
     /// Step 5: most consecutive Broyden (secant) updates of the finite-difference Jacobian of
     /// (77) before it is recomputed (0: recomputed after every accepted step, 35 evaluations).
@@ -139,6 +145,7 @@ pub fn run(a: &Args) -> Result<()> {
     };
     opts.step5.beta = a.beta;
     opts.refine_dynamics = a.refine_dynamics;
+    opts.joint_uncertainty = a.joint_uncertainty;
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
     opts.step5.dynamic_row = a.cost != CostArg::Static;
@@ -149,6 +156,7 @@ pub fn run(a: &Args) -> Result<()> {
         (3, rep.step3.as_ref().map(|r| r.converged)),
         (4, rep.step4.as_ref().map(|r| r.converged)),
         (5, rep.step5.as_ref().map(|r| r.converged)),
+        (5, rep.step5_refined.as_ref().map(|r| r.converged)),
         (
             7,
             rep.twelve
@@ -300,6 +308,13 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             &mut s,
             "Step 5: complete model on the static-tuning sets (eq. (5))",
             &r.dynamic,
+        );
+    }
+    if let Some(r) = &rep.step5_refined {
+        let _ = writeln!(
+            s,
+            "Step 5 repeated on the repeated step 3's V_im, V_em, J_t: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations), converged {}\n",
+            r.cost_start, r.cost_end, r.n_eval, r.n_iter, r.converged
         );
     }
     if let Some(r) = &rep.step3_refined {

@@ -503,6 +503,25 @@ where
     trf(&mut residual, None, theta0, bounds, opts)
 }
 
+/// As [`least_squares`] for a residual function that may be called from several threads at
+/// once: the columns of each finite-difference Jacobian are evaluated in parallel (rayon), the
+/// trial steps in order. Every column is computed exactly as by [`least_squares`] (same steps,
+/// same order of operations), so for a residual function whose value does not depend on the
+/// thread calling it the result, the iterates and the evaluation counts are bitwise those of
+/// [`least_squares`]; only the wall time of a Jacobian drops (by up to the number of cores).
+pub fn least_squares_par<F>(
+    residual: F,
+    theta0: &[f64],
+    bounds: &Bounds,
+    opts: &LsqOptions,
+) -> Result<LsqResult, LsqError>
+where
+    F: Fn(&[f64]) -> Vec<f64> + Sync,
+{
+    let mut seq = |th: &[f64]| residual(th);
+    trf_with(&mut seq, None, Some(&residual), theta0, bounds, opts)
+}
+
 /// As [`least_squares`] with a user Jacobian `dr/dtheta` (m x n) at `theta`.
 pub fn least_squares_with_jacobian<F, J>(
     mut residual: F,
@@ -520,11 +539,15 @@ where
 
 type ResidualFn<'a> = &'a mut dyn FnMut(&[f64]) -> Vec<f64>;
 type JacobianFn<'a> = &'a mut dyn FnMut(&[f64]) -> DMatrix<f64>;
+type ParResidualFn<'a> = &'a (dyn Fn(&[f64]) -> Vec<f64> + Sync);
 
 /// Counts residual evaluations and checks their length.
 struct Evaluator<'a> {
     f: ResidualFn<'a>,
     jac: Option<JacobianFn<'a>>,
+    /// The same residual function, callable from several threads (finite-difference columns
+    /// in parallel, [`least_squares_par`]).
+    par: Option<ParResidualFn<'a>>,
     m: usize,
     n_eval: usize,
     n_jac: usize,
@@ -539,17 +562,125 @@ fn all_finite(v: &DVector<f64>) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
+/// Residuals of length `m` (else [`LsqError::ResidualLength`]).
+fn checked(r: Vec<f64>, m: usize) -> Result<DVector<f64>, LsqError> {
+    if r.len() != m {
+        return Err(LsqError::ResidualLength {
+            got: r.len(),
+            expected: m,
+        });
+    }
+    Ok(DVector::from_vec(r))
+}
+
+/// What a finite-difference column needs besides the residual function.
+struct FdSpec<'a> {
+    lo: &'a DVector<f64>,
+    hi: &'a DVector<f64>,
+    method: FiniteDiff,
+    rel_step: f64,
+    typical: Option<&'a DVector<f64>>,
+}
+
+type EvalFn<'a> = &'a mut dyn FnMut(&DVector<f64>) -> Result<DVector<f64>, LsqError>;
+
+/// Residuals at `x + t e_j` (None if not finite).
+fn shifted(
+    eval: EvalFn,
+    x: &DVector<f64>,
+    j: usize,
+    t: f64,
+) -> Result<Option<DVector<f64>>, LsqError> {
+    let mut xs = x.clone();
+    xs[j] += t;
+    let r = eval(&xs)?;
+    Ok(all_finite(&r).then_some(r))
+}
+
+/// One finite-difference column (see the module documentation for the step), residuals by
+/// `eval`.
+fn fd_column(
+    spec: &FdSpec,
+    eval: EvalFn,
+    x: &DVector<f64>,
+    f0: &DVector<f64>,
+    j: usize,
+) -> Result<DVector<f64>, LsqError> {
+    let xj = x[j];
+    let base = match spec.typical {
+        Some(t) => xj.abs().max(t[j]),
+        None if xj != 0.0 => xj.abs(),
+        None => 1.0,
+    };
+    let mut h = spec.rel_step * base;
+    let (lo, hi) = (spec.lo[j], spec.hi[j]);
+    let room_up = hi - xj;
+    let room_down = xj - lo;
+    let nonfinite = || LsqError::NonFiniteJacobian {
+        column: j,
+        row: 0,
+        theta: x.iter().copied().collect(),
+    };
+    // Exactly representable step towards +/-.
+    let step = |s: f64| (xj + s) - xj;
+    match spec.method {
+        FiniteDiff::Forward => {
+            if h > room_up.max(room_down) {
+                h = 0.5 * room_up.max(room_down);
+            }
+            let mut order = [1.0, -1.0];
+            if h > room_up {
+                order = [-1.0, 1.0];
+            }
+            for sgn in order {
+                let room = if sgn > 0.0 { room_up } else { room_down };
+                if h > room {
+                    continue;
+                }
+                let t = step(sgn * h);
+                if let Some(r) = shifted(eval, x, j, t)? {
+                    return Ok((r - f0) / t);
+                }
+            }
+            Err(nonfinite())
+        }
+        FiniteDiff::Central => {
+            if h <= room_up && h <= room_down {
+                let tp = step(h);
+                let tm = step(-h);
+                let rp = shifted(eval, x, j, tp)?;
+                let rm = shifted(eval, x, j, tm)?;
+                match (rp, rm) {
+                    (Some(rp), Some(rm)) => return Ok((rp - rm) / (tp - tm)),
+                    (Some(rp), None) => return Ok((rp - f0) / tp),
+                    (None, Some(rm)) => return Ok((rm - f0) / tm),
+                    (None, None) => return Err(nonfinite()),
+                }
+            }
+            // One-sided second order: (-3 f0 + 4 f(h) - f(2h)) / (2h) into the room.
+            let (sgn, room) = if room_up >= room_down {
+                (1.0, room_up)
+            } else {
+                (-1.0, room_down)
+            };
+            if 2.0 * h > room {
+                h = 0.5 * room;
+            }
+            let t1 = step(sgn * h);
+            let t2 = step(2.0 * sgn * h);
+            let r1 = shifted(eval, x, j, t1)?.ok_or_else(nonfinite)?;
+            match shifted(eval, x, j, t2)? {
+                Some(r2) => Ok((r1 * 4.0 - r2 - f0 * 3.0) / (2.0 * t1)),
+                None => Ok((r1 - f0) / t1),
+            }
+        }
+    }
+}
+
 impl Evaluator<'_> {
     fn eval(&mut self, x: &DVector<f64>) -> Result<DVector<f64>, LsqError> {
         self.n_eval += 1;
-        let r = (self.f)(x.as_slice());
-        if r.len() != self.m {
-            return Err(LsqError::ResidualLength {
-                got: r.len(),
-                expected: self.m,
-            });
-        }
-        Ok(DVector::from_vec(r))
+        checked((self.f)(x.as_slice()), self.m)
     }
 
     fn jacobian(&mut self, x: &DVector<f64>, f0: &DVector<f64>) -> Result<DMatrix<f64>, LsqError> {
@@ -565,10 +696,49 @@ impl Evaluator<'_> {
             }
             jm
         } else {
-            let mut jm = DMatrix::zeros(self.m, n);
-            for j in 0..n {
-                let col = self.fd_column(x, f0, j)?;
-                jm.set_column(j, &col);
+            let spec = FdSpec {
+                lo: &self.lo,
+                hi: &self.hi,
+                method: self.method,
+                rel_step: self.rel_step,
+                typical: self.typical.as_ref(),
+            };
+            let m = self.m;
+            let cols: Vec<(Result<DVector<f64>, LsqError>, usize)> = match self.par {
+                Some(par) => {
+                    use rayon::prelude::*;
+                    (0..n)
+                        .into_par_iter()
+                        .map(|j| {
+                            let mut count = 0;
+                            let mut eval = |xs: &DVector<f64>| {
+                                count += 1;
+                                checked(par(xs.as_slice()), m)
+                            };
+                            let c = fd_column(&spec, &mut eval, x, f0, j);
+                            (c, count)
+                        })
+                        .collect()
+                }
+                None => {
+                    let f = &mut self.f;
+                    (0..n)
+                        .map(|j| {
+                            let mut count = 0;
+                            let mut eval = |xs: &DVector<f64>| {
+                                count += 1;
+                                checked(f(xs.as_slice()), m)
+                            };
+                            let c = fd_column(&spec, &mut eval, x, f0, j);
+                            (c, count)
+                        })
+                        .collect()
+                }
+            };
+            let mut jm = DMatrix::zeros(m, n);
+            for (j, (col, count)) in cols.into_iter().enumerate() {
+                self.n_eval += count;
+                jm.set_column(j, &col?);
             }
             jm
         };
@@ -585,103 +755,24 @@ impl Evaluator<'_> {
         }
         Ok(jm)
     }
-
-    /// Residuals at `x + t e_j` (None if not finite).
-    fn shifted(
-        &mut self,
-        x: &DVector<f64>,
-        j: usize,
-        t: f64,
-    ) -> Result<Option<DVector<f64>>, LsqError> {
-        let mut xs = x.clone();
-        xs[j] += t;
-        let r = self.eval(&xs)?;
-        Ok(all_finite(&r).then_some(r))
-    }
-
-    /// One finite-difference column (see the module documentation for the step).
-    fn fd_column(
-        &mut self,
-        x: &DVector<f64>,
-        f0: &DVector<f64>,
-        j: usize,
-    ) -> Result<DVector<f64>, LsqError> {
-        let xj = x[j];
-        let base = match &self.typical {
-            Some(t) => xj.abs().max(t[j]),
-            None if xj != 0.0 => xj.abs(),
-            None => 1.0,
-        };
-        let mut h = self.rel_step * base;
-        let (lo, hi) = (self.lo[j], self.hi[j]);
-        let room_up = hi - xj;
-        let room_down = xj - lo;
-        let nonfinite = || LsqError::NonFiniteJacobian {
-            column: j,
-            row: 0,
-            theta: x.iter().copied().collect(),
-        };
-        // Exactly representable step towards +/-.
-        let step = |s: f64| (xj + s) - xj;
-        match self.method {
-            FiniteDiff::Forward => {
-                if h > room_up.max(room_down) {
-                    h = 0.5 * room_up.max(room_down);
-                }
-                let mut order = [1.0, -1.0];
-                if h > room_up {
-                    order = [-1.0, 1.0];
-                }
-                for sgn in order {
-                    let room = if sgn > 0.0 { room_up } else { room_down };
-                    if h > room {
-                        continue;
-                    }
-                    let t = step(sgn * h);
-                    if let Some(r) = self.shifted(x, j, t)? {
-                        return Ok((r - f0) / t);
-                    }
-                }
-                Err(nonfinite())
-            }
-            FiniteDiff::Central => {
-                if h <= room_up && h <= room_down {
-                    let tp = step(h);
-                    let tm = step(-h);
-                    let rp = self.shifted(x, j, tp)?;
-                    let rm = self.shifted(x, j, tm)?;
-                    match (rp, rm) {
-                        (Some(rp), Some(rm)) => return Ok((rp - rm) / (tp - tm)),
-                        (Some(rp), None) => return Ok((rp - f0) / tp),
-                        (None, Some(rm)) => return Ok((rm - f0) / tm),
-                        (None, None) => return Err(nonfinite()),
-                    }
-                }
-                // One-sided second order: (-3 f0 + 4 f(h) - f(2h)) / (2h) into the room.
-                let (sgn, room) = if room_up >= room_down {
-                    (1.0, room_up)
-                } else {
-                    (-1.0, room_down)
-                };
-                if 2.0 * h > room {
-                    h = 0.5 * room;
-                }
-                let t1 = step(sgn * h);
-                let t2 = step(2.0 * sgn * h);
-                let r1 = self.shifted(x, j, t1)?.ok_or_else(nonfinite)?;
-                match self.shifted(x, j, t2)? {
-                    Some(r2) => Ok((r1 * 4.0 - r2 - f0 * 3.0) / (2.0 * t1)),
-                    None => Ok((r1 - f0) / t1),
-                }
-            }
-        }
-    }
 }
 
 /// Checks inputs, then runs the TRF iteration.
 fn trf<'a>(
     residual: ResidualFn<'a>,
     jac: Option<JacobianFn<'a>>,
+    theta0: &[f64],
+    bounds: &Bounds,
+    opts: &LsqOptions,
+) -> Result<LsqResult, LsqError> {
+    trf_with(residual, jac, None, theta0, bounds, opts)
+}
+
+/// [`trf`] with the residual function also callable from several threads (`par`).
+fn trf_with<'a>(
+    residual: ResidualFn<'a>,
+    jac: Option<JacobianFn<'a>>,
+    par: Option<ParResidualFn<'a>>,
     theta0: &[f64],
     bounds: &Bounds,
     opts: &LsqOptions,
@@ -780,6 +871,7 @@ fn trf<'a>(
     let mut ev = Evaluator {
         f: residual,
         jac,
+        par,
         m: 0,
         n_eval: 0,
         n_jac: 0,
@@ -1567,6 +1659,32 @@ mod tests {
             secant.n_eval,
             plain.n_eval
         );
+    }
+
+    #[test]
+    fn parallel_jacobian_columns_give_bitwise_the_same_search() {
+        // forward and central differences, with a bound the difference step must respect
+        let x0 = [1.5, 2.6, 1.0, 1.0, 6.5, 1.0, 0.8, 8.7, 0.8];
+        let mut lo = vec![0.0; 9];
+        lo[6] = 0.7;
+        let b = Bounds::new(lo, vec![10.0; 9]);
+        for finite_diff in [FiniteDiff::Forward, FiniteDiff::Central] {
+            let opts = LsqOptions {
+                finite_diff,
+                ..LsqOptions::default()
+            };
+            let seq = least_squares(peaks_residual, &x0, &b, &opts).unwrap();
+            let par = least_squares_par(peaks_residual, &x0, &b, &opts).unwrap();
+            assert!(seq.termination.converged(), "{:?}", seq.termination);
+            assert_eq!(par.theta, seq.theta);
+            assert_eq!(par.residuals, seq.residuals);
+            assert_eq!(par.jacobian, seq.jacobian);
+            assert_eq!(
+                (par.n_eval, par.n_jac, par.n_iter),
+                (seq.n_eval, seq.n_jac, seq.n_iter)
+            );
+            assert_eq!(par.termination, seq.termination);
+        }
     }
 
     #[test]

@@ -25,7 +25,9 @@
 
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
-use super::lsq::{least_squares, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale};
+use super::lsq::{
+    least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, XScale,
+};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
     block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,
@@ -679,7 +681,10 @@ pub struct Step5Options {
     pub static_row: bool,
     /// Sample rate of the dynamic terms [Hz] (paper: 10 Hz; sets sampled slower stay as they are).
     pub sample_hz: f64,
-    /// Limit on cost evaluations (finite differences included).
+    /// Limit on cost evaluations (finite differences included). Default 3600 = 100 (n + 1)
+    /// for the n = 35 static parameters: 100 finite-difference Jacobians, half the general
+    /// default of [`super::lsq::LsqOptions`] (was 600 until the Jacobian columns ran in
+    /// parallel; `mvem lab` seeds 2 and 4 need 1814 and 1161, docs/tuning.md).
     pub max_evaluations: usize,
     /// Most consecutive Broyden updates of the finite-difference Jacobian of (77) between two
     /// recomputations ([`super::lsq::LsqOptions::broyden_updates`]; 0, the default: none, a new
@@ -699,7 +704,7 @@ impl Default for Step5Options {
             dynamic_row: true,
             static_row: true,
             sample_hz: 10.0,
-            max_evaluations: 600,
+            max_evaluations: 3600,
             broyden_updates: 0,
             model: ModelOrder::Eight,
         }
@@ -989,7 +994,9 @@ pub fn step5(
     let cost_start = cost.cost(&th0);
     let eval_seconds = t0.elapsed().as_secs_f64();
     let scale: Vec<f64> = list.iter().map(|s| s.scale).collect();
-    let fit: LsqResult = least_squares(
+    // the finite-difference columns in parallel (each evaluation also runs its data sets in
+    // parallel): the same search, evaluation by evaluation, as `least_squares`
+    let fit: LsqResult = least_squares_par(
         |th: &[f64]| cost.residuals(th),
         &th0,
         &Bounds::new(lo.clone(), hi.clone()),

@@ -25,12 +25,13 @@ use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM};
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
 use super::uncertainty::{
-    estimates_from_cov, fd_jacobian_named, step1_estimates, step2_estimates, toml_path, with_fixed,
-    Linearization, NamedCov, ParamEstimate,
+    estimates_from_cov, fd_jacobian_named, joint_covariance, sensitivity, step1_estimates,
+    step2_estimates, toml_path, Conditional, Linearization, NamedCov, ParamEstimate,
 };
 use crate::components::{compressor, pow_ln};
 use crate::model::ModelOrder;
 use crate::params::Params;
+use nalgebra::DMatrix;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -63,6 +64,13 @@ pub struct PipelineOptions {
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
+    /// With `refine_dynamics`: run a second round of steps 5 and 3 (step 5 on the repeated
+    /// step 3's V_im, V_em, J_t, then step 3 again) and report the static parameters and V_im,
+    /// V_em, J_t with their joint covariance at that fixed point of the alternation
+    /// ([`super::uncertainty::joint_covariance`]) instead of chaining the steps' covariances.
+    /// Default off: on a different engine's campaign it reported 8 compressor-map parameters
+    /// as identifiable that lay 4-2000 standard errors from the truth (docs/tuning.md).
+    pub joint_uncertainty: bool,
 }
 
 impl Default for PipelineOptions {
@@ -75,6 +83,7 @@ impl Default for PipelineOptions {
             step5: Step5Options::default(),
             refine_dynamics: true,
             model: ModelOrder::Eight,
+            joint_uncertainty: false,
         }
     }
 }
@@ -120,10 +129,18 @@ pub struct TuneReport {
     pub tau_me_s: Option<f64>,
     /// Step 5.
     pub step5: Option<Step5Report>,
-    /// Step 3 repeated after step 5 (option `refine_dynamics`).
+    /// Step 3 repeated after step 5 (option `refine_dynamics`; with `joint_uncertainty` the
+    /// last of its two repetitions).
     pub step3_refined: Option<CompleteReport>,
+    /// Step 5 repeated on the V_im, V_em, J_t of the repeated step 3 (options
+    /// `refine_dynamics` and `joint_uncertainty`: the second round of the alternation).
+    pub step5_refined: Option<Step5Report>,
     /// Step 4 repeated after step 5 (option `refine_dynamics`).
     pub step4_refined: Option<CompleteReport>,
+    /// Whether the uncertainty of the static parameters and V_im, V_em, J_t is their joint
+    /// covariance at the fixed point of step 5 and the repeated step 3 (option
+    /// `joint_uncertainty`; false when not computed or singular: then chained step by step).
+    pub joint_uncertainty: bool,
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
     /// How well each tuned parameter is known, keyed by its path in the parameter file
@@ -205,7 +222,9 @@ pub fn tune(
         tau_me_s: None,
         step5: None,
         step3_refined: None,
+        step5_refined: None,
         step4_refined: None,
+        joint_uncertainty: false,
         twelve: None,
         parameters: BTreeMap::new(),
         seconds: [0.0; 5],
@@ -215,6 +234,8 @@ pub fn tune(
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
     let mut cov = NamedCov::default();
+    // step 5's linearization, for the joint covariance with the repeated step 3
+    let mut cond5: Option<Conditional> = None;
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
         let t = Instant::now();
@@ -246,7 +267,7 @@ pub fn tune(
         if sets.is_empty() {
             return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
         }
-        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
+        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?.0);
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
@@ -265,43 +286,12 @@ pub fn tune(
     }
     if opts.steps[4] {
         let t = Instant::now();
-        let sets: Vec<_> = infos
-            .iter()
-            .zip(&c.dynamic)
-            .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
-            .map(|(_, d)| d)
-            .collect();
-        if sets.is_empty() && opts.step5.dynamic_row {
-            return Err(missing(5, "data set with role \"static\""));
-        }
         let th0 = match opts.init {
             Init::Step1 => static_theta(&p),
             Init::Naive => naive_theta(),
         };
-        let (q, mut r) = step5(&p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
-        p = q;
-        let cost = Cost77::new(&p, &c.stationary, &sets, &opts.step5);
-        add_fixed(
-            &mut r.uncertainty,
-            &r.linearization,
-            &mut cov,
-            |q: &Params| cost.residuals_at(q),
-            &p,
-            5,
-        );
-        if !r.converged {
-            // a search stopped by its evaluation limit is not at an optimum: the linearized
-            // covariance at its end point does not describe the estimate (seeds 2 and 4 of
-            // `mvem lab` put some such parameters 60-360 standard errors from the truth)
-            for (_, e) in r.uncertainty.iter_mut().filter(|(_, e)| e.identifiable) {
-                e.identifiable = false;
-                e.reason = format!(
-                    "step 5 stopped at its evaluation limit before converging ({} at its end point)",
-                    e.reason
-                );
-            }
-        }
-        est.extend(r.uncertainty.iter().cloned());
+        let (r, c5) = run_step5(&mut p, c, &th0, opts, &mut cov, &mut est)?;
+        cond5 = c5;
         rep.step5 = Some(r);
         rep.seconds[4] = t.elapsed().as_secs_f64();
     }
@@ -309,7 +299,24 @@ pub fn tune(
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
-            rep.step3_refined = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?);
+            let (r, _) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+            rep.step3_refined = Some(r);
+            if opts.joint_uncertainty && cond5.is_some() {
+                // a second round, step 5 on the repeated step 3's V_im, V_em, J_t, then step 3
+                // again: the first step 5 ran on the first step-3 pass (on the step-1 static
+                // parameters), so its result depends on those volumes and is not yet the
+                // fixed point the joint covariance describes
+                let th0 = static_theta(&p);
+                let (r5, c5) = run_step5(&mut p, c, &th0, opts, &mut cov, &mut est)?;
+                let converged = r5.converged;
+                rep.step5_refined = Some(r5);
+                let (r, c3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+                rep.step3_refined = Some(r);
+                if let (Some(c5), Some(c3)) = (&c5, &c3) {
+                    rep.joint_uncertainty =
+                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, converged);
+                }
+            }
         }
         if let Some(set) = infos
             .iter()
@@ -375,6 +382,24 @@ const EFFICIENCY_ELLIPSE: [&str; 7] = [
     "compressor.q_c[1][1]",
 ];
 
+/// The parameters of the compressor-flow model (eqs (68)-(70)), by TOML path. In the complete
+/// model the compressor acts only through W_c and its power P_c = W_c c_pa (T_c - T_amb) with
+/// T_c - T_amb = T_amb (Pi_c^(1 - 1/gamma_a) - 1) / eta_c (eqs (58), (61)), so the complete-model
+/// row of cost (77) trades an error of the efficiency model
+/// against the flow map: with an extrapolated efficiency peak (`mvem lab` seed 4, step 5
+/// converged) c_Phi2 and c_Wphi2 ended 7.0 and -4.3 standard errors from the truth at rel. std.
+/// errors of 13-14 %.
+const FLOW_MAP: [&str; 8] = [
+    "compressor.c_psi2",
+    "compressor.c_phi2",
+    "compressor.c_wpsi[0]",
+    "compressor.c_wpsi[1]",
+    "compressor.c_wpsi[2]",
+    "compressor.c_wphi[0]",
+    "compressor.c_wphi[1]",
+    "compressor.c_wphi[2]",
+];
+
 /// Flag the efficiency-ellipse parameters as not identifiable when the fitted peak
 /// (W_copt, pi_copt) of eqs (62)-(63) lies outside the measured region, the range of W_c and of
 /// pi_c = (Pi_c - 1)^c_pi (eq. (64), Pi_c = p_c / p_amb) over the campaign's stationary points.
@@ -382,7 +407,8 @@ const EFFICIENCY_ELLIPSE: [&str; 7] = [
 /// the linearized standard errors describe the curvature of the fit inside the measured region,
 /// not how far the extrapolated peak may be from the truth (a `mvem lab` campaign, seed 4, put
 /// W_copt at 1.77 kg/s, pi_copt 2.58 for a true 0.275 and 1.05 with measured W_c 0.077-0.638
-/// kg/s, as the least-squares optimum of its data).
+/// kg/s, as the least-squares optimum of its data). The flow-map parameters ([`FLOW_MAP`])
+/// fitted with it are flagged for the same reason.
 fn flag_extrapolated_efficiency_peak(
     c: &crate::params::Compressor,
     pts: &[super::data::StationaryPoint],
@@ -409,18 +435,68 @@ fn flag_extrapolated_efficiency_peak(
     if inside(c.w_copt, w) && inside(c.pi_copt, pi) {
         return;
     }
-    for key in EFFICIENCY_ELLIPSE {
-        if let Some(e) = parameters.get_mut(key).filter(|e| e.identifiable) {
+    for key in EFFICIENCY_ELLIPSE.iter().chain(&FLOW_MAP) {
+        if let Some(e) = parameters.get_mut(*key).filter(|e| e.identifiable) {
             e.identifiable = false;
             e.reason = format!(
                 "the fitted efficiency peak (W_copt = {:.4} kg/s, pi_copt = {:.4}) lies outside \
-                 the measured region (W_c {:.4}-{:.4} kg/s, pi_c {:.4}-{:.4}): the peak and the \
-                 ellipse are extrapolated, which the linearized standard error does not bound \
-                 ({})",
-                c.w_copt, c.pi_copt, w.0, w.1, pi.0, pi.1, e.reason
+                 the measured region (W_c {:.4}-{:.4} kg/s, pi_c {:.4}-{:.4}): {}, which the \
+                 linearized standard error does not bound ({})",
+                c.w_copt,
+                c.pi_copt,
+                w.0,
+                w.1,
+                pi.0,
+                pi.1,
+                if FLOW_MAP.contains(key) {
+                    "the flow map is fitted together with an extrapolated efficiency model"
+                } else {
+                    "the peak and the ellipse are extrapolated"
+                },
+                e.reason
             );
         }
     }
+}
+
+/// Step 5 from `th0` on `p` (replaced by the result), its uncertainty with that of the
+/// parameters it holds fixed ([`add_fixed`]) added to `cov` and `est` (flagged when the search
+/// stopped at its evaluation limit); the step's report and linearization.
+fn run_step5(
+    p: &mut Params,
+    c: &Campaign,
+    th0: &[f64],
+    opts: &PipelineOptions,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+) -> Result<(Step5Report, Option<Conditional>), PipelineError> {
+    let sets: Vec<_> = c
+        .manifest
+        .datasets
+        .iter()
+        .zip(&c.dynamic)
+        .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
+        .map(|(_, d)| d)
+        .collect();
+    if sets.is_empty() && opts.step5.dynamic_row {
+        return Err(missing(5, "data set with role \"static\""));
+    }
+    let (q, mut r) = step5(p, &c.stationary, &sets, th0, &opts.step5).map_err(at(5))?;
+    *p = q;
+    let cost = Cost77::new(p, &c.stationary, &sets, &opts.step5);
+    let cond = add_fixed(
+        &mut r.uncertainty,
+        &r.linearization,
+        cov,
+        |q: &Params| cost.residuals_at(q),
+        p,
+        5,
+    );
+    if !r.converged {
+        flag_unconverged(&mut r.uncertainty);
+    }
+    est.extend(r.uncertainty.iter().cloned());
+    Ok((r, cond))
 }
 
 /// Step 3 on `sets` from `p` (replaced by the result), its uncertainty with that of the
@@ -432,20 +508,22 @@ fn run_step3(
     opts: &PipelineOptions,
     cov: &mut NamedCov,
     est: &mut Vec<(String, ParamEstimate)>,
-) -> Result<CompleteReport, PipelineError> {
+) -> Result<(CompleteReport, Option<Conditional>), PipelineError> {
     let (q, mut r) =
         step3(p, sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
     *p = q;
     let res = dynamic_residuals(ModelOrder::Eight, sets, &c.stationary, opts.step3.amp_floor);
-    add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
+    let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
     est.extend(r.uncertainty.iter().cloned());
-    Ok(r)
+    Ok((r, cond))
 }
 
 /// Add to a step's covariance the uncertainty of the parameters it held fixed (every earlier
 /// estimate in `cov`; [`super::uncertainty`]), with the step's residual function `res` at the
 /// whole parameter set `p` (the estimate); replace the step's `estimates` and insert its
 /// covariance into `cov`.
+/// Returns the step's conditional linearization ([`Conditional`]) for
+/// [`joint_covariance`].
 fn add_fixed(
     estimates: &mut Vec<(String, ParamEstimate)>,
     lin: &Option<Linearization>,
@@ -453,24 +531,84 @@ fn add_fixed(
     res: impl Fn(&Params) -> Vec<f64>,
     p: &Params,
     step: u8,
-) {
-    let Some(lin) = lin else { return };
+) -> Option<Conditional> {
+    let lin = lin.as_ref()?;
     let own: Vec<&str> = lin.names.iter().map(String::as_str).collect();
     let fixed = cov.without(&own);
-    let total = if fixed.names.is_empty() {
-        lin.covariance.clone()
+    let n = own.len();
+    let (total, s) = if fixed.names.is_empty() {
+        (lin.covariance.clone(), DMatrix::zeros(n, 0))
     } else {
         let j_fixed = fd_jacobian_named(&res, p, &fixed.names);
-        with_fixed(&lin.jacobian, &lin.covariance, &j_fixed, &fixed.cov)
+        let s = sensitivity(&lin.jacobian, &j_fixed);
+        (&lin.covariance + &s * &fixed.cov * s.transpose(), s)
     };
     let theta: Vec<f64> = estimates.iter().map(|(_, e)| e.value).collect();
-    if theta.len() == own.len() {
+    if theta.len() == n {
         *estimates = estimates_from_cov(&own, &theta, &total, step);
     }
     cov.set_block(&NamedCov {
         names: lin.names.clone(),
         cov: total,
     });
+    Some(Conditional {
+        names: lin.names.clone(),
+        cov: lin.covariance.clone(),
+        fixed: fixed.names,
+        s,
+    })
+}
+
+/// Replace the estimates of step 5 and of the repeated step 3 by their joint covariance at the
+/// fixed point of the alternation ([`joint_covariance`]; `ext` the covariance of every other
+/// estimate). Each step's parameters keep their values, their standard errors and flags come
+/// from their block of the joint covariance (correlations within the step, as before). Returns
+/// false (nothing changed) when the alternation's linearization is singular.
+fn joint_step5_step3(
+    c5: &Conditional,
+    c3: &Conditional,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+    p: &Params,
+    step5_converged: bool,
+) -> bool {
+    let mut own: Vec<&str> = c5.names.iter().map(String::as_str).collect();
+    own.extend(c3.names.iter().map(String::as_str));
+    let ext = cov.without(&own);
+    let Some(joint) = joint_covariance(&[c5, c3], &ext) else {
+        return false;
+    };
+    let mut row0 = 0;
+    for (c, step) in [(c5, 5u8), (c3, 3u8)] {
+        let nb = c.names.len();
+        let sub = joint.cov.view((row0, row0), (nb, nb)).into_owned();
+        let names: Vec<&str> = c.names.iter().map(String::as_str).collect();
+        let theta: Vec<f64> = names
+            .iter()
+            .map(|n| super::complete::param_value(p, n).unwrap_or(f64::NAN))
+            .collect();
+        let mut e = estimates_from_cov(&names, &theta, &sub, step);
+        if step == 5 && !step5_converged {
+            flag_unconverged(&mut e);
+        }
+        est.extend(e);
+        row0 += nb;
+    }
+    cov.set_block(&joint);
+    true
+}
+
+/// Flag the estimates of a step-5 search stopped by its evaluation limit: it is not at an
+/// optimum, so the linearized covariance at its end point does not describe the estimate (seeds
+/// 2 and 4 of `mvem lab` put some such parameters 60-360 standard errors from the truth).
+fn flag_unconverged(e: &mut [(String, ParamEstimate)]) {
+    for (_, e) in e.iter_mut().filter(|(_, e)| e.identifiable) {
+        e.identifiable = false;
+        e.reason = format!(
+            "step 5 stopped at its evaluation limit before converging ({} at its end point)",
+            e.reason
+        );
+    }
 }
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.
@@ -589,6 +727,7 @@ mod tests {
         let all = || {
             let mut m: BTreeMap<String, ParamEstimate> = EFFICIENCY_ELLIPSE
                 .iter()
+                .chain(&FLOW_MAP)
                 .map(|k| (k.to_string(), estimate()))
                 .collect();
             m.insert("compressor.r_c".into(), estimate());
@@ -604,11 +743,12 @@ mod tests {
         c.w_copt = 1.77;
         let mut m = all();
         flag_extrapolated_efficiency_peak(&c, &points(0.1, 0.6), &mut m);
-        for k in EFFICIENCY_ELLIPSE {
-            assert!(!m[k].identifiable, "{k}");
-            assert!(m[k].reason.contains("outside the measured region"), "{k}");
-            assert!(m[k].reason.contains("rel. std. error 1 %"), "{k}");
+        for k in EFFICIENCY_ELLIPSE.iter().chain(&FLOW_MAP) {
+            assert!(!m[*k].identifiable, "{k}");
+            assert!(m[*k].reason.contains("outside the measured region"), "{k}");
+            assert!(m[*k].reason.contains("rel. std. error 1 %"), "{k}");
         }
+        assert!(m["compressor.c_phi2"].reason.contains("flow map"));
         assert!(m["compressor.r_c"].identifiable);
         // pi_copt beyond the measured pressure ratios
         c.w_copt = 0.3;
