@@ -74,9 +74,22 @@ impl LagPiece {
         self.beta == 0.0 && next.beta == 0.0 && self.c0 == next.c0
     }
 
+    /// Whether `next`, which ends at `t_end`, lies on this piece's line to rounding: at both of
+    /// its ends within 1e-12 relative (at least 1e-12 absolute). Schedule rows that lie on one
+    /// straight line are no breakpoints, but each row interval is its own piece of the
+    /// schedule, with a slope that differs in the last digits (e.g. 5.55000000000189 and
+    /// 5.549999999998735 %/s on the WHTC); one line for both saves the closed form a piece
+    /// boundary (an `exp`) and changes the command by at most that 1e-12.
+    pub(super) fn extends_to(&self, next: &LagPiece, t_end: f64) -> bool {
+        let line = |t: f64| self.c0 + self.beta * (t - self.t0);
+        let tol = 1e-12 * next.c0.abs().max(1.0);
+        let end = next.c0 + next.beta * (t_end - next.t0);
+        (line(next.t0) - next.c0).abs() <= tol && (line(t_end) - end).abs() <= tol
+    }
+
     /// Exact solution of dx/dt = (c(t) - x) / tau at `t + s` from `x` at `t` on this piece:
     /// x(t + s) = c(t + s) - beta tau + (x - c(t) + beta tau) exp(-s / tau).
-    #[inline]
+    #[inline(always)]
     fn advance(&self, tau: f64, t: f64, x: f64, s: f64) -> f64 {
         let c = |t: f64| self.c0 + self.beta * (t - self.t0);
         let bt = self.beta * tau;
@@ -99,8 +112,18 @@ pub(super) struct LagSegment {
 impl LagSegment {
     /// Exact solution at `t + s` from `x` at `t` (piece by piece across the command's
     /// breakpoints in between: the solution of a linear ODE with a piecewise-linear input).
-    #[inline]
+    #[inline(always)]
     pub(super) fn advance(&self, t: f64, x: f64, s: f64) -> f64 {
+        // one piece (the command's breakpoints are stop times): inline, without the search
+        if let [p] = self.pieces.as_slice() {
+            return p.advance(self.tau, t, x, s);
+        }
+        self.advance_pieces(t, x, s)
+    }
+
+    /// [`Self::advance`] on a segment with more than one piece (kept out of line).
+    #[inline(never)]
+    fn advance_pieces(&self, t: f64, x: f64, s: f64) -> f64 {
         let p = &self.pieces;
         let end = t + s;
         let mut k = self.piece_at(t);

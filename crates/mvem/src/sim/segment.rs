@@ -252,7 +252,8 @@ impl<'a> SegmentInputs<'a> {
 
 /// The saturated line `c0 + beta (t - t0)` on `[t0, t1]` appended to `out` as pieces: split
 /// where it crosses a finite limit of `sat`, constant at the limit outside, a constant equal to
-/// the last piece merged into it.
+/// the last piece or a line on the last piece's line to rounding ([`LagPiece::extends_to`])
+/// merged into it.
 fn push_saturated(
     out: &mut Vec<LagPiece>,
     t0: f64,
@@ -286,7 +287,7 @@ fn push_saturated(
             LagPiece::new(u0, line(u0), beta)
         };
         match out.last() {
-            Some(p) if p.continues_as(&piece) => {}
+            Some(p) if p.continues_as(&piece) || p.extends_to(&piece, u1) => {}
             _ => out.push(piece),
         }
         u0 = u1;
