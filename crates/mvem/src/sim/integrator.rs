@@ -401,7 +401,11 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         let first_end = stops.first().map_or(t_end, |s| s.0);
         let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
         // made for the first segment (a plant step has one to three: set up once, not twice)
-        let mut inp = SegmentInputs::with_lag_only(self.model, self.sched, self.t, first_end, skip);
+        // the delayed commands of closed-form lags enter only derivatives the integrator does
+        // not use, whether or not their breakpoints are stop times
+        let lag_only = self.lag_commands();
+        let mut inp =
+            SegmentInputs::with_lag_only(self.model, self.sched, self.t, first_end, lag_only);
         for (k, (b, jump)) in seg_ends.enumerate() {
             if k > 0 {
                 inp.set_segment(self.t, b);
@@ -475,16 +479,23 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
     /// Whether the stop times at the delayed channels 2 and 3 are left out: they drive only
     /// closed-form lag states and [`SimOptions::stop_at_lag_breakpoints`] is off.
     fn skip_lag_stops(&self) -> [bool; 2] {
-        let mut skip = [false; 2];
-        if !self.opts.stop_at_lag_breakpoints {
-            for l in &self.lags {
-                match l.command {
-                    LagCommand::Egr => skip[0] = true,
-                    LagCommand::Vgt => skip[1] = true,
-                }
+        if self.opts.stop_at_lag_breakpoints {
+            [false; 2]
+        } else {
+            self.lag_commands()
+        }
+    }
+
+    /// Which delayed commands (u_egr, u_vgt) drive closed-form lag states.
+    fn lag_commands(&self) -> [bool; 2] {
+        let mut driven = [false; 2];
+        for l in &self.lags {
+            match l.command {
+                LagCommand::Egr => driven[0] = true,
+                LagCommand::Vgt => driven[1] = true,
             }
         }
-        skip
+        driven
     }
 
     fn initial_step(

@@ -34,10 +34,11 @@ pub struct SegmentInputs<'a> {
     /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
     /// current segment, if one does (always for the lookups whose kinks are stop times).
     linear: [Option<(f64, f64, f64)>; 6],
-    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states whose
-    /// breakpoints are no stop times ([`super::SimOptions::stop_at_lag_breakpoints`] off): its
-    /// value enters only derivatives the integrator does not use (the closed form gives those
-    /// states), so it is read from the line of its first piece on the segment, without searches.
+    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states: its value
+    /// enters only derivatives the integrator does not use (the closed form gives those states,
+    /// from [`Self::lag_pieces`]), so it is read from the line of its first piece on the segment,
+    /// without searches (whether or not its breakpoints are stop times,
+    /// [`super::SimOptions::stop_at_lag_breakpoints`]).
     lag_only: [bool; 2],
 }
 
