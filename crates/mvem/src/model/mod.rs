@@ -553,6 +553,10 @@ pub fn limit_derivatives<const N: usize>(
     let mut at = false;
     for i in 0..N {
         let (lo, hi) = bounds[i];
+        if x[i] > lo && x[i] < hi {
+            // strictly inside (the usual case): one test
+            continue;
+        }
         if (x[i] <= lo && dx[i] < 0.0) || (x[i] >= hi && dx[i] > 0.0) {
             dx[i] = 0.0;
             at = true;

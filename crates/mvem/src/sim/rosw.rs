@@ -237,6 +237,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     ) -> Result<[[f64; N]; N], SimError> {
         let y = self.y;
         let scales = self.model.state_scales();
+        // every column at the same t: one input lookup
+        let u = inp.at(t);
         let mut j = [[0.0; N]; N];
         for c in (0..N).filter(|&c| !skip[c]) {
             let mut yp = y;
@@ -245,7 +247,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
                 d = -d;
             }
             yp[c] += d;
-            let fp = self.rhs(inp, t, &yp)?.dx;
+            let fp = self.rhs_with(t, &yp, &u)?.dx;
             for r in 0..N {
                 j[r][c] = (fp[r] - f0[r]) / d;
             }

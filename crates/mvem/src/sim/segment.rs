@@ -34,10 +34,11 @@ pub struct SegmentInputs<'a> {
     /// Per lookup, the linear piece (t_ref, v_ref, slope) that covers the whole window of the
     /// current segment, if one does (always for the lookups whose kinks are stop times).
     linear: [Option<(f64, f64, f64)>; 6],
-    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states whose
-    /// breakpoints are no stop times ([`super::SimOptions::stop_at_lag_breakpoints`] off): its
-    /// value enters only derivatives the integrator does not use (the closed form gives those
-    /// states), so it is read from the line of its first piece on the segment, without searches.
+    /// Whether the delayed u_egr / u_vgt lookup drives only closed-form lag states: its value
+    /// enters only derivatives the integrator does not use (the closed form gives those states,
+    /// from [`Self::lag_pieces`]), so it is read from the line of its first piece on the segment,
+    /// without searches (whether or not its breakpoints are stop times,
+    /// [`super::SimOptions::stop_at_lag_breakpoints`]).
     lag_only: [bool; 2],
 }
 
@@ -252,7 +253,8 @@ impl<'a> SegmentInputs<'a> {
 
 /// The saturated line `c0 + beta (t - t0)` on `[t0, t1]` appended to `out` as pieces: split
 /// where it crosses a finite limit of `sat`, constant at the limit outside, a constant equal to
-/// the last piece merged into it.
+/// the last piece or a line on the last piece's line to rounding ([`LagPiece::extends_to`])
+/// merged into it.
 fn push_saturated(
     out: &mut Vec<LagPiece>,
     t0: f64,
@@ -286,7 +288,7 @@ fn push_saturated(
             LagPiece::new(u0, line(u0), beta)
         };
         match out.last() {
-            Some(p) if p.continues_as(&piece) => {}
+            Some(p) if p.continues_as(&piece) || p.extends_to(&piece, u1) => {}
             _ => out.push(piece),
         }
         u0 = u1;
