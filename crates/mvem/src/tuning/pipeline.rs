@@ -367,6 +367,7 @@ pub fn tune(
         }
     }
     flag_extrapolated_efficiency_peak(&p.compressor, &c.stationary, &mut rep.parameters);
+    flag_maps_known_only_as_a_whole(&mut rep.parameters);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
 }
@@ -399,6 +400,73 @@ const FLOW_MAP: [&str; 8] = [
     "compressor.c_wphi[1]",
     "compressor.c_wphi[2]",
 ];
+
+/// The shape coefficients of one submodel's map (polynomials and offsets, not physical
+/// quantities), by TOML path: the compressor-flow map (eqs (68)-(71)), the turbine-efficiency
+/// map (eq. (53)-(54) c_m), the turbine flow (c_f1, c_f2), friction (c_fric), volumetric
+/// efficiency (c_vol) and the EGR-valve flow (c_egr).
+const MAP_COEFFICIENTS: [&[&str]; 6] = [
+    &FLOW_MAP,
+    &["turbine.c_m[0]", "turbine.c_m[1]", "turbine.c_m[2]"],
+    &["turbine.c_f1", "turbine.c_f2"],
+    &[
+        "cylinder.c_fric[0]",
+        "cylinder.c_fric[1]",
+        "cylinder.c_fric[2]",
+    ],
+    &[
+        "cylinder.c_vol[0]",
+        "cylinder.c_vol[1]",
+        "cylinder.c_vol[2]",
+    ],
+    &[
+        "egr_valve.c_egr[0]",
+        "egr_valve.c_egr[1]",
+        "egr_valve.c_egr[2]",
+    ],
+];
+
+/// Flag every coefficient of a map ([`MAP_COEFFICIENTS`]) when at least half of that map's
+/// tuned coefficients are not identifiable. The campaign then fixes the map as a whole (its
+/// values over the measured region), not its coefficients one by one: the map's flat
+/// directions are curved, so other coefficient sets lie along them, and the linearized standard
+/// error of a coefficient that looks well determined does not bound its distance from the
+/// truth. Measured on a campaign of a different engine (published parameters with a dozen
+/// changes of 5-20 %, step 5 converged): 7 of the 8 compressor-flow coefficients were flagged,
+/// and the eighth, c_Psi2, was reported at 0.41 +- 0.05 for a true 0 (8 standard errors off),
+/// the step-1 fit having put the ellipse centre at c_Phi2 = -0.72, another parametrization of
+/// the same map.
+fn flag_maps_known_only_as_a_whole(parameters: &mut BTreeMap<String, ParamEstimate>) {
+    for map in MAP_COEFFICIENTS {
+        let tuned: Vec<&str> = map
+            .iter()
+            .copied()
+            .filter(|k| parameters.contains_key(*k))
+            .collect();
+        let flagged: Vec<&str> = tuned
+            .iter()
+            .copied()
+            .filter(|k| !parameters[*k].identifiable)
+            .collect();
+        if tuned.is_empty() || 2 * flagged.len() < tuned.len() {
+            continue;
+        }
+        for key in &tuned {
+            if let Some(e) = parameters.get_mut(*key).filter(|e| e.identifiable) {
+                e.identifiable = false;
+                e.reason = format!(
+                    "{} of the {} coefficients of its map are not identifiable ({}): the data \
+                     fix the map as a whole, and the linearized standard error of one \
+                     coefficient does not bound its error ({})",
+                    flagged.len(),
+                    tuned.len(),
+                    flagged.join(", "),
+                    e.reason
+                );
+            }
+        }
+    }
+}
 
 /// Flag the efficiency-ellipse parameters as not identifiable when the fitted peak
 /// (W_copt, pi_copt) of eqs (62)-(63) lies outside the measured region, the range of W_c and of
@@ -760,5 +828,49 @@ mod tests {
         let mut m = all();
         flag_extrapolated_efficiency_peak(&c, &[], &mut m);
         assert!(m.values().all(|e| e.identifiable));
+    }
+
+    #[test]
+    fn a_map_mostly_not_identifiable_is_flagged_whole() {
+        let est = |identifiable: bool| ParamEstimate {
+            value: 1.0,
+            std_error: 0.01,
+            identifiable,
+            correlated_with: Vec::new(),
+            reason: "rel. std. error 1 %".into(),
+            step: 5,
+        };
+        let mut m: BTreeMap<String, ParamEstimate> = FLOW_MAP
+            .iter()
+            .enumerate()
+            .map(|(i, k)| (k.to_string(), est(i >= 4)))
+            .collect();
+        for k in [
+            "cylinder.c_vol[0]",
+            "cylinder.c_vol[1]",
+            "cylinder.c_vol[2]",
+        ] {
+            m.insert(k.into(), est(k != "cylinder.c_vol[2]"));
+        }
+        m.insert("turbine.c_f1".into(), est(false));
+        m.insert("intake_manifold.v_im".into(), est(false));
+        m.insert("turbo.j_t".into(), est(true));
+        flag_maps_known_only_as_a_whole(&mut m);
+        // 4 of 8 flow-map coefficients flagged: the other 4 are flagged, with the reason
+        for k in FLOW_MAP {
+            assert!(!m[k].identifiable, "{k}");
+        }
+        let r = &m["compressor.c_wphi[2]"].reason;
+        assert!(r.starts_with("4 of the 8 coefficients"), "{r}");
+        assert!(
+            r.contains("compressor.c_psi2") && r.ends_with("(rel. std. error 1 %)"),
+            "{r}"
+        );
+        // 1 of 3 c_vol flagged: the others stay identifiable
+        assert!(m["cylinder.c_vol[0]"].identifiable && m["cylinder.c_vol[1]"].identifiable);
+        // a map with only one of its coefficients tuned, flagged: nothing else to flag; other
+        // parameters untouched
+        assert!(m["turbo.j_t"].identifiable && !m["intake_manifold.v_im"].identifiable);
+        assert!(!m.contains_key("turbine.c_f2"));
     }
 }
