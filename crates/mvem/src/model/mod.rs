@@ -171,6 +171,28 @@ impl ModelInput {
             u_vgt_delayed: d.u_vgt_pct,
         }
     }
+
+    /// The six values (n_e [rpm], u_delta [mg/cycle], u_egr [%], u_vgt [%], delayed u_egr [%],
+    /// delayed u_vgt [%]), in this order.
+    pub fn to_array(&self) -> [f64; 6] {
+        [
+            self.now.n_e_rpm,
+            self.now.u_delta_mg,
+            self.now.u_egr_pct,
+            self.now.u_vgt_pct,
+            self.u_egr_delayed,
+            self.u_vgt_delayed,
+        ]
+    }
+
+    /// The inverse of [`ModelInput::to_array`].
+    pub fn from_array(v: [f64; 6]) -> Self {
+        Self {
+            now: Drive::new(v[0], v[1], v[2], v[3]),
+            u_egr_delayed: v[4],
+            u_vgt_delayed: v[5],
+        }
+    }
 }
 
 /// How the cylinder-out temperature fixed point (eq. (24)) is solved.

@@ -23,7 +23,7 @@ use super::integrator::{Integrator, Interp, LagSegment, Trial};
 use super::rosw::IterationMatrix;
 use super::segment::SegmentInputs;
 use super::SimError;
-use crate::model::Dynamics;
+use crate::model::{Dynamics, ModelInput};
 
 /// A six-stage Rosenbrock method of the RODAS family in the transformed form above (the
 /// structure of `rodas.f`): stage times 0, `c[0..3]`, 1, 1; f_t coefficients `d` (gamma_5 =
@@ -120,22 +120,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     ) -> Result<[f64; N], SimError> {
         let u = inp.at(t);
         let du = inp.rates(t);
-        let uv = [
-            u.now.n_e_rpm,
-            u.now.u_delta_mg,
-            u.now.u_egr_pct,
-            u.now.u_vgt_pct,
-            u.u_egr_delayed,
-            u.u_vgt_delayed,
-        ];
-        let dv = [
-            du.now.n_e_rpm,
-            du.now.u_delta_mg,
-            du.now.u_egr_pct,
-            du.now.u_vgt_pct,
-            du.u_egr_delayed,
-            du.u_vgt_delayed,
-        ];
+        let uv = u.to_array();
+        let dv = du.to_array();
         let y = self.y;
         let scales = self.model.state_scales();
         let mut da = [0.0; N];
@@ -154,13 +140,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             return Ok([0.0; N]);
         }
         let d = 1.5e-8 / rel;
-        let mut up = u;
-        up.now.n_e_rpm += d * dv[0];
-        up.now.u_delta_mg += d * dv[1];
-        up.now.u_egr_pct += d * dv[2];
-        up.now.u_vgt_pct += d * dv[3];
-        up.u_egr_delayed += d * dv[4];
-        up.u_vgt_delayed += d * dv[5];
+        let up = ModelInput::from_array(std::array::from_fn(|k| uv[k] + d * dv[k]));
         let yp: [f64; N] = std::array::from_fn(|i| y[i] + d * da[i]);
         let fp = self.rhs_with(t, &yp, &up)?.dx;
         Ok(std::array::from_fn(|i| (fp[i] - f0[i]) / d))

@@ -229,14 +229,7 @@ impl Solution {
         for i in 0..N {
             self.columns[1 + i].push(y[i]);
         }
-        let inputs = [
-            u.now.n_e_rpm,
-            u.now.u_delta_mg,
-            u.now.u_egr_pct,
-            u.now.u_vgt_pct,
-            u.u_egr_delayed,
-            u.u_vgt_delayed,
-        ];
+        let inputs = u.to_array();
         for (k, v) in inputs.into_iter().enumerate() {
             self.columns[1 + N + k].push(v);
         }
@@ -317,12 +310,7 @@ impl<'m, const N: usize, M: Dynamics<N>> SignalEvaluator<'m, N, M> {
         self.out.reserve(rows);
         for i in 0..rows {
             let y: [f64; N] = std::array::from_fn(|k| raw[1 + k][i]);
-            let v = |k: usize| raw[1 + N + k][i];
-            let u = ModelInput {
-                now: crate::model::Drive::new(v(0), v(1), v(2), v(3)),
-                u_egr_delayed: v(4),
-                u_vgt_delayed: v(5),
-            };
+            let u = ModelInput::from_array(std::array::from_fn(|k| raw[1 + N + k][i]));
             // the model's memory is not read when it holds none (`Dynamics::holds_memory`)
             let ev = self.model.eval(&y, &u, self.model.memory_start(&y, &u));
             self.out.push(raw[0][i], &y, &ev.signals);
