@@ -84,6 +84,18 @@ pub struct ParamEstimate {
     pub step: u8,
 }
 
+impl ParamEstimate {
+    /// Report the parameter as not identifiable because of `why`, keeping the earlier reason
+    /// after it in parentheses (e.g. its relative standard error). No effect on an estimate
+    /// already flagged, whose reason stays the first one found.
+    pub fn flag(&mut self, why: &str) {
+        if self.identifiable {
+            self.identifiable = false;
+            self.reason = format!("{why} ({})", self.reason);
+        }
+    }
+}
+
 /// Lag-1 autocorrelation of `r` (0 for fewer than 3 values or zero variance).
 pub fn lag1_autocorrelation(r: &[f64]) -> f64 {
     if r.len() < 3 {
