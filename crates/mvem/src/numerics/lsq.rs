@@ -597,6 +597,25 @@ fn shifted(
     Ok(all_finite(&r).then_some(r))
 }
 
+/// [`fd_column`] with residuals by `f` (checked to have `m` entries), and the number of
+/// evaluations it made.
+fn counted_fd_column(
+    spec: &FdSpec,
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    m: usize,
+    x: &DVector<f64>,
+    f0: &DVector<f64>,
+    j: usize,
+) -> (Result<DVector<f64>, LsqError>, usize) {
+    let mut count = 0;
+    let mut eval = |xs: &DVector<f64>| {
+        count += 1;
+        checked(f(xs.as_slice()), m)
+    };
+    let c = fd_column(spec, &mut eval, x, f0, j);
+    (c, count)
+}
+
 /// One finite-difference column (see the module documentation for the step), residuals by
 /// `eval`.
 fn fd_column(
@@ -709,29 +728,13 @@ impl Evaluator<'_> {
                     use rayon::prelude::*;
                     (0..n)
                         .into_par_iter()
-                        .map(|j| {
-                            let mut count = 0;
-                            let mut eval = |xs: &DVector<f64>| {
-                                count += 1;
-                                checked(par(xs.as_slice()), m)
-                            };
-                            let c = fd_column(&spec, &mut eval, x, f0, j);
-                            (c, count)
-                        })
+                        .map(|j| counted_fd_column(&spec, &mut |xs| par(xs), m, x, f0, j))
                         .collect()
                 }
                 None => {
                     let f = &mut self.f;
                     (0..n)
-                        .map(|j| {
-                            let mut count = 0;
-                            let mut eval = |xs: &DVector<f64>| {
-                                count += 1;
-                                checked(f(xs.as_slice()), m)
-                            };
-                            let c = fd_column(&spec, &mut eval, x, f0, j);
-                            (c, count)
-                        })
+                        .map(|j| counted_fd_column(&spec, &mut **f, m, x, f0, j))
                         .collect()
                 }
             };
