@@ -216,13 +216,11 @@ fn plain_table(text: &str) -> Option<Table> {
     (!times.is_empty()).then_some((times, rows, line_no))
 }
 
-/// A field of [`plain_table`]: a finite number with blanks around it (read as `str::parse`
-/// reads the trimmed text), else `None`.
+/// A field of [`plain_table`] that [`scan_decimal`] did not read as it stands: a finite number
+/// with blanks around it (read as `str::parse` reads the trimmed text), else `None`.
 fn plain_field(f: &str) -> Option<f64> {
-    plain_decimal(f.as_bytes()).or_else(|| {
-        let t = f.trim();
-        plain_decimal(t.as_bytes()).or_else(|| t.parse::<f64>().ok().filter(|x| x.is_finite()))
-    })
+    let t = f.trim();
+    plain_decimal(t.as_bytes()).or_else(|| t.parse::<f64>().ok().filter(|x| x.is_finite()))
 }
 
 /// Powers of ten exactly representable as f64 (10^22 < 2^53 x 2^22).
