@@ -4,9 +4,11 @@
 //! With `--check REF.csv` it also prints the largest scaled deviation (p_im, p_em by 1e5 Pa,
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
-//! too). `--rtol R` sets the tolerance of the measured run, `--method ros34pw2|rodas4|dopri5`
+//! too). `--rtol R` and `--atol A` (x the state scales) set the tolerances of the measured run (default
+//! 1e-6 both, the library's defaults), `--method ros34pw2|rodas4|dopri5`
 //! its method (default: the library default); `--lags-across` runs it with
-//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same).
+//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same). `--dump OUT.csv`
+//! writes the compared columns of the measured run (t and the five states).
 use mvem::analysis::steady::simulate_from_steady;
 use mvem::model::Engine8;
 use mvem::sim::{Method, SimOptions, Solution};
@@ -32,11 +34,16 @@ fn main() {
     let opts = SimOptions {
         dt_out: 0.1,
         rtol: arg("--rtol").map_or(1e-6, |r| r.parse().expect("--rtol")),
+        atol: arg("--atol").map_or(1e-6, |r| r.parse().expect("--atol")),
         method: match arg("--method").as_deref() {
             None => Method::default(),
             Some("ros34pw2") => Method::Rosenbrock34,
             Some("rodas4") => Method::Rodas4,
             Some("dopri5") => Method::Dopri5,
+            Some("ros34prw") => Method::Ros34prw,
+            Some("ros3pw") => Method::Ros3pw,
+            Some("ros3prw") => Method::Ros3prw,
+            Some("assp3p3s1c") => Method::Assp3p3s1c,
             Some(other) => panic!("--method {other}: ros34pw2, rodas4 or dopri5"),
         },
         stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
@@ -75,14 +82,25 @@ fn main() {
             }
         };
         let mine = columns(&s);
+        if let Some(dump) = arg("--dump") {
+            // the compared columns of this run, one line per sample (t, p_im, ..., omega_t)
+            let txt: String = (0..mine[0].len())
+                .map(|i| {
+                    let row: Vec<String> = mine.iter().map(|c| format!("{:e}", c[i])).collect();
+                    format!("{:.1},{}\n", i as f64 * opts.dt_out, row.join(","))
+                })
+                .collect();
+            std::fs::write(dump, txt).unwrap();
+        }
         let mut worst = 0.0f64;
         for (k, (name, scale)) in COMPARE.iter().enumerate() {
-            let d = mine[k]
+            let (d, at) = mine[k]
                 .iter()
                 .zip(&reference[k])
                 .map(|(a, b)| (a - b).abs() / scale)
-                .fold(0.0, f64::max);
-            print!("{name} {d:.2e}  ");
+                .enumerate()
+                .fold((0.0, 0), |m, (i, d)| if d > m.0 { (d, i) } else { m });
+            print!("{name} {d:.2e} (t = {:.1} s)  ", at as f64 * opts.dt_out);
             worst = worst.max(d);
         }
         println!("\nmax dev {worst:.2e}");

@@ -427,3 +427,56 @@ fn error_follows_tolerance() {
         }
     }
 }
+
+/// The W-method tableaus screened against ROS34PW2 (docs/integrator.md, session 9): observed
+/// orders with the step pinned by `h_max` on y' = -y^2 (autonomous; the lagged Jacobian is
+/// O(h) from the exact one) and on Prothero-Robinson with the time as an input (lambda = -1;
+/// linear in y, non-autonomous, and the W-methods omit f_t: the time column of their Jacobian
+/// is 0). Neither problem separates W-order from Rosenbrock order for ROS3Pw (W-order 2,
+/// Rosenbrock order 3: its order-3 W conditions fail only where J differs from df/dy by O(1),
+/// as the lagged Jacobian does on the WHTC); the time direction does for ROS3PRw (order 2) and
+/// the ROS34PRw coefficients as transcribed (b A1 = 0.516: order 1). Measured: ASSP3P3S1C
+/// 3.43, 3.32, 3.19 / 3.08, 2.99, 3.03; ROS3Pw 3.34, 3.27, 3.17 / 2.87, 2.96, 2.97; ROS3PRw
+/// 5.57, 0.41, 2.46 (erratic) / 1.96, 1.98, 1.99; ROS34PRw 2.99, 2.45, 2.11 / 0.88, 0.94,
+/// 0.97; ROS34PW2 3.24, 3.24, 3.15 / 2.86, 2.96, 2.96.
+#[test]
+fn screened_w_tableaus_observed_order() {
+    let riccati_toy = Toy::new(riccati, 0.0, ["y"]);
+    let constant = InputSchedule::constant(Drive::new(0.0, 0.0, 0.0, 0.0));
+    let pr = Toy::new(prothero_robinson, -1.0, ["y"]);
+    let ramp = time_ramp(4.0);
+    let hs = [0.1, 0.05, 0.025, 0.0125];
+    // (method, accepted observed orders on y' = -y^2 (None: erratic, not checked), on PR)
+    let cases = [
+        (Method::Assp3p3s1c, Some((2.6, 3.6)), (2.6, 3.6)),
+        (Method::Ros3pw, Some((2.6, 3.6)), (2.6, 3.6)),
+        (Method::Ros3prw, None, (1.7, 2.3)),
+        (Method::Ros34prw, Some((1.9, 3.2)), (0.7, 1.3)),
+        (Method::Rosenbrock34, Some((2.6, 3.6)), (2.6, 3.6)),
+    ];
+    for (method, auto, (lo_n, hi_n)) in cases {
+        let ea: Vec<f64> = hs
+            .iter()
+            .map(|&h| pinned_error(&riccati_toy, &constant, [1.0], [0.2], method, h))
+            .collect();
+        let en: Vec<f64> = hs
+            .iter()
+            .map(|&h| pinned_error(&pr, &ramp, [0.0], [4f64.sin()], method, h))
+            .collect();
+        let (pa, pn) = (observed_orders(&ea), observed_orders(&en));
+        eprintln!(
+            "{method:?}: y' = -y^2 errors {ea:?} orders {pa:.2?}; PR errors {en:?} orders {pn:.2?}"
+        );
+        if let Some((lo_a, hi_a)) = auto {
+            for q in pa {
+                assert!(lo_a < q && q < hi_a, "{method:?} autonomous: order {q:.2}");
+            }
+        }
+        for q in pn {
+            assert!(
+                lo_n < q && q < hi_n,
+                "{method:?} non-autonomous: order {q:.2}"
+            );
+        }
+    }
+}

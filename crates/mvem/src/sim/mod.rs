@@ -44,6 +44,7 @@ mod rosw;
 mod segment;
 mod solution;
 pub mod stepper;
+mod wtab;
 
 pub use error::{SimError, StateDump};
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
