@@ -151,6 +151,27 @@ fn derivatives_path_equals_eval() {
         }
         assert!(same(ev.memory_next.x_r, dv.memory_next.x_r));
         assert!(same(ev.memory_next.t_1, dv.memory_next.t_1));
+        // the channels the model declares unused (InputDelays::current false) do not change
+        // the derivatives: the simulator passes NaN for them (SegmentInputs::at_derivatives)
+        let current = m.input_delays().current;
+        let mut arr = u.to_array();
+        for c in 0..4 {
+            if !current[c] {
+                arr[c] = f64::NAN;
+            }
+        }
+        let dn = m.derivatives(x, &ModelInput::from_array(arr), mem);
+        for i in 0..N {
+            assert!(
+                same(dn.dx[i], dv.dx[i]),
+                "{N} states, {:?}, unused inputs NaN: state {i}: {} vs {}",
+                m.options(),
+                dn.dx[i],
+                dv.dx[i]
+            );
+        }
+        assert!(same(dn.memory_next.x_r, dv.memory_next.x_r));
+        assert!(same(dn.memory_next.t_1, dv.memory_next.t_1));
     }
     let t = Table::read("steady_states.csv");
     let mut seed = 0x9e37_79b9_7f4a_7c15u64;

@@ -9,7 +9,6 @@ use super::options::{Method, SimOptions};
 use super::rosw::{self, IterationMatrix};
 use super::segment::{stop_times_except, SegmentInputs};
 use super::solution::{SimStats, Solution};
-use super::wtab;
 use super::SimError;
 use crate::model::{Dynamics, LagCommand, LinearLag, ModelInput};
 
@@ -41,8 +40,6 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) jac_age: usize,
     /// RODAS4: step size proposed after the first accepted step of the last segment (0: none).
     pub(super) h_first: f64,
-    /// f_t of the current segment for the W-methods that use it ([`super::wtab`]).
-    pub(super) ft_seg: Option<[f64; N]>,
     /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
     pub(super) jac_full: bool,
     /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
@@ -327,7 +324,6 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             lu: None,
             jac_age: usize::MAX,
             h_first: 0.0,
-            ft_seg: None,
             jac_full: false,
             lags: Vec::new(),
             lag_seg: Vec::new(),
@@ -436,7 +432,6 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 inp.set_segment(self.t, b);
             }
             self.plan_lags(&mut inp, self.t, b);
-            self.ft_seg = None;
             if self.opts.method == Method::Rodas4 {
                 // J and f_t belong to one point and one segment's inputs
                 self.jac_age = usize::MAX;
@@ -649,10 +644,6 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 Method::Dopri5 => self.step_dopri5(inp, t, h, t_new, &f0),
                 Method::Rosenbrock34 => self.step_rosw(inp, t, h, t_new, &f0),
                 Method::Rodas4 => self.step_rodas4(inp, t, h, t_new, &f0),
-                Method::Ros34prw => self.step_wtab(inp, t, h, t_new, &f0, &wtab::ROS34PRW),
-                Method::Ros3pw => self.step_wtab(inp, t, h, t_new, &f0, &wtab::ROS3PW),
-                Method::Ros3prw => self.step_wtab(inp, t, h, t_new, &f0, &wtab::ROS3PRW),
-                Method::Assp3p3s1c => self.step_wtab(inp, t, h, t_new, &f0, &wtab::ASSP3P3S1C),
             };
             let trial = match trial {
                 Ok(tr) => tr,

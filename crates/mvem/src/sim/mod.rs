@@ -44,7 +44,6 @@ mod rosw;
 mod segment;
 mod solution;
 pub mod stepper;
-mod wtab;
 
 pub use error::{SimError, StateDump};
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};

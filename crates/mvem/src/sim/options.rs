@@ -54,19 +54,6 @@ pub enum Method {
     /// and the time derivative along the (piecewise linear) inputs at every step; see
     /// `docs/integrator.md` for the measured comparison with ROS34PW2.
     Rodas4,
-    /// Rosenbrock-W method ROS34PRw (Rang 2015): 4 stages, order 3(2), L-stable, stiffly
-    /// accurate; stages 3 and 4 share one evaluation, and stage 2 lies at 1.31 h (the inputs
-    /// of the step extended linearly). Screened against ROS34PW2 in `docs/integrator.md`.
-    Ros34prw,
-    /// Rosenbrock-W method ROS3Pw (Rang & Angermann 2005): 3 stages, order 3(2), R(inf) = 0.73;
-    /// stage 2 at 1.58 h. Screened against ROS34PW2 in `docs/integrator.md`.
-    Ros3pw,
-    /// Rosenbrock-W method ROS3PRw (Rang 2015): 3 stages, order 3(2); stages at 2.37 h and
-    /// 1.27 h. Screened against ROS34PW2 in `docs/integrator.md`.
-    Ros3prw,
-    /// Rosenbrock-W method ASSP3P3S1C (Constantinescu, PETSc): 3 stages, the first explicit,
-    /// order 3(2), A-stable, stages inside the step. Screened in `docs/integrator.md`.
-    Assp3p3s1c,
 }
 
 impl Method {
@@ -76,14 +63,13 @@ impl Method {
             Method::Rosenbrock34 => 3,
             Method::Dopri5 => 5,
             Method::Rodas4 => 4,
-            Method::Ros34prw | Method::Ros3pw | Method::Ros3prw | Method::Assp3p3s1c => 3,
         }
     }
 
     /// Whether the method is linearly implicit (a Rosenbrock method: Jacobian, iteration
     /// matrix; closed-form lag states available, see [`SimOptions::exact_actuators`]).
     pub fn is_rosenbrock(self) -> bool {
-        !matches!(self, Method::Dopri5)
+        matches!(self, Method::Rosenbrock34 | Method::Rodas4)
     }
 }
 

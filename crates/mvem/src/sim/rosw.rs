@@ -520,6 +520,54 @@ mod tests {
         );
     }
 
+    /// The W-method order conditions (J arbitrary; Hairer & Wanner IV.7, "W-methods"): with
+    /// A = (a_ij) and G = (g_ij) plus gamma on the diagonal, the Taylor expansion of
+    /// k_i = h f(y + sum_j a_ij k_j) + h J sum_{j<=i} g_ij k_j separates the elementary
+    /// differentials with J from those with f', so order 3 needs b 1 = 1; b A1 = 1/2, b G1 = 0;
+    /// b (A1)^2 = 1/3, b A A1 = 1/6, b A G1 = b G A1 = b G G1 = 0 (with J = f' the last four
+    /// combine to the Rosenbrock condition of [`order_conditions`]), and the embedded method the
+    /// first three. This is what makes the lagged Jacobian and the omitted f_t harmless. The
+    /// screened ROS3Pw and ROS3PRw (Rosenbrock order 3) fail it at order 3, the ROS34PRw
+    /// coefficients found at order 2 (docs/integrator.md, session 9).
+    #[test]
+    fn w_order_conditions() {
+        let a = [
+            [0.0; 4],
+            [A21, 0.0, 0.0, 0.0],
+            [A31, A32, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ];
+        let g = [
+            [GAMMA, 0.0, 0.0, 0.0],
+            [G21, GAMMA, 0.0, 0.0],
+            [G31, G32, GAMMA, 0.0],
+            [G41, G42, G43, GAMMA],
+        ];
+        let a1: [f64; 4] = std::array::from_fn(|i| a[i].iter().sum());
+        let g1: [f64; 4] = std::array::from_fn(|i| g[i].iter().sum());
+        let mul = |m: &[[f64; 4]; 4], v: &[f64; 4]| -> [f64; 4] {
+            std::array::from_fn(|i| (0..4).map(|j| m[i][j] * v[j]).sum())
+        };
+        let dot = |u: &[f64; 4], v: &[f64; 4]| (0..4).map(|i| u[i] * v[i]).sum::<f64>();
+        let close = |x: f64, want: f64, what: &str| {
+            assert!((x - want).abs() < 1e-12, "{what}: {x} instead of {want}");
+        };
+        for (v, name) in [([B1, B2, B3, B4], "b"), ([BH1, BH2, BH3, BH4], "bh")] {
+            close(dot(&v, &[1.0; 4]), 1.0, name);
+            close(dot(&v, &a1), 0.5, name);
+            close(dot(&v, &g1), 0.0, name);
+        }
+        let b = [B1, B2, B3, B4];
+        close(dot(&b, &a1.map(|x| x * x)), 1.0 / 3.0, "b (A1)^2");
+        close(dot(&b, &mul(&a, &a1)), 1.0 / 6.0, "b A A1");
+        close(dot(&b, &mul(&a, &g1)), 0.0, "b A G1");
+        close(dot(&b, &mul(&g, &a1)), 0.0, "b G A1");
+        close(dot(&b, &mul(&g, &g1)), 0.0, "b G G1");
+        // the embedded method is of W-order 2 only (else it would be no error estimate)
+        let bh = [BH1, BH2, BH3, BH4];
+        assert!((dot(&bh, &mul(&a, &a1)) - 1.0 / 6.0).abs() > 1e-3);
+    }
+
     #[test]
     fn order_conditions() {
         // Hairer & Wanner IV.7 with beta_ij = a_ij + g_ij, beta_i' = sum_{j<i} beta_ij, g = GAMMA:

@@ -234,31 +234,6 @@ impl<'a> SegmentInputs<'a> {
         }
     }
 
-    /// [`Self::value`] with the line of the window's last piece extended beyond the window's
-    /// end: the stages of W-methods evaluated after the end of a segment's last step see the
-    /// smooth continuation of the segment's inputs, not those after the stop time.
-    #[inline(always)]
-    fn value_extended(&mut self, k: usize, t: f64) -> f64 {
-        let (tq, (t_ref, v_ref, slope)) = self.line_at(k, t);
-        let tu = t - self.shift(k);
-        v_ref + slope * (tu.max(tq) - t_ref)
-    }
-
-    /// [`Self::at`], extended linearly beyond the segment's end ([`Self::value_extended`]).
-    pub fn at_extended(&mut self, t: f64) -> ModelInput {
-        let now = crate::model::Drive::new(
-            self.value_extended(0, t),
-            self.value_extended(1, t),
-            self.value_extended(2, t),
-            self.value_extended(3, t),
-        );
-        ModelInput {
-            now,
-            u_egr_delayed: self.value_extended(4, t),
-            u_vgt_delayed: self.value_extended(5, t),
-        }
-    }
-
     /// Model inputs at `t` in the segment: current values and delayed actuator commands.
     #[inline]
     pub fn at(&mut self, t: f64) -> ModelInput {

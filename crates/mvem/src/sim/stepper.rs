@@ -201,7 +201,6 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             next_out: 1, // no output samples (the interval is NO_OUTPUT)
             t_out0: t,
             jac: c.jac.take(),
-            ft_seg: None,
             ft: [0.0; N], // RODAS4 recomputes it with J at the first step of a segment
             lu: c.lu.take(),
             jac_age: c.jac_age,
