@@ -24,14 +24,6 @@ pub fn isentropic_term(pi_c: f64, gamma_a: f64) -> f64 {
     pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0
 }
 
-/// [`isentropic_term`] from ln Pi_c (computed once by the caller, who needs it elsewhere too):
-/// exp((1 - 1/gamma_a) ln Pi_c) - 1. The power is within a few eps relative of `powf`'s (as
-/// [`super::pow_ln`]); the subtraction of 1 cancels the same way in both forms. 0 at Pi_c = 1.
-#[inline]
-pub fn isentropic_term_ln(ln_pi_c: f64, gamma_a: f64) -> f64 {
-    ((1.0 - 1.0 / gamma_a) * ln_pi_c).exp() - 1.0
-}
-
 /// Energy transfer coefficient Psi_c [-], eq. (66):
 /// 2 c_pa T_amb (Pi_c^(1 - 1/gamma_a) - 1) / (R_c^2 omega_t^2), `r_c` [m], `omega_t` [rad/s],
 /// `isentropic` from [`isentropic_term`].
@@ -137,21 +129,6 @@ pub fn power(c_pa: f64, t_amb: f64, isentropic: f64, w_c: f64, eta_c: f64) -> Co
 mod tests {
     use super::*;
     use crate::params::Params;
-
-    /// The isentropic term from ln Pi_c against the `powf` form: both round Pi_c^a to within a
-    /// few eps relative, so they differ by at most 4 eps Pi_c^a absolute (which is the whole
-    /// difference after the common subtraction of 1), for Pi_c in 1 .. 5; exactly 0 at Pi_c = 1.
-    #[test]
-    fn isentropic_term_from_log_equals_powf_form() {
-        let g = Params::published().gas.gamma_a;
-        assert_eq!(isentropic_term_ln(0.0, g), 0.0);
-        for k in 0..=4000 {
-            let pi = 1.0 + 4.0 * k as f64 / 4000.0;
-            let (a, b) = (isentropic_term_ln(pi.ln(), g), isentropic_term(pi, g));
-            let bound = 4.0 * f64::EPSILON * pi.powf(1.0 - 1.0 / g);
-            assert!((a - b).abs() <= bound, "Pi_c {pi}: {a:e} vs {b:e}");
-        }
-    }
 
     #[test]
     fn efficiency_peak_and_clamp() {

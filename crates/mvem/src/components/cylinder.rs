@@ -59,9 +59,6 @@ pub struct SeligerIterate {
 pub struct SeligerInputs {
     /// Pressure ratio over the cylinder Pi_e = p_em / p_im [-], eq. (18).
     pub pi_e: f64,
-    /// ln Pi_e, if the caller has it (the model derives it from the logarithms of Pi_t and
-    /// Pi_c it needs anyway); `None`: computed from `pi_e`.
-    pub ln_pi_e: Option<f64>,
     /// Fuel mass flow W_f [kg/s].
     pub w_f: f64,
     /// Cylinder in-flow W_ei [kg/s].
@@ -123,10 +120,7 @@ struct SeligerConsts {
 
 impl SeligerConsts {
     fn new(cyl: &Cylinder, cc: &CylinderConsts, s: &SeligerInputs) -> Self {
-        let pi_e_ig = match s.ln_pi_e {
-            Some(ln) => (cc.inv_gamma_a * ln).exp(),
-            None => pow_ln(s.pi_e, cc.inv_gamma_a),
-        };
+        let pi_e_ig = pow_ln(s.pi_e, cc.inv_gamma_a);
         Self {
             cc: *cc,
             pi_e_ig,
@@ -431,45 +425,11 @@ mod tests {
         assert!((x - 0.01663 / 0.101).abs() < 1e-15);
     }
 
-    /// ln Pi_e passed in as the model derives it, -(ln Pi_t + ln Pi_c) with Pi_t = p_amb/p_em and
-    /// Pi_c = p_im/p_amb (each ratio and logarithm rounded), gives the cylinder-out temperature
-    /// of its own logarithm to 1e-14 relative, over p_im, p_em in 0.8e5 .. 4e5 Pa.
-    #[test]
-    fn shared_log_of_pi_e_gives_the_same_temperature() {
-        let p = Params::published();
-        let cc = CylinderConsts::new(&p.gas, &p.cylinder);
-        let p_amb = p.ambient.p_amb;
-        let mut worst: f64 = 0.0;
-        for i in 0..60 {
-            for j in 0..60 {
-                let p_im = 0.8e5 + 3.2e5 * i as f64 / 59.0;
-                let p_em = 0.8e5 + 3.2e5 * j as f64 / 59.0;
-                let ln_pi_e = -((p_amb / p_em).ln() + (p_im / p_amb).ln());
-                let mut s = SeligerInputs {
-                    pi_e: p_em / p_im,
-                    ln_pi_e: None,
-                    w_f: 0.005,
-                    w_ei: 0.2,
-                    t_im: 310.0,
-                };
-                let run = |s: &SeligerInputs| {
-                    cylinder_out_temp_converged(&p.gas, &p.cylinder, &cc, s, Semantics::Authors).t_e
-                };
-                let own = run(&s);
-                s.ln_pi_e = Some(ln_pi_e);
-                let shared = run(&s);
-                worst = worst.max((shared / own - 1.0).abs());
-            }
-        }
-        assert!(worst < 1e-14, "{worst:e}");
-    }
-
     #[test]
     fn fixed_point_is_a_fixed_point_and_one_step_from_it_stays() {
         let p = Params::published();
         let s = SeligerInputs {
             pi_e: 1.3,
-            ln_pi_e: None,
             w_f: 0.00825,
             w_ei: 0.3,
             t_im: p.intake_manifold.t_im,
@@ -506,7 +466,6 @@ mod tests {
         for (pi_e, w_f, w_ei) in [(1.3, 0.00825, 0.3), (0.9, 0.001, 0.05), (2.5, 0.02, 0.4)] {
             let s = SeligerInputs {
                 pi_e,
-                ln_pi_e: None,
                 w_f,
                 w_ei,
                 t_im: p.intake_manifold.t_im,
@@ -543,7 +502,6 @@ mod tests {
         // Huge fuel per air: T_e exceeds 1500 K without the cap.
         let s = SeligerInputs {
             pi_e: 1.0,
-            ln_pi_e: None,
             w_f: 0.03,
             w_ei: 0.1,
             t_im: 300.0,

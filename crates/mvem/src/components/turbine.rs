@@ -60,12 +60,7 @@ pub struct ExpansionTerms {
 /// Pi_t < 0 NaN.
 #[inline]
 pub fn expansion_terms(t: &Turbine, gamma_e: f64, pi_t: f64) -> ExpansionTerms {
-    expansion_terms_ln(t, gamma_e, pi_t.ln())
-}
-
-/// [`expansion_terms`] from ln Pi_t (computed once by the caller, who needs it elsewhere too).
-#[inline]
-pub fn expansion_terms_ln(t: &Turbine, gamma_e: f64, ln: f64) -> ExpansionTerms {
+    let ln = pi_t.ln();
     ExpansionTerms {
         f_pi_t: one_minus_pow_ln(t.k_t, ln).sqrt(),
         dh: one_minus_pow_ln(1.0 - 1.0 / gamma_e, ln),

@@ -118,27 +118,9 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
     let x_oe_raw = (w_ei * x_oim - w_f * of_s) / w_eo;
     let x_oe = cylinder::x_oe(w_ei, x_oim, w_f, of_s, w_eo, sem);
 
-    // The three pressure ratios, eqs (18), (44), (59), and their logarithms: ln Pi_t (eqs (48),
-    // (50), (53)) and ln Pi_c (eqs (58), (60), (61), (66)) are computed, ln Pi_e (eq. (22)) is
-    // -(ln Pi_t + ln Pi_c) where Pi_e Pi_t Pi_c = 1: the compressor outlet is the intake
-    // manifold (not the 12-state p_c, eq. (87)) and neither cap (items 24, 31) is active. Its
-    // error is then a few eps absolute, i.e. Pi_e^(1/gamma_a) within a few eps relative (as
-    // with its own logarithm); 1 - Pi_t^a keeps its own, accurate ln Pi_t near the cap 0.9999.
-    let pi_e = p_em / p_im; // eq. (18)
-    let raw_pi_t = p_amb / p_em; // eq. (44)
-    let pi_t = turbine::pi_t(p_amb, p_em, sem);
-    let ln_pi_t = pi_t.ln();
-    let p_c_out = s.p_c.unwrap_or(p_im);
-    let raw_pi_c = p_c_out / p_amb; // eq. (59) or (87)
-    let pi_c = compressor::pi_c(p_c_out, p_amb, sem);
-    let ln_pi_c = pi_c.ln();
-    let ln_pi_e = -(ln_pi_t + ln_pi_c);
-    let shared = s.p_c.is_none() && pi_t == raw_pi_t && pi_c == raw_pi_c && ln_pi_e.is_finite();
-
     // Cylinder-out temperature, eqs (17)-(24), and the pipe heat loss, eq. (25).
     let sel = SeligerInputs {
-        pi_e,
-        ln_pi_e: shared.then_some(ln_pi_e),
+        pi_e: p_em / p_im, // eq. (18)
         w_f,
         w_ei,
         t_im,
@@ -167,14 +149,17 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
 
     // Turbine, eqs (43)-(56).
     let tb = &p.turbine;
+    let pi_t = turbine::pi_t(p_amb, p_em, sem);
     let f_vgt = turbine::f_vgt(tb, u_vgt_act, sem);
-    let ex = turbine::expansion_terms_ln(tb, gas.gamma_e, ln_pi_t); // eqs (48), (50), (53)
+    let ex = turbine::expansion_terms(tb, gas.gamma_e, pi_t); // eqs (48), (50), (53)
     let w_t = turbine::w_t(tb, p_em, t_em, gas.r_e, ex.f_pi_t, f_vgt);
     let tp = turbine::power_dh(tb, gas.c_pe, t_em, ex.dh, omega_t, w_t, sem);
 
     // Compressor, eqs (58)-(72); outlet pressure p_im (eq. (59)) or p_c (eq. (87)).
     let cp = &p.compressor;
-    let isentropic = compressor::isentropic_term_ln(ln_pi_c, gas.gamma_a);
+    let p_c_out = s.p_c.unwrap_or(p_im);
+    let pi_c = compressor::pi_c(p_c_out, p_amb, sem);
+    let isentropic = compressor::isentropic_term(pi_c, gas.gamma_a);
     let cf = compressor::flow(
         cp, gas.c_pa, gas.r_a, t_amb, p_amb, isentropic, omega_t, sem,
     );
@@ -202,6 +187,7 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
 
     // Guard and regime flags (reporting only; they do not change the values).
     if SIGNALS && authors {
+        let raw_pi_c = p_c_out / p_amb;
         let mut set = |c: bool, g: Guard| {
             if c {
                 guards |= g as u32;

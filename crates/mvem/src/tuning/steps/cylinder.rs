@@ -116,7 +116,6 @@ fn t_em_model(p: &Params, s: &StationaryPoint, d: &Derived) -> f64 {
     let cc = cylinder::CylinderConsts::new(&p.gas, &p.cylinder);
     let inp = cylinder::SeligerInputs {
         pi_e: s.p_em / s.p_im, // eq. (18)
-        ln_pi_e: None,
         w_f: d.w_f,
         w_ei: d.w_ei,
         t_im: s.t_im,
