@@ -499,7 +499,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
 
     /// Whether the stop times at the delayed channels 2 and 3 are left out: they drive only
     /// closed-form lag states and [`SimOptions::stop_at_lag_breakpoints`] is off.
-    fn skip_lag_stops(&self) -> [bool; 2] {
+    pub(super) fn skip_lag_stops(&self) -> [bool; 2] {
         if self.opts.stop_at_lag_breakpoints {
             [false; 2]
         } else {
