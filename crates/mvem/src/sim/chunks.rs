@@ -91,27 +91,32 @@ pub fn split_times(stops: &[(f64, bool)], t0: f64, chunks: usize, overlap: f64) 
 
 /// Stops on either side of the balanced index among which a split is chosen
 /// ([`kink_from`]).
-const SPLIT_WINDOW: usize = 64;
+const SPLIT_WINDOW: usize = 128;
 
-/// Stops before a split candidate whose time span ranks it ([`kink_from`]).
-const SPLIT_DENSITY: usize = 32;
+/// Time before a split candidate whose largest gap between stops ranks it [s]
+/// ([`kink_from`]).
+const SPLIT_CALM: f64 = 10.0;
 
-/// A stop without a jump near index `i` (never the first [`SPLIT_DENSITY`] or the last stop):
-/// of those within [`SPLIT_WINDOW`] stops, the one after the densest stops (the shortest time
-/// span of the [`SPLIT_DENSITY`] stops before it). Where the inputs change at every row, two
-/// runs whose states agree also take the same steps, since every segment's steps end at its
-/// stop; after a quiet stretch the step sizes grown there differ between the runs, and their
-/// states differ by up to about one tolerance unit for a few seconds (measured on the WHTC,
-/// `docs/integrator.md`): no place for a junction.
+/// A stop without a jump near index `i` (never the first or the last stop): of those within
+/// [`SPLIT_WINDOW`] stops, the one whose preceding [`SPLIT_CALM`] seconds have the shortest
+/// largest gap between stops. Where the inputs change at every row, two runs whose states agree
+/// also take the same steps, since every segment's steps end at its stop; in a quiet stretch the
+/// step sizes grow without such a bound, differently in two runs that started differently, and
+/// at the next kink their states differ by up to a few tolerance units for a few seconds
+/// (measured on the WHTC, `docs/integrator.md`): no place for a junction.
 fn kink_from(stops: &[(f64, bool)], i: usize) -> Option<f64> {
-    let lo = i.saturating_sub(SPLIT_WINDOW).max(SPLIT_DENSITY);
+    let lo = i.saturating_sub(SPLIT_WINDOW).max(1);
     let hi = (i + SPLIT_WINDOW).min(stops.len().saturating_sub(1));
     (lo..hi)
         .filter(|&j| !stops[j].1)
         .min_by_key(|&j| {
-            // the span to 1 ms (equal spans: the candidate nearest the balanced index)
-            let span = stops[j].0 - stops[j - SPLIT_DENSITY].0;
-            ((span * 1e3).round() as i64, j.abs_diff(i))
+            let from = stops[..j].partition_point(|s| s.0 < stops[j].0 - SPLIT_CALM);
+            let gap = stops[from.max(1) - 1..=j]
+                .windows(2)
+                .map(|w| w[1].0 - w[0].0)
+                .fold(0.0, f64::max);
+            // the gap to 1 ms (equal gaps: the candidate nearest the balanced index)
+            ((gap * 1e3).round() as i64, j.abs_diff(i))
         })
         .map(|j| stops[j].0)
 }
