@@ -142,7 +142,7 @@ pub fn split_times(
     overlap: f64,
 ) -> Vec<f64> {
     let n = stops.len();
-    if n < 16 || chunks < 2 || !(t_end > t0) {
+    if n < 16 || chunks < 2 || t_end.partial_cmp(&t0) != Some(std::cmp::Ordering::Greater) {
         return Vec::new();
     }
     let w = WorkEstimate::new(sched, t0, t_end);
