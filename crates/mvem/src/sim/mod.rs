@@ -32,7 +32,8 @@
 //! Files: `options` ([`SimOptions`], [`Method`]), `error` ([`SimError`]), `solution`
 //! ([`Solution`], [`SimStats`]), `segment` ([`SegmentInputs`], [`stop_times`]), `integrator`
 //! (the restartable [`Integrator`]: step control, segments, dense output, closed-form lags),
-//! `rosw`, `rodas` and `dopri5` (each method's tableau and trial step), [`input`] (schedules).
+//! `rosw`, `rodas` and `dopri5` (each method's tableau and trial step), [`input`] (schedules),
+//! `chunks` (time-parallel chunks of one open-loop run, [`SimOptions::time_chunks`]).
 
 mod chunks;
 mod dopri5;
