@@ -402,6 +402,8 @@ pub(super) fn simulate_chunked<const N: usize, M: Dynamics<N>>(
                 Err(panic) => std::panic::resume_unwind(panic),
             };
             let last = k + 1 == k_all;
+            // the previous chunk stopped where this one's samples start
+            debug_assert_eq!(prev.next_out, first_sample(t0, opts.dt_out, starts[k]));
             let diff = match (&chunk.run, chunk.y_start) {
                 (Some(_), Some(ys)) => junction_diff(&prev.y, &ys, &prev.atol, opts.rtol),
                 _ => f64::INFINITY,
