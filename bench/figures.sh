@@ -55,13 +55,17 @@ echo "commit:  $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unkno
 echo "load before: $(uptime)"
 for m in 8 10 12; do
     "$mvem" bench --repeat 9 --model "$m" --evals 200000 >"$work/b$m" 2>&1
+    # the sequential (1 thread) block first, then the time-parallel one (2 chunks, 2 threads)
     printf '%-44s %s; %s; %s\n' "WHTC integration, $m states (mvem bench)" \
-        "$(awk '/wall time/ {sub(/^ *wall time */, ""); print}' "$work/b$m")" \
-        "$(awk '/^ *steps/ {sub(/^ *steps */, ""); print}' "$work/b$m")" \
-        "$(awk '/RHS evaluations/ {print $3 " RHS evaluations"}' "$work/b$m")"
+        "$(awk '/wall time/ {sub(/^ *wall time */, ""); print; exit}' "$work/b$m")" \
+        "$(awk '/^ *steps/ {sub(/^ *steps */, ""); print; exit}' "$work/b$m")" \
+        "$(awk '/RHS evaluations/ {print $3 " RHS evaluations"; exit}' "$work/b$m")"
+    printf '%-44s %s; %s\n' "  same, 2 time chunks on 2 threads" \
+        "$(awk '/^Time-parallel/ {p=1} p && /wall time/ {sub(/^ *wall time */, ""); print; exit}' "$work/b$m")" \
+        "$(awk '/^ *junctions/ {sub(/^ *junctions */, ""); print; exit}' "$work/b$m")"
 done
 awk '/Model evaluation/ {sub(/^.*calls\): /, ""); print "one model evaluation (8 states)               " $0}' "$work/b8"
-awk '/^  (p_im|p_em|X_Oim|X_Oem|omega_t) / {if ($2 + 0 > m) m = $2 + 0} END {printf "%-44s %.2e (scaled, 8 states)\n", "max deviation from rtol 1e-10", m}' "$work/b8"
+awk '/^  (p_im|p_em|X_Oim|X_Oem|omega_t) / {if ($2 + 0 > m) m = $2 + 0; sub(/\)$/, "", $NF); if ($NF + 0 > p) p = $NF + 0} END {printf "%-44s %.2e (scaled, 8 states; 2 time chunks %.2e)\n", "max deviation from rtol 1e-10", m, p}' "$work/b8"
 # whole processes, alternated
 : >"$work/csv"; : >"$work/pq"; : >"$work/cl"
 for _ in 1 2 3 4 5; do
@@ -91,5 +95,5 @@ if [ "$tune" = 1 ]; then
 fi
 echo "load after: $(uptime)"
 if [ -n "$peer" ]; then
-    MVEM_BIN=$mvem bash "$root/bench/peer.sh" "$peer" 7 | tail -4
+    MVEM_BIN=$mvem bash "$root/bench/peer.sh" "$peer" 7 | tail -5
 fi

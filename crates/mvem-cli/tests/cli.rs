@@ -630,3 +630,78 @@ fn closed_stdout_pipe_is_not_a_panic() {
     assert!(!err.contains("panicked"), "stderr: {err}");
     assert_ne!(status.code(), Some(101), "a panic exit code: {status:?}");
 }
+
+/// `--time-parallel 2` (two time chunks on two threads): the same rows and columns as the
+/// sequential run, the values within the integration tolerance, the junction reported; `mvem
+/// bench` prints both timings and the junctions.
+#[test]
+fn time_parallel_simulate_and_bench() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "--scenario",
+            "whtc",
+            "--t-end",
+            "300",
+            "--dt",
+            "0.1",
+            "--out",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        let o = mvem(d.path(), &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let seq = run("seq.csv", &[]);
+    assert!(!seq.contains("time-parallel"), "{seq}");
+    let par = run("par.csv", &["--time-parallel", "2"]);
+    assert!(par.contains("time-parallel: 2 chunks, 0 re-run"), "{par}");
+    let (hs, rs) = read_csv(&d.path().join("seq.csv"));
+    let (hp, rp) = read_csv(&d.path().join("par.csv"));
+    assert_eq!(hs, hp);
+    assert_eq!(rs.len(), rp.len());
+    assert_eq!(rs.len(), 3001);
+    for name in ["t", "p_im", "p_em", "omega_t", "W_c"] {
+        let c = col(&hs, name);
+        for (a, b) in rs.iter().zip(&rp) {
+            // within a tenth of rtol 1e-6 (measured: 1e-9 and below)
+            assert!(
+                (a[c] - b[c]).abs() <= 1e-7 * a[c].abs().max(1e-3),
+                "{name}: {} vs {} at t = {}",
+                a[c],
+                b[c],
+                a[0]
+            );
+        }
+    }
+    // bench on a 300 s part of the cycle: both lines
+    let text = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/whtc_inputs_10hz.csv"),
+    )
+    .unwrap();
+    let short: Vec<&str> = text.lines().take(3002).collect();
+    std::fs::write(d.path().join("short.csv"), short.join("\n")).unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "bench",
+            "--inputs",
+            "short.csv",
+            "--repeat",
+            "1",
+            "--evals",
+            "10",
+            "--no-reference",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("Simulation (1 runs, 1 thread)"), "{out}");
+    assert!(out.contains("Time-parallel (1 runs alternated"), "{out}");
+    assert!(
+        out.contains("junctions          2 chunks, 0 re-run"),
+        "{out}"
+    );
+}

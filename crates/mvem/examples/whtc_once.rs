@@ -9,9 +9,14 @@
 //! its method (default: the library default); `--lags-across` runs it with
 //! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same). `--dump OUT.csv`
 //! writes the compared columns of the measured run (t and the five states).
-use mvem::analysis::steady::simulate_from_steady;
-use mvem::model::Engine8;
-use mvem::sim::{Method, SimOptions, Solution};
+//!
+//! `--time-parallel K` runs it in K time chunks (`SimOptions::time_chunks`, one thread each),
+//! `--overlap W` sets their warm-up [s], `--guess initial` starts the warm-ups from the initial
+//! state instead of the steady state at their inputs; the junctions are printed.
+//! `--model 10|12` runs the 10- or 12-state model (give each model its own REF file).
+use mvem::analysis::steady::{simulate_from_steady, steady_state};
+use mvem::model::{Engine10, Engine12, Engine8, Model};
+use mvem::sim::{simulate_with_guess, Method, SimOptions, Solution, Start};
 
 const COMPARE: [(&str, f64); 5] = [
     ("p_im", 1e5),
@@ -28,7 +33,20 @@ fn main() {
             .position(|a| a == k)
             .and_then(|i| args.get(i + 1).cloned())
     };
-    let m = Engine8::published();
+    match arg("--model").as_deref() {
+        None | Some("8") => run(&Engine8::published(), &args),
+        Some("10") => run(&Engine10::published(), &args),
+        Some("12") => run(&Engine12::published(), &args),
+        Some(other) => panic!("--model {other}: 8, 10 or 12"),
+    }
+}
+
+fn run<const N: usize, M: Model<N>>(m: &M, args: &[String]) {
+    let arg = |k: &str| {
+        args.iter()
+            .position(|a| a == k)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
     let text = include_str!("../../../data/whtc_inputs_10hz.csv");
     let sched = mvem::io::csv_inputs::parse_inputs_csv(text, std::path::Path::new("whtc")).unwrap();
     let opts = SimOptions {
@@ -43,11 +61,26 @@ fn main() {
             Some(other) => panic!("--method {other}: ros34pw2, rodas4 or dopri5"),
         },
         stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
+        time_chunks: arg("--time-parallel").map_or(1, |k| k.parse().expect("--time-parallel")),
+        chunk_overlap: arg("--overlap").map_or(30.0, |w| w.parse().expect("--overlap")),
         ..SimOptions::default()
     };
     let t = std::time::Instant::now();
-    let s = simulate_from_steady(&m, &sched, 0.0, 1800.0, &opts).unwrap();
+    let s = if arg("--guess").as_deref() == Some("initial") {
+        let x0 = steady_state(m, &sched.at(0.0)).unwrap().x;
+        simulate_with_guess(m, &sched, 0.0, 1800.0, Start::State(x0), &opts, None).unwrap()
+    } else {
+        simulate_from_steady(m, &sched, 0.0, 1800.0, &opts).unwrap()
+    };
     println!("{:?} {:?}", t.elapsed(), s.stats);
+    for j in &s.junctions {
+        println!(
+            "junction t = {} s: diff {:.3e} tolerance units, {}",
+            j.t,
+            j.diff,
+            if j.accepted { "accepted" } else { "re-run" }
+        );
+    }
     if let Some(path) = arg("--check") {
         let reference: Vec<Vec<f64>> = match std::fs::read_to_string(&path) {
             Ok(txt) => txt
@@ -62,7 +95,7 @@ fn main() {
                     exact_actuators: false,
                     ..opts.clone()
                 };
-                let r = simulate_from_steady(&m, &sched, 0.0, 1800.0, &ro).unwrap();
+                let r = simulate_from_steady(m, &sched, 0.0, 1800.0, &ro).unwrap();
                 let cols = columns(&r);
                 let txt: Vec<String> = cols
                     .iter()

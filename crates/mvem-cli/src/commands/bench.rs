@@ -4,8 +4,11 @@
 use crate::common::{self, ModelArgs, SolverArgs};
 use anyhow::{Context, Result};
 use mvem::analysis::ensemble::{simulate_many, Case};
+use mvem::analysis::steady::chunk_guess;
 use mvem::model::{AnyModel, Model, ModelInput};
-use mvem::sim::{simulate, InputSchedule, SimOptions, SimStats, Solution, Start};
+use mvem::sim::{
+    simulate, simulate_with_guess, InputSchedule, SimOptions, SimStats, Solution, Start,
+};
 use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,6 +21,7 @@ Examples:
   mvem bench --rtol 1e-8 --repeat 3
   mvem bench --inputs my_cycle.csv --dt 0.01 --evals 100000
   mvem bench --ensemble 8
+  mvem bench --model 12 --time-parallel 4
 
 Prints wall time (min and median over the repeats), solver statistics, the real-time factor
 (simulated seconds per wall second), the time of one model evaluation, and the deviation from a
@@ -26,7 +30,12 @@ tight (rtol 1e-10, every state integrated numerically) reference run of p_im, p_
 
 --ensemble N times N runs of the cycle (each from its steady start) with the library's
 ensemble call (mvem::analysis::ensemble::simulate_many, as mvem.simulate_many in Python) on
-1 worker thread and on one thread per core, alternately, and prints the speed-up.")]
+1 worker thread and on one thread per core, alternately, and prints the speed-up.
+
+--time-parallel N (default 2) also times the same simulation integrated in N time chunks on N
+threads (SimOptions::time_chunks), alternating with the sequential runs, and prints its
+junctions and its deviation from the reference; 1 times the sequential run only. The
+sequential line is one thread; the time-parallel line uses N cores.")]
 pub struct Args {
     /// Input CSV [default: the built-in WHTC cycle, 1800 s at 10 Hz]
     #[arg(long, value_name = "FILE.csv")]
@@ -43,6 +52,10 @@ pub struct Args {
     /// Instead: time N runs of the cycle at once on 1 thread and on all cores (the scaling).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=10000))]
     pub ensemble: Option<u32>,
+    /// Also time the run in N time chunks on N threads (1: the sequential run only).
+    #[arg(long, value_name = "N", default_value_t = 2,
+          value_parser = clap::value_parser!(u32).range(1..=mvem::sim::MAX_TIME_CHUNKS as i64))]
+    pub time_parallel: u32,
     #[command(flatten)]
     pub solver: SolverArgs,
     #[command(flatten)]
@@ -92,8 +105,16 @@ fn bench<const N: usize, M: Model<N>>(
     let x0 = mvem::analysis::steady::steady_state(m, &sched.at(t0))
         .context("steady state at the first inputs")?
         .x;
+    // the time-parallel runs alternate with the sequential ones (the same load for both)
+    let par_opts = (a.time_parallel > 1).then(|| SimOptions {
+        time_chunks: a.time_parallel as usize,
+        ..opts.clone()
+    });
+    let guess = chunk_guess(m, sched);
     let mut walls = Vec::new();
+    let mut par_walls = Vec::new();
     let mut last: Option<Solution> = None;
+    let mut last_par: Option<Solution> = None;
     for i in 0..a.repeat {
         let msg = format!("run {}/{}", i + 1, a.repeat);
         let (sol, w) = common::with_spinner(&msg, || {
@@ -101,12 +122,24 @@ fn bench<const N: usize, M: Model<N>>(
         });
         walls.push(w);
         last = Some(sol.context("simulation failed")?);
+        if let Some(po) = &par_opts {
+            let msg = format!("run {}/{}, {} time chunks", i + 1, a.repeat, po.time_chunks);
+            let (sol, w) = common::with_spinner(&msg, || {
+                timed(|| {
+                    simulate_with_guess(m, sched, t0, t_end, Start::State(x0), po, Some(&guess))
+                })
+            });
+            par_walls.push(w);
+            last_par = Some(sol.context("time-parallel simulation failed")?);
+        }
     }
     let sol = last.context("no run")?;
     walls.sort_by(f64::total_cmp);
+    par_walls.sort_by(f64::total_cmp);
     let (min, median) = (walls[0], median(&walls));
+    let par_median = (!par_walls.is_empty()).then(|| self::median(&par_walls));
     let st: SimStats = sol.stats;
-    println!("\nSimulation ({} runs)", a.repeat);
+    println!("\nSimulation ({} runs, 1 thread)", a.repeat);
     println!(
         "  wall time          min {}, median {}",
         common::fmt_duration(min),
@@ -123,6 +156,38 @@ fn bench<const N: usize, M: Model<N>>(
         "  real-time factor   {:.0} (simulated s per wall s, median run)",
         (t_end - t0) / median
     );
+    if let Some(par) = &last_par {
+        let ps = par.stats;
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        println!(
+            "\nTime-parallel ({} runs alternated with the above; {} chunks on {} threads, {threads} cores)",
+            a.repeat, ps.chunks.max(1), ps.chunks.max(1)
+        );
+        println!(
+            "  wall time          min {}, median {} ({:.2}x, {:.2}x the sequential)",
+            common::fmt_duration(par_walls[0]),
+            common::fmt_duration(par_median.unwrap_or(f64::NAN)),
+            par_walls[0] / min,
+            par_median.unwrap_or(f64::NAN) / median
+        );
+        println!(
+            "  steps              {} accepted, {} rejected (all chunks, warm-ups included)",
+            ps.steps, ps.rejected
+        );
+        println!(
+            "  RHS evaluations    {} ({:+.1} % against the sequential)",
+            ps.rhs_evals,
+            100.0 * (ps.rhs_evals as f64 / st.rhs_evals as f64 - 1.0)
+        );
+        if ps.chunks > 0 {
+            println!(
+                "  junctions          {}",
+                crate::commands::simulate::junction_summary(&ps, &par.junctions)
+            );
+        } else {
+            println!("  junctions          none: too few stop times to split (sequential)");
+        }
+    }
 
     // One model evaluation at a state in the middle of the run.
     let mid = sol.len() / 2;
@@ -181,20 +246,31 @@ fn bench<const N: usize, M: Model<N>>(
         reference.stats.steps,
         sol.len()
     );
-    for (name, scale) in COMPARE {
-        let (Some(y), Some(r)) = (sol.get(name), reference.get(name)) else {
-            continue;
+    let deviation = |s: &Solution, name: &str, scale: f64| {
+        let (Some(y), Some(r)) = (s.get(name), reference.get(name)) else {
+            return None;
         };
         let (mut worst, mut at) = (0.0f64, t0);
         for i in 0..y.len().min(r.len()) {
             let e = (y[i] - r[i]).abs() / scale;
             if e > worst {
                 worst = e;
-                at = sol.t()[i];
+                at = s.t()[i];
             }
         }
+        Some((worst, at))
+    };
+    for (name, scale) in COMPARE {
+        let Some((worst, at)) = deviation(&sol, name, scale) else {
+            continue;
+        };
+        let par = last_par
+            .as_ref()
+            .and_then(|p| deviation(p, name, scale))
+            .map(|(w, _)| format!(", time-parallel {w:.2e}"))
+            .unwrap_or_default();
         println!(
-            "  {name:<8} {worst:.2e}  (scale {scale:e}, at t = {} s)",
+            "  {name:<8} {worst:.2e}  (scale {scale:e}, at t = {} s{par})",
             tidy_time(at)
         );
     }

@@ -4,11 +4,11 @@
 use crate::common::{self, ModelArgs, Scenario, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
-use mvem::analysis::steady::{simulate_from_steady, simulate_from_steady_into};
+use mvem::analysis::steady::{chunk_guess, simulate_from_steady, simulate_from_steady_into};
 use mvem::model::Model;
 use mvem::sim::{
-    simulate, simulate_into, Block, InputSchedule, SignalEvaluator, SimOptions, SimStats, Solution,
-    Start,
+    simulate_into_with_guess, simulate_with_guess, Block, InputSchedule, Junction, SignalEvaluator,
+    SimOptions, SimStats, Solution, Start,
 };
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -24,6 +24,7 @@ Examples:
   mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.csv --dt 0.1
   mvem simulate --inputs my.csv --out my_out.csv --params my_params.toml --rtol 1e-8
   mvem simulate --inputs data/whtc_inputs_10hz.csv --out whtc.parquet --signals p_im,W_c,lambda_O
+  mvem simulate --scenario whtc --out whtc.csv --time-parallel 2
 
 Input CSV header (any column order): time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct
 Rows are interpolated linearly; two rows with the same time are a step.
@@ -63,6 +64,15 @@ pub struct Args {
     /// `tau_me` of the [test_cell] section of --params; without it no M_dynamo].
     #[arg(long = "tau-me", value_name = "S")]
     pub tau_me: Option<f64>,
+    /// Integrate in N time chunks at once, one thread each (each chunk after the first starts
+    /// 30 s early from the steady state at its inputs; its samples are kept only where its
+    /// state meets the previous chunk's within 0.1 tolerance units, otherwise the chunk is
+    /// integrated again sequentially). The result agrees with the sequential run to far below
+    /// the tolerance but not bit for bit; 1 (default): the sequential run. See
+    /// docs/integrator.md.
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u32).range(1..=mvem::sim::MAX_TIME_CHUNKS as i64))]
+    pub time_parallel: u32,
     #[command(flatten)]
     pub model: ModelArgs,
     #[command(flatten)]
@@ -77,7 +87,10 @@ pub fn run(a: &Args) -> Result<()> {
         plot::Format::of(p)?;
         common::check_output_path(p, "--plot")?;
     }
-    let opts = a.solver.options(0.01)?;
+    let opts = SimOptions {
+        time_chunks: a.time_parallel as usize,
+        ..a.solver.options(0.01)?
+    };
     if let Some(t) = a.tau_me {
         if !(t.is_finite() && t > 0.0) {
             return Err(common::usage(format!("--tau-me {t}: must be > 0")));
@@ -161,6 +174,7 @@ pub fn run(a: &Args) -> Result<()> {
                 guards_seen: sol.guards_seen,
                 columns: cols.len(),
                 wall,
+                junctions: sol.junctions,
             }
         }
         None => {
@@ -191,6 +205,12 @@ pub fn run(a: &Args) -> Result<()> {
         st.rhs_evals,
         st.breakpoints
     );
+    if st.chunks > 0 {
+        eprintln!(
+            "time-parallel: {}",
+            junction_summary(&st, &written.junctions)
+        );
+    }
     eprintln!(
         "wrote {} samples x {} columns to {}{}",
         st.outputs,
@@ -290,10 +310,14 @@ fn run_model<const N: usize, M: Model<N>>(
         )?)),
         None => None,
     };
+    // the time-parallel chunks start from the steady state at their inputs
+    let guess = chunk_guess(m, sched);
     match (start, into) {
-        (Some(x0), None) => simulate(m, sched, t0, t_end, x0, opts).context("simulation failed"),
+        (Some(x0), None) => simulate_with_guess(m, sched, t0, t_end, x0, opts, Some(&guess))
+            .context("simulation failed"),
         (Some(x0), Some(sol)) => {
-            simulate_into(m, sched, t0, t_end, x0, opts, sol).context("simulation failed")
+            simulate_into_with_guess(m, sched, t0, t_end, x0, opts, sol, Some(&guess))
+                .context("simulation failed")
         }
         (None, None) => {
             simulate_from_steady(m, sched, t0, t_end, opts).context("simulation failed")
@@ -304,9 +328,34 @@ fn run_model<const N: usize, M: Model<N>>(
     }
 }
 
+/// One line on the chunks of a time-parallel run: how many, how many integrated again, and
+/// each junction's difference in tolerance units.
+pub fn junction_summary(st: &SimStats, junctions: &[Junction]) -> String {
+    let each: Vec<String> = junctions
+        .iter()
+        .map(|j| {
+            format!(
+                "t = {} s: {:.2e}{}",
+                j.t,
+                j.diff,
+                if j.accepted { "" } else { " (re-run)" }
+            )
+        })
+        .collect();
+    format!(
+        "{} chunks, {} re-run; junction differences (tolerance units, limit {}): {}",
+        st.chunks,
+        st.chunks_rerun,
+        mvem::sim::JUNCTION_TOL,
+        each.join(", ")
+    )
+}
+
 /// What `mvem simulate` wrote.
 struct Written {
     stats: SimStats,
+    /// The junctions of a time-parallel run.
+    junctions: Vec<Junction>,
     guards_seen: u32,
     /// Columns written.
     columns: usize,
@@ -404,6 +453,7 @@ fn stream_model<const N: usize, M: Model<N>>(
     })?;
     Ok(Written {
         stats: sol.stats,
+        junctions: sol.junctions,
         // a deferred simulation's guards are seen where its signals are evaluated
         guards_seen: sol.guards_seen | signals.guards_seen(),
         columns: header.len(),

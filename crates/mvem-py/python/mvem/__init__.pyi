@@ -27,6 +27,7 @@ def simulate(
     model: ModelOrder = 8,
     cylinder_temp: Literal["converged", "one-iteration"] = "converged",
     numeric_actuators: bool = False,
+    time_parallel: int = 1,
 ) -> Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"]:
     """Simulate from the steady state at the first input row.
 
@@ -34,6 +35,7 @@ def simulate(
     u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns); linear interpolation,
     two rows with the same time make a step. t_end [s], dt [s]: end time and output interval.
     numeric_actuators: integrate the actuator states numerically too (default: closed form).
+    time_parallel: time chunks integrated at once, one thread each (default 1: sequential).
     Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
     ValueError: bad inputs/options/params; RuntimeError: solver failure.
     """

@@ -18,8 +18,8 @@ use crate::analysis::zeros;
 use crate::model::{AnyModel, Drive, Guard, InputError, Model, ModelInput, Signals};
 use crate::sim::stepper::{AnyPlant, Plant};
 use crate::sim::{
-    check_interval, simulate, simulate_into, InputSchedule, Side, SimError, SimOptions, Solution,
-    Start,
+    check_interval, simulate, simulate_into_with_guess, simulate_with_guess, InputSchedule, Side,
+    SimError, SimOptions, Solution, Start,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -98,7 +98,34 @@ pub fn simulate_from_steady<const N: usize, M: Model<N>>(
     opts: &SimOptions,
 ) -> Result<Solution, SimFromSteadyError> {
     let start = steady_start(model, sched, t0, t_end, opts)?;
-    Ok(simulate(model, sched, t0, t_end, start, opts)?)
+    let guess = chunk_guess(model, sched);
+    Ok(simulate_with_guess(
+        model,
+        sched,
+        t0,
+        t_end,
+        start,
+        opts,
+        Some(&guess),
+    )?)
+}
+
+/// The start of a time-parallel chunk ([`SimOptions::time_chunks`]): the steady state at the
+/// inputs at `t` (right limit; Newton only, no settling simulation: `None` if it does not
+/// converge, and the chunk then starts from the simulation's initial state).
+pub fn chunk_guess<'a, const N: usize, M: Model<N>>(
+    model: &'a M,
+    sched: &'a InputSchedule,
+) -> impl Fn(f64) -> Option<[f64; N]> + Sync + 'a {
+    move |t| {
+        let opts = SteadyOptions {
+            settle: false,
+            ..SteadyOptions::default()
+        };
+        steady_state_with(model, &sched.at(t), None, &opts)
+            .ok()
+            .map(|s| s.x)
+    }
 }
 
 /// [`simulate_from_steady`] writing its samples to `sol` (e.g. a [`Solution::streaming`] one;
@@ -112,7 +139,17 @@ pub fn simulate_from_steady_into<const N: usize, M: Model<N>>(
     sol: Solution,
 ) -> Result<Solution, SimFromSteadyError> {
     let start = steady_start(model, sched, t0, t_end, opts)?;
-    Ok(simulate_into(model, sched, t0, t_end, start, opts, sol)?)
+    let guess = chunk_guess(model, sched);
+    Ok(simulate_into_with_guess(
+        model,
+        sched,
+        t0,
+        t_end,
+        start,
+        opts,
+        sol,
+        Some(&guess),
+    )?)
 }
 
 /// The steady state at the inputs at `t0` (right limit), after checking the options and the

@@ -418,9 +418,22 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         } else {
             Vec::new()
         };
-        // the stops, then t_end (chained: a push would reallocate the exactly sized list)
+        self.advance_stops(t_end, sol, final_sample, &stops)
+    }
+
+    /// [`Self::advance`] with its stop times given: `stops` as [`stop_times_except`] lists them
+    /// from `self.t` to `t_end` (a time-parallel chunk takes its part of one list for the whole
+    /// run, [`super::chunks`]).
+    pub(super) fn advance_stops(
+        &mut self,
+        t_end: f64,
+        sol: &mut Solution,
+        final_sample: bool,
+        stops: &[(f64, bool)],
+    ) -> Result<(), SimError> {
+        // the stops, then t_end
         let first_end = stops.first().map_or(t_end, |s| s.0);
-        let seg_ends = stops.into_iter().chain(std::iter::once((t_end, false)));
+        let seg_ends = stops.iter().copied().chain(std::iter::once((t_end, false)));
         // made for the first segment (a plant step has one to three: set up once, not twice)
         // the delayed commands of closed-form lags enter only derivatives the integrator does
         // not use, whether or not their breakpoints are stop times
@@ -499,7 +512,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
 
     /// Whether the stop times at the delayed channels 2 and 3 are left out: they drive only
     /// closed-form lag states and [`SimOptions::stop_at_lag_breakpoints`] is off.
-    fn skip_lag_stops(&self) -> [bool; 2] {
+    pub(super) fn skip_lag_stops(&self) -> [bool; 2] {
         if self.opts.stop_at_lag_breakpoints {
             [false; 2]
         } else {

@@ -32,8 +32,10 @@
 //! Files: `options` ([`SimOptions`], [`Method`]), `error` ([`SimError`]), `solution`
 //! ([`Solution`], [`SimStats`]), `segment` ([`SegmentInputs`], [`stop_times`]), `integrator`
 //! (the restartable [`Integrator`]: step control, segments, dense output, closed-form lags),
-//! `rosw`, `rodas` and `dopri5` (each method's tableau and trial step), [`input`] (schedules).
+//! `rosw`, `rodas` and `dopri5` (each method's tableau and trial step), [`input`] (schedules),
+//! `chunks` (time-parallel chunks of one open-loop run, [`SimOptions::time_chunks`]).
 
+mod chunks;
 mod dopri5;
 mod error;
 pub mod input;
@@ -45,12 +47,13 @@ mod segment;
 mod solution;
 pub mod stepper;
 
+pub use chunks::{split_times, ChunkGuess, JUNCTION_TOL};
 pub use error::{SimError, StateDump};
 pub use input::{BreakKind, InputSchedule, ScheduleError, Side};
 pub use integrator::Integrator;
-pub use options::{Method, SimOptions};
+pub use options::{Method, SimOptions, MAX_TIME_CHUNKS};
 pub use segment::{stop_times, SegmentInputs};
-pub use solution::{Block, SignalEvaluator, SimStats, Solution, MAX_ROWS};
+pub use solution::{Block, Junction, SignalEvaluator, SimStats, Solution, MAX_ROWS};
 
 use crate::model::Dynamics;
 
@@ -92,10 +95,52 @@ pub fn simulate_into<const N: usize, M: Dynamics<N>>(
     t_end: f64,
     start: Start<N>,
     opts: &SimOptions,
+    sol: Solution,
+) -> Result<Solution, SimError> {
+    simulate_into_with_guess(model, sched, t0, t_end, start, opts, sol, None)
+}
+
+/// [`simulate`] with a guess of the state at a time for the time-parallel chunks
+/// ([`SimOptions::time_chunks`] > 1; e.g. the steady state at the inputs there,
+/// `analysis::steady::chunk_guess`). Without a guess, or where it returns `None`, a chunk
+/// starts its warm-up from the initial state. The guess changes only how fast a chunk's
+/// warm-up converges, never the result's correctness (a chunk that does not meet its
+/// predecessor within [`JUNCTION_TOL`] is integrated again sequentially).
+pub fn simulate_with_guess<const N: usize, M: Dynamics<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    start: Start<N>,
+    opts: &SimOptions,
+    guess: Option<&ChunkGuess<N>>,
+) -> Result<Solution, SimError> {
+    check_interval(opts, t0, t_end)?;
+    let mut sol = Solution::new(&model.state_names());
+    let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
+    sol.reserve(samples.min(1e7) as usize);
+    simulate_into_with_guess(model, sched, t0, t_end, start, opts, sol, guess)
+}
+
+/// [`simulate_into`] with a guess for the time-parallel chunks (see [`simulate_with_guess`]).
+/// With [`SimOptions::time_chunks`] > 1 the samples of chunk 0 reach `sol` (and its receiver)
+/// while it is integrated, those of the other chunks after their junction is verified.
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_into_with_guess<const N: usize, M: Dynamics<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    start: Start<N>,
+    opts: &SimOptions,
     mut sol: Solution,
+    guess: Option<&ChunkGuess<N>>,
 ) -> Result<Solution, SimError> {
     check_interval(opts, t0, t_end)?;
     let Start::State(y0) = start;
+    if opts.time_chunks > 1 {
+        return chunks::simulate_chunked(model, sched, t0, t_end, y0, opts, sol, guess);
+    }
     let mut run = Integrator::new(model, sched, t0, y0, opts)?;
     run.advance(t_end, &mut sol, true)?;
     sol.stats = run.stats;

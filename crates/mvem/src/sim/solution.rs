@@ -13,8 +13,9 @@ pub type Block = Vec<Vec<f64>>;
 /// The front ends and the closed loop refuse more before anything runs.
 pub const MAX_ROWS: f64 = 5e7;
 
-/// Solver statistics.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Solver statistics (of a time-parallel run, [`super::SimOptions::time_chunks`]: the work of
+/// every chunk, warm-ups and discarded chunks included; `outputs` counts the solution's samples).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SimStats {
     /// Accepted steps.
     pub steps: usize,
@@ -30,6 +31,43 @@ pub struct SimStats {
     pub lu: usize,
     /// Output samples.
     pub outputs: usize,
+    /// Time chunks integrated in parallel ([`super::SimOptions::time_chunks`]; 0: the
+    /// sequential run).
+    pub chunks: usize,
+    /// Chunks whose junction check failed (or whose run failed), integrated again by the
+    /// previous chunk's integrator.
+    pub chunks_rerun: usize,
+    /// Largest junction difference: max over the states of |y_prev - y_chunk| / (atol_i + rtol
+    /// max(|y_prev|, |y_chunk|)) at a chunk's first time (0 without chunks; infinite when a
+    /// chunk's run failed). [`super::Solution::junctions`] lists each.
+    pub junction_max: f64,
+}
+
+impl SimStats {
+    /// Add the work counters of `o` (steps, rejections, evaluations, stops, Jacobians, LU,
+    /// samples) to these.
+    pub(super) fn add_work(&mut self, o: &SimStats) {
+        self.steps += o.steps;
+        self.rejected += o.rejected;
+        self.rhs_evals += o.rhs_evals;
+        self.breakpoints += o.breakpoints;
+        self.jacobians += o.jacobians;
+        self.lu += o.lu;
+        self.outputs += o.outputs;
+    }
+}
+
+/// The junction of a time-parallel chunk with the previous one ([`super::SimOptions::time_chunks`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Junction {
+    /// The chunk's first time [s] (a stop time where the inputs are continuous).
+    pub t: f64,
+    /// Max over the states of |y_prev - y_chunk| / (atol_i + rtol max(|y_prev|, |y_chunk|))
+    /// (infinite: the chunk's run failed).
+    pub diff: f64,
+    /// Whether the chunk's samples were kept (`diff` <= [`super::JUNCTION_TOL`]); otherwise
+    /// the previous chunk's integrator integrated the chunk again.
+    pub accepted: bool,
 }
 
 /// Simulation result: named columns sampled at the output times.
@@ -48,10 +86,15 @@ pub struct Solution {
     pub stats: SimStats,
     /// Guards of the authors' implementation that were active at any output sample.
     pub guards_seen: u32,
+    /// Junctions of a time-parallel run, in time order (empty: sequential).
+    pub junctions: Vec<Junction>,
     /// Column of each entry of [`Signals::NAMES`] (`None`: the signal is a state column).
     signal_columns: Vec<Option<usize>>,
     /// Where completed blocks go (`None`: the columns keep every sample).
     stream: Option<Stream>,
+    /// The samples hold what the signals are computed from, not the signals
+    /// ([`Solution::streaming_deferred`]).
+    raw: bool,
 }
 
 /// The receiving end of a streaming solution.
@@ -62,9 +105,6 @@ struct Stream {
     rows: usize,
     /// The receiver hung up (e.g. its writer failed): later samples are dropped.
     closed: bool,
-    /// The blocks hold what the signals are computed from, not the signals
-    /// ([`Solution::streaming_deferred`]).
-    deferred: bool,
 }
 
 /// Columns of a deferred block after `t` and the states: the [`ModelInput`] of each sample
@@ -72,7 +112,7 @@ struct Stream {
 const INPUT_COLUMNS: usize = 6;
 
 /// Two solutions are equal when their names, samples, statistics and guards are (where a
-/// streaming solution sends its blocks is not part of its value).
+/// streaming solution sends its blocks, and the list of junctions, are not part of its value).
 impl PartialEq for Solution {
     fn eq(&self, o: &Self) -> bool {
         self.names == o.names
@@ -111,9 +151,47 @@ impl Solution {
             columns,
             stats: SimStats::default(),
             guards_seen: 0,
+            junctions: Vec::new(),
             signal_columns,
             stream: None,
+            raw: false,
         }
+    }
+
+    /// An empty solution with the columns of this one that keeps every sample (raw like this
+    /// one if this one is [`Solution::streaming_deferred`]): a time-parallel chunk's buffer,
+    /// appended to this one later ([`Solution::append`]).
+    pub(super) fn kept_like(&self) -> Self {
+        Self {
+            names: self.names.clone(),
+            columns: vec![Vec::new(); self.columns.len()],
+            stats: SimStats::default(),
+            guards_seen: 0,
+            junctions: Vec::new(),
+            signal_columns: self.signal_columns.clone(),
+            stream: None,
+            raw: self.raw,
+        }
+    }
+
+    /// Append the samples of `other` (made by [`Solution::kept_like`] of this one), sending
+    /// full blocks on if this solution is streaming.
+    pub(super) fn append(&mut self, other: &Solution) {
+        let rows = other.columns[0].len();
+        let mut done = 0;
+        while done < rows {
+            let room = match &self.stream {
+                Some(st) => st.rows.saturating_sub(self.columns[0].len()).max(1),
+                None => rows,
+            };
+            let n = room.min(rows - done);
+            for (c, o) in self.columns.iter_mut().zip(&other.columns) {
+                c.extend_from_slice(&o[done..done + n]);
+            }
+            done += n;
+            self.block_full();
+        }
+        self.guards_seen |= other.guards_seen;
     }
 
     /// An empty solution like [`Solution::new`] that sends every `rows` samples as one
@@ -129,7 +207,6 @@ impl Solution {
             tx,
             rows,
             closed: false,
-            deferred: false,
         });
         s.reserve(rows);
         s
@@ -152,9 +229,7 @@ impl Solution {
         if !model.holds_memory() {
             let rows = rows.max(1);
             s.columns = vec![Vec::with_capacity(rows); 1 + N + INPUT_COLUMNS];
-            if let Some(st) = &mut s.stream {
-                st.deferred = true;
-            }
+            s.raw = true;
         }
         s
     }
@@ -162,7 +237,7 @@ impl Solution {
     /// Whether output samples are pushed without their signals
     /// ([`Solution::streaming_deferred`]).
     pub(super) fn defers_signals(&self) -> bool {
-        self.stream.as_ref().is_some_and(|s| s.deferred)
+        self.raw
     }
 
     /// Whether the samples are sent on in blocks ([`Solution::streaming`]) rather than kept.
@@ -174,9 +249,13 @@ impl Solution {
     /// its names, statistics and guards, no samples, and is no longer streaming. No effect on a
     /// solution that is not streaming.
     pub fn finish_stream(&mut self) {
+        if self.stream.is_none() {
+            return;
+        }
         self.send_block();
-        if self.defers_signals() {
+        if self.raw {
             self.columns = vec![Vec::new(); self.names.len()];
+            self.raw = false;
         }
         self.stream = None;
     }
