@@ -3,13 +3,21 @@
 //! error of at most 25 %, or is flagged not identifiable with a reason; the physically
 //! meaningful parameters stay identifiable.
 //!
-//! Heavy (the full pipeline on seeds 1-4, about a minute per campaign on 2 cores): `#[ignore]`d in CI, run
-//! by `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty
-//! -- --ignored`).
+//! eta_tm,max may be flagged when its vertex BSR_opt lies outside the measured blade speed
+//! ratios (the pipeline says so); then the combination it reports instead, eta_tm at the
+//! measured point nearest the vertex, must lie within 3 standard errors of the true eta_tm
+//! there. "Most" physically meaningful parameters (issue 14): at least 8 of the 10 below.
+//!
+//! Heavy (the full pipeline with its second round of steps 5 and 3 on seeds 1-4, 1-4 minutes
+//! per campaign on 2 cores, about 10 minutes in all): `#[ignore]`d in CI (25 minutes on 2 cores
+//! for everything), run by `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem
+//! --test tuning_uncertainty -- --ignored`).
 
+use mvem::components::{turbine, Semantics};
 use mvem::params::Params;
 use mvem::tuning::lab::{self, LabOptions};
 use mvem::tuning::pipeline::{self, PipelineOptions};
+use mvem::tuning::steps::bsr_series;
 
 /// Parameters that must be identifiable (volumes, inertia, actuator time constants, peak
 /// efficiencies, the dynamometer constant).
@@ -33,7 +41,7 @@ fn check_campaign(seed: u64) -> Vec<String> {
         ..LabOptions::default()
     };
     let (c, _) = lab::campaign(&truth, &opts).unwrap();
-    let (_, rep) = pipeline::tune(&c, &truth, &PipelineOptions::default()).unwrap();
+    let (tuned, rep) = pipeline::tune(&c, &truth, &PipelineOptions::default()).unwrap();
     let mut bad = Vec::new();
     assert!(rep.parameters.len() >= 45, "{}", rep.parameters.len());
     for (path, e) in &rep.parameters {
@@ -58,17 +66,58 @@ fn check_campaign(seed: u64) -> Vec<String> {
             assert!(!e.reason.is_empty(), "{path}: no reason");
         }
     }
+    let mut not_identifiable = Vec::new();
     for m in MEANINGFUL {
         let e = &rep.parameters[m];
-        if !e.identifiable {
-            bad.push(format!("seed {seed}: {m} not identifiable ({})", e.reason));
+        if e.identifiable {
+            continue;
         }
+        if m == "turbine.eta_tmmax" && e.reason.contains("outside the measured BSR range") {
+            // the combination instead: eta_tm (eq. (49)) at the measured point nearest the
+            // tuned vertex, against the truth's eta_tm there
+            let (b, w) = bsr_series(&tuned, &c.stationary)
+                .into_iter()
+                .filter(|(b, w)| b.is_finite() && w.is_finite())
+                .min_by(|x, y| {
+                    let o = tuned.turbine.bsr_opt;
+                    (x.0 - o).abs().total_cmp(&(y.0 - o).abs())
+                })
+                .unwrap();
+            let k = rep
+                .combinations
+                .iter()
+                .find(|k| k.name == "turbine.eta_tm_at_bsr")
+                .expect("eta_tm at the measured BSR reported");
+            let tt = &truth.turbine;
+            let t =
+                tt.eta_tmmax - turbine::c_m(tt, w, Semantics::Authors) * (b - tt.bsr_opt).powi(2);
+            let z = (k.value - t) / k.std_error;
+            let rel = k.std_error / k.value.abs();
+            if !(z.abs() <= 3.0 && rel <= 0.25) {
+                bad.push(format!(
+                    "seed {seed}: eta_tm at BSR {b:.3} = {:.4} (true {t:.4}) is {z:.1} std. \
+                     errors off, rel. std. error {:.2} %",
+                    k.value,
+                    100.0 * rel
+                ));
+            }
+            continue;
+        }
+        not_identifiable.push(format!("{m} ({})", e.reason));
+    }
+    if not_identifiable.len() > 2 {
+        bad.push(format!(
+            "seed {seed}: {} of the {} meaningful parameters not identifiable: {}",
+            not_identifiable.len(),
+            MEANINGFUL.len(),
+            not_identifiable.join("; ")
+        ));
     }
     bad
 }
 
 #[test]
-#[ignore = "heavy: the full pipeline on four campaigns; scripts/tuning-uncertainty.sh"]
+#[ignore = "heavy: the full pipeline on four campaigns (about 10 minutes on 2 cores); scripts/tuning-uncertainty.sh"]
 fn tuned_parameters_lie_within_their_standard_errors() {
     let bad: Vec<String> = [1, 2, 3, 4].into_iter().flat_map(check_campaign).collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));

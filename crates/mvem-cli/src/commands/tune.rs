@@ -62,10 +62,10 @@ pub struct Args {
     /// paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
-    /// With --refine-dynamics: standard errors of the static parameters and V_im, V_em, J_t
-    /// from their joint covariance at the fixed point of step 5 and the repeated step 3
-    /// after a second round of steps 5 and 3 (default; `false`: one round, the steps'
-    /// covariances chained, docs/tuning.md).
+    /// With --refine-dynamics: a second round of steps 5 and 3, and the standard errors of
+    /// the static parameters and V_im, V_em, J_t from their joint covariance at that fixed
+    /// point of the alternation (default; about +50 % time on `mvem lab` seed 1; `false`: one
+    /// round, the steps' covariances chained, docs/tuning.md).
     #[arg(long = "joint-uncertainty", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).

@@ -1756,6 +1756,83 @@ mod tests {
     }
 
     #[test]
+    fn relative_offset_of_a_linear_model_by_hand() {
+        // r(a, b) = a + b x - y: at theta, r = r* + J (theta - theta*) with r* orthogonal to the
+        // columns of J, so R = (||J d|| / sqrt(2)) / (||r*|| / sqrt(m - 2))
+        let m = 30;
+        let x: Vec<f64> = (0..m).map(|i| i as f64 / 3.0).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, x)| 1.0 + 0.5 * x + 0.1 * (((i * 7919) % 13) as f64 / 6.0 - 1.0))
+            .collect();
+        let j = DMatrix::from_fn(m, 2, |i, k| if k == 0 { 1.0 } else { x[i] });
+        let res =
+            |a: f64, b: f64| -> Vec<f64> { x.iter().zip(&y).map(|(x, y)| a + b * x - y).collect() };
+        // the least-squares solution from the normal equations
+        let jt_y = j.tr_mul(&DVector::from_column_slice(&y));
+        let th = (j.tr_mul(&j)).try_inverse().unwrap() * jt_y;
+        let r_opt = res(th[0], th[1]);
+        assert!(relative_offset(&j, &r_opt) < 1e-10);
+        let d = DVector::from_column_slice(&[0.03, -0.004]);
+        let r = res(th[0] + d[0], th[1] + d[1]);
+        let rss: f64 = r_opt.iter().map(|v| v * v).sum();
+        let want = ((&j * &d).norm() / 2f64.sqrt()) / (rss / (m - 2) as f64).sqrt();
+        let got = relative_offset(&j, &r);
+        assert!((got / want - 1.0).abs() < 1e-8, "{got} {want}");
+        // the column scaling does not change it
+        let js = DMatrix::from_fn(m, 2, |i, k| j[(i, k)] * if k == 0 { 1e6 } else { 1e-3 });
+        assert!((relative_offset(&js, &r) / want - 1.0).abs() < 1e-8);
+    }
+
+    #[test]
+    fn relative_offset_stops_the_search_within_its_bound() {
+        let x0 = [1.5, 2.6, 1.0, 1.0, 6.5, 1.0, 0.8, 8.7, 0.8];
+        let mut lo = vec![0.0; 9];
+        lo[6] = 0.7;
+        let b = Bounds::new(lo, vec![10.0; 9]);
+        let run = |tol: f64| {
+            let opts = LsqOptions {
+                rel_offset_tol: tol,
+                ..LsqOptions::default()
+            };
+            least_squares(peaks_residual, &x0, &b, &opts).unwrap()
+        };
+        let full = run(0.0);
+        let tol = 0.3;
+        let early = run(tol);
+        assert_eq!(early.termination, Termination::RelativeOffset);
+        assert!(early.termination.converged());
+        assert!(early.rel_offset < tol, "{}", early.rel_offset);
+        assert!(full.rel_offset < 1e-3, "{}", full.rel_offset);
+        assert!(
+            early.n_eval < full.n_eval,
+            "{} {}",
+            early.n_eval,
+            full.n_eval
+        );
+        // every parameter within R sqrt(p) (plus the nonlinearity of one step) of its
+        // standard error from the converged optimum
+        let st = full.stats();
+        for k in 0..9 {
+            let z = (early.theta[k] - full.theta[k]).abs() / st.std_err[k];
+            assert!(z < 1.5 * tol * 3.0, "{k}: {z}");
+        }
+        // a negative tolerance is refused
+        let opts = LsqOptions {
+            rel_offset_tol: -1.0,
+            ..LsqOptions::default()
+        };
+        assert!(matches!(
+            least_squares(peaks_residual, &x0, &b, &opts),
+            Err(LsqError::InvalidOption {
+                name: "rel_offset_tol",
+                ..
+            })
+        ));
+    }
+
+    #[test]
     fn parallel_jacobian_columns_give_bitwise_the_same_search() {
         // forward and central differences, with a bound the difference step must respect
         let x0 = [1.5, 2.6, 1.0, 1.0, 6.5, 1.0, 0.8, 8.7, 0.8];

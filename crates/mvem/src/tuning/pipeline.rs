@@ -69,7 +69,8 @@ pub struct PipelineOptions {
     /// step 3's V_im, V_em, J_t, then step 3 again) and report the static parameters and V_im,
     /// V_em, J_t with their joint covariance at that fixed point of the alternation
     /// ([`super::uncertainty::joint_covariance`]) instead of chaining the steps' covariances.
-    /// Default on since session 9 (docs/tuning.md): chained, step 5's covariance carries the
+    /// Default on since session 9 (docs/tuning.md; costs about +50 % on `mvem lab` seed 1,
+    /// 37 s -> 59 s CPU, the second step 5 182 evaluations): chained, step 5's covariance carries the
     /// first step-3 pass (volumes on the step-1 static parameters, rel. std. errors of 100-270
     /// % on `mvem lab` seeds 2 and 4) and the repeated step 3 receives it back through the flat
     /// directions of the compressor maps, which flagged V_im, V_em, J_t and eta_tm,max there;
