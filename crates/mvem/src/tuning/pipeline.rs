@@ -401,9 +401,9 @@ pub fn tune(
 /// position trade against each other (on `mvem lab` campaigns BSR spans 0.51-0.67 for a
 /// vertex near 0.98: correlation 0.99-0.9996): both are then reported not identifiable with
 /// that reason, whatever their standard errors. What the campaign determines is eta_tm over the
-/// measured range: returned as a [`Combination`], eta_tm at the measured point nearest the
-/// vertex (its BSR and omega_t), with the standard error from the final covariance `cov`.
-/// `None` without finite BSR values.
+/// measured range: returned as a [`Combination`], eta_tm at the measured stationary point (its
+/// BSR and omega_t) where its standard error (from the final covariance `cov`) is smallest.
+/// `None` without finite BSR values or a finite standard error.
 fn turbine_efficiency_on_the_measured_range(
     p: &Params,
     pts: &[crate::tuning::data::StationaryPoint],
@@ -417,21 +417,21 @@ fn turbine_efficiency_on_the_measured_range(
     let lo = seen.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
     let hi = seen.iter().map(|s| s.0).fold(f64::NEG_INFINITY, f64::max);
     let opt = p.turbine.bsr_opt;
-    let &(b_ref, w_ref) = seen
-        .iter()
-        .min_by(|a, b| (a.0 - opt).abs().total_cmp(&(b.0 - opt).abs()))?;
-    // eq. (49) at the reference point (the authors' c_m, SEM)
-    let eta_at = |q: &Params| {
-        q.turbine.eta_tmmax
-            - turbine::c_m(&q.turbine, w_ref, SEM) * (b_ref - q.turbine.bsr_opt).powi(2)
+    // eq. (49) at a point (the authors' c_m, SEM)
+    let eta_at = |q: &Params, b: f64, w: f64| {
+        q.turbine.eta_tmmax - turbine::c_m(&q.turbine, w, SEM) * (b - q.turbine.bsr_opt).powi(2)
     };
-    let value = eta_at(p);
-    let std_error = function_std_error(
-        eta_at,
-        p,
-        &["eta_tmmax", "bsr_opt", "c_m1", "c_m2", "c_m3"],
-        cov,
-    );
+    let names = ["eta_tmmax", "bsr_opt", "c_m1", "c_m2", "c_m3"];
+    // the measured point where the campaign determines eta_tm best (smallest standard error)
+    let (b_ref, w_ref, std_error) = seen
+        .iter()
+        .map(|&(b, w)| {
+            let se = function_std_error(|q: &Params| eta_at(q, b, w), p, &names, cov);
+            (b, w, se)
+        })
+        .filter(|x| x.2.is_finite())
+        .min_by(|x, y| x.2.total_cmp(&y.2))?;
+    let value = eta_at(p, b_ref, w_ref);
     if !(lo..=hi).contains(&opt) {
         let why = format!(
             "the vertex of eta_tm over BSR (eq. (49)) lies at BSR_opt = {opt:.3}, outside the \
@@ -451,8 +451,9 @@ fn turbine_efficiency_on_the_measured_range(
         name: "turbine.eta_tm_at_bsr".into(),
         description: format!(
             "eta_tm (eq. (49)) at BSR = {b_ref:.4}, omega_t = {w_ref:.1} rad/s: the measured \
-             stationary point nearest BSR_opt (measured BSR {lo:.3}-{hi:.3})"
+             stationary point where it is best determined (measured BSR {lo:.3}-{hi:.3})"
         ),
+        at: vec![("bsr".into(), b_ref), ("omega_t".into(), w_ref)],
         value,
         std_error,
     })

@@ -107,6 +107,8 @@ pub struct Combination {
     pub name: String,
     /// What it is (equation, where it is evaluated).
     pub description: String,
+    /// Where it is evaluated (name, value), e.g. ("bsr", 0.668), ("omega_t", 8100.0).
+    pub at: Vec<(String, f64)>,
     /// Value.
     pub value: f64,
     /// Linearized standard error `sqrt(g^T C g)`, `g` its gradient over the parameters of
