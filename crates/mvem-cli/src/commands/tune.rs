@@ -64,9 +64,9 @@ pub struct Args {
     pub refine_dynamics: bool,
     /// With --refine-dynamics: a second round of steps 5 and 3, and the standard errors of
     /// the static parameters and V_im, V_em, J_t from their joint covariance at that fixed
-    /// point of the alternation (default; about +50 % time on `mvem lab` seed 1; `false`: one
+    /// point of the alternation (about +50 % time on `mvem lab` seed 1; default `false`: one
     /// round, the steps' covariances chained, docs/tuning.md).
-    #[arg(long = "joint-uncertainty", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    #[arg(long = "joint-uncertainty", default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 3600, value_name = "N")]

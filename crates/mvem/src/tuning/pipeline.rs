@@ -69,14 +69,11 @@ pub struct PipelineOptions {
     /// step 3's V_im, V_em, J_t, then step 3 again) and report the static parameters and V_im,
     /// V_em, J_t with their joint covariance at that fixed point of the alternation
     /// ([`super::uncertainty::joint_covariance`]) instead of chaining the steps' covariances.
-    /// Default on since session 9 (docs/tuning.md; costs about +50 % on `mvem lab` seed 1,
-    /// 37 s -> 59 s CPU, the second step 5 182 evaluations): chained, step 5's covariance carries the
-    /// first step-3 pass (volumes on the step-1 static parameters, rel. std. errors of 100-270
-    /// % on `mvem lab` seeds 2 and 4) and the repeated step 3 receives it back through the flat
-    /// directions of the compressor maps, which flagged V_im, V_em, J_t and eta_tm,max there;
-    /// the compressor-map coefficients the joint covariance reported 4-2000 standard errors off
-    /// are flagged by rule ([`flag_flow_map_coefficients`], [`flag_efficiency_ellipse_shape`],
-    /// [`flag_maps_known_only_as_a_whole`]).
+    /// Default off: measured in session 9 (docs/tuning.md) with the second round, the
+    /// compressor-map flags and step 5's relative-offset stop, it makes V_im, V_em, J_t
+    /// identifiable on `mvem lab` seeds 2 and 4 but reports c_vgt1 3.3 standard errors off on
+    /// seed 3, gives the volumes of a different engine's campaign rel. std. errors of 170-550 %
+    /// and costs about +50 % CPU on seed 1 (37 s -> 59 s).
     pub joint_uncertainty: bool,
 }
 
@@ -90,7 +87,7 @@ impl Default for PipelineOptions {
             step5: Step5Options::default(),
             refine_dynamics: true,
             model: ModelOrder::Eight,
-            joint_uncertainty: true,
+            joint_uncertainty: false,
         }
     }
 }

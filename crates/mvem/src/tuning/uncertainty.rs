@@ -33,8 +33,8 @@
 //!   receives it back through the static parameters (seed 2, step 5 converged: step-5 standard
 //!   errors 10-100 times their own, V_im 720 %). That is right for a result that depends on
 //!   the first pass, but the linear propagation of the first pass's flat directions (volumes on
-//!   the step-1 static parameters) explodes. With `PipelineOptions::joint_uncertainty` (the
-//!   default since session 9; `mvem tune --joint-uncertainty false` for the chain) the
+//!   the step-1 static parameters) explodes. With `PipelineOptions::joint_uncertainty` (`mvem
+//!   tune --joint-uncertainty true`; off by default, see docs/tuning.md, session 9) the
 //!   pipeline runs a second round (step 5 on the repeated step 3's volumes, then step 3
 //!   again), whose result is, to first order, the fixed point of the alternation and no longer
 //!   depends on the first pass, and reports both steps with their joint covariance there
