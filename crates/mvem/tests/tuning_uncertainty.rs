@@ -8,8 +8,8 @@
 //! measured point where it is best determined, must lie within 3 standard errors of the true eta_tm
 //! there. "Most" physically meaningful parameters (issue 14): at least 8 of the 10 below.
 //!
-//! Heavy (the full pipeline on seeds 1-4, 1-3 minutes per campaign on 2 cores, 5-8 minutes in
-//! all; CI has 25 minutes on 2 cores for everything): `#[ignore]`d, run by
+//! Heavy (the full pipeline on seeds 1-4: 184 s on a quiet 2-core machine; CI has 25 minutes
+//! on 2 cores for everything): `#[ignore]`d, run by
 //! `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty --
 //! --ignored`). It fails on the default pipeline: on seeds 2 and 4 the chained covariance
 //! flags V_im, V_em and J_t (docs/tuning.md, "Session 9 (tune6)"); every parameter reported
@@ -132,7 +132,7 @@ fn check_campaign(seed: u64) -> Vec<String> {
 }
 
 #[test]
-#[ignore = "heavy (5-8 minutes on 2 cores) and failing: seeds 2 and 4 flag the volumes (docs/tuning.md, session 9); scripts/tuning-uncertainty.sh"]
+#[ignore = "heavy (about 3 minutes on 2 cores) and failing: seeds 2 and 4 flag the volumes (docs/tuning.md, session 9); scripts/tuning-uncertainty.sh"]
 fn tuned_parameters_lie_within_their_standard_errors() {
     let bad: Vec<String> = [1, 2, 3, 4].into_iter().flat_map(check_campaign).collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));
