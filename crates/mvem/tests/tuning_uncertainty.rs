@@ -3,13 +3,23 @@
 //! error of at most 25 %, or is flagged not identifiable with a reason; the physically
 //! meaningful parameters stay identifiable.
 //!
-//! Heavy (the full pipeline on seeds 1-4, about a minute per campaign on 2 cores): `#[ignore]`d in CI, run
-//! by `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty
-//! -- --ignored`).
+//! eta_tm,max may be flagged when its vertex BSR_opt lies outside the measured blade speed
+//! ratios (the pipeline says so); then the combination it reports instead, eta_tm at the
+//! measured point where it is best determined, must lie within 3 standard errors of the true eta_tm
+//! there. "Most" physically meaningful parameters (issue 14): at least 8 of the 10 below.
+//!
+//! Heavy (the full pipeline on seeds 1-4: 184 s on a quiet 2-core machine; CI has 25 minutes
+//! on 2 cores for everything): `#[ignore]`d, run by
+//! `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty --
+//! --ignored`). It fails on the default pipeline: on seeds 2 and 4 the chained covariance
+//! flags V_im, V_em and J_t (docs/tuning.md, "Session 9 (tune6)"); every parameter reported
+//! identifiable lies within 3 standard errors there (`scripts/tuning-compare.py`).
 
+use mvem::components::{turbine, Semantics};
 use mvem::params::Params;
 use mvem::tuning::lab::{self, LabOptions};
 use mvem::tuning::pipeline::{self, PipelineOptions};
+use mvem::tuning::steps::bsr_series;
 
 /// Parameters that must be identifiable (volumes, inertia, actuator time constants, peak
 /// efficiencies, the dynamometer constant).
@@ -26,6 +36,23 @@ const MEANINGFUL: [&str; 10] = [
     "test_cell.tau_me",
 ];
 
+/// The value at a TOML path of the report ("compressor.c_wphi[0]", "compressor.q_c[0][1]",
+/// indices from 0) in the serialized parameters (`Params::get` reads "c_vol[1]" as the first
+/// coefficient).
+fn true_value(p: &Params, path: &str) -> Option<f64> {
+    let mut node = serde_json::to_value(p).ok()?;
+    for part in path.split('.') {
+        let (name, idx) = part.split_once('[').unwrap_or((part, ""));
+        node = node.get(name)?.clone();
+        for i in idx.split('[').filter(|s| !s.is_empty()) {
+            node = node
+                .get(i.trim_end_matches(']').parse::<usize>().ok()?)?
+                .clone();
+        }
+    }
+    node.as_f64()
+}
+
 fn check_campaign(seed: u64) -> Vec<String> {
     let truth = Params::published();
     let opts = LabOptions {
@@ -33,16 +60,14 @@ fn check_campaign(seed: u64) -> Vec<String> {
         ..LabOptions::default()
     };
     let (c, _) = lab::campaign(&truth, &opts).unwrap();
-    let (_, rep) = pipeline::tune(&c, &truth, &PipelineOptions::default()).unwrap();
+    let (tuned, rep) = pipeline::tune(&c, &truth, &PipelineOptions::default()).unwrap();
     let mut bad = Vec::new();
     assert!(rep.parameters.len() >= 45, "{}", rep.parameters.len());
     for (path, e) in &rep.parameters {
         let t = if path == "test_cell.tau_me" {
             opts.tau_me_s
         } else {
-            truth
-                .get(path)
-                .unwrap_or_else(|| panic!("no true value of {path}"))
+            true_value(&truth, path).unwrap_or_else(|| panic!("no true value of {path}"))
         };
         let z = (e.value - t) / e.std_error;
         let rel = e.std_error / e.value.abs();
@@ -58,17 +83,56 @@ fn check_campaign(seed: u64) -> Vec<String> {
             assert!(!e.reason.is_empty(), "{path}: no reason");
         }
     }
+    let mut not_identifiable = Vec::new();
     for m in MEANINGFUL {
         let e = &rep.parameters[m];
-        if !e.identifiable {
-            bad.push(format!("seed {seed}: {m} not identifiable ({})", e.reason));
+        if e.identifiable {
+            continue;
         }
+        if m == "turbine.eta_tmmax" && e.reason.contains("outside the measured BSR range") {
+            // the combination instead: eta_tm (eq. (49)) at the measured point where the
+            // pipeline says it is best determined, against the truth's eta_tm there
+            let k = rep
+                .combinations
+                .iter()
+                .find(|k| k.name == "turbine.eta_tm_at_bsr")
+                .expect("eta_tm at the measured BSR reported");
+            let at = |n: &str| k.at.iter().find(|(x, _)| x == n).map(|x| x.1).unwrap();
+            let (b, w) = (at("bsr"), at("omega_t"));
+            // a measured point of the campaign
+            assert!(bsr_series(&tuned, &c.stationary)
+                .iter()
+                .any(|(x, y)| *x == b && *y == w));
+            let tt = &truth.turbine;
+            let t =
+                tt.eta_tmmax - turbine::c_m(tt, w, Semantics::Authors) * (b - tt.bsr_opt).powi(2);
+            let z = (k.value - t) / k.std_error;
+            let rel = k.std_error / k.value.abs();
+            if !(z.abs() <= 3.0 && rel <= 0.25) {
+                bad.push(format!(
+                    "seed {seed}: eta_tm at BSR {b:.3} = {:.4} (true {t:.4}) is {z:.1} std. \
+                     errors off, rel. std. error {:.2} %",
+                    k.value,
+                    100.0 * rel
+                ));
+            }
+            continue;
+        }
+        not_identifiable.push(format!("{m} ({})", e.reason));
+    }
+    if not_identifiable.len() > 2 {
+        bad.push(format!(
+            "seed {seed}: {} of the {} meaningful parameters not identifiable: {}",
+            not_identifiable.len(),
+            MEANINGFUL.len(),
+            not_identifiable.join("; ")
+        ));
     }
     bad
 }
 
 #[test]
-#[ignore = "heavy: the full pipeline on four campaigns; scripts/tuning-uncertainty.sh"]
+#[ignore = "heavy (about 3 minutes on 2 cores) and failing: seeds 2 and 4 flag the volumes (docs/tuning.md, session 9); scripts/tuning-uncertainty.sh"]
 fn tuned_parameters_lie_within_their_standard_errors() {
     let bad: Vec<String> = [1, 2, 3, 4].into_iter().flat_map(check_campaign).collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));

@@ -62,10 +62,10 @@ pub struct Args {
     /// paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
-    /// With --refine-dynamics: standard errors of the static parameters and V_im, V_em, J_t
-    /// from their joint covariance at the fixed point of step 5 and the repeated step 3
-    /// after a second round of steps 5 and 3 (default `false`: the steps' covariances chained,
-    /// docs/tuning.md).
+    /// With --refine-dynamics: a second round of steps 5 and 3, and the standard errors of
+    /// the static parameters and V_im, V_em, J_t from their joint covariance at that fixed
+    /// point of the alternation (about +50 % time on `mvem lab` seed 1; default `false`: one
+    /// round, the steps' covariances chained, docs/tuning.md).
     #[arg(long = "joint-uncertainty", default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
@@ -75,6 +75,11 @@ pub struct Args {
     /// (77) before it is recomputed (0: recomputed after every accepted step, 35 evaluations).
     #[arg(long = "broyden", default_value_t = 0, value_name = "K")]
     pub broyden: usize,
+    /// Step 5: stop when the Bates-Watts relative offset of cost (77) falls below this
+    /// (every parameter then within about `TOL sqrt(35)` standard errors of the linearized
+    /// optimum; 0: off, docs/tuning.md).
+    #[arg(long = "rel-offset", default_value_t = mvem::tuning::complete::STEP5_REL_OFFSET_TOL, value_name = "TOL")]
+    pub rel_offset: f64,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
@@ -148,6 +153,13 @@ pub fn run(a: &Args) -> Result<()> {
     opts.joint_uncertainty = a.joint_uncertainty;
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
+    if !(a.rel_offset.is_finite() && a.rel_offset >= 0.0) {
+        return Err(common::usage(format!(
+            "--rel-offset {}: must be >= 0",
+            a.rel_offset
+        )));
+    }
+    opts.step5.rel_offset_tol = a.rel_offset;
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
     let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
@@ -293,13 +305,15 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
     if let Some(r) = &rep.step5 {
         let _ = writeln!(
             s,
-            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations, {} finite-difference Jacobians), converged {}, one evaluation {:.3} s; at bounds: {}\n",
+            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations, {} finite-difference Jacobians), converged {} (stopped by: {}, relative offset {:.2e}), one evaluation {:.3} s; at bounds: {}\n",
             r.cost_start,
             r.cost_end,
             r.n_eval,
             r.n_iter,
             r.n_jacobians,
             r.converged,
+            r.stopped_by,
+            r.rel_offset,
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );
@@ -313,8 +327,8 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
     if let Some(r) = &rep.step5_refined {
         let _ = writeln!(
             s,
-            "Step 5 repeated on the repeated step 3's V_im, V_em, J_t: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations), converged {}\n",
-            r.cost_start, r.cost_end, r.n_eval, r.n_iter, r.converged
+            "Step 5 repeated on the repeated step 3's V_im, V_em, J_t: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations), converged {} (stopped by: {}, relative offset {:.2e})\n",
+            r.cost_start, r.cost_end, r.n_eval, r.n_iter, r.converged, r.stopped_by, r.rel_offset
         );
     }
     if let Some(r) = &rep.step3_refined {
@@ -429,6 +443,21 @@ fn parameter_table(
         );
     }
     s.push('\n');
+    if !rep.combinations.is_empty() {
+        let _ = writeln!(
+            s,
+            "Determined as a whole (parameters above not identifiable one by one):\n\n| \
+             combination | value | std. error | what |\n|---|---|---|---|"
+        );
+        for c in &rep.combinations {
+            let _ = writeln!(
+                s,
+                "| {} | {:.6e} | {:.3e} | {} |",
+                c.name, c.value, c.std_error, c.description
+            );
+        }
+        s.push('\n');
+    }
 }
 
 /// Value at a parameter-file path ("cylinder.c_vol[1]", "compressor.q_c[0][1]").

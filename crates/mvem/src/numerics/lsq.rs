@@ -54,6 +54,16 @@
 //!   a finite bound at distance `v_j` the term is multiplied by `min(1, v_j ||J_j|| / ||r||)`,
 //!   the relative change of the residual norm that moving to that bound can make, so the measure
 //!   vanishes at a KKT point with active bounds.
+//! - `rel_offset_tol` (off by default, 0): the Bates-Watts relative offset
+//!   `R = (||Q_1^T r|| / sqrt(p)) / (||Q_2^T r|| / sqrt(m - p))` ([`relative_offset`]; `Q_1` the
+//!   column space of the Jacobian, `Q_2` its complement, `p` its numerical rank) falls below
+//!   the tolerance, tested under a finite-difference (or user) Jacobian. A statistical rule:
+//!   the full Gauss-Newton step `delta` from the point satisfies `||J delta|| = ||Q_1^T r||`, so
+//!   every parameter is within `R sqrt(p)` of its linearized standard error from the
+//!   linearized optimum (`|delta_k| <= ||J delta|| sqrt((J^T J)^-1_kk)`), however flat the
+//!   cost is in some direction (Bates & Watts 1981; 1988, sec. 2.2.3). A search that walks a
+//!   flat valley (steps that lower the cost by more than `ftol` but by far less than the
+//!   noise) stops there.
 //! - `max_evaluations`: every call of the residual function counts, including those of the
 //!   finite-difference Jacobian. The limit is checked before each trial step; a Jacobian in
 //!   progress is completed, so the count can exceed the limit by up to `2 n`.
@@ -111,6 +121,9 @@
 //! - M. Heinkenschloss, M. Ulbrich, S. Ulbrich, "Superlinear and quadratic convergence of
 //!   affine-scaling interior-point Newton methods for problems with simple bounds without
 //!   strict complementarity assumption", Math. Program. 86, 615–635, 1999.
+//! - D. M. Bates, D. G. Watts, "A relative offset orthogonality convergence criterion for
+//!   nonlinear least squares", Technometrics 23(2), 179–183, 1981; "Nonlinear regression
+//!   analysis and its applications", Wiley, 1988.
 //! - C. G. Broyden, "A class of methods for solving nonlinear simultaneous equations", Math.
 //!   Comp. 19, 577–593, 1965.
 //! - K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for non-linear least squares problems",
@@ -195,6 +208,9 @@ pub struct LsqOptions {
     /// recomputed (0: a new Jacobian after every accepted step). See the module documentation
     /// ("Broyden updates"); ignored with a user Jacobian.
     pub broyden_updates: usize,
+    /// Tolerance of the Bates-Watts relative offset ([`relative_offset`], module documentation
+    /// "Termination"; >= 0, 0: the test is off).
+    pub rel_offset_tol: f64,
 }
 
 impl Default for LsqOptions {
@@ -209,6 +225,7 @@ impl Default for LsqOptions {
             fd_rel_step: None,
             initial_radius_factor: 1.0,
             broyden_updates: 0,
+            rel_offset_tol: 0.0,
         }
     }
 }
@@ -224,11 +241,26 @@ pub enum Termination {
     Xtol,
     /// Both `ftol` and `xtol` satisfied.
     FtolAndXtol,
+    /// Bates-Watts relative offset below `rel_offset_tol`.
+    RelativeOffset,
     /// Residual-evaluation limit reached (not converged).
     MaxEvaluations,
 }
 
 impl Termination {
+    /// Short name of the test ("gtol", "ftol", "xtol", "ftol+xtol", "relative offset",
+    /// "evaluation limit").
+    pub fn name(self) -> &'static str {
+        match self {
+            Termination::Gtol => "gtol",
+            Termination::Ftol => "ftol",
+            Termination::Xtol => "xtol",
+            Termination::FtolAndXtol => "ftol+xtol",
+            Termination::RelativeOffset => "relative offset",
+            Termination::MaxEvaluations => "evaluation limit",
+        }
+    }
+
     /// Whether a convergence test (not the evaluation limit) stopped the solver.
     pub fn converged(self) -> bool {
         !matches!(self, Termination::MaxEvaluations)
@@ -349,6 +381,8 @@ pub struct LsqResult {
     pub n_iter: usize,
     /// Why the solver stopped.
     pub termination: Termination,
+    /// Bates-Watts relative offset at the solution ([`relative_offset`]).
+    pub rel_offset: f64,
 }
 
 impl LsqResult {
@@ -387,6 +421,47 @@ impl ParamStats {
             _ => f64::INFINITY,
         }
     }
+}
+
+/// Bates-Watts relative offset of residuals `r` (m) with Jacobian `J` (m x n) at a point:
+/// `(||Q_1^T r|| / sqrt(p)) / (||Q_2^T r|| / sqrt(m - p))`, `Q_1` the left singular vectors of
+/// the column-normalized Jacobian with singular values above `eps max(m, n) s_max` (rank p, as
+/// in [`param_stats`]). 0 at a (linearized) optimum, `r` orthogonal to the Jacobian's columns;
+/// NaN when `m <= p`; infinite when the residuals lie in the column space.
+pub fn relative_offset(jacobian: &DMatrix<f64>, residuals: &[f64]) -> f64 {
+    let (m, n) = jacobian.shape();
+    if m == 0 || n == 0 || residuals.len() != m {
+        return f64::NAN;
+    }
+    let mut js = jacobian.clone();
+    for mut c in js.column_iter_mut() {
+        let cn = c.norm();
+        if cn > 0.0 && cn.is_finite() {
+            c.scale_mut(1.0 / cn);
+        } else {
+            c.fill(0.0);
+        }
+    }
+    let Some(svd) = SVD::try_new(js, true, false, f64::EPSILON * 5.0, super::SVD_MAX_ITER) else {
+        return f64::NAN;
+    };
+    let u = svd.u.as_ref().expect("u requested");
+    let s = &svd.singular_values;
+    let tol = f64::EPSILON * m.max(n) as f64 * s.iter().copied().fold(0.0, f64::max);
+    let r = DVector::from_column_slice(residuals);
+    let mut in_span = 0.0;
+    let mut p = 0usize;
+    for (k, sk) in s.iter().enumerate() {
+        if *sk > tol {
+            in_span += u.column(k).dot(&r).powi(2);
+            p += 1;
+        }
+    }
+    if m <= p || p == 0 {
+        return f64::NAN;
+    }
+    let rest = (r.norm_squared() - in_span).max(0.0);
+    (in_span / p as f64).sqrt() / (rest / (m - p) as f64).sqrt()
 }
 
 /// Linearized statistics from a Jacobian (m x n) and residuals at a least-squares solution.
@@ -816,6 +891,7 @@ fn trf_with<'a>(
         ("ftol", opts.ftol),
         ("xtol", opts.xtol),
         ("gtol", opts.gtol),
+        ("rel_offset_tol", opts.rel_offset_tol),
     ] {
         if value.is_nan() || value < 0.0 {
             return Err(LsqError::InvalidOption {
@@ -906,6 +982,7 @@ fn trf_with<'a>(
         max_eval,
         radius_factor: opts.initial_radius_factor,
         broyden: if has_jac { 0 } else { opts.broyden_updates },
+        rel_offset_tol: opts.rel_offset_tol,
     }
     .run(x0, f0)
 }
@@ -921,6 +998,7 @@ struct Trf<'a> {
     max_eval: usize,
     radius_factor: f64,
     broyden: usize,
+    rel_offset_tol: f64,
 }
 
 fn column_norms(j: &DMatrix<f64>) -> DVector<f64> {
@@ -1017,6 +1095,17 @@ impl Trf<'_> {
                     continue;
                 }
                 termination = Some(Termination::Gtol);
+            } else if self.rel_offset_tol > 0.0 && fresh {
+                let r = relative_offset(&jm, f.as_slice());
+                if std::env::var_os("MVEM_LSQ_TRACE").is_some() {
+                    eprintln!(
+                        "lsq: iter {n_iter} eval {} cost {:.6e} rel_offset {r:.3e}",
+                        self.ev.n_eval, cost
+                    );
+                }
+                if r < self.rel_offset_tol {
+                    termination = Some(Termination::RelativeOffset);
+                }
             }
             if termination.is_some() {
                 break;
@@ -1165,6 +1254,7 @@ impl Trf<'_> {
         }
         let termination = termination.unwrap_or(Termination::MaxEvaluations);
         let active = find_active(&x, &self.lo, &self.hi, self.xtol.max(1e-10));
+        let rel_offset = relative_offset(&jm, f.as_slice());
         Ok(LsqResult {
             theta: x.iter().copied().collect(),
             cost,
@@ -1176,6 +1266,7 @@ impl Trf<'_> {
             n_jac: self.ev.n_jac,
             n_iter,
             termination,
+            rel_offset,
         })
     }
 
@@ -1662,6 +1753,83 @@ mod tests {
             secant.n_eval,
             plain.n_eval
         );
+    }
+
+    #[test]
+    fn relative_offset_of_a_linear_model_by_hand() {
+        // r(a, b) = a + b x - y: at theta, r = r* + J (theta - theta*) with r* orthogonal to the
+        // columns of J, so R = (||J d|| / sqrt(2)) / (||r*|| / sqrt(m - 2))
+        let m = 30;
+        let x: Vec<f64> = (0..m).map(|i| i as f64 / 3.0).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, x)| 1.0 + 0.5 * x + 0.1 * (((i * 7919) % 13) as f64 / 6.0 - 1.0))
+            .collect();
+        let j = DMatrix::from_fn(m, 2, |i, k| if k == 0 { 1.0 } else { x[i] });
+        let res =
+            |a: f64, b: f64| -> Vec<f64> { x.iter().zip(&y).map(|(x, y)| a + b * x - y).collect() };
+        // the least-squares solution from the normal equations
+        let jt_y = j.tr_mul(&DVector::from_column_slice(&y));
+        let th = (j.tr_mul(&j)).try_inverse().unwrap() * jt_y;
+        let r_opt = res(th[0], th[1]);
+        assert!(relative_offset(&j, &r_opt) < 1e-10);
+        let d = DVector::from_column_slice(&[0.03, -0.004]);
+        let r = res(th[0] + d[0], th[1] + d[1]);
+        let rss: f64 = r_opt.iter().map(|v| v * v).sum();
+        let want = ((&j * &d).norm() / 2f64.sqrt()) / (rss / (m - 2) as f64).sqrt();
+        let got = relative_offset(&j, &r);
+        assert!((got / want - 1.0).abs() < 1e-8, "{got} {want}");
+        // the column scaling does not change it
+        let js = DMatrix::from_fn(m, 2, |i, k| j[(i, k)] * if k == 0 { 1e6 } else { 1e-3 });
+        assert!((relative_offset(&js, &r) / want - 1.0).abs() < 1e-8);
+    }
+
+    #[test]
+    fn relative_offset_stops_the_search_within_its_bound() {
+        let x0 = [1.5, 2.6, 1.0, 1.0, 6.5, 1.0, 0.8, 8.7, 0.8];
+        let mut lo = vec![0.0; 9];
+        lo[6] = 0.7;
+        let b = Bounds::new(lo, vec![10.0; 9]);
+        let run = |tol: f64| {
+            let opts = LsqOptions {
+                rel_offset_tol: tol,
+                ..LsqOptions::default()
+            };
+            least_squares(peaks_residual, &x0, &b, &opts).unwrap()
+        };
+        let full = run(0.0);
+        let tol = 0.3;
+        let early = run(tol);
+        assert_eq!(early.termination, Termination::RelativeOffset);
+        assert!(early.termination.converged());
+        assert!(early.rel_offset < tol, "{}", early.rel_offset);
+        assert!(full.rel_offset < 1e-3, "{}", full.rel_offset);
+        assert!(
+            early.n_eval < full.n_eval,
+            "{} {}",
+            early.n_eval,
+            full.n_eval
+        );
+        // every parameter within R sqrt(p) (plus the nonlinearity of one step) of its
+        // standard error from the converged optimum
+        let st = full.stats();
+        for k in 0..9 {
+            let z = (early.theta[k] - full.theta[k]).abs() / st.std_err[k];
+            assert!(z < 1.5 * tol * 3.0, "{k}: {z}");
+        }
+        // a negative tolerance is refused
+        let opts = LsqOptions {
+            rel_offset_tol: -1.0,
+            ..LsqOptions::default()
+        };
+        assert!(matches!(
+            least_squares(peaks_residual, &x0, &b, &opts),
+            Err(LsqError::InvalidOption {
+                name: "rel_offset_tol",
+                ..
+            })
+        ));
     }
 
     #[test]

@@ -32,11 +32,13 @@
 //!   `mvem lab` seed 2), so chained, its covariance carries theirs and the repeated step 3
 //!   receives it back through the static parameters (seed 2, step 5 converged: step-5 standard
 //!   errors 10-100 times their own, V_im 720 %). That is right for a result that depends on
-//!   the first pass. With `PipelineOptions::joint_uncertainty` (`mvem tune
-//!   --joint-uncertainty true`; off by default, see docs/tuning.md) the pipeline runs a second
-//!   round (step 5 on the repeated step 3's volumes, then step 3 again), whose result is, to
-//!   first order, the fixed point of the alternation and no longer depends on the first pass,
-//!   and reports both steps with their joint covariance there ([`joint_covariance`]).
+//!   the first pass, but the linear propagation of the first pass's flat directions (volumes on
+//!   the step-1 static parameters) explodes. With `PipelineOptions::joint_uncertainty` (`mvem
+//!   tune --joint-uncertainty true`; off by default, see docs/tuning.md, session 9) the
+//!   pipeline runs a second round (step 5 on the repeated step 3's volumes, then step 3
+//!   again), whose result is, to first order, the fixed point of the alternation and no longer
+//!   depends on the first pass, and reports both steps with their joint covariance there
+//!   ([`joint_covariance`]).
 //! * **A search stopped by its evaluation limit** (step 5 on `mvem lab` seeds 2 and 4 with the
 //!   former limit of 600 evaluations) reports the covariance at its end point and says
 //!   `converged: false`; the pipeline then flags step 5's parameters. Adding the remaining
@@ -94,6 +96,67 @@ impl ParamEstimate {
             self.reason = format!("{why} ({})", self.reason);
         }
     }
+}
+
+/// A function of several tuned parameters that the campaign determines although they are not
+/// identifiable one by one (e.g. eta_tm at the measured blade speed ratios when eta_tm,max and
+/// BSR_opt trade against each other), with its linearized standard error.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Combination {
+    /// Short name ("turbine.eta_tm_at_bsr").
+    pub name: String,
+    /// What it is (equation, where it is evaluated).
+    pub description: String,
+    /// Where it is evaluated (name, value), e.g. ("bsr", 0.668), ("omega_t", 8100.0).
+    pub at: Vec<(String, f64)>,
+    /// Value.
+    pub value: f64,
+    /// Linearized standard error `sqrt(g^T C g)`, `g` its gradient over the parameters of
+    /// `cov` it depends on; infinite when their covariance is not finite.
+    pub std_error: f64,
+}
+
+/// Linearized standard error of a scalar function `f` of the parameters `names` (of
+/// [`param_mut`]) at `p`: `sqrt(g^T C g)` with `g` by central differences (steps
+/// `1e-6 max(|value|, typical magnitude)`, ties of [`set_named`] applied) and `C` their block of
+/// `cov`; names absent from `cov` or `p` contribute nothing. Infinite when an entry of the
+/// block is not finite.
+pub fn function_std_error(
+    f: impl Fn(&Params) -> f64,
+    p: &Params,
+    names: &[&str],
+    cov: &NamedCov,
+) -> f64 {
+    let have: Vec<(&str, usize, f64)> = names
+        .iter()
+        .filter_map(|n| {
+            let i = cov.names.iter().position(|x| x == n)?;
+            Some((*n, i, param_value(p, n)?))
+        })
+        .collect();
+    let g: Vec<f64> = have
+        .iter()
+        .map(|(n, _, v)| {
+            let h = 1e-6 * v.abs().max(typical_scale(n, *v));
+            let at = |x: f64| {
+                let mut q = p.clone();
+                set_named(&mut q, &[n], &[x]);
+                f(&q)
+            };
+            (at(v + h) - at(v - h)) / (2.0 * h)
+        })
+        .collect();
+    let mut var = 0.0;
+    for (a, (_, ia, _)) in have.iter().enumerate() {
+        for (b, (_, ib, _)) in have.iter().enumerate() {
+            let c = cov.cov[(*ia, *ib)];
+            if !c.is_finite() {
+                return f64::INFINITY;
+            }
+            var += g[a] * c * g[b];
+        }
+    }
+    var.max(0.0).sqrt()
 }
 
 /// Lag-1 autocorrelation of `r` (0 for fewer than 3 values or zero variance).
@@ -653,6 +716,24 @@ pub fn toml_path(p: &Params, name: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn standard_error_of_a_function_of_parameters_by_hand() {
+        // f = eta_tmmax - 2 bsr_opt: var f = var a + 4 var b - 4 cov(a, b)
+        let p = Params::published();
+        let cov = NamedCov::new(
+            &["eta_tmmax", "bsr_opt", "k_t"],
+            DMatrix::from_row_slice(3, 3, &[4e-4, 1e-4, 0.0, 1e-4, 9e-4, 0.0, 0.0, 0.0, 1.0]),
+        );
+        let f = |q: &Params| q.turbine.eta_tmmax - 2.0 * q.turbine.bsr_opt;
+        let got = function_std_error(f, &p, &["eta_tmmax", "bsr_opt", "c_m1"], &cov);
+        let want = (4e-4_f64 + 4.0 * 9e-4 - 4.0 * 1e-4).sqrt();
+        assert!((got / want - 1.0).abs() < 1e-6, "{got} {want}");
+        // a parameter the function depends on with an undetermined variance
+        let mut inf = cov.clone();
+        inf.cov[(1, 1)] = f64::INFINITY;
+        assert!(function_std_error(f, &p, &["eta_tmmax", "bsr_opt"], &inf).is_infinite());
+    }
 
     #[test]
     fn toml_paths_of_parameters() {

@@ -37,7 +37,7 @@ pub use actuators::{actuator_response, step2, Step2Start};
 pub use compressor::{fit_eta_c, fit_w_c, project_q_c};
 pub use cylinder::{fit_t_em, fit_torque, fit_w_ei};
 pub use egr::fit_egr;
-pub use turbine::{fit_eta_tm, fit_w_t};
+pub use turbine::{bsr_series, fit_eta_tm, fit_w_t};
 
 use super::data::StationaryPoint;
 use super::lsq::{least_squares, Bounds, LsqOptions, LsqResult};

@@ -54,6 +54,23 @@ pub(super) fn eta_tm_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) 
         .unzip()
 }
 
+/// Blade speed ratio BSR (eq. (50)) and turbine speed omega_t [rad/s] at each stationary
+/// point, from the measurements and the constants of `p` (NaN where not defined): the
+/// regressors of the turbine-efficiency fit.
+pub fn bsr_series(p: &Params, pts: &[StationaryPoint]) -> Vec<(f64, f64)> {
+    let Ok(d) = derive(p, pts) else {
+        return vec![(f64::NAN, f64::NAN); pts.len()];
+    };
+    pts.iter()
+        .zip(&d)
+        .map(|(s, d)| {
+            let (_, dh) = eta_tm_meas(p, s, d);
+            let bsr = p.turbine.r_t * d.omega_t / (2.0 * p.gas.c_pe * s.t_em * dh).sqrt(); // eq. (50)
+            (bsr, d.omega_t)
+        })
+        .collect()
+}
+
 /// The eta_tm fit in the T_c domain: the measured compressor temperature rise T_c - T_amb
 /// and the one the model implies, eta_tm [`eta_tm_weights`] (eq. (47) solved for T_c).
 pub(super) fn eta_tm_dt_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
