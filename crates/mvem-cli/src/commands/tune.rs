@@ -25,7 +25,9 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 step starts from a value of --params. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is written to the [test_cell] section of the output file, which `mvem
 validate` reads (--tau-me overrides). DIR/tune_report.json \"parameters\": per parameter file
-path the value, standard error, identifiability and correlations (docs/tuning.md).
+path the value, standard error, identifiability and correlations (docs/tuning.md); array
+indices in these paths count from 0, as positions in the file's arrays (\"cylinder.c_vol[0]\"
+is c_vol1; the FMU's and the parameter registry's names count from 1).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
 least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
 model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58
@@ -395,7 +397,8 @@ fn parameter_table(
         s,
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
-         error <= 25 % and no correlation > 0.99 (docs/tuning.md).\n\n| parameter | step | value | \
+         error <= 25 % and no correlation > 0.99 (docs/tuning.md). Paths index arrays from 0 \
+         (cylinder.c_vol[0] is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \
          std. error | why / correlated with |\n|---|---|---|---|---|---|---|---|---|---|"
     );
