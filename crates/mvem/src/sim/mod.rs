@@ -76,11 +76,7 @@ pub fn simulate<const N: usize, M: Dynamics<N>>(
     start: Start<N>,
     opts: &SimOptions,
 ) -> Result<Solution, SimError> {
-    check_interval(opts, t0, t_end)?;
-    let mut sol = Solution::new(&model.state_names());
-    let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
-    sol.reserve(samples.min(1e7) as usize);
-    simulate_into(model, sched, t0, t_end, start, opts, sol)
+    simulate_with_guess(model, sched, t0, t_end, start, opts, None)
 }
 
 /// [`simulate`] writing its samples to `sol`, an empty solution of `model`'s states (e.g. a

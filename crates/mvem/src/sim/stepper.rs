@@ -219,14 +219,8 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         c.lu = run.lu.take();
         c.lags = std::mem::take(&mut run.lags);
         c.lag_seg = std::mem::take(&mut run.lag_seg);
-        let st = run.stats;
-        let s = &mut self.stats;
-        s.steps += st.steps;
-        s.rejected += st.rejected;
-        s.rhs_evals += st.rhs_evals;
-        s.breakpoints += st.breakpoints;
-        s.jacobians += st.jacobians;
-        s.lu += st.lu;
+        // the run writes no samples (NO_OUTPUT), so `outputs` adds 0
+        self.stats.add_work(&run.stats);
         res?;
         self.y = run.y;
         self.memory = run.memory;
