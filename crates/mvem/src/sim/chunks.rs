@@ -132,7 +132,8 @@ impl WorkEstimate {
 /// `t0`, chunk k > 0 from its split plus its warm-up (`overlap` before the split). Every split
 /// is a stop without a jump (`(t, false)`) after densely spaced stops ([`kink_from`]), lies more
 /// than `overlap` after `t0`, and every chunk holds at least as much work of its own as its
-/// warm-up does. Fewer chunks when that is not possible; empty: the sequential run.
+/// warm-up does. At most one chunk per `overlap` seconds. Fewer chunks when that is not
+/// possible; empty: the sequential run.
 pub fn split_times(
     stops: &[(f64, bool)],
     sched: &InputSchedule,
@@ -162,7 +163,13 @@ pub fn split_times(
         Some(v)
     };
     let warm = |t: f64| w.at(t) - w.at((t - overlap).max(t0));
-    for k in (2..=chunks.min(n / 8)).rev() {
+    // the calm of every stop, once (kink_from ranks the candidates by it)
+    let calm = calm_gaps(stops);
+    // a chunk shorter than its warm-up would spend more on the warm-up than on its own
+    // interval: at most one chunk per `overlap` seconds (this also bounds the search below,
+    // whose cost grows with the square of the chunk count)
+    let by_time = ((t_end - t0) / overlap).floor().max(1.0) as usize;
+    for k in (2..=chunks.min(n / 8).min(by_time)).rev() {
         // the last chunk's work decreases as the target grows: bisection for equal work
         let (mut lo, mut hi) = (0.0, 1.0);
         for _ in 0..60 {
@@ -178,7 +185,7 @@ pub fn split_times(
         // snapped to stops where a junction can be checked
         let mut splits: Vec<f64> = Vec::with_capacity(k - 1);
         for t in cont {
-            let Some(ts) = kink_from(stops, stops.partition_point(|s| s.0 < t)) else {
+            let Some(ts) = kink_from(stops, &calm, stops.partition_point(|s| s.0 < t)) else {
                 break;
             };
             if splits.last().is_some_and(|&p| ts <= p) || ts - overlap <= t0 {
@@ -213,22 +220,32 @@ const SPLIT_CALM: f64 = 10.0;
 /// step sizes grow without such a bound, differently in two runs that started differently, and
 /// at the next kink their states differ by up to a few tolerance units for a few seconds
 /// (measured on the WHTC, `docs/integrator.md`): no place for a junction.
-fn kink_from(stops: &[(f64, bool)], i: usize) -> Option<f64> {
+fn kink_from(stops: &[(f64, bool)], calm: &[f64], i: usize) -> Option<f64> {
     let lo = i.saturating_sub(SPLIT_WINDOW).max(1);
     let hi = (i + SPLIT_WINDOW).min(stops.len().saturating_sub(1));
     (lo..hi)
         .filter(|&j| !stops[j].1)
-        .min_by_key(|&j| {
+        // the gap to 0.1 s, the row spacing of a 10 Hz cycle (equal gaps: the candidate
+        // nearest the balanced index)
+        .min_by_key(|&j| ((calm[j] * 10.0).ceil() as i64, j.abs_diff(i)))
+        .map(|j| stops[j].0)
+}
+
+/// For every stop `j` (from 1), the largest gap between consecutive stops in the
+/// [`SPLIT_CALM`] seconds before it (from the last stop before that window); 0 for stop 0.
+fn calm_gaps(stops: &[(f64, bool)]) -> Vec<f64> {
+    (0..stops.len())
+        .map(|j| {
+            if j == 0 {
+                return 0.0;
+            }
             let from = stops[..j].partition_point(|s| s.0 < stops[j].0 - SPLIT_CALM);
-            let gap = stops[from.max(1) - 1..=j]
+            stops[from.max(1) - 1..=j]
                 .windows(2)
                 .map(|w| w[1].0 - w[0].0)
-                .fold(0.0, f64::max);
-            // the gap to 0.1 s, the row spacing of a 10 Hz cycle (equal gaps: the candidate
-            // nearest the balanced index)
-            ((gap * 10.0).ceil() as i64, j.abs_diff(i))
+                .fold(0.0, f64::max)
         })
-        .map(|j| stops[j].0)
+        .collect()
 }
 
 /// Index of the first output sample at or after the split `tk` (within the rounding the
@@ -495,6 +512,9 @@ mod tests {
         assert!(split_times(&stops[..10], &sched, 0.0, 1.0, 2, 0.1).is_empty());
         // more chunks than fit (each at least its 19 s warm-up's work: 181 >= 19 k): 9
         assert_eq!(split_times(&stops, &sched, 0.0, 200.0, 40, 19.0).len(), 8);
+        // at most one chunk per warm-up length (200 s / 5 s = 40), even when 256 are asked
+        let many = split_times(&stops, &sched, 0.0, 200.0, 256, 5.0);
+        assert!((2..=40).contains(&(many.len() + 1)), "{} chunks", many.len() + 1);
     }
 
     #[test]
