@@ -514,7 +514,11 @@ mod tests {
         assert_eq!(split_times(&stops, &sched, 0.0, 200.0, 40, 19.0).len(), 8);
         // at most one chunk per warm-up length (200 s / 5 s = 40), even when 256 are asked
         let many = split_times(&stops, &sched, 0.0, 200.0, 256, 5.0);
-        assert!((2..=40).contains(&(many.len() + 1)), "{} chunks", many.len() + 1);
+        assert!(
+            (2..=40).contains(&(many.len() + 1)),
+            "{} chunks",
+            many.len() + 1
+        );
     }
 
     #[test]
