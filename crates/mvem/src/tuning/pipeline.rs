@@ -438,9 +438,8 @@ fn turbine_efficiency_on_the_measured_range(
         );
         for key in ["turbine.eta_tmmax", "turbine.bsr_opt"] {
             if let Some(e) = parameters.get_mut(key) {
-                // the reason replaces an earlier flag's first place: it names the cause
-                e.identifiable = false;
-                e.reason = format!("{why} ({})", e.reason);
+                // the reason takes an earlier flag's first place: it names the cause
+                e.flag_first(&why);
             }
         }
     }
@@ -497,13 +496,24 @@ const FLOW_MAP: [&str; 8] = [
 /// the data determine is the map's values over the measured region, which the validation
 /// errors report.
 fn flag_flow_map_coefficients(parameters: &mut BTreeMap<String, ParamEstimate>) {
-    for key in FLOW_MAP {
+    flag_keys(
+        parameters,
+        FLOW_MAP,
+        "a coefficient of the compressor-flow ellipse (eqs (69)-(71)), seen only on the arc of \
+         the measured operating points: its centre and axes trade against each other, so the \
+         data fix the map, not this coefficient",
+    );
+}
+
+/// [`ParamEstimate::flag`] every tuned parameter of `keys` (TOML paths) with `why`.
+fn flag_keys<'k>(
+    parameters: &mut BTreeMap<String, ParamEstimate>,
+    keys: impl IntoIterator<Item = &'k str>,
+    why: &str,
+) {
+    for key in keys {
         if let Some(e) = parameters.get_mut(key) {
-            e.flag(
-                "a coefficient of the compressor-flow ellipse (eqs (69)-(71)), seen only on the \
-                 arc of the measured operating points: its centre and axes trade against each \
-                 other, so the data fix the map, not this coefficient",
-            );
+            e.flag(why);
         }
     }
 }
@@ -529,16 +539,14 @@ const EFFICIENCY_ELLIPSE_SHAPE: [&str; 5] = [
 /// The peak value eta_c,max is a stationary value of the ellipse (first-order insensitive to
 /// a shift of the peak) and c_pi the pressure axis' exponent: they stay as the covariance says.
 fn flag_efficiency_ellipse_shape(parameters: &mut BTreeMap<String, ParamEstimate>) {
-    for key in EFFICIENCY_ELLIPSE_SHAPE {
-        if let Some(e) = parameters.get_mut(key) {
-            e.flag(
-                "position or shape of the compressor-efficiency ellipse (eqs (62)-(65)), fitted \
-                 to eta_c of eq. (58) over the noisy regressors W_c and Pi_c (errors in \
-                 variables): its bias is not in the linearized standard error, so the data fix \
-                 eta_c over the measured region and its peak value, not this parameter",
-            );
-        }
-    }
+    flag_keys(
+        parameters,
+        EFFICIENCY_ELLIPSE_SHAPE,
+        "position or shape of the compressor-efficiency ellipse (eqs (62)-(65)), fitted to eta_c \
+         of eq. (58) over the noisy regressors W_c and Pi_c (errors in variables): its bias is \
+         not in the linearized standard error, so the data fix eta_c over the measured region \
+         and its peak value, not this parameter",
+    );
 }
 
 /// The shape coefficients of one submodel's map (polynomials and offsets, not physical
@@ -603,11 +611,7 @@ fn flag_maps_known_only_as_a_whole(parameters: &mut BTreeMap<String, ParamEstima
             tuned.len(),
             flagged.join(", ")
         );
-        for key in &tuned {
-            if let Some(e) = parameters.get_mut(*key) {
-                e.flag(&why);
-            }
-        }
+        flag_keys(parameters, tuned, &why);
     }
 }
 

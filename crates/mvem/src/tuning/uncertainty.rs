@@ -92,9 +92,15 @@ impl ParamEstimate {
     /// already flagged, whose reason stays the first one found.
     pub fn flag(&mut self, why: &str) {
         if self.identifiable {
-            self.identifiable = false;
-            self.reason = format!("{why} ({})", self.reason);
+            self.flag_first(why);
         }
+    }
+
+    /// [`Self::flag`] also when the estimate is already flagged: `why` becomes the first
+    /// reason (for a cause that explains the earlier flags), the earlier reason follows it.
+    pub fn flag_first(&mut self, why: &str) {
+        self.identifiable = false;
+        self.reason = format!("{why} ({})", self.reason);
     }
 }
 
