@@ -23,7 +23,7 @@
 use super::input::InputSchedule;
 use super::integrator::Integrator;
 use super::options::SimOptions;
-use super::segment::{stop_times_except, SegmentInputs};
+use super::segment::{stop_margin, stop_times_except, SegmentInputs};
 use super::solution::{Junction, SimStats, Solution};
 use super::SimError;
 use crate::model::Dynamics;
@@ -278,8 +278,8 @@ fn junction_diff<const N: usize>(a: &[f64; N], b: &[f64; N], atol: &[f64; N], rt
 /// The part of `stops` (the stop times of the whole run) strictly inside `(a, b)`, with the
 /// margins of [`stop_times_except`] (what it would list from `a` to `b`).
 fn within(stops: &[(f64, bool)], a: f64, b: f64) -> &[(f64, bool)] {
-    let lo = stops.partition_point(|s| s.0 <= a + SegmentInputs::delta(a) * 10.0);
-    let hi = stops.partition_point(|s| s.0 < b - SegmentInputs::delta(b) * 10.0);
+    let lo = stops.partition_point(|s| s.0 <= a + stop_margin(a));
+    let hi = stops.partition_point(|s| s.0 < b - stop_margin(b));
     &stops[lo..hi.max(lo)]
 }
 

@@ -308,6 +308,14 @@ pub fn stop_times<const N: usize, M: Dynamics<N>>(
     stop_times_except(m, sched, t0, t_end, [false; 2])
 }
 
+/// How close to the ends of an interval a stop is left out, and how close two stops are merged
+/// into one: ten input evaluation margins ([`SegmentInputs::delta`]) at `t` [s]
+/// ([`stop_times_except`]; a time-parallel chunk cuts its part of one stop list by the same
+/// margins).
+pub(super) fn stop_margin(t: f64) -> f64 {
+    SegmentInputs::delta(t) * 10.0
+}
+
 /// [`stop_times`] without the delayed lookups of channels 2 and 3 marked in `skip_delayed`
 /// (those that drive only closed-form lag states, [`super::SimOptions::stop_at_lag_breakpoints`]).
 pub(super) fn stop_times_except<const N: usize, M: Dynamics<N>>(
@@ -329,7 +337,7 @@ pub(super) fn stop_times_except<const N: usize, M: Dynamics<N>>(
                 .map(|k| delays.delayed[k]),
         )
         .fold(f64::NEG_INFINITY, f64::max);
-    if sched.t_last() + max_shift <= t0 + SegmentInputs::delta(t0) * 10.0 {
+    if sched.t_last() + max_shift <= t0 + stop_margin(t0) {
         return Vec::new();
     }
     let mut v: Vec<(f64, bool)> = Vec::with_capacity(8 * sched.times().len());
@@ -348,15 +356,13 @@ pub(super) fn stop_times_except<const N: usize, M: Dynamics<N>>(
             }
         }
     }
-    v.retain(|(t, _)| {
-        *t > t0 + SegmentInputs::delta(t0) * 10.0 && *t < t_end - SegmentInputs::delta(t_end) * 10.0
-    });
+    v.retain(|(t, _)| *t > t0 + stop_margin(t0) && *t < t_end - stop_margin(t_end));
     v.sort_by(|a, b| a.0.total_cmp(&b.0));
     // merge stops closer than the input evaluation margin
     let mut out: Vec<(f64, bool)> = Vec::with_capacity(v.len());
     for (t, jump) in v {
         match out.last_mut() {
-            Some(last) if t - last.0 <= 10.0 * SegmentInputs::delta(t) => last.1 |= jump,
+            Some(last) if t - last.0 <= stop_margin(t) => last.1 |= jump,
             _ => out.push((t, jump)),
         }
     }
