@@ -6,7 +6,12 @@
 #     within 3 standard errors of the truth (rel. std. error <= 25 %), the volumes, J_t,
 #     actuator constants, peak efficiencies and tau_Me are identifiable;
 #  2. a different engine (the published set with 13 parameters changed by 5-20 %): lab
-#     campaign, tuning, validation tables of the tuned and the true parameters (noise floor).
+#     campaign, tuning, validation tables of the tuned and the true parameters (noise floor);
+#  3. calibration of the standard errors by Monte Carlo: `mvem lab` seeds 1-8 of the published
+#     engine through the CLI, each compared with its truth (scripts/tuning-compare.py, exit 1
+#     when a parameter reported identifiable is more than 3 standard errors off), then the
+#     spread of every estimate over the eight against the standard errors the reports state
+#     (scripts/tuning-spread.py; docs/tuning.md, session 10). About 10 minutes.
 # Usage: scripts/tuning-uncertainty.sh [OUT_DIR]
 set -euo pipefail
 OUT=${1:-target/tuning-uncertainty}
@@ -37,3 +42,15 @@ $MVEM validate --data "$OUT/camp" --params "$OUT/tuned.toml" --roles validation,
 echo "== noise floor (true parameters)"
 $MVEM validate --data "$OUT/camp" --params "$OUT/camp/true_params.toml" --tau-me 1 \
   --roles validation,actuator
+echo "== Monte Carlo: seeds 1-8 of the published engine"
+status=0
+pairs=()
+for seed in 1 2 3 4 5 6 7 8; do
+  $MVEM lab --seed "$seed" --out "$OUT/mc$seed" > /dev/null
+  $MVEM tune --data "$OUT/mc$seed" --out "$OUT/mc$seed.toml" --report "$OUT/mcrep$seed" > /dev/null
+  python3 scripts/tuning-compare.py "$OUT/mcrep$seed" "$OUT/mc$seed" | tail -1 | sed "s/^/seed $seed: /" \
+    || status=1
+  pairs+=("$OUT/mcrep$seed:$OUT/mc$seed")
+done
+python3 scripts/tuning-spread.py "${pairs[@]}"
+exit $status

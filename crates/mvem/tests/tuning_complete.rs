@@ -88,6 +88,30 @@ fn steps_3_and_4_recover_dynamics_noise_free() {
     // grid in the lab (a ramp over one interval), hence up to 0.5 % at the step samples
     assert!(rep4.errors[0].mean_abs_rel_err < 1e-3, "{:?}", rep4.errors);
     assert!(rep4.errors[0].max_abs_rel_err < 1e-2, "{:?}", rep4.errors);
+    // the residuals of step 4 as a function of the engine parameters (for the uncertainty of
+    // what it holds fixed) are the step's own at its optimum: same length, same values to the
+    // interpolation of one simulation (the search lags a single run per trial tau)
+    let set_i = c.dataset("I").unwrap().1;
+    let lin = rep4.linearization.as_ref().expect("step 4 linearization");
+    let r = complete::torque_residuals(set_i, &c.stationary, tau)(&q);
+    assert_eq!(r.len(), lin.jacobian.nrows());
+    let cost: f64 = r.iter().map(|x| x * x).sum();
+    assert!(
+        (0.5 * cost - rep4.cost).abs() <= 1e-9 * rep4.cost.max(1e-12),
+        "{} vs {}",
+        0.5 * cost,
+        rep4.cost
+    );
+    // an engine parameter step 4 holds fixed moves the residuals (J_t shapes the torque
+    // transients through the turbo speed)
+    let mut q2 = q.clone();
+    q2.turbo.j_t *= 1.2;
+    let r2 = complete::torque_residuals(set_i, &c.stationary, tau)(&q2);
+    let d: f64 = r.iter().zip(&r2).map(|(a, b)| (a - b).powi(2)).sum();
+    assert!(
+        d > 1e-6 * cost.max(1e-12),
+        "J_t +20 %: change {d}, cost {cost}"
+    );
 }
 
 #[test]

@@ -173,7 +173,7 @@ pub struct CompleteReport {
     pub params: Vec<(String, f64)>,
     /// Per output: (name, mean abs rel error, max abs rel error), unnormalized eq. (5).
     pub errors: Vec<FitReport>,
-    /// Final cost (sum of squared residuals of the search).
+    /// Final cost `0.5 ||r||^2` of the search (r its residuals).
     pub cost: f64,
     /// Residual evaluations.
     pub n_eval: usize,
@@ -398,6 +398,56 @@ pub fn dynamic_residuals<'a>(
     }
 }
 
+/// M_e of the model on the grid of `set` (at most 10 ms apart, before the dynamometer lag):
+/// times [s] and torque [Nm].
+fn simulated_torque(p: &Params, set: &DynamicData) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let dt = sample_interval(set).min(0.01);
+    let sol = simulate_set(ModelOrder::Eight, p, set, dt, SEARCH_RTOL)?;
+    let m_e = sol.get("M_e").ok_or("no M_e")?.to_vec();
+    Ok((sol.t().to_vec(), m_e))
+}
+
+/// Amplitude floor (1 % of the stationary mean torque) [Nm] and the weight 1/sqrt(L) of the
+/// torque residuals of step 4 (eq. (76)).
+fn torque_weights(meas: &[f64], stat: &[StationaryPoint], segs: &[(usize, usize)]) -> (f64, f64) {
+    let floor = 0.01
+        * stationary_means(stat)[4]
+            .unwrap_or_else(|| mean_of(meas))
+            .abs();
+    (
+        floor,
+        1.0 / (count_segment_samples(segs).max(1) as f64).sqrt(),
+    )
+}
+
+/// The residuals of step 4 (eq. (76)) with tau_Me = `tau` fixed, as a function of the whole
+/// parameter set (for the uncertainty of the parameters step 4 holds fixed): the normalized
+/// torque step responses of `set` through the dynamometer lag; residuals of 10 (large, finite)
+/// when the set does not simulate or has no M_e.
+pub fn torque_residuals<'a>(
+    set: &'a DynamicData,
+    stat: &[StationaryPoint],
+    tau: f64,
+) -> impl Fn(&Params) -> Vec<f64> + 'a {
+    let segs = segments(set);
+    let meas = set.get("M_e").unwrap_or(&[]);
+    let (floor, w) = torque_weights(meas, stat, &segs);
+    let n_res = count_segment_samples(&segs);
+    move |q: &Params| -> Vec<f64> {
+        let Ok((ts, m_e)) = simulated_torque(q, set) else {
+            return vec![10.0; n_res];
+        };
+        if meas.len() != set.t.len() {
+            return vec![10.0; n_res];
+        }
+        let f = first_order_lag(&ts, &m_e, tau);
+        let sim: Vec<f64> = set.t.iter().map(|&t| interp(&ts, &f, t)).collect();
+        let mut r = Vec::with_capacity(n_res);
+        normalized_residuals(&set.t, meas, &sim, &segs, floor, w, &mut r);
+        r
+    }
+}
+
 /// Step 4: tau_Me of eq. (76) on the normalized torque step responses of `set` (the fuel-step
 /// set I, 10 Hz), K = 1, J = 1. The engine states do not depend on tau_Me: the set is simulated
 /// once and the simulated M_e filtered for each trial value. Start 0.3 s, bounds 0.005-20 s.
@@ -415,19 +465,8 @@ pub fn step4(
     if segs.is_empty() {
         return Err(solver_err(NAME, "the torque set contains no command steps"));
     }
-    let dt = sample_interval(set).min(0.01);
-    let sol = simulate_set(ModelOrder::Eight, p, set, dt, SEARCH_RTOL)
-        .map_err(|e| solver_err(NAME, e))?;
-    let m_e = sol
-        .get("M_e")
-        .ok_or_else(|| solver_err(NAME, "no M_e"))?
-        .to_vec();
-    let ts = sol.t().to_vec();
-    let floor = 0.01
-        * stationary_means(stat)[4]
-            .unwrap_or_else(|| mean_of(meas))
-            .abs();
-    let w = 1.0 / (count_segment_samples(&segs).max(1) as f64).sqrt();
+    let (ts, m_e) = simulated_torque(p, set).map_err(|e| solver_err(NAME, e))?;
+    let (floor, w) = torque_weights(meas, stat, &segs);
     let model = |tau: f64| -> Vec<f64> {
         let f = first_order_lag(&ts, &m_e, tau);
         set.t.iter().map(|&t| interp(&ts, &f, t)).collect()
@@ -453,6 +492,11 @@ pub fn step4(
         &fit.residuals,
         4,
     );
+    let linearization = Some(Linearization {
+        names: vec!["tau_me".into()],
+        jacobian: fit.jacobian.clone(),
+        covariance: block_covariance(&fit.jacobian, &fit.residuals, &[]),
+    });
     Ok((
         tau,
         CompleteReport {
@@ -462,7 +506,7 @@ pub fn step4(
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
             uncertainty,
-            linearization: None,
+            linearization,
         },
     ))
 }

@@ -17,8 +17,9 @@
 //!   [`MAX_REL_STD_ERR`] (25 %) and no other parameter of the same step correlates with it by more
 //!   than [`MAX_CORRELATION`] in absolute value. The reason is stated ("rel. std. error 290 %",
 //!   "correlation 0.998 with c_m3", "not in the column space of J (singular value 0)").
-//! * **Parameters a step holds fixed.** Steps 3 and 5 hold the estimates of the earlier steps
-//!   fixed (step 3 the static and actuator parameters, step 5 the actuators, V_im, V_em, J_t);
+//! * **Parameters a step holds fixed.** Steps 3, 4 and 5 hold the estimates of the earlier
+//!   steps fixed (step 3 the static and actuator parameters, step 4 those and V_im, V_em, J_t,
+//!   step 5 the actuators, V_im, V_em, J_t);
 //!   their errors move the step's optimum. With the step's Jacobian J, the Jacobian J_f of its
 //!   residuals with respect to the fixed parameters and their covariance C_f (from the steps
 //!   that estimated them, [`NamedCov`]), the sensitivity of the optimum is `dtheta/dphi = -S`,
