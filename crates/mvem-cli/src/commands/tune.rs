@@ -196,6 +196,12 @@ pub fn run(a: &Args) -> Result<()> {
             );
         }
     }
+    // a step 5 stopped away from its optimum by more than the noise (relative offset)
+    for r in [&rep.step5, &rep.step5_refined].into_iter().flatten() {
+        if let Some(note) = r.stop_note() {
+            eprintln!("warning: {note}");
+        }
+    }
     // truth, if the campaign is virtual
     let truth = c
         .manifest
@@ -319,6 +325,9 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );
+        if let Some(note) = r.stop_note() {
+            let _ = writeln!(s, "**Note:** {note}.\n");
+        }
         table(&mut s, "Step 5: submodels (eq. (4))", &r.submodels);
         table(
             &mut s,

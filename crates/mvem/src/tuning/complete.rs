@@ -1016,6 +1016,33 @@ pub struct Step5Report {
     pub linearization: Option<Linearization>,
 }
 
+impl Step5Report {
+    /// A note when the search stopped away from the least-squares optimum by more than the
+    /// noise: a rule other than the relative offset or gtol stopped it with the Bates-Watts
+    /// relative offset R above `1/sqrt(p)` (p parameters), so the Gauss-Newton step from the
+    /// end point predicts a cost decrease of `R^2 p` residual variances and the estimate may lie
+    /// up to `R sqrt(p)` standard errors (in the Gauss-Newton metric) from the optimum, which the
+    /// reported standard errors do not include. `None` otherwise.
+    pub fn stop_note(&self) -> Option<String> {
+        let p = self.params.len() as f64;
+        let r = self.rel_offset;
+        let by_noise = matches!(self.stopped_by.as_str(), "relative offset" | "gtol");
+        if by_noise || !r.is_finite() || p < 1.0 || r * r * p <= 1.0 {
+            return None;
+        }
+        Some(format!(
+            "step 5 stopped ({}) before its optimum: the Gauss-Newton step from its end point \
+             predicts a cost decrease of {:.1} residual variances (relative offset {r:.3}, \
+             {} parameters), so the estimate may lie up to {:.1} standard errors from the \
+             least-squares optimum; the standard errors do not include that distance",
+            self.stopped_by,
+            r * r * p,
+            self.params.len(),
+            r * p.sqrt()
+        ))
+    }
+}
+
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
 /// (78)), with the bounds of [`static_params`] (the start clipped into them; with the 12-state
 /// model `theta0` ends with k_ic).
@@ -1174,4 +1201,45 @@ pub fn sets_with_role<'a>(
         .filter(|(i, _)| !vgt_egr_only || i.kind == super::data::StepKind::VgtEgr)
         .map(|(_, d)| d)
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(stopped_by: &str, rel_offset: f64) -> Step5Report {
+        Step5Report {
+            params: (0..35).map(|k| (format!("p{k}"), 1.0)).collect(),
+            cost_start: 2.0,
+            cost_end: 1.0,
+            n_eval: 10,
+            n_iter: 2,
+            n_jacobians: 2,
+            converged: true,
+            stopped_by: stopped_by.into(),
+            rel_offset,
+            submodels: Vec::new(),
+            dynamic: Vec::new(),
+            eval_seconds: 0.01,
+            at_bounds: Vec::new(),
+            rel_std_err: Vec::new(),
+            uncertainty: Vec::new(),
+            linearization: None,
+        }
+    }
+
+    #[test]
+    fn a_step_5_stopped_away_from_its_optimum_says_how_far() {
+        // xtol at R = 1.68 (mvem lab --seed 5): R^2 p = 98.8 residual variances, R sqrt(p) = 9.9
+        let note = report("xtol", 1.68).stop_note().expect("a note");
+        assert!(note.contains("(xtol)"), "{note}");
+        assert!(note.contains("98.8 residual variances"), "{note}");
+        assert!(note.contains("up to 9.9 standard errors"), "{note}");
+        // stopped by the noise criteria, or within one residual variance: no note
+        assert!(report("relative offset", 0.15).stop_note().is_none());
+        assert!(report("gtol", 2.0).stop_note().is_none());
+        assert!(report("ftol", 0.16).stop_note().is_none()); // R^2 p = 0.90
+        assert!(report("ftol", 0.17).stop_note().is_some()); // 1.01
+        assert!(report("evaluation limit", f64::NAN).stop_note().is_none());
+    }
 }
