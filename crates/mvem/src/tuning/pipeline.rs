@@ -401,6 +401,26 @@ pub fn tune(
     Ok((p, rep))
 }
 
+/// The point `(x, y)` of `points` where `f(p, x, y)` has the smallest positive, finite
+/// linearized standard error over the parameters `names` of `cov`
+/// ([`function_std_error`]), with that standard error; `None` when there is none.
+fn best_determined_point(
+    points: &[(f64, f64)],
+    f: impl Fn(&Params, f64, f64) -> f64,
+    p: &Params,
+    names: &[&str],
+    cov: &NamedCov,
+) -> Option<(f64, f64, f64)> {
+    points
+        .iter()
+        .map(|&(x, y)| {
+            let se = function_std_error(|q: &Params| f(q, x, y), p, names, cov);
+            (x, y, se)
+        })
+        .filter(|c| c.2.is_finite() && c.2 > 0.0)
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+}
+
 /// eta_tm,max and BSR_opt (eq. (49)): `eta_tm = eta_tm,max - c_m(omega_t) (BSR - BSR_opt)^2`
 /// is seen only over the campaign's blade speed ratios (eq. (50) at its stationary points).
 /// When BSR_opt lies outside that range the parabola's vertex is extrapolated and its height and
@@ -429,14 +449,7 @@ fn turbine_efficiency_on_the_measured_range(
     };
     let names = ["eta_tmmax", "bsr_opt", "c_m1", "c_m2", "c_m3"];
     // the measured point where the campaign determines eta_tm best (smallest standard error)
-    let (b_ref, w_ref, std_error) = seen
-        .iter()
-        .map(|&(b, w)| {
-            let se = function_std_error(|q: &Params| eta_at(q, b, w), p, &names, cov);
-            (b, w, se)
-        })
-        .filter(|x| x.2.is_finite())
-        .min_by(|x, y| x.2.total_cmp(&y.2))?;
+    let (b_ref, w_ref, std_error) = best_determined_point(&seen, eta_at, p, &names, cov)?;
     let value = eta_at(p, b_ref, w_ref);
     if !(lo..=hi).contains(&opt) {
         let why = format!(
@@ -489,15 +502,11 @@ fn compressor_efficiency_on_the_measured_range(
     let names = ["eta_cmax", "w_copt", "pi_copt", "c_pi", "a1", "a2", "a3"];
     // points where the authors' lower limit of eta_c (item 29) holds the model at 0.2 say
     // nothing about the ellipse (zero gradient): left out
-    let (w_ref, pi_ref, std_error) = seen
-        .iter()
-        .filter(|&&(w, pi)| compressor::efficiency(&p.compressor, w, pi, Semantics::Paper) > 0.2)
-        .map(|&(w, pi)| {
-            let se = function_std_error(|q: &Params| eta_at(q, w, pi), p, &names, cov);
-            (w, pi, se)
-        })
-        .filter(|x| x.2.is_finite() && x.2 > 0.0)
-        .min_by(|x, y| x.2.total_cmp(&y.2))?;
+    let unclamped: Vec<(f64, f64)> = seen
+        .into_iter()
+        .filter(|&(w, pi)| compressor::efficiency(&p.compressor, w, pi, Semantics::Paper) > 0.2)
+        .collect();
+    let (w_ref, pi_ref, std_error) = best_determined_point(&unclamped, eta_at, p, &names, cov)?;
     let value = eta_at(p, w_ref, pi_ref);
     let why = format!(
         "peak value or exponent of the compressor-efficiency ellipse (eqs (62)-(64)), fitted to \
