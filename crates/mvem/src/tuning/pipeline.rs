@@ -515,7 +515,12 @@ fn compressor_efficiency_on_the_measured_range(
          measured region ({value:.4} +- {std_error:.4} at W_c {w_ref:.4} kg/s, Pi_c \
          {pi_ref:.4}, tune_report \"combinations\")"
     );
-    flag_keys(parameters, ["compressor.eta_cmax", "compressor.c_pi"], &why);
+    for key in ["compressor.eta_cmax", "compressor.c_pi"] {
+        if let Some(e) = parameters.get_mut(key) {
+            // the cause first (an earlier flag, e.g. a correlation with W_copt, is its symptom)
+            e.flag_first(&why);
+        }
+    }
     Some(Combination {
         name: "compressor.eta_c_at_point".into(),
         description: format!(
@@ -1101,6 +1106,10 @@ mod tests {
             .iter()
             .map(|k| (k.to_string(), estimate()))
             .collect();
+        // c_pi already flagged for a symptom
+        m.get_mut("compressor.c_pi")
+            .unwrap()
+            .flag("correlation 0.999 with w_copt");
         let k = compressor_efficiency_on_the_measured_range(&p, &pts, &cov, &mut m).unwrap();
         assert_eq!(k.name, "compressor.eta_c_at_point");
         assert_eq!(
@@ -1115,13 +1124,19 @@ mod tests {
         );
         let eta = compressor::efficiency(c, best.0, best.1, SEM);
         assert_eq!(k.value, eta);
-        // eta_cmax and c_pi flagged (errors in variables), the earlier reason kept after it;
-        // the shape parameters are left to flag_efficiency_ellipse_shape
+        // eta_cmax and c_pi flagged (errors in variables), the cause first and the earlier
+        // reason after it; the shape parameters are left to flag_efficiency_ellipse_shape
         for key in ["compressor.eta_cmax", "compressor.c_pi"] {
             assert!(!m[key].identifiable, "{key}");
+            assert!(m[key].reason.starts_with("peak value or exponent"), "{key}");
             assert!(m[key].reason.contains("errors in variables"), "{key}");
-            assert!(m[key].reason.ends_with("(rel. std. error 1 %)"), "{key}");
         }
+        assert!(m["compressor.eta_cmax"]
+            .reason
+            .ends_with("(rel. std. error 1 %)"));
+        assert!(m["compressor.c_pi"]
+            .reason
+            .ends_with("(correlation 0.999 with w_copt (rel. std. error 1 %))"));
         assert!(m["compressor.w_copt"].identifiable);
         // no usable stationary point: no combination, nothing flagged
         let mut m: BTreeMap<String, ParamEstimate> = EFFICIENCY_ELLIPSE
