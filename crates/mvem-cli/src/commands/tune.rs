@@ -27,7 +27,11 @@ model parameter: it is written to the [test_cell] section of the output file, wh
 validate` reads (--tau-me overrides). DIR/tune_report.json \"parameters\": per parameter file
 path the value, standard error, identifiability and correlations (docs/tuning.md); array
 indices in these paths count from 0, as positions in the file's arrays (\"cylinder.c_vol[0]\"
-is c_vol1; the FMU's and the parameter registry's names count from 1).
+is c_vol1; the FMU's and the parameter registry's names count from 1). \"combinations\": what the
+campaign determines where single parameters are flagged (eta_tm at the measured blade speed
+ratio, eta_c at a measured compressor operating point). A step 5 stopped away from its optimum
+by more than the noise is reported with a warning (relative offset R: up to R sqrt(p) standard
+errors from the least-squares optimum).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
 least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
 model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58
