@@ -21,8 +21,9 @@
 use mvem::components::{compressor, turbine, Semantics};
 use mvem::params::Params;
 use mvem::tuning::lab::{self, LabOptions};
-use mvem::tuning::pipeline::{self, PipelineOptions};
+use mvem::tuning::pipeline::{self, PipelineOptions, TuneReport};
 use mvem::tuning::steps::bsr_series;
+use mvem::tuning::uncertainty::Combination;
 
 /// Parameters that must be identifiable (volumes, inertia, actuator time constants, peak
 /// efficiencies, the dynamometer constant).
@@ -54,6 +55,37 @@ fn true_value(p: &Params, path: &str) -> Option<f64> {
         }
     }
     node.as_f64()
+}
+
+/// The combination `name` of the report (panics when it is missing: the pipeline must report it
+/// when it flags the parameter it stands for).
+fn combination<'r>(rep: &'r TuneReport, name: &str) -> &'r Combination {
+    rep.combinations
+        .iter()
+        .find(|k| k.name == name)
+        .unwrap_or_else(|| panic!("combination {name} reported"))
+}
+
+/// The coordinate `name` of the point where a combination is evaluated.
+fn coordinate(k: &Combination, name: &str) -> f64 {
+    k.at.iter()
+        .find(|(x, _)| x == name)
+        .map(|x| x.1)
+        .unwrap_or_else(|| panic!("{}: no coordinate {name}", k.name))
+}
+
+/// A complaint when combination `k` is more than 3 standard errors from the true value `t`
+/// or its relative standard error is above 25 %; `what` names it.
+fn off(k: &Combination, t: f64, what: &str) -> Option<String> {
+    let z = (k.value - t) / k.std_error;
+    let rel = k.std_error / k.value.abs();
+    (!(z.abs() <= 3.0 && rel <= 0.25)).then(|| {
+        format!(
+            "{what} = {:.4} (true {t:.4}) is {z:.1} std. errors off, rel. std. error {:.2} %",
+            k.value,
+            100.0 * rel
+        )
+    })
 }
 
 fn check_campaign(seed: u64) -> Vec<String> {
@@ -95,13 +127,8 @@ fn check_campaign(seed: u64) -> Vec<String> {
         if m == "turbine.eta_tmmax" && e.reason.contains("outside the measured BSR range") {
             // the combination instead: eta_tm (eq. (49)) at the measured point where the
             // pipeline says it is best determined, against the truth's eta_tm there
-            let k = rep
-                .combinations
-                .iter()
-                .find(|k| k.name == "turbine.eta_tm_at_bsr")
-                .expect("eta_tm at the measured BSR reported");
-            let at = |n: &str| k.at.iter().find(|(x, _)| x == n).map(|x| x.1).unwrap();
-            let (b, w) = (at("bsr"), at("omega_t"));
+            let k = combination(&rep, "turbine.eta_tm_at_bsr");
+            let (b, w) = (coordinate(k, "bsr"), coordinate(k, "omega_t"));
             // a measured point of the campaign
             assert!(bsr_series(&tuned, &c.stationary)
                 .iter()
@@ -109,44 +136,22 @@ fn check_campaign(seed: u64) -> Vec<String> {
             let tt = &truth.turbine;
             let t =
                 tt.eta_tmmax - turbine::c_m(tt, w, Semantics::Authors) * (b - tt.bsr_opt).powi(2);
-            let z = (k.value - t) / k.std_error;
-            let rel = k.std_error / k.value.abs();
-            if !(z.abs() <= 3.0 && rel <= 0.25) {
-                bad.push(format!(
-                    "seed {seed}: eta_tm at BSR {b:.3} = {:.4} (true {t:.4}) is {z:.1} std. \
-                     errors off, rel. std. error {:.2} %",
-                    k.value,
-                    100.0 * rel
-                ));
-            }
+            bad.extend(off(k, t, &format!("seed {seed}: eta_tm at BSR {b:.3}")));
             continue;
         }
         if m == "compressor.eta_cmax" && e.reason.contains("errors in variables") {
             // the combination instead: eta_c (eq. (62)) at the measured stationary point where
             // the pipeline says it is best determined, against the truth's eta_c there
-            let k = rep
-                .combinations
-                .iter()
-                .find(|k| k.name == "compressor.eta_c_at_point")
-                .expect("eta_c at a measured point reported");
-            let at = |n: &str| k.at.iter().find(|(x, _)| x == n).map(|x| x.1).unwrap();
-            let (w, pi) = (at("w_c"), at("pi_c"));
+            let k = combination(&rep, "compressor.eta_c_at_point");
+            let (w, pi) = (coordinate(k, "w_c"), coordinate(k, "pi_c"));
             // a measured point of the campaign
             assert!(c
                 .stationary
                 .iter()
                 .any(|s| s.w_c == w && compressor::pi_c(s.p_c, s.p_amb, Semantics::Authors) == pi));
             let t = compressor::efficiency(&truth.compressor, w, pi, Semantics::Authors);
-            let z = (k.value - t) / k.std_error;
-            let rel = k.std_error / k.value.abs();
-            if !(z.abs() <= 3.0 && rel <= 0.25) {
-                bad.push(format!(
-                    "seed {seed}: eta_c at W_c {w:.3} kg/s, Pi_c {pi:.3} = {:.4} (true {t:.4}) \
-                     is {z:.1} std. errors off, rel. std. error {:.2} %",
-                    k.value,
-                    100.0 * rel
-                ));
-            }
+            let what = format!("seed {seed}: eta_c at W_c {w:.3} kg/s, Pi_c {pi:.3}");
+            bad.extend(off(k, t, &what));
             continue;
         }
         not_identifiable.push(format!("{m} ({})", e.reason));

@@ -407,17 +407,51 @@ fn simulated_torque(p: &Params, set: &DynamicData) -> Result<(Vec<f64>, Vec<f64>
     Ok((sol.t().to_vec(), m_e))
 }
 
-/// Amplitude floor (1 % of the stationary mean torque) [Nm] and the weight 1/sqrt(L) of the
-/// torque residuals of step 4 (eq. (76)).
-fn torque_weights(meas: &[f64], stat: &[StationaryPoint], segs: &[(usize, usize)]) -> (f64, f64) {
-    let floor = 0.01
-        * stationary_means(stat)[4]
-            .unwrap_or_else(|| mean_of(meas))
-            .abs();
-    (
-        floor,
-        1.0 / (count_segment_samples(segs).max(1) as f64).sqrt(),
-    )
+/// The normalized torque step responses of step 4 (eq. (76)) on a fuel-step set: its measured
+/// M_e, its step segments, the amplitude floor (1 % of the stationary mean torque) [Nm] and the
+/// weight 1/sqrt(L) of the residuals.
+struct TorqueSteps<'a> {
+    set: &'a DynamicData,
+    meas: &'a [f64],
+    segs: Vec<(usize, usize)>,
+    floor: f64,
+    w: f64,
+}
+
+impl<'a> TorqueSteps<'a> {
+    fn new(set: &'a DynamicData, meas: &'a [f64], stat: &[StationaryPoint]) -> Self {
+        let segs = segments(set);
+        let floor = 0.01
+            * stationary_means(stat)[4]
+                .unwrap_or_else(|| mean_of(meas))
+                .abs();
+        let w = 1.0 / (count_segment_samples(&segs).max(1) as f64).sqrt();
+        Self {
+            set,
+            meas,
+            segs,
+            floor,
+            w,
+        }
+    }
+
+    /// Residuals of the model torque `m_e` at times `ts` (before the lag) through the
+    /// dynamometer lag tau_Me = `tau` [s], eq. (76), sampled at the set's times.
+    fn residuals(&self, ts: &[f64], m_e: &[f64], tau: f64) -> Vec<f64> {
+        let f = first_order_lag(ts, m_e, tau);
+        let sim: Vec<f64> = self.set.t.iter().map(|&t| interp(ts, &f, t)).collect();
+        let mut r = Vec::with_capacity(count_segment_samples(&self.segs));
+        normalized_residuals(
+            &self.set.t,
+            self.meas,
+            &sim,
+            &self.segs,
+            self.floor,
+            self.w,
+            &mut r,
+        );
+        r
+    }
 }
 
 /// The residuals of step 4 (eq. (76)) with tau_Me = `tau` fixed, as a function of the whole
@@ -429,22 +463,19 @@ pub fn torque_residuals<'a>(
     stat: &[StationaryPoint],
     tau: f64,
 ) -> impl Fn(&Params) -> Vec<f64> + 'a {
-    let segs = segments(set);
-    let meas = set.get("M_e").unwrap_or(&[]);
-    let (floor, w) = torque_weights(meas, stat, &segs);
-    let n_res = count_segment_samples(&segs);
+    let n_res = count_segment_samples(&segments(set));
+    let steps = set
+        .get("M_e")
+        .filter(|m| m.len() == set.t.len())
+        .map(|meas| TorqueSteps::new(set, meas, stat));
     move |q: &Params| -> Vec<f64> {
-        let Ok((ts, m_e)) = simulated_torque(q, set) else {
-            return vec![10.0; n_res];
-        };
-        if meas.len() != set.t.len() {
-            return vec![10.0; n_res];
+        let fit = steps
+            .as_ref()
+            .and_then(|st| Some((st, simulated_torque(q, set).ok()?)));
+        match fit {
+            Some((st, (ts, m_e))) => st.residuals(&ts, &m_e, tau),
+            None => vec![10.0; n_res],
         }
-        let f = first_order_lag(&ts, &m_e, tau);
-        let sim: Vec<f64> = set.t.iter().map(|&t| interp(&ts, &f, t)).collect();
-        let mut r = Vec::with_capacity(n_res);
-        normalized_residuals(&set.t, meas, &sim, &segs, floor, w, &mut r);
-        r
     }
 }
 
@@ -461,21 +492,12 @@ pub fn step4(
         set: set.name.clone(),
         column: "M_e",
     })?;
-    let segs = segments(set);
-    if segs.is_empty() {
+    let steps = TorqueSteps::new(set, meas, stat);
+    if steps.segs.is_empty() {
         return Err(solver_err(NAME, "the torque set contains no command steps"));
     }
     let (ts, m_e) = simulated_torque(p, set).map_err(|e| solver_err(NAME, e))?;
-    let (floor, w) = torque_weights(meas, stat, &segs);
-    let model = |tau: f64| -> Vec<f64> {
-        let f = first_order_lag(&ts, &m_e, tau);
-        set.t.iter().map(|&t| interp(&ts, &f, t)).collect()
-    };
-    let res = |th: &[f64]| {
-        let mut r = Vec::new();
-        normalized_residuals(&set.t, meas, &model(th[0]), &segs, floor, w, &mut r);
-        r
-    };
+    let res = |th: &[f64]| steps.residuals(&ts, &m_e, th[0]);
     let opts = LsqOptions {
         fd_rel_step: Some(1e-6),
         ..search_opts(200, vec![0.3])

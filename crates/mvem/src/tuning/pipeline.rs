@@ -458,12 +458,13 @@ fn turbine_efficiency_on_the_measured_range(
              and BSR_opt trade against each other; the campaign determines eta_tm on that range \
              ({value:.4} +- {std_error:.4} at BSR {b_ref:.3}, tune_report \"combinations\")"
         );
-        for key in ["turbine.eta_tmmax", "turbine.bsr_opt"] {
-            if let Some(e) = parameters.get_mut(key) {
-                // the reason takes an earlier flag's first place: it names the cause
-                e.flag_first(&why);
-            }
-        }
+        // the reason takes an earlier flag's first place: it names the cause
+        flag_keys_with(
+            parameters,
+            ["turbine.eta_tmmax", "turbine.bsr_opt"],
+            &why,
+            ParamEstimate::flag_first,
+        );
     }
     Some(Combination {
         name: "turbine.eta_tm_at_bsr".into(),
@@ -515,12 +516,13 @@ fn compressor_efficiency_on_the_measured_range(
          measured region ({value:.4} +- {std_error:.4} at W_c {w_ref:.4} kg/s, Pi_c \
          {pi_ref:.4}, tune_report \"combinations\")"
     );
-    for key in ["compressor.eta_cmax", "compressor.c_pi"] {
-        if let Some(e) = parameters.get_mut(key) {
-            // the cause first (an earlier flag, e.g. a correlation with W_copt, is its symptom)
-            e.flag_first(&why);
-        }
-    }
+    // the cause first (an earlier flag, e.g. a correlation with W_copt, is its symptom)
+    flag_keys_with(
+        parameters,
+        ["compressor.eta_cmax", "compressor.c_pi"],
+        &why,
+        ParamEstimate::flag_first,
+    );
     Some(Combination {
         name: "compressor.eta_c_at_point".into(),
         description: format!(
@@ -589,9 +591,20 @@ fn flag_keys<'k>(
     keys: impl IntoIterator<Item = &'k str>,
     why: &str,
 ) {
+    flag_keys_with(parameters, keys, why, ParamEstimate::flag);
+}
+
+/// [`flag_keys`] by `flag` ([`ParamEstimate::flag`], or [`ParamEstimate::flag_first`] for a
+/// cause that explains earlier flags).
+fn flag_keys_with<'k>(
+    parameters: &mut BTreeMap<String, ParamEstimate>,
+    keys: impl IntoIterator<Item = &'k str>,
+    why: &str,
+    flag: fn(&mut ParamEstimate, &str),
+) {
     for key in keys {
         if let Some(e) = parameters.get_mut(key) {
-            e.flag(why);
+            flag(e, why);
         }
     }
 }
