@@ -257,6 +257,18 @@ fn lab_tune_validate_12_state() {
     }
     let o = mvem(d, &["lab", "--out", "z", "--model", "9"]);
     assert_eq!(o.status.code(), Some(2));
+    // bad step-3 weights: named, exit 2, nothing written
+    for (flag, v) in [
+        ("--step3-window", "0"),
+        ("--step3-window", "NaN"),
+        ("--step3-tail-weight", "0"),
+        ("--step3-tail-weight", "1.5"),
+    ] {
+        let o = mvem(d, &["tune", "--data", "c12", "--out", "bad.toml", flag, v]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains(flag), "{}", stderr(&o));
+        assert!(!d.join("bad.toml").exists());
+    }
     // an 8-state campaign has no intercooler drop: step 6 fails by name, exit 1
     let o = lab("c8", "8");
     assert!(o.status.success(), "{}", stderr(&o));

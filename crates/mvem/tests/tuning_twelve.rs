@@ -160,6 +160,7 @@ fn v_ic_in_the_second_12_state_step() {
         hi: &[V_IC_START[2], 0.2, 0.2, 1e-3],
         scale: &[0.01, 0.02, 0.02, 1e-4],
         amp_floor: 0.01,
+        window: mvem::tuning::complete::ResponseWindow::default(),
         max_eval: 60,
     };
     let (q, rep) = fit_dynamic("test", &p, &sets, &c.stationary, &f).unwrap();

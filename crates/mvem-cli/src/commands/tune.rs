@@ -86,6 +86,19 @@ pub struct Args {
     /// optimum; 0: off, docs/tuning.md).
     #[arg(long = "rel-offset", default_value_t = mvem::tuning::complete::STEP5_REL_OFFSET_TOL, value_name = "TOL")]
     pub rel_offset: f64,
+    /// Step 5: most restarts (a new Jacobian and trust region) when ftol/xtol stopped the
+    /// search with the relative offset above `--rel-offset`, i.e. before its optimum; kept
+    /// only when they lower the cost (can cost many evaluations; docs/tuning.md).
+    #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
+    pub restarts: usize,
+    /// Step 3: length [s] of the fully weighted part of each step response; later samples
+    /// weigh `--step3-tail-weight` (not in the paper, docs/tuning.md; `inf` or a tail weight of
+    /// 1: eq. (75), every sample alike).
+    #[arg(long = "step3-window", default_value_t = 0.5, value_name = "SECONDS")]
+    pub step3_window: f64,
+    /// Step 3: weight of the samples after `--step3-window` (0-1).
+    #[arg(long = "step3-tail-weight", default_value_t = 0.1, value_name = "W")]
+    pub step3_tail_weight: f64,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
@@ -166,6 +179,24 @@ pub fn run(a: &Args) -> Result<()> {
         )));
     }
     opts.step5.rel_offset_tol = a.rel_offset;
+    opts.step5.restarts = a.restarts;
+    if a.step3_window.is_nan() || a.step3_window <= 0.0 {
+        return Err(common::usage(format!(
+            "--step3-window {}: must be > 0 seconds (inf: every sample alike)",
+            a.step3_window
+        )));
+    }
+    if !(a.step3_tail_weight.is_finite() && a.step3_tail_weight > 0.0 && a.step3_tail_weight <= 1.0)
+    {
+        return Err(common::usage(format!(
+            "--step3-tail-weight {}: must lie in (0, 1]",
+            a.step3_tail_weight
+        )));
+    }
+    opts.step3.window = mvem::tuning::complete::ResponseWindow {
+        seconds: a.step3_window,
+        tail_weight: a.step3_tail_weight,
+    };
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
     let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
@@ -317,7 +348,7 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
     if let Some(r) = &rep.step5 {
         let _ = writeln!(
             s,
-            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations, {} finite-difference Jacobians), converged {} (stopped by: {}, relative offset {:.2e}), one evaluation {:.3} s; at bounds: {}\n",
+            "Step 5: cost (77) {:.4e} -> {:.4e}, {} evaluations ({} iterations, {} finite-difference Jacobians), converged {} (stopped by: {}, relative offset {:.2e}, restarts {}), one evaluation {:.3} s; at bounds: {}\n",
             r.cost_start,
             r.cost_end,
             r.n_eval,
@@ -326,6 +357,7 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             r.converged,
             r.stopped_by,
             r.rel_offset,
+            r.restarts,
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );

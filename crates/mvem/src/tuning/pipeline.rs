@@ -816,7 +816,13 @@ fn run_step3(
     let (q, mut r) =
         step3(p, sets, &c.stationary, &opts.step3, opts.step3_max_eval).map_err(at(3))?;
     *p = q;
-    let res = dynamic_residuals(ModelOrder::Eight, sets, &c.stationary, opts.step3.amp_floor);
+    let res = dynamic_residuals(
+        ModelOrder::Eight,
+        sets,
+        &c.stationary,
+        opts.step3.amp_floor,
+        opts.step3.window,
+    );
     let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
@@ -975,6 +981,7 @@ fn tune_twelve(
             hi: &[V_IC_START[2], s3.hi[0], s3.hi[1], s3.hi[2]],
             scale: &[0.01, 0.02, 0.02, 1e-4],
             amp_floor: s3.amp_floor,
+            window: s3.window,
             max_eval: opts.step3_max_eval,
         };
         let (q, r) = fit_dynamic(
