@@ -17,9 +17,9 @@
 //! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
 
 use super::complete::{
-    dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
-    step3, step4, step5, theta_of, torque_residuals, CompleteReport, Cost77, DynamicFit,
-    Step3Start, Step5Options, Step5Report,
+    bounds_containing, dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_bounds,
+    static_params, static_theta, step3, step4, step5, theta_of, torque_residuals, CompleteReport,
+    Cost77, DynamicFit, Step3Start, Step5Options, Step5Report,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM};
@@ -785,6 +785,11 @@ fn run_step5(
     if sets.is_empty() && opts.step5.dynamic_row {
         return Err(missing(5, "data set with role \"static\""));
     }
+    // the box step 5 searched (as `step5` builds it), for the variance bound of add_fixed
+    let boxes: Vec<(f64, f64)> = bounds_containing(static_bounds(p, opts.step5.model), th0)
+        .iter()
+        .map(|b| (b.lo, b.hi))
+        .collect();
     let (q, mut r) = step5(p, &c.stationary, &sets, th0, &opts.step5).map_err(at(5))?;
     *p = q;
     let cost = Cost77::new(p, &c.stationary, &sets, &opts.step5);
@@ -795,6 +800,7 @@ fn run_step5(
         |q: &Params| cost.residuals_at(q),
         p,
         5,
+        &boxes,
     );
     if !r.converged {
         flag_unconverged(&mut r.uncertainty);
@@ -823,7 +829,9 @@ fn run_step3(
         opts.step3.amp_floor,
         opts.step3.window,
     );
-    let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3);
+    let s3 = &opts.step3;
+    let boxes: Vec<(f64, f64)> = s3.lo.iter().zip(&s3.hi).map(|(l, h)| (*l, *h)).collect();
+    let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3, &boxes);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -844,7 +852,7 @@ fn run_step4(
     let (tau, mut r) = step4(p, set, &c.stationary).map_err(at(4))?;
     if chain {
         let res = torque_residuals(set, &c.stationary, tau);
-        add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 4);
+        add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 4, &[]);
     }
     est.extend(r.uncertainty.iter().cloned());
     Ok((tau, r))
@@ -853,7 +861,11 @@ fn run_step4(
 /// Add to a step's covariance the uncertainty of the parameters it held fixed (every earlier
 /// estimate in `cov`; [`super::uncertainty`]), with the step's residual function `res` at the
 /// whole parameter set `p` (the estimate); replace the step's `estimates` and insert its
-/// covariance into `cov`.
+/// covariance into `cov`. `boxes`: the bounds (lo, hi) the step's search kept its
+/// parameters in (in the order of its linearization; empty: none): an estimate confined to
+/// [lo, hi] has a variance of at most (hi - lo)^2 / 4 (Popoviciu's inequality), so a larger
+/// linearized variance (the propagation through a nearly singular step) is scaled down to that
+/// bound, its correlations kept ([`cap_variances`]).
 /// Returns the step's conditional linearization ([`Conditional`]) for
 /// [`joint_covariance`].
 fn add_fixed(
@@ -863,6 +875,7 @@ fn add_fixed(
     res: impl Fn(&Params) -> Vec<f64>,
     p: &Params,
     step: u8,
+    boxes: &[(f64, f64)],
 ) -> Option<Conditional> {
     let lin = lin.as_ref()?;
     let own: Vec<&str> = lin.names.iter().map(String::as_str).collect();
@@ -874,6 +887,11 @@ fn add_fixed(
         let j_fixed = fd_jacobian_named(&res, p, &fixed.names);
         let s = sensitivity(&lin.jacobian, &j_fixed);
         (&lin.covariance + &s * &fixed.cov * s.transpose(), s)
+    };
+    let total = if boxes.len() == n {
+        cap_variances(total, boxes)
+    } else {
+        total
     };
     let theta: Vec<f64> = estimates.iter().map(|(_, e)| e.value).collect();
     if theta.len() == n {
@@ -889,6 +907,49 @@ fn add_fixed(
         fixed: fixed.names,
         s,
     })
+}
+
+/// Scale the rows and columns of a covariance so that no variance exceeds `(hi - lo)^2 / 4`
+/// of its parameter's box (Popoviciu's bound on the variance of a quantity confined to
+/// [lo, hi]); correlations are kept, so the result stays positive semidefinite. Infinite, NaN
+/// or non-positive variances (undetermined directions, or a propagation whose huge terms
+/// cancelled to a negative diagonal) become the bound with no correlation, and correlations
+/// beyond +-1 (the same rounding) are clipped to +-1.
+pub(crate) fn cap_variances(mut c: DMatrix<f64>, boxes: &[(f64, f64)]) -> DMatrix<f64> {
+    let n = c.nrows();
+    let f: Vec<f64> = (0..n)
+        .map(|i| {
+            let (lo, hi) = boxes[i];
+            let cap = 0.25 * (hi - lo) * (hi - lo);
+            let v = c[(i, i)];
+            if !(cap.is_finite() && cap > 0.0) || (v > 0.0 && v <= cap) {
+                1.0
+            } else if v.is_finite() && v > 0.0 {
+                (cap / v).sqrt()
+            } else {
+                f64::NAN // undetermined or lost to rounding: replaced below
+            }
+        })
+        .collect();
+    for i in 0..n {
+        for j in 0..n {
+            c[(i, j)] = match (f[i].is_nan(), f[j].is_nan()) {
+                (false, false) => c[(i, j)] * f[i] * f[j],
+                _ if i == j => 0.25 * (boxes[i].1 - boxes[i].0).powi(2),
+                _ => 0.0,
+            };
+        }
+    }
+    // a propagation whose huge terms cancelled can leave |correlation| > 1: clip to 1
+    for i in 0..n {
+        for j in 0..n {
+            let m = (c[(i, i)] * c[(j, j)]).sqrt();
+            if i != j && c[(i, j)].abs() > m {
+                c[(i, j)] = m.copysign(c[(i, j)]);
+            }
+        }
+    }
+    c
 }
 
 /// Replace the estimates of step 5 and of the repeated step 3 by their joint covariance at the
@@ -1025,6 +1086,46 @@ fn tune_twelve(
 mod tests {
     use super::*;
     use crate::tuning::data::StationaryPoint;
+
+    #[test]
+    fn variances_beyond_the_box_are_capped_with_their_correlations_by_hand() {
+        // var 4 and 1e6, covariance 0.5 * 2 * 1000 (correlation 0.5); boxes [0, 10] (bound
+        // 25: kept) and [0, 2] (bound 1: scaled by 1e-3); an undetermined third one and a
+        // negative fourth (rounding)
+        let c = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                4.0,
+                1000.0,
+                0.0,
+                0.0,
+                1000.0,
+                1e6,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                f64::INFINITY,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                -1e-3,
+            ],
+        );
+        let k = cap_variances(c, &[(0.0, 10.0), (0.0, 2.0), (1.0, 3.0), (0.0, 4.0)]);
+        assert_eq!(k[(0, 0)], 4.0);
+        assert!((k[(1, 1)] - 1.0).abs() < 1e-12);
+        // correlation kept: 0.5 * 2 * 1
+        assert!((k[(0, 1)] - 1.0).abs() < 1e-12 && (k[(1, 0)] - 1.0).abs() < 1e-12);
+        assert_eq!((k[(2, 2)], k[(3, 3)]), (1.0, 4.0));
+        assert_eq!((k[(0, 2)], k[(2, 1)], k[(3, 0)]), (0.0, 0.0, 0.0));
+        // a correlation beyond 1 (rounding) is clipped
+        let c = DMatrix::from_row_slice(2, 2, &[1.0, 3.0, 3.0, 4.0]);
+        let k = cap_variances(c, &[(0.0, 10.0), (0.0, 10.0)]);
+        assert_eq!((k[(0, 1)], k[(1, 0)], k[(1, 1)]), (2.0, 2.0, 4.0));
+    }
 
     fn estimate() -> ParamEstimate {
         ParamEstimate {
