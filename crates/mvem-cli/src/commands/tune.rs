@@ -92,9 +92,9 @@ pub struct Args {
     #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
     pub restarts: usize,
     /// Step 3: length [s] of the fully weighted part of each step response; later samples
-    /// weigh `--step3-tail-weight` (not in the paper, docs/tuning.md; `inf` or a tail weight of
-    /// 1: eq. (75), every sample alike).
-    #[arg(long = "step3-window", default_value_t = 0.5, value_name = "SECONDS")]
+    /// weigh `--step3-tail-weight` (not in the paper; default `inf`: eq. (75), every sample
+    /// alike; 0.5 s halves the spread of V_em but can change step 5's path, docs/tuning.md).
+    #[arg(long = "step3-window", default_value_t = f64::INFINITY, value_name = "SECONDS")]
     pub step3_window: f64,
     /// Step 3: weight of the samples after `--step3-window` (0-1).
     #[arg(long = "step3-tail-weight", default_value_t = 0.1, value_name = "W")]
