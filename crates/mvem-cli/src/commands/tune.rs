@@ -86,7 +86,7 @@ pub struct Args {
     /// optimum; 0: off, docs/tuning.md).
     #[arg(long = "rel-offset", default_value_t = mvem::tuning::complete::STEP5_REL_OFFSET_TOL, value_name = "TOL")]
     pub rel_offset: f64,
-    /// Step 5: most restarts (a new Jacobian and trust region) when ftol/xtol stopped the
+    /// Step 5: most restarts (a new central-difference Jacobian and trust region) when ftol/xtol stopped the
     /// search with the relative offset above `--rel-offset`, i.e. before its optimum; kept
     /// only when they lower the cost (can cost many evaluations; docs/tuning.md).
     #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
@@ -97,7 +97,7 @@ pub struct Args {
     #[arg(long = "step3-window", default_value_t = f64::INFINITY, value_name = "SECONDS")]
     pub step3_window: f64,
     /// Step 3: weight of the samples after `--step3-window` (0-1).
-    #[arg(long = "step3-tail-weight", default_value_t = 0.1, value_name = "W")]
+    #[arg(long = "step3-tail-weight", default_value_t = mvem::tuning::complete::ResponseWindow::VOLUMES.tail_weight, value_name = "W")]
     pub step3_tail_weight: f64,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]

@@ -1162,6 +1162,12 @@ impl Step5Report {
     }
 }
 
+/// The box step 5 searches from `theta0` on `base` ([`static_bounds`] widened to contain the
+/// start, [`bounds_containing`]), in the order of its parameters.
+pub fn step5_bounds(base: &Params, theta0: &[f64], opts: &Step5Options) -> Vec<StaticParam> {
+    bounds_containing(static_bounds(base, opts.model), theta0)
+}
+
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
 /// (78)), with the bounds of [`static_params`] (the start clipped into them; with the 12-state
 /// model `theta0` ends with k_ic).
@@ -1187,7 +1193,7 @@ pub fn step5(
             "no residuals (no data sets and no stationary row)",
         ));
     }
-    let list = bounds_containing(static_bounds(base, opts.model), theta0);
+    let list = step5_bounds(base, theta0, opts);
     let lo: Vec<f64> = list.iter().map(|s| s.lo).collect();
     let hi: Vec<f64> = list.iter().map(|s| s.hi).collect();
     let th0: Vec<f64> = theta0

@@ -17,9 +17,9 @@
 //! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
 
 use super::complete::{
-    bounds_containing, dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_bounds,
-    static_params, static_theta, step3, step4, step5, theta_of, torque_residuals, CompleteReport,
-    Cost77, DynamicFit, Step3Start, Step5Options, Step5Report,
+    dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
+    step3, step4, step5, step5_bounds, theta_of, torque_residuals, CompleteReport, Cost77,
+    DynamicFit, Step3Start, Step5Options, Step5Report,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::{step1, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM};
@@ -785,8 +785,8 @@ fn run_step5(
     if sets.is_empty() && opts.step5.dynamic_row {
         return Err(missing(5, "data set with role \"static\""));
     }
-    // the box step 5 searched (as `step5` builds it), for the variance bound of add_fixed
-    let boxes: Vec<(f64, f64)> = bounds_containing(static_bounds(p, opts.step5.model), th0)
+    // the box step 5 searches, for the variance bound of add_fixed
+    let boxes: Vec<(f64, f64)> = step5_bounds(p, th0, &opts.step5)
         .iter()
         .map(|b| (b.lo, b.hi))
         .collect();
@@ -917,24 +917,25 @@ fn add_fixed(
 /// beyond +-1 (the same rounding) are clipped to +-1.
 pub(crate) fn cap_variances(mut c: DMatrix<f64>, boxes: &[(f64, f64)]) -> DMatrix<f64> {
     let n = c.nrows();
-    let f: Vec<f64> = (0..n)
+    // per parameter the factor of its row and column; None: undetermined or lost to rounding
+    let f: Vec<Option<f64>> = (0..n)
         .map(|i| {
             let (lo, hi) = boxes[i];
             let cap = 0.25 * (hi - lo) * (hi - lo);
             let v = c[(i, i)];
             if !(cap.is_finite() && cap > 0.0) || (v > 0.0 && v <= cap) {
-                1.0
+                Some(1.0)
             } else if v.is_finite() && v > 0.0 {
-                (cap / v).sqrt()
+                Some((cap / v).sqrt())
             } else {
-                f64::NAN // undetermined or lost to rounding: replaced below
+                None
             }
         })
         .collect();
     for i in 0..n {
         for j in 0..n {
-            c[(i, j)] = match (f[i].is_nan(), f[j].is_nan()) {
-                (false, false) => c[(i, j)] * f[i] * f[j],
+            c[(i, j)] = match (f[i], f[j]) {
+                (Some(a), Some(b)) => c[(i, j)] * a * b,
                 _ if i == j => 0.25 * (boxes[i].1 - boxes[i].0).powi(2),
                 _ => 0.0,
             };
