@@ -81,6 +81,23 @@ pub fn json(r: &ValidationReport) -> Value {
         st.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
     }
     let mut top = Map::new();
+    let osc: Vec<Value> = r
+        .oscillation_rows()
+        .into_iter()
+        .map(|(set, w, count)| {
+            serde_json::json!({
+                "set": set,
+                "output": w.output,
+                "windows": count,
+                "worst_window_s": [w.t_start, w.t_end],
+                "simulated_p2p_pct": 100.0 * w.simulated_p2p,
+                "measured_p2p_pct": 100.0 * w.measured_p2p,
+            })
+        })
+        .collect();
+    if !osc.is_empty() {
+        top.insert("oscillations".into(), Value::Array(osc));
+    }
     top.insert("datasets".into(), Value::Object(sets));
     top.insert("stationary".into(), Value::Object(st));
     Value::Object(top)
@@ -118,6 +135,18 @@ pub fn run(a: &Args) -> Result<()> {
     let rep = common::with_spinner("validating", || {
         v::validate_campaign_with(a.model.order(), &c, &p, tau_me, roles.as_deref())
     })?;
+    for (set, w, count) in rep.oscillation_rows() {
+        eprintln!(
+            "warning: set {set}: the model oscillates with constant commands while the engine \
+             does not ({}: {count} window(s), worst {:.1}-{:.1} s, peak-to-peak {:.1} % \
+             simulated vs {:.1} % measured); see the report",
+            w.output,
+            w.t_start,
+            w.t_end,
+            100.0 * w.simulated_p2p,
+            100.0 * w.measured_p2p
+        );
+    }
     let md = rep.to_markdown();
     if let Some(dir) = &a.report {
         // render every file in memory first

@@ -45,6 +45,157 @@ pub struct DataSetErrors {
     pub name: String,
     /// Per output.
     pub outputs: Vec<OutputError>,
+    /// Windows of constant commands where the simulated output keeps moving and the measured
+    /// one does not ([`sustained_oscillations`]); empty for a model that settles like the
+    /// engine.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub oscillations: Vec<Oscillation>,
+}
+
+/// A window of constant commands in which the simulated output moves far more than the
+/// measured one: a sustained oscillation (limit cycle) of the model that the engine does not
+/// show. Found with tuned parameters whose compressor efficiency extrapolates low at small
+/// pressure ratios, so that eta_c reaches the authors' floor of 0.2 and Pi_c the floor of 1
+/// (docs/tuning.md, session 12).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Oscillation {
+    /// Output (p_im, p_em, W_c or n_t).
+    pub output: String,
+    /// Start of the window checked [s]: the second half of a constant-command interval.
+    pub t_start: f64,
+    /// End of the window [s].
+    pub t_end: f64,
+    /// Peak-to-peak of the simulated output in the window, relative to the normalization of
+    /// eq. (5) [-].
+    pub simulated_p2p: f64,
+    /// Peak-to-peak of the measured output in the window (noise included), same normalization
+    /// [-].
+    pub measured_p2p: f64,
+}
+
+/// Shortest constant-command interval checked by [`sustained_oscillations`] [s]: its second
+/// half starts at least 2 s after the last command change.
+pub const OSCILLATION_MIN_INTERVAL: f64 = 4.0;
+/// Peak-to-peak (relative to the normalization of eq. (5)) above which a simulated output in
+/// the settled half of a constant-command interval counts as moving, if it is also more than
+/// [`OSCILLATION_RATIO`] times the measured peak-to-peak there.
+pub const OSCILLATION_MIN_P2P: f64 = 0.02;
+/// See [`OSCILLATION_MIN_P2P`].
+pub const OSCILLATION_RATIO: f64 = 2.0;
+
+/// Sustained oscillations of the model on `d`: for every interval of constant commands (n_e,
+/// u_delta, u_egr, u_vgt each within 1e-3 of its range over the set) of at least
+/// [`OSCILLATION_MIN_INTERVAL`], the peak-to-peak of each output of `sims` (simulated values at
+/// the times `ts`, a grid finer than the samples) in the second half of the interval, against
+/// the measured one at the samples there;
+/// `norms` (p_im, p_em, W_c, n_t) normalize as eq. (5). A window is reported when the simulated
+/// peak-to-peak exceeds [`OSCILLATION_MIN_P2P`] and [`OSCILLATION_RATIO`] times the measured,
+/// and the simulated output turns back at least twice (retreats by more than a tenth of its
+/// peak-to-peak from its running extremum: a settling transient, monotone or with one
+/// overshoot, turns at most once). Sets whose commands never hold still (or lack a
+/// command column) have no windows.
+pub fn sustained_oscillations(
+    d: &DynamicData,
+    ts: &[f64],
+    sims: &[(&str, Vec<f64>)],
+    norms: &[Option<f64>; 5],
+) -> Vec<Oscillation> {
+    let cmds: Vec<&[f64]> = ["n_e", "u_delta", "u_egr", "u_vgt"]
+        .iter()
+        .filter_map(|c| d.get(c))
+        .collect();
+    let n = d.t.len();
+    if cmds.len() < 4 || n < 2 {
+        return Vec::new();
+    }
+    let tol: Vec<f64> = cmds
+        .iter()
+        .map(|c| {
+            let (lo, hi) = c
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            1e-3 * (hi - lo).max(0.0)
+        })
+        .collect();
+    let same = |i: usize, j: usize| {
+        cmds.iter()
+            .zip(&tol)
+            .all(|(c, tl)| (c[i] - c[j]).abs() <= *tl)
+    };
+    let mut out = Vec::new();
+    let mut i0 = 0;
+    while i0 < n {
+        let mut i1 = i0;
+        while i1 + 1 < n && same(i0, i1 + 1) {
+            i1 += 1;
+        }
+        let (ta, tb) = (d.t[i0], d.t[i1]);
+        if tb - ta >= OSCILLATION_MIN_INTERVAL {
+            let mid = ta + 0.5 * (tb - ta);
+            let win: Vec<usize> = (i0..=i1).filter(|&i| d.t[i] >= mid).collect();
+            let grid: Vec<usize> = (0..ts.len())
+                .filter(|&i| ts[i] >= mid && ts[i] <= tb)
+                .collect();
+            if win.len() >= 2 && grid.len() >= 4 {
+                for (k, name) in ["p_im", "p_em", "W_c", "n_t"].iter().enumerate() {
+                    let (Some(meas), Some((_, sim))) =
+                        (d.get(name), sims.iter().find(|s| s.0 == *name))
+                    else {
+                        continue;
+                    };
+                    let norm = norms[k]
+                        .unwrap_or_else(|| mean(meas.iter().copied()).unwrap_or(1.0))
+                        .abs();
+                    let p2p = |idx: &[usize], v: &[f64]| {
+                        let (lo, hi) = idx
+                            .iter()
+                            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &i| {
+                                (a.min(v[i]), b.max(v[i]))
+                            });
+                        (hi - lo) / norm
+                    };
+                    let (ps, pm) = (p2p(&grid, sim), p2p(&win, meas));
+                    // turns of the simulated output: retreats by more than a tenth of its
+                    // peak-to-peak from the running extremum (hysteresis)
+                    let h = 0.1 * ps * norm;
+                    let (mut dir, mut turns) = (0_i8, 0);
+                    let first = sim[grid[0]];
+                    let (mut lo, mut hi, mut ext) = (first, first, first);
+                    for &i in &grid[1..] {
+                        let v = sim[i];
+                        match dir {
+                            0 => {
+                                (lo, hi) = (lo.min(v), hi.max(v));
+                                if v > lo + h {
+                                    (dir, ext) = (1, v);
+                                } else if v < hi - h {
+                                    (dir, ext) = (-1, v);
+                                }
+                            }
+                            1 if v > ext => ext = v,
+                            1 if v < ext - h => (dir, ext, turns) = (-1, v, turns + 1),
+                            -1 if v < ext => ext = v,
+                            -1 if v > ext + h => (dir, ext, turns) = (1, v, turns + 1),
+                            _ => {}
+                        }
+                    }
+                    if ps > OSCILLATION_MIN_P2P && ps > OSCILLATION_RATIO * pm && turns >= 2 {
+                        out.push(Oscillation {
+                            output: name.to_string(),
+                            t_start: ts[grid[0]],
+                            t_end: tb,
+                            simulated_p2p: ps,
+                            measured_p2p: pm,
+                        });
+                    }
+                }
+            }
+        }
+        i0 = i1 + 1;
+    }
+    out
 }
 
 /// A validation report.
@@ -228,18 +379,42 @@ pub fn simulated_outputs(
 ) -> Result<Vec<(&'static str, Vec<f64>)>, String> {
     let dt = sample_interval(d);
     let dt_out = if tau_me.is_some() { dt.min(0.02) } else { dt };
+    let (ts, fine) = simulated_grid(order, p, d, tau_me, rtol, dt_out)?;
+    Ok(at_samples(d, &ts, fine))
+}
+
+/// Simulated outputs by name (p_im, p_em, W_c, n_t, M_e), each a series.
+type Outputs = Vec<(&'static str, Vec<f64>)>;
+
+/// The outputs of [`simulated_outputs`] on the simulation's own output grid (every `dt_out`):
+/// the grid times and (name, values).
+fn simulated_grid(
+    order: ModelOrder,
+    p: &Params,
+    d: &DynamicData,
+    tau_me: Option<f64>,
+    rtol: f64,
+    dt_out: f64,
+) -> Result<(Vec<f64>, Outputs), String> {
     let sol = simulate_set(order, p, d, dt_out, rtol)?;
-    let ts = sol.t();
+    let ts = sol.t().to_vec();
     let mut out = Vec::new();
     for name in ["p_im", "p_em", "W_c", "n_t", "M_e"] {
         let Some(sim) = sol.get(name) else { continue };
         let sim = match (name, tau_me) {
-            ("M_e", Some(tau)) => super::lab::first_order_lag(ts, sim, tau),
+            ("M_e", Some(tau)) => super::lab::first_order_lag(&ts, sim, tau),
             _ => sim.to_vec(),
         };
-        out.push((name, d.t.iter().map(|&t| interp(ts, &sim, t)).collect()));
+        out.push((name, sim));
     }
-    Ok(out)
+    Ok((ts, out))
+}
+
+/// Grid values sampled at the sample times of `d` (linear interpolation).
+fn at_samples(d: &DynamicData, ts: &[f64], fine: Outputs) -> Outputs {
+    fine.into_iter()
+        .map(|(name, v)| (name, d.t.iter().map(|&t| interp(ts, &v, t)).collect()))
+        .collect()
 }
 
 /// Means of the stationary measurements of p_im, p_em, W_c, n_t, M_e (normalization of eq. (5)).
@@ -274,13 +449,20 @@ pub fn dynamic_errors_with(
     stat: &[StationaryPoint],
     tau_me: Option<f64>,
 ) -> Result<DataSetErrors, ValidateError> {
-    let sims =
-        simulated_outputs(order, p, d, tau_me, SimOptions::default().rtol).map_err(|message| {
-            ValidateError::Model {
-                set: d.name.clone(),
-                message,
-            }
+    // a grid of at most 0.1 s (0.02 s with the dynamometer lag) for the oscillation check
+    let dt = sample_interval(d);
+    let dt_out = if tau_me.is_some() {
+        dt.min(0.02)
+    } else {
+        dt.min(0.1)
+    };
+    let (ts, fine) = simulated_grid(order, p, d, tau_me, SimOptions::default().rtol, dt_out)
+        .map_err(|message| ValidateError::Model {
+            set: d.name.clone(),
+            message,
         })?;
+    let oscillations = sustained_oscillations(d, &ts, &fine, &stationary_means(stat));
+    let sims = at_samples(d, &ts, fine);
     let means = stationary_means(stat);
     let mut outputs = Vec::new();
     for (k, name) in ["p_im", "p_em", "W_c", "n_t", "M_e"].iter().enumerate() {
@@ -304,6 +486,7 @@ pub fn dynamic_errors_with(
     Ok(DataSetErrors {
         name: d.name.clone(),
         outputs,
+        oscillations,
     })
 }
 
@@ -339,6 +522,7 @@ pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, Val
     Ok(DataSetErrors {
         name: d.name.clone(),
         outputs,
+        oscillations: Vec::new(),
     })
 }
 
@@ -439,7 +623,50 @@ impl ValidationReport {
                 s.push('\n');
             }
         }
+        let osc = self.oscillation_rows();
+        if !osc.is_empty() {
+            s.push_str(&format!(
+                "\nSustained oscillations of the model: in the second half of constant-command \
+                 intervals of at least {OSCILLATION_MIN_INTERVAL} s the simulated output moves by \
+                 more than {:.0} % and more than {OSCILLATION_RATIO} times the measured one (a limit \
+                 cycle the engine does not show; compare the figures):\n\n\
+                 | set | output | windows | first [s] | worst window [s] | simulated p2p (%) | measured p2p (%) |\n\
+                 |---|---|---|---|---|---|---|\n",
+                100.0 * OSCILLATION_MIN_P2P
+            ));
+            for (set, w, count) in osc {
+                s.push_str(&format!(
+                    "| {set} | {} | {count} | {:.1} | {:.1}-{:.1} | {:.1} | {:.1} |\n",
+                    w.output,
+                    w.t_start,
+                    w.t_start,
+                    w.t_end,
+                    100.0 * w.simulated_p2p,
+                    100.0 * w.measured_p2p
+                ));
+            }
+        }
         s
+    }
+
+    /// Per data set and output with [`Oscillation`] windows: the set, its worst window (largest
+    /// simulated peak-to-peak) and the number of windows, in set order.
+    pub fn oscillation_rows(&self) -> Vec<(&str, &Oscillation, usize)> {
+        let mut rows = Vec::new();
+        for d in &self.datasets {
+            for o in ["p_im", "p_em", "W_c", "n_t"] {
+                let ws: Vec<&Oscillation> =
+                    d.oscillations.iter().filter(|w| w.output == o).collect();
+                if let Some(worst) = ws
+                    .iter()
+                    .copied()
+                    .max_by(|a, b| a.simulated_p2p.total_cmp(&b.simulated_p2p))
+                {
+                    rows.push((d.name.as_str(), worst, ws.len()));
+                }
+            }
+        }
+        rows
     }
 
     /// CSV, one row per (data set, output): `set,output,mean_abs_rel_err,max_abs_rel_err,n`
@@ -458,5 +685,88 @@ impl ValidationReport {
             ));
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A set sampled at 1 Hz over 20 s with one command step at t = 10 s (intervals 0-9 s and
+    /// 10-19 s), measured n_t flat at 30 000 rpm with +-0.1 % alternating noise, and the
+    /// simulated n_t on a 0.1 s grid given by `sim`.
+    fn case(sim: impl Fn(f64) -> f64) -> (DynamicData, Vec<f64>, Outputs) {
+        let t: Vec<f64> = (0..20).map(f64::from).collect();
+        let u_vgt: Vec<f64> = t
+            .iter()
+            .map(|&x| if x < 10.0 { 60.0 } else { 70.0 })
+            .collect();
+        let n_t: Vec<f64> = (0..20)
+            .map(|i| 30_000.0 * (1.0 + if i % 2 == 0 { 1e-3 } else { -1e-3 }))
+            .collect();
+        let d = DynamicData {
+            name: "X".into(),
+            t: t.clone(),
+            columns: vec![
+                ("n_e".into(), vec![1200.0; 20]),
+                ("u_delta".into(), vec![50.0; 20]),
+                ("u_egr".into(), vec![40.0; 20]),
+                ("u_vgt".into(), u_vgt),
+                ("n_t".into(), n_t),
+            ],
+        };
+        let ts: Vec<f64> = (0..191).map(|k| 0.1 * f64::from(k)).collect();
+        let v = ts.iter().map(|&x| sim(x)).collect();
+        (d, ts, vec![("n_t", v)])
+    }
+
+    const NORMS: [Option<f64>; 5] = [None, None, None, Some(30_000.0), None];
+
+    /// By hand: a 2 s oscillation of +-3 % (peak-to-peak 6 %) in both intervals is reported
+    /// once per interval, over the second half of each (4.5-9 s and 14.5-19 s on the grid),
+    /// with the measured peak-to-peak 0.2 %.
+    #[test]
+    fn a_limit_cycle_under_constant_commands_is_reported_by_hand() {
+        let (d, ts, sims) = case(|x| 30_000.0 * (1.0 + 0.03 * (std::f64::consts::PI * x).sin()));
+        let w = sustained_oscillations(&d, &ts, &sims, &NORMS);
+        assert_eq!(w.len(), 2, "{w:?}");
+        for (o, (a, b)) in w.iter().zip([(4.5, 9.0), (14.5, 19.0)]) {
+            assert_eq!(o.output, "n_t");
+            assert!(
+                (o.t_start - a).abs() < 1e-9 && (o.t_end - b).abs() < 1e-12,
+                "{o:?}"
+            );
+            assert!((o.simulated_p2p - 0.06).abs() < 1e-3, "{o:?}");
+            assert!((o.measured_p2p - 0.002).abs() < 1e-12, "{o:?}");
+        }
+    }
+
+    /// By hand: a settling transient is not an oscillation, even a large one with an
+    /// overshoot (one turn), nor is a small oscillation (peak-to-peak 1 % < 2 %), nor a large
+    /// one that the measurement shows as well.
+    #[test]
+    fn settling_small_or_measured_motion_is_not_reported_by_hand() {
+        // 20 % step settling with time constant 2 s and one overshoot, after each command change
+        let settle = |x: f64| {
+            let s = x % 10.0;
+            30_000.0 * (1.0 + 0.2 * (-s / 2.0).exp() * (1.0 - s / 3.0))
+        };
+        let (d, ts, sims) = case(settle);
+        assert!(sustained_oscillations(&d, &ts, &sims, &NORMS).is_empty());
+        let (d, ts, sims) = case(|x| 30_000.0 * (1.0 + 0.005 * (std::f64::consts::PI * x).sin()));
+        assert!(sustained_oscillations(&d, &ts, &sims, &NORMS).is_empty());
+        // the measurement oscillates as much (sampled at 1 Hz: +-3 % at the odd samples)
+        let osc = |x: f64| 30_000.0 * (1.0 + 0.03 * (std::f64::consts::PI * (x + 0.5)).sin());
+        let (mut d, ts, sims) = case(osc);
+        let n_t = &mut d.columns[4].1;
+        for (i, v) in n_t.iter_mut().enumerate() {
+            *v = osc(i as f64);
+        }
+        assert!(sustained_oscillations(&d, &ts, &sims, &NORMS).is_empty());
+        // no command columns: no windows
+        let (mut d, ts, sims) =
+            case(|x| 30_000.0 * (1.0 + 0.03 * (std::f64::consts::PI * x).sin()));
+        d.columns.remove(0);
+        assert!(sustained_oscillations(&d, &ts, &sims, &NORMS).is_empty());
     }
 }
