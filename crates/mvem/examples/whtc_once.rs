@@ -5,7 +5,7 @@
 //! X_Oim, X_Oem by 0.1, omega_t by 1e4 rad/s) from a rtol 1e-10 run, computed once and cached
 //! in REF.csv (every state integrated numerically, so the closed-form actuator states are checked
 //! too). `--rtol R` and `--atol A` (x the state scales) set the tolerances of the measured run (default
-//! 1e-6 both, the library's defaults), `--method ros34pw2|rodas4|dopri5`
+//! 1e-6 both, the library's defaults), `--method ros34pw2|rodas4|exprb32|dopri5`
 //! its method (default: the library default); `--lags-across` runs it with
 //! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same). `--dump OUT.csv`
 //! writes the compared columns of the measured run (t and the five states).
@@ -58,7 +58,8 @@ fn run<const N: usize, M: Model<N>>(m: &M, args: &[String]) {
             Some("ros34pw2") => Method::Rosenbrock34,
             Some("rodas4") => Method::Rodas4,
             Some("dopri5") => Method::Dopri5,
-            Some(other) => panic!("--method {other}: ros34pw2, rodas4 or dopri5"),
+            Some("exprb32") => Method::Exprb32,
+            Some(other) => panic!("--method {other}: ros34pw2, rodas4, exprb32 or dopri5"),
         },
         stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
         time_chunks: arg("--time-parallel").map_or(1, |k| k.parse().expect("--time-parallel")),

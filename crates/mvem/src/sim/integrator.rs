@@ -32,13 +32,14 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) next_out: u64,
     pub(super) t_out0: f64,
     pub(super) jac: Option<[[f64; N]; N]>,
-    /// df/dt at the point of `jac` (RODAS4 only: the non-autonomous term).
+    /// df/dt at the point of `jac` (RODAS4 and exprb32 only: the non-autonomous term).
     pub(super) ft: [f64; N],
     /// Iteration matrix of the current Jacobian and step size (boxed: it is moved out and back
     /// at every step).
     pub(super) lu: Option<Box<IterationMatrix<N>>>,
     pub(super) jac_age: usize,
-    /// RODAS4: step size proposed after the first accepted step of the last segment (0: none).
+    /// RODAS4 and exprb32: step size proposed after the first accepted step of the last segment
+    /// (0: none).
     pub(super) h_first: f64,
     /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
     pub(super) jac_full: bool,
@@ -241,6 +242,8 @@ pub(super) enum Interp<const N: usize> {
         c3: [f64; N],
         c4: [f64; N],
     },
+    /// exprb32's continuous extension ([`super::exprb::ExprbDense`]).
+    Exprb(Box<super::exprb::ExprbDense<N>>),
     Hermite {
         y0: [f64; N],
         y1: [f64; N],
@@ -254,6 +257,7 @@ impl<const N: usize> Interp<N> {
     fn eval(&self, theta: f64) -> [f64; N] {
         match self {
             Interp::Dopri(d) => d.eval(theta),
+            Interp::Exprb(d) => d.eval(theta),
             Interp::Rodas { y0, y1, c3, c4 } => {
                 let s = theta;
                 std::array::from_fn(|i| {
@@ -445,7 +449,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 inp.set_segment(self.t, b);
             }
             self.plan_lags(&mut inp, self.t, b);
-            if self.opts.method == Method::Rodas4 {
+            if matches!(self.opts.method, Method::Rodas4 | Method::Exprb32) {
                 // J and f_t belong to one point and one segment's inputs
                 self.jac_age = usize::MAX;
             }
@@ -600,8 +604,9 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         // RODAS4: the first step after a stop (in the transient the kink starts) is limited far
         // more than the steps after it, so it starts from the proposal of the last segment's
         // first step, and the last step of a segment may stretch to 1.3 x the proposal while no
-        // step of the segment was rejected (docs/integrator.md; ROS34PW2 keeps one step size)
-        let rodas = self.opts.method == Method::Rodas4;
+        // step of the segment was rejected (docs/integrator.md; ROS34PW2 keeps one step size;
+        // exprb32 uses the same rules: with one step size it made 6.7 k more rejections)
+        let rodas = matches!(self.opts.method, Method::Rodas4 | Method::Exprb32);
         let max_stretch = if rodas { RODAS_STRETCH } else { 1.01 };
         let mut first = rodas;
         let mut rejected_here = false;
@@ -657,6 +662,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 Method::Dopri5 => self.step_dopri5(inp, t, h, t_new, &f0),
                 Method::Rosenbrock34 => self.step_rosw(inp, t, h, t_new, &f0),
                 Method::Rodas4 => self.step_rodas4(inp, t, h, t_new, &f0),
+                Method::Exprb32 => self.step_exprb32(inp, t, h, t_new, &f0),
             };
             let trial = match trial {
                 Ok(tr) => tr,

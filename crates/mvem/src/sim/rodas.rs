@@ -111,7 +111,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// this is the derivative of the reduced system dz/dt = f_z(z, a(t), u(t)) in t; it reads
     /// no input outside the segment (the perturbed inputs are values of the segment's own line,
     /// a relative 1.5e-8 away). Zero (and no evaluation) when nothing moves.
-    fn time_derivative(
+    pub(super) fn time_derivative(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,

@@ -228,7 +228,7 @@ impl<const N: usize> IterationMatrix<N> {
 impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// Finite-difference Jacobian df/dy at (t, y) with f(t, y) = f0 (forward differences,
     /// step sqrt(eps) relative to max(|y_i|, scale_i)); the columns with `skip[c]` stay zero.
-    fn jacobian(
+    pub(super) fn jacobian(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,
