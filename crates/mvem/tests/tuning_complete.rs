@@ -174,6 +174,10 @@ fn pipeline_on_a_tiny_noisy_campaign() {
     .unwrap();
     // validation role: A, I, Q
     assert_eq!(v.datasets.len(), 3);
+    // it settles like the engine wherever the commands are held (no limit cycle, the
+    // oscillation check of validate and of the tune report)
+    assert!(rep.oscillations.is_empty(), "{:?}", rep.oscillations);
+    assert!(v.oscillation_rows().is_empty());
     for d in &v.datasets {
         for o in &d.outputs {
             let e = o.mean_abs_rel_err;

@@ -84,14 +84,14 @@ pub fn json(r: &ValidationReport) -> Value {
     let osc: Vec<Value> = r
         .oscillation_rows()
         .into_iter()
-        .map(|(set, w, count)| {
+        .map(|o| {
             serde_json::json!({
-                "set": set,
-                "output": w.output,
-                "windows": count,
-                "worst_window_s": [w.t_start, w.t_end],
-                "simulated_p2p_pct": 100.0 * w.simulated_p2p,
-                "measured_p2p_pct": 100.0 * w.measured_p2p,
+                "set": o.set,
+                "output": o.output,
+                "windows": o.windows,
+                "worst_window_s": [o.worst.t_start, o.worst.t_end],
+                "simulated_p2p_pct": 100.0 * o.worst.simulated_p2p,
+                "measured_p2p_pct": 100.0 * o.worst.measured_p2p,
             })
         })
         .collect();
@@ -135,17 +135,8 @@ pub fn run(a: &Args) -> Result<()> {
     let rep = common::with_spinner("validating", || {
         v::validate_campaign_with(a.model.order(), &c, &p, tau_me, roles.as_deref())
     })?;
-    for (set, w, count) in rep.oscillation_rows() {
-        eprintln!(
-            "warning: set {set}: the model oscillates with constant commands while the engine \
-             does not ({}: {count} window(s), worst {:.1}-{:.1} s, peak-to-peak {:.1} % \
-             simulated vs {:.1} % measured); see the report",
-            w.output,
-            w.t_start,
-            w.t_end,
-            100.0 * w.simulated_p2p,
-            100.0 * w.measured_p2p
-        );
+    for o in rep.oscillation_rows() {
+        eprintln!("warning: {}; see the report", o.describe());
     }
     let md = rep.to_markdown();
     if let Some(dir) = &a.report {

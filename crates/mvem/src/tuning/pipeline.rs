@@ -29,6 +29,9 @@ use super::uncertainty::{
     step1_estimates, step2_estimates, toml_path, Combination, Conditional, Linearization, NamedCov,
     ParamEstimate,
 };
+use super::validate::{
+    dynamic_errors_with, oscillation_summary, DataSetErrors, OscillationSummary,
+};
 use crate::components::{compressor, pow_ln, turbine, Semantics};
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -156,6 +159,11 @@ pub struct TuneReport {
     /// [`turbine_efficiency_on_the_measured_range`]; eta_c at a measured compressor operating
     /// point, [`compressor_efficiency_on_the_measured_range`]).
     pub combinations: Vec<Combination>,
+    /// Sustained oscillations of the tuned model under constant commands that the engine does
+    /// not show, on the campaign's dynamic sets (not the actuator sets;
+    /// [`super::validate::sustained_oscillations`]); empty when it settles like the engine or
+    /// when a set cannot be simulated (validate reports that).
+    pub oscillations: Vec<OscillationSummary>,
     /// Wall time of each step [s] (0 when not run).
     pub seconds: [f64; 5],
     /// Total wall time [s].
@@ -237,6 +245,7 @@ pub fn tune(
         twelve: None,
         parameters: BTreeMap::new(),
         combinations: Vec::new(),
+        oscillations: Vec::new(),
         seconds: [0.0; 5],
         total_seconds: 0.0,
     };
@@ -397,8 +406,32 @@ pub fn tune(
                 &mut rep.parameters,
             ));
     }
+    rep.oscillations = oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
+}
+
+/// [`super::validate::sustained_oscillations`] of `p` on every dynamic set of `c` except the
+/// actuator sets (the tuning sets and the validation sets: the model's behaviour on any input of
+/// the campaign), in parallel; sets that fail to simulate are skipped.
+fn oscillations_on_campaign(
+    c: &Campaign,
+    p: &Params,
+    order: ModelOrder,
+    tau_me: Option<f64>,
+) -> Vec<OscillationSummary> {
+    use rayon::prelude::*;
+    let sets: Vec<DataSetErrors> = c
+        .manifest
+        .datasets
+        .iter()
+        .zip(&c.dynamic)
+        .filter(|(i, _)| i.kind != StepKind::Actuator)
+        .collect::<Vec<_>>()
+        .par_iter()
+        .filter_map(|(_, d)| dynamic_errors_with(order, p, d, &c.stationary, tau_me).ok())
+        .collect();
+    oscillation_summary(&sets)
 }
 
 /// The point `(x, y)` of `points` where `f(p, x, y)` has the smallest positive, finite

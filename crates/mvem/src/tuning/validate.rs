@@ -73,6 +73,37 @@ pub struct Oscillation {
     pub measured_p2p: f64,
 }
 
+/// The [`Oscillation`] windows of one data set and output: their number and the worst
+/// (largest simulated peak-to-peak).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OscillationSummary {
+    /// Data set name.
+    pub set: String,
+    /// Output.
+    pub output: String,
+    /// Number of windows.
+    pub windows: usize,
+    /// The window with the largest simulated peak-to-peak.
+    pub worst: Oscillation,
+}
+
+impl OscillationSummary {
+    /// One line for a warning: set, output, windows, worst window and its peak-to-peaks.
+    pub fn describe(&self) -> String {
+        format!(
+            "set {}: {} oscillates with constant commands while the engine does not ({} \
+             window(s), worst {:.1}-{:.1} s, peak-to-peak {:.1} % simulated vs {:.1} % measured)",
+            self.set,
+            self.output,
+            self.windows,
+            self.worst.t_start,
+            self.worst.t_end,
+            100.0 * self.worst.simulated_p2p,
+            100.0 * self.worst.measured_p2p
+        )
+    }
+}
+
 /// Shortest constant-command interval checked by [`sustained_oscillations`] [s]: its second
 /// half starts at least 2 s after the last command change.
 pub const OSCILLATION_MIN_INTERVAL: f64 = 4.0;
@@ -526,6 +557,30 @@ pub fn actuator_errors(p: &Params, d: &DynamicData) -> Result<DataSetErrors, Val
     })
 }
 
+/// Per data set and output of `sets` with [`Oscillation`] windows: their number and the worst,
+/// in set order.
+pub fn oscillation_summary(sets: &[DataSetErrors]) -> Vec<OscillationSummary> {
+    let mut rows = Vec::new();
+    for d in sets {
+        for o in ["p_im", "p_em", "W_c", "n_t"] {
+            let ws: Vec<&Oscillation> = d.oscillations.iter().filter(|w| w.output == o).collect();
+            if let Some(worst) = ws
+                .iter()
+                .copied()
+                .max_by(|a, b| a.simulated_p2p.total_cmp(&b.simulated_p2p))
+            {
+                rows.push(OscillationSummary {
+                    set: d.name.clone(),
+                    output: o.to_string(),
+                    windows: ws.len(),
+                    worst: worst.clone(),
+                });
+            }
+        }
+    }
+    rows
+}
+
 /// Validate `p` on a loaded campaign (torque unfiltered; see [`validate_campaign_with`]).
 pub fn validate_campaign(c: &Campaign, p: &Params) -> Result<ValidationReport, ValidateError> {
     validate_campaign_with(ModelOrder::Eight, c, p, None, None)
@@ -634,39 +689,27 @@ impl ValidationReport {
                  |---|---|---|---|---|---|---|\n",
                 100.0 * OSCILLATION_MIN_P2P
             ));
-            for (set, w, count) in osc {
+            for r in osc {
                 s.push_str(&format!(
-                    "| {set} | {} | {count} | {:.1} | {:.1}-{:.1} | {:.1} | {:.1} |\n",
-                    w.output,
-                    w.t_start,
-                    w.t_start,
-                    w.t_end,
-                    100.0 * w.simulated_p2p,
-                    100.0 * w.measured_p2p
+                    "| {} | {} | {} | {:.1} | {:.1}-{:.1} | {:.1} | {:.1} |\n",
+                    r.set,
+                    r.output,
+                    r.windows,
+                    r.worst.t_start,
+                    r.worst.t_start,
+                    r.worst.t_end,
+                    100.0 * r.worst.simulated_p2p,
+                    100.0 * r.worst.measured_p2p
                 ));
             }
         }
         s
     }
 
-    /// Per data set and output with [`Oscillation`] windows: the set, its worst window (largest
-    /// simulated peak-to-peak) and the number of windows, in set order.
-    pub fn oscillation_rows(&self) -> Vec<(&str, &Oscillation, usize)> {
-        let mut rows = Vec::new();
-        for d in &self.datasets {
-            for o in ["p_im", "p_em", "W_c", "n_t"] {
-                let ws: Vec<&Oscillation> =
-                    d.oscillations.iter().filter(|w| w.output == o).collect();
-                if let Some(worst) = ws
-                    .iter()
-                    .copied()
-                    .max_by(|a, b| a.simulated_p2p.total_cmp(&b.simulated_p2p))
-                {
-                    rows.push((d.name.as_str(), worst, ws.len()));
-                }
-            }
-        }
-        rows
+    /// Per data set and output with [`Oscillation`] windows: their number and the worst, in
+    /// set order.
+    pub fn oscillation_rows(&self) -> Vec<OscillationSummary> {
+        oscillation_summary(&self.datasets)
     }
 
     /// CSV, one row per (data set, output): `set,output,mean_abs_rel_err,max_abs_rel_err,n`
