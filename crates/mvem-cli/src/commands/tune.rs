@@ -91,6 +91,11 @@ pub struct Args {
     /// only when they lower the cost (can cost many evaluations; docs/tuning.md).
     #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
     pub restarts: usize,
+    /// Step 5 in two passes when the model at its start oscillates on some data sets where the
+    /// engine does not: first without those sets, then on all (opt-in; better validation on
+    /// the one campaign measured, but slower and one standard error too small; docs/tuning.md)
+    #[arg(long = "step5-stage-oscillating")]
+    pub step5_stage_oscillating: bool,
     /// Step 3: length [s] of the fully weighted part of each step response; later samples
     /// weigh `--step3-tail-weight` (not in the paper; default `inf`: eq. (75), every sample
     /// alike; 0.5 s halves the spread of V_em but can change step 5's path, docs/tuning.md).
@@ -180,6 +185,7 @@ pub fn run(a: &Args) -> Result<()> {
     }
     opts.step5.rel_offset_tol = a.rel_offset;
     opts.step5.restarts = a.restarts;
+    opts.stage_oscillating = a.step5_stage_oscillating;
     if a.step3_window.is_nan() || a.step3_window <= 0.0 {
         return Err(common::usage(format!(
             "--step3-window {}: must be > 0 seconds (inf: every sample alike)",
@@ -394,6 +400,15 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );
+        if !r.first_pass_without.is_empty() {
+            let _ = writeln!(
+                s,
+                "**Two passes:** the model at step 5's start oscillated on set(s) {} where the \
+                 engine does not, so a first pass left them out and the pass above started from \
+                 its result (counts include both; `--step5-stage-oscillating`).\n",
+                r.first_pass_without.join(", ")
+            );
+        }
         if let Some(note) = r.stop_note() {
             let _ = writeln!(s, "**Note:** {note}.\n");
         }

@@ -1114,6 +1114,11 @@ pub struct Step5Report {
     pub stopped_by: String,
     /// Bates-Watts relative offset at the end ([`super::lsq::relative_offset`]).
     pub rel_offset: f64,
+    /// Data sets left out of a first pass of step 5 because the model at its start oscillated on
+    /// them where the engine does not (`PipelineOptions::stage_oscillating`); this report is
+    /// the second pass, on every set, from the first pass's result (its evaluations, iterations
+    /// and Jacobians included in the counts). Empty: one pass.
+    pub first_pass_without: Vec<String>,
     /// Restarts of the search that lowered the cost after ftol/xtol stopped it away from the
     /// optimum ([`Step5Options::restarts`]).
     pub restarts: usize,
@@ -1345,6 +1350,7 @@ pub fn step5(
             converged: fit.termination.converged(),
             stopped_by: fit.termination.name().to_string(),
             rel_offset: fit.rel_offset,
+            first_pass_without: Vec::new(),
             restarts,
             submodels,
             dynamic,
@@ -1428,6 +1434,7 @@ mod tests {
             converged: true,
             stopped_by: stopped_by.into(),
             rel_offset,
+            first_pass_without: Vec::new(),
             restarts: 0,
             submodels: Vec::new(),
             dynamic: Vec::new(),
