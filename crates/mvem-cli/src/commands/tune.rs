@@ -323,23 +323,9 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
              half of constant-command intervals (at least 4 s) the simulated output below moves \
              by more than 2 % and twice the measured one, turning back and forth (a limit cycle; \
              `mvem validate` shows the figures). The parameters cannot be trusted there; see \
-             docs/tuning.md, session 12.\n\n| set | output | windows | worst window [s] | \
-             simulated p2p (%) | measured p2p (%) |\n|---|---|---|---|---|---|"
+             docs/tuning.md, session 12.\n\n{}",
+            mvem::tuning::validate::oscillation_table(&rep.oscillations)
         );
-        for o in &rep.oscillations {
-            let _ = writeln!(
-                s,
-                "| {} | {} | {} | {:.1}-{:.1} | {:.1} | {:.1} |",
-                o.set,
-                o.output,
-                o.windows,
-                o.worst.t_start,
-                o.worst.t_end,
-                100.0 * o.worst.simulated_p2p,
-                100.0 * o.worst.measured_p2p
-            );
-        }
-        s.push('\n');
     }
     let table = |s: &mut String, title: &str, rows: &[mvem::tuning::steps::FitReport]| {
         let _ = writeln!(s, "## {title}\n\n| submodel / output | mean abs. rel. error (%) | max abs. rel. error (%) | n |\n|---|---|---|---|");

@@ -422,18 +422,31 @@ pub fn tune(
     Ok((p, rep))
 }
 
+/// Errors of the model `p` on `sets` ([`dynamic_errors_with`], with their oscillation windows),
+/// in parallel; sets that fail to simulate are skipped (validate reports them).
+fn errors_on_sets(
+    p: &Params,
+    sets: &[&DynamicData],
+    stat: &[super::data::StationaryPoint],
+    order: ModelOrder,
+    tau_me: Option<f64>,
+) -> Vec<DataSetErrors> {
+    use rayon::prelude::*;
+    sets.par_iter()
+        .filter_map(|d| dynamic_errors_with(order, p, d, stat, tau_me).ok())
+        .collect()
+}
+
 /// Names of the sets of `sets` on which the model `p` oscillates where the engine does not
-/// ([`super::validate::sustained_oscillations`]), in parallel; sets that fail to simulate are
-/// not counted.
+/// ([`super::validate::sustained_oscillations`]); sets that fail to simulate are not counted.
 fn oscillating_sets(
     p: &Params,
     sets: &[&DynamicData],
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
 ) -> Vec<String> {
-    use rayon::prelude::*;
-    sets.par_iter()
-        .filter_map(|d| dynamic_errors_with(order, p, d, stat, None).ok())
+    errors_on_sets(p, sets, stat, order, None)
+        .into_iter()
         .filter(|e| !e.oscillations.is_empty())
         .map(|e| e.name)
         .collect()
@@ -441,25 +454,22 @@ fn oscillating_sets(
 
 /// [`super::validate::sustained_oscillations`] of `p` on every dynamic set of `c` except the
 /// actuator sets (the tuning sets and the validation sets: the model's behaviour on any input of
-/// the campaign), in parallel; sets that fail to simulate are skipped.
+/// the campaign); sets that fail to simulate are skipped.
 fn oscillations_on_campaign(
     c: &Campaign,
     p: &Params,
     order: ModelOrder,
     tau_me: Option<f64>,
 ) -> Vec<OscillationSummary> {
-    use rayon::prelude::*;
-    let sets: Vec<DataSetErrors> = c
+    let sets: Vec<&DynamicData> = c
         .manifest
         .datasets
         .iter()
         .zip(&c.dynamic)
         .filter(|(i, _)| i.kind != StepKind::Actuator)
-        .collect::<Vec<_>>()
-        .par_iter()
-        .filter_map(|(_, d)| dynamic_errors_with(order, p, d, &c.stationary, tau_me).ok())
+        .map(|(_, d)| d)
         .collect();
-    oscillation_summary(&sets)
+    oscillation_summary(&errors_on_sets(p, &sets, &c.stationary, order, tau_me))
 }
 
 /// The point `(x, y)` of `points` where `f(p, x, y)` has the smallest positive, finite
