@@ -126,6 +126,14 @@ fn cost_77_vanishes_at_the_truth_and_grows_away_from_it() {
         c.dataset("B").unwrap().1.t.len(),
     );
     assert_eq!(cost.len(), 4 * (na + nb.div_ceil(10)) + 7 * 20);
+    // rows without B (an oscillating set leaves the linearization): A's, none of B's
+    // subsampled rows, every stationary row
+    let keep = cost.rows_without(&["B".to_string()]);
+    assert_eq!(keep.len(), cost.len());
+    assert!(keep[..4 * na].iter().all(|k| *k));
+    assert!(keep[4 * na..4 * (na + nb.div_ceil(10))].iter().all(|k| !*k));
+    assert!(keep[4 * (na + nb.div_ceil(10))..].iter().all(|k| *k));
+    assert!(cost.rows_without(&[]).iter().all(|k| *k));
     let th = static_theta(&p);
     let v0 = cost.cost(&th);
     // only the integration error of the lab (rtol 1e-6) remains

@@ -91,11 +91,18 @@ pub struct Args {
     /// only when they lower the cost (can cost many evaluations; docs/tuning.md).
     #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
     pub restarts: usize,
-    /// Step 5 in two passes when the model at its start oscillates on some data sets where the
-    /// engine does not: first without those sets, then on all (opt-in; better validation on
-    /// the one campaign measured, but slower and one standard error too small; docs/tuning.md)
-    #[arg(long = "step5-stage-oscillating")]
-    pub step5_stage_oscillating: bool,
+    /// Step 5 in one pass even when the model at its start oscillates on some data sets where
+    /// the engine does not (by default a first pass leaves those sets out, then a second pass
+    /// runs on all sets from its result; docs/tuning.md, sessions 12-13).
+    #[arg(long = "step5-single-pass")]
+    pub step5_single_pass: bool,
+    /// Evaluation limit of the first pass of a two-pass step 5.
+    #[arg(
+        long = "step5-first-pass-max",
+        default_value_t = 3600,
+        value_name = "N"
+    )]
+    pub step5_first_pass_max: usize,
     /// Step 3: length [s] of the fully weighted part of each step response; later samples
     /// weigh `--step3-tail-weight` (not in the paper; default `inf`: eq. (75), every sample
     /// alike; 0.5 s halves the spread of V_em but can change step 5's path, docs/tuning.md).
@@ -185,7 +192,8 @@ pub fn run(a: &Args) -> Result<()> {
     }
     opts.step5.rel_offset_tol = a.rel_offset;
     opts.step5.restarts = a.restarts;
-    opts.stage_oscillating = a.step5_stage_oscillating;
+    opts.stage_oscillating = !a.step5_single_pass;
+    opts.stage_first_pass_max_evaluations = a.step5_first_pass_max;
     if a.step3_window.is_nan() || a.step3_window <= 0.0 {
         return Err(common::usage(format!(
             "--step3-window {}: must be > 0 seconds (inf: every sample alike)",
@@ -391,8 +399,17 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
                 s,
                 "**Two passes:** the model at step 5's start oscillated on set(s) {} where the \
                  engine does not, so a first pass left them out and the pass above started from \
-                 its result (counts include both; `--step5-stage-oscillating`).\n",
+                 its result (counts include both; `--step5-single-pass` turns this off).\n",
                 r.first_pass_without.join(", ")
+            );
+        }
+        if !r.linearized_without.is_empty() {
+            let _ = writeln!(
+                s,
+                "**Standard errors without set(s) {}:** the tuned model oscillates there where \
+                 the engine does not, so their rows of the Jacobian (noise of a limit cycle's \
+                 phase) were left out of the covariance; the estimate itself used every set.\n",
+                r.linearized_without.join(", ")
             );
         }
         if let Some(note) = r.stop_note() {

@@ -1002,6 +1002,20 @@ impl Cost77 {
         b
     }
 
+    /// Per residual (the order of [`Cost77::residuals`]) whether it belongs to a data set not
+    /// named in `without` (the stationary rows always do).
+    pub fn rows_without(&self, without: &[String]) -> Vec<bool> {
+        let mut k = Vec::with_capacity(self.n_res);
+        if self.opts.dynamic_row {
+            for (d, _) in &self.sets {
+                let kept = !without.contains(&d.name);
+                k.extend(std::iter::repeat_n(kept, DYN_OUTPUTS.len() * d.t.len()));
+            }
+        }
+        k.resize(self.n_res, true);
+        k
+    }
+
     /// Number of residuals.
     pub fn len(&self) -> usize {
         self.n_res
@@ -1119,6 +1133,11 @@ pub struct Step5Report {
     /// the second pass, on every set, from the first pass's result (its evaluations, iterations
     /// and Jacobians included in the counts). Empty: one pass.
     pub first_pass_without: Vec<String>,
+    /// Data sets whose rows were left out of the linearization behind the standard errors
+    /// because the tuned model oscillates on them where the engine does not: a limit cycle's
+    /// phase moves with every parameter, so those rows of the finite-difference Jacobian are
+    /// noise, large enough to pass for information (standard errors too small). Empty: every set.
+    pub linearized_without: Vec<String>,
     /// Restarts of the search that lowered the cost after ftol/xtol stopped it away from the
     /// optimum ([`Step5Options::restarts`]).
     pub restarts: usize,
@@ -1351,6 +1370,7 @@ pub fn step5(
             stopped_by: fit.termination.name().to_string(),
             rel_offset: fit.rel_offset,
             first_pass_without: Vec::new(),
+            linearized_without: Vec::new(),
             restarts,
             submodels,
             dynamic,
@@ -1435,6 +1455,7 @@ mod tests {
             stopped_by: stopped_by.into(),
             rel_offset,
             first_pass_without: Vec::new(),
+            linearized_without: Vec::new(),
             restarts: 0,
             submodels: Vec::new(),
             dynamic: Vec::new(),
