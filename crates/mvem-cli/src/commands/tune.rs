@@ -247,6 +247,16 @@ pub fn run(a: &Args) -> Result<()> {
     }
     // a step 5 stopped away from its optimum by more than the noise (relative offset)
     for r in [&rep.step5, &rep.step5_refined].into_iter().flatten() {
+        if !r.first_pass_without.is_empty() {
+            eprintln!(
+                "note: step 5 ran in two passes: the model after steps 1-4 oscillates on set(s) {} \
+                 where the engine does not, so a first pass left them out ({} evaluations, \
+                 stopped by: {}); --step5-single-pass turns this off",
+                r.first_pass_without.join(", "),
+                r.first_pass_evaluations,
+                r.first_pass_stopped_by
+            );
+        }
         if let Some(note) = r.stop_note() {
             eprintln!("warning: {note}");
         }
@@ -398,9 +408,13 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             let _ = writeln!(
                 s,
                 "**Two passes:** the model at step 5's start oscillated on set(s) {} where the \
-                 engine does not, so a first pass left them out and the pass above started from \
-                 its result (counts include both; `--step5-single-pass` turns this off).\n",
-                r.first_pass_without.join(", ")
+                 engine does not, so a first pass left them out ({} evaluations, stopped by: \
+                 {}) and the pass above started from its result (counts include both; \
+                 `--step5-single-pass` turns this off, `--step5-first-pass-max` limits the first \
+                 pass).\n",
+                r.first_pass_without.join(", "),
+                r.first_pass_evaluations,
+                r.first_pass_stopped_by
             );
         }
         if !r.linearized_without.is_empty() {

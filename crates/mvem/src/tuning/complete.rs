@@ -1133,6 +1133,11 @@ pub struct Step5Report {
     /// the second pass, on every set, from the first pass's result (its evaluations, iterations
     /// and Jacobians included in the counts). Empty: one pass.
     pub first_pass_without: Vec<String>,
+    /// Evaluations of that first pass and the rule that stopped it (as `stopped_by`); 0 and
+    /// empty for one pass.
+    pub first_pass_evaluations: usize,
+    /// See [`Step5Report::first_pass_evaluations`].
+    pub first_pass_stopped_by: String,
     /// Data sets whose rows were left out of the linearization behind the standard errors
     /// because the tuned model oscillates on them where the engine does not: a limit cycle's
     /// phase moves with every parameter, so those rows of the finite-difference Jacobian are
@@ -1370,6 +1375,8 @@ pub fn step5(
             stopped_by: fit.termination.name().to_string(),
             rel_offset: fit.rel_offset,
             first_pass_without: Vec::new(),
+            first_pass_evaluations: 0,
+            first_pass_stopped_by: String::new(),
             linearized_without: Vec::new(),
             restarts,
             submodels,
@@ -1455,6 +1462,8 @@ mod tests {
             stopped_by: stopped_by.into(),
             rel_offset,
             first_pass_without: Vec::new(),
+            first_pass_evaluations: 0,
+            first_pass_stopped_by: String::new(),
             linearized_without: Vec::new(),
             restarts: 0,
             submodels: Vec::new(),

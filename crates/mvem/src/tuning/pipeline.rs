@@ -893,6 +893,8 @@ fn run_step5(
     let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
     if let Some((osc, r1)) = first {
         r.first_pass_without = osc;
+        r.first_pass_evaluations = r1.n_eval;
+        r.first_pass_stopped_by = r1.stopped_by.clone();
         r.cost_start = r1.cost_start;
         r.n_eval += r1.n_eval;
         r.n_iter += r1.n_iter;
@@ -1579,6 +1581,8 @@ mod tests {
             stopped_by: "xtol".into(),
             rel_offset: 0.1,
             first_pass_without: Vec::new(),
+            first_pass_evaluations: 0,
+            first_pass_stopped_by: String::new(),
             linearized_without: Vec::new(),
             restarts: 0,
             submodels: Vec::new(),
