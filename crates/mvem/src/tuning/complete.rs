@@ -1164,6 +1164,37 @@ pub struct Step5Report {
     pub linearization: Option<Linearization>,
 }
 
+#[cfg(test)]
+impl Step5Report {
+    /// A report of `n` parameters p0, p1, ... (all 1) stopped by `stopped_by` at relative
+    /// offset `rel_offset`, one pass, no linearization (unit tests).
+    pub(crate) fn for_tests(n: usize, stopped_by: &str, rel_offset: f64) -> Self {
+        Self {
+            params: (0..n).map(|k| (format!("p{k}"), 1.0)).collect(),
+            cost_start: 2.0,
+            cost_end: 1.0,
+            n_eval: 10,
+            n_iter: 2,
+            n_jacobians: 2,
+            converged: true,
+            stopped_by: stopped_by.into(),
+            rel_offset,
+            first_pass_without: Vec::new(),
+            first_pass_evaluations: 0,
+            first_pass_stopped_by: String::new(),
+            linearized_without: Vec::new(),
+            restarts: 0,
+            submodels: Vec::new(),
+            dynamic: Vec::new(),
+            eval_seconds: 0.01,
+            at_bounds: Vec::new(),
+            rel_std_err: Vec::new(),
+            uncertainty: Vec::new(),
+            linearization: None,
+        }
+    }
+}
+
 impl Step5Report {
     /// A note when the search stopped away from the least-squares optimum by more than the
     /// noise: a rule other than the relative offset or gtol stopped it with the Bates-Watts
@@ -1451,29 +1482,7 @@ mod tests {
     }
 
     fn report(stopped_by: &str, rel_offset: f64) -> Step5Report {
-        Step5Report {
-            params: (0..35).map(|k| (format!("p{k}"), 1.0)).collect(),
-            cost_start: 2.0,
-            cost_end: 1.0,
-            n_eval: 10,
-            n_iter: 2,
-            n_jacobians: 2,
-            converged: true,
-            stopped_by: stopped_by.into(),
-            rel_offset,
-            first_pass_without: Vec::new(),
-            first_pass_evaluations: 0,
-            first_pass_stopped_by: String::new(),
-            linearized_without: Vec::new(),
-            restarts: 0,
-            submodels: Vec::new(),
-            dynamic: Vec::new(),
-            eval_seconds: 0.01,
-            at_bounds: Vec::new(),
-            rel_std_err: Vec::new(),
-            uncertainty: Vec::new(),
-            linearization: None,
-        }
+        Step5Report::for_tests(35, stopped_by, rel_offset)
     }
 
     #[test]

@@ -1572,30 +1572,13 @@ mod tests {
         let full = block_covariance(&jac, &res, &blocks);
         let mut r = Step5Report {
             params: vec![("p".into(), 2.0)],
-            cost_start: 2.0,
-            cost_end: 1.0,
-            n_eval: 10,
-            n_iter: 2,
-            n_jacobians: 2,
-            converged: true,
-            stopped_by: "xtol".into(),
-            rel_offset: 0.1,
-            first_pass_without: Vec::new(),
-            first_pass_evaluations: 0,
-            first_pass_stopped_by: String::new(),
-            linearized_without: Vec::new(),
-            restarts: 0,
-            submodels: Vec::new(),
-            dynamic: Vec::new(),
-            eval_seconds: 0.01,
-            at_bounds: Vec::new(),
-            rel_std_err: Vec::new(),
             uncertainty: estimates_from_cov(&["p"], &[2.0], &full, 5),
             linearization: Some(Linearization {
                 names: vec!["p".into()],
                 jacobian: jac,
                 covariance: full.clone(),
             }),
+            ..Step5Report::for_tests(1, "xtol", 0.1)
         };
         // with every row: about sqrt(7/6 * 3e6) / 3e6 = 6.2e-4
         assert!(
