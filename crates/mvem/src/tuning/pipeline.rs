@@ -909,20 +909,24 @@ fn run_step5(
     } else {
         Vec::new()
     };
-    let keep: Option<Vec<bool>> = (!osc_end.is_empty()).then(|| cost.rows_without(&osc_end));
-    if let Some(keep) = &keep {
+    let mut keep: Option<Vec<bool>> = (!osc_end.is_empty()).then(|| cost.rows_without(&osc_end));
+    if let Some(k) = &keep {
         let scales: Vec<f64> = step5_bounds(p, &th0, &opts.step5)
             .iter()
             .map(|b| b.scale)
             .collect();
-        let blocks = kept_blocks(&cost.covariance_blocks(), keep);
+        let blocks = kept_blocks(&cost.covariance_blocks(), k);
         let step = if opts.model == ModelOrder::Twelve {
             8
         } else {
             5
         };
-        relinearize_rows(&mut r, keep, &cost.residuals_at(p), &blocks, &scales, step);
-        r.linearized_without = osc_end;
+        if relinearize_rows(&mut r, k, &cost.residuals_at(p), &blocks, &scales, step) {
+            r.linearized_without = osc_end;
+        } else {
+            // the linearization keeps every row, and so must the chained residuals
+            keep = None;
+        }
     }
     let cond = add_fixed(
         &mut r.uncertainty,
@@ -970,7 +974,8 @@ fn kept_blocks(blocks: &[usize], keep: &[bool]) -> Vec<usize> {
 /// Jacobian that `keep` keeps (`residuals`: cost (77) at the estimate, all rows; `blocks`:
 /// the kept rows' blocks; `scales`: the parameters' typical magnitudes, for the relative
 /// standard errors of [`Step5Report::rel_std_err`], computed as in `step5`). Used when the tuned model oscillates on some sets
-/// ([`Step5Report::linearized_without`]); fewer rows than parameters leave `r` as it is.
+/// ([`Step5Report::linearized_without`]). Whether it did: fewer rows than parameters (or
+/// lengths that do not match) leave `r` as it is.
 fn relinearize_rows(
     r: &mut Step5Report,
     keep: &[bool],
@@ -978,16 +983,16 @@ fn relinearize_rows(
     blocks: &[usize],
     scales: &[f64],
     step: u8,
-) {
+) -> bool {
     let Some(lin) = r.linearization.as_mut() else {
-        return;
+        return false;
     };
     let rows: Vec<usize> = (0..keep.len()).filter(|&i| keep[i]).collect();
     if rows.len() <= lin.jacobian.ncols()
         || keep.len() != lin.jacobian.nrows()
         || residuals.len() != keep.len()
     {
-        return;
+        return false;
     }
     let j = lin.jacobian.select_rows(rows.iter());
     let res = select_rows(residuals, keep);
@@ -996,7 +1001,7 @@ fn relinearize_rows(
     let names: Vec<&str> = lin.names.iter().map(String::as_str).collect();
     let theta: Vec<f64> = r.uncertainty.iter().map(|(_, e)| e.value).collect();
     if theta.len() != names.len() {
-        return;
+        return false;
     }
     r.uncertainty = estimates_from_cov(&names, &theta, &cov, step);
     r.rel_std_err = names
@@ -1007,6 +1012,7 @@ fn relinearize_rows(
         .collect();
     lin.jacobian = j;
     lin.covariance = cov;
+    true
 }
 
 /// Step 3 on `sets` from `p` (replaced by the result), its uncertainty with that of the
@@ -1589,7 +1595,7 @@ mod tests {
         let keep = [true, true, true, true, false, false, false];
         let kept = kept_blocks(&blocks, &keep);
         assert_eq!(kept, vec![4]);
-        relinearize_rows(&mut r, &keep, &res, &kept, &[1.0], 5);
+        assert!(relinearize_rows(&mut r, &keep, &res, &kept, &[1.0], 5));
         // calm rows only: m = 4, n = 1, dof factor 4/3, mean square 0.01, lag-1 correlation
         // -0.75 (clamped to 0): variance 0.01 * 4/3 / (J^T J = 4) = 1/300
         let se = r.uncertainty[0].1.std_error;
