@@ -256,6 +256,13 @@ pub fn run(a: &Args) -> Result<()> {
                 r.first_pass_evaluations,
                 r.first_pass_stopped_by
             );
+            if !r.first_pass_discarded_for.is_empty() {
+                eprintln!(
+                    "warning: step 5's first pass was discarded: set(s) {} no longer simulate at \
+                     its result; step 5 ran in one pass from its start",
+                    r.first_pass_discarded_for.join(", ")
+                );
+            }
         }
         if let Some(note) = r.stop_note() {
             eprintln!("warning: {note}");
@@ -416,6 +423,14 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
                 r.first_pass_evaluations,
                 r.first_pass_stopped_by
             );
+            if !r.first_pass_discarded_for.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "**First pass discarded:** set(s) {} no longer simulate at its result, so \
+                     the pass above started from step 5's start.\n",
+                    r.first_pass_discarded_for.join(", ")
+                );
+            }
         }
         if !r.linearized_without.is_empty() {
             let _ = writeln!(

@@ -1138,6 +1138,10 @@ pub struct Step5Report {
     pub first_pass_evaluations: usize,
     /// See [`Step5Report::first_pass_evaluations`].
     pub first_pass_stopped_by: String,
+    /// Sets that simulate at step 5's start but not at the first pass's result (no stable
+    /// steady start, a failed solve); when not empty the first pass was discarded and this
+    /// report's pass started from step 5's start (the first pass's evaluations still counted).
+    pub first_pass_discarded_for: Vec<String>,
     /// Data sets whose rows were left out of the linearization behind the standard errors
     /// because the tuned model oscillates on them where the engine does not: a limit cycle's
     /// phase moves with every parameter, so those rows of the finite-difference Jacobian are
@@ -1182,6 +1186,7 @@ impl Step5Report {
             first_pass_without: Vec::new(),
             first_pass_evaluations: 0,
             first_pass_stopped_by: String::new(),
+            first_pass_discarded_for: Vec::new(),
             linearized_without: Vec::new(),
             restarts: 0,
             submodels: Vec::new(),
@@ -1408,6 +1413,7 @@ pub fn step5(
             first_pass_without: Vec::new(),
             first_pass_evaluations: 0,
             first_pass_stopped_by: String::new(),
+            first_pass_discarded_for: Vec::new(),
             linearized_without: Vec::new(),
             restarts,
             submodels,

@@ -864,9 +864,14 @@ fn run_step5(
     }
     // a start that oscillates on some sets where the engine does not: a first pass without them
     let mut th0 = th0.to_vec();
-    let mut first: Option<(Vec<String>, Step5Report)> = None;
+    let mut first: Option<(Vec<String>, Step5Report, Vec<String>)> = None;
     if opts.stage_oscillating && opts.step5.dynamic_row {
-        let osc = oscillating_sets(p, &sets, &c.stationary, opts.model);
+        let at_start = errors_on_sets(p, &sets, &c.stationary, opts.model, None);
+        let osc: Vec<String> = at_start
+            .iter()
+            .filter(|e| !e.oscillations.is_empty())
+            .map(|e| e.name.clone())
+            .collect();
         let calm: Vec<&DynamicData> = sets
             .iter()
             .filter(|d| !osc.contains(&d.name))
@@ -881,8 +886,22 @@ fn run_step5(
                 ..opts.step5.clone()
             };
             let (q1, r1) = step5(p, &c.stationary, &calm, &th0, &o1).map_err(at(5))?;
-            th0 = theta_of(&step5_bounds(p, &th0, &opts.step5), &q1);
-            first = Some((osc, r1));
+            // the first pass does not see the sets it leaves out and can move to where they
+            // no longer simulate (no stable steady start, a failed solve): then cost (77) is
+            // flat there (failure residuals) and the second pass would stay; discard it
+            let at_first: Vec<String> = errors_on_sets(&q1, &sets, &c.stationary, opts.model, None)
+                .into_iter()
+                .map(|e| e.name)
+                .collect();
+            let lost: Vec<String> = at_start
+                .iter()
+                .map(|e| e.name.clone())
+                .filter(|n| !at_first.contains(n))
+                .collect();
+            if lost.is_empty() {
+                th0 = theta_of(&step5_bounds(p, &th0, &opts.step5), &q1);
+            }
+            first = Some((osc, r1, lost));
         }
     }
     // the box step 5 searches, for the variance bound of add_fixed
@@ -891,8 +910,9 @@ fn run_step5(
         .map(|b| (b.lo, b.hi))
         .collect();
     let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
-    if let Some((osc, r1)) = first {
+    if let Some((osc, r1, lost)) = first {
         r.first_pass_without = osc;
+        r.first_pass_discarded_for = lost;
         r.first_pass_evaluations = r1.n_eval;
         r.first_pass_stopped_by = r1.stopped_by.clone();
         r.cost_start = r1.cost_start;
