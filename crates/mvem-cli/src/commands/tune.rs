@@ -247,22 +247,13 @@ pub fn run(a: &Args) -> Result<()> {
     }
     // a step 5 stopped away from its optimum by more than the noise (relative offset)
     for r in [&rep.step5, &rep.step5_refined].into_iter().flatten() {
-        if !r.first_pass_without.is_empty() {
-            eprintln!(
-                "note: step 5 ran in two passes: the model after steps 1-4 oscillates on set(s) {} \
-                 where the engine does not, so a first pass left them out ({} evaluations, \
-                 stopped by: {}); --step5-single-pass turns this off",
-                r.first_pass_without.join(", "),
-                r.first_pass_evaluations,
-                r.first_pass_stopped_by
-            );
-            if !r.first_pass_discarded_for.is_empty() {
-                eprintln!(
-                    "warning: step 5's first pass was discarded: set(s) {} no longer simulate at \
-                     its result; step 5 ran in one pass from its start",
-                    r.first_pass_discarded_for.join(", ")
-                );
-            }
+        if let Some(note) = r.passes_note() {
+            let kind = if r.first_pass_discarded_for.is_empty() {
+                "note"
+            } else {
+                "warning"
+            };
+            eprintln!("{kind}: {note}; --step5-single-pass turns this off");
         }
         if let Some(note) = r.stop_note() {
             eprintln!("warning: {note}");
@@ -411,26 +402,12 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );
-        if !r.first_pass_without.is_empty() {
+        if let Some(note) = r.passes_note() {
             let _ = writeln!(
                 s,
-                "**Two passes:** the model at step 5's start oscillated on set(s) {} where the \
-                 engine does not, so a first pass left them out ({} evaluations, stopped by: \
-                 {}) and the pass above started from its result (counts include both; \
-                 `--step5-single-pass` turns this off, `--step5-first-pass-max` limits the first \
-                 pass).\n",
-                r.first_pass_without.join(", "),
-                r.first_pass_evaluations,
-                r.first_pass_stopped_by
+                "**Two passes:** {note} (`--step5-single-pass` turns this off, \
+                 `--step5-first-pass-max` limits the first pass).\n"
             );
-            if !r.first_pass_discarded_for.is_empty() {
-                let _ = writeln!(
-                    s,
-                    "**First pass discarded:** set(s) {} no longer simulate at its result, so \
-                     the pass above started from step 5's start.\n",
-                    r.first_pass_discarded_for.join(", ")
-                );
-            }
         }
         if !r.linearized_without.is_empty() {
             let _ = writeln!(

@@ -1201,6 +1201,35 @@ impl Step5Report {
 }
 
 impl Step5Report {
+    /// What a two-pass step 5 did ([`Step5Report::first_pass_without`]): the sets its first
+    /// pass left out, how that pass ended, and whether the second pass started from its result
+    /// or, when it was discarded ([`Step5Report::first_pass_discarded_for`]), from step 5's
+    /// start. `None` for one pass.
+    pub fn passes_note(&self) -> Option<String> {
+        if self.first_pass_without.is_empty() {
+            return None;
+        }
+        let first = format!(
+            "the model after steps 1-4 oscillates on set(s) {} where the engine does not, so a \
+             first pass left them out ({} evaluations, stopped by: {})",
+            self.first_pass_without.join(", "),
+            self.first_pass_evaluations,
+            self.first_pass_stopped_by
+        );
+        Some(if self.first_pass_discarded_for.is_empty() {
+            format!(
+                "step 5 ran in two passes: {first}, and the second, on every set, started from \
+                 its result (counts include both)"
+            )
+        } else {
+            format!(
+                "step 5's first pass was discarded: {first}, but set(s) {} no longer simulate at \
+                 its result, so step 5 ran on every set from its start (counts include both)",
+                self.first_pass_discarded_for.join(", ")
+            )
+        })
+    }
+
     /// A note when the search stopped away from the least-squares optimum by more than the
     /// noise: a rule other than the relative offset or gtol stopped it with the Bates-Watts
     /// relative offset R above `1/sqrt(p)` (p parameters), so the Gauss-Newton step from the
@@ -1489,6 +1518,32 @@ mod tests {
 
     fn report(stopped_by: &str, rel_offset: f64) -> Step5Report {
         Step5Report::for_tests(35, stopped_by, rel_offset)
+    }
+
+    #[test]
+    fn a_two_pass_step_5_says_which_start_the_second_pass_took() {
+        assert!(report("xtol", 0.1).passes_note().is_none());
+        let mut r = report("xtol", 0.1);
+        r.first_pass_without = vec!["A".into()];
+        r.first_pass_evaluations = 3600;
+        r.first_pass_stopped_by = "evaluation limit".into();
+        let kept = r.passes_note().expect("a note");
+        assert!(kept.starts_with("step 5 ran in two passes"), "{kept}");
+        assert!(kept.contains("set(s) A"), "{kept}");
+        assert!(
+            kept.contains("(3600 evaluations, stopped by: evaluation limit)"),
+            "{kept}"
+        );
+        assert!(kept.contains("started from its result"), "{kept}");
+        r.first_pass_discarded_for = vec!["A".into(), "D".into()];
+        let gone = r.passes_note().expect("a note");
+        assert!(
+            gone.starts_with("step 5's first pass was discarded"),
+            "{gone}"
+        );
+        assert!(gone.contains("set(s) A, D no longer simulate"), "{gone}");
+        assert!(gone.contains("from its start"), "{gone}");
+        assert!(!gone.contains("started from its result"), "{gone}");
     }
 
     #[test]

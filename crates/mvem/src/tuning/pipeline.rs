@@ -451,10 +451,14 @@ fn oscillating_sets(
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
 ) -> Vec<String> {
-    errors_on_sets(p, sets, stat, order, None)
-        .into_iter()
+    oscillating_names(&errors_on_sets(p, sets, stat, order, None))
+}
+
+/// Names of the sets of `errs` with at least one oscillation window.
+fn oscillating_names(errs: &[DataSetErrors]) -> Vec<String> {
+    errs.iter()
         .filter(|e| !e.oscillations.is_empty())
-        .map(|e| e.name)
+        .map(|e| e.name.clone())
         .collect()
 }
 
@@ -867,11 +871,7 @@ fn run_step5(
     let mut first: Option<(Vec<String>, Step5Report, Vec<String>)> = None;
     if opts.stage_oscillating && opts.step5.dynamic_row {
         let at_start = errors_on_sets(p, &sets, &c.stationary, opts.model, None);
-        let osc: Vec<String> = at_start
-            .iter()
-            .filter(|e| !e.oscillations.is_empty())
-            .map(|e| e.name.clone())
-            .collect();
+        let osc = oscillating_names(&at_start);
         let calm: Vec<&DynamicData> = sets
             .iter()
             .filter(|d| !osc.contains(&d.name))
@@ -993,9 +993,9 @@ fn kept_blocks(blocks: &[usize], keep: &[bool]) -> Vec<usize> {
 /// Step 5's covariance, standard errors and linearization recomputed from the rows of its
 /// Jacobian that `keep` keeps (`residuals`: cost (77) at the estimate, all rows; `blocks`:
 /// the kept rows' blocks; `scales`: the parameters' typical magnitudes, for the relative
-/// standard errors of [`Step5Report::rel_std_err`], computed as in `step5`). Used when the tuned model oscillates on some sets
-/// ([`Step5Report::linearized_without`]). Whether it did: fewer rows than parameters (or
-/// lengths that do not match) leave `r` as it is.
+/// standard errors of [`Step5Report::rel_std_err`], computed as in `step5`). Used when the
+/// tuned model oscillates on some sets ([`Step5Report::linearized_without`]). Returns whether
+/// it did: fewer rows than parameters (or lengths that do not match) leave `r` as it is.
 fn relinearize_rows(
     r: &mut Step5Report,
     keep: &[bool],
@@ -1632,14 +1632,14 @@ mod tests {
         );
         // too few rows left: nothing changes
         let before = r.uncertainty[0].1.std_error;
-        relinearize_rows(
+        assert!(!relinearize_rows(
             &mut r,
             &[true, false, false, false],
             &res[..4],
             &[1],
             &[1.0],
             5,
-        );
+        ));
         assert_eq!(r.uncertainty[0].1.std_error, before);
     }
 }
