@@ -405,8 +405,8 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
         if let Some(note) = r.passes_note() {
             let _ = writeln!(
                 s,
-                "**Two passes:** {note} (`--step5-single-pass` turns this off, \
-                 `--step5-first-pass-max` limits the first pass).\n"
+                "**Note:** {note}; `--step5-single-pass` turns this off, \
+                 `--step5-first-pass-max` limits the first pass.\n"
             );
         }
         if !r.linearized_without.is_empty() {
