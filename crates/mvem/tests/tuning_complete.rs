@@ -186,6 +186,8 @@ fn pipeline_on_a_tiny_noisy_campaign() {
     // oscillation check of validate and of the tune report)
     assert!(rep.oscillations.is_empty(), "{:?}", rep.oscillations);
     assert!(v.oscillation_rows().is_empty());
+    // and it runs on every set of the campaign
+    assert!(rep.failed_sets.is_empty(), "{:?}", rep.failed_sets);
     for d in &v.datasets {
         for o in &d.outputs {
             let e = o.mean_abs_rel_err;

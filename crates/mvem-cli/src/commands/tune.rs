@@ -267,6 +267,13 @@ pub fn run(a: &Args) -> Result<()> {
             o.describe()
         );
     }
+    // sets the tuned model cannot run: its parameters are not usable there
+    for f in &rep.failed_sets {
+        eprintln!(
+            "warning: the tuned model does not simulate data set {}: {} (tune_report.md)",
+            f.set, f.message
+        );
+    }
     // truth, if the campaign is virtual
     let truth = c
         .manifest
@@ -332,6 +339,20 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             .join(", "),
         rep.total_seconds
     );
+    if !rep.failed_sets.is_empty() {
+        let _ = writeln!(
+            s,
+            "**Warning: the tuned model does not simulate every data set.** A failed simulation \
+             enters cost (77) as a constant, so the search cannot see it; the parameters are not \
+             usable on these inputs (`mvem validate` reports the same failures).\n\n| data set | \
+             failure |\n|---|---|"
+        );
+        for f in &rep.failed_sets {
+            let msg = f.message.replace('|', "\\|").replace('\n', " ");
+            let _ = writeln!(s, "| {} | {msg} |", f.set);
+        }
+        s.push('\n');
+    }
     if !rep.oscillations.is_empty() {
         let _ = writeln!(
             s,
@@ -578,4 +599,33 @@ fn lookup(p: &Params, path: &str) -> Option<f64> {
         }
     }
     v.as_f64()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mvem::tuning::pipeline::SetFailure;
+
+    #[test]
+    fn the_report_names_the_sets_the_tuned_model_cannot_simulate() {
+        let rep = TuneReport {
+            failed_sets: vec![SetFailure {
+                set: "A".into(),
+                message: "step size too small at t = 12.5 s | p_im = 1e5".into(),
+            }],
+            ..TuneReport::default()
+        };
+        let md = markdown(&rep, None, None);
+        assert!(
+            md.contains("**Warning: the tuned model does not simulate every data set.**"),
+            "{md}"
+        );
+        // one row, the table's column separator escaped in the message
+        assert!(
+            md.contains("| A | step size too small at t = 12.5 s \\| p_im = 1e5 |"),
+            "{md}"
+        );
+        // and nothing of it when every set runs
+        assert!(!markdown(&TuneReport::default(), None, None).contains("does not simulate"));
+    }
 }

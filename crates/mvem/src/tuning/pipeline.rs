@@ -30,7 +30,7 @@ use super::uncertainty::{
     Linearization, NamedCov, ParamEstimate,
 };
 use super::validate::{
-    dynamic_errors_with, oscillation_summary, DataSetErrors, OscillationSummary,
+    dynamic_errors_with, oscillation_summary, DataSetErrors, OscillationSummary, ValidateError,
 };
 use crate::components::{compressor, pow_ln, turbine, Semantics};
 use crate::model::ModelOrder;
@@ -139,7 +139,7 @@ pub fn parse_steps(s: &str) -> Result<[bool; 5], String> {
 }
 
 /// What the pipeline did.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct TuneReport {
     /// Step 1 submodel fits.
     pub step1: Option<Step1Report>,
@@ -181,6 +181,11 @@ pub struct TuneReport {
     /// [`super::validate::sustained_oscillations`]); empty when it settles like the engine or
     /// when a set cannot be simulated (validate reports that).
     pub oscillations: Vec<OscillationSummary>,
+    /// Sets of the campaign (not the actuator sets) that the tuned model cannot simulate, each
+    /// with the simulator's message (time and state of the failure): the parameters are not
+    /// usable on those inputs, whatever the cost function said (a failed simulation enters
+    /// cost (77) as a constant). Empty when every set runs.
+    pub failed_sets: Vec<SetFailure>,
     /// Wall time of each step [s] (0 when not run).
     pub seconds: [f64; 5],
     /// Total wall time [s].
@@ -248,24 +253,7 @@ pub fn tune(
 ) -> Result<(Params, TuneReport), PipelineError> {
     let t_all = Instant::now();
     let mut p = base.clone();
-    let mut rep = TuneReport {
-        step1: None,
-        step2: None,
-        step3: None,
-        step4: None,
-        tau_me_s: None,
-        step5: None,
-        step3_refined: None,
-        step5_refined: None,
-        step4_refined: None,
-        joint_uncertainty: false,
-        twelve: None,
-        parameters: BTreeMap::new(),
-        combinations: Vec::new(),
-        oscillations: Vec::new(),
-        seconds: [0.0; 5],
-        total_seconds: 0.0,
-    };
+    let mut rep = TuneReport::default();
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
@@ -423,24 +411,54 @@ pub fn tune(
                 &mut rep.parameters,
             ));
     }
-    rep.oscillations = oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s);
+    (rep.oscillations, rep.failed_sets) = oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
 }
 
+/// A data set the model cannot simulate, with the reason.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetFailure {
+    /// Data set name.
+    pub set: String,
+    /// What failed (the simulator's message: time and state of the failure).
+    pub message: String,
+}
+
 /// Errors of the model `p` on `sets` ([`dynamic_errors_with`], with their oscillation windows),
-/// in parallel; sets that fail to simulate are skipped (validate reports them).
+/// in parallel, in the order of `sets`; the sets that fail to simulate come second, with their
+/// messages.
 fn errors_on_sets(
     p: &Params,
     sets: &[&DynamicData],
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
     tau_me: Option<f64>,
-) -> Vec<DataSetErrors> {
+) -> (Vec<DataSetErrors>, Vec<SetFailure>) {
     use rayon::prelude::*;
-    sets.par_iter()
-        .filter_map(|d| dynamic_errors_with(order, p, d, stat, tau_me).ok())
-        .collect()
+    let all: Vec<_> = sets
+        .par_iter()
+        .map(|d| {
+            (
+                d.name.clone(),
+                dynamic_errors_with(order, p, d, stat, tau_me),
+            )
+        })
+        .collect();
+    let (mut ok, mut failed) = (Vec::new(), Vec::new());
+    for (set, r) in all {
+        match r {
+            Ok(e) => ok.push(e),
+            Err(e) => failed.push(SetFailure {
+                set,
+                message: match e {
+                    ValidateError::Model { message, .. } => message,
+                    other => other.to_string(),
+                },
+            }),
+        }
+    }
+    (ok, failed)
 }
 
 /// Names of the sets of `sets` on which the model `p` oscillates where the engine does not
@@ -451,7 +469,7 @@ fn oscillating_sets(
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
 ) -> Vec<String> {
-    oscillating_names(&errors_on_sets(p, sets, stat, order, None))
+    oscillating_names(&errors_on_sets(p, sets, stat, order, None).0)
 }
 
 /// Names of the sets of `errs` with at least one oscillation window.
@@ -464,13 +482,13 @@ fn oscillating_names(errs: &[DataSetErrors]) -> Vec<String> {
 
 /// [`super::validate::sustained_oscillations`] of `p` on every dynamic set of `c` except the
 /// actuator sets (the tuning sets and the validation sets: the model's behaviour on any input of
-/// the campaign); sets that fail to simulate are skipped.
+/// the campaign), and the sets it cannot simulate.
 fn oscillations_on_campaign(
     c: &Campaign,
     p: &Params,
     order: ModelOrder,
     tau_me: Option<f64>,
-) -> Vec<OscillationSummary> {
+) -> (Vec<OscillationSummary>, Vec<SetFailure>) {
     let sets: Vec<&DynamicData> = c
         .manifest
         .datasets
@@ -479,7 +497,8 @@ fn oscillations_on_campaign(
         .filter(|(i, _)| i.kind != StepKind::Actuator)
         .map(|(_, d)| d)
         .collect();
-    oscillation_summary(&errors_on_sets(p, &sets, &c.stationary, order, tau_me))
+    let (errs, failed) = errors_on_sets(p, &sets, &c.stationary, order, tau_me);
+    (oscillation_summary(&errs), failed)
 }
 
 /// The point `(x, y)` of `points` where `f(p, x, y)` has the smallest positive, finite
@@ -870,7 +889,7 @@ fn run_step5(
     let mut th0 = th0.to_vec();
     let mut first: Option<(Vec<String>, Step5Report, Vec<String>)> = None;
     if opts.stage_oscillating && opts.step5.dynamic_row {
-        let at_start = errors_on_sets(p, &sets, &c.stationary, opts.model, None);
+        let (at_start, _) = errors_on_sets(p, &sets, &c.stationary, opts.model, None);
         let osc = oscillating_names(&at_start);
         let calm: Vec<&DynamicData> = sets
             .iter()
@@ -890,6 +909,7 @@ fn run_step5(
             // no longer simulate (no stable steady start, a failed solve): then cost (77) is
             // flat there (failure residuals) and the second pass would stay; discard it
             let at_first: Vec<String> = errors_on_sets(&q1, &sets, &c.stationary, opts.model, None)
+                .0
                 .into_iter()
                 .map(|e| e.name)
                 .collect();
@@ -1586,6 +1606,45 @@ mod tests {
         // parameters untouched
         assert!(!m.contains_key("egr_valve.c_egr[1]"));
         assert!(m["turbo.j_t"].identifiable && !m["intake_manifold.v_im"].identifiable);
+    }
+
+    #[test]
+    fn sets_the_model_cannot_simulate_are_named_with_the_reason() {
+        // a set of constant commands that runs, one with a single sample, one with a NaN engine
+        // speed: the last two come back as failures naming the set, the first as errors
+        let set = |name: &str, n: usize, n_e: f64| DynamicData {
+            name: name.into(),
+            t: (0..n).map(|i| 0.1 * i as f64).collect(),
+            columns: [
+                ("n_e", n_e),
+                ("u_delta", 100.0),
+                ("u_egr", 30.0),
+                ("u_vgt", 60.0),
+            ]
+            .iter()
+            .map(|(c, v)| (c.to_string(), vec![*v; n]))
+            .collect(),
+        };
+        let (good, short, nan) = (
+            set("good", 21, 1500.0),
+            set("short", 1, 1500.0),
+            set("nan", 21, f64::NAN),
+        );
+        let p = Params::published();
+        let (ok, failed) = errors_on_sets(&p, &[&good, &short, &nan], &[], ModelOrder::Eight, None);
+        assert_eq!(ok.len(), 1);
+        assert_eq!(ok[0].name, "good");
+        assert!(ok[0].oscillations.is_empty());
+        let names: Vec<&str> = failed.iter().map(|f| f.set.as_str()).collect();
+        assert_eq!(names, ["short", "nan"]);
+        assert!(
+            failed[0].message.contains("fewer than 2 samples"),
+            "{}",
+            failed[0].message
+        );
+        assert!(!failed[1].message.is_empty());
+        // the message is the simulator's, without the set name repeated
+        assert!(!failed[0].message.contains("data set short"));
     }
 
     #[test]
