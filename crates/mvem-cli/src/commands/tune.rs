@@ -87,9 +87,10 @@ pub struct Args {
     #[arg(long = "rel-offset", default_value_t = mvem::tuning::complete::STEP5_REL_OFFSET_TOL, value_name = "TOL")]
     pub rel_offset: f64,
     /// Step 5: most restarts (a new central-difference Jacobian and trust region) when ftol/xtol stopped the
-    /// search with the relative offset above `--rel-offset`, i.e. before its optimum; kept
-    /// only when they lower the cost (can cost many evaluations; docs/tuning.md).
-    #[arg(long = "restarts", default_value_t = 0, value_name = "N")]
+    /// search with the relative offset above `--rel-offset` and 1, i.e. far from its optimum; kept
+    /// only when they lower the cost (can cost many evaluations; docs/tuning.md, session 14;
+    /// 0: none).
+    #[arg(long = "restarts", default_value_t = mvem::tuning::complete::STEP5_RESTARTS, value_name = "N")]
     pub restarts: usize,
     /// Step 5 in one pass even when the model at its start oscillates on some data sets where
     /// the engine does not (by default a first pass leaves those sets out, then a second pass

@@ -130,14 +130,25 @@ impl SeligerConsts {
     }
 }
 
-/// (1 + eps)^a for eps >= 0: a third-order binomial series when eps < 1e-5 (truncation error
-/// below 1e-20 relative, i.e. exact in double precision), `powf` otherwise. The Seliger pressure
-/// ratio x_p = 1 + q_in x_cv / (c_Va T_1 r_c^(gamma_a - 1)) is within 1e-13 of 1 for the published
-/// x_cv = 2.3e-14, where a full `powf` per fixed-point iteration would dominate the model's cost.
+/// (1 + eps)^a: the binomial series to eps^3 when |eps| < 1e-5 and to eps^6 when |eps| < 1e-3
+/// (truncation below 1e-20 relative for |a| <= 1, i.e. exact in double precision), `powf`
+/// otherwise. The Seliger
+/// pressure ratio x_p = 1 + q_in x_cv / (c_Va T_1 r_c^(gamma_a - 1)) is within about 1.3 x_cv of 1
+/// (within 1e-13 for the published x_cv = 2.3e-14, within 1e-4 for the x_cv that tuning finds on
+/// engines with little constant-volume combustion), where a full `powf` would dominate the cost
+/// of the fixed point.
 #[inline]
 fn one_plus_pow(eps: f64, a: f64) -> f64 {
     if eps.abs() < 1e-5 {
         1.0 + a * eps * (1.0 + (a - 1.0) * eps * (0.5 + (a - 2.0) * eps / 6.0))
+    } else if eps.abs() < 1e-3 {
+        // Horner form of sum_k C(a, k) eps^k, the factors (a - k + 1) / k nested
+        let t = (a - 5.0) * (1.0 / 6.0) * eps;
+        let t = (a - 4.0) * 0.2 * eps * (1.0 + t);
+        let t = (a - 3.0) * 0.25 * eps * (1.0 + t);
+        let t = (a - 2.0) * (1.0 / 3.0) * eps * (1.0 + t);
+        let t = (a - 1.0) * 0.5 * eps * (1.0 + t);
+        1.0 + a * eps * (1.0 + t)
     } else {
         (1.0 + eps).powf(a)
     }
@@ -152,6 +163,8 @@ fn seliger_map(
     it: SeligerIterate,
     sem: Semantics,
 ) -> SeligerStep {
+    // the same arithmetic as seliger_map_locals (a unit test asserts equal bits), without the
+    // locals the Jacobian needs: this is the path of every evaluation
     let x_cv = cyl.x_cv;
     let q_in = k.q_scale * (1.0 - it.x_r); // eq. (20)
     let t1rc = it.t_1 * k.cc.rc_g1;
@@ -175,6 +188,130 @@ fn seliger_map(
         t_e,
         next: SeligerIterate { x_r, t_1 },
     }
+}
+
+/// The intermediate values of one application of the map, for its Jacobian
+/// ([`seliger_map_jacobian`]).
+#[derive(Clone, Copy)]
+struct MapLocals {
+    t1rc: f64,
+    x_p: f64,
+    /// q_in x_cv / c_va + T_1 r_c^(gamma_a - 1), the denominator of eq. (23) over c_pa.
+    den_v: f64,
+    x_v: f64,
+    /// x_r' of eq. (22) and T_e of eq. (17) as the map returns them (after the clamps of items
+    /// 18-19), and whether a clamp of items 18-20 acted (then that derivative is zero).
+    x_r: f64,
+    clamped_x_r: bool,
+    t_e: f64,
+    clamped_t_e: bool,
+    clamped_t_1: bool,
+    /// x_p^(1/gamma_a - 1) (eq. (17)).
+    xp_ig1: f64,
+}
+
+#[inline]
+fn seliger_map_locals(
+    gas: &Gas,
+    cyl: &Cylinder,
+    k: &SeligerConsts,
+    t_im: f64,
+    it: SeligerIterate,
+    sem: Semantics,
+) -> (SeligerStep, MapLocals) {
+    let x_cv = cyl.x_cv;
+    let q_in = k.q_scale * (1.0 - it.x_r); // eq. (20)
+    let t1rc = it.t_1 * k.cc.rc_g1;
+    let eps_p = q_in * x_cv / (gas.c_va * t1rc);
+    let x_p = 1.0 + eps_p; // eq. (19)
+    let den_v = q_in * x_cv / gas.c_va + t1rc;
+    let x_v = 1.0 + q_in * (1.0 - x_cv) / (gas.c_pa * den_v); // eq. (23)
+    let xp_mig = one_plus_pow(eps_p, -k.cc.inv_gamma_a); // x_p^(-1/gamma_a)
+    let x_r_raw = k.pi_e_ig * xp_mig / (cyl.r_c * x_v); // eq. (22)
+    let xp_ig1 = 1.0 / (x_p * xp_mig); // x_p^(1/gamma_a - 1)
+    let t_e_raw = // eq. (17)
+        cyl.eta_sc * k.pi_e_1ig * k.cc.inv_rc_g1 * xp_ig1 * (q_in * k.cc.heat_per_cp + t1rc);
+    let (mut t_e, mut x_r) = (t_e_raw, x_r_raw);
+    if sem.authors() {
+        t_e = t_e.min(1500.0); // item 18
+        x_r = x_r.clamp(0.0, 1.0); // item 19
+    }
+    let t_1_raw = x_r * t_e + (1.0 - x_r) * t_im; // eq. (21)
+    let t_1 = if sem.authors() {
+        t_1_raw.max(273.0) // item 20
+    } else {
+        t_1_raw
+    };
+    (
+        SeligerStep {
+            t_e,
+            next: SeligerIterate { x_r, t_1 },
+        },
+        MapLocals {
+            t1rc,
+            x_p,
+            den_v,
+            x_v,
+            x_r,
+            clamped_x_r: x_r != x_r_raw,
+            t_e,
+            clamped_t_e: t_e != t_e_raw,
+            clamped_t_1: t_1 != t_1_raw,
+            xp_ig1,
+        },
+    )
+}
+
+/// Jacobian of the map (24) at the iterate the locals come from: rows (x_r', T_1'), columns
+/// (x_r, T_1), by the chain rule through eqs (17)-(23) (zero through an acting clamp).
+#[inline]
+fn seliger_map_jacobian(
+    gas: &Gas,
+    cyl: &Cylinder,
+    k: &SeligerConsts,
+    t_im: f64,
+    l: &MapLocals,
+) -> [[f64; 2]; 2] {
+    let x_cv = cyl.x_cv;
+    let g = k.cc.inv_gamma_a;
+    // derivatives of q_in and T_1 r_c^(gamma_a - 1) by (x_r, T_1)
+    let dq = [-k.q_scale, 0.0];
+    let dt = [0.0, k.cc.rc_g1];
+    let mut jac = [[0.0; 2]; 2];
+    for c in 0..2 {
+        // eq. (19): x_p = 1 + q_in x_cv / (c_va T_1 r_c^(gamma_a - 1))
+        let dx_p = x_cv / (gas.c_va * l.t1rc) * dq[c] - (l.x_p - 1.0) / l.t1rc * dt[c];
+        // eq. (23)
+        let dden = x_cv / gas.c_va * dq[c] + dt[c];
+        let dx_v = (1.0 - x_cv) / (gas.c_pa * l.den_v) * dq[c] - (l.x_v - 1.0) / l.den_v * dden;
+        // eq. (22): x_r = Pi_e^(1/gamma_a) x_p^(-1/gamma_a) / (r_c x_v)
+        let dx_r = if l.clamped_x_r {
+            0.0
+        } else {
+            l.x_r * (-g * dx_p / l.x_p - dx_v / l.x_v)
+        };
+        // eq. (17): T_e = eta_sc Pi_e^(1 - 1/gamma_a) r_c^(1 - gamma_a) x_p^(1/gamma_a - 1)
+        //                 (q_in heat_per_cp + T_1 r_c^(gamma_a - 1))
+        let dt_e = if l.clamped_t_e {
+            0.0
+        } else {
+            l.t_e * (g - 1.0) * dx_p / l.x_p
+                + cyl.eta_sc
+                    * k.pi_e_1ig
+                    * k.cc.inv_rc_g1
+                    * l.xp_ig1
+                    * (k.cc.heat_per_cp * dq[c] + dt[c])
+        };
+        // eq. (21)
+        let dt_1 = if l.clamped_t_1 {
+            0.0
+        } else {
+            dx_r * (l.t_e - t_im) + l.x_r * dt_e
+        };
+        jac[0][c] = dx_r;
+        jac[1][c] = dt_1;
+    }
+    jac
 }
 
 /// One application of the fixed-point map (24) from the iterate `old`: the authors'
@@ -251,7 +388,6 @@ pub fn cylinder_out_temp_converged(
     let k = SeligerConsts::new(cyl, cc, s);
     let mut it = fixed_point_start(cyl, &k, s.t_im);
     let small = |a: f64, b: f64| (a - b).abs() <= FIXED_POINT_RTOL * b.abs();
-    let mut prev: Option<SeligerIterate> = None;
     let mut step = seliger_map(gas, cyl, &k, s.t_im, it, sem);
     for n in 1..=FIXED_POINT_MAX_ITER {
         if small(it.x_r, step.next.x_r) && small(it.t_1, step.next.t_1) {
@@ -262,36 +398,17 @@ pub fn cylinder_out_temp_converged(
                 converged: true,
             };
         }
-        // Aitken's delta-squared extrapolation on every second iterate (the map contracts
-        // linearly by about x_r per iteration): z0 = prev, z1 = it, z2 = step.next.
-        let next = match prev {
-            Some(z0) if n % 2 == 0 => {
-                let aitken = |a: f64, b: f64, c: f64| {
-                    let den = (c - b) - (b - a);
-                    if den.abs() > 1e-300 && den.is_finite() {
-                        c - (c - b) * (c - b) / den
-                    } else {
-                        c
-                    }
-                };
-                let mut z = SeligerIterate {
-                    x_r: aitken(z0.x_r, it.x_r, step.next.x_r),
-                    t_1: aitken(z0.t_1, it.t_1, step.next.t_1),
-                };
-                if sem.authors() {
-                    z.x_r = z.x_r.clamp(0.0, 1.0);
-                    z.t_1 = z.t_1.max(273.0);
-                }
-                if z.x_r.is_finite() && z.t_1.is_finite() {
-                    z
-                } else {
-                    step.next
-                }
-            }
-            _ => step.next,
+        // Within 1e-10 of the fixed point (the published x_cv, where the closed-form start is
+        // within about 1e-13) a plain step is cheapest: one or two reach the tolerance (the map
+        // contracts by about x_r per step). Farther (a tuned x_cv puts the start O(x_cv) off)
+        // one Newton step does, where plain iteration needed six to ten.
+        let near = (it.x_r - step.next.x_r).abs() <= 1e-10 * step.next.x_r.abs()
+            && (it.t_1 - step.next.t_1).abs() <= 1e-10 * step.next.t_1.abs();
+        it = if near {
+            step.next
+        } else {
+            newton_step(gas, cyl, &k, s.t_im, it, sem).unwrap_or(step.next)
         };
-        prev = Some(it);
-        it = next;
         step = seliger_map(gas, cyl, &k, s.t_im, it, sem);
     }
     SeligerFixedPoint {
@@ -300,6 +417,36 @@ pub fn cylinder_out_temp_converged(
         iterations: FIXED_POINT_MAX_ITER,
         converged: false,
     }
+}
+
+/// One step of Newton's method on G(z) - z = 0 from `it`, with the map's Jacobian J:
+/// (I - J) dz = G(z) - z; `None` where the step is not finite (a singular I - J). Out of line:
+/// the usual path (the published x_cv) never takes it, and inlined its registers would cost
+/// that path.
+#[cold]
+#[inline(never)]
+fn newton_step(
+    gas: &Gas,
+    cyl: &Cylinder,
+    k: &SeligerConsts,
+    t_im: f64,
+    it: SeligerIterate,
+    sem: Semantics,
+) -> Option<SeligerIterate> {
+    let (step, locals) = seliger_map_locals(gas, cyl, k, t_im, it, sem);
+    let jac = seliger_map_jacobian(gas, cyl, k, t_im, &locals);
+    let (a, b, c, d) = (1.0 - jac[0][0], -jac[0][1], -jac[1][0], 1.0 - jac[1][1]);
+    let (f0, f1) = (step.next.x_r - it.x_r, step.next.t_1 - it.t_1);
+    let det = a * d - b * c;
+    let mut z = SeligerIterate {
+        x_r: it.x_r + (d * f0 - b * f1) / det,
+        t_1: it.t_1 + (a * f1 - c * f0) / det,
+    };
+    if sem.authors() {
+        z.x_r = z.x_r.clamp(0.0, 1.0);
+        z.t_1 = z.t_1.max(273.0);
+    }
+    (z.x_r.is_finite() && z.t_1.is_finite() && z.t_1 > 0.0).then_some(z)
 }
 
 /// Exhaust manifold temperature after the pipe heat loss, eq. (25):
@@ -492,6 +639,134 @@ mod tests {
                 if cyl.x_cv < 1e-10 {
                     assert!(fp.iterations <= 2, "{fp:?}");
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn one_plus_pow_is_powf_to_rounding() {
+        // the series branch against powf over its range and at its edge, for the exponents the
+        // map uses (-1/gamma_a) and a few others
+        for a in [-1.0 / 1.4, -1.0 / 1.33, -0.5, 0.3, 1.0] {
+            for k in 0..=400 {
+                let eps = 10f64.powf(-16.0 + 13.0 * k as f64 / 400.0); // 1e-16 ... 1e-3
+                for e in [eps.min(0.999e-3), -eps.min(0.999e-3)] {
+                    let want = (1.0 + e).powf(a);
+                    let got = one_plus_pow(e, a);
+                    assert!(
+                        (got / want - 1.0).abs() <= 4.0 * f64::EPSILON,
+                        "a {a}, eps {e:e}: {got} vs {want}"
+                    );
+                }
+            }
+        }
+        assert_eq!(one_plus_pow(0.5, -0.5), 1.5f64.powf(-0.5));
+    }
+
+    #[test]
+    fn map_and_map_with_locals_agree_bit_for_bit() {
+        // seliger_map (every evaluation) and seliger_map_locals (Newton steps) are two copies of
+        // eqs (17)-(23): same bits, also at the clamps of items 18-20
+        let p = Params::published();
+        for x_cv in [2.3e-14, 4.6e-5, 0.4] {
+            let mut cyl = p.cylinder.clone();
+            cyl.x_cv = x_cv;
+            let cc = CylinderConsts::new(&p.gas, &cyl);
+            for (pi_e, w_f, w_ei, x_r, t_1) in [
+                (1.3, 0.00825, 0.3, 0.04, 340.0),
+                (0.9, 0.001, 0.05, 0.0, 300.0),
+                (2.5, 0.02, 0.4, 0.9, 2000.0),
+                (8.0, 0.05, 0.01, 0.5, 250.0),
+            ] {
+                let s = SeligerInputs {
+                    pi_e,
+                    w_f,
+                    w_ei,
+                    t_im: p.intake_manifold.t_im,
+                };
+                let k = SeligerConsts::new(&cyl, &cc, &s);
+                let z = SeligerIterate { x_r, t_1 };
+                for sem in [Semantics::Authors, Semantics::Paper] {
+                    let a = seliger_map(&p.gas, &cyl, &k, s.t_im, z, sem);
+                    let (b, _) = seliger_map_locals(&p.gas, &cyl, &k, s.t_im, z, sem);
+                    assert_eq!(a, b, "x_cv {x_cv}, Pi_e {pi_e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn map_jacobian_matches_central_differences() {
+        // the chain rule of seliger_map_jacobian against central differences of the map, for
+        // several constant-volume shares and operating points, off the fixed point
+        let p = Params::published();
+        for x_cv in [2.3e-14, 4.6e-5, 0.05, 0.4] {
+            let mut cyl = p.cylinder.clone();
+            cyl.x_cv = x_cv;
+            let cc = CylinderConsts::new(&p.gas, &cyl);
+            for (pi_e, w_f, w_ei) in [(1.3, 0.00825, 0.3), (0.9, 0.001, 0.05), (2.5, 0.02, 0.4)] {
+                let s = SeligerInputs {
+                    pi_e,
+                    w_f,
+                    w_ei,
+                    t_im: p.intake_manifold.t_im,
+                };
+                let k = SeligerConsts::new(&cyl, &cc, &s);
+                let z = SeligerIterate {
+                    x_r: 0.04,
+                    t_1: 340.0,
+                };
+                let (_, l) = seliger_map_locals(&p.gas, &cyl, &k, s.t_im, z, Semantics::Authors);
+                let jac = seliger_map_jacobian(&p.gas, &cyl, &k, s.t_im, &l);
+                for (c, h) in [(0, 1e-6), (1, 1e-3)] {
+                    let at = |d: f64| {
+                        let mut y = z;
+                        if c == 0 {
+                            y.x_r += d;
+                        } else {
+                            y.t_1 += d;
+                        }
+                        seliger_map(&p.gas, &cyl, &k, s.t_im, y, Semantics::Authors).next
+                    };
+                    let (up, dn) = (at(h), at(-h));
+                    let fd = [(up.x_r - dn.x_r) / (2.0 * h), (up.t_1 - dn.t_1) / (2.0 * h)];
+                    for r in 0..2 {
+                        let tol = 1e-6 * fd[r].abs().max(if r == 0 { 1e-4 } else { 1e-1 });
+                        assert!(
+                            (jac[r][c] - fd[r]).abs() <= tol,
+                            "x_cv {x_cv}, Pi_e {pi_e}: d{r}/d{c} = {} vs {}",
+                            jac[r][c],
+                            fd[r]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn newton_reaches_the_tolerance_in_a_few_evaluations() {
+        // a tuned x_cv (1e-6 ... 0.4) puts the closed-form start O(x_cv) off: Newton's method
+        // needs at most 4 map evaluations there (plain iteration with Aitken took 4-10)
+        let p = Params::published();
+        for x_cv in [1e-6, 4.56e-5, 1e-3, 0.05, 0.4] {
+            let mut cyl = p.cylinder.clone();
+            cyl.x_cv = x_cv;
+            let cc = CylinderConsts::new(&p.gas, &cyl);
+            for (pi_e, w_f, w_ei) in [
+                (1.3, 0.00825, 0.3),
+                (0.9, 0.001, 0.05),
+                (2.5, 0.02, 0.4),
+                (1.1, 0.004, 0.2),
+            ] {
+                let s = SeligerInputs {
+                    pi_e,
+                    w_f,
+                    w_ei,
+                    t_im: p.intake_manifold.t_im,
+                };
+                let fp = cylinder_out_temp_converged(&p.gas, &cyl, &cc, &s, Semantics::Authors);
+                assert!(fp.converged && fp.iterations <= 4, "x_cv {x_cv}: {fp:?}");
             }
         }
     }
