@@ -41,6 +41,13 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     /// RODAS4 and exprb32: step size proposed after the first accepted step of the last segment
     /// (0: none).
     pub(super) h_first: f64,
+    /// The state with the largest scaled error in the last rejected step and that error, since
+    /// the last accepted step (across segments: a step size that collapsed in one segment is
+    /// reported with its limiting state when the next segment cannot start).
+    pub(super) worst_rejected: Option<(usize, f64)>,
+    /// The error of the last trial step that left the model's domain, since the last accepted
+    /// step (across segments, as `worst_rejected`).
+    pub(super) last_failure: Option<SimError>,
     /// Whether `jac` has all columns (false: the columns of the lag states were skipped).
     pub(super) jac_full: bool,
     /// States integrated in closed form (empty: none; see [`SimOptions::exact_actuators`]).
@@ -328,6 +335,8 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             lu: None,
             jac_age: usize::MAX,
             h_first: 0.0,
+            worst_rejected: None,
+            last_failure: None,
             jac_full: false,
             lags: Vec::new(),
             lag_seg: Vec::new(),
@@ -599,8 +608,6 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             let span = b - self.t;
             self.h = self.initial_step(inp, &f0, span)?;
         }
-        let mut last_failure: Option<SimError> = None;
-        let mut worst_rejected: Option<(usize, f64)> = None;
         // RODAS4: the first step after a stop (in the transient the kink starts) is limited far
         // more than the steps after it, so it starts from the proposal of the last segment's
         // first step, and the last step of a segment may stretch to 1.3 x the proposal while no
@@ -643,19 +650,42 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                     self.t = b;
                     break;
                 }
-                let limiting = match worst_rejected {
+                let limiting = match self.worst_rejected {
                     Some((i, e)) => format!(
                         "{} (scaled local error {e:.3e} in the last rejected step)",
                         self.model.state_names()[i]
                     ),
-                    None => "none (no step was rejected for accuracy)".to_string(),
+                    None => {
+                        // no rejection: the step is small because the state moves fast (the
+                        // initial step of a segment follows |dx/dt| / tolerance); name the
+                        // fastest state
+                        let rate = |i: usize| {
+                            (f0[i] / (self.atol[i] + self.opts.rtol * self.y[i].abs())).abs()
+                        };
+                        let i = (0..N).filter(|&i| rate(i).is_finite()).fold(0, |a, i| {
+                            if rate(i) > rate(a) {
+                                i
+                            } else {
+                                a
+                            }
+                        });
+                        format!(
+                            "{} (no step was rejected for accuracy; the fastest state, |dx/dt| = \
+                             {:.3e} tolerance units per second)",
+                            self.model.state_names()[i],
+                            rate(i)
+                        )
+                    }
                 };
-                return Err(last_failure.unwrap_or(SimError::StepSizeTooSmall {
-                    t,
-                    h,
-                    limiting,
-                    state: dump(self.model, &self.y),
-                }));
+                return Err(self
+                    .last_failure
+                    .take()
+                    .unwrap_or(SimError::StepSizeTooSmall {
+                        t,
+                        h,
+                        limiting,
+                        state: dump(self.model, &self.y),
+                    }));
             }
             let t_new = if last { b } else { t + h };
             let trial = match self.opts.method {
@@ -668,7 +698,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 Ok(tr) => tr,
                 Err(e @ SimError::NonFinite { .. }) => {
                     // A trial stage left the model's domain: shrink the step and retry.
-                    last_failure = Some(e);
+                    self.last_failure = Some(e);
                     self.stats.rejected += 1;
                     self.h = h * 0.25;
                     self.jac_age = usize::MAX;
@@ -681,7 +711,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             if err.is_nan() || err > 1.0 {
                 rejected_here = true;
                 self.stats.rejected += 1;
-                worst_rejected = Some(self.worst_state(&self.y, &trial.y1, &trial.e));
+                self.worst_rejected = Some(self.worst_state(&self.y, &trial.y1, &trial.e));
                 let fac = if err.is_finite() {
                     (0.9 * inv_root(err, order)).max(0.2)
                 } else {
@@ -694,8 +724,8 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 continue;
             }
             // accept
-            last_failure = None;
-            worst_rejected = None;
+            self.last_failure = None;
+            self.worst_rejected = None;
             self.stats.steps += 1;
             self.jac_age = self.jac_age.saturating_add(1);
             let y = self.y;

@@ -205,6 +205,8 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             lu: c.lu.take(),
             jac_age: c.jac_age,
             h_first: 0.0,
+            worst_rejected: None,
+            last_failure: None,
             jac_full: c.jac_full,
             lags: std::mem::take(&mut c.lags),
             lag_seg: std::mem::take(&mut c.lag_seg),
