@@ -387,10 +387,14 @@ pub fn cylinder_out_temp_converged(
 ) -> SeligerFixedPoint {
     let k = SeligerConsts::new(cyl, cc, s);
     let mut it = fixed_point_start(cyl, &k, s.t_im);
-    let small = |a: f64, b: f64| (a - b).abs() <= FIXED_POINT_RTOL * b.abs();
+    // relative change of both x_r and T_1 by one application of the map within `tol`
+    let within = |it: SeligerIterate, next: SeligerIterate, tol: f64| {
+        (it.x_r - next.x_r).abs() <= tol * next.x_r.abs()
+            && (it.t_1 - next.t_1).abs() <= tol * next.t_1.abs()
+    };
     let mut step = seliger_map(gas, cyl, &k, s.t_im, it, sem);
     for n in 1..=FIXED_POINT_MAX_ITER {
-        if small(it.x_r, step.next.x_r) && small(it.t_1, step.next.t_1) {
+        if within(it, step.next, FIXED_POINT_RTOL) {
             return SeligerFixedPoint {
                 t_e: step.t_e,
                 at: it,
@@ -402,9 +406,7 @@ pub fn cylinder_out_temp_converged(
         // within about 1e-13) a plain step is cheapest: one or two reach the tolerance (the map
         // contracts by about x_r per step). Farther (a tuned x_cv puts the start O(x_cv) off)
         // one Newton step does, where plain iteration needed six to ten.
-        let near = (it.x_r - step.next.x_r).abs() <= 1e-10 * step.next.x_r.abs()
-            && (it.t_1 - step.next.t_1).abs() <= 1e-10 * step.next.t_1.abs();
-        it = if near {
+        it = if within(it, step.next, 1e-10) {
             step.next
         } else {
             newton_step(gas, cyl, &k, s.t_im, it, sem).unwrap_or(step.next)
@@ -422,7 +424,8 @@ pub fn cylinder_out_temp_converged(
 /// One step of Newton's method on G(z) - z = 0 from `it`, with the map's Jacobian J:
 /// (I - J) dz = G(z) - z; `None` where the step is not finite (a singular I - J). Out of line:
 /// the usual path (the published x_cv) never takes it, and inlined its registers would cost
-/// that path.
+/// that path. It applies the map at `it` again (the caller's application keeps no
+/// intermediates, for the same reason): one extra application per Newton step.
 #[cold]
 #[inline(never)]
 fn newton_step(
@@ -509,6 +512,23 @@ mod tests {
     use super::*;
     use crate::params::Params;
 
+    /// Inputs of the fixed point at (Pi_e, W_f, W_ei) and the published T_im.
+    fn seliger_inputs(p: &Params, (pi_e, w_f, w_ei): (f64, f64, f64)) -> SeligerInputs {
+        SeligerInputs {
+            pi_e,
+            w_f,
+            w_ei,
+            t_im: p.intake_manifold.t_im,
+        }
+    }
+
+    /// The published cylinder with the constant-volume share `x_cv`, and its constants.
+    fn cylinder_with_x_cv(p: &Params, x_cv: f64) -> (Cylinder, CylinderConsts) {
+        let mut cyl = p.cylinder.clone();
+        cyl.x_cv = x_cv;
+        let cc = CylinderConsts::new(&p.gas, &cyl);
+        (cyl, cc)
+    }
     #[test]
     fn fuel_flow_and_torque_by_hand() {
         let p = Params::published();
@@ -611,12 +631,7 @@ mod tests {
         let p = Params::published();
         let cc = CylinderConsts::new(&p.gas, &p.cylinder);
         for (pi_e, w_f, w_ei) in [(1.3, 0.00825, 0.3), (0.9, 0.001, 0.05), (2.5, 0.02, 0.4)] {
-            let s = SeligerInputs {
-                pi_e,
-                w_f,
-                w_ei,
-                t_im: p.intake_manifold.t_im,
-            };
+            let s = seliger_inputs(&p, (pi_e, w_f, w_ei));
             for cyl in [p.cylinder.clone(), {
                 let mut c = p.cylinder.clone();
                 c.x_cv = 0.4; // a real constant-volume share: the start is only a guess
@@ -669,21 +684,14 @@ mod tests {
         // eqs (17)-(23): same bits, also at the clamps of items 18-20
         let p = Params::published();
         for x_cv in [2.3e-14, 4.6e-5, 0.4] {
-            let mut cyl = p.cylinder.clone();
-            cyl.x_cv = x_cv;
-            let cc = CylinderConsts::new(&p.gas, &cyl);
+            let (cyl, cc) = cylinder_with_x_cv(&p, x_cv);
             for (pi_e, w_f, w_ei, x_r, t_1) in [
                 (1.3, 0.00825, 0.3, 0.04, 340.0),
                 (0.9, 0.001, 0.05, 0.0, 300.0),
                 (2.5, 0.02, 0.4, 0.9, 2000.0),
                 (8.0, 0.05, 0.01, 0.5, 250.0),
             ] {
-                let s = SeligerInputs {
-                    pi_e,
-                    w_f,
-                    w_ei,
-                    t_im: p.intake_manifold.t_im,
-                };
+                let s = seliger_inputs(&p, (pi_e, w_f, w_ei));
                 let k = SeligerConsts::new(&cyl, &cc, &s);
                 let z = SeligerIterate { x_r, t_1 };
                 for sem in [Semantics::Authors, Semantics::Paper] {
@@ -701,16 +709,9 @@ mod tests {
         // several constant-volume shares and operating points, off the fixed point
         let p = Params::published();
         for x_cv in [2.3e-14, 4.6e-5, 0.05, 0.4] {
-            let mut cyl = p.cylinder.clone();
-            cyl.x_cv = x_cv;
-            let cc = CylinderConsts::new(&p.gas, &cyl);
+            let (cyl, cc) = cylinder_with_x_cv(&p, x_cv);
             for (pi_e, w_f, w_ei) in [(1.3, 0.00825, 0.3), (0.9, 0.001, 0.05), (2.5, 0.02, 0.4)] {
-                let s = SeligerInputs {
-                    pi_e,
-                    w_f,
-                    w_ei,
-                    t_im: p.intake_manifold.t_im,
-                };
+                let s = seliger_inputs(&p, (pi_e, w_f, w_ei));
                 let k = SeligerConsts::new(&cyl, &cc, &s);
                 let z = SeligerIterate {
                     x_r: 0.04,
@@ -750,21 +751,14 @@ mod tests {
         // needs at most 4 map evaluations there (plain iteration with Aitken took 4-10)
         let p = Params::published();
         for x_cv in [1e-6, 4.56e-5, 1e-3, 0.05, 0.4] {
-            let mut cyl = p.cylinder.clone();
-            cyl.x_cv = x_cv;
-            let cc = CylinderConsts::new(&p.gas, &cyl);
+            let (cyl, cc) = cylinder_with_x_cv(&p, x_cv);
             for (pi_e, w_f, w_ei) in [
                 (1.3, 0.00825, 0.3),
                 (0.9, 0.001, 0.05),
                 (2.5, 0.02, 0.4),
                 (1.1, 0.004, 0.2),
             ] {
-                let s = SeligerInputs {
-                    pi_e,
-                    w_f,
-                    w_ei,
-                    t_im: p.intake_manifold.t_im,
-                };
+                let s = seliger_inputs(&p, (pi_e, w_f, w_ei));
                 let fp = cylinder_out_temp_converged(&p.gas, &cyl, &cc, &s, Semantics::Authors);
                 assert!(fp.converged && fp.iterations <= 4, "x_cv {x_cv}: {fp:?}");
             }

@@ -658,22 +658,12 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                     None => {
                         // no rejection: the step is small because the state moves fast (the
                         // initial step of a segment follows |dx/dt| / tolerance); name the
-                        // fastest state
-                        let rate = |i: usize| {
-                            (f0[i] / (self.atol[i] + self.opts.rtol * self.y[i].abs())).abs()
-                        };
-                        let i = (0..N).filter(|&i| rate(i).is_finite()).fold(0, |a, i| {
-                            if rate(i) > rate(a) {
-                                i
-                            } else {
-                                a
-                            }
-                        });
+                        // fastest state (the scaled "error" f0 over one second)
+                        let (i, rate) = self.worst_state(&self.y, &self.y, &f0);
                         format!(
                             "{} (no step was rejected for accuracy; the fastest state, |dx/dt| = \
-                             {:.3e} tolerance units per second)",
+                             {rate:.3e} tolerance units per second)",
                             self.model.state_names()[i],
-                            rate(i)
                         )
                     }
                 };

@@ -58,9 +58,10 @@ pub const STEP5_RESTARTS: usize = 1;
 /// Relative offset above which an ftol/xtol stop of step 5 is restarted (and above
 /// [`Step5Options::rel_offset_tol`]): where the Gauss-Newton step still predicts a decrease of
 /// more than one residual variance per parameter (R^2 p residual variances for p parameters;
-/// the estimate up to R sqrt(p) standard errors from the optimum). Session 14 (docs/tuning.md): below it, on `mvem lab` seeds 1, 3, 6,
-/// 7, a restart changed the validation error by 0.01x the noise floor or less and cost up to
-/// 2.2x the time (seed 1: 434 -> 1 218 evaluations).
+/// the estimate up to R sqrt(p) standard errors from the optimum). Session 14
+/// (docs/tuning.md): below it, on `mvem lab` seeds 1, 3, 6, 7, a restart changed the validation
+/// error by 0.01x the noise floor or less and cost up to 2.2x the time (seed 1: 434 -> 1 218
+/// evaluations).
 pub const STEP5_RESTART_REL_OFFSET: f64 = 1.0;
 
 /// Relative finite-difference step of the searches (about the square root of the relative
@@ -866,8 +867,8 @@ pub struct Step5Options {
     pub rel_offset_tol: f64,
     /// Most restarts of the search (a new central-difference Jacobian and trust region from
     /// where it stopped) when ftol or xtol stopped it with the relative offset above
-    /// `rel_offset_tol` and [`STEP5_RESTART_REL_OFFSET`], i.e. far from the optimum; each restart is kept only when it lowers
-    /// the cost. Default [`STEP5_RESTARTS`].
+    /// `rel_offset_tol` and [`STEP5_RESTART_REL_OFFSET`], i.e. far from the optimum; each
+    /// restart is kept only when it lowers the cost. Default [`STEP5_RESTARTS`].
     pub restarts: usize,
     /// Model of the first row. With 12 states theta gets k_ic and the second row z_8 = W_ic
     /// (N = 8, section 9.2.1).
