@@ -156,6 +156,35 @@ fn cost_77_vanishes_at_the_truth_and_grows_away_from_it() {
     }
 }
 
+/// The settled ends of the command steps are stationary measurements of the compressor flow:
+/// on a noise-free campaign the true flow map (eqs (66)-(72)) reproduces the measured W_c there
+/// at the measured Pi_c and n_t, to the settling left after `settled::SETTLE_S` (the lab's
+/// holds: 4-10 s). Sets A-I at 1-100 Hz; the first two steps of each.
+#[test]
+fn settled_step_ends_lie_on_the_true_compressor_flow_map() {
+    let truth = Params::published();
+    let c = small(
+        Noise::NONE,
+        &["A", "B", "C", "D", "E", "F", "G", "H", "I"],
+        6,
+        10,
+    );
+    let pts = mvem::tuning::settled::flow_points(&c);
+    assert!(pts.len() >= 9 * 4, "{}", pts.len());
+    let (meas, model) = mvem::tuning::steps::w_c_flow_series(&truth, &pts);
+    let mean = meas.iter().sum::<f64>() / meas.len() as f64;
+    let worst = meas
+        .iter()
+        .zip(&model)
+        .map(|(a, b)| (a - b).abs() / mean)
+        .fold(0.0, f64::max);
+    // settled to 0.5 % of the mean flow (the W_c sensor noise of Noise::REALISTIC)
+    assert!(
+        worst < 5e-3,
+        "worst relative W_c error at a settled step end {worst}"
+    );
+}
+
 #[test]
 fn pipeline_on_a_tiny_noisy_campaign() {
     let base = Params::published();
@@ -188,6 +217,18 @@ fn pipeline_on_a_tiny_noisy_campaign() {
     assert!(v.oscillation_rows().is_empty());
     // and it runs on every set of the campaign
     assert!(rep.failed_sets.is_empty(), "{:?}", rep.failed_sets);
+    // step 1's compressor-flow fit used the stationary points and the settled ends of the
+    // static-tuning sets' steps (A, B, C, I here)
+    let settled = mvem::tuning::settled::flow_points(&c).len();
+    assert!(settled > 0);
+    assert_eq!(rep.step1_settled_flow_points, settled);
+    let fits = &rep.step1.as_ref().unwrap().fits;
+    let w_c = fits.iter().find(|f| f.submodel == "W_c").unwrap();
+    assert_eq!(w_c.n_points, 40 + settled);
+    assert!(fits
+        .iter()
+        .filter(|f| f.submodel != "W_c")
+        .all(|f| f.n_points == 40));
     for d in &v.datasets {
         for o in &d.outputs {
             let e = o.mean_abs_rel_err;

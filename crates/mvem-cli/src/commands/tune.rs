@@ -104,6 +104,11 @@ pub struct Args {
         value_name = "N"
     )]
     pub step5_first_pass_max: usize,
+    /// Step 1: fit the compressor flow map also to the settled ends of the static-tuning sets'
+    /// command steps (`false`: the stationary points only, as the paper's step 1; not used
+    /// for `--model 12`; docs/tuning.md, session 15).
+    #[arg(long = "settled-flow-points", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub settled_flow_points: bool,
     /// Step 3: length [s] of the fully weighted part of each step response; later samples
     /// weigh `--step3-tail-weight` (not in the paper; default `inf`: eq. (75), every sample
     /// alike; 0.5 s halves the spread of V_em but can change step 5's path, docs/tuning.md).
@@ -195,6 +200,7 @@ pub fn run(a: &Args) -> Result<()> {
     opts.step5.restarts = a.restarts;
     opts.stage_oscillating = !a.step5_single_pass;
     opts.stage_first_pass_max_evaluations = a.step5_first_pass_max;
+    opts.settled_flow_points = a.settled_flow_points;
     if a.step3_window.is_nan() || a.step3_window <= 0.0 {
         return Err(common::usage(format!(
             "--step3-window {}: must be > 0 seconds (inf: every sample alike)",
@@ -385,6 +391,14 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             "Step 1: static submodels (stationary data, eq. (4))",
             &r.fits,
         );
+        if rep.step1_settled_flow_points > 0 {
+            let _ = writeln!(
+                s,
+                "W_c: the stationary points and {} settled ends of the static-tuning sets' \
+                 command steps (`--settled-flow-points`; docs/tuning.md, session 15).\n",
+                rep.step1_settled_flow_points
+            );
+        }
     }
     if let Some(r) = &rep.step2 {
         table(&mut s, "Step 2: actuators (set J)", r);

@@ -13,6 +13,8 @@
 //! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
 //! - [`twelve`]: the three 12-state steps of section 9.2.1 (k_ic, V_ic, cost (77) with W_ic).
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
+//! - [`settled`]: settled operating points at the ends of the dynamic sets' command steps
+//!   (compressor flow points for step 1).
 //! - [`uncertainty`]: standard errors and identifiability of every tuned parameter.
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
@@ -22,6 +24,7 @@ pub mod complete;
 pub mod data;
 pub mod lab;
 pub mod pipeline;
+pub mod settled;
 pub mod steps;
 pub mod twelve;
 pub mod uncertainty;

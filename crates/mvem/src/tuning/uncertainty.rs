@@ -58,7 +58,7 @@
 use super::complete::{param_mut, param_value, set_named, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
 use super::lsq::{param_stats, FiniteDiff, ParamStats};
-use super::steps::{actuator_response, submodel_series, Step1Report};
+use super::steps::{actuator_response, submodel_series, w_c_flow_series, FlowPoint, Step1Report};
 use crate::params::Params;
 use nalgebra::DMatrix;
 use serde::Serialize;
@@ -599,14 +599,21 @@ fn typical_scale(name: &str, value: f64) -> f64 {
 
 /// Estimates of the step-1 parameters: per submodel, the Jacobian of its residuals
 /// (measured - modelled, eq. (4) units) by central differences at the fitted values; and their
-/// covariance (one block per submodel).
+/// covariance (one block per submodel). `flow_extra`: the further compressor flow points the
+/// W_c fit used besides the stationary points ([`super::steps::step1_with`]).
 pub fn step1_estimates(
     p: &Params,
     pts: &[StationaryPoint],
+    flow_extra: &[FlowPoint],
     rep: &Step1Report,
 ) -> (Vec<(String, ParamEstimate)>, NamedCov) {
     let mut out = Vec::new();
     let mut all = NamedCov::default();
+    let flow: Vec<FlowPoint> = pts
+        .iter()
+        .map(FlowPoint::of)
+        .chain(flow_extra.iter().copied())
+        .collect();
     for f in &rep.fits {
         let names: Vec<&str> = f.params.iter().map(|(n, _)| n.as_str()).collect();
         let theta: Vec<f64> = names
@@ -622,6 +629,11 @@ pub fn step1_estimates(
         let res = |th: &[f64]| -> Vec<f64> {
             let mut q = p.clone();
             set_named(&mut q, &names, th);
+            if f.submodel == "W_c" {
+                // the points of the fit (stationary and further flow points)
+                let (meas, model) = w_c_flow_series(&q, &flow);
+                return meas.iter().zip(&model).map(|(a, b)| a - b).collect();
+            }
             match submodel_series(&q, pts) {
                 Ok(all) => all
                     .into_iter()

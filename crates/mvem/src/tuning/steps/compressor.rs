@@ -27,20 +27,71 @@ pub(super) fn eta_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -
         .unzip()
 }
 
-/// W_c of eqs (66)-(72) at a stationary point (measured Pi_c, omega_t).
-fn w_c_model(c: &Compressor, g: &Gas, s: &StationaryPoint, d: &Derived) -> f64 {
-    let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
+/// A compressor operating point of the flow fit (eqs (66)-(72)): what the flow model needs, all
+/// measured. From a stationary point ([`FlowPoint::of`]) or from the settled end of a command
+/// step in a dynamic data set ([`crate::tuning::settled`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlowPoint {
+    /// Compressor outlet pressure p_c [Pa] (p_im in the 8- and 10-state models).
+    pub p_c: f64,
+    /// Ambient pressure p_amb [Pa].
+    pub p_amb: f64,
+    /// Ambient temperature T_amb [K].
+    pub t_amb: f64,
+    /// Turbo speed n_t [rpm].
+    pub n_t: f64,
+    /// Compressor mass flow W_c [kg/s].
+    pub w_c: f64,
+}
+
+impl FlowPoint {
+    /// The flow point of a stationary measurement.
+    pub fn of(s: &StationaryPoint) -> Self {
+        Self {
+            p_c: s.p_c,
+            p_amb: s.p_amb,
+            t_amb: s.t_amb,
+            n_t: s.n_t,
+            w_c: s.w_c,
+        }
+    }
+
+    /// omega_t [rad/s].
+    fn omega_t(&self) -> f64 {
+        self.n_t * std::f64::consts::PI / 30.0
+    }
+
+    /// Pi_c of eq. (59) (authors: >= 1).
+    fn pi_c(&self) -> f64 {
+        compressor::pi_c(self.p_c, self.p_amb, SEM)
+    }
+}
+
+/// W_c of eqs (66)-(72) at a flow point (its measured Pi_c and omega_t).
+fn w_c_model(c: &Compressor, g: &Gas, s: &FlowPoint) -> f64 {
+    let isentropic = compressor::isentropic_term(s.pi_c(), g.gamma_a);
     compressor::flow(
-        c, g.c_pa, g.r_a, s.t_amb, s.p_amb, isentropic, d.omega_t, SEM,
+        c,
+        g.c_pa,
+        g.r_a,
+        s.t_amb,
+        s.p_amb,
+        isentropic,
+        s.omega_t(),
+        SEM,
     )
     .w_c
 }
 
-/// Measured W_c and the model of eqs (66)-(72).
-pub(super) fn w_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -> Series {
+/// Measured W_c and the model of eqs (66)-(72) at the stationary points.
+pub(super) fn w_c_series(p: &Params, pts: &[StationaryPoint], _d: &[Derived]) -> Series {
+    w_c_flow_series(p, &pts.iter().map(FlowPoint::of).collect::<Vec<_>>())
+}
+
+/// Measured W_c and the model of eqs (66)-(72) at flow points.
+pub fn w_c_flow_series(p: &Params, pts: &[FlowPoint]) -> Series {
     pts.iter()
-        .zip(d)
-        .map(|(s, d)| (s.w_c, w_c_model(&p.compressor, &p.gas, s, d)))
+        .map(|s| (s.w_c, w_c_model(&p.compressor, &p.gas, s)))
         .unzip()
 }
 
@@ -122,31 +173,36 @@ pub fn fit_eta_c(
 /// Compressor flow, eqs (66)-(72): Psi_c (66) and Phi_c (67) from the measurements; varpro of
 /// c_Psi1(omega)(Psi_c - c_Psi2)^2 + c_Phi1(omega)(Phi_c - c_Phi2)^2 = 1 with c_Psi2, c_Phi2
 /// nonlinear and the six polynomial coefficients (69)-(70) linear. The polynomials are fitted
-/// in omega_t/1000 and rescaled (conditioning).
-pub fn fit_w_c(
-    p: &mut Params,
-    pts: &[StationaryPoint],
-    start: [f64; 2],
-) -> Result<FitReport, StepError> {
+/// in omega_t/1000 and rescaled (conditioning). `pts` are the stationary points and any further
+/// measured flow points (e.g. the settled ends of the dynamic sets' steps,
+/// [`crate::tuning::settled`]), all weighted alike.
+pub fn fit_w_c(p: &mut Params, pts: &[FlowPoint], start: [f64; 2]) -> Result<FitReport, StepError> {
     need("W_c", pts.len(), 8)?;
-    let d = derive(p, pts)?;
     let g = &p.gas.clone();
     let c = &p.compressor;
     let mut psi = Vec::with_capacity(pts.len());
     let mut phic = Vec::with_capacity(pts.len());
-    for (s, d) in pts.iter().zip(&d) {
-        let isentropic = compressor::isentropic_term(d.pi_c, g.gamma_a);
+    let omega: Vec<f64> = pts.iter().map(FlowPoint::omega_t).collect();
+    for (i, (s, &w)) in pts.iter().zip(&omega).enumerate() {
+        let isentropic = compressor::isentropic_term(s.pi_c(), g.gamma_a);
         psi.push(compressor::energy_coefficient(
-            c.r_c, g.c_pa, s.t_amb, isentropic, d.omega_t,
+            c.r_c, g.c_pa, s.t_amb, isentropic, w,
         )); // eq. (66)
         phic.push(compressor::flow_coefficient(
-            c.r_c, g.r_a, s.t_amb, s.p_amb, d.omega_t, s.w_c,
+            c.r_c, g.r_a, s.t_amb, s.p_amb, w, s.w_c,
         )); // eqs (67), (72)
+        if !(psi[i].is_finite() && phic[i].is_finite()) {
+            return Err(StepError::BadMeasurement {
+                submodel: "W_c",
+                point: i,
+                what: "Psi_c or Phi_c (eqs (66)-(67); n_t = 0?)",
+            });
+        }
     }
     let ones = vec![1.0; pts.len()];
     let phi = |a: &[f64]| {
         DMatrix::from_fn(pts.len(), 6, |i, j| {
-            let w = d[i].omega_t / 1000.0;
+            let w = omega[i] / 1000.0;
             let dd = if j < 3 {
                 (psi[i] - a[0]).powi(2)
             } else {
@@ -187,21 +243,20 @@ pub fn fit_w_c(
     // W_c,model - W_c,meas; the better one is kept.
     let w_mean = meas.iter().sum::<f64>() / meas.len() as f64;
     let mut starts = vec![th0.to_vec()];
-    if let Some(th) = w_c_phi_start(&psi, &phic, &d, start) {
+    if let Some(th) = w_c_phi_start(&psi, &phic, &omega, start) {
         starts.push(th);
     }
     let mut cq = p.compressor.clone();
     let mut res = |th: &[f64]| {
         set(&mut cq, th);
         pts.iter()
-            .zip(&d)
-            .map(|(s, dd)| (w_c_model(&cq, g, s, dd) - s.w_c) / w_mean)
+            .map(|s| (w_c_model(&cq, g, s) - s.w_c) / w_mean)
             .collect::<Vec<f64>>()
     };
     let refined = best_fit("W_c", &mut res, &starts, &Bounds::none(8), &lsq_opts())?;
     let n_eval = fit.lsq.n_eval + refined.n_eval;
     set(&mut p.compressor, &refined.theta);
-    let (meas, model) = w_c_series(p, pts, &d);
+    let (meas, model) = w_c_flow_series(p, pts);
     let cm = &p.compressor;
     Ok(fit_report(
         "W_c",
@@ -226,9 +281,9 @@ pub fn fit_w_c(
 /// and c_Psi2, c_Phi2 at their start values; then c_Phi1 = 1/A and c_Psi1 = B/A at the data
 /// refitted as quadratics. Returns the 8 parameters in the scaled order of [`fit_w_c`], or None
 /// when A <= 0 at a data point.
-fn w_c_phi_start(psi: &[f64], phic: &[f64], d: &[Derived], start: [f64; 2]) -> Option<Vec<f64>> {
+fn w_c_phi_start(psi: &[f64], phic: &[f64], omega: &[f64], start: [f64; 2]) -> Option<Vec<f64>> {
     let n = psi.len();
-    let w: Vec<f64> = d.iter().map(|d| d.omega_t / 1000.0).collect();
+    let w: Vec<f64> = omega.iter().map(|o| o / 1000.0).collect();
     let a = DMatrix::from_fn(n, 6, |i, j| {
         let pw = w[i].powi(2 - (j % 3) as i32);
         if j < 3 {

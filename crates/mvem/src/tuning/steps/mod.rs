@@ -34,7 +34,7 @@ mod egr;
 mod turbine;
 
 pub use actuators::{actuator_response, step2, Step2Start};
-pub use compressor::{fit_eta_c, fit_w_c, project_q_c};
+pub use compressor::{fit_eta_c, fit_w_c, project_q_c, w_c_flow_series, FlowPoint};
 pub use cylinder::{fit_t_em, fit_torque, fit_w_ei};
 pub use egr::fit_egr;
 pub use turbine::{bsr_series, fit_eta_tm, fit_w_t};
@@ -286,6 +286,24 @@ pub fn step1(
     pts: &[StationaryPoint],
     start: &Step1Start,
 ) -> Result<(Params, Step1Report), StepError> {
+    step1_with(base, pts, &[], start)
+}
+
+/// [`step1`] with further measured compressor flow points (`flow_extra`, e.g. the settled ends
+/// of the dynamic sets' command steps, [`crate::tuning::settled`]) in the compressor-flow fit
+/// ([`fit_w_c`]) next to the stationary points; the other submodels use the stationary points
+/// only.
+pub fn step1_with(
+    base: &Params,
+    pts: &[StationaryPoint],
+    flow_extra: &[FlowPoint],
+    start: &Step1Start,
+) -> Result<(Params, Step1Report), StepError> {
+    let flow: Vec<FlowPoint> = pts
+        .iter()
+        .map(FlowPoint::of)
+        .chain(flow_extra.iter().copied())
+        .collect();
     let mut p = base.clone();
     let fits = vec![
         fit_w_ei(&mut p, pts)?,
@@ -295,7 +313,7 @@ pub fn step1(
         fit_w_t(&mut p, pts, start.w_t)?,
         fit_t_em(&mut p, pts, start.t_em)?,
         fit_eta_c(&mut p, pts, start.eta_c)?,
-        fit_w_c(&mut p, pts, start.w_c)?,
+        fit_w_c(&mut p, &flow, start.w_c)?,
     ];
     Ok((p, Step1Report { fits }))
 }
