@@ -156,6 +156,46 @@ fn cost_77_vanishes_at_the_truth_and_grows_away_from_it() {
     }
 }
 
+/// Cost (77) with further compressor flow points (`Step5Options::flow_points`): the W_c term of
+/// the second row runs over the stationary and the flow points, weighted by
+/// `1 / sqrt(beta N (M + K))` (its mean over its own points); every other row is unchanged.
+#[test]
+fn cost77_w_c_row_takes_the_further_flow_points() {
+    let p = Params::published();
+    let c = small(Noise::REALISTIC, &["A", "B"], 3, 20);
+    let sets: Vec<_> = ["A", "B"].iter().map(|n| c.dataset(n).unwrap().1).collect();
+    let flow = mvem::tuning::settled::flow_points(&c);
+    let k = flow.len();
+    assert!(k > 0);
+    let plain = Cost77::new(&p, &c.stationary, &sets, &Step5Options::default());
+    let opts = Step5Options {
+        flow_points: flow.clone(),
+        ..Step5Options::default()
+    };
+    let cost = Cost77::new(&p, &c.stationary, &sets, &opts);
+    assert_eq!(cost.len(), plain.len() + k);
+    let (b0, b1) = (plain.blocks(), cost.blocks());
+    assert_eq!(b1.len(), b0.len());
+    assert_eq!(b1[..b1.len() - 1], b0[..b0.len() - 1]);
+    assert_eq!(*b1.last().unwrap(), 20 + k);
+    let (r0, r1) = (plain.residuals_at(&p), cost.residuals_at(&p));
+    let before_w_c = r0.len() - 20;
+    assert_eq!(r0[..before_w_c], r1[..before_w_c]);
+    let pts: Vec<_> = c
+        .stationary
+        .iter()
+        .map(mvem::tuning::steps::FlowPoint::of)
+        .chain(flow)
+        .collect();
+    let (meas, model) = mvem::tuning::steps::w_c_flow_series(&p, &pts);
+    let mean = meas.iter().sum::<f64>() / meas.len() as f64;
+    let w = 1.0 / ((7 * (20 + k)) as f64).sqrt();
+    for (i, r) in r1[before_w_c..].iter().enumerate() {
+        let want = w * (meas[i] - model[i]) / mean;
+        assert!((r - want).abs() <= 1e-15, "row {i}: {r} vs {want}");
+    }
+}
+
 /// The settled ends of the command steps are stationary measurements of the compressor flow:
 /// on a noise-free campaign the true flow map (eqs (66)-(72)) reproduces the measured W_c there
 /// at the measured Pi_c and n_t, to the settling left after `settled::SETTLE_S` (the lab's

@@ -104,9 +104,9 @@ pub struct Args {
         value_name = "N"
     )]
     pub step5_first_pass_max: usize,
-    /// Step 1: fit the compressor flow map also to the settled ends of the static-tuning sets'
-    /// command steps (`false`: the stationary points only, as the paper's step 1; not used
-    /// for `--model 12`; docs/tuning.md, session 15).
+    /// Fit the compressor flow map (step 1, and step 5's W_c submodel row) also to the settled
+    /// ends of the static-tuning sets' command steps (`false`: the stationary points only, as
+    /// the paper's steps 1 and 5; not used for `--model 12`; docs/tuning.md, session 15).
     #[arg(long = "settled-flow-points", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub settled_flow_points: bool,
     /// Step 3: length [s] of the fully weighted part of each step response; later samples
@@ -394,8 +394,9 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
         if rep.step1_settled_flow_points > 0 {
             let _ = writeln!(
                 s,
-                "W_c: the stationary points and {} settled ends of the static-tuning sets' \
-                 command steps (`--settled-flow-points`; docs/tuning.md, session 15).\n",
+                "W_c (here and in step 5's submodel row): the stationary points and {} settled \
+                 ends of the static-tuning sets' command steps (`--settled-flow-points`; \
+                 docs/tuning.md, session 15).\n",
                 rep.step1_settled_flow_points
             );
         }

@@ -873,6 +873,11 @@ pub struct Step5Options {
     /// Model of the first row. With 12 states theta gets k_ic and the second row z_8 = W_ic
     /// (N = 8, section 9.2.1).
     pub model: ModelOrder,
+    /// Further measured compressor flow points of the W_c submodel in the second row, besides
+    /// the stationary points: the settled ends of the dynamic sets' holds that step 1's flow
+    /// fit used ([`super::settled::flow_points`]; empty by default). Each submodel's term is
+    /// then its mean over its own points (`1/(beta N M_n)`; eq. (77) when every M_n = M).
+    pub flow_points: Vec<super::steps::FlowPoint>,
 }
 
 /// Default [`Step5Options::rel_offset_tol`]: `1 / sqrt(35)` for the 35 static parameters, so
@@ -896,6 +901,7 @@ impl Default for Step5Options {
             rel_offset_tol: STEP5_REL_OFFSET_TOL,
             restarts: STEP5_RESTARTS,
             model: ModelOrder::Eight,
+            flow_points: Vec::new(),
         }
     }
 }
@@ -980,10 +986,18 @@ impl Cost77 {
 
     fn stat_len(&self) -> usize {
         if self.opts.static_row {
-            self.n_z() * self.stat.len()
+            self.n_z() * self.stat.len() + self.opts.flow_points.len()
         } else {
             0
         }
+    }
+
+    /// Points of each submodel in the second row (order of [`steps::fit_series`] without M_e,
+    /// then W_ic): M, and M plus the further flow points for W_c (the seventh).
+    fn submodel_points(&self) -> Vec<usize> {
+        let mut m = vec![self.stat.len(); self.n_z()];
+        m[6] += self.opts.flow_points.len();
+        m
     }
 
     /// Lengths of the residual blocks in the order of [`Cost77::residuals`]: per data set its four
@@ -996,7 +1010,7 @@ impl Cost77 {
             }
         }
         if self.opts.static_row {
-            b.extend(std::iter::repeat_n(self.stat.len(), self.n_z()));
+            b.extend(self.submodel_points());
         }
         b
     }
@@ -1088,8 +1102,6 @@ impl Cost77 {
             }
         }
         if self.opts.static_row {
-            let n_m = (self.n_z() * self.stat.len()) as f64;
-            let w = 1.0 / (self.opts.beta * n_m).sqrt();
             match steps::fit_series(q, &self.stat) {
                 Ok(mut series) => {
                     if self.opts.model == ModelOrder::Twelve {
@@ -1097,12 +1109,23 @@ impl Cost77 {
                         let (meas, model) = super::twelve::w_ic_series(q, &self.stat);
                         series.push(("W_ic".into(), meas, model));
                     }
-                    for (name, meas, model) in series.iter().filter(|s| s.0 != "M_e") {
-                        let _ = name;
+                    for (name, meas, model) in series.iter_mut().filter(|s| s.0 != "M_e") {
+                        if name == "W_c" && !self.opts.flow_points.is_empty() {
+                            // the stationary points and the further flow points (step 1's fit)
+                            let pts: Vec<steps::FlowPoint> = self
+                                .stat
+                                .iter()
+                                .map(steps::FlowPoint::of)
+                                .chain(self.opts.flow_points.iter().copied())
+                                .collect();
+                            (*meas, *model) = steps::w_c_flow_series(q, &pts);
+                        }
+                        // 1 / (beta N M_n): each submodel's mean over its points
+                        let w = 1.0 / (self.opts.beta * (self.n_z() * meas.len()) as f64).sqrt();
                         let mm = mean_of(meas);
                         out.extend(
                             meas.iter()
-                                .zip(model)
+                                .zip(model.iter())
                                 .map(|(a, b)| w * (a - b) / mm)
                                 .map(|r| if r.is_finite() { r } else { 10.0 }),
                         );

@@ -97,13 +97,14 @@ pub struct PipelineOptions {
     pub stage_first_pass_max_evaluations: usize,
     /// Step 1 fits the compressor flow (eqs (66)-(72)) also to the settled ends of the
     /// static-tuning sets' command steps ([`super::settled::flow_points`]; the paper tunes the
-    /// static models on sets A-I too), not only to the stationary points. Default on (session
-    /// 15): on `mvem lab` seed 5 the stationary points alone leave the map 8-15 % low at the
-    /// Pi_c of about 1.03 where set A settles; the tuned model then has no equilibrium on 36 of
-    /// A's 77 holds and oscillates there. With these points it settles on every hold and
-    /// follows A's plateaus; mean validation over nine campaigns 1.22x -> 1.20x the noise
-    /// floor (docs/tuning.md, session 15). Not used for the 12-state model, whose p_c the
-    /// dynamic sets do not record.
+    /// static models on sets A-I too), not only to the stationary points, and step 5's W_c
+    /// submodel row runs over the same points ([`Step5Options::flow_points`]). Default on
+    /// (session 15): on `mvem lab` seed 5 the stationary points alone leave the map 8-15 % low
+    /// at the Pi_c of about 1.03 where set A settles; the tuned model then has no equilibrium on
+    /// 36 of A's 77 holds and oscillates there. With these points it settles on every hold and
+    /// follows A's plateaus; validation over nine campaigns 1.22x -> 1.14x the noise floor on
+    /// average, seed 5 1.66x -> 1.19x (docs/tuning.md, session 15). Not used for the 12-state
+    /// model, whose p_c the dynamic sets do not record.
     pub settled_flow_points: bool,
 }
 
@@ -268,6 +269,20 @@ pub fn tune(
     opts: &PipelineOptions,
 ) -> Result<(Params, TuneReport), PipelineError> {
     let t_all = Instant::now();
+    // the settled ends of the dynamic sets' holds: further compressor flow points of step 1's
+    // flow fit and of step 5's W_c submodel row
+    let flow_extra = if opts.settled_flow_points && opts.model != ModelOrder::Twelve {
+        super::settled::flow_points(c)
+    } else {
+        Vec::new()
+    };
+    let opts = &PipelineOptions {
+        step5: Step5Options {
+            flow_points: flow_extra.clone(),
+            ..opts.step5.clone()
+        },
+        ..opts.clone()
+    };
     let mut p = base.clone();
     let mut rep = TuneReport::default();
     // estimates by tuning name; a later step overwrites an earlier one
@@ -279,11 +294,6 @@ pub fn tune(
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
         let t = Instant::now();
-        let flow_extra = if opts.settled_flow_points && opts.model != ModelOrder::Twelve {
-            super::settled::flow_points(c)
-        } else {
-            Vec::new()
-        };
         let (q, r) =
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
         p = q;

@@ -11,7 +11,8 @@
 //! 77 steps. There, a flow map fitted to the stationary points alone can be 8-15 % low (seed 5),
 //! and the tuned model then has no equilibrium where the engine sits (it oscillates,
 //! docs/tuning.md, session 15). [`flow_points`] returns those points for step 1's compressor-flow
-//! fit ([`super::steps::step1_with`]).
+//! fit ([`super::steps::step1_with`]) and step 5's W_c submodel row
+//! ([`super::complete::Step5Options::flow_points`]).
 //!
 //! A settled window is the part of a hold at least [`SETTLE_S`] after its step, to the end of
 //! the hold; a hold shorter than that, or with fewer than two samples after it, gives no point.
