@@ -61,6 +61,26 @@ fn lab_tune_validate_roundtrip_and_errors() {
         }
     }
     assert!(v["stationary"]["W_c"].as_f64().unwrap() < 1e-6);
+    // step 1: the compressor flow fit takes the settled ends of the holds of B, C and I
+    // (roles static) next to the 20 stationary points; `--settled-flow-points false` does not
+    let settled = |extra: &[&str]| {
+        let mut args = vec!["tune", "--data", "c", "--steps", "1", "--out", "s1.toml"];
+        args.extend_from_slice(&["--report", "r1"]);
+        args.extend_from_slice(extra);
+        let o = mvem(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let rep: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join("r1/tune_report.json")).unwrap()).unwrap();
+        let n = rep["step1_settled_flow_points"].as_u64().unwrap();
+        let fits = rep["step1"]["fits"].as_array().unwrap();
+        let w_c = fits.iter().find(|f| f["submodel"] == "W_c").unwrap();
+        assert_eq!(w_c["n_points"].as_u64().unwrap(), 20 + n);
+        let md = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert_eq!(md.contains("settled"), n > 0, "{md}");
+        n
+    };
+    assert!(settled(&[]) > 0);
+    assert_eq!(settled(&["--settled-flow-points", "false"]), 0);
     // steps 3-4 only (base: published): runs, writes the parameter file and the report
     let o = mvem(
         d,
