@@ -9,6 +9,7 @@ use mvem::analysis::steady::steady_state;
 use mvem::model::{Drive, Engine8, Model, ModelOptions};
 use mvem::tuning::complete::segments;
 use mvem::tuning::data::load_campaign;
+use mvem::tuning::steps::{w_c_flow_series, FlowPoint};
 use std::path::Path;
 
 fn main() {
@@ -48,23 +49,19 @@ fn main() {
             mean("W_c")
         );
         for m in &ms {
+            // the flow map at the measured Pi_c and n_t (step 1's model of W_c)
             let p = m.params();
-            let pi = mean("p_im") / p.ambient.p_amb;
-            let isen = mvem::components::compressor::isentropic_term(pi.max(1.0), p.gas.gamma_a);
-            let f = mvem::components::compressor::flow(
-                &p.compressor,
-                p.gas.c_pa,
-                p.gas.r_a,
-                p.ambient.t_amb,
-                p.ambient.p_amb,
-                isen,
-                mean("n_t") * std::f64::consts::PI / 30.0,
-                mvem::components::Semantics::Authors,
-            );
+            let hold_end = FlowPoint {
+                p_c: mean("p_im"),
+                p_amb: p.ambient.p_amb,
+                t_amb: p.ambient.t_amb,
+                n_t: mean("n_t"),
+                w_c: mean("W_c"),
+            };
+            let w_c = w_c_flow_series(p, &[hold_end]).1[0];
             line += &format!(
-                " [W_c map {:.4} {:+.1}%]",
-                f.w_c,
-                100.0 * (f.w_c / mean("W_c") - 1.0)
+                " [W_c map {w_c:.4} {:+.1}%]",
+                100.0 * (w_c / hold_end.w_c - 1.0)
             );
             match steady_state(m, &drive) {
                 Ok(ss) => {

@@ -915,6 +915,9 @@ pub struct Cost77 {
     opts: Step5Options,
     list: Vec<StaticParam>,
     n_res: usize,
+    /// Points of the W_c row when `opts.flow_points` is not empty: the stationary points, then
+    /// those ([`steps::flow_points_with`]); empty otherwise (W_c on the stationary points).
+    w_c_points: Vec<steps::FlowPoint>,
 }
 
 /// Subsample a set to at most `hz` (every k-th sample).
@@ -962,6 +965,11 @@ impl Cost77 {
             opts: opts.clone(),
             list: static_params(opts.model),
             n_res: 0,
+            w_c_points: if opts.flow_points.is_empty() {
+                Vec::new()
+            } else {
+                steps::flow_points_with(stat, &opts.flow_points)
+            },
         };
         c.n_res = c.dyn_len() + c.stat_len();
         c
@@ -1110,15 +1118,9 @@ impl Cost77 {
                         series.push(("W_ic".into(), meas, model));
                     }
                     for (name, meas, model) in series.iter_mut().filter(|s| s.0 != "M_e") {
-                        if name == "W_c" && !self.opts.flow_points.is_empty() {
+                        if name == "W_c" && !self.w_c_points.is_empty() {
                             // the stationary points and the further flow points (step 1's fit)
-                            let pts: Vec<steps::FlowPoint> = self
-                                .stat
-                                .iter()
-                                .map(steps::FlowPoint::of)
-                                .chain(self.opts.flow_points.iter().copied())
-                                .collect();
-                            (*meas, *model) = steps::w_c_flow_series(q, &pts);
+                            (*meas, *model) = steps::w_c_flow_series(q, &self.w_c_points);
                         }
                         // 1 / (beta N M_n): each submodel's mean over its points
                         let w = 1.0 / (self.opts.beta * (self.n_z() * meas.len()) as f64).sqrt();

@@ -58,7 +58,9 @@
 use super::complete::{param_mut, param_value, set_named, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
 use super::lsq::{param_stats, FiniteDiff, ParamStats};
-use super::steps::{actuator_response, submodel_series, w_c_flow_series, FlowPoint, Step1Report};
+use super::steps::{
+    actuator_response, flow_points_with, submodel_series, w_c_flow_series, FlowPoint, Step1Report,
+};
 use crate::params::Params;
 use nalgebra::DMatrix;
 use serde::Serialize;
@@ -609,11 +611,7 @@ pub fn step1_estimates(
 ) -> (Vec<(String, ParamEstimate)>, NamedCov) {
     let mut out = Vec::new();
     let mut all = NamedCov::default();
-    let flow: Vec<FlowPoint> = pts
-        .iter()
-        .map(FlowPoint::of)
-        .chain(flow_extra.iter().copied())
-        .collect();
+    let flow = flow_points_with(pts, flow_extra);
     for f in &rep.fits {
         let names: Vec<&str> = f.params.iter().map(|(n, _)| n.as_str()).collect();
         let theta: Vec<f64> = names

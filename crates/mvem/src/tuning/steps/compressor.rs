@@ -67,6 +67,16 @@ impl FlowPoint {
     }
 }
 
+/// The flow points of the stationary points followed by `extra` (the points of the flow fit
+/// [`fit_w_c`] and of step 5's W_c row).
+pub fn flow_points_with(stationary: &[StationaryPoint], extra: &[FlowPoint]) -> Vec<FlowPoint> {
+    stationary
+        .iter()
+        .map(FlowPoint::of)
+        .chain(extra.iter().copied())
+        .collect()
+}
+
 /// W_c of eqs (66)-(72) at a flow point (its measured Pi_c and omega_t).
 fn w_c_model(c: &Compressor, g: &Gas, s: &FlowPoint) -> f64 {
     let isentropic = compressor::isentropic_term(s.pi_c(), g.gamma_a);

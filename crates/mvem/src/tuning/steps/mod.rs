@@ -34,7 +34,9 @@ mod egr;
 mod turbine;
 
 pub use actuators::{actuator_response, step2, Step2Start};
-pub use compressor::{fit_eta_c, fit_w_c, project_q_c, w_c_flow_series, FlowPoint};
+pub use compressor::{
+    fit_eta_c, fit_w_c, flow_points_with, project_q_c, w_c_flow_series, FlowPoint,
+};
 pub use cylinder::{fit_t_em, fit_torque, fit_w_ei};
 pub use egr::fit_egr;
 pub use turbine::{bsr_series, fit_eta_tm, fit_w_t};
@@ -299,11 +301,7 @@ pub fn step1_with(
     flow_extra: &[FlowPoint],
     start: &Step1Start,
 ) -> Result<(Params, Step1Report), StepError> {
-    let flow: Vec<FlowPoint> = pts
-        .iter()
-        .map(FlowPoint::of)
-        .chain(flow_extra.iter().copied())
-        .collect();
+    let flow = flow_points_with(pts, flow_extra);
     let mut p = base.clone();
     let fits = vec![
         fit_w_ei(&mut p, pts)?,
