@@ -117,6 +117,12 @@ pub struct Args {
     /// Step 3: weight of the samples after `--step3-window` (0-1).
     #[arg(long = "step3-tail-weight", default_value_t = mvem::tuning::complete::ResponseWindow::VOLUMES.tail_weight, value_name = "W")]
     pub step3_tail_weight: f64,
+    /// Steps 3, 4 (and 7): how the simulated step responses share the measured initial and
+    /// final levels of eq. (75): `least-squares` fits the offset and gain of each step over its
+    /// whole response, `means` maps them onto the mean 0.2 s before the step and over its last
+    /// 20 % (sessions 1-15; noisier, biases the volumes, docs/tuning.md session 16).
+    #[arg(long = "step-levels", value_enum, default_value = "least-squares")]
+    pub step_levels: LevelsArg,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
@@ -129,6 +135,15 @@ pub enum InitArg {
     Step1,
     /// Eq. (78).
     Naive,
+}
+
+/// `--step-levels`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LevelsArg {
+    /// Offset and gain of each step response by least squares over the whole step.
+    LeastSquares,
+    /// Means before the step and over its last 20 %.
+    Means,
 }
 
 /// `--cost`.
@@ -217,6 +232,10 @@ pub fn run(a: &Args) -> Result<()> {
     opts.step3.window = mvem::tuning::complete::ResponseWindow {
         seconds: a.step3_window,
         tail_weight: a.step3_tail_weight,
+        levels: match a.step_levels {
+            LevelsArg::LeastSquares => mvem::tuning::complete::StepLevels::LeastSquares,
+            LevelsArg::Means => mvem::tuning::complete::StepLevels::Means,
+        },
     };
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;

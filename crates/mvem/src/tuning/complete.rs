@@ -16,12 +16,14 @@
 //! **Normalized step responses** (eq. (75)): "each output and each step response is normalized
 //! so that the initial and final values for each step response are the same for both the
 //! measurements and the simulations". For each step (from one command change to the next) the
-//! initial level is the mean over the 0.2 s before the step, the final level the mean over the
-//! last 20 % of the step; the simulated response is mapped affinely onto the measured initial
-//! and final levels (only shifted when the simulated or measured change is below 1 % of the
-//! output's stationary mean, where a scale would amplify noise) and the residual is divided by
-//! the measured step amplitude (at least that 1 %). The residuals then carry only dynamic
-//! errors, as in the paper.
+//! simulated response is mapped affinely onto the measured one, `a + b (sim - s0)`, with the
+//! offset `a` and gain `b` fitted by least squares over the whole step ([`StepLevels`]; only
+//! shifted, b = 1, when the simulated or measured change is below 1 % of the output's
+//! stationary mean, where a scale would amplify noise), and the residual is divided by the
+//! measured step amplitude (the mean over the 0.2 s before the step against the mean over its
+//! last 20 %, at least that 1 %). The residuals then carry only dynamic errors, as in the
+//! paper. Sessions 1-15 took the levels from those two means ([`StepLevels::Means`], `mvem tune
+//! --step-levels means`), whose noise biased the volumes.
 
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
@@ -136,13 +138,21 @@ fn normalized_residuals(
             mean_of(&sim[i1 - tail_len..i1]),
         );
         let amp = (m1 - m0).abs().max(floor);
-        let scale = if (s1 - s0).abs() > floor && (m1 - m0).abs() > floor {
-            ((m1 - m0) / (s1 - s0)).clamp(0.2, 5.0)
-        } else {
-            1.0
+        let scaled = (s1 - s0).abs() > floor && (m1 - m0).abs() > floor;
+        // the simulated response mapped onto the measured one: meas ~ a + b (sim - s0)
+        let (a, b) = match window.levels {
+            StepLevels::Means => {
+                let b = if scaled {
+                    ((m1 - m0) / (s1 - s0)).clamp(0.2, 5.0)
+                } else {
+                    1.0
+                };
+                (m0, b)
+            }
+            StepLevels::LeastSquares => level_fit(&meas[i0..i1], &sim[i0..i1], s0, scaled),
         };
         for i in i0..i1 {
-            let adj = m0 + scale * (sim[i] - s0);
+            let adj = a + b * (sim[i] - s0);
             let r = w * (meas[i] - adj) / amp;
             if window.contains(t[i] - t[i0]) {
                 win.push(r);
@@ -151,6 +161,48 @@ fn normalized_residuals(
             }
         }
     }
+}
+
+/// The offset `a` and gain `b` of `meas ~ a + b (sim - s0)` over one step response by least
+/// squares ([`StepLevels::LeastSquares`]); the gain `b` (limited to [0.2, 5] as the
+/// [`StepLevels::Means`] scale) only when `scaled`, else 1 (a shift only).
+fn level_fit(meas: &[f64], sim: &[f64], s0: f64, scaled: bool) -> (f64, f64) {
+    let n = meas.len().max(1) as f64;
+    let xm = sim.iter().map(|s| s - s0).sum::<f64>() / n;
+    let ym = mean_of(meas);
+    let b = if scaled {
+        let (sxy, sxx) = meas.iter().zip(sim).fold((0.0, 0.0), |(sxy, sxx), (y, s)| {
+            let x = s - s0 - xm;
+            (sxy + x * (y - ym), sxx + x * x)
+        });
+        if sxx > 0.0 {
+            (sxy / sxx).clamp(0.2, 5.0)
+        } else {
+            1.0
+        }
+    } else {
+        1.0
+    };
+    (ym - b * xm, b)
+}
+
+/// How the simulated step response is made to share the measured one's initial and final
+/// levels (eq. (75): "each output and each step response is normalized so that the initial and
+/// final values for each step response are the same for both the measurements and the
+/// simulations").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum StepLevels {
+    /// The measured levels are means: 0.2 s before the step and the step's last 20 %; the
+    /// simulated response is mapped affinely onto them (sessions 1-15). At 100 Hz and 0.5 %
+    /// noise the 20-sample initial mean is off by about 0.1 % of the output, a constant error
+    /// over the whole step that the volumes absorb: with the true static parameters, step 3 on
+    /// nine `mvem lab` campaigns gave V_im -11 to +35 % (docs/tuning.md, session 16).
+    Means,
+    /// The offset and gain of the affine map fitted by least squares over the whole step
+    /// response (variable projection of the two levels per step and output, [`level_fit`]):
+    /// every sample of the step informs the levels, and the residual carries only the shape.
+    /// Default (session 16).
+    LeastSquares,
 }
 
 /// Weights in time of the normalized step responses of step 3 (and of the 12-state step
@@ -168,6 +220,8 @@ pub struct ResponseWindow {
     pub seconds: f64,
     /// Weight of the later samples (1: uniform, as eq. (75)).
     pub tail_weight: f64,
+    /// How the simulated levels are matched to the measured ones.
+    pub levels: StepLevels,
 }
 
 impl ResponseWindow {
@@ -175,12 +229,14 @@ impl ResponseWindow {
     pub const UNIFORM: Self = Self {
         seconds: f64::INFINITY,
         tail_weight: 1.0,
+        levels: StepLevels::LeastSquares,
     };
 
     /// 0.5 s after each step fully weighted, the rest 0.1 (`mvem tune --step3-window 0.5`).
     pub const VOLUMES: Self = Self {
         seconds: 0.5,
         tail_weight: 0.1,
+        levels: StepLevels::LeastSquares,
     };
 
     /// Whether a sample `since` seconds after its step is in the fully weighted part.
@@ -188,13 +244,17 @@ impl ResponseWindow {
         since < self.seconds - 1e-9
     }
 
-    /// Samples of `segs` in the window and after it.
-    fn split(&self, t: &[f64], segs: &[(usize, usize)]) -> (usize, usize) {
-        let win = segs
+    /// Residual blocks of one output of a set, in the order [`normalized_residuals`] writes
+    /// them: each step's samples in the window, then each step's later ones. One block per step
+    /// because the residuals of a step share its amplitude normalization (so their variance
+    /// differs from step to step) and its fitted levels.
+    fn blocks(&self, t: &[f64], segs: &[(usize, usize)]) -> Vec<usize> {
+        let win: Vec<usize> = segs
             .iter()
             .map(|&(a, b)| (a..b).filter(|&i| self.contains(t[i] - t[a])).count())
-            .sum::<usize>();
-        (win, count_segment_samples(segs) - win)
+            .collect();
+        let tail = segs.iter().zip(&win).map(|(&(a, b), w)| b - a - w);
+        win.iter().copied().chain(tail).collect()
     }
 }
 
@@ -415,10 +475,7 @@ pub fn fit_dynamic(
     let blocks: Vec<usize> = sets
         .iter()
         .zip(&segs)
-        .flat_map(|(d, sg)| {
-            let (win, tail) = f.window.split(&d.t, sg);
-            [win, tail].repeat(DYN_OUTPUTS.len())
-        })
+        .flat_map(|(d, sg)| f.window.blocks(&d.t, sg).repeat(DYN_OUTPUTS.len()))
         .collect();
     let covariance = block_covariance(&fit.jacobian, &fit.residuals, &blocks);
     let uncertainty = estimates_from_cov(
@@ -518,10 +575,16 @@ struct TorqueSteps<'a> {
     segs: Vec<(usize, usize)>,
     floor: f64,
     w: f64,
+    levels: StepLevels,
 }
 
 impl<'a> TorqueSteps<'a> {
-    fn new(set: &'a DynamicData, meas: &'a [f64], stat: &[StationaryPoint]) -> Self {
+    fn new(
+        set: &'a DynamicData,
+        meas: &'a [f64],
+        stat: &[StationaryPoint],
+        levels: StepLevels,
+    ) -> Self {
         let segs = segments(set);
         let floor = 0.01
             * stationary_means(stat)[4]
@@ -534,6 +597,7 @@ impl<'a> TorqueSteps<'a> {
             segs,
             floor,
             w,
+            levels,
         }
     }
 
@@ -550,7 +614,11 @@ impl<'a> TorqueSteps<'a> {
             &self.segs,
             self.floor,
             self.w,
-            &ResponseWindow::UNIFORM, // eq. (76): every sample alike
+            // eq. (76): every sample alike
+            &ResponseWindow {
+                levels: self.levels,
+                ..ResponseWindow::UNIFORM
+            },
             &mut r,
             &mut Vec::new(),
         );
@@ -561,17 +629,18 @@ impl<'a> TorqueSteps<'a> {
 /// The residuals of step 4 (eq. (76)) with tau_Me = `tau` fixed, as a function of the whole
 /// parameter set (for the uncertainty of the parameters step 4 holds fixed): the normalized
 /// torque step responses of `set` through the dynamometer lag; residuals of 10 (large, finite)
-/// when the set does not simulate or has no M_e.
+/// when the set does not simulate or has no M_e. `levels`: as in step 4.
 pub fn torque_residuals<'a>(
     set: &'a DynamicData,
     stat: &[StationaryPoint],
     tau: f64,
+    levels: StepLevels,
 ) -> impl Fn(&Params) -> Vec<f64> + 'a {
     let n_res = count_segment_samples(&segments(set));
     let steps = set
         .get("M_e")
         .filter(|m| m.len() == set.t.len())
-        .map(|meas| TorqueSteps::new(set, meas, stat));
+        .map(|meas| TorqueSteps::new(set, meas, stat, levels));
     move |q: &Params| -> Vec<f64> {
         let fit = steps
             .as_ref()
@@ -586,17 +655,19 @@ pub fn torque_residuals<'a>(
 /// Step 4: tau_Me of eq. (76) on the normalized torque step responses of `set` (the fuel-step
 /// set I, 10 Hz), K = 1, J = 1. The engine states do not depend on tau_Me: the set is simulated
 /// once and the simulated M_e filtered for each trial value. Start 0.3 s, bounds 0.005-20 s.
+/// `levels`: how the simulated torque steps share the measured levels ([`StepLevels`]).
 pub fn step4(
     p: &Params,
     set: &DynamicData,
     stat: &[StationaryPoint],
+    levels: StepLevels,
 ) -> Result<(f64, CompleteReport), StepError> {
     const NAME: &str = "step 4 (tau_Me)";
     let meas = set.get("M_e").ok_or(StepError::MissingColumn {
         set: set.name.clone(),
         column: "M_e",
     })?;
-    let steps = TorqueSteps::new(set, meas, stat);
+    let steps = TorqueSteps::new(set, meas, stat, levels);
     if steps.segs.is_empty() {
         return Err(solver_err(NAME, "the torque set contains no command steps"));
     }
@@ -1530,10 +1601,11 @@ mod tests {
         let window = ResponseWindow {
             seconds: 0.25,
             tail_weight: 0.1,
+            levels: StepLevels::Means,
         };
-        // in the window: 0, 0.1, 0.2 s after each step
-        assert_eq!(window.split(&t, &segs), (6, 5));
-        assert_eq!(ResponseWindow::UNIFORM.split(&t, &segs), (11, 0));
+        // in the window: 0, 0.1, 0.2 s after each step; per step, the window then the rest
+        assert_eq!(window.blocks(&t, &segs), [3, 3, 4, 1]);
+        assert_eq!(ResponseWindow::UNIFORM.blocks(&t, &segs), [7, 4, 0, 0]);
         let (mut win, mut tail) = (Vec::new(), Vec::new());
         normalized_residuals(
             &t, &meas, &sim, &segs, 0.01, 2.0, &window, &mut win, &mut tail,
@@ -1551,10 +1623,71 @@ mod tests {
         }
         // uniform (eq. (75)): everything in the first list, unweighted
         let (mut all, mut none) = (Vec::new(), Vec::new());
-        let u = ResponseWindow::UNIFORM;
+        let u = ResponseWindow {
+            levels: StepLevels::Means,
+            ..ResponseWindow::UNIFORM
+        };
         normalized_residuals(&t, &meas, &sim, &segs, 0.01, 2.0, &u, &mut all, &mut none);
         assert!(none.is_empty());
         assert!((all[1] + 0.2).abs() < 1e-12 && (all[3] + 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn least_squares_levels_by_hand() {
+        // meas = 2 + 3 (sim - s0) exactly: offset 2, gain 3, whatever s0
+        let sim = [1.0, 1.0, 1.5, 2.0, 2.0];
+        let meas: Vec<f64> = sim.iter().map(|s| 2.0 + 3.0 * (s - 1.0)).collect();
+        let (a, b) = level_fit(&meas, &sim, 1.0, true);
+        assert!(
+            (a - 2.0).abs() < 1e-12 && (b - 3.0).abs() < 1e-12,
+            "{a} {b}"
+        );
+        // shift only: the mean difference, gain 1
+        // mean(sim - s0) = 0.5, mean(meas) = 2 + 3 * 0.5 = 3.5: a = 3.5 - 0.5
+        let (a, b) = level_fit(&meas, &sim, 1.0, false);
+        assert!((a - 3.0).abs() < 1e-12 && b == 1.0, "{a} {b}");
+        // the gain is limited as the means' scale is; a flat response keeps gain 1
+        let (_, b) = level_fit(&[0.0, 0.0, 10.0, 20.0, 20.0], &sim, 1.0, true);
+        assert_eq!(b, 5.0);
+        let (a, b) = level_fit(&[1.0, 2.0, 3.0], &[4.0, 4.0, 4.0], 4.0, true);
+        assert!((a - 2.0).abs() < 1e-12 && b == 1.0, "{a} {b}");
+        // in the residuals: a measured response that is the simulated one with other levels
+        // leaves no residual, however noisy its pre-step samples are (which the means use)
+        let t: Vec<f64> = (0..14).map(|i| i as f64 * 0.1).collect();
+        let sim: Vec<f64> = (0..14)
+            .map(|i| {
+                if i < 3 {
+                    0.0
+                } else {
+                    1.0 - (-(i as f64 - 2.0)).exp()
+                }
+            })
+            .collect();
+        let mut meas: Vec<f64> = sim.iter().map(|s| 5.0 + 2.0 * s).collect();
+        meas[1] += 0.3; // noise before the step
+        let segs = [(3, 14)];
+        let (mut r, mut tail) = (Vec::new(), Vec::new());
+        normalized_residuals(
+            &t,
+            &meas,
+            &sim,
+            &segs,
+            0.01,
+            1.0,
+            &ResponseWindow::UNIFORM,
+            &mut r,
+            &mut tail,
+        );
+        assert_eq!(r.len(), 11);
+        assert!(r.iter().all(|x| x.abs() < 1e-12), "{r:?}");
+        // the means of sessions 1-15 carry that noise into every residual of the step
+        let means = ResponseWindow {
+            levels: StepLevels::Means,
+            ..ResponseWindow::UNIFORM
+        };
+        r.clear();
+        normalized_residuals(&t, &meas, &sim, &segs, 0.01, 1.0, &means, &mut r, &mut tail);
+        assert!(r.iter().any(|x| x.abs() > 1e-2), "{r:?}");
     }
 
     fn report(stopped_by: &str, rel_offset: f64) -> Step5Report {
