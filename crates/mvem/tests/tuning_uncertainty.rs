@@ -14,9 +14,11 @@
 //! Heavy (the full pipeline on seeds 1-4: 184 s on a quiet 2-core machine; CI has 25 minutes
 //! on 2 cores for everything): `#[ignore]`d, run by
 //! `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty --
-//! --ignored`). It fails on the default pipeline: on seeds 2 and 4 the chained covariance
-//! flags V_im, V_em and J_t (docs/tuning.md, "Session 9 (tune6)"); every parameter reported
-//! identifiable lies within 3 standard errors there (`scripts/tuning-compare.py`).
+//! --ignored`). It fails on the default pipeline: on seed 2 the chained covariance flags V_im,
+//! V_em and J_t (rel. std. errors 59, 145, 26 %; session 16, 495 s beside a CI run). Seeds 1, 3
+//! and 4 pass: every parameter reported identifiable lies within 3 standard errors, eta_tm and
+//! eta_c at their measured points too (before session 16's least-squares step levels seed 4
+//! failed as well; `scripts/tuning-compare.py`).
 
 use mvem::components::{compressor, turbine, Semantics};
 use mvem::params::Params;
@@ -168,7 +170,7 @@ fn check_campaign(seed: u64) -> Vec<String> {
 }
 
 #[test]
-#[ignore = "heavy (about 3 minutes on 2 cores) and failing: seeds 2 and 4 flag the volumes (docs/tuning.md, session 9); scripts/tuning-uncertainty.sh"]
+#[ignore = "heavy (about 3-8 minutes on 2 cores) and failing on seed 2 only: V_im, V_em, J_t flagged (J_t at 26 %; docs/tuning.md, session 16); scripts/tuning-uncertainty.sh"]
 fn tuned_parameters_lie_within_their_standard_errors() {
     let bad: Vec<String> = [1, 2, 3, 4].into_iter().flat_map(check_campaign).collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));
