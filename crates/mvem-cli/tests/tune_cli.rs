@@ -81,24 +81,24 @@ fn lab_tune_validate_roundtrip_and_errors() {
     };
     assert!(settled(&[]) > 0);
     assert_eq!(settled(&["--settled-flow-points", "false"]), 0);
-    // step 3 with either way of matching the step levels recovers V_im from noise-free data
+    // step 3 with either way of matching the step levels recovers V_im from noise-free data;
+    // another value is a usage error
+    let step3_with = |levels: &str| {
+        let args = [
+            "tune",
+            "--data",
+            "c",
+            "--steps",
+            "3",
+            "--step-levels",
+            levels,
+        ];
+        let mut args = args.to_vec();
+        args.extend_from_slice(&["--out", "l.toml", "--report", "rl"]);
+        mvem(d, &args)
+    };
     for levels in ["least-squares", "means"] {
-        let o = mvem(
-            d,
-            &[
-                "tune",
-                "--data",
-                "c",
-                "--steps",
-                "3",
-                "--step-levels",
-                levels,
-                "--out",
-                "l.toml",
-                "--report",
-                "rl",
-            ],
-        );
+        let o = step3_with(levels);
         assert!(o.status.success(), "{levels}: {}", stderr(&o));
         let rep: serde_json::Value =
             serde_json::from_slice(&std::fs::read(d.join("rl/tune_report.json")).unwrap()).unwrap();
@@ -107,20 +107,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
             .unwrap();
         assert!((v / 0.022 - 1.0).abs() < 0.01, "{levels}: V_im {v}");
     }
-    let o = mvem(
-        d,
-        &[
-            "tune",
-            "--data",
-            "c",
-            "--steps",
-            "3",
-            "--step-levels",
-            "median",
-            "--out",
-            "x.toml",
-        ],
-    );
+    let o = step3_with("median");
     assert!(!o.status.success() && stderr(&o).contains("--step-levels"));
     // steps 3-4 only (base: published): runs, writes the parameter file and the report
     let o = mvem(
