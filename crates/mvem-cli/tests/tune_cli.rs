@@ -106,6 +106,7 @@ fn lab_tune_validate_roundtrip_and_errors() {
             .as_f64()
             .unwrap();
         assert!((v / 0.022 - 1.0).abs() < 0.01, "{levels}: V_im {v}");
+        assert_eq!(rep["step_levels"], levels);
     }
     let o = step3_with("median");
     assert!(!o.status.success() && stderr(&o).contains("--step-levels"));

@@ -426,8 +426,15 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
     if let Some(r) = &rep.step3 {
         let _ = writeln!(
             s,
-            "Step 3: {} evaluations, converged {}",
-            r.n_eval, r.converged
+            "Step 3: {} evaluations, converged {}; step levels: {}",
+            r.n_eval,
+            r.converged,
+            match rep.step_levels {
+                Some(mvem::tuning::complete::StepLevels::Means) => {
+                    "means before the step and over its last 20 % (`--step-levels means`)"
+                }
+                _ => "offset and gain of each step fitted by least squares",
+            }
         );
         table(
             &mut s,

@@ -191,6 +191,7 @@ fn level_fit(meas: &[f64], sim: &[f64], s0: f64, scaled: bool) -> (f64, f64) {
 /// final values for each step response are the same for both the measurements and the
 /// simulations").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum StepLevels {
     /// The measured levels are means: 0.2 s before the step and the step's last 20 %; the
     /// simulated response is mapped affinely onto them (sessions 1-15). At 100 Hz and 0.5 %

@@ -160,6 +160,9 @@ pub struct TuneReport {
     /// Settled ends of command steps in the compressor-flow fit of step 1 besides the
     /// stationary points (option `settled_flow_points`; 0: stationary points only).
     pub step1_settled_flow_points: usize,
+    /// How steps 3, 4 (and 7) matched the simulated step levels to the measured ones
+    /// ([`StepLevels`]).
+    pub step_levels: Option<StepLevels>,
     /// Step 2 actuator fits.
     pub step2: Option<Vec<FitReport>>,
     /// Step 3.
@@ -317,6 +320,9 @@ pub fn tune(
         cov.set_block(&k);
         rep.step2 = Some(r);
         rep.seconds[1] = t.elapsed().as_secs_f64();
+    }
+    if opts.steps[2] || opts.steps[3] {
+        rep.step_levels = Some(opts.step3.window.levels);
     }
     if opts.steps[2] {
         let t = Instant::now();
