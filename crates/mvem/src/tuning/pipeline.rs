@@ -344,15 +344,7 @@ pub fn tune(
         // the last pass carries the uncertainty of what it holds fixed: this one when step 4
         // is not repeated after step 5
         let last = !(opts.refine_dynamics && opts.steps[4]);
-        let (tau, r) = run_step4(
-            &p,
-            set,
-            c,
-            last,
-            opts.step3.window.levels,
-            &mut cov,
-            &mut est,
-        )?;
+        let (tau, r) = run_step4(&p, set, c, last, opts, &mut cov, &mut est)?;
         rep.tau_me_s = Some(tau);
         rep.step4 = Some(r);
         rep.seconds[3] = t.elapsed().as_secs_f64();
@@ -398,15 +390,7 @@ pub fn tune(
             .map(|(_, d)| d)
             .filter(|_| opts.steps[3])
         {
-            let (tau, r) = run_step4(
-                &p,
-                set,
-                c,
-                true,
-                opts.step3.window.levels,
-                &mut cov,
-                &mut est,
-            )?;
+            let (tau, r) = run_step4(&p, set, c, true, opts, &mut cov, &mut est)?;
             rep.tau_me_s = Some(tau);
             rep.step4_refined = Some(r);
         }
@@ -1174,16 +1158,17 @@ fn run_step3(
 /// with the uncertainty of the parameters it holds fixed ([`add_fixed`]: the static
 /// parameters, actuators, V_im, V_em, J_t shape the torque transients through the lag) when
 /// `chain` (the pass whose value is reported), else conditional on them; tau_Me and the
-/// step's report.
+/// step's report. The step levels are step 3's (`opts.step3.window.levels`).
 fn run_step4(
     p: &Params,
     set: &DynamicData,
     c: &Campaign,
     chain: bool,
-    levels: StepLevels,
+    opts: &PipelineOptions,
     cov: &mut NamedCov,
     est: &mut Vec<(String, ParamEstimate)>,
 ) -> Result<(f64, CompleteReport), PipelineError> {
+    let levels = opts.step3.window.levels;
     let (tau, mut r) = step4(p, set, &c.stationary, levels).map_err(at(4))?;
     if chain {
         let res = torque_residuals(set, &c.stationary, tau, levels);
