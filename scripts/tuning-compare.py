@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compare the "parameters" of a tune_report.json (`mvem tune --report DIR`) with the true
 parameters of a virtual campaign (`mvem lab --out CAMP`: CAMP/true_params.toml, tau_Me from
-CAMP/manifest.toml).
+CAMP/manifest.toml; the sensor time constants from its true_sensor_lags_s, 0 when absent).
 
 Usage: scripts/tuning-compare.py REPORT_DIR CAMPAIGN_DIR
 
@@ -42,7 +42,14 @@ def main():
     ok, flagged, bad = [], [], []
     print(f"{'parameter':32} {'value':>13} {'true':>13} {'std.err':>10} {'off/SE':>8}  id  reason")
     for path, e in sorted(params.items()):
-        t = manifest.get("true_tau_me_s") if path == "test_cell.tau_me" else lookup(truth, path)
+        lags = dict(zip(["test_cell.tau_p_im", "test_cell.tau_p_em", "test_cell.tau_w_c",
+                         "test_cell.tau_n_t"], manifest.get("true_sensor_lags_s", [0.0] * 4)))
+        if path == "test_cell.tau_me":
+            t = manifest.get("true_tau_me_s")
+        elif path in lags:
+            t = lags[path]
+        else:
+            t = lookup(truth, path)
         v = e["value"]
         se = e["std_error"] if e["std_error"] is not None else float("inf")
         z = (v - t) / se if t is not None and se > 0 else float("nan")

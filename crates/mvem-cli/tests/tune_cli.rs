@@ -81,24 +81,17 @@ fn lab_tune_validate_roundtrip_and_errors() {
     };
     assert!(settled(&[]) > 0);
     assert_eq!(settled(&["--settled-flow-points", "false"]), 0);
-    // step 3 with either way of matching the step levels recovers V_im from noise-free data;
-    // another value is a usage error
-    let step3_with = |levels: &str| {
-        let args = [
-            "tune",
-            "--data",
-            "c",
-            "--steps",
-            "3",
-            "--step-levels",
-            levels,
-        ];
+    // step 3 alone with one more option, written to l.toml and the report rl
+    let step3_with = |option: &str, value: &str| {
+        let args = ["tune", "--data", "c", "--steps", "3", option, value];
         let mut args = args.to_vec();
         args.extend_from_slice(&["--out", "l.toml", "--report", "rl"]);
         mvem(d, &args)
     };
+    // either way of matching the step levels recovers V_im from noise-free data; another value
+    // is a usage error
     for levels in ["least-squares", "means"] {
-        let o = step3_with(levels);
+        let o = step3_with("--step-levels", levels);
         assert!(o.status.success(), "{levels}: {}", stderr(&o));
         let rep: serde_json::Value =
             serde_json::from_slice(&std::fs::read(d.join("rl/tune_report.json")).unwrap()).unwrap();
@@ -108,8 +101,38 @@ fn lab_tune_validate_roundtrip_and_errors() {
         assert!((v / 0.022 - 1.0).abs() < 0.01, "{levels}: V_im {v}");
         assert_eq!(rep["step_levels"], levels);
     }
-    let o = step3_with("median");
+    let o = step3_with("--step-levels", "median");
     assert!(!o.status.success() && stderr(&o).contains("--step-levels"));
+    // sensor lags: by default step 3 fits them (here none: each within 2 ms of 0); given ones
+    // are written to [test_cell], and validate applies them; a bad value is a usage error
+    let rep: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("rl/tune_report.json")).unwrap()).unwrap();
+    for k in ["tau_p_im", "tau_p_em", "tau_w_c", "tau_n_t"] {
+        let v = rep["parameters"][format!("test_cell.{k}")]["value"]
+            .as_f64()
+            .unwrap();
+        assert!(v.abs() < 0.002, "{k} = {v}");
+    }
+    let o = step3_with("--sensor-lags", "table6");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(d.join("l.toml")).unwrap();
+    assert!(text.contains("tau_p_em = 0.02"), "{text}");
+    let o = mvem(d, &["validate", "--data", "c", "--params", "l.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("sensor time constants"),
+        "{}",
+        stderr(&o)
+    );
+    for bad in ["x_egr=0.01", "p_im=-1", "p_em"] {
+        let o = step3_with("--sensor-lags", bad);
+        assert!(!o.status.success(), "{bad}");
+        assert!(
+            stderr(&o).contains("--sensor-lags"),
+            "{bad}: {}",
+            stderr(&o)
+        );
+    }
     // steps 3-4 only (base: published): runs, writes the parameter file and the report
     let o = mvem(
         d,

@@ -120,6 +120,20 @@ fn steps_3_and_4_recover_dynamics_noise_free() {
     );
 }
 
+/// `mvem lab --seed 5` sets B and C with 13 stationary points (realistic noise; the Table 6
+/// sensor lags when `sensor_lags`), published parameters.
+fn seed5_b_c(sensor_lags: bool) -> mvem::tuning::data::Campaign {
+    let opts = LabOptions {
+        seed: 5,
+        noise: Noise::REALISTIC,
+        n_stationary: 13,
+        sets: Some(vec!["B".into(), "C".into()]),
+        sensor_lags,
+        ..LabOptions::default()
+    };
+    lab::campaign(&Params::published(), &opts).unwrap().0
+}
+
 #[test]
 fn step_3_on_noisy_responses_with_the_true_static_parameters() {
     // `mvem lab --seed 5` sets B and C (realistic noise: 0.5 % per sample at 100 Hz), the true
@@ -129,14 +143,7 @@ fn step_3_on_noisy_responses_with_the_true_static_parameters() {
     // whole step and V_im ends more than 5 of them off. Measured: -7.3 % (z -2.0) and -10.9 %
     // (z -11.1; docs/tuning.md, session 16).
     let p = Params::published();
-    let opts = LabOptions {
-        seed: 5,
-        noise: Noise::REALISTIC,
-        n_stationary: 13,
-        sets: Some(vec!["B".into(), "C".into()]),
-        ..LabOptions::default()
-    };
-    let c = lab::campaign(&p, &opts).unwrap().0;
+    let c = seed5_b_c(false);
     let sets: Vec<_> = ["B", "C"].iter().map(|n| c.dataset(n).unwrap().1).collect();
     let z_of = |levels: StepLevels| {
         let start = Step3Start {
@@ -161,6 +168,41 @@ fn step_3_on_noisy_responses_with_the_true_static_parameters() {
         z_means.abs() > 5.0,
         "means: V_im {z_means} standard errors off"
     );
+}
+
+#[test]
+fn step_3_fits_the_sensor_lags_of_a_lagged_test_cell() {
+    // `mvem lab --seed 5 --sensor-lags` sets B and C (Table 6 lags: p_im 15 ms, p_em 20 ms,
+    // W_c 20 ms, n_t 6 ms; realistic noise), the true static parameters. Without lags in the
+    // model step 3 gives the lags to the volumes and J_t: V_em more than 5 of its standard
+    // errors off. With the lags fitted, V_im, V_em and J_t are within 3 standard errors of the
+    // truth and the p_em and W_c time constants within 5 ms of theirs.
+    let p = Params::published();
+    let c = seed5_b_c(true);
+    let sets: Vec<_> = ["B", "C"].iter().map(|n| c.dataset(n).unwrap().1).collect();
+    let z = |q: &Params, rep: &complete::CompleteReport, name: &str| {
+        let e = &rep.uncertainty.iter().find(|(n, _)| n == name).unwrap().1;
+        (param_value(q, name).unwrap() - param_value(&p, name).unwrap()) / e.std_error
+    };
+    let (q, rep) = step3(&p, &sets, &c.stationary, &Step3Start::default(), 100).unwrap();
+    let z_em = z(&q, &rep, "v_em");
+    assert!(
+        z_em.abs() > 5.0,
+        "without lags: V_em {z_em} standard errors off"
+    );
+    let start = Step3Start {
+        fit_lags: true,
+        ..Step3Start::default()
+    };
+    let (q, rep) = step3(&p, &sets, &c.stationary, &start, 100).unwrap();
+    for name in ["v_im", "v_em", "j_t"] {
+        let zz = z(&q, &rep, name);
+        assert!(zz.abs() < 3.0, "with lags: {name} {zz} standard errors off");
+    }
+    let l = rep.sensor_lags;
+    assert!((l.p_em - 0.020).abs() < 0.005, "{l:?}");
+    assert!((l.w_c - 0.020).abs() < 0.005, "{l:?}");
+    assert_eq!(rep.params.len(), 7);
 }
 
 #[test]
@@ -295,6 +337,7 @@ fn pipeline_on_a_tiny_noisy_campaign() {
         &c,
         &p,
         rep.tau_me_s,
+        &rep.sensor_lags.unwrap_or_default(),
         Some(&[Role::Validation]),
     )
     .unwrap();

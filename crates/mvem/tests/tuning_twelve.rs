@@ -161,6 +161,7 @@ fn v_ic_in_the_second_12_state_step() {
         scale: &[0.01, 0.02, 0.02, 1e-4],
         amp_floor: 0.01,
         window: mvem::tuning::complete::ResponseWindow::default(),
+        lags: mvem::tuning::sensors::SensorLags::NONE,
         max_eval: 60,
     };
     let (q, rep) = fit_dynamic("test", &p, &sets, &c.stationary, &f).unwrap();

@@ -6,6 +6,7 @@ use mvem::io::test_cell::TestCell;
 use mvem::model::ModelOrder;
 use mvem::params::Params;
 use mvem::tuning::pipeline::{self, Init, PipelineOptions, TuneReport};
+use mvem::tuning::sensors::{SensorLagMode, SensorLags};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -123,6 +124,13 @@ pub struct Args {
     /// 20 % (sessions 1-15; noisier, biases the volumes, docs/tuning.md session 16).
     #[arg(long = "step-levels", value_enum, default_value = "least-squares")]
     pub step_levels: LevelsArg,
+    /// Sensor time constants of p_im, p_em, W_c, n_t (test-cell quantities, written to the
+    /// [test_cell] section of --out): `fit` estimates them in step 3 with V_im, V_em, J_t
+    /// (the default when step 3 runs), `none` (the paper, appendix 2), `table6` (the maxima of
+    /// the paper's Table 6), or known values `p_im=0.015,p_em=0.02,W_c=0.02,n_t=0.006` [s].
+    /// Default without step 3: those of --params' [test_cell] section, else none.
+    #[arg(long = "sensor-lags", value_name = "fit|none|table6|LIST")]
+    pub sensor_lags: Option<String>,
     /// Model to tune: 8 (steps 1-5) or 12 (then the steps of section 9.2.1).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
@@ -237,6 +245,17 @@ pub fn run(a: &Args) -> Result<()> {
             LevelsArg::Means => mvem::tuning::complete::StepLevels::Means,
         },
     };
+    opts.sensor_lags = match a.sensor_lags.as_deref().map(str::trim) {
+        Some("fit") => SensorLagMode::Fit,
+        Some(v) => SensorLagMode::Known(
+            SensorLags::parse(v).map_err(|e| common::usage(format!("--sensor-lags: {e}")))?,
+        ),
+        None if steps[2] => SensorLagMode::Fit,
+        None => match base_cell.as_ref().and_then(TestCell::lags) {
+            Some(l) => SensorLagMode::Known(l),
+            None => SensorLagMode::None,
+        },
+    };
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
     let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
@@ -306,13 +325,26 @@ pub fn run(a: &Args) -> Result<()> {
         .true_params
         .as_ref()
         .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
-    let md = markdown(&rep, truth.as_ref(), c.manifest.true_tau_me_s);
+    let cell_truth = TestCell {
+        tau_me: c.manifest.true_tau_me_s,
+        ..TestCell::default()
+    };
+    let cell_truth = match c.manifest.true_sensor_lags_s {
+        Some(l) => cell_truth.with_lags(SensorLags::from_array(l)),
+        None => cell_truth,
+    };
+    let md = markdown(&rep, truth.as_ref(), &cell_truth);
     // render everything, then write
     let json = serde_json::to_string_pretty(&rep)?;
     // test-cell quantities next to the model parameters; a value of --params is kept when the
     // step that estimates it is not run
     let cell = TestCell {
-        tau_me: rep.tau_me_s.or(base_cell.and_then(|c| c.tau_me)),
+        tau_me: rep.tau_me_s.or(base_cell.as_ref().and_then(|c| c.tau_me)),
+        ..TestCell::default()
+    };
+    let cell = match rep.sensor_lags.filter(SensorLags::any) {
+        Some(l) => cell.with_lags(l),
+        None => cell,
     };
     mvem::io::test_cell::save_params_with_test_cell(&p, &cell, &a.out)?;
     if let Some(dir) = &a.report {
@@ -352,7 +384,7 @@ fn pct(x: f64) -> String {
 
 /// The report as Markdown: per step the submodel/output errors (mean and max absolute relative
 /// error, per cent), timings, and (virtual campaigns) each tuned parameter against the truth.
-pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>) -> String {
+pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell) -> String {
     let mut s = String::from("# Tuning report\n\n");
     let _ = writeln!(
         s,
@@ -436,6 +468,16 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
                 _ => "offset and gain of each step fitted by least squares",
             }
         );
+        if let Some(l) = rep.sensor_lags {
+            let fitted = r.params.iter().any(|(n, _)| SensorLags::index(n).is_some());
+            let [a, b, c, d] = l.as_array().map(|t| t * 1e3);
+            let _ = writeln!(
+                s,
+                "Sensor time constants ({}; `--sensor-lags`, written to [test_cell]): p_im \
+                 {a:.1} ms, p_em {b:.1} ms, W_c {c:.1} ms, n_t {d:.1} ms\n",
+                if fitted { "fitted in step 3" } else { "given" }
+            );
+        }
         table(
             &mut s,
             "Step 3: V_im, V_em, J_t (eq. (5) on the dynamic sets)",
@@ -543,7 +585,7 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, tau_true: Option<f64>)
             );
         }
     }
-    parameter_table(&mut s, rep, truth, tau_true);
+    parameter_table(&mut s, rep, truth, cell_truth);
     s
 }
 
@@ -553,7 +595,7 @@ fn parameter_table(
     s: &mut String,
     rep: &TuneReport,
     truth: Option<&Params>,
-    tau_true: Option<f64>,
+    cell_truth: &TestCell,
 ) {
     if rep.parameters.is_empty() {
         return;
@@ -568,8 +610,10 @@ fn parameter_table(
          std. error | why / correlated with |\n|---|---|---|---|---|---|---|---|---|---|"
     );
     for (path, e) in &rep.parameters {
-        let t = if path == "test_cell.tau_me" {
-            tau_true
+        let t = if let Some(name) = path.strip_prefix("test_cell.") {
+            serde_json::to_value(cell_truth)
+                .ok()
+                .and_then(|v| v.get(name).and_then(serde_json::Value::as_f64))
         } else {
             truth.and_then(|q| lookup(q, path))
         };
@@ -657,7 +701,7 @@ mod tests {
             }],
             ..TuneReport::default()
         };
-        let md = markdown(&rep, None, None);
+        let md = markdown(&rep, None, &TestCell::default());
         assert!(
             md.contains("**Warning: the tuned model does not simulate every data set.**"),
             "{md}"
@@ -668,6 +712,9 @@ mod tests {
             "{md}"
         );
         // and nothing of it when every set runs
-        assert!(!markdown(&TuneReport::default(), None, None).contains("does not simulate"));
+        assert!(
+            !markdown(&TuneReport::default(), None, &TestCell::default())
+                .contains("does not simulate")
+        );
     }
 }

@@ -4,7 +4,9 @@
 use crate::common;
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::Result;
+use mvem::io::test_cell::TestCell;
 use mvem::tuning::data::{Role, StepKind};
+use mvem::tuning::sensors::SensorLags;
 use mvem::tuning::validate::{self as v, ValidationReport};
 use serde_json::{Map, Value};
 use std::path::PathBuf;
@@ -23,7 +25,9 @@ paper's Tables 2-4). --json prints {\"datasets\": {SET: {OUTPUT: percent}}, \"st
 {SUBMODEL: percent}}. --report DIR writes validation.md, validation.csv, validation.json and
 one figure per set (SET.png, measured vs simulated). --tau-me applies the dynamometer lag of
 eq. (76) to the simulated torque; without it the value in the parameter file's [test_cell]
-section (written by `mvem tune`) is used, if any. --model 12 simulates the
+section (written by `mvem tune`) is used, if any; likewise the sensor time constants of p_im,
+p_em, W_c and n_t (--sensor-lags overrides: none, table6 or p_im=0.015,p_em=0.02,...).
+--model 12 simulates the
 12-state model and adds the intercooler flow W_ic (eq. (86), z_8 of section 9.2.1) to the
 stationary table.")]
 pub struct Args {
@@ -37,6 +41,11 @@ pub struct Args {
     /// file's [test_cell] section; without it the torque is compared unfiltered].
     #[arg(long = "tau-me", value_name = "S")]
     pub tau_me: Option<f64>,
+    /// Sensor time constants of p_im, p_em, W_c, n_t applied to the simulated outputs: `none`,
+    /// `table6` or `p_im=0.015,p_em=0.02,W_c=0.02,n_t=0.006` [s] [default: those of the
+    /// parameter file's [test_cell] section; without them none].
+    #[arg(long = "sensor-lags", value_name = "none|table6|LIST")]
+    pub sensor_lags: Option<String>,
     /// Only data sets with one of these roles (comma separated: static, dynamic, actuator,
     /// validation) [default: all].
     #[arg(long, value_name = "LIST")]
@@ -124,16 +133,33 @@ pub fn run(a: &Args) -> Result<()> {
     // the tuned dynamometer constant of the file's [test_cell] section; --tau-me overrides
     let cell = mvem::io::test_cell::load_test_cell(&a.params)
         .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
-    let tau_me = a.tau_me.or(cell.and_then(|c| c.tau_me));
+    let tau_me = a.tau_me.or(cell.as_ref().and_then(|c| c.tau_me));
     if let (None, Some(t)) = (a.tau_me, tau_me) {
         eprintln!(
             "tau_Me = {t} s from the [test_cell] section of {} (override with --tau-me)",
             a.params.display()
         );
     }
+    let lags = match a.sensor_lags.as_deref() {
+        Some(v) => {
+            SensorLags::parse(v).map_err(|e| common::usage(format!("--sensor-lags: {e}")))?
+        }
+        None => match cell.as_ref().and_then(TestCell::lags) {
+            Some(l) => {
+                eprintln!(
+                    "sensor time constants p_im, p_em, W_c, n_t = {:?} s from the [test_cell] \
+                     section of {} (override with --sensor-lags)",
+                    l.as_array(),
+                    a.params.display()
+                );
+                l
+            }
+            None => SensorLags::NONE,
+        },
+    };
     let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
     let rep = common::with_spinner("validating", || {
-        v::validate_campaign_with(a.model.order(), &c, &p, tau_me, roles.as_deref())
+        v::validate_campaign_with(a.model.order(), &c, &p, tau_me, &lags, roles.as_deref())
     })?;
     for o in rep.oscillation_rows() {
         eprintln!("warning: {}; see the report", o.describe());
@@ -155,7 +181,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
             let fig = match info.kind {
                 StepKind::Actuator => actuator_figure(&p, d),
-                _ => dynamic_figure(a.model.order(), &p, d, tau_me)?,
+                _ => dynamic_figure(a.model.order(), &p, d, tau_me, &lags)?,
             };
             files.push((
                 format!("{}.png", d.name),
@@ -192,8 +218,10 @@ fn dynamic_figure(
     p: &mvem::params::Params,
     d: &mvem::tuning::data::DynamicData,
     tau_me: Option<f64>,
+    lags: &SensorLags,
 ) -> Result<Figure> {
-    let sims = v::simulated_outputs(order, p, d, tau_me, mvem::sim::SimOptions::default().rtol)
+    let rtol = mvem::sim::SimOptions::default().rtol;
+    let sims = v::simulated_outputs(order, p, d, tau_me, lags, rtol)
         .map_err(|e| anyhow::anyhow!("data set {}: {e}", d.name))?;
     let mut fig = Figure::new(1);
     fig.title = Some(format!("data set {}: measured vs simulated", d.name));

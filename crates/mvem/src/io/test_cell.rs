@@ -7,6 +7,10 @@
 //! ```toml
 //! [test_cell]
 //! tau_me = 1.0016   # dynamometer (torque sensor) time constant tau_Me [s], eq. (76)
+//! tau_p_im = 0.0151 # sensor time constants [s] of p_im, p_em, W_c, n_t (Table 6; tuning step 3)
+//! tau_p_em = 0.0197
+//! tau_w_c = 0.0203
+//! tau_n_t = 0.0058
 //! ```
 //!
 //! The parameter loader ([`super::params::parse_params`]) ignores the section (its lines are
@@ -15,6 +19,7 @@
 
 use super::IoError;
 use crate::params::Params;
+use crate::tuning::sensors::SensorLags;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -28,12 +33,40 @@ pub struct TestCell {
     /// Dynamometer time constant tau_Me [s] of eq. (76) (tuning step 4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_me: Option<f64>,
+    /// Intake manifold pressure sensor time constant [s] ([`crate::tuning::sensors`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_p_im: Option<f64>,
+    /// Exhaust manifold pressure sensor time constant [s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_p_em: Option<f64>,
+    /// Compressor mass flow sensor time constant [s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_w_c: Option<f64>,
+    /// Turbo speed sensor time constant [s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_n_t: Option<f64>,
 }
 
 impl TestCell {
     /// Whether nothing is set.
     pub fn is_empty(&self) -> bool {
-        self.tau_me.is_none()
+        self.tau_me.is_none() && self.lags().is_none()
+    }
+
+    /// The sensor lags, when any is given (those not given: 0, no lag).
+    pub fn lags(&self) -> Option<SensorLags> {
+        let a = [self.tau_p_im, self.tau_p_em, self.tau_w_c, self.tau_n_t];
+        a.iter()
+            .any(Option::is_some)
+            .then(|| SensorLags::from_array(a.map(|v| v.unwrap_or(0.0))))
+    }
+
+    /// Set the sensor lags (all four written, zeros included).
+    pub fn with_lags(mut self, l: SensorLags) -> Self {
+        let [a, b, c, d] = l.as_array();
+        (self.tau_p_im, self.tau_p_em, self.tau_w_c, self.tau_n_t) =
+            (Some(a), Some(b), Some(c), Some(d));
+        self
     }
 }
 
@@ -92,6 +125,14 @@ fn check(tc: TestCell, path: &Path) -> Result<TestCell, IoError> {
                 message: format!("test_cell.tau_me = {t}: must be a finite time > 0 s"),
             });
         }
+    }
+    if let Some(l) = tc.lags() {
+        l.check().map_err(|message| IoError::Format {
+            path: path.to_path_buf(),
+            line: None,
+            column: Some("test_cell".into()),
+            message: format!("test_cell.{message}"),
+        })?;
     }
     Ok(tc)
 }
@@ -162,7 +203,8 @@ pub fn save_params_with_test_cell(p: &Params, tc: &TestCell, path: &Path) -> Res
         if !tc.is_empty() {
             s.push_str(
                 "\n# Test-cell quantities estimated by `mvem tune` (not model parameters).\n\
-                 # tau_me: dynamometer time constant tau_Me [s], eq. (76)\n",
+                 # tau_me: dynamometer time constant tau_Me [s], eq. (76); tau_p_im, tau_p_em,\n\
+                 # tau_w_c, tau_n_t: sensor time constants [s] of p_im, p_em, W_c, n_t\n",
             );
             s.push_str(&format!("[{SECTION}]\n"));
             s.push_str(&toml::to_string(tc).expect("test cell serializes"));
@@ -184,7 +226,9 @@ mod tests {
         let p = Params::published();
         let tc = TestCell {
             tau_me: Some(1.0016),
-        };
+            ..TestCell::default()
+        }
+        .with_lags(SensorLags::TABLE6);
         for name in ["t.toml", "t.json"] {
             let f = dir.join(name);
             save_params_with_test_cell(&p, &tc, &f).unwrap();
@@ -209,6 +253,11 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("test_cell.tau_me = -1"), "{e}");
+        let bad = format!("{p}\n[test_cell]\ntau_p_em = 0.5\n");
+        let e = parse_test_cell(&bad, Path::new("p.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("test_cell.tau_p_em = 0.5"), "{e}");
         let unknown = format!("{p}\n[test_cell]\ntau_mee = 1.0\n");
         let e = parse_test_cell(&unknown, Path::new("p.toml"))
             .unwrap_err()

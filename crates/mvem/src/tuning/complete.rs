@@ -31,6 +31,7 @@ use super::lsq::{
     least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, Termination,
     XScale,
 };
+use super::sensors::{SensorLags, LAG_NAMES, MAX_LAG_S};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
     block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,
@@ -297,7 +298,17 @@ pub struct Step3Start {
     pub amp_floor: f64,
     /// Weights of the responses in time ([`ResponseWindow`]).
     pub window: ResponseWindow,
+    /// Sensor lags of p_im, p_em, W_c, n_t ([`super::sensors`]): held, or the start of their
+    /// fit when `fit_lags`.
+    pub lags: SensorLags,
+    /// Fit the four sensor time constants with V_im, V_em, J_t (bounds [0,
+    /// [`MAX_LAG_S`]]).
+    pub fit_lags: bool,
 }
+
+/// Start of each sensor time constant when step 3 fits them [s] (inside Table 6's range, away
+/// from the bound 0 so that the first finite differences see both sides).
+pub const LAG_START_S: f64 = 0.01;
 
 impl Default for Step3Start {
     /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
@@ -309,6 +320,8 @@ impl Default for Step3Start {
             hi: [0.2, 0.2, 1e-3],
             amp_floor: 0.01,
             window: ResponseWindow::default(),
+            lags: SensorLags::NONE,
+            fit_lags: false,
         }
     }
 }
@@ -329,6 +342,8 @@ pub struct CompleteReport {
     pub converged: bool,
     /// Standard error and identifiability of each fitted parameter ([`super::uncertainty`]).
     pub uncertainty: Vec<(String, ParamEstimate)>,
+    /// Sensor lags the step simulated with (fitted when their names are in `params`).
+    pub sensor_lags: SensorLags,
     /// Jacobian and covariance at the estimate (not serialized).
     #[serde(skip)]
     pub linearization: Option<Linearization>,
@@ -342,11 +357,12 @@ pub(crate) fn output_errors(
     stat: &[StationaryPoint],
     outputs: &[&str],
     tau_me: Option<f64>,
+    lags: &SensorLags,
 ) -> Result<Vec<FitReport>, StepError> {
     let means = stationary_means(stat);
     let sims: Vec<_> = sets
         .par_iter()
-        .map(|d| super::validate::simulated_outputs(order, p, d, tau_me, SEARCH_RTOL))
+        .map(|d| super::validate::simulated_outputs(order, p, d, tau_me, lags, SEARCH_RTOL))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| solver_err("complete model", e))?;
     let mut reps = Vec::new();
@@ -385,18 +401,43 @@ pub fn step3(
     start: &Step3Start,
     max_eval: usize,
 ) -> Result<(Params, CompleteReport), StepError> {
+    let mut names = vec!["v_im", "v_em", "j_t"];
+    let (mut theta0, mut lo, mut hi) = (start.theta.to_vec(), start.lo.to_vec(), start.hi.to_vec());
+    let mut scale = vec![0.02, 0.02, 1e-4];
+    let mut max_eval = max_eval;
+    if start.fit_lags {
+        names.extend(LAG_NAMES);
+        for t in start.lags.as_array() {
+            theta0.push(if t > 0.0 {
+                t.min(MAX_LAG_S)
+            } else {
+                LAG_START_S
+            });
+            lo.push(0.0);
+            hi.push(MAX_LAG_S);
+            scale.push(0.01);
+        }
+        // the same number of Jacobians as for the three parameters alone
+        max_eval = max_eval * (names.len() + 1) / 4;
+    }
     let fit = DynamicFit {
         order: ModelOrder::Eight,
-        names: &["v_im", "v_em", "j_t"],
-        theta0: &start.theta,
-        lo: &start.lo,
-        hi: &start.hi,
-        scale: &[0.02, 0.02, 1e-4],
+        names: &names,
+        theta0: &theta0,
+        lo: &lo,
+        hi: &hi,
+        scale: &scale,
         amp_floor: start.amp_floor,
         window: start.window,
+        lags: start.lags,
         max_eval,
     };
-    fit_dynamic("step 3 (V_im, V_em, J_t)", base, sets, stat, &fit)
+    let name = if start.fit_lags {
+        "step 3 (V_im, V_em, J_t, sensor lags)"
+    } else {
+        "step 3 (V_im, V_em, J_t)"
+    };
+    fit_dynamic(name, base, sets, stat, &fit)
 }
 
 /// A least-squares problem of the form (74)-(75): named dynamic parameters (names of
@@ -420,6 +461,9 @@ pub struct DynamicFit<'a> {
     pub amp_floor: f64,
     /// Weights of the responses in time.
     pub window: ResponseWindow,
+    /// Sensor lags of the simulated outputs; those whose names ([`LAG_NAMES`]) are in `names`
+    /// are fitted from these values' positions in `theta0`.
+    pub lags: SensorLags,
     /// Limit on residual evaluations.
     pub max_eval: usize,
 }
@@ -440,9 +484,11 @@ pub fn fit_dynamic(
             needed: 1,
         });
     }
-    let set_all = |p: &mut Params, th: &[f64]| {
+    let set_all = |p: &mut Params, lags: &mut SensorLags, th: &[f64]| {
         for (n, v) in f.names.iter().zip(th) {
-            if let Some(x) = param_mut(p, n) {
+            if let Some(k) = SensorLags::index(n) {
+                lags.set(k, *v);
+            } else if let Some(x) = param_mut(p, n) {
                 *x = *v;
             }
         }
@@ -458,8 +504,9 @@ pub fn fit_dynamic(
     let res_at = dynamic_residuals(f.order, sets, stat, f.amp_floor, f.window);
     let res = |th: &[f64]| -> Vec<f64> {
         let mut q = base.clone();
-        set_all(&mut q, th);
-        res_at(&q)
+        let mut lags = f.lags;
+        set_all(&mut q, &mut lags, th);
+        res_at(&q, &lags)
     };
     let fit = least_squares(
         res,
@@ -469,8 +516,9 @@ pub fn fit_dynamic(
     )
     .map_err(|e| solver_err(name, e))?;
     let mut p = base.clone();
-    set_all(&mut p, &fit.theta);
-    let errors = output_errors(f.order, &p, sets, stat, &DYN_OUTPUTS, None)?;
+    let mut lags = f.lags;
+    set_all(&mut p, &mut lags, &fit.theta);
+    let errors = output_errors(f.order, &p, sets, stat, &DYN_OUTPUTS, None, &lags)?;
     // residual blocks: each set's outputs (different noise levels and step amplitudes), each
     // in its window and after it (different weights)
     let blocks: Vec<usize> = sets
@@ -504,6 +552,7 @@ pub fn fit_dynamic(
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
             uncertainty,
+            sensor_lags: lags,
             linearization,
         },
     ))
@@ -511,32 +560,33 @@ pub fn fit_dynamic(
 
 /// Residuals of a problem of the form (74)-(75) ([`fit_dynamic`]) on `sets` as a function of
 /// the whole parameter set: the normalized step responses of p_im, p_em, W_c, n_t of the
-/// model `order` (amplitude floor `amp_floor`, [`Step3Start`]), weighted in time by `window`;
-/// per set and output those in the window, then the later ones; residuals of 10 (large,
-/// finite) when a set does not simulate.
+/// model `order` seen through the sensor lags given with the parameters (amplitude floor
+/// `amp_floor`, [`Step3Start`]), weighted in time by `window`; per set and output those in the
+/// window, then the later ones; residuals of 10 (large, finite) when a set does not simulate.
 pub fn dynamic_residuals<'a>(
     order: ModelOrder,
     sets: &'a [&'a DynamicData],
     stat: &[StationaryPoint],
     amp_floor: f64,
     window: ResponseWindow,
-) -> impl Fn(&Params) -> Vec<f64> + 'a {
+) -> impl Fn(&Params, &SensorLags) -> Vec<f64> + 'a {
     let means = stationary_means(stat);
     let segs: Vec<_> = sets.iter().map(|d| segments(d)).collect();
     let n_res: usize = segs.iter().map(|s| 4 * count_segment_samples(s)).sum();
-    move |q: &Params| -> Vec<f64> {
+    move |q: &Params, lags: &SensorLags| -> Vec<f64> {
         let parts: Vec<Option<Vec<f64>>> = sets
             .par_iter()
             .zip(&segs)
             .map(|(d, sg)| {
-                let sim = simulate_set(order, q, d, sample_interval(d), SEARCH_RTOL).ok()?;
+                let dt = lags.grid(sample_interval(d));
+                let sim = simulate_set(order, q, d, dt, SEARCH_RTOL).ok()?;
                 let w = 1.0 / (count_segment_samples(sg).max(1) as f64).sqrt(); // 1/L_j, eq. (75)
                 let mut r = Vec::new();
                 let mut tail = Vec::new();
                 for (k, name) in DYN_OUTPUTS.iter().enumerate() {
                     let meas = d.get(name)?;
-                    let s = sim.get(name)?;
-                    let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), s, t)).collect();
+                    let s = lags.apply(name, sim.t(), sim.get(name)?);
+                    let simv: Vec<f64> = d.t.iter().map(|&t| interp(sim.t(), &s, t)).collect();
                     let floor = amp_floor * means[k].unwrap_or_else(|| mean_of(meas)).abs();
                     tail.clear();
                     normalized_residuals(
@@ -681,7 +731,15 @@ pub fn step4(
     let fit = least_squares(res, &[0.3], &Bounds::new(vec![0.005], vec![20.0]), &opts)
         .map_err(|e| solver_err(NAME, e))?;
     let tau = fit.theta[0];
-    let errors = output_errors(ModelOrder::Eight, p, &[set], stat, &["M_e"], Some(tau))?;
+    let errors = output_errors(
+        ModelOrder::Eight,
+        p,
+        &[set],
+        stat,
+        &["M_e"],
+        Some(tau),
+        &SensorLags::NONE,
+    )?;
     let uncertainty = estimates(
         &["tau_me"],
         &fit.theta,
@@ -704,6 +762,7 @@ pub fn step4(
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
             uncertainty,
+            sensor_lags: SensorLags::NONE,
             linearization,
         },
     ))
@@ -950,6 +1009,9 @@ pub struct Step5Options {
     /// fit used ([`super::settled::flow_points`]; empty by default). Each submodel's term is
     /// then its mean over its own points (`1/(beta N M_n)`; eq. (77) when every M_n = M).
     pub flow_points: Vec<super::steps::FlowPoint>,
+    /// Sensor lags of p_im, p_em, W_c, n_t in the first row ([`super::sensors`]; held, as
+    /// step 3 tuned them). Default none.
+    pub sensor_lags: SensorLags,
 }
 
 /// Default [`Step5Options::rel_offset_tol`]: `1 / sqrt(35)` for the 35 static parameters, so
@@ -974,6 +1036,7 @@ impl Default for Step5Options {
             restarts: STEP5_RESTARTS,
             model: ModelOrder::Eight,
             flow_points: Vec::new(),
+            sensor_lags: SensorLags::NONE,
         }
     }
 }
@@ -1160,9 +1223,9 @@ impl Cost77 {
                 .map(|(d, g)| {
                     let w = g / (k_j * d.t.len() as f64).sqrt();
                     let fail = vec![10.0; 4 * d.t.len()];
-                    let Ok(sim) =
-                        simulate_set(self.opts.model, q, d, sample_interval(d), SEARCH_RTOL)
-                    else {
+                    let lags = &self.opts.sensor_lags;
+                    let dt = lags.grid(sample_interval(d));
+                    let Ok(sim) = simulate_set(self.opts.model, q, d, dt, SEARCH_RTOL) else {
                         return fail;
                     };
                     let mut r = Vec::with_capacity(4 * d.t.len());
@@ -1170,8 +1233,9 @@ impl Cost77 {
                         let (Some(meas), Some(s)) = (d.get(name), sim.get(name)) else {
                             return fail;
                         };
+                        let s = lags.apply(name, sim.t(), s);
                         for (i, &t) in d.t.iter().enumerate() {
-                            r.push(w * (meas[i] - interp(sim.t(), s, t)) / self.norms[k]);
+                            r.push(w * (meas[i] - interp(sim.t(), &s, t)) / self.norms[k]);
                         }
                     }
                     r
@@ -1533,7 +1597,16 @@ pub fn step5(
     let dynamic = if sets.is_empty() {
         vec![]
     } else {
-        output_errors(opts.model, &p, sets, stat, &DYN_OUTPUTS, None).unwrap_or_default()
+        output_errors(
+            opts.model,
+            &p,
+            sets,
+            stat,
+            &DYN_OUTPUTS,
+            None,
+            &opts.sensor_lags,
+        )
+        .unwrap_or_default()
     };
     Ok((
         p,

@@ -259,6 +259,10 @@ pub struct Manifest {
     /// True dynamometer time constant tau_Me of eq. (76) [s], if the data are virtual.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub true_tau_me_s: Option<f64>,
+    /// True sensor time constants of p_im, p_em, W_c, n_t [s] (0: no lag), if the data are
+    /// virtual ([`super::sensors`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub true_sensor_lags_s: Option<[f64; 4]>,
     /// Description of how the data were obtained (noise, seed, ...).
     pub description: String,
     /// Dynamic data sets.

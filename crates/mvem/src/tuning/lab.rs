@@ -387,6 +387,13 @@ pub fn campaign(
         stationary: "stationary.csv".into(),
         true_params: Some("true_params.toml".into()),
         true_tau_me_s: (opts.dynamic && opts.tau_me_s > 0.0).then_some(opts.tau_me_s),
+        true_sensor_lags_s: opts.dynamic.then(|| {
+            if opts.sensor_lags {
+                super::sensors::SensorLags::TABLE6.as_array()
+            } else {
+                [0.0; 4]
+            }
+        }),
         description: format!(
             "virtual test cell (mvem::tuning::lab), seed {}, noise {} relative / {} K gaussian, \
              dynamometer tau_Me {} s, sensor lags {}",
@@ -687,13 +694,12 @@ pub fn step_set(
         let v = first_order_lag(sol.t(), &v, tau);
         idx.iter().filter_map(|&i| v.get(i).copied()).collect()
     };
-    let sensor = |tau_ms: f64| {
-        if opts.sensor_lags {
-            tau_ms * 1e-3
-        } else {
-            0.0
-        }
+    let sensors = if opts.sensor_lags {
+        super::sensors::SensorLags::TABLE6
+    } else {
+        super::sensors::SensorLags::NONE
     };
+    let sensor = |c: &str| sensors.of(c);
     let noisy = |g: &mut Gauss, v: Vec<f64>, s: f64, abs: bool| -> Vec<f64> {
         v.into_iter()
             .map(|x| if abs { g.abs(x, s) } else { g.rel(x, s) })
@@ -720,19 +726,19 @@ pub fn step_set(
     let columns = vec![
         (
             "n_t".to_string(),
-            noisy(&mut g, lag("n_t", sensor(6.0)), n.rel, false),
+            noisy(&mut g, lag("n_t", sensor("n_t")), n.rel, false),
         ),
         (
             "p_em".to_string(),
-            noisy(&mut g, lag("p_em", sensor(20.0)), n.rel, false),
+            noisy(&mut g, lag("p_em", sensor("p_em")), n.rel, false),
         ),
         (
             "p_im".to_string(),
-            noisy(&mut g, lag("p_im", sensor(15.0)), n.rel, false),
+            noisy(&mut g, lag("p_im", sensor("p_im")), n.rel, false),
         ),
         (
             "W_c".to_string(),
-            noisy(&mut g, lag("W_c", sensor(20.0)), n.rel, false),
+            noisy(&mut g, lag("W_c", sensor("W_c")), n.rel, false),
         ),
         (
             "u_egr_pos".to_string(),

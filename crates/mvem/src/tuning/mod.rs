@@ -15,6 +15,7 @@
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
 //! - [`settled`]: settled operating points at the ends of the dynamic sets' command steps
 //!   (compressor flow points for step 1).
+//! - [`sensors`]: first-order lags of the test cell's sensors (Table 6), known or fitted.
 //! - [`uncertainty`]: standard errors and identifiability of every tuned parameter.
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
@@ -24,6 +25,7 @@ pub mod complete;
 pub mod data;
 pub mod lab;
 pub mod pipeline;
+pub mod sensors;
 pub mod settled;
 pub mod steps;
 pub mod twelve;

@@ -22,6 +22,7 @@ use super::complete::{
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
+use super::sensors::{SensorLagMode, SensorLags};
 use super::steps::{
     step1_with, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM,
 };
@@ -106,6 +107,12 @@ pub struct PipelineOptions {
     /// average, seed 5 1.66x -> 1.19x (docs/tuning.md, session 15). Not used for the 12-state
     /// model, whose p_c the dynamic sets do not record.
     pub settled_flow_points: bool,
+    /// Sensor lags of p_im, p_em, W_c, n_t ([`super::sensors`]): fitted in step 3 (the
+    /// default), known, or none (the paper). Whatever step 3 ends with is held in step 5 and
+    /// used by the final checks, and reported in [`TuneReport::sensor_lags`]. Fitting by
+    /// default (session 17): on `mvem lab --sensor-lags` campaigns the volumes and J_t tuned
+    /// without lags were 23-76 % off and reported identifiable (docs/tuning.md).
+    pub sensor_lags: SensorLagMode,
 }
 
 impl Default for PipelineOptions {
@@ -122,6 +129,7 @@ impl Default for PipelineOptions {
             stage_oscillating: true,
             stage_first_pass_max_evaluations: 3600,
             settled_flow_points: true,
+            sensor_lags: SensorLagMode::Fit,
         }
     }
 }
@@ -171,6 +179,9 @@ pub struct TuneReport {
     pub step4: Option<CompleteReport>,
     /// Tuned dynamometer time constant tau_Me [s] (eq. (76); not part of the model parameters).
     pub tau_me_s: Option<f64>,
+    /// Sensor lags of p_im, p_em, W_c, n_t [s] that steps 3-5 used (fitted or given; test-cell
+    /// quantities like tau_Me); None when step 3 did not run and none were given.
+    pub sensor_lags: Option<SensorLags>,
     /// Step 5.
     pub step5: Option<Step5Report>,
     /// Step 3 repeated after step 5 (option `refine_dynamics`; with `joint_uncertainty` the
@@ -279,13 +290,24 @@ pub fn tune(
     } else {
         Vec::new()
     };
-    let opts = &PipelineOptions {
+    let opts = &mut PipelineOptions {
         step5: Step5Options {
             flow_points: flow_extra.clone(),
             ..opts.step5.clone()
         },
         ..opts.clone()
     };
+    // the sensor lags: step 3 fits them or holds the given ones, steps 4-5 hold step 3's
+    let given = match opts.sensor_lags {
+        SensorLagMode::None => Some(SensorLags::NONE),
+        SensorLagMode::Known(l) => Some(l),
+        SensorLagMode::Fit => None,
+    };
+    opts.step3.fit_lags = given.is_none();
+    if let Some(l) = given {
+        opts.step3.lags = l;
+    }
+    opts.step5.sensor_lags = opts.step3.lags;
     let mut p = base.clone();
     let mut rep = TuneReport::default();
     // estimates by tuning name; a later step overwrites an earlier one
@@ -330,7 +352,9 @@ pub fn tune(
         if sets.is_empty() {
             return Err(missing(3, "VGT/EGR data set with role \"dynamic\""));
         }
-        rep.step3 = Some(run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?.0);
+        let r = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?.0;
+        hold_lags(opts, &r);
+        rep.step3 = Some(r);
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
@@ -365,6 +389,7 @@ pub fn tune(
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
             let (r, _) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+            hold_lags(opts, &r);
             rep.step3_refined = Some(r);
             if opts.joint_uncertainty && cond5.is_some() {
                 // a second round, step 5 on the repeated step 3's V_im, V_em, J_t, then step 3
@@ -376,6 +401,7 @@ pub fn tune(
                 let converged = r5.converged;
                 rep.step5_refined = Some(r5);
                 let (r, c3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
+                hold_lags(opts, &r);
                 rep.step3_refined = Some(r);
                 if let (Some(c5), Some(c3)) = (&c5, &c3) {
                     rep.joint_uncertainty =
@@ -418,9 +444,12 @@ pub fn tune(
             est.extend(r.uncertainty.iter().cloned());
         }
     }
+    if opts.steps[2] || given.is_some() {
+        rep.sensor_lags = Some(opts.step5.sensor_lags);
+    }
     for (name, e) in est {
-        let key = if name == "tau_me" {
-            Some("test_cell.tau_me".to_string())
+        let key = if name == "tau_me" || SensorLags::index(&name).is_some() {
+            Some(format!("test_cell.{name}"))
         } else {
             toml_path(&p, &name)
         };
@@ -451,7 +480,8 @@ pub fn tune(
                 &mut rep.parameters,
             ));
     }
-    (rep.oscillations, rep.failed_sets) = oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s);
+    (rep.oscillations, rep.failed_sets) =
+        oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s, &opts.step5.sensor_lags);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
     Ok((p, rep))
 }
@@ -465,6 +495,13 @@ pub struct SetFailure {
     pub message: String,
 }
 
+/// Step 3's sensor lags (fitted or held, [`CompleteReport::sensor_lags`]) held from now on:
+/// the start of a repeated step 3 and step 5's first row.
+fn hold_lags(opts: &mut PipelineOptions, r: &CompleteReport) {
+    opts.step3.lags = r.sensor_lags;
+    opts.step5.sensor_lags = r.sensor_lags;
+}
+
 /// Errors of the model `p` on `sets` ([`dynamic_errors_with`], with their oscillation windows),
 /// in parallel, in the order of `sets`; the sets that fail to simulate come second, with their
 /// messages.
@@ -474,6 +511,7 @@ fn errors_on_sets(
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
     tau_me: Option<f64>,
+    lags: &SensorLags,
 ) -> (Vec<DataSetErrors>, Vec<SetFailure>) {
     use rayon::prelude::*;
     let all: Vec<_> = sets
@@ -481,7 +519,7 @@ fn errors_on_sets(
         .map(|d| {
             (
                 d.name.clone(),
-                dynamic_errors_with(order, p, d, stat, tau_me),
+                dynamic_errors_with(order, p, d, stat, tau_me, lags),
             )
         })
         .collect();
@@ -509,7 +547,7 @@ fn oscillating_sets(
     stat: &[super::data::StationaryPoint],
     order: ModelOrder,
 ) -> Vec<String> {
-    oscillating_names(&errors_on_sets(p, sets, stat, order, None).0)
+    oscillating_names(&errors_on_sets(p, sets, stat, order, None, &SensorLags::NONE).0)
 }
 
 /// Names of the sets of `errs` with at least one oscillation window.
@@ -528,6 +566,7 @@ fn oscillations_on_campaign(
     p: &Params,
     order: ModelOrder,
     tau_me: Option<f64>,
+    lags: &SensorLags,
 ) -> (Vec<OscillationSummary>, Vec<SetFailure>) {
     let sets: Vec<&DynamicData> = c
         .manifest
@@ -537,7 +576,7 @@ fn oscillations_on_campaign(
         .filter(|(i, _)| i.kind != StepKind::Actuator)
         .map(|(_, d)| d)
         .collect();
-    let (errs, failed) = errors_on_sets(p, &sets, &c.stationary, order, tau_me);
+    let (errs, failed) = errors_on_sets(p, &sets, &c.stationary, order, tau_me, lags);
     (oscillation_summary(&errs), failed)
 }
 
@@ -961,7 +1000,8 @@ fn run_step5(
     let mut th0 = th0.to_vec();
     let mut first: Option<(Vec<String>, Step5Report, Vec<String>)> = None;
     if opts.stage_oscillating && opts.step5.dynamic_row {
-        let (at_start, _) = errors_on_sets(p, &sets, &c.stationary, opts.model, None);
+        let lags = &opts.step5.sensor_lags;
+        let (at_start, _) = errors_on_sets(p, &sets, &c.stationary, opts.model, None, lags);
         let osc = oscillating_names(&at_start);
         let calm: Vec<&DynamicData> = sets
             .iter()
@@ -980,11 +1020,12 @@ fn run_step5(
             // the first pass does not see the sets it leaves out and can move to where they
             // no longer simulate (no stable steady start, a failed solve): then cost (77) is
             // flat there (failure residuals) and the second pass would stay; discard it
-            let at_first: Vec<String> = errors_on_sets(&q1, &sets, &c.stationary, opts.model, None)
-                .0
-                .into_iter()
-                .map(|e| e.name)
-                .collect();
+            let at_first: Vec<String> =
+                errors_on_sets(&q1, &sets, &c.stationary, opts.model, None, lags)
+                    .0
+                    .into_iter()
+                    .map(|e| e.name)
+                    .collect();
             let lost: Vec<String> = at_start
                 .iter()
                 .map(|e| e.name.clone())
@@ -1149,6 +1190,9 @@ fn run_step3(
     );
     let s3 = &opts.step3;
     let boxes: Vec<(f64, f64)> = s3.lo.iter().zip(&s3.hi).map(|(l, h)| (*l, *h)).collect();
+    // the sensor lags step 3 ended with (their own uncertainty is in the step's covariance)
+    let lags = r.sensor_lags;
+    let res = move |q: &Params| res(q, &lags);
     let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3, &boxes);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
@@ -1364,6 +1408,7 @@ fn tune_twelve(
             scale: &[0.01, 0.02, 0.02, 1e-4],
             amp_floor: s3.amp_floor,
             window: s3.window,
+            lags: opts.step5.sensor_lags,
             max_eval: opts.step3_max_eval,
         };
         let (q, r) = fit_dynamic(
@@ -1729,7 +1774,14 @@ mod tests {
             set("nan", 21, f64::NAN),
         );
         let p = Params::published();
-        let (ok, failed) = errors_on_sets(&p, &[&good, &short, &nan], &[], ModelOrder::Eight, None);
+        let (ok, failed) = errors_on_sets(
+            &p,
+            &[&good, &short, &nan],
+            &[],
+            ModelOrder::Eight,
+            None,
+            &SensorLags::NONE,
+        );
         assert_eq!(ok.len(), 1);
         assert_eq!(ok[0].name, "good");
         assert!(ok[0].oscillations.is_empty());

@@ -126,6 +126,7 @@ mod tests {
                 stationary: "stationary.csv".into(),
                 true_params: None,
                 true_tau_me_s: None,
+                true_sensor_lags_s: None,
                 description: String::new(),
                 datasets: vec![DataSetInfo {
                     name: "A".into(),

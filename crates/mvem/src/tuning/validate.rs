@@ -17,6 +17,7 @@
 use super::data::{
     load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
 };
+use super::sensors::SensorLags;
 use super::steps::{self, rel_errors, StepError};
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::model::{AnyModel, Drive, Model, ModelOptions, ModelOrder};
@@ -400,17 +401,19 @@ pub fn sample_interval(d: &DynamicData) -> f64 {
 
 /// Simulated outputs at the sample times of `d`: (name, values) for p_im, p_em, W_c, n_t and
 /// M_e; with `tau_me` the simulated torque is passed through the dynamometer lag of eq. (76)
-/// (on a grid of at most 0.02 s) before sampling.
+/// (on a grid of at most 0.02 s) before sampling, and p_im, p_em, W_c, n_t through their
+/// sensor `lags` (on a grid of at most [`super::sensors::LAG_GRID_S`]).
 pub fn simulated_outputs(
     order: ModelOrder,
     p: &Params,
     d: &DynamicData,
     tau_me: Option<f64>,
+    lags: &SensorLags,
     rtol: f64,
 ) -> Result<Vec<(&'static str, Vec<f64>)>, String> {
     let dt = sample_interval(d);
-    let dt_out = if tau_me.is_some() { dt.min(0.02) } else { dt };
-    let (ts, fine) = simulated_grid(order, p, d, tau_me, rtol, dt_out)?;
+    let dt_out = lags.grid(if tau_me.is_some() { dt.min(0.02) } else { dt });
+    let (ts, fine) = simulated_grid(order, p, d, tau_me, lags, rtol, dt_out)?;
     Ok(at_samples(d, &ts, fine))
 }
 
@@ -424,6 +427,7 @@ fn simulated_grid(
     p: &Params,
     d: &DynamicData,
     tau_me: Option<f64>,
+    lags: &SensorLags,
     rtol: f64,
     dt_out: f64,
 ) -> Result<(Vec<f64>, Outputs), String> {
@@ -434,7 +438,7 @@ fn simulated_grid(
         let Some(sim) = sol.get(name) else { continue };
         let sim = match (name, tau_me) {
             ("M_e", Some(tau)) => super::lab::first_order_lag(&ts, sim, tau),
-            _ => sim.to_vec(),
+            _ => lags.apply(name, &ts, sim),
         };
         out.push((name, sim));
     }
@@ -466,31 +470,35 @@ pub fn dynamic_errors(
     d: &DynamicData,
     stat: &[StationaryPoint],
 ) -> Result<DataSetErrors, ValidateError> {
-    dynamic_errors_with(ModelOrder::Eight, p, d, stat, None)
+    dynamic_errors_with(ModelOrder::Eight, p, d, stat, None, &SensorLags::NONE)
 }
 
 /// Errors of a dynamic set, eq. (5): p_im, p_em, W_c, n_t and M_e at the sample times against
 /// the measurements, normalized by the mean of the stationary measurements of that output (the
 /// set's own mean where there are none). `tau_me`: dynamometer time constant of eq. (76) applied
-/// to the simulated torque.
+/// to the simulated torque; `lags`: the sensor lags of p_im, p_em, W_c, n_t.
 pub fn dynamic_errors_with(
     order: ModelOrder,
     p: &Params,
     d: &DynamicData,
     stat: &[StationaryPoint],
     tau_me: Option<f64>,
+    lags: &SensorLags,
 ) -> Result<DataSetErrors, ValidateError> {
     // a grid of at most 0.1 s (0.02 s with the dynamometer lag) for the oscillation check
     let dt = sample_interval(d);
-    let dt_out = if tau_me.is_some() {
+    let dt_out = lags.grid(if tau_me.is_some() {
         dt.min(0.02)
     } else {
         dt.min(0.1)
-    };
-    let (ts, fine) = simulated_grid(order, p, d, tau_me, SimOptions::default().rtol, dt_out)
-        .map_err(|message| ValidateError::Model {
-            set: d.name.clone(),
-            message,
+    });
+    let rtol = SimOptions::default().rtol;
+    let (ts, fine) =
+        simulated_grid(order, p, d, tau_me, lags, rtol, dt_out).map_err(|message| {
+            ValidateError::Model {
+                set: d.name.clone(),
+                message,
+            }
         })?;
     let oscillations = sustained_oscillations(d, &ts, &fine, &stationary_means(stat));
     let sims = at_samples(d, &ts, fine);
@@ -605,16 +613,18 @@ pub fn oscillation_summary(sets: &[DataSetErrors]) -> Vec<OscillationSummary> {
 
 /// Validate `p` on a loaded campaign (torque unfiltered; see [`validate_campaign_with`]).
 pub fn validate_campaign(c: &Campaign, p: &Params) -> Result<ValidationReport, ValidateError> {
-    validate_campaign_with(ModelOrder::Eight, c, p, None, None)
+    validate_campaign_with(ModelOrder::Eight, c, p, None, &SensorLags::NONE, None)
 }
 
 /// Validate `p` with the model `order` on the data sets of a campaign (those with a role in
-/// `roles`, all if None), in parallel; `tau_me`: dynamometer time constant of eq. (76).
+/// `roles`, all if None), in parallel; `tau_me`: dynamometer time constant of eq. (76);
+/// `lags`: sensor lags of p_im, p_em, W_c, n_t.
 pub fn validate_campaign_with(
     order: ModelOrder,
     c: &Campaign,
     p: &Params,
     tau_me: Option<f64>,
+    lags: &SensorLags,
     roles: Option<&[Role]>,
 ) -> Result<ValidationReport, ValidateError> {
     use rayon::prelude::*;
@@ -634,7 +644,7 @@ pub fn validate_campaign_with(
         .par_iter()
         .map(|(info, d)| match info.kind {
             StepKind::Actuator => actuator_errors(p, d),
-            _ => dynamic_errors_with(order, p, d, &c.stationary, tau_me),
+            _ => dynamic_errors_with(order, p, d, &c.stationary, tau_me, lags),
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ValidationReport {
