@@ -155,6 +155,20 @@ fn simulate_csv_with_png_plot_and_initial_state() {
     assert!(!d.path().join("o2.csv").exists());
 }
 
+/// Run `mvem` with `args` twice in `dir`, streaming (`--out streamed.csv`) and writing after a
+/// figure (`--out after.csv --plot fig.svg`); assert the same bytes; the CSV's header and rows.
+fn streamed_and_after(dir: &std::path::Path, args: &[&str]) -> (Vec<String>, Vec<Vec<f64>>) {
+    let run = |extra: &[&str]| {
+        let o = mvem(dir, &[args, extra].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    run(&["--out", "streamed.csv"]);
+    run(&["--out", "after.csv", "--plot", "fig.svg"]);
+    let streamed = std::fs::read(dir.join("streamed.csv")).unwrap();
+    assert!(streamed == std::fs::read(dir.join("after.csv")).unwrap());
+    read_csv(&dir.join("streamed.csv"))
+}
+
 /// Without `--plot` the output is written while the simulation runs (blocks of samples to a
 /// writer thread); with it, after. Both give the same bytes, also with `--signals` and the
 /// dynamometer column M_dynamo (`--tau-me`, a filter carried from block to block), over more
@@ -175,20 +189,48 @@ fn streamed_output_equals_written_after() {
         "--signals",
         "M_dynamo,p_im,M_e,lambda_O",
     ];
-    let run = |extra: &[&str]| {
-        let o = mvem(d.path(), &[&base[..], extra].concat());
-        assert!(o.status.success(), "{}", stderr(&o));
-    };
-    run(&["--out", "streamed.csv"]);
-    run(&["--out", "after.csv", "--plot", "fig.svg"]);
-    let streamed = std::fs::read(d.path().join("streamed.csv")).unwrap();
-    assert!(streamed == std::fs::read(d.path().join("after.csv")).unwrap());
-    let (h, rows) = read_csv(&d.path().join("streamed.csv"));
+    let (h, rows) = streamed_and_after(d.path(), &base);
     assert_eq!(h, ["t", "M_dynamo", "p_im", "M_e", "lambda_O"]);
     assert_eq!(rows.len(), 3001);
     // the lag starts at M_e and follows it
     assert_eq!(rows[0][1], rows[0][3]);
     assert!(rows.iter().any(|r| (r[1] - r[3]).abs() > 1e-3 * r[3].abs()));
+}
+
+/// The sensor time constants of a parameter file's [test_cell] section (written by `mvem
+/// tune`) give `simulate` the columns the sensors read, streamed or written after alike.
+#[test]
+fn sensor_columns_from_the_test_cell_section() {
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(d.path(), &["params", "show"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut text = String::from_utf8(o.stdout).unwrap();
+    text.push_str("\n[test_cell]\ntau_p_em = 0.02\ntau_n_t = 0.006\n");
+    std::fs::write(d.path().join("p.toml"), text).unwrap();
+    let base = [
+        "simulate",
+        "--scenario",
+        "vgt-step-nmp",
+        "--t-end",
+        "3",
+        "--dt",
+        "0.001",
+        "--params",
+        "p.toml",
+        "--signals",
+        "p_em,p_em_sensor,n_t_sensor",
+    ];
+    let (h, rows) = streamed_and_after(d.path(), &base);
+    assert_eq!(h, ["t", "p_em", "p_em_sensor", "n_t_sensor"]);
+    // the sensor starts at the signal and trails it by its time constant
+    assert_eq!(rows[0][1], rows[0][2]);
+    assert!(rows.iter().any(|r| (r[1] - r[2]).abs() > 1e-3 * r[1].abs()));
+    // no p_im sensor in the section, so no column for it
+    let o = mvem(
+        d.path(),
+        &[&base[..9], &["--signals", "p_im_sensor", "--out", "x.csv"]].concat(),
+    );
+    assert!(!o.status.success() && stderr(&o).contains("p_im_sensor"));
 }
 
 #[test]

@@ -33,7 +33,11 @@ Dynamometer: M_e is the engine torque of the model. A test cell measures it thro
 dynamometer lag of eq. (76), a test-cell property that `mvem tune` writes to the [test_cell]
 section of its output file (tau_me). When that section is present in --params, or with
 --tau-me, the output gets a column M_dynamo: M_e through that first-order lag (what `mvem
-validate` compares with the measured torque); --tau-me overrides the file."
+validate` compares with the measured torque); --tau-me overrides the file. Likewise the
+section's sensor time constants (tau_p_im, tau_p_em, tau_w_c, tau_n_t, fitted by `mvem tune`)
+give columns p_im_sensor, p_em_sensor, W_c_sensor, n_t_sensor: what those sensors read, the
+lag applied on the output grid (exact for an output linear between samples; use a --dt well
+below the time constants)."
 )]
 pub struct Args {
     /// Input time series (CSV: time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct).
@@ -99,13 +103,24 @@ pub fn run(a: &Args) -> Result<()> {
     let model = a.model.build()?;
     // the tuned dynamometer constant of the parameter file's [test_cell] section; --tau-me
     // overrides
-    let tau_me = match (&a.tau_me, &a.model.params) {
-        (Some(t), _) => Some(*t),
-        (None, Some(p)) => mvem::io::test_cell::load_test_cell(p)
-            .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?
-            .and_then(|c| c.tau_me),
-        (None, None) => None,
+    let cell = match &a.model.params {
+        Some(p) => mvem::io::test_cell::load_test_cell(p)
+            .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
+        None => None,
     };
+    let tau_me = a.tau_me.or(cell.as_ref().and_then(|c| c.tau_me));
+    // what the test cell measures: (model signal, column, time constant)
+    let mut sensors: Vec<Sensor> = Vec::new();
+    if let Some(t) = tau_me {
+        sensors.push(("M_e", "M_dynamo".into(), t));
+    }
+    if let Some(l) = cell.as_ref().and_then(mvem::io::test_cell::TestCell::lags) {
+        for name in mvem::tuning::sensors::LAGGED_OUTPUTS {
+            if l.of(name) > 0.0 {
+                sensors.push((name, format!("{name}_sensor"), l.of(name)));
+            }
+        }
+    }
     let (sched, default_end, source) = match (&a.inputs, a.scenario) {
         (Some(path), _) => {
             let s = common::load_inputs(path)?;
@@ -153,11 +168,13 @@ pub fn run(a: &Args) -> Result<()> {
                 &msg,
                 || mvem::dispatch!(&model, m => run_model(m, &sched, t0, t_end, initial.as_ref(), initial_path, &opts, None)),
             )?;
-            if let (Some(tau), Some(m_e)) = (tau_me, sol.get("M_e").map(<[f64]>::to_vec)) {
-                // eq. (76): the torque the dynamometer measures
-                let m_dynamo = mvem::tuning::lab::first_order_lag(sol.t(), &m_e, tau);
-                sol.names.push("M_dynamo".into());
-                sol.columns.push(m_dynamo);
+            for (src, name, tau) in &sensors {
+                // eq. (76) for the torque: what the test cell measures
+                if let Some(v) = sol.get(src).map(<[f64]>::to_vec) {
+                    let y = mvem::tuning::lab::first_order_lag(sol.t(), &v, *tau);
+                    sol.names.push(name.clone());
+                    sol.columns.push(y);
+                }
             }
             let wall = started.elapsed().as_secs_f64();
             // Render the figure before writing anything, so that a failure leaves no file
@@ -185,7 +202,7 @@ pub fn run(a: &Args) -> Result<()> {
                 t0,
                 t_end,
                 initial.as_ref(),
-                tau_me,
+                &sensors,
                 &opts,
                 &msg,
             )?;
@@ -382,12 +399,16 @@ fn stream_to_file(
     t0: f64,
     t_end: f64,
     initial: Option<&BTreeMap<String, f64>>,
-    tau_me: Option<f64>,
+    sensors: &[Sensor],
     opts: &SimOptions,
     msg: &str,
 ) -> Result<Written> {
-    mvem::dispatch!(model, m => stream_model(a, m, sched, t0, t_end, initial, tau_me, opts, msg))
+    mvem::dispatch!(model, m => stream_model(a, m, sched, t0, t_end, initial, sensors, opts, msg))
 }
+
+/// A column of what the test cell measures: the model signal, the column's name and the
+/// sensor's first-order time constant [s].
+type Sensor = (&'static str, String, f64);
 
 /// [`stream_to_file`] for one model variant.
 #[allow(clippy::too_many_arguments)]
@@ -398,34 +419,34 @@ fn stream_model<const N: usize, M: Model<N>>(
     t0: f64,
     t_end: f64,
     initial: Option<&BTreeMap<String, f64>>,
-    tau_me: Option<f64>,
+    sensors: &[Sensor],
     opts: &SimOptions,
     msg: &str,
 ) -> Result<Written> {
     use mvem::io::output::{select_names, write_streaming, StreamError};
     let mut names = Solution::new(&m.state_names()).names;
-    let m_e = names.iter().position(|n| n == "M_e");
-    let mut lag = match (tau_me, m_e) {
-        (Some(tau), Some(_)) => {
-            names.push("M_dynamo".into());
-            Some(mvem::tuning::lab::FirstOrderLag::new(tau))
+    // (source column, lag carried from block to block) per sensor column
+    let mut lags: Vec<(usize, mvem::tuning::lab::FirstOrderLag)> = Vec::new();
+    for (src, name, tau) in sensors {
+        if let Some(k) = names.iter().position(|n| n == src) {
+            names.push(name.clone());
+            lags.push((k, mvem::tuning::lab::FirstOrderLag::new(*tau)));
         }
-        _ => None,
-    };
+    }
     let selected = select_names(&names, a.signals.as_deref())
         .map_err(|e| common::usage(format!("--signals: {e}")))?;
     let header: Vec<&str> = selected.iter().map(|i| names[*i].as_str()).collect();
     let mut signals = SignalEvaluator::new(m);
     let map = |raw: Block| -> Block {
         let mut block = signals.block(raw);
-        if let (Some(lag), Some(m_e)) = (&mut lag, m_e) {
-            // eq. (76): the torque the dynamometer measures
-            let m_dynamo = block[0]
+        for (k, lag) in &mut lags {
+            // eq. (76) for the torque: what the test cell measures
+            let y = block[0]
                 .iter()
-                .zip(&block[m_e])
+                .zip(&block[*k])
                 .map(|(t, u)| lag.next(*t, *u))
                 .collect();
-            block.push(m_dynamo);
+            block.push(y);
         }
         // each column is selected at most once
         selected
