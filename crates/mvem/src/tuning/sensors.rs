@@ -31,6 +31,10 @@ pub const MAX_LAG_S: f64 = 0.2;
 /// virtual test cell's lags).
 pub const LAG_GRID_S: f64 = 0.002;
 
+/// Data sampled at most this far apart [s] are simulated on the [`LAG_GRID_S`] grid when a
+/// lag is positive ([`SensorLags::grid`]): twice Table 6's largest time constant.
+pub const LAG_REFINE_MAX_DT_S: f64 = 0.04;
+
 /// First-order sensor time constants [s] of p_im, p_em, W_c and n_t (0: no lag).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct SensorLags {
@@ -106,14 +110,15 @@ impl SensorLags {
     }
 
     /// The simulation output grid for data sampled every `dt` [s]: `dt` divided into equal
-    /// parts of at most [`LAG_GRID_S`] when a lag is positive and `dt` at most twice the
-    /// largest lag (the 100 Hz step responses of steps 3 and 7); `dt` itself otherwise (no lag,
-    /// or data sampled far slower than the sensors: step 5's 10 Hz rows and 1 Hz sets, where
-    /// the lag acts on the output interpolated between the samples and a finer grid would
-    /// multiply the simulations' output by up to 500 for a correction below the noise).
+    /// parts of at most [`LAG_GRID_S`] when a lag is positive and `dt` at most
+    /// [`LAG_REFINE_MAX_DT_S`] (the 100 Hz step responses of steps 3 and 7); `dt` itself
+    /// otherwise (no lag, or data sampled far slower than the sensors: step 5's 10 Hz rows and
+    /// 1 Hz sets, where the lag acts on the output interpolated between the samples and a finer
+    /// grid would multiply the simulations' output by up to 500 for a correction below the
+    /// noise). The choice depends on the data, not on the size of the lags, so the residuals
+    /// of a fit stay continuous in them.
     pub fn grid(&self, dt: f64) -> f64 {
-        let tau = self.as_array().into_iter().fold(0.0, f64::max);
-        if tau > 0.0 && dt > LAG_GRID_S && dt <= 2.0 * tau {
+        if self.any() && dt > LAG_GRID_S && dt <= LAG_REFINE_MAX_DT_S {
             dt / (dt / LAG_GRID_S).ceil()
         } else {
             dt
