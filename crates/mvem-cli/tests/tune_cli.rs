@@ -112,7 +112,19 @@ fn lab_tune_validate_roundtrip_and_errors() {
             .as_f64()
             .unwrap();
         assert!(v.abs() < 0.002, "{k} = {v}");
+        // on noise-free lag-free data each ends on its bound 0, is held there for the others'
+        // standard errors and says so
+        let e = &rep["parameters"][format!("test_cell.{k}")];
+        if v <= 1e-4 {
+            assert_eq!(e["identifiable"], false, "{k}");
+            assert!(
+                e["reason"].as_str().unwrap().contains("bound 0"),
+                "{k}: {e}"
+            );
+        }
     }
+    let v_im = &rep["parameters"]["intake_manifold.v_im"];
+    assert_eq!(v_im["identifiable"], true, "{v_im}");
     let o = step3_with("--sensor-lags", "table6");
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(d.join("l.toml")).unwrap();

@@ -310,6 +310,10 @@ pub struct Step3Start {
 /// from the bound 0 so that the first finite differences see both sides).
 pub const LAG_START_S: f64 = 0.01;
 
+/// A fitted sensor time constant at most this large [s] counts as on its bound 0 (a tenth of a
+/// millisecond: nothing 100 Hz data can tell from no lag), see [`fit_dynamic`].
+pub const LAG_AT_BOUND_S: f64 = 1e-4;
+
 impl Default for Step3Start {
     /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
     /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2.
@@ -526,16 +530,34 @@ pub fn fit_dynamic(
         .zip(&segs)
         .flat_map(|(d, sg)| f.window.blocks(&d.t, sg).repeat(DYN_OUTPUTS.len()))
         .collect();
-    let covariance = block_covariance(&fit.jacobian, &fit.residuals, &blocks);
-    let uncertainty = estimates_from_cov(
-        f.names,
-        &fit.theta,
-        &covariance,
-        if f.order == ModelOrder::Twelve { 7 } else { 3 },
-    );
+    // a sensor lag that ended on its bound 0 (the data see no lag there) is held at the bound
+    // for the covariance of the others (an active constraint): its column would otherwise
+    // carry a variance the bound forbids into every parameter correlated with it
+    let at_bound =
+        |k: usize| SensorLags::index(f.names[k]).is_some() && fit.theta[k] <= LAG_AT_BOUND_S;
+    let kept: Vec<usize> = (0..f.names.len()).filter(|&k| !at_bound(k)).collect();
+    let names: Vec<&str> = kept.iter().map(|&k| f.names[k]).collect();
+    let theta: Vec<f64> = kept.iter().map(|&k| fit.theta[k]).collect();
+    let jacobian = fit.jacobian.select_columns(kept.iter());
+    let covariance = block_covariance(&jacobian, &fit.residuals, &blocks);
+    let step = if f.order == ModelOrder::Twelve { 7 } else { 3 };
+    let mut uncertainty = estimates_from_cov(&names, &theta, &covariance, step);
+    uncertainty.extend((0..f.names.len()).filter(|&k| at_bound(k)).map(|k| {
+        let e = ParamEstimate {
+            value: fit.theta[k],
+            std_error: f64::INFINITY,
+            identifiable: false,
+            correlated_with: Vec::new(),
+            reason: "at its bound 0 (the data show no lag of this sensor); held there for the \
+                     other parameters' standard errors"
+                .to_string(),
+            step,
+        };
+        (f.names[k].to_string(), e)
+    }));
     let linearization = Some(Linearization {
-        names: f.names.iter().map(|s| s.to_string()).collect(),
-        jacobian: fit.jacobian.clone(),
+        names: names.iter().map(|s| s.to_string()).collect(),
+        jacobian,
         covariance,
     });
     Ok((

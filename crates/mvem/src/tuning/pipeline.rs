@@ -22,7 +22,7 @@ use super::complete::{
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
-use super::sensors::{SensorLagMode, SensorLags};
+use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
 use super::steps::{
     step1_with, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM,
 };
@@ -1189,11 +1189,31 @@ fn run_step3(
         opts.step3.window,
     );
     let s3 = &opts.step3;
-    let boxes: Vec<(f64, f64)> = s3.lo.iter().zip(&s3.hi).map(|(l, h)| (*l, *h)).collect();
+    // the box of each of the step's parameters (V_im, V_em, J_t, then the lags it fitted)
+    let boxes: Vec<(f64, f64)> = s3
+        .lo
+        .iter()
+        .zip(&s3.hi)
+        .map(|(l, h)| (*l, *h))
+        .chain(std::iter::repeat((0.0, MAX_LAG_S)))
+        .take(r.params.len())
+        .collect();
     // the sensor lags step 3 ended with (their own uncertainty is in the step's covariance)
     let lags = r.sensor_lags;
     let res = move |q: &Params| res(q, &lags);
-    let cond = add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 3, &boxes);
+    // the estimates of the linearization get the chained covariance; those held at a bound
+    // (sensor lags at 0, [`fit_dynamic`]) keep theirs
+    let in_lin = |n: &String| r.linearization.as_ref().is_none_or(|l| l.names.contains(n));
+    let (mut own, held): (Vec<_>, Vec<_>) = r.uncertainty.drain(..).partition(|(n, _)| in_lin(n));
+    let boxes: Vec<(f64, f64)> = boxes
+        .iter()
+        .zip(&r.params)
+        .filter(|(_, (n, _))| in_lin(n))
+        .map(|(b, _)| *b)
+        .collect();
+    let cond = add_fixed(&mut own, &r.linearization, cov, res, p, 3, &boxes);
+    r.uncertainty = own;
+    r.uncertainty.extend(held);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
