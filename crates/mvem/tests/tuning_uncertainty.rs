@@ -14,11 +14,12 @@
 //! Heavy (the full pipeline on seeds 1-4: 184 s on a quiet 2-core machine; CI has 25 minutes
 //! on 2 cores for everything): `#[ignore]`d, run by
 //! `scripts/tuning-uncertainty.sh` (`cargo test --release -p mvem --test tuning_uncertainty --
-//! --ignored`). It fails on the default pipeline: on seed 2 the chained covariance flags V_im,
-//! V_em and J_t (rel. std. errors 59, 145, 26 %; session 16, 495 s beside a CI run). Seeds 1, 3
-//! and 4 pass: every parameter reported identifiable lies within 3 standard errors, eta_tm and
-//! eta_c at their measured points too (before session 16's least-squares step levels seed 4
-//! failed as well; `scripts/tuning-compare.py`).
+//! --ignored`). It passes on seeds 1-4 since session 17 (344 s beside a CI run): every
+//! parameter reported identifiable lies within 3 standard errors, eta_tm and eta_c at their
+//! measured points too, and at most two of V_im, V_em, J_t are flagged. Before, seed 2 failed
+//! (V_im, V_em, J_t flagged, rel. std. errors 59, 145, 26 %, session 16) and, before session
+//! 16's least-squares step levels, seed 4 as well (`scripts/tuning-compare.py`). The sensor
+//! time constants that step 3 fits by default are 0 in these campaigns.
 
 use mvem::components::{compressor, turbine, Semantics};
 use mvem::params::Params;
@@ -103,6 +104,8 @@ fn check_campaign(seed: u64) -> Vec<String> {
     for (path, e) in &rep.parameters {
         let t = if path == "test_cell.tau_me" {
             opts.tau_me_s
+        } else if path.starts_with("test_cell.tau_") {
+            0.0 // the campaign has no sensor lags
         } else {
             true_value(&truth, path).unwrap_or_else(|| panic!("no true value of {path}"))
         };
@@ -170,7 +173,7 @@ fn check_campaign(seed: u64) -> Vec<String> {
 }
 
 #[test]
-#[ignore = "heavy (about 3-8 minutes on 2 cores) and failing on seed 2 only: V_im, V_em, J_t flagged (J_t at 26 %; docs/tuning.md, session 16); scripts/tuning-uncertainty.sh"]
+#[ignore = "heavy (about 3-8 minutes on 2 cores; passes since session 17, docs/tuning.md); scripts/tuning-uncertainty.sh"]
 fn tuned_parameters_lie_within_their_standard_errors() {
     let bad: Vec<String> = [1, 2, 3, 4].into_iter().flat_map(check_campaign).collect();
     assert!(bad.is_empty(), "{}", bad.join("\n"));
