@@ -61,6 +61,19 @@ impl TestCell {
             .then(|| SensorLags::from_array(a.map(|v| v.unwrap_or(0.0))))
     }
 
+    /// The value of the key `name` of the section (`tau_me`, `tau_p_im`, ...), None when
+    /// not set or not a key.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        match name {
+            "tau_me" => self.tau_me,
+            "tau_p_im" => self.tau_p_im,
+            "tau_p_em" => self.tau_p_em,
+            "tau_w_c" => self.tau_w_c,
+            "tau_n_t" => self.tau_n_t,
+            _ => None,
+        }
+    }
+
     /// Set the sensor lags (all four written, zeros included).
     pub fn with_lags(mut self, l: SensorLags) -> Self {
         let [a, b, c, d] = l.as_array();
@@ -239,6 +252,9 @@ mod tests {
                 Some(tc.clone()),
                 "{name}"
             );
+            assert_eq!(tc.get("tau_me"), Some(1.0016));
+            assert_eq!(tc.get("tau_p_em"), Some(0.02));
+            assert_eq!(tc.get("tau_x"), None);
         }
         let plain = super::super::params::to_toml(&p);
         assert_eq!(parse_test_cell(&plain, Path::new("p.toml")).unwrap(), None);

@@ -108,6 +108,18 @@ pub struct LabOptions {
     pub model: ModelOrder,
 }
 
+impl LabOptions {
+    /// The sensor time constants the virtual test cell applies: Table 6's with
+    /// `sensor_lags`, none without.
+    pub fn sensor_time_constants(&self) -> super::sensors::SensorLags {
+        if self.sensor_lags {
+            super::sensors::SensorLags::TABLE6
+        } else {
+            super::sensors::SensorLags::NONE
+        }
+    }
+}
+
 impl Default for LabOptions {
     fn default() -> Self {
         Self {
@@ -387,13 +399,9 @@ pub fn campaign(
         stationary: "stationary.csv".into(),
         true_params: Some("true_params.toml".into()),
         true_tau_me_s: (opts.dynamic && opts.tau_me_s > 0.0).then_some(opts.tau_me_s),
-        true_sensor_lags_s: opts.dynamic.then(|| {
-            if opts.sensor_lags {
-                super::sensors::SensorLags::TABLE6.as_array()
-            } else {
-                [0.0; 4]
-            }
-        }),
+        true_sensor_lags_s: opts
+            .dynamic
+            .then(|| opts.sensor_time_constants().as_array()),
         description: format!(
             "virtual test cell (mvem::tuning::lab), seed {}, noise {} relative / {} K gaussian, \
              dynamometer tau_Me {} s, sensor lags {}",
@@ -694,11 +702,7 @@ pub fn step_set(
         let v = first_order_lag(sol.t(), &v, tau);
         idx.iter().filter_map(|&i| v.get(i).copied()).collect()
     };
-    let sensors = if opts.sensor_lags {
-        super::sensors::SensorLags::TABLE6
-    } else {
-        super::sensors::SensorLags::NONE
-    };
+    let sensors = opts.sensor_time_constants();
     let sensor = |c: &str| sensors.of(c);
     let noisy = |g: &mut Gauss, v: Vec<f64>, s: f64, abs: bool| -> Vec<f64> {
         v.into_iter()
