@@ -60,6 +60,8 @@ for m in 8 10 12; do
         "$(awk '/wall time/ {sub(/^ *wall time */, ""); print; exit}' "$work/b$m")" \
         "$(awk '/^ *steps/ {sub(/^ *steps */, ""); print; exit}' "$work/b$m")" \
         "$(awk '/RHS evaluations/ {print $3 " RHS evaluations"; exit}' "$work/b$m")"
+    printf '%-44s %s\n' "  + output signals of the samples (after)" \
+        "$(awk '/output signals/ {sub(/^ *output signals */, ""); print; exit}' "$work/b$m")"
     printf '%-44s %s; %s\n' "  same, 2 time chunks on 2 threads" \
         "$(awk '/^Time-parallel/ {p=1} p && /wall time/ {sub(/^ *wall time */, ""); print; exit}' "$work/b$m")" \
         "$(awk '/^ *junctions/ {sub(/^ *junctions */, ""); print; exit}' "$work/b$m")"

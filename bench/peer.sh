@@ -12,7 +12,8 @@
 #
 # Prints the load (uptime) before and after, per-round times, and the medians and ratios
 # mvem / peer of the integration alone (mvem: `mvem bench` wall time of one run from the steady
-# state; peer: integrate_s_min of one run) and of the whole process writing CSV (wall clock of
+# state, storing t, the state and the inputs at every output time, its signals evaluated after
+# the timing; peer: integrate_s_min of one run, storing the state at every output time) and of the whole process writing CSV (wall clock of
 # `mvem simulate --scenario whtc --dt 0.1` vs the peer with --out, both at rtol 1e-6).
 # An extra line gives mvem's time-parallel integration (`mvem bench --time-parallel 2`: the
 # cycle in 2 time chunks on 2 threads, timed in the same process right after the sequential run)

@@ -183,18 +183,23 @@ fn bad_guess_fails_the_junction_and_is_rerun() {
     assert!(units <= 0.1, "{units} tolerance units");
 }
 
-/// A model holding memory between steps (one-iteration cylinder temperature) is integrated
-/// sequentially: bit for bit the run without chunks.
-#[test]
-fn memory_holding_model_is_sequential() {
-    let m = Engine8::new(
+/// The 8-state engine with the one-iteration cylinder temperature (a model holding memory).
+fn one_iteration_engine() -> Engine8 {
+    Engine8::new(
         Engine8::published().params().clone(),
         ModelOptions {
             cylinder_temp: CylinderTemp::OneIteration,
             ..ModelOptions::default()
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// A model holding memory between steps (one-iteration cylinder temperature) is integrated
+/// sequentially: bit for bit the run without chunks.
+#[test]
+fn memory_holding_model_is_sequential() {
+    let m = one_iteration_engine();
     assert!(Model::holds_memory(&m));
     let sched = whtc();
     let seq = simulate_from_steady(&m, &sched, 0.0, 100.0, &opts(1)).unwrap();
@@ -287,4 +292,46 @@ fn failure_is_reported_as_sequential() {
             ..
         })
     ));
+}
+
+/// Kept with the signals evaluated after the run (`Solution::deferred`, what `mvem bench`
+/// times, as the CVODE peer stores only its states): the same columns, bits, statistics and
+/// guards as `simulate`, sequential and in 2 chunks; before `with_signals` only `t` and the
+/// states can be read. A model holding memory gets the ordinary solution.
+#[test]
+fn deferred_signals_equal_simulate() {
+    let m = Engine8::published();
+    let sched = whtc();
+    let x0 = steady_state(&m, &sched.at(0.0)).unwrap().x;
+    let guess = chunk_guess(&m, &sched);
+    for chunks in [1, 2] {
+        let o = opts(chunks);
+        let kept = simulate_with_guess(&m, &sched, 0.0, T_END, Start::State(x0), &o, Some(&guess))
+            .unwrap();
+        let raw = simulate_into_with_guess(
+            &m,
+            &sched,
+            0.0,
+            T_END,
+            Start::State(x0),
+            &o,
+            Solution::deferred(&m),
+            Some(&guess),
+        )
+        .unwrap();
+        assert_eq!(raw.len(), kept.len());
+        assert_eq!(raw.get("p_em"), kept.get("p_em"));
+        assert!(raw.get("W_c").is_none() && raw.get("M_e").is_none());
+        assert_eq!(raw.row(7).len(), 1 + 8);
+        let full = raw.with_signals(&m);
+        assert!(full == kept, "{chunks} chunks: not the kept solution");
+        assert_eq!(full.stats.chunks, kept.stats.chunks);
+        assert!(full.get("W_c").is_some());
+    }
+    let mem = one_iteration_engine();
+    let d = Solution::deferred(&mem);
+    assert!(
+        d.get("W_c").is_some(),
+        "a memory-holding model keeps its signal columns"
+    );
 }

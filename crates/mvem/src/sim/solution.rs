@@ -234,6 +234,49 @@ impl Solution {
         s
     }
 
+    /// An empty solution like [`Solution::new`] that keeps every sample but stores per sample
+    /// only what the output signals are computed from (`t`, the state, the [`ModelInput`]), as
+    /// [`Solution::streaming_deferred`] does: the integration then costs no model evaluation per
+    /// output sample, as an integrator that stores the states at the output times (the CVODE
+    /// peer's timed integration does). Until [`Solution::with_signals`] adds them, only `t` and
+    /// the state columns can be read ([`Solution::get`] returns `None` for a signal). A model
+    /// holding memory ([`Dynamics::holds_memory`]) gets [`Solution::new`] (its signals are
+    /// evaluated while it integrates).
+    pub fn deferred<const N: usize, M: Dynamics<N>>(model: &M) -> Self {
+        let mut s = Self::new(&model.state_names());
+        if !model.holds_memory() {
+            s.columns = vec![Vec::new(); 1 + N + INPUT_COLUMNS];
+            s.raw = true;
+        }
+        s
+    }
+
+    /// This solution with its signal columns: those of a [`Solution::deferred`] one are
+    /// evaluated here, by the same function on the same state and inputs as the integrator of
+    /// a [`Solution::new`] one would (the same bits); any other solution is returned as it is.
+    /// `model` must be the one that was simulated.
+    pub fn with_signals<const N: usize, M: Dynamics<N>>(mut self, model: &M) -> Self {
+        if !self.raw || self.stream.is_some() {
+            return self;
+        }
+        let mut ev = SignalEvaluator::new(model);
+        let raw = std::mem::take(&mut self.columns);
+        self.columns = ev.block(raw);
+        self.guards_seen |= ev.guards_seen();
+        self.raw = false;
+        self
+    }
+
+    /// Number of columns that hold what their name says (a raw solution holds `t` and the
+    /// states, then inputs that are no named column).
+    fn named_columns(&self) -> usize {
+        if self.raw {
+            self.columns.len() - INPUT_COLUMNS
+        } else {
+            self.columns.len()
+        }
+    }
+
     /// Whether output samples are pushed without their signals
     /// ([`Solution::streaming_deferred`]).
     pub(super) fn defers_signals(&self) -> bool {
@@ -280,7 +323,7 @@ impl Solution {
     }
 
     /// Reserve room for `n` more samples in every column.
-    pub(super) fn reserve(&mut self, n: usize) {
+    pub fn reserve(&mut self, n: usize) {
         for c in &mut self.columns {
             c.reserve(n);
         }
@@ -329,6 +372,7 @@ impl Solution {
         self.names
             .iter()
             .position(|n| n == name)
+            .filter(|&i| i < self.named_columns())
             .map(|i| self.columns[i].as_slice())
     }
 
@@ -351,7 +395,7 @@ impl Solution {
     pub fn row(&self, i: usize) -> Vec<(&str, f64)> {
         self.names
             .iter()
-            .zip(&self.columns)
+            .zip(&self.columns[..self.named_columns()])
             .map(|(n, c)| (n.as_str(), c[i]))
             .collect()
     }
