@@ -731,7 +731,11 @@ fn one_iteration_cylinder_temperature_is_exact_at_a_steady_state() {
     };
     let r = cylinder_temp_study(&Engine8::published(), &sched, 0.0, 5.0, &co).unwrap();
     assert_eq!(r.t.len(), 51);
-    assert_eq!(r.rel_error[0], 0.0);
+    // At t = 0 both evaluate the same fixed point: the one-iteration T_e is the map's value
+    // there, the converged T_e that of the closed form, which the converged path returns for
+    // the published x_cv when an a-priori bound shows it within the fixed point's tolerance
+    // (`cylinder::closed_form_is_converged`: within about 3e-14 of the map's value).
+    assert!(r.rel_error[0].abs() < 1e-13, "{}", r.rel_error[0]);
     assert!(r.max_abs_rel_error < 1e-8, "{}", r.max_abs_rel_error);
 }
 

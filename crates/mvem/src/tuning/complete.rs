@@ -39,6 +39,7 @@ use super::uncertainty::{
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
 use crate::model::ModelOrder;
 use crate::params::Params;
+use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -70,6 +71,50 @@ pub const STEP5_RESTART_REL_OFFSET: f64 = 1.0;
 /// Relative finite-difference step of the searches (about the square root of the relative
 /// simulation noise).
 pub const FD_STEP: f64 = 1e-4;
+
+/// Relative step of the central differences of step 3's covariance Jacobian
+/// ([`covariance_jacobian`]).
+pub const COV_FD_STEP: f64 = 3e-3;
+
+/// The Jacobian of step 3's covariance at the fit (columns `kept` of `f.names`): central
+/// differences at [`COV_FD_STEP`] max(|theta|, scale), where both sides lie inside the bounds
+/// (else the search's column). The search's own Jacobian (forward differences at [`FD_STEP`])
+/// is dominated by the simulation noise in the columns of the volumes: on `mvem lab --seed 5`
+/// sets B and C the norm of its V_im column was 6.19 or 5.25 for fits 0.1 % apart, after a
+/// change of the model by 1e-14 relative that only moved the integrator's step sequence, and
+/// V_im's standard error with it by 1.6x (session 18). A 30x larger step with central
+/// differences (truncation O(step^2)) takes the noise below 1 %; it costs two residual
+/// evaluations per parameter, once.
+fn covariance_jacobian(
+    res: &dyn Fn(&[f64]) -> Vec<f64>,
+    fit: &LsqResult,
+    kept: &[usize],
+    f: &DynamicFit,
+) -> DMatrix<f64> {
+    let mut jac = fit.jacobian.select_columns(kept.iter());
+    let mut th = fit.theta.clone();
+    for (c, &k) in kept.iter().enumerate() {
+        let v = fit.theta[k];
+        let h = COV_FD_STEP * v.abs().max(f.scale[k]);
+        if !(h > 0.0 && v - h >= f.lo[k] && v + h <= f.hi[k]) {
+            continue;
+        }
+        th[k] = v + h;
+        let rp = res(&th);
+        th[k] = v - h;
+        let rm = res(&th);
+        th[k] = v;
+        let col: Vec<f64> = rp
+            .iter()
+            .zip(&rm)
+            .map(|(a, b)| (a - b) / (2.0 * h))
+            .collect();
+        if col.len() == jac.nrows() && col.iter().all(|x| x.is_finite()) {
+            jac.set_column(c, &DVector::from_vec(col));
+        }
+    }
+    jac
+}
 
 fn solver_err(submodel: &'static str, message: impl ToString) -> StepError {
     StepError::Solver {
@@ -538,7 +583,7 @@ pub fn fit_dynamic(
     let kept: Vec<usize> = (0..f.names.len()).filter(|&k| !at_bound(k)).collect();
     let names: Vec<&str> = kept.iter().map(|&k| f.names[k]).collect();
     let theta: Vec<f64> = kept.iter().map(|&k| fit.theta[k]).collect();
-    let jacobian = fit.jacobian.select_columns(kept.iter());
+    let jacobian = covariance_jacobian(&res, &fit, &kept, f);
     let covariance = block_covariance(&jacobian, &fit.residuals, &blocks);
     let step = if f.order == ModelOrder::Twelve { 7 } else { 3 };
     let mut uncertainty = estimates_from_cov(&names, &theta, &covariance, step);
