@@ -76,40 +76,49 @@ pub const FD_STEP: f64 = 1e-4;
 /// ([`covariance_jacobian`]).
 pub const COV_FD_STEP: f64 = 3e-3;
 
-/// The Jacobian of step 3's covariance at the fit (columns `kept` of `f.names`): central
-/// differences at [`COV_FD_STEP`] max(|theta|, scale), where both sides lie inside the bounds
-/// (else the search's column). The search's own Jacobian (forward differences at [`FD_STEP`])
-/// is dominated by the simulation noise in the columns of the volumes: on `mvem lab --seed 5`
-/// sets B and C the norm of its V_im column was 6.19 or 5.25 for fits 0.1 % apart, after a
-/// change of the model by 1e-14 relative that only moved the integrator's step sequence, and
-/// V_im's standard error with it by 1.6x (session 18). A 30x larger step with central
-/// differences (truncation O(step^2)) takes the noise below 1 %; it costs two residual
-/// evaluations per parameter, once.
+/// The Jacobian of a covariance at the fit (columns `kept` of the search's parameters, bounds
+/// `lo`, `hi`, scales `scale`): central differences at [`COV_FD_STEP`] max(|theta|, scale),
+/// where both sides lie inside the bounds (else the search's column). The search's own Jacobian
+/// (forward differences at [`FD_STEP`]) is dominated by the simulation noise in some columns:
+/// on `mvem lab --seed 5` sets B and C the norm of step 3's V_im column was 6.19 or 5.25 for
+/// fits 0.1 % apart, after a change of the model by 1e-14 relative that only moved the
+/// integrator's step sequence, and V_im's standard error moved by 1.6x with it (session 18).
+/// Noise adds to the columns' norms, so it makes standard errors too small. A 30x larger step
+/// with central differences (truncation O(step^2)) takes that noise below 1 %; it costs two
+/// residual evaluations per parameter, once.
+#[allow(clippy::too_many_arguments)]
 fn covariance_jacobian(
-    res: &dyn Fn(&[f64]) -> Vec<f64>,
+    res: &(dyn Fn(&[f64]) -> Vec<f64> + Sync),
     fit: &LsqResult,
     kept: &[usize],
-    f: &DynamicFit,
+    lo: &[f64],
+    hi: &[f64],
+    scale: &[f64],
 ) -> DMatrix<f64> {
     let mut jac = fit.jacobian.select_columns(kept.iter());
-    let mut th = fit.theta.clone();
-    for (c, &k) in kept.iter().enumerate() {
-        let v = fit.theta[k];
-        let h = COV_FD_STEP * v.abs().max(f.scale[k]);
-        if !(h > 0.0 && v - h >= f.lo[k] && v + h <= f.hi[k]) {
-            continue;
-        }
-        th[k] = v + h;
-        let rp = res(&th);
-        th[k] = v - h;
-        let rm = res(&th);
-        th[k] = v;
-        let col: Vec<f64> = rp
-            .iter()
-            .zip(&rm)
-            .map(|(a, b)| (a - b) / (2.0 * h))
-            .collect();
-        if col.len() == jac.nrows() && col.iter().all(|x| x.is_finite()) {
+    let cols: Vec<Option<Vec<f64>>> = kept
+        .par_iter()
+        .map(|&k| {
+            let v = fit.theta[k];
+            let h = COV_FD_STEP * v.abs().max(scale[k]);
+            if !(h > 0.0 && v - h >= lo[k] && v + h <= hi[k]) {
+                return None;
+            }
+            let mut th = fit.theta.clone();
+            th[k] = v + h;
+            let rp = res(&th);
+            th[k] = v - h;
+            let rm = res(&th);
+            let col: Vec<f64> = rp
+                .iter()
+                .zip(&rm)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect();
+            (col.len() == jac.nrows() && col.iter().all(|x| x.is_finite())).then_some(col)
+        })
+        .collect();
+    for (c, col) in cols.into_iter().enumerate() {
+        if let Some(col) = col {
             jac.set_column(c, &DVector::from_vec(col));
         }
     }
@@ -583,7 +592,7 @@ pub fn fit_dynamic(
     let kept: Vec<usize> = (0..f.names.len()).filter(|&k| !at_bound(k)).collect();
     let names: Vec<&str> = kept.iter().map(|&k| f.names[k]).collect();
     let theta: Vec<f64> = kept.iter().map(|&k| fit.theta[k]).collect();
-    let jacobian = covariance_jacobian(&res, &fit, &kept, f);
+    let jacobian = covariance_jacobian(&res, &fit, &kept, f.lo, f.hi, f.scale);
     let covariance = block_covariance(&jacobian, &fit.residuals, &blocks);
     let step = if f.order == ModelOrder::Twelve { 7 } else { 3 };
     let mut uncertainty = estimates_from_cov(&names, &theta, &covariance, step);
@@ -1614,6 +1623,8 @@ pub fn step5(
         .map(|(s, _)| s.name.to_string())
         .collect();
     let names: Vec<&str> = list.iter().map(|s| s.name).collect();
+    let all: Vec<usize> = (0..list.len()).collect();
+    fit.jacobian = covariance_jacobian(&|th| cost.residuals(th), &fit, &all, &lo, &hi, &scale);
     let covariance = block_covariance(&fit.jacobian, &fit.residuals, &cost.covariance_blocks());
     let uncertainty = estimates_from_cov(
         &names,
