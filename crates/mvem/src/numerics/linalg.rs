@@ -45,49 +45,36 @@ pub(crate) fn lu_factor<const N: usize, const Z: usize>(
     true
 }
 
-/// The row order of factors made by [`lu_factor`] with pivots `piv`: row k of P A is row
-/// `perm[k]` of A (the swaps of `piv` applied in turn to 0..N).
-pub(crate) fn row_permutation<const N: usize>(piv: &[usize; N]) -> [usize; N] {
-    let mut perm: [usize; N] = std::array::from_fn(|i| i);
-    for (k, &p) in piv.iter().enumerate() {
-        perm.swap(k, p);
-    }
-    perm
-}
-
 /// Solve A_ZZ x = b in place on the leading `Z` entries of `b` (the rest untouched) for the
-/// block factored by [`lu_factor`] with the same `Z`, given its [`row_permutation`] `perm` and
-/// `dinv[k] = 1 / U_kk` (a multiplication instead of a division per row; fixed loop bounds, so
-/// the compiler unrolls the small systems completely). The permutation is one gather of
-/// independent loads instead of `Z` dependent swaps; the arithmetic is that of the swaps.
+/// block factored by [`lu_factor`] with the same `Z`, given `dinv[k] = 1 / U_kk` (a
+/// multiplication instead of a division per row; fixed loop bounds, so the compiler unrolls the
+/// small systems completely).
 pub(crate) fn lu_solve<const N: usize, const Z: usize>(
     lu: &[[f64; N]; N],
-    perm: &[usize; N],
+    piv: &[usize; N],
     dinv: &[f64; N],
     b: &mut [f64; N],
 ) {
     if Z > N {
-        return lu_solve::<N, N>(lu, perm, dinv, b);
+        return lu_solve::<N, N>(lu, piv, dinv, b);
     }
-    let mut x = *b;
     for k in 0..Z {
-        x[k] = b[perm[k]];
+        b.swap(k, piv[k]);
     }
     for r in 1..Z {
-        let mut s = x[r];
+        let mut s = b[r];
         for c in 0..r {
-            s -= lu[r][c] * x[c];
+            s -= lu[r][c] * b[c];
         }
-        x[r] = s;
+        b[r] = s;
     }
     for r in (0..Z).rev() {
-        let mut s = x[r];
+        let mut s = b[r];
         for c in r + 1..Z {
-            s -= lu[r][c] * x[c];
+            s -= lu[r][c] * b[c];
         }
-        x[r] = s * dinv[r];
+        b[r] = s * dinv[r];
     }
-    b[..Z].copy_from_slice(&x[..Z]);
 }
 
 #[cfg(test)]
@@ -108,7 +95,7 @@ mod tests {
         let mut piv = [0; 3];
         assert!(lu_factor::<3, 3>(&mut a, &mut piv));
         let dinv: [f64; 3] = std::array::from_fn(|k| 1.0 / a[k][k]);
-        lu_solve::<3, 3>(&a, &row_permutation(&piv), &dinv, &mut b);
+        lu_solve::<3, 3>(&a, &piv, &dinv, &mut b);
         for i in 0..3 {
             assert!((b[i] - x[i]).abs() < 1e-14);
         }
@@ -124,7 +111,7 @@ mod tests {
         // and solved on that block alone: 2 x0 + x1 = 4, x0 + 3 x1 = 7 -> (1, 2); b[2] untouched
         let dinv: [f64; 3] = std::array::from_fn(|k| 1.0 / a[k][k]);
         let mut b = [4.0, 7.0, -5.0];
-        lu_solve::<3, 2>(&a, &row_permutation(&piv), &dinv, &mut b);
+        lu_solve::<3, 2>(&a, &piv, &dinv, &mut b);
         assert!((b[0] - 1.0).abs() < 1e-15 && (b[1] - 2.0).abs() < 1e-15 && b[2] == -5.0);
     }
 }

@@ -149,8 +149,6 @@ pub(super) struct IterationMatrix<const N: usize> {
     pub(super) nz: usize,
     pub(super) lu: [[f64; N]; N],
     pub(super) piv: [usize; N],
-    /// The row order of the factors ([`linalg::row_permutation`] of `piv`).
-    pub(super) perm: [usize; N],
     /// 1 / U_aa: the back substitution multiplies instead of dividing.
     pub(super) dinv: [f64; N],
     /// 1 on the z states, 0 on the lag states of a reduced matrix.
@@ -202,14 +200,13 @@ impl<const N: usize> IterationMatrix<N> {
         for a in 0..self.nz {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
-        self.perm = linalg::row_permutation(&self.piv);
         ok
     }
 
     /// Solve (I - gamma h J_zz) x = r on the z states in place; the lag entries of `r` become 0.
     #[inline]
     pub(super) fn solve(&self, r: &mut [f64; N]) {
-        let (lu, piv, dinv) = (&self.lu, &self.perm, &self.dinv);
+        let (lu, piv, dinv) = (&self.lu, &self.piv, &self.dinv);
         match self.nz {
             5 => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
             7 => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
@@ -371,7 +368,6 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
                 nz: N,
                 lu: [[0.0; N]; N],
                 piv: [0; N],
-                perm: [0; N],
                 dinv: [0.0; N],
                 mask: [1.0; N],
             })
