@@ -72,8 +72,8 @@ pub const STEP5_RESTART_REL_OFFSET: f64 = 1.0;
 /// simulation noise).
 pub const FD_STEP: f64 = 1e-4;
 
-/// Relative step of the central differences of step 3's covariance Jacobian
-/// ([`covariance_jacobian`]).
+/// Relative step of the central differences of the covariance Jacobians of steps 3 (7) and 5
+/// (8) ([`covariance_jacobian`]).
 pub const COV_FD_STEP: f64 = 3e-3;
 
 /// The Jacobian of a covariance at the fit (columns `kept` of the search's parameters, bounds
@@ -86,7 +86,6 @@ pub const COV_FD_STEP: f64 = 3e-3;
 /// Noise adds to the columns' norms, so it makes standard errors too small. A 30x larger step
 /// with central differences (truncation O(step^2)) takes that noise below 1 %; it costs two
 /// residual evaluations per parameter, once.
-#[allow(clippy::too_many_arguments)]
 fn covariance_jacobian(
     res: &(dyn Fn(&[f64]) -> Vec<f64> + Sync),
     fit: &LsqResult,
