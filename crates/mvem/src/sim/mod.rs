@@ -116,9 +116,7 @@ pub fn simulate_with_guess<const N: usize, M: Dynamics<N>>(
     guess: Option<&ChunkGuess<N>>,
 ) -> Result<Solution, SimError> {
     check_interval(opts, t0, t_end)?;
-    let mut sol = Solution::new(&model.state_names());
-    let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
-    sol.reserve(samples.min(1e7) as usize);
+    let sol = Solution::new(&model.state_names());
     simulate_into_with_guess(model, sched, t0, t_end, start, opts, sol, guess)
 }
 
@@ -137,6 +135,11 @@ pub fn simulate_into_with_guess<const N: usize, M: Dynamics<N>>(
     guess: Option<&ChunkGuess<N>>,
 ) -> Result<Solution, SimError> {
     check_interval(opts, t0, t_end)?;
+    if !sol.is_streaming() {
+        // a solution that keeps every sample: room for all of them (a streaming one holds a block)
+        let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
+        sol.reserve(samples.min(1e7) as usize);
+    }
     let Start::State(y0) = start;
     if opts.time_chunks > 1 {
         return chunks::simulate_chunked(model, sched, t0, t_end, y0, opts, sol, guess);

@@ -323,7 +323,7 @@ impl Solution {
     }
 
     /// Reserve room for `n` more samples in every column.
-    pub fn reserve(&mut self, n: usize) {
+    pub(super) fn reserve(&mut self, n: usize) {
         for c in &mut self.columns {
             c.reserve(n);
         }
