@@ -218,6 +218,10 @@ pub struct SolverArgs {
     /// form on every segment where the delayed command is linear; see docs/integrator.md)
     #[arg(long)]
     pub numeric_actuators: bool,
+    /// Integrate without the non-autonomous term gamma_i h^2 df/dt in the stages of the default
+    /// method (the default of earlier versions, for comparison; see docs/integrator.md)
+    #[arg(long)]
+    pub no_time_derivative: bool,
 }
 
 impl SolverArgs {
@@ -229,6 +233,7 @@ impl SolverArgs {
             atol: self.atol.unwrap_or(rtol),
             dt_out: self.dt.unwrap_or(default_dt),
             exact_actuators: !self.numeric_actuators,
+            rosw_time_derivative: !self.no_time_derivative,
             ..SimOptions::default()
         };
         o.validate().map_err(|e| match e {

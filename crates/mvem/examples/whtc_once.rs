@@ -7,7 +7,8 @@
 //! too). `--rtol R` and `--atol A` (x the state scales) set the tolerances of the measured run (default
 //! 1e-6 both, the library's defaults), `--method ros34pw2|rodas4|exprb32|dopri5`
 //! its method (default: the library default); `--lags-across` runs it with
-//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same). `--dump OUT.csv`
+//! `SimOptions::stop_at_lag_breakpoints` off (the reference is the same), `--no-ft` with
+//! `SimOptions::rosw_time_derivative` off. `--dump OUT.csv`
 //! writes the compared columns of the measured run (t and the five states).
 //!
 //! `--time-parallel K` runs it in K time chunks (`SimOptions::time_chunks`, one thread each),
@@ -62,6 +63,7 @@ fn run<const N: usize, M: Model<N>>(m: &M, args: &[String]) {
             Some(other) => panic!("--method {other}: ros34pw2, rodas4, exprb32 or dopri5"),
         },
         stop_at_lag_breakpoints: !args.iter().any(|a| a == "--lags-across"),
+        rosw_time_derivative: !args.iter().any(|a| a == "--no-ft"),
         time_chunks: arg("--time-parallel").map_or(1, |k| k.parse().expect("--time-parallel")),
         chunk_overlap: arg("--overlap").map_or(30.0, |w| w.parse().expect("--overlap")),
         ..SimOptions::default()

@@ -36,6 +36,14 @@ pub struct SimOptions {
     /// (closed loop) then makes one segment per sample instead of about two (the EGR delay puts
     /// the delayed copy of every command change inside a sample); `docs/control.md`.
     pub stop_at_lag_breakpoints: bool,
+    /// ROS34PW2 ([`Method::Rosenbrock34`]): add the non-autonomous term gamma_i h^2 f_t to its
+    /// stages (default true), f_t = df/dt of the integrated system by one difference along the
+    /// inputs' slopes, recomputed with the Jacobian and at the first step of every segment
+    /// between input breakpoints. `false` omits it (the default of earlier versions, kept for
+    /// comparison): the W-method is of order 3 either way, but the term carries the slope
+    /// changes at the input kinks into the stages, which saves steps (`docs/integrator.md`,
+    /// "The non-autonomous term of ROS34PW2").
+    pub rosw_time_derivative: bool,
     /// Time-parallel integration of one open-loop simulation in this many chunks, each on its
     /// own thread (default 1: the sequential run, bit for bit). Chunk k > 0 starts
     /// [`SimOptions::chunk_overlap`] before its first time from a guess, and its samples are
@@ -111,6 +119,7 @@ impl Default for SimOptions {
             method: Method::default(),
             exact_actuators: true,
             stop_at_lag_breakpoints: true,
+            rosw_time_derivative: true,
             time_chunks: 1,
             chunk_overlap: 30.0,
         }

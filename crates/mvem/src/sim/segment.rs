@@ -40,6 +40,8 @@ pub struct SegmentInputs<'a> {
     /// without searches (whether or not its breakpoints are stop times,
     /// [`super::SimOptions::stop_at_lag_breakpoints`]).
     lag_only: [bool; 2],
+    /// Start of the current segment [s].
+    start: f64,
 }
 
 impl<'a> SegmentInputs<'a> {
@@ -72,13 +74,20 @@ impl<'a> SegmentInputs<'a> {
             window: [(f64::NEG_INFINITY, f64::INFINITY); 6],
             linear: [None; 6],
             lag_only,
+            start: f64::NAN,
         };
         me.set_segment(a, b);
         me
     }
 
+    /// Start of the current segment [s] (the `a` of the last [`Self::set_segment`]).
+    pub fn segment_start(&self) -> f64 {
+        self.start
+    }
+
     /// Move to the segment `[a, b]` (keeps the search cursors and cached pieces).
     pub fn set_segment(&mut self, a: f64, b: f64) {
+        self.start = a;
         for k in 0..6 {
             let shift = self.shift(k);
             let lo = a - shift + Self::delta(a);

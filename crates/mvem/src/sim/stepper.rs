@@ -201,7 +201,8 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             next_out: 1, // no output samples (the interval is NO_OUTPUT)
             t_out0: t,
             jac: c.jac.take(),
-            ft: [0.0; N], // RODAS4 recomputes it with J at the first step of a segment
+            ft: [0.0; N], // recomputed at the first step of a segment (RODAS4 with J)
+            ft_segment: f64::NAN,
             lu: c.lu.take(),
             jac_age: c.jac_age,
             h_first: 0.0,
