@@ -9,6 +9,9 @@
 #   ROUNDS    alternated rounds (default 7); each round runs mvem's integration, the peer's
 #             integration, and both whole processes with CSV output once.
 #   MVEM_BIN  (environment) an already built `mvem` binary to use instead of building one.
+#   REPEAT    (environment, default 1) runs per round of each integration: a round then takes
+#             the min of REPEAT runs of each program (mvem bench --repeat, the peer's --repeat),
+#             which on a noisy VM is steadier than one run; the medians are over the rounds.
 #
 # Prints the load (uptime) before and after, per-round times, and the medians and ratios
 # mvem / peer of the integration alone (mvem: `mvem bench` wall time of one run from the steady
@@ -43,11 +46,11 @@ echo "load before: $(uptime)"
 : >"$work/mi"; : >"$work/mp"; : >"$work/pi"; : >"$work/mw"; : >"$work/pw"
 for r in $(seq 1 "$rounds"); do
     # integration alone: the sequential run (first wall time), then 2 time chunks (second)
-    "$mvem" bench --repeat 1 --no-reference --evals 1 --dt 0.1 --time-parallel 2 >"$work/b"
+    "$mvem" bench --repeat "${REPEAT:-1}" --no-reference --evals 1 --dt 0.1 --time-parallel 2 >"$work/b"
     mi=$(awk '/wall time/ {v=$4; u=$5; print (u ~ /^ms/) ? v/1000 : v; exit}' "$work/b")
     mp=$(awk '/wall time/ {n++} /wall time/ && n == 2 {v=$4; u=$5; print (u ~ /^ms/) ? v/1000 : v}' "$work/b")
     pi=$("$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
-        --dt 0.1 --mode stop --rtol 1e-6 2>&1 |
+        --dt 0.1 --mode stop --rtol 1e-6 --repeat "${REPEAT:-1}" 2>&1 |
         tr ' ' '\n' | awk -F= '/^integrate_s_min=/ {print $2}')
     # whole process with CSV output
     t=$(now); "$mvem" simulate --scenario whtc --dt 0.1 --out "$work/mvem.csv" >/dev/null 2>&1
