@@ -632,9 +632,13 @@ impl Instance {
         self.record_inputs();
         let sched = self.schedule()?;
         let t_end = self.t + h;
+        // Held inputs and a fresh integrator per communication step, as the plant of the closed
+        // loop (`mvem::sim::stepper::plant_options`): without ROS34PW2's non-autonomous term,
+        // whose evaluation at every segment start saves no step on segments this short.
         let opts = SimOptions {
             rtol: self.rtol,
             dt_out: h,
+            rosw_time_derivative: false,
             ..SimOptions::default()
         };
         let one_iter = self.config.cylinder_temp == CylinderTemp::OneIteration;
