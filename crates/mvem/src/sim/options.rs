@@ -67,6 +67,8 @@ pub enum Method {
     /// stiffly accurate, valid with an approximate (lagged, finite-difference) Jacobian. Default:
     /// the model is mildly stiff (poles down to about -120 1/s at idle) and the drive cycle has
     /// an input breakpoint every ~0.13 s on average, so a one-step linearly implicit method wins.
+    /// With the non-autonomous term gamma_i h^2 f_t in its stages by default
+    /// ([`SimOptions::rosw_time_derivative`]).
     #[default]
     Rosenbrock34,
     /// Dormand-Prince 5(4), explicit, with 4th-order dense output (Hairer's DOPRI5).
