@@ -34,10 +34,12 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) jac: Option<[[f64; N]; N]>,
     /// df/dt of the integrated system, the non-autonomous term: at the point of `jac` (RODAS4
     /// and exprb32), or lagged like `jac` and recomputed at the first step of every segment
-    /// (ROS34PW2 with [`SimOptions::rosw_time_derivative`]).
+    /// where the inputs' slopes changed (ROS34PW2 with [`SimOptions::rosw_time_derivative`]).
     pub(super) ft: [f64; N],
     /// ROS34PW2: the start of the segment on which `ft` was computed (NaN: none yet).
     pub(super) ft_segment: f64,
+    /// ROS34PW2: the inputs' slopes with which `ft` was computed.
+    pub(super) ft_slopes: [f64; 6],
     /// Iteration matrix of the current Jacobian and step size (boxed: it is moved out and back
     /// at every step).
     pub(super) lu: Option<Box<IterationMatrix<N>>>,
@@ -338,6 +340,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             jac: None,
             ft: [0.0; N],
             ft_segment: f64::NAN,
+            ft_slopes: [f64::NAN; 6],
             lu: None,
             jac_age: usize::MAX,
             h_first: 0.0,

@@ -39,7 +39,7 @@ pub struct SimOptions {
     /// ROS34PW2 ([`Method::Rosenbrock34`]): add the non-autonomous term gamma_i h^2 f_t to its
     /// stages (default true), f_t = df/dt of the integrated system by one difference along the
     /// inputs' slopes, recomputed with the Jacobian and at the first step of every segment
-    /// between input breakpoints. `false` omits it (the default of earlier versions, kept for
+    /// between input breakpoints where the slopes changed. `false` omits it (the default of earlier versions, kept for
     /// comparison): the W-method is of order 3 either way, but the term carries the slope
     /// changes at the input kinks into the stages, which saves steps (`docs/integrator.md`,
     /// "The non-autonomous term of ROS34PW2").

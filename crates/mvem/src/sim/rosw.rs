@@ -275,7 +275,9 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// ([`Integrator::time_derivative`]: one evaluation, along the inputs' slopes and the lag
     /// states' rates). A W-method admits an approximate f_t as it admits an approximate J (time
     /// as a state, f_t its Jacobian column), so f_t is lagged like J: recomputed with J and at
-    /// the first step of every segment, where the inputs' slopes change. Without it the method
+    /// the first step of every segment where the inputs' slopes changed (not at the kinks of
+    /// the delayed commands that drive closed-form lag states only: the lag states' rates are
+    /// continuous there, and f_t with them; 1.3 % fewer evaluations). Without it the method
     /// is of order 3 as well, but after each input kink its error constant holds the jump of
     /// the slopes. On the WHTC the term (with the first-step rules of RODAS4, which it makes
     /// pay) saves 19 % of the trial steps, 21 % of the factorizations and 11 % of the
@@ -300,9 +302,21 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             JAC_MAX_AGE,
             |s, inp, fresh, lag_seg, w| {
                 let with_ft = s.opts.rosw_time_derivative;
-                if with_ft && (fresh || s.ft_segment != inp.segment_start()) {
-                    s.ft = s.time_derivative(inp, t, f0, lag_seg)?;
-                    s.ft_segment = inp.segment_start();
+                let start = inp.segment_start();
+                if with_ft && (fresh || s.ft_segment != start) {
+                    // The inputs' slopes at this segment; with closed-form lags the delayed
+                    // commands enter f only through the lag states, whose rates are continuous
+                    // at their commands' kinks: their slopes do not count.
+                    let mut slopes = inp.rates(t).to_array();
+                    if !lag_seg.is_empty() {
+                        slopes[4] = 0.0;
+                        slopes[5] = 0.0;
+                    }
+                    if fresh || s.ft_segment.is_nan() || slopes != s.ft_slopes {
+                        s.ft = s.time_derivative(inp, t, f0, lag_seg)?;
+                        s.ft_slopes = slopes;
+                    }
+                    s.ft_segment = start;
                 }
                 s.rosw_stages(inp, t, h, t_new, f0, lag_seg, w, with_ft)
             },

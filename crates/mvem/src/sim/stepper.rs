@@ -208,6 +208,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             jac: c.jac.take(),
             ft: [0.0; N], // recomputed at the first step of a segment (RODAS4 with J)
             ft_segment: f64::NAN,
+            ft_slopes: [f64::NAN; 6],
             lu: c.lu.take(),
             jac_age: c.jac_age,
             h_first: 0.0,
