@@ -268,7 +268,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             self.jac = Some(j);
             self.jac_full = !reduced;
             self.jac_age = 0;
-            self.ft = self.time_derivative(inp, t, f0, lag_seg)?;
+            let du = inp.rates(t);
+            self.ft = self.time_derivative(inp, t, f0, lag_seg, &du)?;
         }
         let nz = super::rosw::block_size(&is_lag);
         match nz {

@@ -624,15 +624,19 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         // with one step size it made 6.7 k more rejections). ROS34PW2 uses them with its
         // non-autonomous term (5 % fewer evaluations on the WHTC; without the term they save
         // 1 % and it keeps one step size, as before the term).
-        let rodas = match self.opts.method {
+        let first_step_rules = match self.opts.method {
             Method::Rodas4 | Method::Exprb32 => true,
             Method::Rosenbrock34 => self.opts.rosw_time_derivative,
             Method::Dopri5 => false,
         };
-        let max_stretch = if rodas { RODAS_STRETCH } else { 1.01 };
-        let mut first = rodas;
+        let max_stretch = if first_step_rules {
+            RODAS_STRETCH
+        } else {
+            1.01
+        };
+        let mut first = first_step_rules;
         let mut rejected_here = false;
-        if rodas && self.h_first > 0.0 {
+        if first_step_rules && self.h_first > 0.0 {
             self.h = self.h.min(self.h_first);
         }
         while self.t < b {

@@ -110,16 +110,17 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
     /// rates on the segment), i.e. df/du u' + df/da a'. The inputs are linear on the segment, so
     /// this is the derivative of the reduced system dz/dt = f_z(z, a(t), u(t)) in t; it reads
     /// no input outside the segment (the perturbed inputs are values of the segment's own line,
-    /// a relative 1.5e-8 away). Zero (and no evaluation) when nothing moves.
+    /// a relative 1.5e-8 away). Zero (and no evaluation) when nothing moves. `du`: the inputs'
+    /// slopes at t, [`SegmentInputs::rates`] (the caller's, which ROS34PW2 also compares).
     pub(super) fn time_derivative(
         &mut self,
         inp: &mut SegmentInputs,
         t: f64,
         f0: &[f64; N],
         lag_seg: &[LagSegment],
+        du: &ModelInput,
     ) -> Result<[f64; N], SimError> {
         let u = inp.at(t);
-        let du = inp.rates(t);
         let uv = u.to_array();
         let dv = du.to_array();
         let y = self.y;
@@ -171,7 +172,8 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             1,
             |s, inp, fresh, lag_seg, w| {
                 if fresh {
-                    s.ft = s.time_derivative(inp, t, f0, lag_seg)?;
+                    let du = inp.rates(t);
+                    s.ft = s.time_derivative(inp, t, f0, lag_seg, &du)?;
                 }
                 s.rodas4_stages(inp, t, h, t_new, f0, lag_seg, w)
             },

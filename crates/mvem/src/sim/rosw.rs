@@ -307,13 +307,15 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
                     // The inputs' slopes at this segment; with closed-form lags the delayed
                     // commands enter f only through the lag states, whose rates are continuous
                     // at their commands' kinks: their slopes do not count.
-                    let mut slopes = inp.rates(t).to_array();
+                    // (`ft_slopes` starts as NaN: unequal to any slopes)
+                    let du = inp.rates(t);
+                    let mut slopes = du.to_array();
                     if !lag_seg.is_empty() {
                         slopes[4] = 0.0;
                         slopes[5] = 0.0;
                     }
-                    if fresh || s.ft_segment.is_nan() || slopes != s.ft_slopes {
-                        s.ft = s.time_derivative(inp, t, f0, lag_seg)?;
+                    if fresh || slopes != s.ft_slopes {
+                        s.ft = s.time_derivative(inp, t, f0, lag_seg, &du)?;
                         s.ft_slopes = slopes;
                     }
                     s.ft_segment = start;
