@@ -168,7 +168,10 @@ mod tests {
         let mut a = a0;
         let mut piv = [0; 7];
         assert!(lu_factor::<7, 5>(&mut a, &mut piv));
-        assert!(piv.iter().take(5).enumerate().any(|(k, &p)| p != k), "pivots");
+        assert!(
+            piv.iter().take(5).enumerate().any(|(k, &p)| p != k),
+            "pivots"
+        );
         let dinv: [f64; 7] = std::array::from_fn(|k| 1.0 / a[k][k]);
         let mut inv = [[f64::NAN; 7]; 7];
         lu_inverse::<7, 5>(&a, &piv, &dinv, &mut inv);
@@ -179,7 +182,10 @@ mod tests {
         for r in 0..5 {
             for c in 0..5 {
                 let s: f64 = (0..5).map(|k| a0[r][k] * inv[k][c]).sum();
-                assert!((s - if r == c { 1.0 } else { 0.0 }).abs() < 1e-14, "{r} {c} {s}");
+                assert!(
+                    (s - if r == c { 1.0 } else { 0.0 }).abs() < 1e-14,
+                    "{r} {c} {s}"
+                );
             }
         }
         let b0 = [1.0, -2.0, 0.5, 3.0, -1.0, 7.0, 8.0];

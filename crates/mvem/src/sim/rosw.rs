@@ -164,8 +164,10 @@ pub(super) struct IterationMatrix<const N: usize> {
     pub(super) dinv: [f64; N],
     /// 1 on the z states, 0 on the lag states of a reduced matrix.
     pub(super) mask: [f64; N],
-    /// The inverse of the leading block, for the block sizes 5 and 7 (8 and 10 states).
+    /// The inverse of the leading block, if `inverted` (block sizes 5 and 7: 8 and 10 states).
     pub(super) inv: [[f64; N]; N],
+    /// Whether the solve multiplies by `inv` (else it uses the LU factors).
+    pub(super) inverted: bool,
 }
 
 /// The leading block of an `N`-state iteration matrix without the lag states `is_lag`: their
@@ -202,26 +204,28 @@ fn leading_block<const N: usize, const Z: usize>(
 
 impl<const N: usize> IterationMatrix<N> {
     /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block and, for the block sizes
-    /// 5 and 7, invert it into `inv`; false if singular.
+    /// 5 and 7, invert it into `inv`; false if singular. (`nz` = N, whatever N is, is the
+    /// general masked matrix: the leading-block paths need the lag states trailing.)
     fn factor(&mut self) -> bool {
+        let (nz, block) = (self.nz, self.nz < N);
         let (lu, piv) = (&mut self.lu, &mut self.piv);
-        let ok = match self.nz {
-            5 => linalg::lu_factor::<N, 5>(lu, piv),
-            7 => linalg::lu_factor::<N, 7>(lu, piv),
-            9 => linalg::lu_factor::<N, 9>(lu, piv),
+        let ok = match nz {
+            5 if block => linalg::lu_factor::<N, 5>(lu, piv),
+            7 if block => linalg::lu_factor::<N, 7>(lu, piv),
+            9 if block => linalg::lu_factor::<N, 9>(lu, piv),
             _ => linalg::lu_factor::<N, N>(lu, piv),
         };
-        for a in 0..self.nz {
+        for a in 0..nz {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
-        if ok {
+        // 9 x 9 (12 states): the nine column solves of the inverse cost more than the stage
+        // solves they make cheaper (WHTC +10 % wall time); docs/integrator.md, session 20
+        self.inverted = ok && block && matches!(nz, 5 | 7);
+        if self.inverted {
             let (lu, piv, dinv, inv) = (&self.lu, &self.piv, &self.dinv, &mut self.inv);
-            match self.nz {
+            match nz {
                 5 => linalg::lu_inverse::<N, 5>(lu, piv, dinv, inv),
-                7 => linalg::lu_inverse::<N, 7>(lu, piv, dinv, inv),
-                // 9 x 9 (12 states): the nine column solves cost more than the stage solves
-                // they make cheaper (WHTC +10 % wall time; Gauss-Jordan instead: +11 %)
-                _ => {}
+                _ => linalg::lu_inverse::<N, 7>(lu, piv, dinv, inv),
             }
         }
         ok
@@ -231,17 +235,19 @@ impl<const N: usize> IterationMatrix<N> {
     #[inline]
     pub(super) fn solve(&self, r: &mut [f64; N]) {
         let (lu, piv, dinv) = (&self.lu, &self.piv, &self.dinv);
-        match self.nz {
-            5 => linalg::block_mul::<N, 5>(&self.inv, r),
-            7 => linalg::block_mul::<N, 7>(&self.inv, r),
-            9 => linalg::lu_solve::<N, 9>(lu, piv, dinv, r),
-            _ => {
-                for (v, m) in r.iter_mut().zip(&self.mask) {
-                    *v *= m;
-                }
-                linalg::lu_solve::<N, N>(lu, piv, dinv, r);
-                return;
+        if self.nz == N {
+            for (v, m) in r.iter_mut().zip(&self.mask) {
+                *v *= m;
             }
+            linalg::lu_solve::<N, N>(lu, piv, dinv, r);
+            return;
+        }
+        match (self.nz, self.inverted) {
+            (5, true) => linalg::block_mul::<N, 5>(&self.inv, r),
+            (7, true) => linalg::block_mul::<N, 7>(&self.inv, r),
+            (5, false) => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
+            (7, false) => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
+            _ => linalg::lu_solve::<N, 9>(lu, piv, dinv, r),
         }
         for v in r.iter_mut().skip(self.nz) {
             *v = 0.0;
@@ -432,17 +438,19 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
                 dinv: [0.0; N],
                 mask: [1.0; N],
                 inv: [[0.0; N]; N],
+                inverted: false,
             })
         });
         w.h = h;
         w.reduced = reduced;
         w.nz = block_size(&is_lag);
         let gh = gamma * h;
+        let block = w.nz < N; // `nz` = N: the general masked matrix, whatever N is
         match w.nz {
             // leading block only: the factor and the solve of a leading block read nothing else
-            5 => leading_block::<N, 5>(&mut w.lu, j, gh),
-            7 => leading_block::<N, 7>(&mut w.lu, j, gh),
-            9 => leading_block::<N, 9>(&mut w.lu, j, gh),
+            5 if block => leading_block::<N, 5>(&mut w.lu, j, gh),
+            7 if block => leading_block::<N, 7>(&mut w.lu, j, gh),
+            9 if block => leading_block::<N, 9>(&mut w.lu, j, gh),
             _ => {
                 for a in 0..N {
                     w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
