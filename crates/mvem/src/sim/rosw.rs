@@ -219,7 +219,7 @@ impl<const N: usize> IterationMatrix<N> {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
         // 9 x 9 (12 states): the nine column solves of the inverse cost more than the stage
-        // solves they make cheaper (WHTC +10 % wall time); docs/integrator.md, session 20
+        // solves they make cheaper (WHTC +7 % wall time); docs/integrator.md, session 20
         self.inverted = ok && block && matches!(nz, 5 | 7);
         if self.inverted {
             let (lu, piv, dinv, inv) = (&self.lu, &self.piv, &self.dinv, &mut self.inv);
