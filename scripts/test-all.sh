@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Runs every test of the project: formatting, lints, the Rust test suites, then the Python side
-# (FMU with FMPy, the Python package with pytest; creates .venv-ci), then the browser tests of
-# `mvem serve` (Playwright driving Debian's Chromium; creates .venv-browser). Used by .ci/run;
-# run it locally the same way.
+# Runs every test of the project: formatting, lints, the library's API docs, the Rust test
+# suites, then the Python side (FMU with FMPy, the Python package with pytest; creates
+# .venv-ci), then the browser tests of `mvem serve` (Playwright driving Debian's Chromium;
+# creates .venv-browser). Used by .ci/run; run it locally the same way.
 #
 # Everything is built once, with the `ci` profile (Cargo.toml: optimized as release, without
 # cross-crate LTO; the reference and robustness tests simulate a lot, so the tests need optimized
@@ -19,6 +19,10 @@ cargo fmt --all --check
 # the benchmarks too (criterion is behind mvem's `bench` feature, so `cargo test` does not build it)
 cargo clippy --workspace --all-targets --features mvem/bench --profile "$MVEM_PROFILE" -- -D warnings
 lap clippy
+# the library's API documentation: no broken or private intra-doc links (units in brackets are
+# escaped, \[s\], so that rustdoc does not read them as links)
+RUSTDOCFLAGS="-D warnings" cargo doc -p mvem --no-deps --profile "$MVEM_PROFILE" -q
+lap "cargo doc"
 cargo test --workspace --profile "$MVEM_PROFILE" --no-run
 lap "cargo test build"
 cargo test --workspace --profile "$MVEM_PROFILE"

@@ -12,7 +12,7 @@
 //! writes the compared columns of the measured run (t and the five states).
 //!
 //! `--time-parallel K` runs it in K time chunks (`SimOptions::time_chunks`, one thread each),
-//! `--overlap W` sets their warm-up [s], `--guess initial` starts the warm-ups from the initial
+//! `--overlap W` sets their warm-up \[s\], `--guess initial` starts the warm-ups from the initial
 //! state instead of the steady state at their inputs; the junctions are printed.
 //! `--model 10|12` runs the 10- or 12-state model (give each model its own REF file).
 use mvem::analysis::steady::{simulate_from_steady, steady_state};

@@ -22,7 +22,7 @@ pub struct Case {
     pub model: AnyModel,
     /// The inputs; the run starts at the first row's time in the steady state of its inputs.
     pub inputs: InputSchedule,
-    /// End time [s] (`None`: the last input time).
+    /// End time \[s\] (`None`: the last input time).
     pub t_end: Option<f64>,
 }
 

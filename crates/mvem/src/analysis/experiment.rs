@@ -31,9 +31,9 @@ pub struct StepSpec {
     pub input: usize,
     /// Value of the stepped input after the step (its unit).
     pub to: f64,
-    /// Step time [s].
+    /// Step time \[s\].
     pub t_step: f64,
-    /// End of the simulation [s].
+    /// End of the simulation \[s\].
     pub t_end: f64,
 }
 
@@ -282,7 +282,7 @@ pub fn run_step<const N: usize, M: Model<N>>(
 /// A step in the VGT command from a steady state (the paper's section-9 experiment).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct VgtStep {
-    /// Engine speed n_e [rpm].
+    /// Engine speed n_e \[rpm\].
     pub n_e_rpm: f64,
     /// Injected fuel u_delta [mg/cycle/cylinder].
     pub u_delta_mg: f64,
@@ -292,9 +292,9 @@ pub struct VgtStep {
     pub u_vgt_from: f64,
     /// VGT command after the step [%].
     pub u_vgt_to: f64,
-    /// Step time [s] (the simulation starts at 0 from the steady state).
+    /// Step time \[s\] (the simulation starts at 0 from the steady state).
     pub t_step: f64,
-    /// End of the simulation [s].
+    /// End of the simulation \[s\].
     pub t_end: f64,
 }
 

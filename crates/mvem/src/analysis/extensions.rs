@@ -79,7 +79,7 @@ pub struct CompareOptions {
     pub orders: Vec<ModelOrder>,
     /// Relative tolerance of the simulations (atol = rtol / 100 of each state's scale).
     pub rtol: f64,
-    /// Output interval [s].
+    /// Output interval \[s\].
     pub dt_out: f64,
     /// Signals to return and compare (Solution column names).
     pub signals: Vec<String>,
@@ -101,7 +101,7 @@ impl Default for CompareOptions {
 pub struct StepResponse {
     /// Model order.
     pub order: ModelOrder,
-    /// Output times [s].
+    /// Output times \[s\].
     pub t: Vec<f64>,
     /// (signal name, samples), in [`CompareOptions::signals`] order.
     pub series: Vec<(String, Vec<f64>)>,
@@ -393,7 +393,7 @@ pub struct CylinderTempOptions {
     /// Relative tolerance of both simulations (atol = rtol / 100 of each state's scale). The
     /// one-iteration result depends on the accepted step sequence and hence on it.
     pub rtol: f64,
-    /// Output interval [s] (errors are evaluated at these samples).
+    /// Output interval \[s\] (errors are evaluated at these samples).
     pub dt_out: f64,
 }
 
@@ -413,17 +413,17 @@ pub struct CylinderTempStudy {
     pub rtol: f64,
     /// Absolute tolerance used (times each state's scale).
     pub atol: f64,
-    /// Output times [s].
+    /// Output times \[s\].
     pub t: Vec<f64>,
-    /// T_e [K] with the converged fixed point.
+    /// T_e \[K\] with the converged fixed point.
     pub t_e_converged: Vec<f64>,
-    /// T_e [K] with one iteration per accepted step.
+    /// T_e \[K\] with one iteration per accepted step.
     pub t_e_one_iteration: Vec<f64>,
     /// Relative error (one iteration - converged) / converged [-] at each sample.
     pub rel_error: Vec<f64>,
     /// Maximum |relative error| [-].
     pub max_abs_rel_error: f64,
-    /// Time of the maximum [s].
+    /// Time of the maximum \[s\].
     pub t_max: f64,
     /// Mean |relative error| over the samples [-].
     pub mean_abs_rel_error: f64,

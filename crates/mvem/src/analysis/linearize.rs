@@ -61,8 +61,8 @@ pub const INPUT_NAMES: [&str; 4] = ["u_delta", "u_egr", "u_vgt", "n_e"];
 /// sizes and scaling.
 pub const INPUT_SCALES: [f64; 4] = [100.0, 100.0, 100.0, 1000.0];
 
-/// Default outputs: p_im [Pa], p_em [Pa], W_c [kg/s], n_t [rpm], x_egr [-], lambda_O [-],
-/// M_e [Nm].
+/// Default outputs: p_im \[Pa\], p_em \[Pa\], W_c [kg/s], n_t \[rpm\], x_egr [-], lambda_O [-],
+/// M_e \[Nm\].
 pub const DEFAULT_OUTPUTS: [&str; 7] = ["p_im", "p_em", "W_c", "n_t", "x_egr", "lambda_O", "M_e"];
 
 /// Options of [`linearize`].
@@ -214,7 +214,7 @@ pub struct LinearModel {
     pub output_names: Vec<String>,
     /// Operating state (Padé states 0).
     pub x0: Vec<f64>,
-    /// Operating inputs (u_delta [mg], u_egr [%], u_vgt [%], n_e [rpm]).
+    /// Operating inputs (u_delta \[mg\], u_egr [%], u_vgt [%], n_e \[rpm\]).
     pub u0: [f64; 4],
     /// Outputs at the operating point.
     pub y0: Vec<f64>,
@@ -237,7 +237,7 @@ pub struct LinearModel {
     pub kink_score: f64,
     /// Padé order of the delay approximation (0 = undelayed system).
     pub pade_order: usize,
-    /// Delays [s] of the (u_egr, u_vgt) channels that the linear model omits (or approximates).
+    /// Delays \[s\] of the (u_egr, u_vgt) channels that the linear model omits (or approximates).
     pub delays: [f64; 2],
     /// Model evaluations used.
     pub evaluations: usize,

@@ -99,7 +99,7 @@ impl Rng {
     }
 }
 
-/// Extended input box of the sweep: (min, max) per channel (n_e [rpm], u_delta [mg],
+/// Extended input box of the sweep: (min, max) per channel (n_e \[rpm\], u_delta \[mg\],
 /// u_egr [%], u_vgt [%]); the authors' saturations are 500-2000 rpm, 1-250 mg, 0-100 %, 20-100 %.
 pub const INPUT_BOX: [(f64, f64); 4] = [
     (300.0, 2500.0),
@@ -596,7 +596,7 @@ pub struct SweepConfig {
     pub first_run: u64,
     /// Seed.
     pub seed: u64,
-    /// Simulated time per run [s].
+    /// Simulated time per run \[s\].
     pub t_end: f64,
     /// Model orders to sweep (unavailable orders are reported and skipped).
     pub orders: Vec<ModelOrder>,
@@ -660,7 +660,7 @@ pub struct SweepReport {
     pub unavailable: Vec<usize>,
     /// Runs by (input kind, start kind): (completed, errors).
     pub per_kind: BTreeMap<String, (u64, u64)>,
-    /// Wall-clock time [s].
+    /// Wall-clock time \[s\].
     pub seconds: f64,
     /// Threads used.
     pub threads: usize,

@@ -29,7 +29,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-/// Input box of the analysis sweep: (min, max) per channel (n_e [rpm], u_delta [mg], u_egr [%],
+/// Input box of the analysis sweep: (min, max) per channel (n_e \[rpm\], u_delta \[mg\], u_egr [%],
 /// u_vgt [%]). Wider than the simulation sweep's: negative and zero speeds and fuel included.
 pub const ANALYSIS_BOX: [(f64, f64); 4] = [
     (-500.0, 2500.0),
@@ -126,7 +126,7 @@ pub struct CallCounts {
     pub panics: u64,
     /// Calls past the time limit.
     pub hangs: u64,
-    /// Slowest call that returned [s].
+    /// Slowest call that returned \[s\].
     pub slowest: f64,
     /// Examples of bad outcomes: (point, outcome), at most 5.
     pub examples: Vec<(Drive, CallOutcome)>,
@@ -139,9 +139,9 @@ pub struct CallCounts {
 pub struct AnalysisReport {
     /// Counts per (states, "authors"/"paper", call).
     pub counts: BTreeMap<(usize, &'static str, Call), CallCounts>,
-    /// Time limit per call [s].
+    /// Time limit per call \[s\].
     pub timeout: f64,
-    /// Wall-clock time [s].
+    /// Wall-clock time \[s\].
     pub seconds: f64,
     /// Model orders that could not be built from the parameters.
     pub unavailable: Vec<usize>,
@@ -265,7 +265,7 @@ pub fn call_once<const N: usize, M: Model<N>>(m: &M, call: Call, d: &Drive) -> C
 
 /// Make one call at `d` on a worker thread, waiting at most `timeout`: a call that does not
 /// return in time is reported as [`CallOutcome::Hang`] (its thread is left running, detached),
-/// a panic as [`CallOutcome::Panic`]. Returns the outcome and the elapsed time [s].
+/// a panic as [`CallOutcome::Panic`]. Returns the outcome and the elapsed time \[s\].
 pub fn run_call(model: &AnyModel, call: Call, d: Drive, timeout: Duration) -> (CallOutcome, f64) {
     let (tx, rx) = mpsc::channel();
     let m = model.clone();

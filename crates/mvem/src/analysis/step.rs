@@ -53,7 +53,7 @@ impl fmt::Display for GainSign {
 pub struct Excursion {
     /// Signal value at the extremum (units of y).
     pub value: f64,
-    /// Absolute time of the extremum [s].
+    /// Absolute time of the extremum \[s\].
     pub time: f64,
     /// Size relative to |final change| [-] (0.05 = 5 %), always >= 0.
     pub relative: f64,
@@ -62,7 +62,7 @@ pub struct Excursion {
 /// Metrics of one step response (see the module documentation for the definitions).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepMetrics {
-    /// Time of the input step [s].
+    /// Time of the input step \[s\].
     pub t_step: f64,
     /// Value before the step (units of y).
     pub y0: f64,
@@ -86,9 +86,9 @@ pub struct StepMetrics {
     pub overshoot_pct: f64,
     /// The sample furthest beyond the final value (`None` if the response never passes it).
     pub peak: Option<Excursion>,
-    /// Rise time 10 % -> 90 % [s] (`None` if 90 % is never reached).
+    /// Rise time 10 % -> 90 % \[s\] (`None` if 90 % is never reached).
     pub rise_time: Option<f64>,
-    /// Settling time into the 2 % band, measured from the step [s] (`None` if the last sample
+    /// Settling time into the 2 % band, measured from the step \[s\] (`None` if the last sample
     /// is outside the band).
     pub settling_time: Option<f64>,
 }

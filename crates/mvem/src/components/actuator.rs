@@ -8,7 +8,7 @@
 pub type Saturation = (f64, f64);
 
 /// Steps of a sampled command after the saturation `sat`: (time of the first sample at the new
-/// level [s], size of the saturated step [%]). Changes that the saturation hides (e.g. 15 -> 10 %
+/// level \[s\], size of the saturated step [%]). Changes that the saturation hides (e.g. 15 -> 10 %
 /// with VGT limited to [20, 100] %) give no step.
 pub fn command_steps(t: &[f64], u: &[f64], sat: Saturation) -> Vec<(f64, f64)> {
     let c = |v: f64| v.clamp(sat.0, sat.1);
@@ -18,7 +18,7 @@ pub fn command_steps(t: &[f64], u: &[f64], sat: Saturation) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Actuator position at the times `t` [s] for the command samples `u` [%] (held between
+/// Actuator position at the times `t` \[s\] for the command samples `u` [%] (held between
 /// samples, settled at the saturated `u[0]` before `t[0]`): the saturated initial level plus the
 /// sum of the unit step responses `h(s)` (s seconds after a step) of the saturated command
 /// steps. Exact for linear actuator models (superposition).

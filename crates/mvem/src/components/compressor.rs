@@ -25,7 +25,7 @@ pub fn isentropic_term(pi_c: f64, gamma_a: f64) -> f64 {
 }
 
 /// Energy transfer coefficient Psi_c [-], eq. (66):
-/// 2 c_pa T_amb (Pi_c^(1 - 1/gamma_a) - 1) / (R_c^2 omega_t^2), `r_c` [m], `omega_t` [rad/s],
+/// 2 c_pa T_amb (Pi_c^(1 - 1/gamma_a) - 1) / (R_c^2 omega_t^2), `r_c` \[m\], `omega_t` [rad/s],
 /// `isentropic` from [`isentropic_term`].
 #[inline]
 pub fn energy_coefficient(r_c: f64, c_pa: f64, t_amb: f64, isentropic: f64, omega_t: f64) -> f64 {
@@ -108,9 +108,9 @@ pub fn efficiency(c: &Compressor, w_c: f64, pi_c: f64, sem: Semantics) -> f64 {
 /// Compressor outlet temperature and power.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CompressorPower {
-    /// Temperature after the compressor T_c [K], from eq. (58).
+    /// Temperature after the compressor T_c \[K\], from eq. (58).
     pub t_c: f64,
-    /// Compressor power P_c [W], eq. (61).
+    /// Compressor power P_c \[W\], eq. (61).
     pub p_c: f64,
 }
 

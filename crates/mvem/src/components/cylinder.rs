@@ -45,12 +45,12 @@ pub fn x_oe(w_ei: f64, x_oim: f64, w_f: f64, of_s: f64, w_eo: f64, sem: Semantic
 }
 
 /// Iterates of the cylinder-out temperature fixed point (eq. (24)): the residual gas fraction
-/// x_r [-] and the temperature at inlet valve closing T_1 [K].
+/// x_r [-] and the temperature at inlet valve closing T_1 \[K\].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SeligerIterate {
     /// Residual gas fraction x_r [-], eq. (22).
     pub x_r: f64,
-    /// Temperature after intake and mixing T_1 [K], eq. (21).
+    /// Temperature after intake and mixing T_1 \[K\], eq. (21).
     pub t_1: f64,
 }
 
@@ -63,14 +63,14 @@ pub struct SeligerInputs {
     pub w_f: f64,
     /// Cylinder in-flow W_ei [kg/s].
     pub w_ei: f64,
-    /// Intake manifold temperature T_im [K].
+    /// Intake manifold temperature T_im \[K\].
     pub t_im: f64,
 }
 
 /// Result of one application of the fixed-point map (eq. (24)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SeligerStep {
-    /// Cylinder-out temperature T_e [K] computed from the old iterate (eq. (17)).
+    /// Cylinder-out temperature T_e \[K\] computed from the old iterate (eq. (17)).
     pub t_e: f64,
     /// The new iterate (x_r, T_1).
     pub next: SeligerIterate,
@@ -92,7 +92,7 @@ pub struct CylinderConsts {
     pub heat_per_cp: f64,
     /// c_pa r_c^(gamma_a - 1) [J/(kg K)] (the closed-form start of the fixed point).
     pub cpa_rc_g1: f64,
-    /// x_cv / c_Va [kg K/J] (the bound of [`closed_form_is_converged`]).
+    /// x_cv / c_Va [kg K/J] (the bound of `closed_form_is_converged`).
     pub x_cv_per_cva: f64,
 }
 
@@ -400,7 +400,7 @@ fn closed_form_is_converged(cyl: &Cylinder, k: &SeligerConsts, z0: SeligerIterat
 /// Result of the converged fixed point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SeligerFixedPoint {
-    /// T_e [K] evaluated at the fixed point.
+    /// T_e \[K\] evaluated at the fixed point.
     pub t_e: f64,
     /// The fixed point (x_r, T_1).
     pub at: SeligerIterate,
@@ -420,7 +420,7 @@ pub const FIXED_POINT_MAX_ITER: u32 = 60;
 /// `fixed_point_start`; (0, T_im) where that has no physical solution) until the relative
 /// change of both x_r and T_1 is <= [`FIXED_POINT_RTOL`]; T_e is the map's value at the fixed
 /// point. Where an a-priori bound shows that the closed-form start already passes that test
-/// ([`closed_form_is_converged`]: x_cv below about 1e-13, e.g. the published 2.3e-14), the
+/// (`closed_form_is_converged`: x_cv below about 1e-13, e.g. the published 2.3e-14), the
 /// start is returned with its own T_e (x_r T_e = K T_1), which is within
 /// (1 - 1/gamma_a) e + (gamma_a - 1) x_cv (about 3e-14) relative of the map's value there,
 /// without applying the map (one evaluation of the model about 8 % cheaper on the WHTC).
@@ -530,7 +530,7 @@ pub fn exhaust_temp_drop(
     t_w + (t_e - t_w) * (-pipe.h_tot * PI * pipe.d_pipe * l * pipe.n_pipe / (w_eo * c_pe)).exp()
 }
 
-/// Engine torque M_e [Nm], eqs (26)-(31):
+/// Engine torque M_e \[Nm\], eqs (26)-(31):
 /// ```text
 /// M_e = M_ig - M_p - M_fric
 /// M_ig = u_delta 1e-6 n_cyl q_HV eta_ig / (4 pi),  eta_ig = eta_igch (1 - 1/r_c^(gamma_cyl - 1))

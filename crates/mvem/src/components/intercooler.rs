@@ -22,8 +22,8 @@ pub fn w_ic(ic: &Intercooler, p_c: f64, t_ic: f64, p_im: f64, t_im: f64) -> f64 
     }
 }
 
-/// Pressure drop p_c - p_im [Pa] that drives a forward flow `w` [kg/s] at the upstream
-/// temperature `t_ic` [K] into the intake manifold at `p_im` [Pa]: eq. (86) solved for p_c,
+/// Pressure drop p_c - p_im \[Pa\] that drives a forward flow `w` [kg/s] at the upstream
+/// temperature `t_ic` \[K\] into the intake manifold at `p_im` \[Pa\]: eq. (86) solved for p_c,
 /// `p_c (p_c - p_im) = w^2 T_ic k_ic`, positive root.
 #[inline]
 pub fn pressure_drop(ic: &Intercooler, w: f64, t_ic: f64, p_im: f64) -> f64 {

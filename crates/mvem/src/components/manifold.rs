@@ -91,7 +91,7 @@ pub struct AdiabaticDerivatives {
 /// ```
 /// The in-flows enter with their own temperatures, given as `w_in` = sum of W_in [kg/s] and
 /// `wt_in` = sum of W_in T_in [kg K/s] (so that several in-flows with different temperatures
-/// can enter); the out-flows `w_out` [kg/s] leave at the volume temperature `t` [K]. With
+/// can enter); the out-flows `w_out` [kg/s] leave at the volume temperature `t` \[K\]. With
 /// c_p = c_v + R these are d(pV/(RT))/dt = W_in - W_out and d(c_v pV/R)/dt =
 /// c_p (T_in W_in - T W_out). Pressure in Pa, volume in m^3, gas constants in J/(kg K).
 #[allow(clippy::too_many_arguments)]

@@ -38,7 +38,7 @@ impl Semantics {
     }
 }
 
-/// Horner evaluation of c[0] x^2 + c[1] x + c[2] (the paper's coefficient order).
+/// Horner evaluation of `c[0] x^2 + c[1] x + c[2]` (the paper's coefficient order).
 #[inline]
 pub fn poly2(c: &[f64; 3], x: f64) -> f64 {
     (c[0] * x + c[1]) * x + c[2]

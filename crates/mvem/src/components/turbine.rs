@@ -93,7 +93,7 @@ pub struct TurbinePower {
     pub bsr: f64,
     /// Total turbine efficiency eta_tm [-], eq. (49) (authors: limited to [0.2, 1], item 34).
     pub eta_tm: f64,
-    /// Turbine power times mechanical efficiency P_t eta_m [W], eq. (48).
+    /// Turbine power times mechanical efficiency P_t eta_m \[W\], eq. (48).
     pub p_t_eta_m: f64,
 }
 

@@ -43,7 +43,7 @@ use crate::sim::InputSchedule;
 /// Tuning of the baseline controllers (see the module documentation and `docs/control.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BaselineTuning {
-    /// Sample time [s].
+    /// Sample time \[s\].
     pub ts: f64,
     /// Smoke limit lambda_lim [-].
     pub lambda_limit: f64,
@@ -100,17 +100,17 @@ pub fn nominal_actuators(l: f64) -> (f64, f64) {
 /// feed-forward inverse) and the set-points lambda_O,s and x_egr,s.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SetpointMaps {
-    /// Speeds [rpm].
+    /// Speeds \[rpm\].
     pub n_e: Vec<f64>,
     /// Load fractions L = (u_delta - 1) / (u_full - 1) [-].
     pub load: Vec<f64>,
-    /// Steady torque [Nm], `[speed][load]`.
+    /// Steady torque \[Nm\], `[speed][load]`.
     pub m_e: Vec<Vec<f64>>,
     /// lambda_O set-point [-], `[speed][load]`.
     pub lambda_o: Vec<Vec<f64>>,
     /// x_egr set-point [-], `[speed][load]`.
     pub x_egr: Vec<Vec<f64>>,
-    /// Full-load fuel over `n_e` [mg].
+    /// Full-load fuel over `n_e` \[mg\].
     pub u_full: Vec<f64>,
 }
 
@@ -160,7 +160,7 @@ impl SetpointMaps {
         Ok(maps)
     }
 
-    /// Full-load fuel at `n` [mg].
+    /// Full-load fuel at `n` \[mg\].
     pub fn u_full_at(&self, n: f64) -> f64 {
         interp(&self.n_e, &self.u_full, n)
     }
@@ -197,7 +197,7 @@ impl SetpointMaps {
         (1.0 - f) * Self::at_speed(table, sw, j) + f * Self::at_speed(table, sw, j + 1)
     }
 
-    /// Set-points (lambda_O,s, x_egr,s) at (n_e [rpm], u_delta [mg]).
+    /// Set-points (lambda_O,s, x_egr,s) at (n_e \[rpm\], u_delta \[mg\]).
     pub fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
         let l = self.load_of(n, u_delta);
         (
@@ -206,7 +206,7 @@ impl SetpointMaps {
         )
     }
 
-    /// Feed-forward fuel for torque `m` at `n`: the inverse of the steady torque map [mg]
+    /// Feed-forward fuel for torque `m` at `n`: the inverse of the steady torque map \[mg\]
     /// (linear in the load between grid points; the torque map increases with the load).
     pub fn fuel_for_torque(&self, n: f64, m: f64) -> f64 {
         let sw = self.speed_weight(n);
@@ -364,7 +364,7 @@ impl Controller for Baseline {
 pub struct OpenLoop {
     /// The schedule (its n_e column is ignored: the demand's speed drives the plant).
     pub schedule: InputSchedule,
-    /// Sample time [s].
+    /// Sample time \[s\].
     pub ts: f64,
 }
 

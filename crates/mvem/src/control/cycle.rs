@@ -20,7 +20,7 @@ use crate::model::{AnyModel, Drive, Signals};
 pub const U_DELTA_MIN: f64 = 1.0;
 /// Maximum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
 pub const U_DELTA_MAX: f64 = 250.0;
-/// Speed range of the authors' input saturation [rpm] (item 1).
+/// Speed range of the authors' input saturation \[rpm\] (item 1).
 pub const N_E_RANGE: (f64, f64) = (500.0, 2000.0);
 
 /// How the mapping curve is computed.
@@ -30,7 +30,7 @@ pub struct MappingOptions {
     pub lambda_min: f64,
     /// VGT position at full load [%] (default 35).
     pub u_vgt: f64,
-    /// Speed grid step [rpm] (default 100).
+    /// Speed grid step \[rpm\] (default 100).
     pub dn: f64,
 }
 
@@ -47,13 +47,13 @@ impl Default for MappingOptions {
 /// Full-load (smoke-limited) and motoring torque over speed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MappingCurve {
-    /// Speeds [rpm].
+    /// Speeds \[rpm\].
     pub n_e: Vec<f64>,
     /// Full-load fuel u_delta [mg/cycle/cylinder].
     pub u_full: Vec<f64>,
-    /// Full-load torque [Nm].
+    /// Full-load torque \[Nm\].
     pub m_max: Vec<f64>,
-    /// Motoring torque at the minimum fuel [Nm] (negative: friction and pumping).
+    /// Motoring torque at the minimum fuel \[Nm\] (negative: friction and pumping).
     pub m_motor: Vec<f64>,
     /// Options used.
     pub opts: MappingOptions,
@@ -140,7 +140,7 @@ impl MappingCurve {
         Ok(c)
     }
 
-    /// Full-load torque at `n` [Nm].
+    /// Full-load torque at `n` \[Nm\].
     pub fn m_max_at(&self, n: f64) -> f64 {
         interp(&self.n_e, &self.m_max, n)
     }
@@ -150,12 +150,12 @@ impl MappingCurve {
         interp(&self.n_e, &self.u_full, n)
     }
 
-    /// Motoring torque at `n` [Nm].
+    /// Motoring torque at `n` \[Nm\].
     pub fn m_motor_at(&self, n: f64) -> f64 {
         interp(&self.n_e, &self.m_motor, n)
     }
 
-    /// Largest full-load torque [Nm].
+    /// Largest full-load torque \[Nm\].
     pub fn m_peak(&self) -> f64 {
         self.m_max.iter().cloned().fold(f64::MIN, f64::max)
     }
@@ -202,20 +202,20 @@ impl MappingCurve {
     }
 }
 
-/// The reference speeds of UN GTR No. 4 (section 7.4.2) [rpm] and the maximum power [W].
+/// The reference speeds of UN GTR No. 4 (section 7.4.2) \[rpm\] and the maximum power \[W\].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ReferenceSpeeds {
-    /// Idle speed [rpm].
+    /// Idle speed \[rpm\].
     pub n_idle: f64,
-    /// Lowest speed with 55 % of the maximum power [rpm].
+    /// Lowest speed with 55 % of the maximum power \[rpm\].
     pub n_lo: f64,
-    /// Preferred speed [rpm].
+    /// Preferred speed \[rpm\].
     pub n_pref: f64,
-    /// Highest speed with 70 % of the maximum power [rpm].
+    /// Highest speed with 70 % of the maximum power \[rpm\].
     pub n_hi: f64,
-    /// Highest speed with 95 % of the maximum power [rpm].
+    /// Highest speed with 95 % of the maximum power \[rpm\].
     pub n_95h: f64,
-    /// Maximum power on the mapping curve [W].
+    /// Maximum power on the mapping curve \[W\].
     pub p_max: f64,
 }
 
@@ -232,9 +232,9 @@ impl ReferenceSpeeds {
 /// A demand at one time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DemandPoint {
-    /// Speed [rpm].
+    /// Speed \[rpm\].
     pub n_e: f64,
-    /// Torque [Nm].
+    /// Torque \[Nm\].
     pub m_ref: f64,
     /// Motoring point.
     pub motoring: bool,
@@ -299,12 +299,12 @@ impl Demand {
         })
     }
 
-    /// First and last time [s].
+    /// First and last time \[s\].
     pub fn span(&self) -> (f64, f64) {
         (self.t[0], *self.t.last().unwrap())
     }
 
-    /// Row times [s].
+    /// Row times \[s\].
     pub fn times(&self) -> &[f64] {
         &self.t
     }
@@ -343,7 +343,7 @@ impl Demand {
 }
 
 /// The WHTC of UN GTR No. 4 denormalized for an engine: the 1 Hz table of normalized speed and
-/// torque [%] ("m" = motoring), as (time [s], speed [%], torque [%] or None for "m").
+/// torque [%] ("m" = motoring), as (time \[s\], speed [%], torque [%] or None for "m").
 pub fn whtc_demand(
     table: &[(f64, f64, Option<f64>)],
     curve: &MappingCurve,

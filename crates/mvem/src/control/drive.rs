@@ -13,7 +13,7 @@ use super::{ControlError, Controller, Trajectory};
 use crate::model::AnyModel;
 use crate::sim::{InputSchedule, SimStats};
 
-/// Controller sample time of a cycle run [s].
+/// Controller sample time of a cycle run \[s\].
 pub const SAMPLE_TIME: f64 = 0.01;
 /// lambda_O limit of the cycle statistics [-].
 pub const LAMBDA_LIMIT: f64 = 1.2;
@@ -57,7 +57,7 @@ pub struct CycleRun {
 }
 
 /// The normalized WHTC table with the first sample repeated at t = 0 (as
-/// `data/whtc_inputs_10hz.csv`): (time [s], speed [%], torque [%] or None for motoring).
+/// `data/whtc_inputs_10hz.csv`): (time \[s\], speed [%], torque [%] or None for motoring).
 pub fn whtc_table() -> Result<Vec<(f64, f64, Option<f64>)>, ControlError> {
     let mut table = parse_normalized_table(WHTC_NORMALIZED)
         .map_err(|e| ControlError::Setup(format!("built-in WHTC table: {e}")))?;

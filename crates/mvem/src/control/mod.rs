@@ -33,19 +33,19 @@ pub use cycle::Demand;
 /// What a controller sees at a sample.
 #[derive(Debug, Clone, Copy)]
 pub struct Measurement<'a> {
-    /// Sample time [s].
+    /// Sample time \[s\].
     pub t: f64,
-    /// Reference speed held by the dynamometer = engine speed [rpm].
+    /// Reference speed held by the dynamometer = engine speed \[rpm\].
     pub n_e: f64,
-    /// Torque demand [Nm].
+    /// Torque demand \[Nm\].
     pub m_ref: f64,
     /// The demand is a motoring point (WHTC "m").
     pub motoring: bool,
     /// Every signal of the plant at this sample (the controller documents which it uses).
     pub signals: &'a Signals,
-    /// Intake manifold pressure p_im [Pa] (state).
+    /// Intake manifold pressure p_im \[Pa\] (state).
     pub p_im: f64,
-    /// Exhaust manifold pressure p_em [Pa] (state).
+    /// Exhaust manifold pressure p_em \[Pa\] (state).
     pub p_em: f64,
     /// Turbo speed omega_t [rad/s] (state).
     pub omega_t: f64,
@@ -70,7 +70,7 @@ pub struct Output {
 
 /// A discrete-time controller.
 pub trait Controller {
-    /// Sample time [s] (default 10 ms).
+    /// Sample time \[s\] (default 10 ms).
     fn sample_time(&self) -> f64 {
         0.01
     }
@@ -93,7 +93,7 @@ pub enum ControlError {
     /// A controller gave a NaN or infinite command.
     #[error("controller gave {name} = {value} at t = {t} s")]
     BadCommand {
-        /// Time [s].
+        /// Time \[s\].
         t: f64,
         /// Command name.
         name: &'static str,

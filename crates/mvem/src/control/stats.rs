@@ -51,23 +51,23 @@ pub fn regression(x: &[f64], y: &[f64]) -> Regression {
 /// Statistics of one cycle run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CycleStats {
-    /// Speed regression [rpm] (all samples).
+    /// Speed regression \[rpm\] (all samples).
     pub speed: Regression,
-    /// Torque regression [Nm] (samples with positive reference torque).
+    /// Torque regression \[Nm\] (samples with positive reference torque).
     pub torque: Regression,
-    /// Power regression [kW] (samples with positive reference torque).
+    /// Power regression \[kW\] (samples with positive reference torque).
     pub power: Regression,
-    /// Largest full-load torque of the engine [Nm] (for the SEE limit).
+    /// Largest full-load torque of the engine \[Nm\] (for the SEE limit).
     pub m_max: f64,
-    /// Positive cycle work, reference [kWh].
+    /// Positive cycle work, reference \[kWh\].
     pub work_ref_kwh: f64,
-    /// Positive cycle work, actual [kWh].
+    /// Positive cycle work, actual \[kWh\].
     pub work_act_kwh: f64,
     /// Actual / reference positive work - 1 [-].
     pub work_error: f64,
     /// Smallest lambda_O over fired samples [-].
     pub lambda_o_min: f64,
-    /// Time of the smallest lambda_O [s].
+    /// Time of the smallest lambda_O \[s\].
     pub lambda_o_min_t: f64,
     /// Share of fired samples with lambda_O below the limit [-].
     pub lambda_below_limit_share: f64,
@@ -76,9 +76,9 @@ pub struct CycleStats {
     /// RMS of x_egr,s - x_egr over fired samples with a set-point [-] (at motoring and minimum
     /// fuel the EGR fraction is not controlled).
     pub x_egr_rms_error: f64,
-    /// Mean pumping mean effective pressure p_em - p_im [Pa].
+    /// Mean pumping mean effective pressure p_em - p_im \[Pa\].
     pub pmep_mean_pa: f64,
-    /// Fuel mass [kg].
+    /// Fuel mass \[kg\].
     pub fuel_kg: f64,
     /// Brake-specific fuel consumption over the positive work [g/kWh].
     pub bsfc_g_kwh: f64,

@@ -41,7 +41,7 @@ pub struct SetpointStep {
     pub final_commands: (f64, f64),
 }
 
-/// Hold `n_e` [rpm] and `u_delta` [mg], settle with the set-points `before` (lambda_O,s,
+/// Hold `n_e` \[rpm\] and `u_delta` \[mg\], settle with the set-points `before` (lambda_O,s,
 /// x_egr,s) until `t_step`, then step to `after`; run to `t_end`. `signal` is `"lambda_O"` or
 /// `"x_egr"` (the stepped one, for the metrics).
 #[allow(clippy::too_many_arguments)]

@@ -30,19 +30,19 @@ pub const SECTION: &str = "test_cell";
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TestCell {
-    /// Dynamometer time constant tau_Me [s] of eq. (76) (tuning step 4).
+    /// Dynamometer time constant tau_Me \[s\] of eq. (76) (tuning step 4).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_me: Option<f64>,
-    /// Intake manifold pressure sensor time constant [s] ([`crate::tuning::sensors`]).
+    /// Intake manifold pressure sensor time constant \[s\] ([`crate::tuning::sensors`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_p_im: Option<f64>,
-    /// Exhaust manifold pressure sensor time constant [s].
+    /// Exhaust manifold pressure sensor time constant \[s\].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_p_em: Option<f64>,
-    /// Compressor mass flow sensor time constant [s].
+    /// Compressor mass flow sensor time constant \[s\].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_w_c: Option<f64>,
-    /// Turbo speed sensor time constant [s].
+    /// Turbo speed sensor time constant \[s\].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_n_t: Option<f64>,
 }

@@ -9,13 +9,13 @@ use crate::params::Params;
 /// The manifold states of the extensions.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ManifoldStates {
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub p_im: f64,
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub p_em: f64,
-    /// Intake manifold temperature T_im [K].
+    /// Intake manifold temperature T_im \[K\].
     pub t_im: f64,
-    /// Exhaust manifold temperature T_em [K].
+    /// Exhaust manifold temperature T_em \[K\].
     pub t_em: f64,
     /// Intake manifold oxygen mass fraction X_Oim [-].
     pub x_oim: f64,

@@ -20,9 +20,9 @@ use crate::params::Params;
 /// The conditions the shared algebraic part sees (states already clipped into their limits).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Ports {
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub p_im: f64,
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub p_em: f64,
     /// Intake manifold oxygen mass fraction X_Oim [-].
     pub x_oim: f64,

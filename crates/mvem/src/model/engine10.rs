@@ -32,13 +32,13 @@ use crate::params::{ParamIssues, Params};
 
 /// State indices of [`Engine10`].
 pub mod ix {
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub const P_IM: usize = 0;
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub const P_EM: usize = 1;
-    /// Intake manifold temperature T_im [K].
+    /// Intake manifold temperature T_im \[K\].
     pub const T_IM: usize = 2;
-    /// Exhaust manifold temperature T_em [K].
+    /// Exhaust manifold temperature T_em \[K\].
     pub const T_EM: usize = 3;
     /// Intake manifold oxygen mass fraction X_Oim [-].
     pub const X_OIM: usize = 4;
@@ -116,7 +116,7 @@ impl Engine10 {
             .expect("published parameters are valid")
     }
 
-    /// The 10-state vector of an 8-state vector `x8` with manifold temperatures `t_im`, `t_em` [K].
+    /// The 10-state vector of an 8-state vector `x8` with manifold temperatures `t_im`, `t_em` \[K\].
     pub fn from_8_state(x8: &[f64; 8], t_im: f64, t_em: f64) -> [f64; 10] {
         let mut x = embed(x8, &FROM_8, 0.0);
         x[ix::T_IM] = t_im;

@@ -36,17 +36,17 @@ use crate::params::{ParamIssue, ParamIssues, Params};
 
 /// State indices of [`Engine12`].
 pub mod ix {
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub const P_IM: usize = 0;
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub const P_EM: usize = 1;
-    /// Pressure before the intercooler (compressor outlet) p_c [Pa].
+    /// Pressure before the intercooler (compressor outlet) p_c \[Pa\].
     pub const P_C: usize = 2;
-    /// Intake manifold temperature T_im [K].
+    /// Intake manifold temperature T_im \[K\].
     pub const T_IM: usize = 3;
-    /// Exhaust manifold temperature T_em [K].
+    /// Exhaust manifold temperature T_em \[K\].
     pub const T_EM: usize = 4;
-    /// Temperature before the intercooler T_ic [K].
+    /// Temperature before the intercooler T_ic \[K\].
     pub const T_IC: usize = 5;
     /// Intake manifold oxygen mass fraction X_Oim [-].
     pub const X_OIM: usize = 6;
@@ -139,7 +139,7 @@ impl Engine12 {
     }
 
     /// The 12-state vector of a 10-state vector `x10` with the intercooler-volume states
-    /// `p_c` [Pa] and `t_ic` [K].
+    /// `p_c` \[Pa\] and `t_ic` \[K\].
     pub fn from_10_state(x10: &[f64; 10], p_c: f64, t_ic: f64) -> [f64; 12] {
         let mut x = embed(x10, &FROM_10, 0.0);
         x[ix::P_C] = p_c;

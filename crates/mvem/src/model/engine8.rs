@@ -12,9 +12,9 @@ use crate::params::{ParamIssues, Params};
 
 /// State indices of [`Engine8`].
 pub mod ix {
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub const P_IM: usize = 0;
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub const P_EM: usize = 1;
     /// Intake manifold oxygen mass fraction X_Oim [-].
     pub const X_OIM: usize = 2;

@@ -72,7 +72,7 @@ use serde::{Deserialize, Serialize};
 /// The four model inputs in the paper's user units (eqs (2)-(3)).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Drive {
-    /// Engine speed n_e [rpm] (a measured disturbance).
+    /// Engine speed n_e \[rpm\] (a measured disturbance).
     pub n_e_rpm: f64,
     /// Injected fuel u_delta [mg/cycle/cylinder].
     pub u_delta_mg: f64,
@@ -172,7 +172,7 @@ impl ModelInput {
         }
     }
 
-    /// The six values (n_e [rpm], u_delta [mg/cycle], u_egr [%], u_vgt [%], delayed u_egr [%],
+    /// The six values (n_e \[rpm\], u_delta [mg/cycle], u_egr [%], u_vgt [%], delayed u_egr [%],
     /// delayed u_vgt [%]), in this order.
     pub fn to_array(&self) -> [f64; 6] {
         [
@@ -266,7 +266,7 @@ pub enum LagCommand {
 pub struct LinearLag {
     /// State index.
     pub state: usize,
-    /// Time constant tau [s].
+    /// Time constant tau \[s\].
     pub tau: f64,
     /// Driving command.
     pub command: LagCommand,
@@ -336,7 +336,7 @@ pub struct Derivatives<const N: usize, Mem = SeligerIterate> {
 /// shifted by their delays.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InputDelays {
-    /// Delays [s] of the delayed lookups of channels 2 and 3 (>= 0, finite).
+    /// Delays \[s\] of the delayed lookups of channels 2 and 3 (>= 0, finite).
     pub delayed: [f64; 2],
     /// Whether the current value of each channel (in [`Drive::to_array`] order) enters the
     /// derivatives (its breakpoints are then stop times).
@@ -478,7 +478,7 @@ pub trait Model<const N: usize>: Send + Sync {
 }
 
 /// The engine models' memory at the start of an evaluation: (x_r, T_1) = (0, T_im) with the
-/// intake manifold temperature parameter T_im [K].
+/// intake manifold temperature parameter T_im \[K\].
 pub(crate) fn engine_memory_start(p: &Params) -> SeligerIterate {
     SeligerIterate {
         x_r: 0.0,

@@ -9,7 +9,7 @@ macro_rules! signals {
         /// [`Signals::NAMES`]) are those of the reference data (`W_c`, `lambda_O`, ...).
         #[derive(Debug, Clone, Copy, PartialEq, Default)]
         pub struct Signals {
-            $( #[doc = concat!($desc, " [", $unit, "].")] pub $field: f64, )*
+            $( #[doc = concat!($desc, " \\[", $unit, "\\].")] pub $field: f64, )*
             /// Active guards and regimes ([`Guard`] bits).
             pub guards: u32,
         }

@@ -1,6 +1,6 @@
 //! Numerics shared by the simulator and the tuning, with no knowledge of the engine model.
 //!
-//! - [`linalg`]: dense LU with partial pivoting on fixed-size arrays (the Rosenbrock iteration
+//! - `linalg`: dense LU with partial pivoting on fixed-size arrays (the Rosenbrock iteration
 //!   matrices of [`crate::sim`]).
 //! - [`lsq`]: bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
 //!   scaling), finite-difference or user Jacobians, typed errors, linearized parameter

@@ -33,7 +33,7 @@ macro_rules! param_group {
         pub struct $name {
             $(
                 #[doc = concat!($desc, ".")]
-                $( #[doc = concat!("- `", stringify!($sym), "` [", $unit, "]")] )+
+                $( #[doc = concat!("- `", stringify!($sym), "` \\[", $unit, "\\]")] )+
                 pub $field: $ty,
             )*
         }

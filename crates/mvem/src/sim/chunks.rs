@@ -130,7 +130,7 @@ impl WorkEstimate {
 /// The stop times (of `stops`, sorted, between `t0` and `t_end`) at which `[t0, t_end]` is cut
 /// into at most `chunks` chunks of about equal estimated work (`WorkEstimate`): chunk 0 from
 /// `t0`, chunk k > 0 from its split plus its warm-up (`overlap` before the split). Every split
-/// is a stop without a jump (`(t, false)`) after densely spaced stops ([`kink_from`]), lies more
+/// is a stop without a jump (`(t, false)`) after densely spaced stops (`kink_from`), lies more
 /// than `overlap` after `t0`, and every chunk holds at least as much work of its own as its
 /// warm-up does. At most one chunk per `overlap` seconds. Fewer chunks when that is not
 /// possible; empty: the sequential run.
@@ -209,7 +209,7 @@ pub fn split_times(
 /// ([`kink_from`]).
 const SPLIT_WINDOW: usize = 128;
 
-/// Time before a split candidate whose largest gap between stops ranks it [s]
+/// Time before a split candidate whose largest gap between stops ranks it \[s\]
 /// ([`kink_from`]).
 const SPLIT_CALM: f64 = 10.0;
 

@@ -27,7 +27,7 @@ pub enum SimError {
     /// A derivative or the initial state is NaN or infinite.
     #[error("non-finite {what} {name} = {value} at t = {t} s; state: {state}. Hint: {hint}")]
     NonFinite {
-        /// Time [s].
+        /// Time \[s\].
         t: f64,
         /// "derivative of" / "initial state".
         what: &'static str,
@@ -43,9 +43,9 @@ pub enum SimError {
     /// The step size fell below the resolution of the time axis.
     #[error("step size {h:e} s too small at t = {t} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight")]
     StepSizeTooSmall {
-        /// Time [s].
+        /// Time \[s\].
         t: f64,
-        /// Step size [s].
+        /// Step size \[s\].
         h: f64,
         /// The state whose error estimate limited the step, with that error.
         limiting: String,

@@ -214,7 +214,7 @@ impl InputSchedule {
         }
     }
 
-    /// Row times [s].
+    /// Row times \[s\].
     pub fn times(&self) -> &[f64] {
         &self.times
     }
@@ -224,12 +224,12 @@ impl InputSchedule {
         &self.rows
     }
 
-    /// First row time [s].
+    /// First row time \[s\].
     pub fn t_first(&self) -> f64 {
         self.times[0]
     }
 
-    /// Last row time [s].
+    /// Last row time \[s\].
     pub fn t_last(&self) -> f64 {
         *self.times.last().unwrap()
     }

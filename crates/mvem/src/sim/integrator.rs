@@ -17,7 +17,7 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) model: &'a M,
     pub(super) sched: &'a InputSchedule,
     pub(super) opts: SimOptions,
-    /// Current time [s].
+    /// Current time \[s\].
     pub t: f64,
     /// Current state.
     pub y: [f64; N],

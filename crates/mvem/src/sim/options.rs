@@ -11,9 +11,9 @@ pub struct SimOptions {
     /// fractions, 1e4 rad/s for omega_t, 100 % for actuator states); default 1e-6 (0.1 Pa,
     /// 1e-7, 0.01 rad/s, 1e-4 %).
     pub atol: f64,
-    /// Output interval [s] (default 0.01); the end time is always output.
+    /// Output interval \[s\] (default 0.01); the end time is always output.
     pub dt_out: f64,
-    /// Maximum step size [s] (default: unbounded).
+    /// Maximum step size \[s\] (default: unbounded).
     pub h_max: f64,
     /// Stop at input breakpoints (default true). With `false` the step is bounded by
     /// `h_max` only (set it to the row spacing), for comparison.
@@ -22,7 +22,7 @@ pub struct SimOptions {
     pub max_steps: usize,
     /// Integration method.
     pub method: Method,
-    /// Integrate the actuator states ([`Model::linear_lags`]: first-order lags of the delayed,
+    /// Integrate the actuator states ([`Model::linear_lags`](crate::model::Model::linear_lags): first-order lags of the delayed,
     /// saturated commands, eqs (40), (41), (57)) in closed form on every segment where their
     /// driving command is linear, and the other states by the W-method with them as known
     /// functions of time (default true; the Rosenbrock methods [`Method::Rosenbrock34`],
@@ -53,7 +53,7 @@ pub struct SimOptions {
     /// ([`crate::model::Dynamics::holds_memory`]) and runs without stop times integrate
     /// sequentially. See [`super::simulate_into_with_guess`] and `docs/integrator.md`.
     pub time_chunks: usize,
-    /// Warm-up of each time-parallel chunk after the first [s] (default 30 s: on the WHTC the
+    /// Warm-up of each time-parallel chunk after the first \[s\] (default 30 s: on the WHTC the
     /// difference from the sequential run of a start at the steady state of the inputs there
     /// fell below 0.1 tolerance units within at most 28 s, the slowest steady-state pole being
     /// -0.21 1/s; `docs/integrator.md`).

@@ -150,7 +150,7 @@ pub(crate) static TRANSFORMED: std::sync::LazyLock<Transformed> =
 /// dependent substitution sweeps with row swaps (WHTC -3 % / -2 % wall time; for the 9 x 9
 /// block of 12 states the inverse costs more than it saves; docs/integrator.md, session 20).
 pub(super) struct IterationMatrix<const N: usize> {
-    /// Step size [s] the factors were made for.
+    /// Step size \[s\] the factors were made for.
     pub(super) h: f64,
     /// Whether the lag states are left out.
     pub(super) reduced: bool,

@@ -40,7 +40,7 @@ pub struct SegmentInputs<'a> {
     /// without searches (whether or not its breakpoints are stop times,
     /// [`super::SimOptions::stop_at_lag_breakpoints`]).
     lag_only: [bool; 2],
-    /// Start of the current segment [s].
+    /// Start of the current segment \[s\].
     start: f64,
 }
 
@@ -80,7 +80,7 @@ impl<'a> SegmentInputs<'a> {
         me
     }
 
-    /// Start of the current segment [s] (the `a` of the last [`Self::set_segment`]).
+    /// Start of the current segment \[s\] (the `a` of the last [`Self::set_segment`]).
     pub fn segment_start(&self) -> f64 {
         self.start
     }
@@ -167,7 +167,7 @@ impl<'a> SegmentInputs<'a> {
         }
     }
 
-    /// Delay [s] of lookup `k` (the actuator delays for the delayed commands, else none).
+    /// Delay \[s\] of lookup `k` (the actuator delays for the delayed commands, else none).
     #[inline(always)]
     fn shift(&self, k: usize) -> f64 {
         match k {
@@ -318,7 +318,7 @@ pub fn stop_times<const N: usize, M: Dynamics<N>>(
 }
 
 /// How close to the ends of an interval a stop is left out, and how close two stops are merged
-/// into one: ten input evaluation margins ([`SegmentInputs::delta`]) at `t` [s]
+/// into one: ten input evaluation margins ([`SegmentInputs::delta`]) at `t` \[s\]
 /// ([`stop_times_except`]; a time-parallel chunk cuts its part of one stop list by the same
 /// margins).
 pub(super) fn stop_margin(t: f64) -> f64 {

@@ -60,7 +60,7 @@ impl SimStats {
 /// The junction of a time-parallel chunk with the previous one ([`super::SimOptions::time_chunks`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Junction {
-    /// The chunk's first time [s] (a stop time where the inputs are continuous).
+    /// The chunk's first time \[s\] (a stop time where the inputs are continuous).
     pub t: f64,
     /// Max over the states of |y_prev - y_chunk| / (atol_i + rtol max(|y_prev|, |y_chunk|))
     /// (infinite: the chunk's run failed).

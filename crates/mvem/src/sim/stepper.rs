@@ -45,7 +45,7 @@ pub struct Plant<const N: usize, M: Model<N>> {
     memory: M::Memory,
     /// Command history: zero-order-hold rows (a change at t is two rows at t).
     sched: InputSchedule,
-    /// The model's input delays [s] ([`Model::input_delays`]) of channels 2 and 3.
+    /// The model's input delays \[s\] ([`Model::input_delays`]) of channels 2 and 3.
     delays: [f64; 2],
     /// Largest transport delay [s]: history older than t - tau_max is dropped.
     tau_max: f64,
@@ -132,7 +132,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         })
     }
 
-    /// Current time [s].
+    /// Current time \[s\].
     pub fn t(&self) -> f64 {
         self.t
     }
@@ -293,7 +293,7 @@ impl AnyPlant {
         each!(self, p => p.step(dt, d))
     }
 
-    /// Current time [s].
+    /// Current time \[s\].
     pub fn t(&self) -> f64 {
         each!(self, p => p.t())
     }

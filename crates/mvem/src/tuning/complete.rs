@@ -73,7 +73,7 @@ pub const STEP5_RESTART_REL_OFFSET: f64 = 1.0;
 pub const FD_STEP: f64 = 1e-4;
 
 /// Relative step of the central differences of the covariance Jacobians of steps 3 (7) and 5
-/// (8) ([`covariance_jacobian`]).
+/// (8) (`covariance_jacobian`).
 pub const COV_FD_STEP: f64 = 3e-3;
 
 /// The Jacobian of a covariance at the fit (columns `kept` of the search's parameters, bounds
@@ -254,7 +254,7 @@ pub enum StepLevels {
     /// nine `mvem lab` campaigns gave V_im -11 to +35 % (docs/tuning.md, session 16).
     Means,
     /// The offset and gain of the affine map fitted by least squares over the whole step
-    /// response (variable projection of the two levels per step and output, [`level_fit`]):
+    /// response (variable projection of the two levels per step and output, `level_fit`):
     /// every sample of the step informs the levels, and the residual carries only the shape.
     /// Default (session 16).
     LeastSquares,
@@ -271,7 +271,7 @@ pub enum StepLevels {
 /// noise floor of 0.45 %), so it is an option, not the default.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct ResponseWindow {
-    /// Length of the fully weighted part after each command step [s].
+    /// Length of the fully weighted part after each command step \[s\].
     pub seconds: f64,
     /// Weight of the later samples (1: uniform, as eq. (75)).
     pub tail_weight: f64,
@@ -359,11 +359,11 @@ pub struct Step3Start {
     pub fit_lags: bool,
 }
 
-/// Start of each sensor time constant when step 3 fits them [s] (inside Table 6's range, away
+/// Start of each sensor time constant when step 3 fits them \[s\] (inside Table 6's range, away
 /// from the bound 0 so that the first finite differences see both sides).
 pub const LAG_START_S: f64 = 0.01;
 
-/// A fitted sensor time constant at most this large [s] counts as on its bound 0 (a tenth of a
+/// A fitted sensor time constant at most this large \[s\] counts as on its bound 0 (a tenth of a
 /// millisecond: nothing 100 Hz data can tell from no lag), see [`fit_dynamic`].
 pub const LAG_AT_BOUND_S: f64 = 1e-4;
 
@@ -684,7 +684,7 @@ pub fn dynamic_residuals<'a>(
 }
 
 /// M_e of the model on the grid of `set` (at most 10 ms apart, before the dynamometer lag):
-/// times [s] and torque [Nm].
+/// times \[s\] and torque \[Nm\].
 fn simulated_torque(p: &Params, set: &DynamicData) -> Result<(Vec<f64>, Vec<f64>), String> {
     let dt = sample_interval(set).min(0.01);
     let sol = simulate_set(ModelOrder::Eight, p, set, dt, SEARCH_RTOL)?;
@@ -693,7 +693,7 @@ fn simulated_torque(p: &Params, set: &DynamicData) -> Result<(Vec<f64>, Vec<f64>
 }
 
 /// The normalized torque step responses of step 4 (eq. (76)) on a fuel-step set: its measured
-/// M_e, its step segments, the amplitude floor (1 % of the stationary mean torque) [Nm] and the
+/// M_e, its step segments, the amplitude floor (1 % of the stationary mean torque) \[Nm\] and the
 /// weight 1/sqrt(L) of the residuals.
 struct TorqueSteps<'a> {
     set: &'a DynamicData,
@@ -728,7 +728,7 @@ impl<'a> TorqueSteps<'a> {
     }
 
     /// Residuals of the model torque `m_e` at times `ts` (before the lag) through the
-    /// dynamometer lag tau_Me = `tau` [s], eq. (76), sampled at the set's times.
+    /// dynamometer lag tau_Me = `tau` \[s\], eq. (76), sampled at the set's times.
     fn residuals(&self, ts: &[f64], m_e: &[f64], tau: f64) -> Vec<f64> {
         let f = first_order_lag(ts, m_e, tau);
         let sim: Vec<f64> = self.set.t.iter().map(|&t| interp(ts, &f, t)).collect();
@@ -1055,7 +1055,7 @@ pub struct Step5Options {
     pub dynamic_row: bool,
     /// Include the second row (submodel errors).
     pub static_row: bool,
-    /// Sample rate of the dynamic terms [Hz] (paper: 10 Hz; sets sampled slower stay as they are).
+    /// Sample rate of the dynamic terms \[Hz\] (paper: 10 Hz; sets sampled slower stay as they are).
     pub sample_hz: f64,
     /// Limit on cost evaluations (finite differences included). Default 3600 = 100 (n + 1)
     /// for the n = 35 static parameters: 100 finite-difference Jacobians, half the general
@@ -1406,7 +1406,7 @@ pub struct Step5Report {
     pub submodels: Vec<FitReport>,
     /// Complete-model errors (eq. (5)) on the sets of the cost, per output.
     pub dynamic: Vec<FitReport>,
-    /// Wall time of one evaluation of (77) [s] (measured at the start value).
+    /// Wall time of one evaluation of (77) \[s\] (measured at the start value).
     pub eval_seconds: f64,
     /// Parameters at a bound at the end.
     pub at_bounds: Vec<String>,

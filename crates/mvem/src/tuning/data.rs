@@ -93,7 +93,7 @@ pub const STATIONARY_COLUMNS: [Column; 17] = [
     col("x_egr", "-", 0.0, 1.0),
 ];
 
-/// Columns of a dynamic CSV (Table 6) after the time column `t` [s]. `u_egr_pos`, `u_vgt_pos`
+/// Columns of a dynamic CSV (Table 6) after the time column `t` \[s\]. `u_egr_pos`, `u_vgt_pos`
 /// are the measured actuator positions (tilde u in the paper), `u_egr`, `u_vgt` the commands.
 pub const DYNAMIC_COLUMNS: [Column; 11] = [
     col("n_t", "r/min", 0.0, 300000.0),
@@ -116,29 +116,29 @@ pub const ACTUATOR_COLUMNS: [&str; 4] = ["u_egr", "u_vgt", "u_egr_pos", "u_vgt_p
 /// signals [%] and fuel [mg/cycle/cylinder].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct StationaryPoint {
-    /// Engine torque M_e [Nm].
+    /// Engine torque M_e \[Nm\].
     pub m_e: f64,
     /// Engine speed n_e [r/min].
     pub n_e: f64,
     /// Turbo speed n_t [r/min].
     pub n_t: f64,
-    /// Ambient pressure p_amb [Pa].
+    /// Ambient pressure p_amb \[Pa\].
     pub p_amb: f64,
-    /// Pressure after the compressor p_c [Pa].
+    /// Pressure after the compressor p_c \[Pa\].
     pub p_c: f64,
-    /// Exhaust manifold pressure p_em [Pa].
+    /// Exhaust manifold pressure p_em \[Pa\].
     pub p_em: f64,
-    /// Intake manifold pressure p_im [Pa].
+    /// Intake manifold pressure p_im \[Pa\].
     pub p_im: f64,
-    /// Ambient temperature T_amb [K].
+    /// Ambient temperature T_amb \[K\].
     pub t_amb: f64,
-    /// Temperature after the compressor T_c [K].
+    /// Temperature after the compressor T_c \[K\].
     pub t_c: f64,
-    /// Exhaust manifold temperature T_em [K].
+    /// Exhaust manifold temperature T_em \[K\].
     pub t_em: f64,
-    /// Intake manifold temperature T_im [K].
+    /// Intake manifold temperature T_im \[K\].
     pub t_im: f64,
-    /// Temperature after the turbine T_t [K].
+    /// Temperature after the turbine T_t \[K\].
     pub t_t: f64,
     /// EGR control signal u_egr [%] (at steady state equal to the valve position).
     pub u_egr: f64,
@@ -238,7 +238,7 @@ pub struct DataSetInfo {
     pub kind: StepKind,
     /// CSV file, relative to the manifest.
     pub file: String,
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// Engine speed [r/min] (None for the actuator set).
     pub speed_rpm: Option<f64>,
@@ -256,10 +256,10 @@ pub struct Manifest {
     pub stationary: String,
     /// Parameter file of the data-generating model, if the data are virtual (relative path).
     pub true_params: Option<String>,
-    /// True dynamometer time constant tau_Me of eq. (76) [s], if the data are virtual.
+    /// True dynamometer time constant tau_Me of eq. (76) \[s\], if the data are virtual.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub true_tau_me_s: Option<f64>,
-    /// True sensor time constants of p_im, p_em, W_c, n_t [s] (0: no lag), if the data are
+    /// True sensor time constants of p_im, p_em, W_c, n_t \[s\] (0: no lag), if the data are
     /// virtual ([`super::sensors`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub true_sensor_lags_s: Option<[f64; 4]>,
@@ -275,7 +275,7 @@ pub struct Manifest {
 pub struct DynamicData {
     /// Data set name.
     pub name: String,
-    /// Time [s], strictly increasing.
+    /// Time \[s\], strictly increasing.
     pub t: Vec<f64>,
     /// Columns (name, values), each as long as `t`.
     pub columns: Vec<(String, Vec<f64>)>,
@@ -438,7 +438,7 @@ pub fn dynamic_required(kind: StepKind) -> Vec<Column> {
     v
 }
 
-/// Parse a dynamic CSV: `t` [s] strictly increasing plus the columns of `kind`
+/// Parse a dynamic CSV: `t` \[s\] strictly increasing plus the columns of `kind`
 /// ([`DYNAMIC_COLUMNS`], or [`ACTUATOR_COLUMNS`] for the actuator set).
 pub fn parse_dynamic_csv(
     text: &str,

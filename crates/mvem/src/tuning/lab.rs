@@ -65,7 +65,7 @@ pub const U_DELTA_MAX: f64 = 220.0;
 pub struct Noise {
     /// Relative standard deviation of pressures, flows, speeds, torque, x_egr, positions [-].
     pub rel: f64,
-    /// Standard deviation of temperatures [K].
+    /// Standard deviation of temperatures \[K\].
     pub temp_k: f64,
 }
 
@@ -91,7 +91,7 @@ pub struct LabOptions {
     pub noise: Noise,
     /// Number of stationary points, the 13 ESC points included (>= 13).
     pub n_stationary: usize,
-    /// Hold time of each actuator step in set J [s].
+    /// Hold time of each actuator step in set J \[s\].
     pub step_hold_s: f64,
     /// Generate the dynamic sets of Table 1 (A-I, Q-V).
     pub dynamic: bool,
@@ -99,7 +99,7 @@ pub struct LabOptions {
     pub sets: Option<Vec<String>>,
     /// At most this many steps per dynamic set (None: the counts of Table 1).
     pub max_steps: Option<usize>,
-    /// Dynamometer time constant tau_Me of eq. (76) [s] (0: the torque is measured directly).
+    /// Dynamometer time constant tau_Me of eq. (76) \[s\] (0: the torque is measured directly).
     pub tau_me_s: f64,
     /// Apply the sensor time constants of Table 6 to n_t, p_em, p_im, W_c.
     pub sensor_lags: bool,
@@ -439,9 +439,9 @@ pub struct Table1Row {
     pub load_pct: Option<f64>,
     /// Number of steps.
     pub steps: usize,
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
-    /// Hold time of each step [s] (our choice; the paper does not give it).
+    /// Hold time of each step \[s\] (our choice; the paper does not give it).
     pub hold_s: f64,
 }
 
@@ -602,7 +602,7 @@ pub fn dynamic_sets(
 }
 
 /// First-order lag dy/dt = (u - y)/tau on samples `(t, u)`, exact for u linear between samples,
-/// starting at y = u[0] (steady state) [same unit as u]. tau <= 0 returns u.
+/// starting at y = `u[0]` (steady state) [same unit as u]. tau <= 0 returns u.
 pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
     let mut lag = FirstOrderLag::new(tau);
     t.iter().zip(u).map(|(t, u)| lag.next(*t, *u)).collect()
@@ -611,14 +611,14 @@ pub fn first_order_lag(t: &[f64], u: &[f64], tau: f64) -> Vec<f64> {
 /// [`first_order_lag`] sample by sample, for signals that arrive in pieces (the same numbers).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FirstOrderLag {
-    /// Time constant [s].
+    /// Time constant \[s\].
     tau: f64,
-    /// The previous sample: time [s], input, output.
+    /// The previous sample: time \[s\], input, output.
     last: Option<(f64, f64, f64)>,
 }
 
 impl FirstOrderLag {
-    /// A lag with time constant `tau` [s] before its first sample.
+    /// A lag with time constant `tau` \[s\] before its first sample.
     pub fn new(tau: f64) -> Self {
         Self { tau, last: None }
     }
@@ -655,7 +655,7 @@ pub fn generate(params: &Params, opts: &LabOptions, out_dir: &Path) -> Result<Ca
 
 /// A dynamic data set with command steps at constant speed (Table 6 columns), simulated with
 /// the model of `opts.model` (default 8 states) from the steady state of the first command and sampled at `sample_rate_hz`.
-/// `steps`: (time [s], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
+/// `steps`: (time \[s\], channel 1 = u_delta, 2 = u_egr, 3 = u_vgt, new value). Measured
 /// outputs get the noise of `opts` (positions: relative to 100 %), the torque the dynamometer
 /// lag (eq. (76)) and, optionally, the sensor lags of Table 6.
 #[allow(clippy::too_many_arguments)]

@@ -177,9 +177,9 @@ pub struct TuneReport {
     pub step3: Option<CompleteReport>,
     /// Step 4.
     pub step4: Option<CompleteReport>,
-    /// Tuned dynamometer time constant tau_Me [s] (eq. (76); not part of the model parameters).
+    /// Tuned dynamometer time constant tau_Me \[s\] (eq. (76); not part of the model parameters).
     pub tau_me_s: Option<f64>,
-    /// Sensor lags of p_im, p_em, W_c, n_t [s] that steps 3-5 used (fitted or given; test-cell
+    /// Sensor lags of p_im, p_em, W_c, n_t \[s\] that steps 3-5 used (fitted or given; test-cell
     /// quantities like tau_Me); None when step 3 did not run and none were given.
     pub sensor_lags: Option<SensorLags>,
     /// Step 5.
@@ -199,13 +199,13 @@ pub struct TuneReport {
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
     /// How well each tuned parameter is known, keyed by its path in the parameter file
-    /// ("exhaust_manifold.v_em", "cylinder.c_vol[0]"; tau_Me: "test_cell.tau_me"), from the
+    /// ("exhaust_manifold.v_em", `"cylinder.c_vol[0]"`; tau_Me: "test_cell.tau_me"), from the
     /// last step that tuned it ([`super::uncertainty`]).
     pub parameters: BTreeMap<String, ParamEstimate>,
     /// Functions of parameters that the campaign determines although the parameters are not
     /// identifiable one by one (eta_tm at the measured blade speed ratio,
-    /// [`turbine_efficiency_on_the_measured_range`]; eta_c at a measured compressor operating
-    /// point, [`compressor_efficiency_on_the_measured_range`]).
+    /// `turbine_efficiency_on_the_measured_range`; eta_c at a measured compressor operating
+    /// point, `compressor_efficiency_on_the_measured_range`).
     pub combinations: Vec<Combination>,
     /// Sustained oscillations of the tuned model under constant commands that the engine does
     /// not show, on the campaign's dynamic sets (not the actuator sets;
@@ -217,9 +217,9 @@ pub struct TuneReport {
     /// usable on those inputs, whatever the cost function said (a failed simulation enters
     /// cost (77) as a constant). Empty when every set runs.
     pub failed_sets: Vec<SetFailure>,
-    /// Wall time of each step [s] (0 when not run).
+    /// Wall time of each step \[s\] (0 when not run).
     pub seconds: [f64; 5],
-    /// Total wall time [s].
+    /// Total wall time \[s\].
     pub total_seconds: f64,
 }
 
@@ -232,7 +232,7 @@ pub struct TwelveReport {
     pub dynamic: Option<CompleteReport>,
     /// Third step: the static parameters and k_ic by (77), N = 8, z_8 = W_ic, beta = 2.58.
     pub statics: Option<Step5Report>,
-    /// Wall time [s].
+    /// Wall time \[s\].
     pub seconds: f64,
 }
 

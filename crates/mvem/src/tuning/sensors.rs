@@ -14,7 +14,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// The outputs with a sensor lag, in the order of [`SensorLags::get`] (and of
+/// The outputs with a sensor lag, in the order of `SensorLags::get` (and of
 /// [`super::complete::DYN_OUTPUTS`]).
 pub const LAGGED_OUTPUTS: [&str; 4] = ["p_im", "p_em", "W_c", "n_t"];
 
@@ -22,29 +22,29 @@ pub const LAGGED_OUTPUTS: [&str; 4] = ["p_im", "p_em", "W_c", "n_t"];
 /// parameter list), in the order of [`LAGGED_OUTPUTS`].
 pub const LAG_NAMES: [&str; 4] = ["tau_p_im", "tau_p_em", "tau_w_c", "tau_n_t"];
 
-/// Largest sensor time constant accepted [s] (bound of the fit; a value read from a file or the
+/// Largest sensor time constant accepted \[s\] (bound of the fit; a value read from a file or the
 /// command line above it is an error): ten times Table 6's largest.
 pub const MAX_LAG_S: f64 = 0.2;
 
-/// Output grid of a simulation whose outputs pass through a lag: at most this far apart [s]
+/// Output grid of a simulation whose outputs pass through a lag: at most this far apart \[s\]
 /// (the lag filter is exact for an input linear between grid points; 2 ms is the grid of the
 /// virtual test cell's lags).
 pub const LAG_GRID_S: f64 = 0.002;
 
-/// Data sampled at most this far apart [s] are simulated on the [`LAG_GRID_S`] grid when a
+/// Data sampled at most this far apart \[s\] are simulated on the [`LAG_GRID_S`] grid when a
 /// lag is positive ([`SensorLags::grid`]): twice Table 6's largest time constant.
 pub const LAG_REFINE_MAX_DT_S: f64 = 0.04;
 
-/// First-order sensor time constants [s] of p_im, p_em, W_c and n_t (0: no lag).
+/// First-order sensor time constants \[s\] of p_im, p_em, W_c and n_t (0: no lag).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct SensorLags {
-    /// Intake manifold pressure sensor [s].
+    /// Intake manifold pressure sensor \[s\].
     pub p_im: f64,
-    /// Exhaust manifold pressure sensor [s].
+    /// Exhaust manifold pressure sensor \[s\].
     pub p_em: f64,
-    /// Compressor mass flow sensor [s].
+    /// Compressor mass flow sensor \[s\].
     pub w_c: f64,
-    /// Turbo speed sensor [s].
+    /// Turbo speed sensor \[s\].
     pub n_t: f64,
 }
 
@@ -71,12 +71,12 @@ impl SensorLags {
         self.as_array().iter().any(|t| *t > 0.0)
     }
 
-    /// The four time constants in the order of [`LAGGED_OUTPUTS`] [s].
+    /// The four time constants in the order of [`LAGGED_OUTPUTS`] \[s\].
     pub fn as_array(&self) -> [f64; 4] {
         [self.p_im, self.p_em, self.w_c, self.n_t]
     }
 
-    /// From the four time constants in the order of [`LAGGED_OUTPUTS`] [s].
+    /// From the four time constants in the order of [`LAGGED_OUTPUTS`] \[s\].
     pub fn from_array(a: [f64; 4]) -> Self {
         Self {
             p_im: a[0],
@@ -87,7 +87,7 @@ impl SensorLags {
     }
 
     /// Time constant of the sensor of `output` (a name of [`LAGGED_OUTPUTS`]; 0 for any other
-    /// output) [s].
+    /// output) \[s\].
     pub fn of(&self, output: &str) -> f64 {
         LAGGED_OUTPUTS
             .iter()
@@ -100,7 +100,7 @@ impl SensorLags {
         LAG_NAMES.iter().position(|n| *n == name)
     }
 
-    /// Set the time constant at position `k` of [`LAG_NAMES`] [s] (ignored beyond 3).
+    /// Set the time constant at position `k` of [`LAG_NAMES`] \[s\] (ignored beyond 3).
     pub fn set(&mut self, k: usize, v: f64) {
         let mut a = self.as_array();
         if let Some(x) = a.get_mut(k) {
@@ -109,7 +109,7 @@ impl SensorLags {
         *self = Self::from_array(a);
     }
 
-    /// The simulation output grid for data sampled every `dt` [s]: `dt` divided into equal
+    /// The simulation output grid for data sampled every `dt` \[s\]: `dt` divided into equal
     /// parts of at most [`LAG_GRID_S`] when a lag is positive and `dt` at most
     /// [`LAG_REFINE_MAX_DT_S`] (the 100 Hz step responses of steps 3 and 7); `dt` itself
     /// otherwise (no lag, or data sampled far slower than the sensors: step 5's 10 Hz rows and
@@ -150,7 +150,7 @@ impl SensorLags {
     }
 
     /// Parse `table6`, `none`, or a comma-separated list `p_im=0.015,p_em=0.02,W_c=0.02,
-    /// n_t=0.006` [s] (outputs not named: 0; names as in [`LAGGED_OUTPUTS`] or
+    /// n_t=0.006` \[s\] (outputs not named: 0; names as in [`LAGGED_OUTPUTS`] or
     /// [`LAG_NAMES`]).
     pub fn parse(s: &str) -> Result<Self, String> {
         match s.trim() {

@@ -22,7 +22,7 @@ use super::complete::segments;
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::steps::FlowPoint;
 
-/// Time after a command step from which a hold counts as settled [s]: several time constants
+/// Time after a command step from which a hold counts as settled \[s\]: several time constants
 /// of the turbocharger speed (about 0.5-1 s at low load) and of the manifold pressures.
 pub const SETTLE_S: f64 = 3.0;
 

@@ -702,7 +702,7 @@ pub fn step2_estimates(p: &Params, j: &DynamicData) -> (Vec<(String, ParamEstima
 }
 
 /// The TOML path of a tunable parameter in a parameter file ("exhaust_manifold.v_em",
-/// "cylinder.c_vol[0]", "compressor.q_c[0][1]"), found by marking the field that
+/// `"cylinder.c_vol[0]"`, `"compressor.q_c[0][1]"`), found by marking the field that
 /// [`param_mut`] names in a copy of `p` and locating the mark in its serialized form.
 pub fn toml_path(p: &Params, name: &str) -> Option<String> {
     const MARK: f64 = -1.234_567_890_123e300;

@@ -62,9 +62,9 @@ pub struct DataSetErrors {
 pub struct Oscillation {
     /// Output (p_im, p_em, W_c or n_t).
     pub output: String,
-    /// Start of the window checked [s]: the second half of a constant-command interval.
+    /// Start of the window checked \[s\]: the second half of a constant-command interval.
     pub t_start: f64,
-    /// End of the window [s].
+    /// End of the window \[s\].
     pub t_end: f64,
     /// Peak-to-peak of the simulated output in the window, relative to the normalization of
     /// eq. (5) [-].
@@ -105,7 +105,7 @@ impl OscillationSummary {
     }
 }
 
-/// Shortest constant-command interval checked by [`sustained_oscillations`] [s]: its second
+/// Shortest constant-command interval checked by [`sustained_oscillations`] \[s\]: its second
 /// half starts at least 2 s after the last command change.
 pub const OSCILLATION_MIN_INTERVAL: f64 = 4.0;
 /// Peak-to-peak (relative to the normalization of eq. (5)) above which a simulated output in
@@ -283,7 +283,7 @@ pub fn stationary_errors(
 /// Simulate the model `order` (8, 10 or 12 states) driven by the commands of a dynamic set
 /// (n_e, u_delta, u_egr, u_vgt held between samples: a change between two samples happens at
 /// the later one) from the steady state of the first sample (on the branch of the measured
-/// initial state, see [`start_state`]), output every `dt_out` [s], relative tolerance `rtol`.
+/// initial state, see `start_state`), output every `dt_out` \[s\], relative tolerance `rtol`.
 pub fn simulate_set(
     order: ModelOrder,
     p: &Params,
@@ -323,7 +323,7 @@ pub fn simulate_set(
     })
 }
 
-/// Measured initial p_im [Pa], p_em [Pa] and omega_t [rad/s] of `d` (by state name; means over
+/// Measured initial p_im \[Pa\], p_em \[Pa\] and omega_t [rad/s] of `d` (by state name; means over
 /// the samples of the first 0.2 s), each None without its column.
 fn measured_start(d: &DynamicData) -> [(&'static str, Option<f64>); 3] {
     let k = ((0.2 / sample_interval(d)).round() as usize).clamp(1, d.t.len().max(1));
@@ -391,7 +391,7 @@ fn start_state<const N: usize, M: Model<N>>(
     }
 }
 
-/// Mean sample interval of a set [s].
+/// Mean sample interval of a set \[s\].
 pub fn sample_interval(d: &DynamicData) -> f64 {
     match (d.t.first(), d.t.last()) {
         (Some(a), Some(b)) if d.t.len() > 1 => (b - a) / (d.t.len() - 1) as f64,

@@ -8,8 +8,8 @@ use crate::params::Params;
 use crate::tuning::data::DynamicData;
 use crate::tuning::lsq::{Bounds, LsqOptions};
 
-/// Start values of step 2: EGR [tau_egr1 [s], tau_egr2 [s], tau_degr [s], K_egr], VGT
-/// [tau_vgt [s], tau_dvgt [s]].
+/// Start values of step 2: EGR [tau_egr1 \[s\], tau_egr2 \[s\], tau_degr \[s\], K_egr], VGT
+/// [tau_vgt \[s\], tau_dvgt \[s\]].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Step2Start {
     /// EGR actuator start.

@@ -32,13 +32,13 @@ pub(super) fn eta_c_series(p: &Params, pts: &[StationaryPoint], d: &[Derived]) -
 /// step in a dynamic data set ([`crate::tuning::settled`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FlowPoint {
-    /// Compressor outlet pressure p_c [Pa] (p_im in the 8- and 10-state models).
+    /// Compressor outlet pressure p_c \[Pa\] (p_im in the 8- and 10-state models).
     pub p_c: f64,
-    /// Ambient pressure p_amb [Pa].
+    /// Ambient pressure p_amb \[Pa\].
     pub p_amb: f64,
-    /// Ambient temperature T_amb [K].
+    /// Ambient temperature T_amb \[K\].
     pub t_amb: f64,
-    /// Turbo speed n_t [rpm].
+    /// Turbo speed n_t \[rpm\].
     pub n_t: f64,
     /// Compressor mass flow W_c [kg/s].
     pub w_c: f64,

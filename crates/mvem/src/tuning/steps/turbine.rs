@@ -19,7 +19,7 @@ fn eta_tm_meas(p: &Params, s: &StationaryPoint, d: &Derived) -> (f64, f64) {
     (eta, dh)
 }
 
-/// Weights of the eta_tm fit: dT_c/deta_tm = W_t c_pe T_em dh / (W_c c_pa) [K] at each point
+/// Weights of the eta_tm fit: dT_c/deta_tm = W_t c_pe T_em dh / (W_c c_pa) \[K\] at each point
 /// (eq. (47) solved for T_c), so that the weighted residual (eta_tm,meas - eta_tm) w is the
 /// error of the measured compressor temperature rise T_c - T_amb in kelvin (the "T_c domain").
 /// eta_tm,meas is T_c - T_amb (a few kelvin at idle, 1 K sensor noise) divided by w: its noise
@@ -108,7 +108,7 @@ fn c_m_shape(omega: f64, c_m2: f64, c_m3: f64, w_tlin: f64) -> f64 {
 /// Turbine efficiency, eqs (43)-(51): varpro with BSR_opt, c_m2, c_m3 nonlinear and
 /// eta_tm,max, c_m1 linear; eta_tm,meas by eq. (47) with P_t eta_m = P_c at steady state:
 /// W_c c_pa (T_c - T_amb) / (W_t c_pe T_em (1 - Pi_t^(1 - 1/gamma_e))), W_t = W_c + W_f.
-/// Weighted by [`eta_tm_weights`]: least squares of the measured T_c, not of the derived
+/// Weighted by `eta_tm_weights`: least squares of the measured T_c, not of the derived
 /// eta_tm,meas.
 pub fn fit_eta_tm(
     p: &mut Params,
