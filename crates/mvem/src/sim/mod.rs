@@ -39,6 +39,7 @@
 //! `chunks` (time-parallel chunks of one open-loop run, [`SimOptions::time_chunks`]).
 
 mod chunks;
+mod differences;
 mod dopri5;
 mod error;
 mod exprb;

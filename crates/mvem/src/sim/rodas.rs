@@ -23,7 +23,7 @@ use super::integrator::{Integrator, Interp, LagSegment, Trial};
 use super::rosw::IterationMatrix;
 use super::segment::SegmentInputs;
 use super::SimError;
-use crate::model::{Dynamics, ModelInput};
+use crate::model::Dynamics;
 
 /// A six-stage Rosenbrock method of the RODAS family in the transformed form above (the
 /// structure of `rodas.f`): stage times 0, `c[0..3]`, 1, 1; f_t coefficients `d` (gamma_5 =
@@ -104,49 +104,6 @@ pub(crate) const RODAS4: Tableau = Tableau {
 pub(crate) const TABLEAU: &Tableau = &RODAS4;
 
 impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
-    /// The non-autonomous term f_t = df/dt at (t, y) with z = the non-lag states held fixed:
-    /// a forward difference along the direction (du/dt, da/dt) of the inputs (their slopes on
-    /// the segment, [`SegmentInputs::rates`]) and of the closed-form lag states a (their exact
-    /// rates on the segment), i.e. df/du u' + df/da a'. The inputs are linear on the segment, so
-    /// this is the derivative of the reduced system dz/dt = f_z(z, a(t), u(t)) in t; it reads
-    /// no input outside the segment (the perturbed inputs are values of the segment's own line,
-    /// a relative 1.5e-8 away). Zero (and no evaluation) when nothing moves. `du`: the inputs'
-    /// slopes at t, [`SegmentInputs::rates`] (the caller's, which ROS34PW2 also compares).
-    pub(super) fn time_derivative(
-        &mut self,
-        inp: &mut SegmentInputs,
-        t: f64,
-        f0: &[f64; N],
-        lag_seg: &[LagSegment],
-        du: &ModelInput,
-    ) -> Result<[f64; N], SimError> {
-        let u = inp.at(t);
-        let uv = u.to_array();
-        let dv = du.to_array();
-        let y = self.y;
-        let scales = self.model.state_scales();
-        let mut da = [0.0; N];
-        for l in lag_seg {
-            da[l.state] = l.rate(t, y[l.state]);
-        }
-        // the largest relative rate sets the difference step
-        let mut rel: f64 = 0.0;
-        for (v, d) in uv.iter().zip(&dv) {
-            rel = rel.max(d.abs() / v.abs().max(1.0));
-        }
-        for l in lag_seg {
-            rel = rel.max(da[l.state].abs() / y[l.state].abs().max(scales[l.state]));
-        }
-        if !(rel > 0.0 && rel.is_finite()) {
-            return Ok([0.0; N]);
-        }
-        let d = 1.5e-8 / rel;
-        let up = ModelInput::from_array(std::array::from_fn(|k| uv[k] + d * dv[k]));
-        let yp: [f64; N] = std::array::from_fn(|i| y[i] + d * da[i]);
-        let fp = self.rhs_with(t, &yp, &up)?.dx;
-        Ok(std::array::from_fn(|i| (fp[i] - f0[i]) / d))
-    }
-
     /// One trial step of RODAS4 (see [`rodas`](self)) with the Jacobian and f_t at (t, y),
     /// computed at the first trial from this point and kept for the retries.
     ///

@@ -256,36 +256,6 @@ impl<const N: usize> IterationMatrix<N> {
 }
 
 impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
-    /// Finite-difference Jacobian df/dy at (t, y) with f(t, y) = f0 (forward differences,
-    /// step sqrt(eps) relative to max(|y_i|, scale_i)); the columns with `skip[c]` stay zero.
-    pub(super) fn jacobian(
-        &mut self,
-        inp: &mut SegmentInputs,
-        t: f64,
-        f0: &[f64; N],
-        skip: &[bool; N],
-    ) -> Result<[[f64; N]; N], SimError> {
-        let y = self.y;
-        let scales = self.model.state_scales();
-        // every column at the same t: one input lookup
-        let u = inp.at(t);
-        let mut j = [[0.0; N]; N];
-        for c in (0..N).filter(|&c| !skip[c]) {
-            let mut yp = y;
-            let mut d = 1.5e-8 * y[c].abs().max(scales[c]);
-            if yp[c] + d > self.bounds[c].1 {
-                d = -d;
-            }
-            yp[c] += d;
-            let fp = self.rhs_with(t, &yp, &u)?.dx;
-            for r in 0..N {
-                j[r][c] = (fp[r] - f0[r]) / d;
-            }
-        }
-        self.stats.jacobians += 1;
-        Ok(j)
-    }
-
     /// One trial step of the Rosenbrock-W method ROS34PW2 (see [`rosw`]).
     ///
     /// On a segment with closed-form lag states (`lag_seg` not empty) the method integrates the
