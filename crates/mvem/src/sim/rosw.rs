@@ -137,18 +137,16 @@ impl Transformed {
 pub(crate) static TRANSFORMED: std::sync::LazyLock<Transformed> =
     std::sync::LazyLock::new(Transformed::new);
 
-/// The iteration matrix I - gamma h J_zz, where J_zz is the Jacobian with the rows and columns
-/// of the closed-form lag states (if `reduced`) replaced by those of the identity: on the other
-/// states (z) the iteration matrix of the W-method, decoupled from the lag states, which the
-/// solve leaves at 0. When the lag states are the trailing ones (the engine models), only the
-/// leading `nz` x `nz` block is factored and solved, with loop bounds fixed at compile time for
-/// the block sizes of the engine models ([`block_size`]); otherwise the full N x N matrix is, the
-/// lag entries masked to 0. Full N x N storage with fixed loop bounds: for N = 8 faster than a
-/// 5 x 5 block of run-time size. For the 5 x 5 and 7 x 7 blocks (8 and 10 states) the inverse is
-/// formed from the factors, and each of the about 5.5 stage solves per factorization on the
-/// WHTC is a matrix-vector product, whose dot products are independent, instead of two
-/// dependent substitution sweeps with row swaps (WHTC -3 % / -2 % wall time; for the 9 x 9
-/// block of 12 states the inverse costs more than it saves; docs/integrator.md, session 20).
+/// LU factors of I - gamma h J_zz, where J_zz is the Jacobian with the rows and columns of the
+/// closed-form lag states (if `reduced`) replaced by those of the identity: on the other states
+/// (z) the iteration matrix of the W-method, decoupled from the lag states, which the solve
+/// leaves at 0. When the lag states are the trailing ones (the engine models), only the leading
+/// `nz` x `nz` block is factored and solved, with loop bounds fixed at compile time for the
+/// block sizes of the engine models ([`block_size`]); otherwise the full N x N matrix is, the lag
+/// entries masked to 0. Full N x N storage with fixed loop bounds: for N = 8 faster than a
+/// 5 x 5 block of run-time size. (Stage solves by the block's inverse, 2-3.5 % faster on the
+/// WHTC, were measured and not kept: they moved the tuning's step 3 off; docs/integrator.md,
+/// session 20.)
 pub(super) struct IterationMatrix<const N: usize> {
     /// Step size \[s\] the factors were made for.
     pub(super) h: f64,
@@ -164,10 +162,6 @@ pub(super) struct IterationMatrix<const N: usize> {
     pub(super) dinv: [f64; N],
     /// 1 on the z states, 0 on the lag states of a reduced matrix.
     pub(super) mask: [f64; N],
-    /// The inverse of the leading block, if `inverted` (block sizes 5 and 7: 8 and 10 states).
-    pub(super) inv: [[f64; N]; N],
-    /// Whether the solve multiplies by `inv` (else it uses the LU factors).
-    pub(super) inverted: bool,
 }
 
 /// The leading block of an `N`-state iteration matrix without the lag states `is_lag`: their
@@ -203,9 +197,9 @@ fn leading_block<const N: usize, const Z: usize>(
 }
 
 impl<const N: usize> IterationMatrix<N> {
-    /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block and, for the block sizes
-    /// 5 and 7, invert it into `inv`; false if singular. (`nz` = N, whatever N is, is the
-    /// general masked matrix: the leading-block paths need the lag states trailing.)
+    /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block; false if singular.
+    /// (`nz` = N, whatever N is, is the general masked matrix: the leading-block paths need
+    /// the lag states trailing.)
     fn factor(&mut self) -> bool {
         let (nz, block) = (self.nz, self.nz < N);
         let (lu, piv) = (&mut self.lu, &mut self.piv);
@@ -217,16 +211,6 @@ impl<const N: usize> IterationMatrix<N> {
         };
         for a in 0..nz {
             self.dinv[a] = 1.0 / self.lu[a][a];
-        }
-        // 9 x 9 (12 states): the nine column solves of the inverse cost more than the stage
-        // solves they make cheaper (WHTC +7 % wall time); docs/integrator.md, session 20
-        self.inverted = ok && block && matches!(nz, 5 | 7);
-        if self.inverted {
-            let (lu, piv, dinv, inv) = (&self.lu, &self.piv, &self.dinv, &mut self.inv);
-            match nz {
-                5 => linalg::lu_inverse::<N, 5>(lu, piv, dinv, inv),
-                _ => linalg::lu_inverse::<N, 7>(lu, piv, dinv, inv),
-            }
         }
         ok
     }
@@ -242,11 +226,9 @@ impl<const N: usize> IterationMatrix<N> {
             linalg::lu_solve::<N, N>(lu, piv, dinv, r);
             return;
         }
-        match (self.nz, self.inverted) {
-            (5, true) => linalg::block_mul::<N, 5>(&self.inv, r),
-            (7, true) => linalg::block_mul::<N, 7>(&self.inv, r),
-            (5, false) => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
-            (7, false) => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
+        match self.nz {
+            5 => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
+            7 => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
             _ => linalg::lu_solve::<N, 9>(lu, piv, dinv, r),
         }
         for v in r.iter_mut().skip(self.nz) {
@@ -407,8 +389,6 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
                 piv: [0; N],
                 dinv: [0.0; N],
                 mask: [1.0; N],
-                inv: [[0.0; N]; N],
-                inverted: false,
             })
         });
         w.h = h;
