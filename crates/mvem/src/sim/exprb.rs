@@ -273,9 +273,9 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         }
         let nz = super::rosw::block_size(&is_lag);
         match nz {
-            5 => self.exprb32_block::<5>(inp, t, h, t_new, f0, lag_seg, &is_lag),
-            7 => self.exprb32_block::<7>(inp, t, h, t_new, f0, lag_seg, &is_lag),
-            9 => self.exprb32_block::<9>(inp, t, h, t_new, f0, lag_seg, &is_lag),
+            Some(5) => self.exprb32_block::<5>(inp, t, h, t_new, f0, lag_seg, &is_lag),
+            Some(7) => self.exprb32_block::<7>(inp, t, h, t_new, f0, lag_seg, &is_lag),
+            Some(9) => self.exprb32_block::<9>(inp, t, h, t_new, f0, lag_seg, &is_lag),
             _ => self.exprb32_block::<N>(inp, t, h, t_new, f0, lag_seg, &is_lag),
         }
     }

@@ -152,8 +152,8 @@ pub(super) struct IterationMatrix<const N: usize> {
     pub(super) h: f64,
     /// Whether the lag states are left out.
     pub(super) reduced: bool,
-    /// Size of the factored leading block (N: all of it).
-    pub(super) nz: usize,
+    /// Size of the factored leading block ([`block_size`]; `None`: the whole matrix, masked).
+    pub(super) block: Option<usize>,
     /// LU factors of the leading block (L unit lower, U upper).
     pub(super) lu: [[f64; N]; N],
     /// Row permutation of the LU factors.
@@ -167,16 +167,14 @@ pub(super) struct IterationMatrix<const N: usize> {
 /// The leading block of an `N`-state iteration matrix without the lag states `is_lag`: their
 /// count subtracted from N if they are the trailing states and the result is one of the block
 /// sizes compiled in (5, 7, 9: the 8-, 10- and 12-state engine models without their three
-/// actuator states), else N (the whole matrix, lag entries masked).
-pub(super) fn block_size<const N: usize>(is_lag: &[bool; N]) -> usize {
+/// actuator states), else `None` (the whole matrix, lag entries masked). An `Option`, not N for
+/// the whole matrix: a 5-, 7- or 9-state system whose lags are not trailing is no leading block
+/// (until session 20 it took those paths unmasked).
+pub(super) fn block_size<const N: usize>(is_lag: &[bool; N]) -> Option<usize> {
     let n_lag = is_lag.iter().filter(|&&l| l).count();
     let nz = N - n_lag;
     let trailing = is_lag.iter().enumerate().all(|(i, &l)| l == (i >= nz));
-    if trailing && matches!(nz, 5 | 7 | 9) {
-        nz
-    } else {
-        N
-    }
+    (trailing && matches!(nz, 5 | 7 | 9)).then_some(nz)
 }
 
 /// Set the leading `Z` x `Z` block of `lu` to I - `gh` J (the same arithmetic as the full
@@ -197,19 +195,17 @@ fn leading_block<const N: usize, const Z: usize>(
 }
 
 impl<const N: usize> IterationMatrix<N> {
-    /// Factor `lu` (set to I - gamma h J_zz) on its leading `nz` block; false if singular.
-    /// (`nz` = N, whatever N is, is the general masked matrix: the leading-block paths need
-    /// the lag states trailing.)
+    /// Factor `lu` (set to I - gamma h J_zz) on its leading block (all of it if none); false if
+    /// singular.
     fn factor(&mut self) -> bool {
-        let (nz, block) = (self.nz, self.nz < N);
         let (lu, piv) = (&mut self.lu, &mut self.piv);
-        let ok = match nz {
-            5 if block => linalg::lu_factor::<N, 5>(lu, piv),
-            7 if block => linalg::lu_factor::<N, 7>(lu, piv),
-            9 if block => linalg::lu_factor::<N, 9>(lu, piv),
+        let ok = match self.block {
+            Some(5) => linalg::lu_factor::<N, 5>(lu, piv),
+            Some(7) => linalg::lu_factor::<N, 7>(lu, piv),
+            Some(9) => linalg::lu_factor::<N, 9>(lu, piv),
             _ => linalg::lu_factor::<N, N>(lu, piv),
         };
-        for a in 0..nz {
+        for a in 0..self.block.unwrap_or(N) {
             self.dinv[a] = 1.0 / self.lu[a][a];
         }
         ok
@@ -219,19 +215,19 @@ impl<const N: usize> IterationMatrix<N> {
     #[inline]
     pub(super) fn solve(&self, r: &mut [f64; N]) {
         let (lu, piv, dinv) = (&self.lu, &self.piv, &self.dinv);
-        if self.nz == N {
+        let Some(nz) = self.block else {
             for (v, m) in r.iter_mut().zip(&self.mask) {
                 *v *= m;
             }
             linalg::lu_solve::<N, N>(lu, piv, dinv, r);
             return;
-        }
-        match self.nz {
+        };
+        match nz {
             5 => linalg::lu_solve::<N, 5>(lu, piv, dinv, r),
             7 => linalg::lu_solve::<N, 7>(lu, piv, dinv, r),
             _ => linalg::lu_solve::<N, 9>(lu, piv, dinv, r),
         }
-        for v in r.iter_mut().skip(self.nz) {
+        for v in r.iter_mut().skip(nz) {
             *v = 0.0;
         }
     }
@@ -384,7 +380,7 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             Box::new(IterationMatrix {
                 h,
                 reduced,
-                nz: N,
+                block: None,
                 lu: [[0.0; N]; N],
                 piv: [0; N],
                 dinv: [0.0; N],
@@ -393,14 +389,13 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         });
         w.h = h;
         w.reduced = reduced;
-        w.nz = block_size(&is_lag);
+        w.block = block_size(&is_lag);
         let gh = gamma * h;
-        let block = w.nz < N; // `nz` = N: the general masked matrix, whatever N is
-        match w.nz {
+        match w.block {
             // leading block only: the factor and the solve of a leading block read nothing else
-            5 if block => leading_block::<N, 5>(&mut w.lu, j, gh),
-            7 if block => leading_block::<N, 7>(&mut w.lu, j, gh),
-            9 if block => leading_block::<N, 9>(&mut w.lu, j, gh),
+            Some(5) => leading_block::<N, 5>(&mut w.lu, j, gh),
+            Some(7) => leading_block::<N, 7>(&mut w.lu, j, gh),
+            Some(9) => leading_block::<N, 9>(&mut w.lu, j, gh),
             _ => {
                 for a in 0..N {
                     w.mask[a] = if is_lag[a] { 0.0 } else { 1.0 };
