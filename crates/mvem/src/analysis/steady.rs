@@ -129,7 +129,8 @@ pub fn chunk_guess<'a, const N: usize, M: Model<N>>(
 }
 
 /// [`simulate_from_steady`] writing its samples to `sol` (e.g. a [`Solution::streaming`] one;
-/// see [`simulate_into`](crate::sim::simulate_into)). A failure of the steady state drops `sol` and its sender.
+/// see [`simulate_into`](crate::sim::simulate_into)). A failure of the steady state drops `sol`
+/// and its sender.
 pub fn simulate_from_steady_into<const N: usize, M: Model<N>>(
     model: &M,
     sched: &InputSchedule,

@@ -126,9 +126,9 @@ type Table = (Vec<f64>, Vec<[f64; 4]>, Vec<usize>);
 /// Parse CSV text into a schedule. `path` is used in messages only.
 ///
 /// A plain file (a header of the five names, then lines of five comma-separated numbers) is
-/// read directly (`plain_table`: half the csv crate's cost for the built-in WHTC); anything else (quotes,
-/// comments, blank lines, a field that is not a finite number, a wrong field count) is read
-/// by the csv crate, which names the line and column of every problem. Both read the same
+/// read directly (`plain_table`: half the csv crate's cost for the built-in WHTC); anything
+/// else (quotes, comments, blank lines, a field that is not a finite number, a wrong field
+/// count) is read by the csv crate, which names the line and column of every problem. Both read the same
 /// numbers (`str::parse` or an exact equivalent).
 pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoError> {
     let (times, rows, lines) = match plain_table(text) {

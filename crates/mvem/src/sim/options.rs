@@ -22,11 +22,12 @@ pub struct SimOptions {
     pub max_steps: usize,
     /// Integration method.
     pub method: Method,
-    /// Integrate the actuator states ([`Model::linear_lags`](crate::model::Model::linear_lags): first-order lags of the delayed,
-    /// saturated commands, eqs (40), (41), (57)) in closed form on every segment where their
-    /// driving command is linear, and the other states by the W-method with them as known
-    /// functions of time (default true; the Rosenbrock methods [`Method::Rosenbrock34`],
-    /// [`Method::Rodas4`] and [`Method::Exprb32`] only). `false` integrates all states numerically, for comparison.
+    /// Integrate the actuator states ([`Model::linear_lags`](crate::model::Model::linear_lags):
+    /// first-order lags of the delayed, saturated commands, eqs (40), (41), (57)) in closed form
+    /// on every segment where their driving command is linear, and the other states by the
+    /// W-method with them as known functions of time (default true; the Rosenbrock methods
+    /// [`Method::Rosenbrock34`], [`Method::Rodas4`] and [`Method::Exprb32`] only). `false`
+    /// integrates all states numerically, for comparison.
     pub exact_actuators: bool,
     /// With the actuator states in closed form ([`SimOptions::exact_actuators`]): stop at the
     /// breakpoints of the delayed commands that drive them (default true). `false` lets a step
@@ -39,8 +40,8 @@ pub struct SimOptions {
     /// ROS34PW2 ([`Method::Rosenbrock34`]): add the non-autonomous term gamma_i h^2 f_t to its
     /// stages (default true), f_t = df/dt of the integrated system by one difference along the
     /// inputs' slopes, recomputed with the Jacobian and at the first step of every segment
-    /// between input breakpoints where the slopes changed. `false` omits it (the default of earlier versions, kept for
-    /// comparison): the W-method is of order 3 either way, but the term carries the slope
+    /// between input breakpoints where the slopes changed. `false` omits it (the default of
+    /// earlier versions, kept for comparison): the W-method is of order 3 either way, but the term carries the slope
     /// changes at the input kinks into the stages, which saves steps (`docs/integrator.md`,
     /// "The non-autonomous term of ROS34PW2").
     pub rosw_time_derivative: bool,
