@@ -30,7 +30,9 @@ path the value, standard error, identifiability and correlations (docs/tuning.md
 indices in these paths count from 0, as positions in the file's arrays (\"cylinder.c_vol[0]\"
 is c_vol1; the FMU's and the parameter registry's names count from 1). \"combinations\": what the
 campaign determines where single parameters are flagged (eta_tm at the measured blade speed
-ratio, eta_c at a measured compressor operating point). A step 5 stopped away from its optimum
+ratio, eta_c at a measured compressor operating point). \"caveats\": what the standard
+errors do not cover (V_im, V_em, J_t fitted on static maps that are flagged not identifiable
+inherit their error as a bias; docs/tuning.md, session 21). A step 5 stopped away from its optimum
 by more than the noise is reported with a warning (relative offset R: up to R sqrt(p) standard
 errors from the least-squares optimum).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
@@ -311,6 +313,10 @@ pub fn run(a: &Args) -> Result<()> {
              session 12) and the figures of mvem validate",
             o.describe()
         );
+    }
+    // what the standard errors do not cover
+    for c in &rep.caveats {
+        eprintln!("note: {c}");
     }
     // sets the tuned model cannot run: its parameters are not usable there
     for f in &rep.failed_sets {
@@ -653,6 +659,9 @@ fn parameter_table(
         );
     }
     s.push('\n');
+    for c in &rep.caveats {
+        let _ = writeln!(s, "**Caveat:** {c}.\n");
+    }
     if !rep.combinations.is_empty() {
         let _ = writeln!(
             s,
