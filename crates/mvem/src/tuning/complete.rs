@@ -34,7 +34,7 @@ use super::lsq::{
 use super::sensors::{SensorLags, LAG_NAMES, MAX_LAG_S};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
-    block_covariance, estimates, estimates_from_cov, Linearization, ParamEstimate,
+    block_covariance, estimates, estimates_from_cov, fd_column, Linearization, ParamEstimate,
 };
 use super::validate::{interp, sample_interval, simulate_set, stationary_means};
 use crate::model::ModelOrder;
@@ -103,16 +103,7 @@ fn covariance_jacobian(
             if !(h > 0.0 && v - h >= lo[k] && v + h <= hi[k]) {
                 return None;
             }
-            let mut th = fit.theta.clone();
-            th[k] = v + h;
-            let rp = res(&th);
-            th[k] = v - h;
-            let rm = res(&th);
-            let col: Vec<f64> = rp
-                .iter()
-                .zip(&rm)
-                .map(|(a, b)| (a - b) / (2.0 * h))
-                .collect();
+            let col = fd_column(res, &fit.theta, k, h, FiniteDiff::Central, &[]);
             (col.len() == jac.nrows() && col.iter().all(|x| x.is_finite())).then_some(col)
         })
         .collect();

@@ -1311,7 +1311,7 @@ fn add_fixed(
     estimates: &mut Vec<(String, ParamEstimate)>,
     lin: &Option<Linearization>,
     cov: &mut NamedCov,
-    res: impl Fn(&Params) -> Vec<f64>,
+    res: impl Fn(&Params) -> Vec<f64> + Sync,
     p: &Params,
     step: u8,
     boxes: &[(f64, f64)],

@@ -184,34 +184,57 @@ pub fn lag1_autocorrelation(r: &[f64]) -> f64 {
 }
 
 /// Finite-difference Jacobian of `res` at `theta` with the steps `h`, the one used for every
-/// linearization of this module: `Central` (2 n evaluations) or `Forward` (n + 1). Rows
-/// missing from a shorter evaluation stay zero.
+/// linearization of this module: `Central` (2 n evaluations) or `Forward` (n + 1), the columns
+/// in parallel ([`fd_column`]). Rows missing from a shorter evaluation stay zero.
 pub fn fd_jacobian(
-    mut res: impl FnMut(&[f64]) -> Vec<f64>,
+    res: impl Fn(&[f64]) -> Vec<f64> + Sync,
     theta: &[f64],
     h: &[f64],
     method: FiniteDiff,
 ) -> DMatrix<f64> {
+    use rayon::prelude::*;
     let r0 = res(theta);
     let m = r0.len();
+    let cols: Vec<Vec<f64>> = (0..theta.len())
+        .into_par_iter()
+        .map(|k| fd_column(&res, theta, k, h[k], method, &r0))
+        .collect();
     let mut j = DMatrix::zeros(m, theta.len());
-    let mut th = theta.to_vec();
-    for k in 0..theta.len() {
-        th[k] = theta[k] + h[k];
-        let rp = res(&th);
-        let (rm, den) = match method {
-            FiniteDiff::Central => {
-                th[k] = theta[k] - h[k];
-                (res(&th), 2.0 * h[k])
-            }
-            FiniteDiff::Forward => (r0.clone(), h[k]),
-        };
-        th[k] = theta[k];
-        for i in 0..m.min(rp.len()).min(rm.len()) {
-            j[(i, k)] = (rp[i] - rm[i]) / den;
+    for (k, col) in cols.iter().enumerate() {
+        for (i, v) in col.iter().take(m).enumerate() {
+            j[(i, k)] = *v;
         }
     }
     j
+}
+
+/// Column `k` of the finite-difference Jacobian of `res` at `theta` with the step `h`:
+/// `(res(theta + h e_k) - res(theta - h e_k)) / (2 h)` (`Central`) or `(res(theta + h e_k) -
+/// r0) / h` (`Forward`, `r0 = res(theta)`), as long as the shorter of the two vectors. The one
+/// difference quotient of the tuning's covariances ([`fd_jacobian`] and step 3's and 5's
+/// `complete::covariance_jacobian`).
+pub fn fd_column(
+    res: &(impl Fn(&[f64]) -> Vec<f64> + ?Sized),
+    theta: &[f64],
+    k: usize,
+    h: f64,
+    method: FiniteDiff,
+    r0: &[f64],
+) -> Vec<f64> {
+    let mut th = theta.to_vec();
+    th[k] = theta[k] + h;
+    let rp = res(&th);
+    match method {
+        FiniteDiff::Central => {
+            th[k] = theta[k] - h;
+            let rm = res(&th);
+            rp.iter()
+                .zip(&rm)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
+        }
+        FiniteDiff::Forward => rp.iter().zip(r0).map(|(a, b)| (a - b) / h).collect(),
+    }
 }
 
 /// Central-difference steps of the step-1 and step-2 linearizations (cheap, smooth residuals):
@@ -497,7 +520,7 @@ pub fn joint_covariance(blocks: &[&Conditional], ext: &NamedCov) -> Option<Named
 /// parameters `names` ([`param_mut`] names, ties of [`set_named`] applied); steps
 /// `FD_STEP max(|value|, typical magnitude)`. Columns of parameters `p` does not have are zero.
 pub fn fd_jacobian_named(
-    res: impl Fn(&Params) -> Vec<f64>,
+    res: impl Fn(&Params) -> Vec<f64> + Sync,
     p: &Params,
     names: &[String],
 ) -> DMatrix<f64> {
