@@ -964,8 +964,9 @@ pub fn inherited_static_bias(parameters: &BTreeMap<String, ParamEstimate>) -> Op
         "{} are reported identifiable with standard errors that include the static maps' \
          covariance, but {total} static parameters are flagged not identifiable ({}): their \
          covariance does not bound their error, and step 3 inherits that error as a bias its \
-         standard errors do not show (on virtual campaigns V_im came out 28 % and J_t 10 % off, \
-         4-6.5 standard errors; docs/tuning.md, session 21). Compare them with design data, or \
+         standard errors do not show (on virtual campaigns of the published engine V_im came \
+         out up to 28 % and J_t up to 13 % off; docs/tuning.md, session 21). Compare them \
+         with design data, or \
          run steps 3-4 on static maps you trust (--params FILE --steps 3-4)",
         dynamics.join(", "),
         sections.join(", ")
