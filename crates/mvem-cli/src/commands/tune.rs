@@ -77,6 +77,14 @@ pub struct Args {
     /// round, the steps' covariances chained, docs/tuning.md).
     #[arg(long = "joint-uncertainty", default_value_t = false, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub joint_uncertainty: bool,
+    /// How the Jacobian of steps 3-5's residuals with respect to the parameters each holds
+    /// fixed is computed, for the standard errors those parameters add: forward differences
+    /// (the default), or central differences along the principal axes of their covariance,
+    /// one standard deviation each way (`sigma-points`: far above the simulations' noise, so
+    /// these standard errors do not move with the integrator's rounding; more simulations;
+    /// docs/tuning.md, session 22).
+    #[arg(long = "fixed-jacobian", value_enum, default_value_t = FixedJacobianArg::Forward)]
+    pub fixed_jacobian: FixedJacobianArg,
     /// Limit on evaluations of cost (77) in step 5 (finite differences included).
     #[arg(long = "max-evals", default_value_t = 3600, value_name = "N")]
     pub max_evals: usize,
@@ -156,6 +164,15 @@ pub enum LevelsArg {
     Means,
 }
 
+/// `--fixed-jacobian`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FixedJacobianArg {
+    /// Forward differences at 1e-4 relative.
+    Forward,
+    /// Central differences along the principal axes of the fixed parameters' covariance.
+    SigmaPoints,
+}
+
 /// `--cost`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum CostArg {
@@ -213,6 +230,10 @@ pub fn run(a: &Args) -> Result<()> {
     opts.step5.beta = a.beta;
     opts.refine_dynamics = a.refine_dynamics;
     opts.joint_uncertainty = a.joint_uncertainty;
+    opts.fixed_jacobian = match a.fixed_jacobian {
+        FixedJacobianArg::Forward => mvem::tuning::uncertainty::FixedJacobian::Forward,
+        FixedJacobianArg::SigmaPoints => mvem::tuning::uncertainty::FixedJacobian::SigmaPoints,
+    };
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
     if !(a.rel_offset.is_finite() && a.rel_offset >= 0.0) {

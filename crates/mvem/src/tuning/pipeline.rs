@@ -29,8 +29,8 @@ use super::steps::{
 use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
 use super::uncertainty::{
     block_covariance, estimates_from_cov, fd_jacobian_named, function_std_error, joint_covariance,
-    sensitivity, step1_estimates, step2_estimates, toml_path, Combination, Conditional,
-    Linearization, NamedCov, ParamEstimate,
+    sensitivity, sigma_point_jacobian_named, step1_estimates, step2_estimates, toml_path,
+    Combination, Conditional, FixedJacobian, Linearization, NamedCov, ParamEstimate,
 };
 use super::validate::{
     dynamic_errors_with, oscillation_summary, DataSetErrors, OscillationSummary, ValidateError,
@@ -113,6 +113,12 @@ pub struct PipelineOptions {
     /// default (session 17): on `mvem lab --sensor-lags` campaigns the volumes and J_t tuned
     /// without lags were 23-76 % off and reported identifiable (docs/tuning.md).
     pub sensor_lags: SensorLagMode,
+    /// How J_f, the Jacobian of the dynamic steps' residuals with respect to the parameters
+    /// they hold fixed, is computed for `Cov + S C_f S^T` ([`FixedJacobian`]; `mvem tune
+    /// --fixed-jacobian`). Default forward differences (as since session 10); the sigma points
+    /// give fixed-parameter standard errors that do not move with the simulations' rounding
+    /// (docs/tuning.md, session 22).
+    pub fixed_jacobian: FixedJacobian,
 }
 
 impl Default for PipelineOptions {
@@ -130,6 +136,7 @@ impl Default for PipelineOptions {
             stage_first_pass_max_evaluations: 3600,
             settled_flow_points: true,
             sensor_lags: SensorLagMode::Fit,
+            fixed_jacobian: FixedJacobian::Forward,
         }
     }
 }
@@ -196,6 +203,8 @@ pub struct TuneReport {
     /// covariance at the fixed point of step 5 and the repeated step 3 (option
     /// `joint_uncertainty`; false when not computed or singular: then chained step by step).
     pub joint_uncertainty: bool,
+    /// How J_f of the fixed parameters' contribution was computed (option `fixed_jacobian`).
+    pub fixed_jacobian: FixedJacobian,
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
     /// How well each tuned parameter is known, keyed by its path in the parameter file
@@ -312,7 +321,10 @@ pub fn tune(
     }
     opts.step5.sensor_lags = opts.step3.lags;
     let mut p = base.clone();
-    let mut rep = TuneReport::default();
+    let mut rep = TuneReport {
+        fixed_jacobian: opts.fixed_jacobian,
+        ..TuneReport::default()
+    };
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
@@ -1148,6 +1160,7 @@ fn run_step5(
         p,
         5,
         &boxes,
+        opts.fixed_jacobian,
     );
     if !r.converged {
         flag_unconverged(&mut r.uncertainty);
@@ -1267,7 +1280,16 @@ fn run_step3(
         .filter(|(_, (n, _))| in_lin(n))
         .map(|(b, _)| *b)
         .collect();
-    let cond = add_fixed(&mut own, &r.linearization, cov, res, p, 3, &boxes);
+    let cond = add_fixed(
+        &mut own,
+        &r.linearization,
+        cov,
+        res,
+        p,
+        3,
+        &boxes,
+        opts.fixed_jacobian,
+    );
     r.uncertainty = own;
     r.uncertainty.extend(held);
     est.extend(r.uncertainty.iter().cloned());
@@ -1292,7 +1314,16 @@ fn run_step4(
     let (tau, mut r) = step4(p, set, &c.stationary, levels).map_err(at(4))?;
     if chain {
         let res = torque_residuals(set, &c.stationary, tau, levels);
-        add_fixed(&mut r.uncertainty, &r.linearization, cov, res, p, 4, &[]);
+        add_fixed(
+            &mut r.uncertainty,
+            &r.linearization,
+            cov,
+            res,
+            p,
+            4,
+            &[],
+            opts.fixed_jacobian,
+        );
     }
     est.extend(r.uncertainty.iter().cloned());
     Ok((tau, r))
@@ -1305,9 +1336,11 @@ fn run_step4(
 /// parameters in (in the order of its linearization; empty: none): an estimate confined to
 /// [lo, hi] has a variance of at most (hi - lo)^2 / 4 (Popoviciu's inequality), so a larger
 /// linearized variance (the propagation through a nearly singular step) is scaled down to that
-/// bound, its correlations kept ([`cap_variances`]).
+/// bound, its correlations kept ([`cap_variances`]). `how`: J_f by forward differences or
+/// sigma points ([`FixedJacobian`]).
 /// Returns the step's conditional linearization ([`Conditional`]) for
 /// [`joint_covariance`].
+#[allow(clippy::too_many_arguments)]
 fn add_fixed(
     estimates: &mut Vec<(String, ParamEstimate)>,
     lin: &Option<Linearization>,
@@ -1316,6 +1349,7 @@ fn add_fixed(
     p: &Params,
     step: u8,
     boxes: &[(f64, f64)],
+    how: FixedJacobian,
 ) -> Option<Conditional> {
     let lin = lin.as_ref()?;
     let own: Vec<&str> = lin.names.iter().map(String::as_str).collect();
@@ -1324,7 +1358,10 @@ fn add_fixed(
     let (total, s) = if fixed.names.is_empty() {
         (lin.covariance.clone(), DMatrix::zeros(n, 0))
     } else {
-        let j_fixed = fd_jacobian_named(&res, p, &fixed.names);
+        let j_fixed = match how {
+            FixedJacobian::Forward => fd_jacobian_named(&res, p, &fixed.names),
+            FixedJacobian::SigmaPoints => sigma_point_jacobian_named(&res, p, &fixed),
+        };
         let s = sensitivity(&lin.jacobian, &j_fixed);
         (&lin.covariance + &s * &fixed.cov * s.transpose(), s)
     };

@@ -551,6 +551,154 @@ pub fn fd_jacobian_named(
     j
 }
 
+/// How a step's Jacobian J_f with respect to the parameters it holds fixed is computed
+/// ([`with_fixed`]; `mvem tune --fixed-jacobian`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FixedJacobian {
+    /// Forward differences at `complete::FD_STEP` (1e-4) relative ([`fd_jacobian_named`]): the
+    /// default, as since session 10. On the dynamic steps (3, 4, 5) the change of the
+    /// residuals over that step is not far above the simulations' noise (rtol 1e-8), so some
+    /// columns are noise, and `S C_f S^T` is inflated by it (V_im's fixed-parameter standard
+    /// error 2-6x on `mvem lab` campaigns) and moves with the simulations' last bits
+    /// (docs/tuning.md, sessions 21 and 22).
+    #[default]
+    Forward,
+    /// Central differences along the principal axes of C_f, one standard deviation each way
+    /// ([`sigma_point_jacobian_named`]): the directions that carry the fixed parameters'
+    /// uncertainty, at the size of that uncertainty, far above the simulations' noise.
+    SigmaPoints,
+}
+
+/// Whether a residual vector is a failed evaluation: a non-finite entry, or every entry the
+/// same (the residual functions of the dynamic steps return a constant vector, e.g. 10.0
+/// everywhere, when a simulation fails).
+fn failed_residuals(r: &[f64]) -> bool {
+    r.iter().any(|v| !v.is_finite()) || (r.len() > 1 && r.iter().all(|v| *v == r[0]))
+}
+
+/// J_f (m x k) of `res` at `p` with respect to the parameters of `fixed` (its names, in that
+/// order), from central differences along the principal axes of their covariance: with
+/// `C_f = D R D` (D the standard deviations, R the correlation matrix, `R = U M U^T`), the
+/// directions are the columns of `L = D U M^(1/2)` (so `L L^T = C_f`), and
+/// `g_j = (res(p + s l_j) - res(p - s l_j)) / (2 s)` with s = 1 (one standard deviation), halved
+/// up to 8 times while a side gives invalid parameters or a failed evaluation
+/// ([`failed_residuals`]). Then `J_f = G L^+`, so that `J_f C_f J_f^T = G G^T`: the propagated
+/// covariance `S C_f S^T` of [`with_fixed`] is that of the residuals' response to one standard
+/// deviation of each independent combination of the fixed parameters (a second-order-accurate
+/// "statistical" linearization, the sigma points of the unscented transform), and J_f's other
+/// uses (the joint covariance's couplings) see the same columns. Directions of the correlation
+/// matrix with an eigenvalue below 1e-12 of the largest carry no variance and are left out;
+/// parameters with zero or non-finite variance ([`NamedCov::without`] sets those to 0) get the
+/// forward differences of [`fd_jacobian_named`]. Directions in parallel.
+pub fn sigma_point_jacobian_named(
+    res: impl Fn(&Params) -> Vec<f64> + Sync,
+    p: &Params,
+    fixed: &NamedCov,
+) -> DMatrix<f64> {
+    use rayon::prelude::*;
+    let k = fixed.names.len();
+    let value: Vec<Option<f64>> = fixed.names.iter().map(|n| param_value(p, n)).collect();
+    let sd: Vec<f64> = (0..k)
+        .map(|i| {
+            let v = fixed.cov[(i, i)];
+            if value[i].is_some() && v.is_finite() && v > 0.0 {
+                v.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // the parameters with a variance: their correlation matrix and its eigenvectors
+    let var: Vec<usize> = (0..k).filter(|&i| sd[i] > 0.0).collect();
+    let nv = var.len();
+    let corr = DMatrix::from_fn(nv, nv, |a, b| {
+        let (i, j) = (var[a], var[b]);
+        let c = 0.5 * (fixed.cov[(i, j)] + fixed.cov[(j, i)]) / (sd[i] * sd[j]);
+        if c.is_finite() {
+            c
+        } else {
+            0.0
+        }
+    });
+    let eig = corr.symmetric_eigen();
+    let mu_max = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    let dirs: Vec<usize> = (0..nv)
+        .filter(|&j| eig.eigenvalues[j] > 1e-12 * mu_max)
+        .collect();
+    let names: Vec<&str> = var.iter().map(|&i| fixed.names[i].as_str()).collect();
+    let theta: Vec<f64> = var.iter().map(|&i| value[i].unwrap_or(0.0)).collect();
+    let m = res(p).len();
+    // l_j = D u_j sqrt(mu_j) over the parameters with a variance
+    let l = |j: usize| -> Vec<f64> {
+        let s = eig.eigenvalues[j].sqrt();
+        (0..nv)
+            .map(|a| sd[var[a]] * eig.eigenvectors[(a, j)] * s)
+            .collect()
+    };
+    let eval = |th: &[f64]| -> Option<Vec<f64>> {
+        let mut q = p.clone();
+        set_named(&mut q, &names, th);
+        if q.validate().is_err() {
+            return None;
+        }
+        let r = res(&q);
+        (r.len() == m && !failed_residuals(&r)).then_some(r)
+    };
+    let cols: Vec<Vec<f64>> = dirs
+        .par_iter()
+        .map(|&j| {
+            let lj = l(j);
+            let mut s = 1.0;
+            for _ in 0..9 {
+                let plus: Vec<f64> = theta.iter().zip(&lj).map(|(t, d)| t + s * d).collect();
+                let minus: Vec<f64> = theta.iter().zip(&lj).map(|(t, d)| t - s * d).collect();
+                if let (Some(rp), Some(rm)) = (eval(&plus), eval(&minus)) {
+                    return rp
+                        .iter()
+                        .zip(&rm)
+                        .map(|(a, b)| (a - b) / (2.0 * s))
+                        .collect();
+                }
+                s *= 0.5;
+            }
+            // no valid pair within 1/256 standard deviation: no information on this direction
+            vec![0.0; m]
+        })
+        .collect();
+    // J_f = G L^+, L^+ = M^(-1/2) U^T D^(-1) on the parameters with a variance
+    let mut jf = DMatrix::zeros(m, k);
+    for (g, &j) in cols.iter().zip(&dirs) {
+        let inv = 1.0 / eig.eigenvalues[j].sqrt();
+        for (a, &i) in var.iter().enumerate() {
+            let w = eig.eigenvectors[(a, j)] * inv / sd[i];
+            if w == 0.0 {
+                continue;
+            }
+            for (r, gv) in g.iter().enumerate() {
+                jf[(r, i)] += gv * w;
+            }
+        }
+    }
+    // the parameters without a variance: forward differences (they propagate nothing, but
+    // the joint covariance's couplings use their columns)
+    let rest: Vec<String> = (0..k)
+        .filter(|&i| sd[i] == 0.0 && value[i].is_some())
+        .map(|i| fixed.names[i].clone())
+        .collect();
+    if !rest.is_empty() {
+        let jr = fd_jacobian_named(&res, p, &rest);
+        for (c, name) in rest.iter().enumerate() {
+            if let Some(i) = fixed.names.iter().position(|n| n == name) {
+                if jr.nrows() == m {
+                    jf.set_column(i, &jr.column(c));
+                }
+            }
+        }
+    }
+    jf
+}
+
 /// Estimates of the parameters `names` (values `theta`) from their covariance `cov` (step
 /// `step`): standard errors, correlations, identifiability (module documentation).
 pub fn estimates_from_cov(
@@ -756,6 +904,83 @@ pub fn toml_path(p: &Params, name: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A residual function of V_im, V_em, J_t and eta_tmmax that is linear in them (J_f known
+    /// exactly), plus a deterministic "rounding noise" of amplitude `noise` that changes with
+    /// the last bits of the parameters, as a simulation's does.
+    fn linear_residuals(noise: f64) -> impl Fn(&Params) -> Vec<f64> + Sync {
+        move |q: &Params| {
+            let th = [q.intake_manifold.v_im, q.exhaust_manifold.v_em, q.turbo.j_t];
+            let e = q.turbine.eta_tmmax;
+            (0..40)
+                .map(|i| {
+                    let x = i as f64;
+                    let lin = (1.0 + x) * th[0] - 0.5 * x * th[1]
+                        + 100.0 * (x - 20.0) * th[2]
+                        + 0.01 * x * e;
+                    // noise: a hash of the bits, uniform in [-noise, noise]
+                    let bits = th[0].to_bits()
+                        ^ th[1].to_bits().rotate_left(17)
+                        ^ th[2].to_bits().rotate_left(31)
+                        ^ e.to_bits().rotate_left(47)
+                        ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                    let h = bits.wrapping_mul(0xD6E8_FEB8_6659_FD93) >> 11;
+                    lin + noise * (2.0 * (h as f64 / (1u64 << 53) as f64) - 1.0)
+                })
+                .collect()
+        }
+    }
+
+    /// The sigma-point J_f is exact on a linear residual function, its propagated covariance
+    /// J_f C_f J_f^T is not disturbed by a rounding noise that makes forward differences at
+    /// 1e-4 useless, and a parameter without a variance gets a forward-difference column.
+    #[test]
+    fn sigma_point_jacobian_is_exact_on_linear_residuals_and_robust_to_noise() {
+        let p = Params::published();
+        let names = ["v_im", "v_em", "j_t", "eta_tmmax"];
+        let th = [
+            p.intake_manifold.v_im,
+            p.exhaust_manifold.v_em,
+            p.turbo.j_t,
+            p.turbine.eta_tmmax,
+        ];
+        // 5 % standard deviations, V_im and J_t correlated -0.9, eta_tmmax without a variance
+        let sd = [0.05 * th[0], 0.05 * th[1], 0.05 * th[2], 0.0];
+        let corr = |a: usize, b: usize| match (a.min(b), a.max(b)) {
+            _ if a == b => 1.0,
+            (0, 2) => -0.9,
+            (0, 1) => 0.3,
+            _ => 0.0,
+        };
+        let cov = DMatrix::from_fn(4, 4, |a, b| corr(a, b) * sd[a] * sd[b]);
+        let fixed = NamedCov::new(&names, cov.clone());
+        let exact = DMatrix::from_fn(40, 4, |i, c| {
+            let x = i as f64;
+            [1.0 + x, -0.5 * x, 100.0 * (x - 20.0), 0.01 * x][c]
+        });
+        let rel = |a: &DMatrix<f64>, b: &DMatrix<f64>| (a - b).norm() / b.norm();
+        let jf = sigma_point_jacobian_named(linear_residuals(0.0), &p, &fixed);
+        assert!(rel(&jf, &exact) < 1e-8, "{}", rel(&jf, &exact));
+        // noise 1e-7: far below the response to one standard deviation (about 1e-4 .. 1e-2),
+        // not below the response to the forward step of 1e-4 relative (about 1e-7 .. 1e-4)
+        let noisy = linear_residuals(1e-7);
+        let prop = |j: &DMatrix<f64>| j * &cov * j.transpose();
+        let want = prop(&exact);
+        let sig = prop(&sigma_point_jacobian_named(&noisy, &p, &fixed));
+        let fwd = prop(&fd_jacobian_named(
+            &noisy,
+            &p,
+            names.map(String::from).as_ref(),
+        ));
+        // measured: 2.4e-6 and 2.4e-3 (the noise over the step: 1e-7 / 1e-3 and 1e-7 / 1e-4)
+        assert!(rel(&sig, &want) < 2e-5, "sigma points {}", rel(&sig, &want));
+        assert!(rel(&fwd, &want) > 5e-4, "forward {}", rel(&fwd, &want));
+        // eta_tmmax (no variance): its column by forward differences, the noise-free value
+        let jf = sigma_point_jacobian_named(linear_residuals(0.0), &p, &fixed);
+        for i in 0..40 {
+            assert!((jf[(i, 3)] - exact[(i, 3)]).abs() < 1e-6 * (1.0 + exact[(i, 3)].abs()));
+        }
+    }
 
     #[test]
     fn standard_error_of_a_function_of_parameters_by_hand() {
