@@ -24,7 +24,8 @@
 //!   residuals with respect to the fixed parameters and their covariance C_f (from the steps
 //!   that estimated them, [`NamedCov`]), the sensitivity of the optimum is `dtheta/dphi = -S`,
 //!   `S = (J^T J)^+ J^T J_f`, and the reported covariance is `Cov + S C_f S^T` ([`with_fixed`]).
-//!   J_f by forward differences at the estimate ([`fd_jacobian_named`]). The pipeline carries
+//!   J_f by forward differences at the estimate ([`fd_jacobian_named`]; or along the principal
+//!   axes of C_f, [`sigma_point_jacobian_named`], [`FixedJacobian`]). The pipeline carries
 //!   the full covariance of every step forward (cross-covariances between steps neglected), so step 3 after step 5 carries
 //!   the static parameters' uncertainty, and step 5 that of the first step-3 pass, which in
 //!   turn carries that of step 1.
@@ -582,9 +583,9 @@ fn failed_residuals(r: &[f64]) -> bool {
 /// `C_f = D R D` (D the standard deviations, R the correlation matrix, `R = U M U^T`), the
 /// directions are the columns of `L = D U M^(1/2)` (so `L L^T = C_f`), and
 /// `g_j = (res(p + s l_j) - res(p - s l_j)) / (2 s)` with s = 1 (one standard deviation), halved
-/// up to 8 times while a side gives invalid parameters or a failed evaluation
-/// ([`failed_residuals`]). Then `J_f = G L^+`, so that `J_f C_f J_f^T = G G^T`: the propagated
-/// covariance `S C_f S^T` of [`with_fixed`] is that of the residuals' response to one standard
+/// up to 8 times while a side gives invalid parameters or a failed evaluation (a non-finite
+/// entry, or a constant vector: what the dynamic steps return for a failed simulation). Then
+/// `J_f = G L^+`, so that `J_f C_f J_f^T = G G^T`: the propagated covariance `S C_f S^T` of [`with_fixed`] is that of the residuals' response to one standard
 /// deviation of each independent combination of the fixed parameters (a second-order-accurate
 /// "statistical" linearization, the sigma points of the unscented transform), and J_f's other
 /// uses (the joint covariance's couplings) see the same columns. Directions of the correlation
