@@ -560,9 +560,10 @@ pub enum FixedJacobian {
     /// Forward differences at `complete::FD_STEP` (1e-4) relative ([`fd_jacobian_named`]): the
     /// default, as since session 10. On the dynamic steps (3, 4, 5) the change of the
     /// residuals over that step is not far above the simulations' noise (rtol 1e-8), so some
-    /// columns are noise, and `S C_f S^T` is inflated by it (V_im's fixed-parameter standard
-    /// error 2-6x on `mvem lab` campaigns) and moves with the simulations' last bits
-    /// (docs/tuning.md, sessions 21 and 22).
+    /// columns are noise, and `S C_f S^T` is distorted by it (V_im, V_em, J_t: 0.6-200 times
+    /// the sigma points' standard errors over eight `mvem lab` campaigns, median 4-6x) and
+    /// moves with the simulations' last bits (up to 6.9x between two builds; docs/tuning.md,
+    /// sessions 21 and 22).
     #[default]
     Forward,
     /// Central differences along the principal axes of C_f, one standard deviation each way
