@@ -623,7 +623,15 @@ pub fn sigma_point_jacobian_named(
             0.0
         }
     });
-    let eig = corr.symmetric_eigen();
+    // (no parameter with a variance: an empty decomposition, no directions)
+    let eig = if nv > 0 {
+        corr.symmetric_eigen()
+    } else {
+        nalgebra::SymmetricEigen {
+            eigenvectors: DMatrix::zeros(0, 0),
+            eigenvalues: nalgebra::DVector::zeros(0),
+        }
+    };
     let mu_max = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
     let dirs: Vec<usize> = (0..nv)
         .filter(|&j| eig.eigenvalues[j] > 1e-12 * mu_max)
@@ -977,6 +985,10 @@ mod tests {
         // measured: 2.4e-6 and 2.4e-3 (the noise over the step: 1e-7 / 1e-3 and 1e-7 / 1e-4)
         assert!(rel(&sig, &want) < 2e-5, "sigma points {}", rel(&sig, &want));
         assert!(rel(&fwd, &want) > 5e-4, "forward {}", rel(&fwd, &want));
+        // no parameter with a variance: every column by forward differences
+        let none = NamedCov::new(&names, DMatrix::zeros(4, 4));
+        let jf0 = sigma_point_jacobian_named(linear_residuals(0.0), &p, &none);
+        assert!(rel(&jf0, &exact) < 1e-6, "{}", rel(&jf0, &exact));
         // eta_tmmax (no variance): its column by forward differences, the noise-free value
         let jf = sigma_point_jacobian_named(linear_residuals(0.0), &p, &fixed);
         for i in 0..40 {
