@@ -624,6 +624,12 @@ pub fn fit_dynamic(
     ))
 }
 
+/// The residual every row of a data set gets when the set does not simulate (or lacks an
+/// output) in the residual functions of steps 3-5 ([`dynamic_residuals`], [`torque_residuals`],
+/// [`Cost77::residuals`]): large and finite, so that a search steps back, and exact, so that
+/// a linearization can tell a failed evaluation (`uncertainty::sigma_point_jacobian_named`).
+pub const FAILED_RESIDUAL: f64 = 10.0;
+
 /// Residuals of a problem of the form (74)-(75) ([`fit_dynamic`]) on `sets` as a function of
 /// the whole parameter set: the normalized step responses of p_im, p_em, W_c, n_t of the
 /// model `order` seen through the sensor lags given with the parameters (amplitude floor
@@ -667,7 +673,7 @@ pub fn dynamic_residuals<'a>(
         for p in parts {
             match p {
                 Some(v) => out.extend(v),
-                None => return vec![10.0; n_res], // failed simulation: large, finite cost
+                None => return vec![FAILED_RESIDUAL; n_res], // failed simulation: large, finite cost
             }
         }
         out
@@ -764,7 +770,7 @@ pub fn torque_residuals<'a>(
             .and_then(|st| Some((st, simulated_torque(q, set).ok()?)));
         match fit {
             Some((st, (ts, m_e))) => st.residuals(&ts, &m_e, tau),
-            None => vec![10.0; n_res],
+            None => vec![FAILED_RESIDUAL; n_res],
         }
     }
 }
@@ -1288,7 +1294,7 @@ impl Cost77 {
                 .par_iter()
                 .map(|(d, g)| {
                     let w = g / (k_j * d.t.len() as f64).sqrt();
-                    let fail = vec![10.0; 4 * d.t.len()];
+                    let fail = vec![FAILED_RESIDUAL; 4 * d.t.len()];
                     let lags = &self.opts.sensor_lags;
                     let dt = lags.grid(sample_interval(d));
                     let Ok(sim) = simulate_set(self.opts.model, q, d, dt, SEARCH_RTOL) else {

@@ -56,7 +56,7 @@
 //! the step-1 values of the static parameters; the dynamics steps 3-4 repeated after step 5
 //! replace steps 3-4).
 
-use super::complete::{param_mut, param_value, set_named, STATIC_PARAMS};
+use super::complete::{param_mut, param_value, set_named, FAILED_RESIDUAL, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
 use super::lsq::{param_stats, FiniteDiff, ParamStats};
 use super::steps::{
@@ -572,11 +572,11 @@ pub enum FixedJacobian {
     SigmaPoints,
 }
 
-/// Whether a residual vector is a failed evaluation: a non-finite entry, or every entry the
-/// same (the residual functions of the dynamic steps return a constant vector, e.g. 10.0
-/// everywhere, when a simulation fails).
+/// Whether a residual vector holds a failed evaluation: a non-finite entry, or the
+/// [`FAILED_RESIDUAL`] that the residual functions of steps 3-5 give every row of a data set
+/// that does not simulate (step 5's cost only that set's rows, steps 3 and 4 all rows).
 fn failed_residuals(r: &[f64]) -> bool {
-    r.iter().any(|v| !v.is_finite()) || (r.len() > 1 && r.iter().all(|v| *v == r[0]))
+    r.iter().any(|v| !v.is_finite() || *v == FAILED_RESIDUAL)
 }
 
 /// J_f (m x k) of `res` at `p` with respect to the parameters of `fixed` (its names, in that
@@ -585,7 +585,7 @@ fn failed_residuals(r: &[f64]) -> bool {
 /// directions are the columns of `L = D U M^(1/2)` (so `L L^T = C_f`), and
 /// `g_j = (res(p + s l_j) - res(p - s l_j)) / (2 s)` with s = 1 (one standard deviation), halved
 /// up to 8 times while a side gives invalid parameters or a failed evaluation (a non-finite
-/// entry, or a constant vector: what the dynamic steps return for a failed simulation). Then
+/// entry, or the [`FAILED_RESIDUAL`] of a data set that does not simulate). Then
 /// `J_f = G L^+`, so that `J_f C_f J_f^T = G G^T`: the propagated covariance `S C_f S^T` of [`with_fixed`] is that of the residuals' response to one standard
 /// deviation of each independent combination of the fixed parameters (a second-order-accurate
 /// "statistical" linearization, the sigma points of the unscented transform), and J_f's other
@@ -623,15 +623,11 @@ pub fn sigma_point_jacobian_named(
             0.0
         }
     });
-    // (no parameter with a variance: an empty decomposition, no directions)
-    let eig = if nv > 0 {
-        corr.symmetric_eigen()
-    } else {
-        nalgebra::SymmetricEigen {
-            eigenvectors: DMatrix::zeros(0, 0),
-            eigenvalues: nalgebra::DVector::zeros(0),
-        }
-    };
+    if nv == 0 {
+        // nothing to propagate: every column by forward differences
+        return fd_jacobian_named(&res, p, &fixed.names);
+    }
+    let eig = corr.symmetric_eigen();
     let mu_max = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
     let dirs: Vec<usize> = (0..nv)
         .filter(|&j| eig.eigenvalues[j] > 1e-12 * mu_max)
@@ -692,17 +688,15 @@ pub fn sigma_point_jacobian_named(
     }
     // the parameters without a variance: forward differences (they propagate nothing, but
     // the joint covariance's couplings use their columns)
-    let rest: Vec<String> = (0..k)
+    let rest: Vec<usize> = (0..k)
         .filter(|&i| sd[i] == 0.0 && value[i].is_some())
-        .map(|i| fixed.names[i].clone())
         .collect();
     if !rest.is_empty() {
-        let jr = fd_jacobian_named(&res, p, &rest);
-        for (c, name) in rest.iter().enumerate() {
-            if let Some(i) = fixed.names.iter().position(|n| n == name) {
-                if jr.nrows() == m {
-                    jf.set_column(i, &jr.column(c));
-                }
+        let names: Vec<String> = rest.iter().map(|&i| fixed.names[i].clone()).collect();
+        let jr = fd_jacobian_named(&res, p, &names);
+        if jr.nrows() == m {
+            for (c, &i) in rest.iter().enumerate() {
+                jf.set_column(i, &jr.column(c));
             }
         }
     }
@@ -985,6 +979,18 @@ mod tests {
         // measured: 2.4e-6 and 2.4e-3 (the noise over the step: 1e-7 / 1e-3 and 1e-7 / 1e-4)
         assert!(rel(&sig, &want) < 2e-5, "sigma points {}", rel(&sig, &want));
         assert!(rel(&fwd, &want) > 5e-4, "forward {}", rel(&fwd, &want));
+        // a data set that does not simulate beyond +0.6 standard deviations of V_im (its rows
+        // FAILED_RESIDUAL, the others fine, as step 5's cost): those directions are halved
+        let v0 = th[0];
+        let failing = |q: &Params| {
+            let mut r = linear_residuals(0.0)(q);
+            if q.intake_manifold.v_im > v0 + 0.6 * sd[0] {
+                r[..5].fill(FAILED_RESIDUAL);
+            }
+            r
+        };
+        let jf1 = sigma_point_jacobian_named(failing, &p, &fixed);
+        assert!(rel(&jf1, &exact) < 1e-8, "{}", rel(&jf1, &exact));
         // no parameter with a variance: every column by forward differences
         let none = NamedCov::new(&names, DMatrix::zeros(4, 4));
         let jf0 = sigma_point_jacobian_named(linear_residuals(0.0), &p, &none);
