@@ -191,6 +191,18 @@ impl ModelArgs {
         self.model.order()
     }
 
+    /// The input saturation ranges the model will apply (the parameter set's
+    /// `input_saturation` and the authors' command ranges; `None` with `--semantics paper`,
+    /// which applies none), for the warnings of [`check_drive`] and [`warn_ranges`].
+    pub fn input_ranges(&self) -> Result<Option<InputRanges>> {
+        Ok(match self.semantics {
+            SemanticsArg::Paper => None,
+            SemanticsArg::Authors => Some(csv_inputs::input_ranges(
+                &self.load_params()?.input_saturation,
+            )),
+        })
+    }
+
     /// Build the model (parameters loaded and validated).
     pub fn build(&self) -> Result<AnyModel> {
         let p = self.load_params()?;
@@ -314,9 +326,12 @@ pub fn whtc_schedule() -> Result<InputSchedule> {
 
 /// A whole input cycle: the CSV `inputs` or, without one, the built-in WHTC; returns the
 /// schedule, its name for messages, and its first and last time [s] (which must differ).
-pub fn cycle_inputs(inputs: Option<&Path>) -> Result<(InputSchedule, String, f64, f64)> {
+pub fn cycle_inputs(
+    inputs: Option<&Path>,
+    ranges: Option<&InputRanges>,
+) -> Result<(InputSchedule, String, f64, f64)> {
     let (sched, source) = match inputs {
-        Some(p) => (load_inputs(p)?, p.display().to_string()),
+        Some(p) => (load_inputs(p, ranges)?, p.display().to_string()),
         None => (whtc_schedule()?, WHTC_NAME.to_string()),
     };
     let (t0, t_end) = (sched.t_first(), sched.t_last());
@@ -328,17 +343,23 @@ pub fn cycle_inputs(inputs: Option<&Path>) -> Result<(InputSchedule, String, f64
     Ok((sched, source, t0, t_end))
 }
 
-/// Load an input CSV and warn once per channel (on stderr) about values outside the
-/// authors' input saturation ranges.
-pub fn load_inputs(path: &Path) -> Result<InputSchedule> {
+/// Input saturation ranges per channel (name, lo, hi) ([`ModelArgs::input_ranges`]).
+pub type InputRanges = [(&'static str, f64, f64); 4];
+
+/// Load an input CSV and warn once per channel (on stderr) about values outside the model's
+/// input saturation ranges (`None`: the model saturates nothing).
+pub fn load_inputs(path: &Path, ranges: Option<&InputRanges>) -> Result<InputSchedule> {
     let s = csv_inputs::load_inputs_csv(path)?;
-    warn_ranges(&s, &path.display().to_string());
+    warn_ranges(&s, &path.display().to_string(), ranges);
     Ok(s)
 }
 
 /// Print the range warnings of a schedule, once per channel.
-pub fn warn_ranges(s: &InputSchedule, source: &str) {
-    for w in csv_inputs::range_warnings(s) {
+pub fn warn_ranges(s: &InputSchedule, source: &str, ranges: Option<&InputRanges>) {
+    for w in ranges
+        .map(|r| csv_inputs::range_warnings(s, r))
+        .unwrap_or_default()
+    {
         eprintln!("warning: {source}: {w}");
     }
 }
@@ -463,9 +484,9 @@ pub struct PointArgs {
 
 impl PointArgs {
     /// The checked operating point (see [`check_drive`]).
-    pub fn drive(&self) -> Result<Drive> {
+    pub fn drive(&self, ranges: Option<&InputRanges>) -> Result<Drive> {
         let d = Drive::new(self.n_e, self.u_delta, self.u_egr, self.u_vgt);
-        check_drive(&d)?;
+        check_drive(&d, ranges)?;
         Ok(d)
     }
 }
@@ -499,17 +520,17 @@ impl OptionalPointArgs {
 pub const INPUT_OPTIONS: [&str; 4] = ["--n-e", "--u-delta", "--u-egr", "--u-vgt"];
 
 /// Refuse non-finite inputs (usage error naming the option) and warn on stderr about values
-/// outside the authors' input saturation ranges (which clamp them).
-pub fn check_drive(d: &Drive) -> Result<()> {
+/// outside the model's input saturation ranges (which clamp them; `None`: none).
+pub fn check_drive(d: &Drive, ranges: Option<&InputRanges>) -> Result<()> {
     for (name, v) in INPUT_OPTIONS.iter().zip(d.to_array()) {
         if !v.is_finite() {
             return Err(usage(format!("{name} {v}: must be finite")));
         }
     }
-    for ((name, lo, hi), v) in csv_inputs::INPUT_RANGES.iter().zip(d.to_array()) {
+    for ((name, lo, hi), v) in ranges.into_iter().flatten().zip(d.to_array()) {
         if v < *lo || v > *hi {
             eprintln!(
-                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given)",
+                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the n_e and u_delta ranges are input_saturation of the parameter file)",
                 mvem::numerics::Num(v)
             );
         }

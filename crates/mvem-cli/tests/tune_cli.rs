@@ -366,3 +366,157 @@ fn lab_tune_validate_12_state() {
     assert!(stderr(&o).contains("tuning step 6"), "{}", stderr(&o));
     assert!(!d.join("bad.toml").exists());
 }
+
+/// A campaign of another engine (4 cylinders of 15.9 dm^3 in all, the published turbo,
+/// measured at 95 kPa and 288 K): `mvem tune` without --params says that it uses the published engine's
+/// constants, names the constants that differ from the campaign's true engine, and flags the
+/// volumetric and indicated efficiencies they imply; the ambient comes from the stationary
+/// points. With the engine's constants in --params none of that appears.
+#[test]
+fn tune_checks_the_engine_constants_and_takes_the_ambient_from_the_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let published = mvem(d, &["params", "show"]);
+    assert!(published.status.success());
+    let text = String::from_utf8(published.stdout).unwrap();
+    let set = |t: &str, key: &str, val: &str| -> String {
+        let mut n = 0;
+        let out: Vec<String> = t
+            .lines()
+            .map(|l| {
+                if l.starts_with(&format!("{key} = ")) && n == 0 {
+                    n += 1;
+                    format!("{key} = {val}")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect();
+        assert_eq!(n, 1, "{key}");
+        out.join("\n") + "\n"
+    };
+    let mut other = set(&text, "n_cyl", "4.0");
+    other = set(&other, "v_d", "0.0159");
+    other = set(&other, "p_amb", "95000.0");
+    other = set(&other, "t_amb", "288.0");
+    other = set(&other, "t_w", "288.0");
+    std::fs::write(d.join("other.toml"), other).unwrap();
+    let o = mvem(
+        d,
+        &[
+            "lab",
+            "--params",
+            "other.toml",
+            "--out",
+            "c",
+            "--no-dynamic",
+            "--n-stationary",
+            "30",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let tune = |extra: &[&str], rep: &str| {
+        let mut args = vec![
+            "tune", "--data", "c", "--steps", "1", "--out", "t.toml", "--report", rep,
+        ];
+        args.extend_from_slice(extra);
+        let o = mvem(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(d.join(rep).join("tune_report.json")).unwrap())
+                .unwrap();
+        (stderr(&o), json)
+    };
+    let (err, json) = tune(&[], "r1");
+    assert!(
+        err.contains("constants are the published engine's"),
+        "{err}"
+    );
+    assert!(err.contains("warning: the constants used differ"), "{err}");
+    assert!(
+        err.contains("cylinder.v_d 0.01274 (the campaign's engine: 0.0159)"),
+        "{err}"
+    );
+    assert!(err.contains("cylinder.n_cyl 6"), "{err}");
+    let caveats: Vec<&str> = json["caveats"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    // the implied volumetric efficiency (about 0.92 x 1.25) and indicated efficiency (4/6)
+    assert!(
+        caveats.iter().any(|c| c.contains("volumetric efficiency")),
+        "{caveats:?}"
+    );
+    assert!(
+        caveats.iter().any(|c| c.contains("n_cyl = 6")),
+        "{caveats:?}"
+    );
+    assert!(caveats.iter().any(|c| c.contains("differ")), "{caveats:?}");
+    // the ambient of the campaign: 30 points with 0.5 % and 1 K noise
+    let p_amb = json["ambient"]["p_amb"]["used"].as_f64().unwrap();
+    let t_amb = json["ambient"]["t_amb"]["used"].as_f64().unwrap();
+    assert_eq!(json["ambient"]["p_amb"]["from_data"], true);
+    assert!((p_amb / 95_000.0 - 1.0).abs() < 0.003, "{p_amb}");
+    assert!((t_amb - 288.0).abs() < 0.8, "{t_amb}");
+    let tuned = std::fs::read_to_string(d.join("t.toml")).unwrap();
+    assert!(tuned.contains(&format!("p_amb = {p_amb:?}")), "{p_amb}");
+    // with the engine's constants: nothing to say
+    let (err, json) = tune(&["--params", "other.toml"], "r2");
+    assert!(!err.contains("constants"), "{err}");
+    assert_eq!(json["caveats"].as_array().unwrap().len(), 0, "{json}");
+    assert_eq!(json["ambient"]["p_amb"]["from_data"], false, "{json}");
+    // the published constants and --ambient params: the file's 101.1 kPa and 298.5 K
+    let (_, json) = tune(&["--ambient", "params"], "r3");
+    let a = &json["ambient"];
+    assert_eq!(a["p_amb"]["from_data"], false);
+    assert_eq!(a["p_amb"]["used"], a["p_amb"]["file"]);
+    assert!((a["p_amb"]["file"].as_f64().unwrap() - 101_111.34).abs() < 0.01);
+}
+
+/// `mvem lab --speeds` maps the design onto another engine's speeds, within the model's speed
+/// saturation (the parameter file's `input_saturation`), and refuses a design beyond it.
+#[test]
+fn lab_envelope_is_checked_against_the_input_saturation() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let o = mvem(d, &["lab", "--out", "c", "--speeds", "1750:4250"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("1125-4042 r/min"), "{err}");
+    assert!(err.contains("speed range 500-2000 r/min"), "{err}");
+    let o = mvem(d, &["lab", "--out", "c", "--speeds", "4000"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("expected LO:HI"), "{}", stderr(&o));
+    // a smaller speed range and less fuel: the ESC points move with it
+    let o = mvem(
+        d,
+        &[
+            "lab",
+            "--out",
+            "c",
+            "--speeds",
+            "1000:2000",
+            "--full-load",
+            "180",
+            "--no-dynamic",
+            "--n-stationary",
+            "13",
+            "--noise",
+            "none",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(d.join("c/stationary.csv")).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (ne, ud) = (col("n_e"), col("u_delta"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // idle 600 -> 750 r/min at 10 % of 180 mg; ESC A (1200) -> 1250 r/min at 100 %
+    assert!((rows[0][ne] - 750.0).abs() < 1e-9 && (rows[0][ud] - 18.0).abs() < 1e-9);
+    assert!((rows[1][ne] - 1250.0).abs() < 1e-9 && (rows[1][ud] - 180.0).abs() < 1e-9);
+}

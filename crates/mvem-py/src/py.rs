@@ -2,7 +2,7 @@
 
 use crate::core::{self, CoreError, LinArgs, SimArgs, Variant};
 use mvem::analysis::step::{Excursion, StepMetrics};
-use mvem::io::csv_inputs::{range_warnings_of_rows, INPUT_RANGES};
+use mvem::io::csv_inputs::{input_ranges, range_warnings_of_rows};
 use mvem::numerics::Num;
 use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
@@ -51,11 +51,23 @@ fn user_warning(py: Python<'_>, msg: String) -> PyResult<()> {
     PyErr::warn(py, &py.get_type::<PyUserWarning>(), &msg, 1)
 }
 
-/// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::INPUT_RANGES`):
-/// a value outside its range is used clamped, and Python is told so by a `UserWarning` naming
-/// the input, its value and the range (the CLI prints the same on stderr). `what` says where.
-fn warn_out_of_range(py: Python<'_>, what: &str, values: [f64; 4]) -> PyResult<()> {
-    for ((name, lo, hi), v) in INPUT_RANGES.iter().zip(values) {
+/// The input saturation ranges of a parameter set (`None`: the published set): its
+/// `input_saturation` for n_e and u_delta, the authors' command ranges.
+fn ranges_of(p: Option<&Params>) -> [(&'static str, f64, f64); 4] {
+    input_ranges(&p.map(|p| p.input_saturation.clone()).unwrap_or_default())
+}
+
+/// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::input_ranges` of the
+/// parameter set `p`): a value outside its range is used clamped, and Python is told so by a
+/// `UserWarning` naming the input, its value and the range (the CLI prints the same on stderr).
+/// `what` says where.
+fn warn_out_of_range(
+    py: Python<'_>,
+    what: &str,
+    values: [f64; 4],
+    p: Option<&Params>,
+) -> PyResult<()> {
+    for ((name, lo, hi), v) in ranges_of(p).iter().zip(values) {
         if v < *lo || v > *hi {
             let msg = format!(
                 "{what}: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it",
@@ -70,9 +82,14 @@ fn warn_out_of_range(py: Python<'_>, what: &str, values: [f64; 4]) -> PyResult<(
 /// [`warn_out_of_range`] for input rows (t, n_e, u_delta, u_egr, u_vgt): one warning per channel
 /// that leaves its range, with the first time and the values outside, as the CLI prints them
 /// (`mvem::io::csv_inputs::range_warnings_of_rows`).
-fn warn_rows_out_of_range(py: Python<'_>, what: &str, rows: &[[f64; 5]]) -> PyResult<()> {
+fn warn_rows_out_of_range(
+    py: Python<'_>,
+    what: &str,
+    rows: &[[f64; 5]],
+    p: Option<&Params>,
+) -> PyResult<()> {
     let rows = rows.iter().map(|r| (r[0], [r[1], r[2], r[3], r[4]]));
-    for w in range_warnings_of_rows(rows) {
+    for w in range_warnings_of_rows(rows, &ranges_of(p)) {
         user_warning(py, format!("{what}: {w}"))?;
     }
     Ok(())
@@ -174,8 +191,8 @@ fn simulate<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
-    warn_rows_out_of_range(py, "simulate", &rows)?;
     let p = parse_params(py, params)?;
+    warn_rows_out_of_range(py, "simulate", &rows, p.as_ref())?;
     let args = SimArgs {
         time_parallel,
         ..sim_args(t_end, dt, rtol, atol, numeric_actuators)
@@ -280,7 +297,6 @@ fn simulate_many<'py>(
     for (i, item) in items.iter().enumerate() {
         let r = input_rows(py, item)
             .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?;
-        warn_rows_out_of_range(py, &format!("simulate_many run {i}"), &r)?;
         rows.push(r);
     }
     let per_run: Vec<Option<Params>> = match params {
@@ -304,6 +320,9 @@ fn simulate_many<'py>(
         }
         p => vec![parse_params(py, p)?; rows.len()],
     };
+    for (i, (r, p)) in rows.iter().zip(&per_run).enumerate() {
+        warn_rows_out_of_range(py, &format!("simulate_many run {i}"), r, p.as_ref())?;
+    }
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
     let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
     let results = py
@@ -339,8 +358,8 @@ fn steady<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    warn_out_of_range(py, "steady", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
+    warn_out_of_range(py, "steady", [n_e, u_delta, u_egr, u_vgt], p.as_ref())?;
     let s = py
         .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p, variant))
         .map_err(to_py_err)?;
@@ -407,8 +426,8 @@ fn linearize<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    warn_out_of_range(py, "linearize", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
+    warn_out_of_range(py, "linearize", [n_e, u_delta, u_egr, u_vgt], p.as_ref())?;
     let args = LinArgs {
         outputs,
         strict,
@@ -542,8 +561,13 @@ fn step_response<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    warn_out_of_range(py, "step_response", [n_e, u_delta, u_egr, u_vgt])?;
     let p = parse_params(py, params)?;
+    warn_out_of_range(
+        py,
+        "step_response",
+        [n_e, u_delta, u_egr, u_vgt],
+        p.as_ref(),
+    )?;
     let args = SimArgs {
         t_end: None,
         dt,
@@ -634,6 +658,8 @@ fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 struct Plant {
     inner: core::CorePlant,
     cmd: [f64; 4],
+    /// The parameter set's input saturation (for the range warnings).
+    params: Option<Params>,
 }
 
 fn merge_cmd(
@@ -667,11 +693,12 @@ impl Plant {
         let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
         let p = parse_params(py, params)?;
         let cmd = [n_e, u_delta, u_egr, u_vgt];
-        warn_out_of_range(py, "Plant", cmd)?;
+        warn_out_of_range(py, "Plant", cmd, p.as_ref())?;
+        let params = p.clone();
         let inner = py
             .allow_threads(move || core::CorePlant::new(cmd, p, variant))
             .map_err(to_py_err)?;
-        Ok(Self { inner, cmd })
+        Ok(Self { inner, cmd, params })
     }
 
     /// Hold the commands for dt [s]; returns the outputs at the end (dict of floats).
@@ -687,7 +714,7 @@ impl Plant {
     ) -> PyResult<Bound<'py, PyDict>> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
         if cmd != self.cmd {
-            warn_out_of_range(py, "Plant.step", cmd)?;
+            warn_out_of_range(py, "Plant.step", cmd, self.params.as_ref())?;
         }
         let inner = &mut self.inner;
         py.allow_threads(|| inner.step(dt, cmd))
@@ -716,7 +743,7 @@ impl Plant {
         u_vgt: Option<f64>,
     ) -> PyResult<()> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
-        warn_out_of_range(py, "Plant.reset", cmd)?;
+        warn_out_of_range(py, "Plant.reset", cmd, self.params.as_ref())?;
         let inner = &mut self.inner;
         py.allow_threads(|| inner.reset(cmd)).map_err(to_py_err)?;
         self.cmd = cmd;

@@ -1214,3 +1214,32 @@ fn channel_maps_show_the_sign_reversal() {
         .contains("input:u_vgt in [20,100]"));
     assert!(ch[1].is_ok());
 }
+
+/// The authors' implementation clamps n_e to their engine's range (item 1); the range is the
+/// parameter set's `input_saturation.n_e`: with the default, 3000 rpm runs as 2000 rpm (same
+/// equilibrium, the guard flag set), with an engine's own range up to 4600 rpm it does not.
+#[test]
+fn the_speed_saturation_is_the_parameter_sets() {
+    let d = |n: f64| Drive::new(n, 110.0, 20.0, 60.0);
+    let p = Params::published();
+    let m = Engine8::new(p.clone(), ModelOptions::default()).unwrap();
+    let at_2000 = steady_state(&m, &d(2000.0)).unwrap();
+    let at_3000 = steady_state(&m, &d(3000.0)).unwrap();
+    assert_eq!(at_2000.x, at_3000.x, "clamped to 2000 rpm");
+    let mut q = p.clone();
+    q.input_saturation.n_e = [500.0, 4600.0];
+    let m = Engine8::new(q, ModelOptions::default()).unwrap();
+    let wide_2000 = steady_state(&m, &d(2000.0)).unwrap();
+    let wide_3000 = steady_state(&m, &d(3000.0)).unwrap();
+    assert_eq!(wide_2000.x, at_2000.x, "inside both ranges: the same model");
+    // at 3000 rpm the engine runs at 3000 rpm: another equilibrium (p_im 188 kPa against the
+    // clamped 201 kPa), and more air per second than at 2000 rpm
+    let rel = (wide_3000.x[0] / at_3000.x[0] - 1.0).abs();
+    assert!(
+        rel > 0.03,
+        "p_im {} against {}",
+        wide_3000.x[0],
+        at_3000.x[0]
+    );
+    assert!(wide_3000.signals.w_c > 1.2 * at_3000.signals.w_c);
+}

@@ -78,7 +78,8 @@ const COMPARE: [(&str, f64); 5] = [
 pub fn run(a: &Args) -> Result<()> {
     let opts = a.solver.options(0.1)?;
     let model = a.model.build()?;
-    let (sched, source, t0, t_end) = common::cycle_inputs(a.inputs.as_deref())?;
+    let (sched, source, t0, t_end) =
+        common::cycle_inputs(a.inputs.as_deref(), a.model.input_ranges()?.as_ref())?;
     common::check_samples(t0, t_end, opts.dt_out)?;
     if let Some(n) = a.ensemble {
         return ensemble(&model, n as usize, a.repeat, &sched, &source, &opts);

@@ -15,6 +15,7 @@ Examples:
   mvem lab --out c2 --seed 7 --noise none --sensor-lags
   mvem lab --out small --sets B,C,I --max-steps 4 --n-stationary 30
   mvem lab --out c12 --model 12                 # virtual engine: the 12-state model
+  mvem lab --params car.toml --speeds 1750:4250 --full-load 60 --out car   # another engine
 
 Writes DIR/manifest.toml, DIR/stationary.csv, one CSV per data set (A-I, Q-V, J) and
 DIR/true_params.toml (formats: docs/tuning-data.md). --noise: realistic (0.5 % relative on
@@ -55,6 +56,14 @@ pub struct Args {
     /// Model of the virtual engine (number of states).
     #[arg(long, value_enum, default_value = "8")]
     pub model: common::ModelArg,
+    /// The engine's ESC speeds n_lo:n_hi [r/min]: the design's speeds (ESC A/B/C at 25/50/75 %
+    /// between them, idle, the random points, Table 1's sets) are the published engine's
+    /// (900:2100) mapped onto them.
+    #[arg(long, default_value = "900:2100", value_name = "LO:HI")]
+    pub speeds: String,
+    /// Injected fuel at 100 % load [mg/cycle/cylinder].
+    #[arg(long = "full-load", default_value_t = 220.0, value_name = "MG")]
+    pub full_load: f64,
 }
 
 /// Parse `--noise`.
@@ -128,7 +137,18 @@ pub fn run(a: &Args) -> Result<()> {
         Some(p) => mvem::io::params::load_params(p)
             .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
     };
+    let bad = || common::usage(format!("--speeds {:?}: expected LO:HI in r/min", a.speeds));
+    let (lo, hi) = a.speeds.split_once(':').ok_or_else(bad)?;
+    let envelope = lab::Envelope {
+        n_lo_rpm: lo.trim().parse().map_err(|_| bad())?,
+        n_hi_rpm: hi.trim().parse().map_err(|_| bad())?,
+        full_load_mg: a.full_load,
+    };
+    envelope
+        .validate(&params.input_saturation)
+        .map_err(|e| common::usage(format!("--speeds/--full-load: {e}")))?;
     let opts = LabOptions {
+        envelope,
         seed: a.seed,
         noise,
         n_stationary: a.n_stationary,

@@ -50,7 +50,7 @@ pub struct Args {
 
 /// Run `mvem linearize`.
 pub fn run(a: &Args) -> Result<()> {
-    let d = a.point.drive()?;
+    let d = a.point.drive(a.model.input_ranges()?.as_ref())?;
     let opts = options(&a.outputs, a.pade as usize)?;
     let model = a.model.build()?;
     let v = mvem::dispatch!(&model, m => {

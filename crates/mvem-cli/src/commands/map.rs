@@ -162,13 +162,18 @@ fn grid(a: &Args) -> Result<Grid> {
             }
         };
     }
-    common::check_drive(&Drive::from_array(base))?;
-    for ax in &axes {
+    let ranges = a.model.input_ranges()?;
+    common::check_drive(&Drive::from_array(base), ranges.as_ref())?;
+    for ax in ranges
+        .iter()
+        .flat_map(|r| axes.iter().map(move |ax| (r, ax)))
+    {
+        let (ranges, ax) = ax;
         let k = Drive::NAMES
             .iter()
             .position(|n| *n == ax.input)
             .unwrap_or(0);
-        let (_, lo, hi) = mvem::io::csv_inputs::INPUT_RANGES[k];
+        let (_, lo, hi) = ranges[k];
         let out: Vec<f64> = ax
             .values
             .iter()

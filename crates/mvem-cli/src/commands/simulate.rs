@@ -123,7 +123,7 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let (sched, default_end, source) = match (&a.inputs, a.scenario) {
         (Some(path), _) => {
-            let s = common::load_inputs(path)?;
+            let s = common::load_inputs(path, a.model.input_ranges()?.as_ref())?;
             let end = s.t_last();
             (s, end, path.display().to_string())
         }

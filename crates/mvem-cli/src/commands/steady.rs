@@ -31,7 +31,7 @@ pub struct Args {
 
 /// Run `mvem steady`.
 pub fn run(a: &Args) -> Result<()> {
-    let d = a.point.drive()?;
+    let d = a.point.drive(a.model.input_ranges()?.as_ref())?;
     let model = a.model.build()?;
     let valid = mvem::dispatch!(&model, m => report(m, &d, a.json))?;
     if !valid && a.strict {

@@ -191,10 +191,11 @@ pub fn run(a: &Args) -> Result<()> {
         };
     }
     let before = Drive::from_array(v);
-    common::check_drive(&before)?;
+    let ranges = a.model.input_ranges()?;
+    common::check_drive(&before, ranges.as_ref())?;
     let mut after = v;
     after[slot] = a.to;
-    common::check_drive(&Drive::from_array(after))
+    common::check_drive(&Drive::from_array(after), ranges.as_ref())
         .map_err(|e| common::usage(format!("--to: {}", common::error_message(&e))))?;
     if a.to == v[slot] {
         return Err(common::usage(format!(

@@ -58,7 +58,8 @@ pub fn run(a: &Args) -> Result<()> {
         return Err(common::usage(format!("--dt {}: must be > 0", a.dt)));
     }
     let model = a.model.build()?;
-    let (sched, source, t0, t_end) = common::cycle_inputs(a.inputs.as_deref())?;
+    let (sched, source, t0, t_end) =
+        common::cycle_inputs(a.inputs.as_deref(), a.model.input_ranges()?.as_ref())?;
     common::check_samples(t0, t_end, a.dt)?;
     let co = CylinderTempOptions {
         rtol: a.rtol,

@@ -22,8 +22,13 @@ Examples:
 Steps: 1 static submodels (stationary data), 2 actuators (set J), 3 V_im, V_em, J_t (sets with
 role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static parameters by cost (77)
 (sets with role static + stationary points). Parameters of steps not run come from --params
-(default: the published set, which also supplies the constants that are never tuned). No
-step starts from a value of --params. The tuned dynamometer time constant tau_Me is not a
+(default: the published set, which also supplies the constants that are never tuned:
+displacement, cylinders, compression ratio, heating value, wheel radii, maximum EGR and VGT
+areas, gas properties; for another engine give its own). No step starts from a value of
+--params. The ambient p_amb, T_amb and T_im are the means of the stationary points where
+they contradict --params (--ambient auto|data|params). Constants that the campaign contradicts (the volumetric
+efficiency the measured flows imply, the indicated efficiency step 1 fits to the torque, or a
+virtual campaign's true_params.toml) are reported as caveats. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is written to the [test_cell] section of the output file, which `mvem
 validate` reads (--tau-me overrides). DIR/tune_report.json \"parameters\": per parameter file
 path the value, standard error, identifiability and correlations (docs/tuning.md); array
@@ -32,7 +37,8 @@ is c_vol1; the FMU's and the parameter registry's names count from 1). \"combina
 campaign determines where single parameters are flagged (eta_tm at the measured blade speed
 ratio, eta_c at a measured compressor operating point). \"caveats\": what the standard
 errors do not cover (V_im, V_em, J_t fitted on static maps that are flagged not identifiable
-inherit their error as a bias; docs/tuning.md, session 21). A step 5 stopped away from its optimum
+inherit their error as a bias; docs/tuning.md, session 21; constants the campaign contradicts,
+session 23). \"ambient\": the means used. A step 5 stopped away from its optimum
 by more than the noise is reported with a warning (relative offset R: up to R sqrt(p) standard
 errors from the least-squares optimum).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
@@ -54,9 +60,19 @@ pub struct Args {
     /// Steps to run, e.g. 1-5, 1-4, 3,4 or 5.
     #[arg(long, default_value = "1-5", value_name = "LIST")]
     pub steps: String,
-    /// Constants and the parameters of the steps not run [default: the published set].
+    /// The engine's constants (displacement, cylinders, compression ratio, heating value,
+    /// wheel radii, maximum EGR and VGT areas, gas properties: nothing estimates them) and the
+    /// parameters of the steps not run [default: the published set, whose constants are
+    /// right only for the published engine].
     #[arg(long, value_name = "FILE")]
     pub params: Option<PathBuf>,
+    /// Where p_amb, T_amb and T_im (and T_w where the parameter set ties it to T_amb) come
+    /// from: the means of the campaign's stationary points (as the published values are the
+    /// means of the authors' 82 points), by default (`auto`) each where it differs from the
+    /// --params value by more than 3 standard errors of the mean (the campaign was measured
+    /// under other conditions); `data`: the means always; `params`: the --params values.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub ambient: AmbientArg,
     /// Start of step 5: the step-1 values or eq. (78) from the bounds.
     #[arg(long, value_enum, default_value = "step1")]
     pub init: InitArg,
@@ -164,6 +180,17 @@ pub enum LevelsArg {
     Means,
 }
 
+/// `--ambient`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum AmbientArg {
+    /// The means where the campaign contradicts --params.
+    Auto,
+    /// The means of the stationary points.
+    Data,
+    /// The values of --params (default: the published set).
+    Params,
+}
+
 /// `--fixed-jacobian`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum FixedJacobianArg {
@@ -218,6 +245,39 @@ pub fn run(a: &Args) -> Result<()> {
         ));
     }
     let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
+    // the engine's constants: nothing estimates them, so say where they come from, and whether
+    // a virtual campaign's engine has others
+    let mut constant_caveats = Vec::new();
+    if a.params.is_none() {
+        eprintln!(
+            "note: the engine's constants are the published engine's ({}): for another engine \
+             give --params FILE with its constants (`mvem params show > FILE`, then edit)",
+            mvem::tuning::constants::describe_constants(&base)
+        );
+    }
+    if let Some(truth) = c
+        .manifest
+        .true_params
+        .as_ref()
+        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok())
+    {
+        let d = mvem::tuning::constants::constant_differences(&base, &truth);
+        if !d.is_empty() {
+            let list: Vec<String> = d
+                .iter()
+                .map(|x| format!("{} {} (the campaign's engine: {})", x.name, x.used, x.other))
+                .collect();
+            let msg = format!(
+                "the constants used differ from those of the engine that generated this campaign \
+                 ({} of its manifest): {}; the tuned parameters absorb the difference. Give its \
+                 constants with --params",
+                c.manifest.true_params.as_deref().unwrap_or_default(),
+                list.join(", ")
+            );
+            eprintln!("warning: {msg}");
+            constant_caveats.push(msg);
+        }
+    }
     let mut opts = PipelineOptions {
         model,
         steps,
@@ -233,6 +293,11 @@ pub fn run(a: &Args) -> Result<()> {
     opts.fixed_jacobian = match a.fixed_jacobian {
         FixedJacobianArg::Forward => mvem::tuning::uncertainty::FixedJacobian::Forward,
         FixedJacobianArg::SigmaPoints => mvem::tuning::uncertainty::FixedJacobian::SigmaPoints,
+    };
+    opts.ambient = match a.ambient {
+        AmbientArg::Auto => mvem::tuning::constants::AmbientSource::Auto,
+        AmbientArg::Data => mvem::tuning::constants::AmbientSource::Data,
+        AmbientArg::Params => mvem::tuning::constants::AmbientSource::Params,
     };
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
@@ -281,7 +346,10 @@ pub fn run(a: &Args) -> Result<()> {
     };
     opts.step5.dynamic_row = a.cost != CostArg::Static;
     opts.step5.static_row = a.cost != CostArg::Dynamic;
-    let (p, rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
+    let (p, mut rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
+    if let Some(amb) = &rep.ambient {
+        eprintln!("{}", amb.describe());
+    }
     // searches stopped by their evaluation limit: results are written, with a warning
     for (step, conv) in [
         (3, rep.step3.as_ref().map(|r| r.converged)),
@@ -339,6 +407,8 @@ pub fn run(a: &Args) -> Result<()> {
     for c in &rep.caveats {
         eprintln!("note: {c}");
     }
+    // printed above, before the tuning
+    rep.caveats.extend(constant_caveats);
     // sets the tuned model cannot run: its parameters are not usable there
     for f in &rep.failed_sets {
         eprintln!(
@@ -424,6 +494,10 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
             .join(", "),
         rep.total_seconds
     );
+    if let Some(amb) = &rep.ambient {
+        let d = amb.describe();
+        let _ = writeln!(s, "{}{}.\n", d[..1].to_uppercase(), &d[1..]);
+    }
     if !rep.failed_sets.is_empty() {
         let _ = writeln!(
             s,

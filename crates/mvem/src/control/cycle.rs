@@ -17,11 +17,11 @@ use crate::dispatch;
 use crate::model::{AnyModel, Drive, Signals};
 
 /// Minimum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
-pub const U_DELTA_MIN: f64 = 1.0;
+pub const U_DELTA_MIN: f64 = crate::model::U_DELTA_RANGE.0;
 /// Maximum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
-pub const U_DELTA_MAX: f64 = 250.0;
+pub const U_DELTA_MAX: f64 = crate::model::U_DELTA_RANGE.1;
 /// Speed range of the authors' input saturation \[rpm\] (item 1).
-pub const N_E_RANGE: (f64, f64) = (500.0, 2000.0);
+pub const N_E_RANGE: (f64, f64) = crate::model::N_E_RANGE;
 
 /// How the mapping curve is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,6 +4,7 @@
 
 use super::IoError;
 use crate::numerics::Num;
+use crate::params::InputSaturation;
 use crate::sim::input::{InputSchedule, ScheduleError, INPUT_COLUMNS};
 use std::path::Path;
 
@@ -285,7 +286,8 @@ pub fn load_inputs_csv(path: &Path) -> Result<InputSchedule, IoError> {
     parse_inputs_csv(&text, path)
 }
 
-/// Ranges of the authors' input saturations (items 1-4), per channel, with names.
+/// Ranges of the authors' input saturations (items 1-4), per channel, with names: the defaults
+/// ([`input_ranges`] of the default [`InputSaturation`]).
 pub const INPUT_RANGES: [(&str, f64, f64); 4] = [
     ("n_e_rpm", 500.0, 2000.0),
     ("u_delta_mg", 1.0, 250.0),
@@ -293,20 +295,39 @@ pub const INPUT_RANGES: [(&str, f64, f64); 4] = [
     ("u_vgt_pct", 20.0, 100.0),
 ];
 
-/// For each channel whose values leave the authors' saturation range, one warning naming the
-/// first time it happens and the extreme value.
-pub fn range_warnings(s: &InputSchedule) -> Vec<String> {
-    range_warnings_of_rows(s.times().iter().copied().zip(s.rows().iter().copied()))
+/// The input saturation ranges of a parameter set (items 1-4): n_e and u_delta from its
+/// `input_saturation`, the commands the authors' [`crate::model::U_EGR_RANGE`],
+/// [`crate::model::U_VGT_RANGE`].
+pub fn input_ranges(s: &InputSaturation) -> [(&'static str, f64, f64); 4] {
+    let (e, v) = (crate::model::U_EGR_RANGE, crate::model::U_VGT_RANGE);
+    [
+        ("n_e_rpm", s.n_e[0], s.n_e[1]),
+        ("u_delta_mg", s.u_delta[0], s.u_delta[1]),
+        ("u_egr_pct", e.0, e.1),
+        ("u_vgt_pct", v.0, v.1),
+    ]
+}
+
+/// For each channel whose values leave its saturation range (`ranges`, e.g. [`input_ranges`]),
+/// one warning naming the first time it happens and the extreme value.
+pub fn range_warnings(s: &InputSchedule, ranges: &[(&str, f64, f64); 4]) -> Vec<String> {
+    range_warnings_of_rows(
+        s.times().iter().copied().zip(s.rows().iter().copied()),
+        ranges,
+    )
 }
 
 /// [`range_warnings`] of input rows `(t [s], [n_e, u_delta, u_egr, u_vgt])` that are not (yet) an
 /// [`InputSchedule`] (the Python API checks its rows so).
-pub fn range_warnings_of_rows(rows: impl IntoIterator<Item = (f64, [f64; 4])>) -> Vec<String> {
+pub fn range_warnings_of_rows(
+    rows: impl IntoIterator<Item = (f64, [f64; 4])>,
+    ranges: &[(&str, f64, f64); 4],
+) -> Vec<String> {
     let mut first: [Option<f64>; 4] = [None; 4];
     let mut vmin = [f64::INFINITY; 4];
     let mut vmax = [f64::NEG_INFINITY; 4];
     for (t, r) in rows {
-        for (c, (_, lo, hi)) in INPUT_RANGES.iter().enumerate() {
+        for (c, (_, lo, hi)) in ranges.iter().enumerate() {
             let v = r[c];
             if v < *lo || v > *hi {
                 first[c].get_or_insert(t);
@@ -315,13 +336,13 @@ pub fn range_warnings_of_rows(rows: impl IntoIterator<Item = (f64, [f64; 4])>) -
             }
         }
     }
-    INPUT_RANGES
+    ranges
         .iter()
         .enumerate()
         .filter_map(|(c, (name, lo, hi))| {
             first[c].map(|t| {
                 format!(
-                    "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given)",
+                    "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given; n_e and u_delta ranges: input_saturation of the parameter file)",
                     Num(t),
                     Num(vmin[c]),
                     Num(vmax[c])
@@ -536,11 +557,25 @@ mod tests {
             "{h}0,1500,110,80,10\n1,1500,110,80,5\n2,2500,110,80,50\n"
         ))
         .unwrap();
-        let w = range_warnings(&s);
+        let w = range_warnings(&s, &INPUT_RANGES);
         assert_eq!(w.len(), 2);
         assert!(w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 2 s"));
         assert!(
             w[1].starts_with("u_vgt_pct leaves [20, 100] first at t = 0 s (values from 5 to 10)")
         );
+        // the authors' ranges are the default parameter set's; another engine's speed range
+        assert_eq!(input_ranges(&InputSaturation::default()), INPUT_RANGES);
+        let car = InputSaturation {
+            n_e: [700.0, 4500.0],
+            u_delta: [1.0, 80.0],
+        };
+        let w = range_warnings(&s, &input_ranges(&car));
+        assert_eq!(w.len(), 2);
+        assert!(
+            w[0].starts_with("u_delta_mg leaves [1, 80] first at t = 0 s"),
+            "{}",
+            w[0]
+        );
+        assert!(w[1].starts_with("u_vgt_pct"));
     }
 }

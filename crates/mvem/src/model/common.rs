@@ -94,7 +94,7 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
     let (p_im, p_em, x_oim, omega_t, t_im) = (s.p_im, s.p_em, s.x_oim, s.omega_t, s.t_im);
 
     // Inputs: saturations before the delays (items 1-4).
-    let (d, mut guards) = saturate_inputs(&u.now, sem);
+    let (d, mut guards) = saturate_inputs(&u.now, sem, &p.input_saturation);
     let ue_delayed = saturate_u_egr(u.u_egr_delayed, sem);
     let uv_delayed = saturate_u_vgt(u.u_vgt_delayed, sem);
 

@@ -274,6 +274,12 @@ pub struct LinearLag {
     pub saturation: (f64, f64),
 }
 
+/// Saturation range of the engine speed n_e \[rpm\] in the authors' implementation (item 1): their
+/// engine's speed range (the default of `input_saturation.n_e`).
+pub const N_E_RANGE: (f64, f64) = (500.0, 2000.0);
+/// Saturation range of the injected fuel u_delta [mg/cycle/cylinder] in the authors'
+/// implementation (item 2; the default of `input_saturation.u_delta`).
+pub const U_DELTA_RANGE: (f64, f64) = (1.0, 250.0);
 /// Saturation range [%] of the EGR command in the authors' implementation (item 3).
 pub const U_EGR_RANGE: (f64, f64) = (0.0, 100.0);
 /// Saturation range [%] of the VGT command in the authors' implementation (item 4).
@@ -500,8 +506,14 @@ pub(crate) fn engine_initial_memory<const N: usize, M: Model<N, Memory = Seliger
     }
 }
 
-/// Input saturations of the authors' implementation (items 1-4), returned with guard bits.
-pub fn saturate_inputs(d: &Drive, sem: Semantics) -> (Drive, u32) {
+/// Input saturations of the authors' implementation (items 1-4), returned with guard bits:
+/// n_e and u_delta into the ranges of `limits` (the parameter set's; the authors' are
+/// [`N_E_RANGE`], [`U_DELTA_RANGE`]), the commands into [`U_EGR_RANGE`], [`U_VGT_RANGE`].
+pub fn saturate_inputs(
+    d: &Drive,
+    sem: Semantics,
+    limits: &crate::params::InputSaturation,
+) -> (Drive, u32) {
     if !sem.authors() {
         return (*d, 0);
     }
@@ -518,8 +530,13 @@ pub fn saturate_inputs(d: &Drive, sem: Semantics) -> (Drive, u32) {
         }
     };
     let out = Drive::new(
-        clamp(d.n_e_rpm, 500.0, 2000.0, Guard::InputNe),
-        clamp(d.u_delta_mg, 1.0, 250.0, Guard::InputUDelta),
+        clamp(d.n_e_rpm, limits.n_e[0], limits.n_e[1], Guard::InputNe),
+        clamp(
+            d.u_delta_mg,
+            limits.u_delta[0],
+            limits.u_delta[1],
+            Guard::InputUDelta,
+        ),
         clamp(d.u_egr_pct, 0.0, 100.0, Guard::InputUEgr),
         clamp(d.u_vgt_pct, 20.0, 100.0, Guard::InputUVgt),
     );

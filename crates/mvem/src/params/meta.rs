@@ -141,7 +141,7 @@ impl ParamInfo {
 
 impl Params {
     /// Metadata of every group, in file order.
-    pub const GROUPS: [GroupMeta; 14] = [
+    pub const GROUPS: [GroupMeta; 15] = [
         super::Gas::META,
         super::Ambient::META,
         super::IntakeManifold::META,
@@ -156,6 +156,7 @@ impl Params {
         super::Turbo::META,
         super::Initial::META,
         super::Intercooler::META,
+        super::InputSaturation::META,
     ];
 
     /// The scalars of `group.field` in row-major order.
@@ -175,6 +176,7 @@ impl Params {
             "turbo" => self.turbo.scalars(field),
             "initial" => self.initial.scalars(field),
             "intercooler" => self.intercooler.scalars(field),
+            "input_saturation" => self.input_saturation.scalars(field),
             _ => None,
         }
     }
@@ -196,6 +198,7 @@ impl Params {
             "turbo" => self.turbo.scalars_mut(field),
             "initial" => self.initial.scalars_mut(field),
             "intercooler" => self.intercooler.scalars_mut(field),
+            "input_saturation" => self.input_saturation.scalars_mut(field),
             _ => None,
         }
     }

@@ -245,6 +245,28 @@ impl Default for Intercooler {
     }
 }
 
+param_group! {
+    "Input saturation of the authors' implementation (items 1-2 of docs/authors-implementation.md)"
+    /// Their engine's speed and fuel range: under the authors' semantics the model clamps n_e
+    /// and u_delta into it before the cylinder (with a guard flag); `Semantics::Paper` takes the
+    /// inputs as given. Not in the authors' parameter file (hard-coded there): the defaults are
+    /// their values, 500-2000 rpm and 1-250 mg; an engine with another speed or fuel range
+    /// sets its own.
+    InputSaturation "input_saturation" {
+        n_e: [f64; 2] { n_e_min: "rpm", n_e_max: "rpm" } "Engine speed range n_e_min < n_e_max the model clamps n_e into (item 1)";
+        u_delta: [f64; 2] { u_delta_min: "mg/cycle", u_delta_max: "mg/cycle" } "Injected fuel range u_delta_min < u_delta_max the model clamps u_delta into (item 2)";
+    }
+}
+
+impl Default for InputSaturation {
+    fn default() -> Self {
+        Self {
+            n_e: [500.0, 2000.0],
+            u_delta: [1.0, 250.0],
+        }
+    }
+}
+
 /// The complete parameter set of the model: one group per component.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -265,6 +287,9 @@ pub struct Params {
     /// Extension parameters for the 12-state model (defaults if absent).
     #[serde(default)]
     pub intercooler: Intercooler,
+    /// The authors' input saturation ranges (defaults, their values, if absent).
+    #[serde(default)]
+    pub input_saturation: InputSaturation,
 }
 
 /// The authors' published parameter set (from their LGPL-3.0 Simulink package,

@@ -240,6 +240,22 @@ impl Params {
         c.positive("intercooler.v_ic", self.intercooler.v_ic);
         c.nonneg("intercooler.k_ic", self.intercooler.k_ic);
 
+        let s = &self.input_saturation;
+        c.positive("input_saturation.n_e[0]", s.n_e[0]);
+        c.positive("input_saturation.u_delta[0]", s.u_delta[0]);
+        for (n, r) in [
+            ("input_saturation.n_e[1]", s.n_e),
+            ("input_saturation.u_delta[1]", s.u_delta),
+        ] {
+            if c.finite(n, r[1]) && r[0].is_finite() && r[1] <= r[0] {
+                c.push(
+                    n,
+                    r[1],
+                    "the upper end of the range must exceed its lower end",
+                );
+            }
+        }
+
         if c.issues.is_empty() {
             Ok(())
         } else {
@@ -276,5 +292,18 @@ mod tests {
         );
         assert!(msg.contains("positive semidefinite"), "{msg}");
         assert!(msg.contains("turbo.j_t = NaN: must be finite"), "{msg}");
+    }
+
+    #[test]
+    fn an_input_saturation_range_must_be_a_range() {
+        let mut p = Params::published();
+        p.input_saturation.n_e = [2000.0, 500.0];
+        p.input_saturation.u_delta[0] = 0.0;
+        let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("input_saturation.n_e[1] = 500"), "{e}");
+        assert!(
+            e.contains("input_saturation.u_delta[0] = 0: must be > 0"),
+            "{e}"
+        );
     }
 }

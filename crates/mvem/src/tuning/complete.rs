@@ -360,7 +360,8 @@ pub const LAG_AT_BOUND_S: f64 = 1e-4;
 
 impl Default for Step3Start {
     /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
-    /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2.
+    /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2. For the
+    /// published engine; [`Step3Start::scaled_to`] scales them to another.
     fn default() -> Self {
         Self {
             theta: [0.038, 0.038, 1e-4],
@@ -373,6 +374,33 @@ impl Default for Step3Start {
         }
     }
 }
+
+impl Step3Start {
+    /// The start and bounds of V_im, V_em, J_t, given for the published engine (its
+    /// displacement [`PUBLISHED_V_D`] and compressor radius [`PUBLISHED_R_C`]), scaled to the
+    /// engine of `p`: the volumes by V_d / 12.74 dm^3 (manifolds and intercooler grow with the
+    /// displacement), J_t by (R_c / 40 mm)^5 (a wheel's inertia grows with its mass times its
+    /// radius squared). The identity, bit for bit, for the published engine. The pipeline
+    /// applies it to [`super::pipeline::PipelineOptions::step3`].
+    pub fn scaled_to(&self, p: &Params) -> Self {
+        let v = p.cylinder.v_d / PUBLISHED_V_D;
+        let j = (p.compressor.r_c / PUBLISHED_R_C).powi(5);
+        let s = [v, v, j];
+        let mut out = self.clone();
+        for i in 0..3 {
+            out.theta[i] = self.theta[i] * s[i];
+            out.lo[i] = self.lo[i] * s[i];
+            out.hi[i] = self.hi[i] * s[i];
+        }
+        out
+    }
+}
+
+/// Displacement V_d of the published engine \[m^3\] (the engine [`Step3Start::default`] is for).
+pub const PUBLISHED_V_D: f64 = 0.01274;
+
+/// Compressor radius R_c of the published engine \[m\] (the engine [`Step3Start::default`] is for).
+pub const PUBLISHED_R_C: f64 = 0.04;
 
 /// Report of a complete-model step: fitted parameters, the search statistics and per-output
 /// errors (eq. (5), mean and max absolute relative error over the sets used).

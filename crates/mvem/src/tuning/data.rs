@@ -75,7 +75,7 @@ const fn col(name: &'static str, unit: &'static str, min: f64, max: f64) -> Colu
 /// Columns of the stationary CSV (Table 5), in [`StationaryPoint`] field order.
 pub const STATIONARY_COLUMNS: [Column; 17] = [
     col("M_e", "Nm", -2000.0, 20000.0),
-    col("n_e", "r/min", 300.0, 4000.0),
+    col("n_e", "r/min", 300.0, 6000.0),
     col("n_t", "r/min", 0.0, 300000.0),
     col("p_amb", "Pa", 5.0e4, 1.2e5),
     col("p_c", "Pa", 5.0e4, 1.0e6),
@@ -103,7 +103,7 @@ pub const DYNAMIC_COLUMNS: [Column; 11] = [
     col("u_egr_pos", "%", -50.0, 150.0),
     col("u_vgt_pos", "%", -50.0, 150.0),
     col("M_e", "Nm", -2000.0, 20000.0),
-    col("n_e", "r/min", 300.0, 4000.0),
+    col("n_e", "r/min", 300.0, 6000.0),
     col("u_egr", "%", -1.0, 101.0),
     col("u_vgt", "%", -1.0, 101.0),
     col("u_delta", "mg/cycle", 0.0, 500.0),
@@ -515,7 +515,7 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
         // optional operating point: a number in the plausible range (as the n_e column);
         // NaN or inf would not even compare equal to itself after a round trip (fuzz finding)
         for (key, v, lo, hi) in [
-            ("speed_rpm", d.speed_rpm, 300.0, 4000.0),
+            ("speed_rpm", d.speed_rpm, 300.0, 6000.0),
             ("load_pct", d.load_pct, 0.0, 100.0),
         ] {
             if let Some(v) = v {

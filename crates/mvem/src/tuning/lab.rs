@@ -8,7 +8,9 @@
 //!   ([`crate::analysis::steady::steady_state`]); a point that fails or is not physically valid
 //!   (guard saturation, lambda_O < 1, unstable) is redrawn with new actuator positions (and,
 //!   for random points, a new speed and load).
-//!   Load L % means u_delta = L/100 * [`U_DELTA_MAX`]. The EGR position is kept below the
+//!   Load L % means u_delta = L/100 * [`U_DELTA_MAX`]. These speeds and the fuel are the
+//!   published engine's; [`LabOptions::envelope`] maps them onto another engine's ESC speeds
+//!   and full-load fuel ([`Envelope`]). The EGR position is kept below the
 //!   vertex of the area polynomial (eq. (38), 80 % for the published set), above which f_egr
 //!   is constant and carries no information on c_egr.
 //! - **Actuator set J** (sections 5.2, 6.2.3): at 100 Hz, first 24 EGR steps (0 -> 90 -> 0 %
@@ -106,6 +108,91 @@ pub struct LabOptions {
     /// Model of the virtual engine (8, 10 or 12 states). With 12 states the stationary p_c is
     /// the state p_c before the intercooler (eq. (87)), above p_im by the drop of eq. (86).
     pub model: ModelOrder,
+    /// The engine's operating envelope: the design's speeds and fuel scaled to it (default:
+    /// the published engine's).
+    pub envelope: Envelope,
+}
+
+/// Operating envelope of the virtual engine: the campaign's design (the ESC points, the random
+/// stationary points, the speeds of Table 1) is the published engine's mapped onto it.
+///
+/// Speeds map affinely so that the ESC speeds A, B, C (n_lo + 25, 50, 75 % of n_hi - n_lo, the
+/// European Stationary Cycle's definition; 1200, 1500, 1800 r/min for the published engine, so
+/// n_lo = 900, n_hi = 2100 r/min) land on this engine's; idle (600 r/min), the random range
+/// (800-2000 r/min) and Table 1's speeds move with them. Load L % means u_delta = L/100 *
+/// `full_load_mg`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Envelope {
+    /// n_lo of the ESC \[r/min\].
+    pub n_lo_rpm: f64,
+    /// n_hi of the ESC \[r/min\].
+    pub n_hi_rpm: f64,
+    /// Injected fuel at 100 % load [mg/cycle/cylinder].
+    pub full_load_mg: f64,
+}
+
+impl Default for Envelope {
+    fn default() -> Self {
+        Self::PUBLISHED
+    }
+}
+
+impl Envelope {
+    /// The published engine's: n_lo 900, n_hi 2100 r/min, [`U_DELTA_MAX`] at full load.
+    pub const PUBLISHED: Envelope = Envelope {
+        n_lo_rpm: 900.0,
+        n_hi_rpm: 2100.0,
+        full_load_mg: U_DELTA_MAX,
+    };
+
+    /// A speed of the published design [r/min] mapped onto this envelope (the identity for
+    /// [`Envelope::PUBLISHED`], bit for bit).
+    pub fn speed(&self, n_published_rpm: f64) -> f64 {
+        let p = Self::PUBLISHED;
+        self.n_lo_rpm
+            + (n_published_rpm - p.n_lo_rpm)
+                * ((self.n_hi_rpm - self.n_lo_rpm) / (p.n_hi_rpm - p.n_lo_rpm))
+    }
+
+    /// u_delta [mg/cycle/cylinder] at `load_pct` % load.
+    pub fn fuel(&self, load_pct: f64) -> f64 {
+        load_pct / 100.0 * self.full_load_mg
+    }
+
+    /// Checks the values: positive speeds, n_lo < n_hi, and the design inside the model's input
+    /// saturation `limits` (the parameter set's `input_saturation`, items 1-2 of the authors'
+    /// implementation: by default n_e in [500, 2000] r/min, u_delta in [1, 250] mg; beyond it
+    /// the model would run the clamped value, not the campaign's).
+    pub fn validate(&self, limits: &crate::params::InputSaturation) -> Result<(), String> {
+        let ok = |v: f64| v.is_finite() && v > 0.0;
+        if !(ok(self.n_lo_rpm) && ok(self.n_hi_rpm) && self.n_lo_rpm < self.n_hi_rpm) {
+            return Err(format!(
+                "speeds n_lo {} and n_hi {} r/min: need 0 < n_lo < n_hi",
+                self.n_lo_rpm, self.n_hi_rpm
+            ));
+        }
+        let [lo, hi] = limits.n_e;
+        let idle = self.speed(ESC_POINTS[0].0);
+        let top = self.speed(RANDOM_SPEEDS.1);
+        if idle < lo || top > hi {
+            return Err(format!(
+                "speeds n_lo {} and n_hi {} r/min put the design at {idle:.0}-{top:.0} r/min, \
+                 outside the model's speed range {lo}-{hi} r/min (input_saturation.n_e of the \
+                 parameter set: the authors' input saturation, item 1)",
+                self.n_lo_rpm, self.n_hi_rpm
+            ));
+        }
+        let [f_lo, f_hi] = limits.u_delta;
+        let least = self.fuel(ESC_POINTS[0].1);
+        if !(ok(self.full_load_mg) && self.full_load_mg <= f_hi && least >= f_lo) {
+            return Err(format!(
+                "full-load fuel {} mg/cycle/cylinder: the design's {least} (idle) to {} mg must \
+                 lie in the model's fuel range {f_lo}-{f_hi} mg (input_saturation.u_delta, item 2)",
+                self.full_load_mg, self.full_load_mg
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl LabOptions {
@@ -133,6 +220,7 @@ impl Default for LabOptions {
             tau_me_s: 1.0,
             sensor_lags: false,
             model: ModelOrder::Eight,
+            envelope: Envelope::PUBLISHED,
         }
     }
 }
@@ -185,6 +273,9 @@ impl Gauss {
         }
     }
 }
+
+/// Speed range of the random stationary points of the published design \[r/min\].
+pub const RANDOM_SPEEDS: (f64, f64) = (800.0, 2000.0);
 
 /// The 13 ESC operating points (speed [r/min], load [%]).
 pub const ESC_POINTS: [(f64, f64); 13] = [
@@ -274,7 +365,10 @@ pub fn stationary(
             let (n_e, load) = if index < 13 {
                 ESC_POINTS[index]
             } else {
-                (rng.gen_range(800.0..2000.0), rng.gen_range(15.0..100.0))
+                (
+                    rng.gen_range(RANDOM_SPEEDS.0..RANDOM_SPEEDS.1),
+                    rng.gen_range(15.0..100.0),
+                )
             };
             // a third of the points without EGR, as in engine-lab practice
             let u_egr = if rng.gen::<f64>() < 0.3 {
@@ -283,7 +377,8 @@ pub fn stationary(
                 rng.gen_range(2.0..egr_max)
             };
             let u_vgt = rng.gen_range(20.0..100.0);
-            let d = Drive::new(n_e, load / 100.0 * U_DELTA_MAX, u_egr, u_vgt);
+            let e = &opts.envelope;
+            let d = Drive::new(e.speed(n_e), e.fuel(load), u_egr, u_vgt);
             if let Some(pt) = crate::dispatch!(&m, m => stationary_truth(m, p, &d)) {
                 found = Some(pt);
                 break;
@@ -373,6 +468,9 @@ pub fn campaign(
     p: &Params,
     opts: &LabOptions,
 ) -> Result<(Campaign, Vec<StationaryPoint>), LabError> {
+    opts.envelope
+        .validate(&p.input_saturation)
+        .map_err(LabError::Params)?;
     let (truth, meas) = stationary(p, opts)?;
     let j = actuator_set(p, opts);
     let (egr, vgt) = actuator_levels();
@@ -509,6 +607,7 @@ fn name_seed(seed: u64, name: &str) -> u64 {
 /// Initial drive and command steps of a Table 1 set (draw `attempt` of the set's sequence).
 fn table1_steps(
     p: &Params,
+    e: &Envelope,
     r: &Table1Row,
     n_steps: usize,
     seed: u64,
@@ -522,14 +621,14 @@ fn table1_steps(
         StepKind::Fuel => {
             let (u_egr, u_vgt) = (rng.gen_range(10.0..40.0), rng.gen_range(40.0..80.0));
             let mut level: f64 = rng.gen_range(30.0..90.0);
-            let d0 = Drive::new(r.speed_rpm, level / 100.0 * U_DELTA_MAX, u_egr, u_vgt);
+            let d0 = Drive::new(e.speed(r.speed_rpm), e.fuel(level), u_egr, u_vgt);
             for k in 1..=n_steps {
                 let mut next = level;
                 while (next - level).abs() < 5.0 {
                     next = rng.gen_range(30.0..90.0);
                 }
                 level = next;
-                steps.push((k as f64 * r.hold_s, 1, level / 100.0 * U_DELTA_MAX));
+                steps.push((k as f64 * r.hold_s, 1, e.fuel(level)));
             }
             (d0, steps)
         }
@@ -537,7 +636,7 @@ fn table1_steps(
             let load = r.load_pct.unwrap_or(50.0);
             let mut egr = rng.gen_range(0.0..egr_max);
             let mut vgt = rng.gen_range(25.0..100.0);
-            let d0 = Drive::new(r.speed_rpm, load / 100.0 * U_DELTA_MAX, egr, vgt);
+            let d0 = Drive::new(e.speed(r.speed_rpm), e.fuel(load), egr, vgt);
             for k in 1..=n_steps {
                 let (ch, cur, lo, hi) = if rng.gen::<bool>() {
                     (2, &mut egr, 0.0, egr_max)
@@ -575,7 +674,7 @@ pub fn dynamic_sets(
             let t_end = (n_steps + 1) as f64 * r.hold_s;
             let mut last = String::new();
             for attempt in 0..10 {
-                let (d0, steps) = table1_steps(p, r, n_steps, opts.seed, attempt);
+                let (d0, steps) = table1_steps(p, &opts.envelope, r, n_steps, opts.seed, attempt);
                 match step_set(p, opts, r.name, d0, &steps, t_end, r.sample_rate_hz) {
                     Ok(d) => {
                         let info = DataSetInfo {
@@ -584,7 +683,7 @@ pub fn dynamic_sets(
                             kind: r.kind,
                             file: format!("{}.csv", r.name),
                             sample_rate_hz: r.sample_rate_hz,
-                            speed_rpm: Some(r.speed_rpm),
+                            speed_rpm: Some(opts.envelope.speed(r.speed_rpm)),
                             load_pct: r.load_pct,
                             steps: n_steps,
                         };
@@ -766,4 +865,103 @@ pub fn step_set(
         t: ts,
         columns,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_published_envelope_is_the_identity_and_another_maps_the_esc_speeds() {
+        let e = Envelope::PUBLISHED;
+        for n in [
+            600.0, 800.0, 1200.0, 1234.5678, 1500.0, 1800.0, 1900.0, 2000.0,
+        ] {
+            assert_eq!(e.speed(n), n, "bit for bit");
+        }
+        assert_eq!(e.fuel(50.0), 50.0 / 100.0 * U_DELTA_MAX);
+        let limits = crate::params::InputSaturation::default();
+        assert!(e.validate(&limits).is_ok());
+        // an engine with n_lo 700, n_hi 1900: ESC A/B/C at 1000/1300/1600 r/min
+        let o = Envelope {
+            n_lo_rpm: 700.0,
+            n_hi_rpm: 1900.0,
+            full_load_mg: 150.0,
+        };
+        for (a, b) in [
+            (1200.0, 1000.0),
+            (1500.0, 1300.0),
+            (1800.0, 1600.0),
+            (600.0, 400.0),
+        ] {
+            assert!((o.speed(a) - b).abs() < 1e-9, "{a} -> {}", o.speed(a));
+        }
+        assert_eq!(o.fuel(100.0), 150.0);
+        // idle at 400 r/min is below the model's speed saturation (500 r/min)
+        let err = o.validate(&limits).unwrap_err();
+        assert!(err.contains("400-1800 r/min"), "{err}");
+        let ok = Envelope {
+            n_lo_rpm: 800.0,
+            ..o
+        };
+        assert!(ok.validate(&limits).is_ok());
+        let rich = Envelope {
+            full_load_mg: 260.0,
+            ..ok
+        };
+        assert!(rich
+            .validate(&limits)
+            .unwrap_err()
+            .contains("fuel range 1-250"));
+        let bad = Envelope {
+            n_lo_rpm: 2000.0,
+            n_hi_rpm: 1000.0,
+            ..ok
+        };
+        assert!(bad.validate(&limits).unwrap_err().contains("n_lo < n_hi"));
+        // an engine whose parameter set allows 400 r/min
+        let low = crate::params::InputSaturation {
+            n_e: [350.0, 2000.0],
+            ..limits
+        };
+        assert!(o.validate(&low).is_ok());
+    }
+
+    #[test]
+    fn a_campaign_follows_its_envelope() {
+        let opts = LabOptions {
+            noise: Noise::NONE,
+            n_stationary: 20,
+            dynamic: false,
+            envelope: Envelope {
+                n_lo_rpm: 800.0,
+                n_hi_rpm: 1800.0,
+                full_load_mg: 150.0,
+            },
+            ..LabOptions::default()
+        };
+        let (truth, _) = stationary(&Params::published(), &opts).unwrap();
+        let e = opts.envelope;
+        for (s, (n, load)) in truth.iter().zip(ESC_POINTS) {
+            assert!((s.n_e - e.speed(n)).abs() < 1e-9);
+            assert!((s.u_delta - e.fuel(load)).abs() < 1e-9);
+        }
+        for s in &truth[13..] {
+            assert!((e.speed(RANDOM_SPEEDS.0)..=e.speed(RANDOM_SPEEDS.1)).contains(&s.n_e));
+            assert!(s.u_delta <= 150.0);
+        }
+        let sets = dynamic_sets(
+            &Params::published(),
+            &LabOptions {
+                sets: Some(vec!["I".into()]),
+                max_steps: Some(2),
+                dynamic: true,
+                ..opts.clone()
+            },
+        )
+        .unwrap();
+        assert_eq!(sets[0].0.speed_rpm, Some(e.speed(1500.0)));
+        let n_e = sets[0].1.get("n_e").expect("n_e column");
+        assert!(n_e.iter().all(|&n| (n - e.speed(1500.0)).abs() < 1e-9));
+    }
 }

@@ -10,6 +10,8 @@
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
 //! - [`steps`]: tuning steps 1 (static submodels, one file per submodel) and 2 (actuators) of
 //!   section 8.1.
+//! - [`constants`]: the ambient conditions (from the stationary data) and the engine constants
+//!   no step estimates, with checks against the campaign.
 //! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
 //! - [`twelve`]: the three 12-state steps of section 9.2.1 (k_ic, V_ic, cost (77) with W_ic).
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
@@ -22,6 +24,7 @@
 //! Overview, results and open items: `docs/tuning.md`.
 
 pub mod complete;
+pub mod constants;
 pub mod data;
 pub mod lab;
 pub mod pipeline;

@@ -21,6 +21,9 @@ use super::complete::{
     step3, step4, step5, step5_bounds, theta_of, torque_residuals, CompleteReport, Cost77,
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
+use super::constants::{
+    ambient_from_stationary, implausible_constants, AmbientFromData, AmbientSource,
+};
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
 use super::steps::{
@@ -59,7 +62,8 @@ pub struct PipelineOptions {
     pub steps: [bool; 5],
     /// Start of step 5.
     pub init: Init,
-    /// Step 3 start and bounds.
+    /// Step 3 start and bounds, for the published engine: [`tune`] scales them to the base
+    /// parameter set's displacement and compressor radius ([`Step3Start::scaled_to`]).
     pub step3: Step3Start,
     /// Step 3 evaluation limit.
     pub step3_max_eval: usize,
@@ -119,6 +123,10 @@ pub struct PipelineOptions {
     /// give fixed-parameter standard errors that do not move with the simulations' rounding
     /// (docs/tuning.md, session 22).
     pub fixed_jacobian: FixedJacobian,
+    /// Where p_amb, T_amb, T_im (and a tied T_w) come from: the means of the stationary points
+    /// where they contradict the base parameter set (default), always, or never
+    /// ([`super::constants::ambient_from_stationary`]).
+    pub ambient: AmbientSource,
 }
 
 impl Default for PipelineOptions {
@@ -137,6 +145,7 @@ impl Default for PipelineOptions {
             settled_flow_points: true,
             sensor_lags: SensorLagMode::Fit,
             fixed_jacobian: FixedJacobian::Forward,
+            ambient: AmbientSource::Auto,
         }
     }
 }
@@ -170,6 +179,9 @@ pub fn parse_steps(s: &str) -> Result<[bool; 5], String> {
 /// What the pipeline did.
 #[derive(Debug, Clone, PartialEq, Serialize, Default)]
 pub struct TuneReport {
+    /// The ambient conditions chosen before step 1 from the stationary points' means and the
+    /// base parameter set (option `ambient`; `None` without stationary points).
+    pub ambient: Option<AmbientFromData>,
     /// Step 1 submodel fits.
     pub step1: Option<Step1Report>,
     /// Settled ends of command steps in the compressor-flow fit of step 1 besides the
@@ -320,11 +332,19 @@ pub fn tune(
         opts.step3.lags = l;
     }
     opts.step5.sensor_lags = opts.step3.lags;
+    // step 3's start and bounds are given for the published engine: scale them to this one's
+    // displacement and compressor radius (the identity for the published engine)
+    opts.step3 = opts.step3.scaled_to(base);
     let mut p = base.clone();
     let mut rep = TuneReport {
         fixed_jacobian: opts.fixed_jacobian,
         ..TuneReport::default()
     };
+    // the test cell's ambient conditions: measured at every stationary point
+    rep.ambient = ambient_from_stationary(&mut p, &c.stationary, opts.ambient);
+    // inputs the model would run clamped (the parameter set's input saturation)
+    rep.caveats
+        .extend(super::constants::inputs_outside_saturation(&p, c));
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
@@ -495,6 +515,9 @@ pub fn tune(
                 &mut rep.parameters,
             ));
     }
+    // constants the campaign contradicts (displacement, cylinders, heating value)
+    rep.caveats
+        .extend(implausible_constants(&p, &c.stationary, opts.steps[0]));
     rep.caveats.extend(inherited_static_bias(&rep.parameters));
     (rep.oscillations, rep.failed_sets) =
         oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s, &opts.step5.sensor_lags);

@@ -1,0 +1,530 @@
+//! What the five tuning steps do not estimate: the test cell's ambient conditions and the
+//! engine's constants.
+//!
+//! * **Ambient.** The ambient pressure p_amb and temperature T_amb (eqs (44), (59); the
+//!   exhaust-pipe wall temperature T_w of eq. (25), which the paper writes T_amb) and the
+//!   intercooler's cooling temperature T_im (eq. (73)) are measured at every stationary point
+//!   (paper Table 5). The authors' published values are the means of their 82 stationary
+//!   points (p_amb = 101 111.341 463 414 63 Pa is a sum divided by 82, and so are T_amb and
+//!   T_im), so a campaign measured on another day or in another test cell carries its own.
+//!   [`ambient_from_stationary`] sets them the same way, the means of the campaign's
+//!   stationary points, by default where the campaign contradicts the parameter file's values
+//!   ([`AmbientSource::Auto`]: a campaign measured under the file's conditions keeps them
+//!   exactly). T_w follows T_amb when the parameter set ties them (equal values, as the
+//!   published set and the paper's eq. (25) do); a T_w of its own is kept.
+//! * **Constants.** Geometry and properties that no step estimates ([`ENGINE_CONSTANTS`]:
+//!   displacement, cylinders, compression ratio, heating value, wheel radii, maximum valve
+//!   and vane areas, ...). They come from the parameter file; the published engine's are the
+//!   default, right only for that engine. [`constant_differences`] compares two sets'
+//!   constants (e.g. with a virtual campaign's `true_params.toml`), and
+//!   [`implausible_constants`] checks them against what the campaign measured: a wrong
+//!   displacement shows in the volumetric efficiency (eq. (11)) the measured flows imply, a
+//!   wrong cylinder count or heating value in the gross indicated efficiency (eq. (29)) that
+//!   step 1 fits to the measured torque.
+
+use super::data::StationaryPoint;
+use crate::params::Params;
+use serde::Serialize;
+
+/// Parameters that no tuning step estimates (names of the parameter registry, paths of the
+/// parameter file) besides the ambient conditions: the engine's geometry and properties.
+pub const ENGINE_CONSTANTS: [&str; 27] = [
+    "cylinder.v_d",
+    "cylinder.n_cyl",
+    "cylinder.r_c",
+    "cylinder.q_hv",
+    "cylinder.afs",
+    "cylinder.gamma_c",
+    "exhaust_pipe.d_pipe",
+    "exhaust_pipe.l_pipe",
+    "exhaust_pipe.n_pipe",
+    "egr_valve.a_egrmax",
+    "turbine.a_vgtmax",
+    "turbine.r_t",
+    "turbine.w_tlin",
+    "compressor.r_c",
+    "intake_manifold.x_oc",
+    "gas.c_pa",
+    "gas.c_pe",
+    "gas.c_va",
+    "gas.c_ve",
+    "gas.r_a",
+    "gas.r_e",
+    "gas.gamma_a",
+    "gas.gamma_e",
+    "input_saturation.n_e[1]",
+    "input_saturation.n_e[2]",
+    "input_saturation.u_delta[1]",
+    "input_saturation.u_delta[2]",
+];
+
+/// Where the ambient conditions of the tuned model come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AmbientSource {
+    /// Each of p_amb, T_amb, T_im from the stationary points' mean where the campaign
+    /// contradicts the parameter file's value (the mean differs from it by more than
+    /// [`AMBIENT_Z`] standard errors of the mean and by more than [`AMBIENT_RESOLUTION`]),
+    /// else the file's: a campaign measured under the file's conditions keeps their exact
+    /// values rather than the noise of their means.
+    #[default]
+    Auto,
+    /// The means of the campaign's stationary points (as the published values are).
+    Data,
+    /// The parameter file's values, whatever the campaign measured.
+    Params,
+}
+
+/// Standard errors of the mean beyond which [`AmbientSource::Auto`] takes the campaign's mean.
+pub const AMBIENT_Z: f64 = 3.0;
+
+/// Differences that [`AmbientSource::Auto`] never counts as a contradiction, whatever the
+/// standard error (noise-free data): p_amb 10 Pa, T_amb and T_im 0.05 K.
+pub const AMBIENT_RESOLUTION: [f64; 3] = [10.0, 0.05, 0.05];
+
+/// One ambient quantity: the campaign's mean, its standard error, the file's value and which
+/// the tuning uses.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AmbientValue {
+    /// Mean over the stationary points (Pa or K).
+    pub mean: f64,
+    /// Standard error of that mean (sample standard deviation / sqrt(n); 0 for one point).
+    pub std_error: f64,
+    /// The parameter file's value.
+    pub file: f64,
+    /// The value the tuning uses (the mean or the file's).
+    pub used: f64,
+    /// Whether `used` is the mean.
+    pub from_data: bool,
+}
+
+/// The ambient conditions of the tuning: p_amb, T_amb and T_im from the stationary points or
+/// the parameter file ([`ambient_from_stationary`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AmbientFromData {
+    /// Stationary points averaged.
+    pub points: usize,
+    /// How each quantity was chosen.
+    pub source: AmbientSource,
+    /// Ambient pressure p_amb \[Pa\] (eqs (44), (59)).
+    pub p_amb: AmbientValue,
+    /// Ambient temperature T_amb \[K\] (eq. (59)).
+    pub t_amb: AmbientValue,
+    /// Intake manifold temperature T_im \[K\] (eq. (73)).
+    pub t_im: AmbientValue,
+    /// The exhaust-pipe wall temperature T_w \[K\] used (eq. (25)): T_amb's when the
+    /// parameter file tied them, else the file's.
+    pub t_w: f64,
+    /// Whether T_w follows T_amb (the file had T_w = T_amb).
+    pub t_w_tied: bool,
+}
+
+impl AmbientFromData {
+    /// Whether any quantity differs from the parameter file's.
+    pub fn changed(&self) -> bool {
+        [self.p_amb, self.t_amb, self.t_im]
+            .iter()
+            .any(|v| v.used != v.file)
+    }
+
+    /// One line for reports: the means, the file's values and which are used.
+    pub fn describe(&self) -> String {
+        let one = |name: &str, v: &AmbientValue, unit: &str, digits: usize| {
+            format!(
+                "{name} {:.*} {unit} (mean {:.*} +- {:.*}, file {:.*}: {})",
+                digits,
+                v.used,
+                digits,
+                v.mean,
+                digits,
+                v.std_error,
+                digits,
+                v.file,
+                if v.from_data {
+                    "the mean"
+                } else {
+                    "the file's"
+                }
+            )
+        };
+        format!(
+            "ambient over the {} stationary points ({}): {}, {}, {}, T_w {:.2} K{}",
+            self.points,
+            match self.source {
+                AmbientSource::Auto => "--ambient auto: the mean where it contradicts the file",
+                AmbientSource::Data => "--ambient data",
+                AmbientSource::Params => "--ambient params",
+            },
+            one("p_amb", &self.p_amb, "Pa", 0),
+            one("T_amb", &self.t_amb, "K", 2),
+            one("T_im", &self.t_im, "K", 2),
+            self.t_w,
+            if self.t_w_tied {
+                " (tied to T_amb)"
+            } else {
+                " (its own)"
+            }
+        )
+    }
+}
+
+/// Sets p_amb, T_amb and T_im of `p` as `source` says (the means of the stationary points, or
+/// where they contradict `p`'s values, or not at all), and T_w to T_amb where `p` ties them;
+/// returns what was chosen, `None` without stationary points (nothing changed).
+pub fn ambient_from_stationary(
+    p: &mut Params,
+    stationary: &[StationaryPoint],
+    source: AmbientSource,
+) -> Option<AmbientFromData> {
+    if stationary.is_empty() {
+        return None;
+    }
+    let n = stationary.len() as f64;
+    let stat = |f: fn(&StationaryPoint) -> f64, file: f64, resolution: f64| {
+        let mean = stationary.iter().map(f).sum::<f64>() / n;
+        let var = if stationary.len() > 1 {
+            stationary
+                .iter()
+                .map(|s| (f(s) - mean).powi(2))
+                .sum::<f64>()
+                / (n - 1.0)
+        } else {
+            0.0
+        };
+        let std_error = (var / n).sqrt();
+        let d = (mean - file).abs();
+        let from_data = match source {
+            AmbientSource::Data => true,
+            AmbientSource::Params => false,
+            AmbientSource::Auto => d > resolution && d > AMBIENT_Z * std_error,
+        };
+        AmbientValue {
+            mean,
+            std_error,
+            file,
+            used: if from_data { mean } else { file },
+            from_data,
+        }
+    };
+    let r = AMBIENT_RESOLUTION;
+    let p_amb = stat(|s| s.p_amb, p.ambient.p_amb, r[0]);
+    let t_amb = stat(|s| s.t_amb, p.ambient.t_amb, r[1]);
+    let t_im = stat(|s| s.t_im, p.intake_manifold.t_im, r[2]);
+    let t_w_tied = p.exhaust_pipe.t_w == p.ambient.t_amb;
+    p.ambient.p_amb = p_amb.used;
+    p.ambient.t_amb = t_amb.used;
+    p.intake_manifold.t_im = t_im.used;
+    if t_w_tied {
+        p.exhaust_pipe.t_w = p.ambient.t_amb;
+    }
+    Some(AmbientFromData {
+        points: stationary.len(),
+        source,
+        p_amb,
+        t_amb,
+        t_im,
+        t_w: p.exhaust_pipe.t_w,
+        t_w_tied,
+    })
+}
+
+/// A constant of [`ENGINE_CONSTANTS`] that differs between two parameter sets.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ConstantDifference {
+    /// Path in the parameter file (`cylinder.v_d`).
+    pub name: &'static str,
+    /// Value in the set used.
+    pub used: f64,
+    /// Value in the other set.
+    pub other: f64,
+}
+
+/// The engine constants whose values differ between `used` and `other` by more than 1e-9
+/// relative.
+pub fn constant_differences(used: &Params, other: &Params) -> Vec<ConstantDifference> {
+    ENGINE_CONSTANTS
+        .iter()
+        .filter_map(|&name| {
+            let (a, b) = (used.get(name)?, other.get(name)?);
+            ((a - b).abs() > 1e-9 * a.abs().max(b.abs())).then_some(ConstantDifference {
+                name,
+                used: a,
+                other: b,
+            })
+        })
+        .collect()
+}
+
+/// Range of the mean volumetric efficiency (eq. (11)) that [`implausible_constants`] accepts:
+/// four-stroke diesel engines lie about 0.8-1.0 (the published engine's stationary points
+/// average 0.92).
+pub const ETA_VOL_RANGE: (f64, f64) = (0.7, 1.1);
+
+/// Range of the gross indicated efficiency eta_igch (1 - 1/r_c^(gamma_cyl - 1)) of eq. (29)
+/// that [`implausible_constants`] accepts: diesel engines lie about 0.40-0.50 (the published
+/// engine 0.43).
+pub const ETA_IG_RANGE: (f64, f64) = (0.33, 0.55);
+
+/// The mean volumetric efficiency the stationary points imply with the displacement of `p`:
+/// W_ei 120 R_a T_im / (p_im n_e V_d), eq. (11), with W_ei = W_c / (1 - x_egr) (eq. (10));
+/// `None` without a usable point.
+pub fn measured_volumetric_efficiency(p: &Params, stationary: &[StationaryPoint]) -> Option<f64> {
+    let v: Vec<f64> = stationary
+        .iter()
+        .filter(|s| s.x_egr < 0.95 && s.p_im > 0.0 && s.n_e > 0.0)
+        .map(|s| {
+            let w_ei = s.w_c / (1.0 - s.x_egr);
+            w_ei * 120.0 * p.gas.r_a * s.t_im / (s.p_im * s.n_e * p.cylinder.v_d)
+        })
+        .filter(|e| e.is_finite())
+        .collect();
+    (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+}
+
+/// The gross indicated efficiency eta_igch (1 - 1/r_c^(gamma_cyl - 1)) of eq. (29).
+pub fn gross_indicated_efficiency(p: &Params) -> f64 {
+    let c = &p.cylinder;
+    c.eta_igch * (1.0 - c.r_c.powf(1.0 - c.gamma_c))
+}
+
+/// Caveats where the campaign contradicts the engine constants of `p`: the volumetric
+/// efficiency the measured flows imply outside [`ETA_VOL_RANGE`] (displacement), and, when
+/// `eta_igch_tuned` (step 1 fitted it to the measured torque), the gross indicated efficiency
+/// outside [`ETA_IG_RANGE`] (cylinders, heating value, compression ratio). Empty when nothing
+/// is implausible.
+pub fn implausible_constants(
+    p: &Params,
+    stationary: &[StationaryPoint],
+    eta_igch_tuned: bool,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    let c = &p.cylinder;
+    if let Some(e) = measured_volumetric_efficiency(p, stationary) {
+        if !(ETA_VOL_RANGE.0..=ETA_VOL_RANGE.1).contains(&e) {
+            out.push(format!(
+                "the stationary points imply a mean volumetric efficiency of {e:.2} (eq. (11): \
+                 W_ei 120 R_a T_im / (p_im n_e V_d) with W_ei = W_c / (1 - x_egr)), outside the \
+                 {:.1}-{:.1} of four-stroke diesel engines: is V_d = {:.2} dm^3 this engine's \
+                 displacement? Give the engine's constants with --params FILE",
+                ETA_VOL_RANGE.0,
+                ETA_VOL_RANGE.1,
+                c.v_d * 1e3
+            ));
+        }
+    }
+    let e = gross_indicated_efficiency(p);
+    if eta_igch_tuned && !(ETA_IG_RANGE.0..=ETA_IG_RANGE.1).contains(&e) {
+        out.push(format!(
+            "the measured torque gives a gross indicated efficiency eta_igch (1 - 1/r_c^(gamma_cyl \
+             - 1)) of {e:.3} (eq. (29), eta_igch = {:.3}), outside the {:.2}-{:.2} of diesel \
+             engines: are n_cyl = {}, q_HV = {:.4e} J/kg and r_c = {} this engine's? Give the \
+             engine's constants with --params FILE",
+            c.eta_igch, ETA_IG_RANGE.0, ETA_IG_RANGE.1, c.n_cyl, c.q_hv, c.r_c
+        ));
+    }
+    out
+}
+
+/// A caveat when the campaign's engine speeds or fuel leave the model's input saturation
+/// (`input_saturation` of `p`, the authors' items 1-2): the model runs those points and samples
+/// clamped, so the tuning fits a model of another operating point. `None` when all lie inside.
+pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Option<String> {
+    let s = &p.input_saturation;
+    let out =
+        |n_e: f64, u: f64| n_e < s.n_e[0] || n_e > s.n_e[1] || u < s.u_delta[0] || u > s.u_delta[1];
+    let points = c
+        .stationary
+        .iter()
+        .filter(|x| out(x.n_e, x.u_delta))
+        .count();
+    let (mut samples, mut total) = (0usize, 0usize);
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for x in &c.stationary {
+        lo = lo.min(x.n_e);
+        hi = hi.max(x.n_e);
+    }
+    for d in &c.dynamic {
+        if let (Some(n), Some(u)) = (d.get("n_e"), d.get("u_delta")) {
+            total += n.len();
+            samples += n.iter().zip(u).filter(|(n, u)| out(**n, **u)).count();
+            for &v in n {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+    }
+    (points + samples > 0).then(|| {
+        format!(
+            "{points} of the {} stationary points and {samples} of the {total} dynamic samples \
+             lie outside the model's input saturation (n_e {}-{} rpm, u_delta {}-{} mg: \
+             input_saturation of the parameter file, by default the authors' engine's; the \
+             campaign's speeds span {lo:.0}-{hi:.0} rpm), so the model ran them clamped: set \
+             this engine's ranges in [input_saturation] of --params",
+            c.stationary.len(),
+            s.n_e[0],
+            s.n_e[1],
+            s.u_delta[0],
+            s.u_delta[1]
+        )
+    })
+}
+
+/// The published engine's constants in one line (for the note that they are used).
+pub fn describe_constants(p: &Params) -> String {
+    format!(
+        "V_d {:.2} dm^3, {} cylinders, r_c {}, R_c {:.1} mm, R_t {:.1} mm, A_egrmax {:.2} cm^2, \
+         A_vgtmax {:.2} cm^2",
+        p.cylinder.v_d * 1e3,
+        p.cylinder.n_cyl,
+        p.cylinder.r_c,
+        p.compressor.r_c * 1e3,
+        p.turbine.r_t * 1e3,
+        p.egr_valve.a_egrmax * 1e4,
+        p.turbine.a_vgtmax * 1e4
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tuning::lab::{stationary, LabOptions, Noise};
+
+    fn points(p: &Params, n: usize) -> Vec<StationaryPoint> {
+        let opts = LabOptions {
+            noise: Noise::NONE,
+            n_stationary: n,
+            ..LabOptions::default()
+        };
+        stationary(p, &opts).expect("stationary points").0
+    }
+
+    #[test]
+    fn every_constant_is_a_parameter_and_none_is_tuned() {
+        let p = Params::published();
+        for name in ENGINE_CONSTANTS {
+            assert!(p.get(name).is_some(), "{name}");
+        }
+        // the static parameters of cost (77) are not constants
+        for sp in crate::tuning::complete::STATIC_PARAMS {
+            let info = crate::params::ParamInfo::find(sp.name).expect(sp.name);
+            assert!(
+                !ENGINE_CONSTANTS.contains(&info.path.as_str()),
+                "{}",
+                sp.name
+            );
+        }
+    }
+
+    #[test]
+    fn ambient_is_the_mean_where_the_campaign_contradicts_the_file() {
+        let mut s = points(&Params::published(), 13);
+        for (i, x) in s.iter_mut().enumerate() {
+            x.p_amb = 95_000.0 + 100.0 * i as f64; // mean 95 600
+            x.t_amb = 288.0 + if i % 2 == 0 { 1.0 } else { -1.0 }; // 7 of +1, 6 of -1
+        }
+        let published = Params::published();
+        // T_im: the lab's noise-free values, the file's exactly
+        for source in [AmbientSource::Auto, AmbientSource::Data] {
+            let mut p = Params::published();
+            let a = ambient_from_stationary(&mut p, &s, source).expect("points");
+            assert!((p.ambient.p_amb - 95_600.0).abs() < 1e-9);
+            assert!((p.ambient.t_amb - (288.0 + 1.0 / 13.0)).abs() < 1e-12);
+            assert!(a.p_amb.from_data && a.t_amb.from_data);
+            assert_eq!(
+                p.exhaust_pipe.t_w, p.ambient.t_amb,
+                "published: T_w = T_amb"
+            );
+            assert_eq!(a.p_amb.file, published.ambient.p_amb);
+            // the mean of equal values may differ from them in the last bit: auto keeps the
+            // file's, data takes the mean
+            assert!((p.intake_manifold.t_im - published.intake_manifold.t_im).abs() < 1e-9);
+            assert_eq!(a.t_im.from_data, source == AmbientSource::Data);
+            assert!(a.describe().contains("tied to T_amb"));
+            assert!(a.changed());
+        }
+        // auto: a mean within 3 standard errors of the file's value keeps the file's
+        let mut q = Params::published();
+        q.ambient.p_amb = 95_600.0 + 2.0 * 389.4; // sd of 0..1200 step 100 is 389.4, se 108
+        q.ambient.t_amb = 288.0;
+        q.exhaust_pipe.t_w = 350.0;
+        let a = ambient_from_stationary(&mut q, &s, AmbientSource::Auto).unwrap();
+        assert!(a.p_amb.from_data, "7.2 standard errors off");
+        assert!(!a.t_amb.from_data, "0.27 standard errors off");
+        assert_eq!(q.ambient.t_amb, 288.0);
+        assert_eq!(q.exhaust_pipe.t_w, 350.0, "its own T_w stays");
+        let mut r = Params::published();
+        let a = ambient_from_stationary(&mut r, &s, AmbientSource::Params).unwrap();
+        assert!(!a.changed());
+        assert_eq!(r, Params::published());
+        assert!(ambient_from_stationary(&mut r, &[], AmbientSource::Data).is_none());
+    }
+
+    #[test]
+    fn the_published_engine_is_plausible_and_a_wrong_displacement_or_cylinder_count_is_not() {
+        let p = Params::published();
+        let s = points(&p, 30);
+        let e = measured_volumetric_efficiency(&p, &s).unwrap();
+        assert!((0.85..0.97).contains(&e), "published eta_vol {e}");
+        assert!(implausible_constants(&p, &s, true).is_empty());
+        // the campaign of an engine with two thirds of the displacement, read with the
+        // published V_d: the implied volumetric efficiency drops by a third
+        let mut small = p.clone();
+        small.cylinder.v_d *= 2.0 / 3.0;
+        let s_small = points(&small, 30);
+        let e_small = measured_volumetric_efficiency(&p, &s_small).unwrap();
+        assert!(e_small < ETA_VOL_RANGE.0, "{e_small}");
+        let c = implausible_constants(&p, &s_small, false);
+        assert_eq!(c.len(), 1);
+        assert!(c[0].contains("V_d = 12.74 dm^3"), "{}", c[0]);
+        // torque of 4 cylinders read as 6: step 1 puts eta_igch at 4/6 of the truth
+        let mut q = p.clone();
+        q.cylinder.eta_igch *= 4.0 / 6.0;
+        let c = implausible_constants(&q, &s, true);
+        assert_eq!(c.len(), 1);
+        assert!(c[0].contains("n_cyl = 6"), "{}", c[0]);
+        assert!(implausible_constants(&q, &s, false).is_empty());
+    }
+
+    #[test]
+    fn inputs_beyond_the_saturation_are_named() {
+        let p = Params::published();
+        let mut c = crate::tuning::lab::campaign(
+            &p,
+            &LabOptions {
+                noise: Noise::NONE,
+                n_stationary: 13,
+                sets: Some(vec!["I".into()]),
+                max_steps: Some(1),
+                ..LabOptions::default()
+            },
+        )
+        .unwrap()
+        .0;
+        assert!(inputs_outside_saturation(&p, &c).is_none());
+        c.stationary[2].n_e = 2500.0;
+        let msg = inputs_outside_saturation(&p, &c).expect("one point outside");
+        assert!(
+            msg.starts_with("1 of the 13 stationary points and 0 of the"),
+            "{msg}"
+        );
+        assert!(msg.contains("600-2500 rpm"), "{msg}");
+        let mut q = p.clone();
+        q.input_saturation.n_e = [500.0, 3000.0];
+        assert!(inputs_outside_saturation(&q, &c).is_none());
+    }
+
+    #[test]
+    fn constant_differences_name_geometry_not_tuned_parameters() {
+        let p = Params::published();
+        let mut q = p.clone();
+        q.cylinder.n_cyl = 4.0;
+        q.turbine.r_t = 0.033;
+        q.intake_manifold.v_im = 0.01; // tuned in step 3: not a constant
+        q.ambient.p_amb = 95_000.0; // from the data
+        let d = constant_differences(&p, &q);
+        let names: Vec<&str> = d.iter().map(|x| x.name).collect();
+        assert_eq!(names, ["cylinder.n_cyl", "turbine.r_t"]);
+        assert_eq!((d[0].used, d[0].other), (6.0, 4.0));
+        assert!(constant_differences(&p, &p).is_empty());
+    }
+}
