@@ -23,8 +23,15 @@ TIMINGS = {}
 
 
 @pytest.fixture(scope="module")
-def server():
-    p = subprocess.Popen([CLI, "serve", "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def server(tmp_path_factory):
+    # a second parameter set whose engine runs to 3200 rpm and 180 mg ([input_saturation])
+    text = subprocess.run([CLI, "params", "show"], check=True, capture_output=True, text=True).stdout
+    assert "n_e = [500.0, 2000.0]" in text
+    wide = tmp_path_factory.mktemp("params") / "wide.toml"
+    wide.write_text(text.replace("n_e = [500.0, 2000.0]", "n_e = [600.0, 3200.0]")
+                    .replace("u_delta = [1.0, 250.0]", "u_delta = [2.0, 180.0]"))
+    p = subprocess.Popen([CLI, "serve", "--port", "0", "--params", str(wide)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     line = p.stdout.readline().strip()
     assert line.startswith("listening on http://127.0.0.1:"), line
     yield line.removeprefix("listening on ")
@@ -188,3 +195,19 @@ def test_map_cycle_and_csv(page):
     page.screenshot(path=str(ART / "explorer.png"), full_page=True)
     page.evaluate("window.scrollTo(0, 0)")
     page.screenshot(path=str(ART / "explorer_top.png"))
+
+
+def test_sliders_span_the_parameter_sets_input_saturation(page):
+    def ranges():
+        return page.evaluate("""() => Object.fromEntries(["n_e", "u_delta"].map(n => {
+            const s = document.querySelector(`input[data-slider=${n}]`);
+            return [n, [Number(s.min), Number(s.max)]];
+        }))""")
+    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250]}
+    page.select_option("select[name=params]", "wide")
+    assert ranges() == {"n_e": [600, 3200], "u_delta": [2, 180]}
+    # 2800 rpm is inside the wide set's range: the slider follows the number field
+    page.fill("input[name=n_e]", "2800")
+    assert page.eval_on_selector("input[data-slider=n_e]", "s => Number(s.value)") == 2800
+    page.select_option("select[name=params]", "published")
+    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250]}

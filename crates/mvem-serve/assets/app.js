@@ -150,7 +150,22 @@
       });
     }
     $("select[name=model]").addEventListener("change", scheduleSteady);
-    $("select[name=params]").addEventListener("change", scheduleSteady);
+    $("select[name=params]").addEventListener("change", () => { applyInputRanges(); scheduleSteady(); });
+  }
+
+  // the n_e and u_delta sliders span the selected parameter set's input saturation (/api/models
+  // "input_ranges"; the authors' 500-2000 rpm and 1-250 mg by default); the number fields take
+  // any value (the model clamps it, as the warnings of the CLI say)
+  function applyInputRanges() {
+    const r = (app.inputRanges || {})[$("select[name=params]").value];
+    if (!r) return;
+    for (const n of ["n_e", "u_delta"]) {
+      if (!Array.isArray(r[n])) continue;
+      const sl = $(`input[data-slider=${n}]`);
+      sl.min = String(r[n][0]);
+      sl.max = String(r[n][1]);
+      sl.value = $(`input[name=${n}]`).value;
+    }
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -516,6 +531,8 @@
       const m = await api("/api/models");
       app.units = m.units || {};
       $("select[name=params]").replaceChildren(...m.params.map((p) => new Option(p, p)));
+      app.inputRanges = m.input_ranges || {};
+      applyInputRanges();
       if (m.cycles.length) $("select[name=cycle]").replaceChildren(...m.cycles.map((cy) => new Option(cy === "whtc" ? "WHTC (built in)" : cy, cy)));
       $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
       setStatus("ok", "ready");

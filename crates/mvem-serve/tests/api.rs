@@ -21,8 +21,10 @@ fn server() -> SocketAddr {
     S.get_or_init(|| {
         let mut c = Config::local(0);
         c.cycles = vec![("whtc".into(), WHTC)];
-        c.params
-            .push(("second".into(), mvem::params::Params::published()));
+        // the published set with an engine speed range to 3000 rpm (its input saturation)
+        let mut second = mvem::params::Params::published();
+        second.input_saturation.n_e = [500.0, 3000.0];
+        c.params.push(("second".into(), second));
         mvem_serve::start(c).expect("start the server")
     })
     .addr
@@ -51,6 +53,14 @@ fn health_models_and_page() {
     assert_eq!(h.json()["status"], "ok");
     let m = get("/api/models").json();
     assert_eq!(m["params"], serde_json::json!(["published", "second"]));
+    // the explorer's sliders span each set's input saturation
+    assert_eq!(
+        m["input_ranges"],
+        serde_json::json!({
+            "published": {"n_e": [500.0, 2000.0], "u_delta": [1.0, 250.0]},
+            "second": {"n_e": [500.0, 3000.0], "u_delta": [1.0, 250.0]},
+        })
+    );
     assert_eq!(m["cycles"], serde_json::json!(["whtc"]));
     assert_eq!(m["units"]["p_im"], "Pa");
     assert_eq!(m["units"]["T_ic"], "K", "12-state names have units");

@@ -1243,3 +1243,22 @@ fn the_speed_saturation_is_the_parameter_sets() {
     );
     assert!(wide_3000.signals.w_c > 1.2 * at_3000.signals.w_c);
 }
+
+/// The omega_t integrator limit (item 37) is the parameter set's `integrator_limits.n_t`
+/// (default the authors' 100-200 000 rpm); none with the paper's semantics.
+#[test]
+fn the_turbo_speed_limit_is_the_parameter_sets() {
+    let w = std::f64::consts::PI / 30.0;
+    let m = Engine8::published();
+    assert_eq!(Model::<8>::state_bounds(&m)[4], (100.0 * w, 200_000.0 * w));
+    let mut p = Params::published();
+    p.integrator_limits.n_t = [100.0, 260_000.0];
+    let m = Engine8::new(p.clone(), ModelOptions::default()).unwrap();
+    assert_eq!(Model::<8>::state_bounds(&m)[4], (100.0 * w, 260_000.0 * w));
+    let paper = ModelOptions {
+        semantics: Semantics::Paper,
+        ..ModelOptions::default()
+    };
+    let m = Engine8::new(p, paper).unwrap();
+    assert_eq!(Model::<8>::state_bounds(&m)[4].1, f64::INFINITY);
+}

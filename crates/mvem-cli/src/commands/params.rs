@@ -169,7 +169,7 @@ fn flat_to_nested(flat: &Value, problems: &mut Vec<String>) -> Option<Value> {
 }
 
 /// Sections with defaults (may be absent).
-const OPTIONAL_SECTIONS: [&str; 2] = ["intercooler", "input_saturation"];
+const OPTIONAL_SECTIONS: [&str; 3] = ["intercooler", "input_saturation", "integrator_limits"];
 
 /// Compare `given` with the structure of `reference` (the published set), report unknown,
 /// missing and mistyped entries, and return `given` with those fixed from `reference`.

@@ -80,11 +80,15 @@ fn state_bounds_8(p: &Params, opts: &ModelOptions) -> [(f64, f64); 8] {
         let pa = p.ambient.p_amb;
         let w = std::f64::consts::PI / 30.0;
         [
-            (0.5 * pa, 10.0 * pa),     // item 9
-            (0.5 * pa, 20.0 * pa),     // item 10
-            (0.0, 1.0),                // item 11
-            (0.0, 1.0),                // item 12
-            (100.0 * w, 200000.0 * w), // item 37
+            (0.5 * pa, 10.0 * pa), // item 9
+            (0.5 * pa, 20.0 * pa), // item 10
+            (0.0, 1.0),            // item 11
+            (0.0, 1.0),            // item 12
+            // item 37, the parameter set's range (default 100-200 000 rpm)
+            (
+                p.integrator_limits.n_t[0] * w,
+                p.integrator_limits.n_t[1] * w,
+            ),
             (-inf, inf),
             (-inf, inf),
             (-inf, inf),

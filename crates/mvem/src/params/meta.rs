@@ -141,7 +141,7 @@ impl ParamInfo {
 
 impl Params {
     /// Metadata of every group, in file order.
-    pub const GROUPS: [GroupMeta; 15] = [
+    pub const GROUPS: [GroupMeta; 16] = [
         super::Gas::META,
         super::Ambient::META,
         super::IntakeManifold::META,
@@ -157,6 +157,7 @@ impl Params {
         super::Initial::META,
         super::Intercooler::META,
         super::InputSaturation::META,
+        super::IntegratorLimits::META,
     ];
 
     /// The scalars of `group.field` in row-major order.
@@ -177,6 +178,7 @@ impl Params {
             "initial" => self.initial.scalars(field),
             "intercooler" => self.intercooler.scalars(field),
             "input_saturation" => self.input_saturation.scalars(field),
+            "integrator_limits" => self.integrator_limits.scalars(field),
             _ => None,
         }
     }
@@ -199,6 +201,7 @@ impl Params {
             "initial" => self.initial.scalars_mut(field),
             "intercooler" => self.intercooler.scalars_mut(field),
             "input_saturation" => self.input_saturation.scalars_mut(field),
+            "integrator_limits" => self.integrator_limits.scalars_mut(field),
             _ => None,
         }
     }

@@ -267,6 +267,25 @@ impl Default for InputSaturation {
     }
 }
 
+param_group! {
+    "Turbo-speed integrator limit of the authors' implementation (item 37 of docs/authors-implementation.md)"
+    /// Under the authors' semantics omega_t is limited to this range of n_t = omega_t 30/pi
+    /// (the integrator stops at it, the equilibrium is flagged); `Semantics::Paper` has no limit.
+    /// Not in the authors' parameter file (hard-coded there): the default is their value,
+    /// 100-200 000 rpm; a smaller, faster turbocharger sets its own.
+    IntegratorLimits "integrator_limits" {
+        n_t: [f64; 2] { n_t_min: "rpm", n_t_max: "rpm" } "Turbo speed range n_t_min < n_t_max of the omega_t integrator (item 37)";
+    }
+}
+
+impl Default for IntegratorLimits {
+    fn default() -> Self {
+        Self {
+            n_t: [100.0, 200_000.0],
+        }
+    }
+}
+
 /// The complete parameter set of the model: one group per component.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -290,6 +309,9 @@ pub struct Params {
     /// The authors' input saturation ranges (defaults, their values, if absent).
     #[serde(default)]
     pub input_saturation: InputSaturation,
+    /// The authors' turbo-speed integrator limit (default, their value, if absent).
+    #[serde(default)]
+    pub integrator_limits: IntegratorLimits,
 }
 
 /// The authors' published parameter set (from their LGPL-3.0 Simulink package,

@@ -243,9 +243,11 @@ impl Params {
         let s = &self.input_saturation;
         c.positive("input_saturation.n_e[0]", s.n_e[0]);
         c.positive("input_saturation.u_delta[0]", s.u_delta[0]);
+        c.positive("integrator_limits.n_t[0]", self.integrator_limits.n_t[0]);
         for (n, r) in [
             ("input_saturation.n_e[1]", s.n_e),
             ("input_saturation.u_delta[1]", s.u_delta),
+            ("integrator_limits.n_t[1]", self.integrator_limits.n_t),
         ] {
             if c.finite(n, r[1]) && r[0].is_finite() && r[1] <= r[0] {
                 c.push(
@@ -299,7 +301,9 @@ mod tests {
         let mut p = Params::published();
         p.input_saturation.n_e = [2000.0, 500.0];
         p.input_saturation.u_delta[0] = 0.0;
+        p.integrator_limits.n_t = [100.0, 100.0];
         let e = p.validate().unwrap_err().to_string();
+        assert!(e.contains("integrator_limits.n_t[1] = 100"), "{e}");
         assert!(e.contains("input_saturation.n_e[1] = 500"), "{e}");
         assert!(
             e.contains("input_saturation.u_delta[0] = 0: must be > 0"),

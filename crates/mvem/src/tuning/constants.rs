@@ -28,7 +28,7 @@ use serde::Serialize;
 
 /// Parameters that no tuning step estimates (names of the parameter registry, paths of the
 /// parameter file) besides the ambient conditions: the engine's geometry and properties.
-pub const ENGINE_CONSTANTS: [&str; 27] = [
+pub const ENGINE_CONSTANTS: [&str; 29] = [
     "cylinder.v_d",
     "cylinder.n_cyl",
     "cylinder.r_c",
@@ -56,6 +56,8 @@ pub const ENGINE_CONSTANTS: [&str; 27] = [
     "input_saturation.n_e[2]",
     "input_saturation.u_delta[1]",
     "input_saturation.u_delta[2]",
+    "integrator_limits.n_t[1]",
+    "integrator_limits.n_t[2]",
 ];
 
 /// Where the ambient conditions of the tuned model come from.
