@@ -54,7 +54,10 @@ fn user_warning(py: Python<'_>, msg: String) -> PyResult<()> {
 /// The input saturation ranges of a parameter set (`None`: the published set): its
 /// `input_saturation` for n_e and u_delta, the authors' command ranges.
 fn ranges_of(p: Option<&Params>) -> [(&'static str, f64, f64); 4] {
-    input_ranges(&p.map(|p| p.input_saturation.clone()).unwrap_or_default())
+    match p {
+        Some(p) => input_ranges(&p.input_saturation),
+        None => input_ranges(&Default::default()),
+    }
 }
 
 /// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::input_ranges` of the
@@ -65,9 +68,9 @@ fn warn_out_of_range(
     py: Python<'_>,
     what: &str,
     values: [f64; 4],
-    p: Option<&Params>,
+    ranges: &[(&str, f64, f64); 4],
 ) -> PyResult<()> {
-    for ((name, lo, hi), v) in ranges_of(p).iter().zip(values) {
+    for ((name, lo, hi), v) in ranges.iter().zip(values) {
         if v < *lo || v > *hi {
             let msg = format!(
                 "{what}: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it",
@@ -77,6 +80,19 @@ fn warn_out_of_range(
         }
     }
     Ok(())
+}
+
+/// The parameter set given from Python ([`parse_params`]), with the range warnings of the
+/// operating point `point` (n_e, u_delta, u_egr, u_vgt) against its input saturation.
+fn params_at_point(
+    py: Python<'_>,
+    params: Option<&Bound<'_, PyAny>>,
+    what: &str,
+    point: [f64; 4],
+) -> PyResult<Option<Params>> {
+    let p = parse_params(py, params)?;
+    warn_out_of_range(py, what, point, &ranges_of(p.as_ref()))?;
+    Ok(p)
 }
 
 /// [`warn_out_of_range`] for input rows (t, n_e, u_delta, u_egr, u_vgt): one warning per channel
@@ -358,8 +374,7 @@ fn steady<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    let p = parse_params(py, params)?;
-    warn_out_of_range(py, "steady", [n_e, u_delta, u_egr, u_vgt], p.as_ref())?;
+    let p = params_at_point(py, params, "steady", [n_e, u_delta, u_egr, u_vgt])?;
     let s = py
         .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p, variant))
         .map_err(to_py_err)?;
@@ -426,8 +441,7 @@ fn linearize<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    let p = parse_params(py, params)?;
-    warn_out_of_range(py, "linearize", [n_e, u_delta, u_egr, u_vgt], p.as_ref())?;
+    let p = params_at_point(py, params, "linearize", [n_e, u_delta, u_egr, u_vgt])?;
     let args = LinArgs {
         outputs,
         strict,
@@ -561,13 +575,7 @@ fn step_response<'py>(
     model: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    let p = parse_params(py, params)?;
-    warn_out_of_range(
-        py,
-        "step_response",
-        [n_e, u_delta, u_egr, u_vgt],
-        p.as_ref(),
-    )?;
+    let p = params_at_point(py, params, "step_response", [n_e, u_delta, u_egr, u_vgt])?;
     let args = SimArgs {
         t_end: None,
         dt,
@@ -658,8 +666,8 @@ fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 struct Plant {
     inner: core::CorePlant,
     cmd: [f64; 4],
-    /// The parameter set's input saturation (for the range warnings).
-    params: Option<Params>,
+    /// The parameter set's input saturation ranges (for the range warnings).
+    ranges: [(&'static str, f64, f64); 4],
 }
 
 fn merge_cmd(
@@ -693,12 +701,12 @@ impl Plant {
         let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
         let p = parse_params(py, params)?;
         let cmd = [n_e, u_delta, u_egr, u_vgt];
-        warn_out_of_range(py, "Plant", cmd, p.as_ref())?;
-        let params = p.clone();
+        let ranges = ranges_of(p.as_ref());
+        warn_out_of_range(py, "Plant", cmd, &ranges)?;
         let inner = py
             .allow_threads(move || core::CorePlant::new(cmd, p, variant))
             .map_err(to_py_err)?;
-        Ok(Self { inner, cmd, params })
+        Ok(Self { inner, cmd, ranges })
     }
 
     /// Hold the commands for dt [s]; returns the outputs at the end (dict of floats).
@@ -714,7 +722,7 @@ impl Plant {
     ) -> PyResult<Bound<'py, PyDict>> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
         if cmd != self.cmd {
-            warn_out_of_range(py, "Plant.step", cmd, self.params.as_ref())?;
+            warn_out_of_range(py, "Plant.step", cmd, &self.ranges)?;
         }
         let inner = &mut self.inner;
         py.allow_threads(|| inner.step(dt, cmd))
@@ -743,7 +751,7 @@ impl Plant {
         u_vgt: Option<f64>,
     ) -> PyResult<()> {
         let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
-        warn_out_of_range(py, "Plant.reset", cmd, self.params.as_ref())?;
+        warn_out_of_range(py, "Plant.reset", cmd, &self.ranges)?;
         let inner = &mut self.inner;
         py.allow_threads(|| inner.reset(cmd)).map_err(to_py_err)?;
         self.cmd = cmd;

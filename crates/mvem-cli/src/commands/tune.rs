@@ -248,6 +248,12 @@ pub fn run(a: &Args) -> Result<()> {
     // the engine's constants: nothing estimates them, so say where they come from, and whether
     // a virtual campaign's engine has others
     let mut constant_caveats = Vec::new();
+    // truth, if the campaign is virtual (also for the report's comparison)
+    let truth = c
+        .manifest
+        .true_params
+        .as_ref()
+        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
     if a.params.is_none() {
         eprintln!(
             "note: the engine's constants are the published engine's ({}): for another engine \
@@ -255,13 +261,8 @@ pub fn run(a: &Args) -> Result<()> {
             mvem::tuning::constants::describe_constants(&base)
         );
     }
-    if let Some(truth) = c
-        .manifest
-        .true_params
-        .as_ref()
-        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok())
-    {
-        let d = mvem::tuning::constants::constant_differences(&base, &truth);
+    if let Some(truth) = &truth {
+        let d = mvem::tuning::constants::constant_differences(&base, truth);
         if !d.is_empty() {
             let list: Vec<String> = d
                 .iter()
@@ -416,12 +417,6 @@ pub fn run(a: &Args) -> Result<()> {
             f.set, f.message
         );
     }
-    // truth, if the campaign is virtual
-    let truth = c
-        .manifest
-        .true_params
-        .as_ref()
-        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
     let cell_truth = TestCell {
         tau_me: c.manifest.true_tau_me_s,
         ..TestCell::default()

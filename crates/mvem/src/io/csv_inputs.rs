@@ -288,12 +288,15 @@ pub fn load_inputs_csv(path: &Path) -> Result<InputSchedule, IoError> {
 
 /// Ranges of the authors' input saturations (items 1-4), per channel, with names: the defaults
 /// ([`input_ranges`] of the default [`InputSaturation`]).
-pub const INPUT_RANGES: [(&str, f64, f64); 4] = [
-    ("n_e_rpm", 500.0, 2000.0),
-    ("u_delta_mg", 1.0, 250.0),
-    ("u_egr_pct", 0.0, 100.0),
-    ("u_vgt_pct", 20.0, 100.0),
-];
+pub const INPUT_RANGES: [(&str, f64, f64); 4] = {
+    use crate::model::{N_E_RANGE, U_DELTA_RANGE, U_EGR_RANGE, U_VGT_RANGE};
+    [
+        ("n_e_rpm", N_E_RANGE.0, N_E_RANGE.1),
+        ("u_delta_mg", U_DELTA_RANGE.0, U_DELTA_RANGE.1),
+        ("u_egr_pct", U_EGR_RANGE.0, U_EGR_RANGE.1),
+        ("u_vgt_pct", U_VGT_RANGE.0, U_VGT_RANGE.1),
+    ]
+};
 
 /// The input saturation ranges of a parameter set (items 1-4): n_e and u_delta from its
 /// `input_saturation`, the commands the authors' [`crate::model::U_EGR_RANGE`],
@@ -564,7 +567,14 @@ mod tests {
             w[1].starts_with("u_vgt_pct leaves [20, 100] first at t = 0 s (values from 5 to 10)")
         );
         // the authors' ranges are the default parameter set's; another engine's speed range
-        assert_eq!(input_ranges(&InputSaturation::default()), INPUT_RANGES);
+        let authors = [
+            ("n_e_rpm", 500.0, 2000.0),
+            ("u_delta_mg", 1.0, 250.0),
+            ("u_egr_pct", 0.0, 100.0),
+            ("u_vgt_pct", 20.0, 100.0),
+        ];
+        assert_eq!(INPUT_RANGES, authors);
+        assert_eq!(input_ranges(&InputSaturation::default()), authors);
         let car = InputSaturation {
             n_e: [700.0, 4500.0],
             u_delta: [1.0, 80.0],

@@ -537,8 +537,8 @@ pub fn saturate_inputs(
             limits.u_delta[1],
             Guard::InputUDelta,
         ),
-        clamp(d.u_egr_pct, 0.0, 100.0, Guard::InputUEgr),
-        clamp(d.u_vgt_pct, 20.0, 100.0, Guard::InputUVgt),
+        clamp(d.u_egr_pct, U_EGR_RANGE.0, U_EGR_RANGE.1, Guard::InputUEgr),
+        clamp(d.u_vgt_pct, U_VGT_RANGE.0, U_VGT_RANGE.1, Guard::InputUVgt),
     );
     (out, g)
 }

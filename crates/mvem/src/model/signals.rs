@@ -144,9 +144,9 @@ macro_rules! guards {
 }
 
 guards! {
-    /// n_e outside [500, 2000] rpm was clamped (item 1).
+    /// n_e outside `input_saturation.n_e` (default [500, 2000] rpm) was clamped (item 1).
     InputNe = 0, "input:n_e in input_saturation.n_e", false;
-    /// u_delta outside [1, 250] mg was clamped (item 2).
+    /// u_delta outside `input_saturation.u_delta` (default [1, 250] mg) was clamped (item 2).
     InputUDelta = 1, "input:u_delta in input_saturation.u_delta", false;
     /// u_egr outside [0, 100] % was clamped (item 3).
     InputUEgr = 2, "input:u_egr in [0,100]", false;

@@ -260,9 +260,10 @@ param_group! {
 
 impl Default for InputSaturation {
     fn default() -> Self {
+        let (n, u) = (crate::model::N_E_RANGE, crate::model::U_DELTA_RANGE);
         Self {
-            n_e: [500.0, 2000.0],
-            u_delta: [1.0, 250.0],
+            n_e: [n.0, n.1],
+            u_delta: [u.0, u.1],
         }
     }
 }

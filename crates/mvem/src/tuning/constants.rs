@@ -23,6 +23,7 @@
 //!   step 1 fits to the measured torque.
 
 use super::data::StationaryPoint;
+use crate::components::cylinder;
 use crate::params::Params;
 use serde::Serialize;
 
@@ -275,8 +276,9 @@ pub fn measured_volumetric_efficiency(p: &Params, stationary: &[StationaryPoint]
         .iter()
         .filter(|s| s.x_egr < 0.95 && s.p_im > 0.0 && s.n_e > 0.0)
         .map(|s| {
+            // eq. (11) is linear in eta_vol: the measured flow over the flow at eta_vol = 1
             let w_ei = s.w_c / (1.0 - s.x_egr);
-            w_ei * 120.0 * p.gas.r_a * s.t_im / (s.p_im * s.n_e * p.cylinder.v_d)
+            w_ei / cylinder::w_ei(&p.cylinder, 1.0, s.p_im, s.n_e, p.gas.r_a, s.t_im)
         })
         .filter(|e| e.is_finite())
         .collect();
@@ -285,8 +287,7 @@ pub fn measured_volumetric_efficiency(p: &Params, stationary: &[StationaryPoint]
 
 /// The gross indicated efficiency eta_igch (1 - 1/r_c^(gamma_cyl - 1)) of eq. (29).
 pub fn gross_indicated_efficiency(p: &Params) -> f64 {
-    let c = &p.cylinder;
-    c.eta_igch * (1.0 - c.r_c.powf(1.0 - c.gamma_c))
+    p.cylinder.eta_igch * cylinder::CylinderConsts::new(&p.gas, &p.cylinder).otto_factor
 }
 
 /// Caveats where the campaign contradicts the engine constants of `p`: the volumetric
