@@ -189,3 +189,68 @@ fn runtime_failure_writes_nothing() {
         "no file or temporary file left"
     );
 }
+
+/// A user's cycle is checked against the parameter set's speed range ([input_saturation] n_e):
+/// 2300 rpm is refused for the authors' engine (exit 2, the row, its time and the range) and
+/// runs on an engine whose range reaches 2600 rpm; the WHTC's reference speeds follow it.
+#[test]
+fn a_cycle_follows_the_parameter_sets_speed_range() {
+    let d = tempfile::tempdir().unwrap();
+    let shown = mvem(d.path(), &["params", "show"]);
+    assert!(shown.status.success(), "{}", stderr(&shown));
+    let text = stdout(&shown);
+    assert!(text.contains("n_e = [500.0, 2000.0]"), "{text}");
+    std::fs::write(
+        d.path().join("wide.toml"),
+        text.replace("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]"),
+    )
+    .unwrap();
+    std::fs::write(
+        d.path().join("fast.csv"),
+        "t,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n8,2300,300\n",
+    )
+    .unwrap();
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "fast.csv", "--out", "o"],
+    );
+    assert!(
+        err.contains("row 3 (t = 3 s)") && err.contains("[500, 2000]"),
+        "{err}"
+    );
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "fast.csv",
+            "--params",
+            "wide.toml",
+            "--out",
+            "o",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, rows) = read_csv(&d.path().join("o").join("trajectory.csv"));
+    let (n, m, r) = (col(&h, "n_e"), col(&h, "M_e"), col(&h, "M_ref"));
+    let last = rows.last().unwrap();
+    assert_eq!(last[n], 2300.0);
+    assert!((last[m] - last[r]).abs() < 0.01 * last[r], "{last:?}");
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--params",
+            "wide.toml",
+            "--duration",
+            "1",
+            "--json",
+            "--out",
+            "w",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let hi = json["reference_speeds_rpm"]["n_hi"].as_f64().unwrap();
+    assert!(hi > 2000.0 && hi <= 2600.0, "{json}");
+}

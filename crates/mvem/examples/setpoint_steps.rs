@@ -68,7 +68,7 @@ fn main() {
         }
     }
     if whtc {
-        let speeds = curve.reference_speeds(500.0);
+        let speeds = curve.reference_speeds(curve.n_e_range().0);
         let demand = whtc_demand(&whtc_table().unwrap(), &curve, &speeds).unwrap();
         let mut ctrl = Baseline::new(&m, &curve, tuning).unwrap();
         let t = std::time::Instant::now();

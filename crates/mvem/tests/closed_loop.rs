@@ -21,7 +21,7 @@ fn model() -> AnyModel {
 
 fn whtc_closed_loop(m: &AnyModel) -> (Trajectory, CycleStats) {
     let curve = MappingCurve::compute(m, MappingOptions::default()).unwrap();
-    let speeds = curve.reference_speeds(500.0);
+    let speeds = curve.reference_speeds(curve.n_e_range().0);
     let demand = whtc_demand(&whtc_table().unwrap(), &curve, &speeds).unwrap();
     let mut ctrl = Baseline::new(m, &curve, BaselineTuning::default()).unwrap();
     // the plant's options, as `mvem closed-loop` runs it
@@ -205,4 +205,64 @@ fn stepping_matches_the_open_loop_vgt_step() {
             (k + 1) as f64 * 0.01
         );
     }
+}
+
+/// The closed loop follows the engine the parameter set describes: the mapping curve, the
+/// WHTC's denormalized speeds, the set-point maps' grid and the fuel limits come from its
+/// `[input_saturation]`, not from the authors' 500-2000 rpm and 1-250 mg (before session 24 the
+/// curve stopped at 2000 rpm and the cycle was squeezed into it whatever the engine).
+#[test]
+fn the_closed_loop_spans_the_parameter_sets_speed_and_fuel_range() {
+    let published = MappingCurve::compute(&model(), MappingOptions::default()).unwrap();
+    assert_eq!(published.n_e_range(), (500.0, 2000.0));
+    assert_eq!(published.n_e.len(), 16); // 100 rpm steps
+    let mut p = Params::published();
+    p.input_saturation.n_e = [600.0, 2400.0];
+    p.input_saturation.u_delta = [2.0, 200.0];
+    let m = AnyModel::new(ModelOrder::Eight, p, Default::default()).unwrap();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    assert_eq!(curve.n_e_range(), (600.0, 2400.0));
+    assert_eq!(curve.n_e.len(), 19);
+    assert_eq!(curve.u_delta_range, (2.0, 200.0));
+    // the full-load fuel stays inside the range, and reaches its top where the smoke limit
+    // allows more (the published engine's curve goes above 200 mg)
+    assert!(curve.u_full.iter().all(|&u| (2.0..=200.0).contains(&u)));
+    assert!(published.u_full.iter().any(|&u| u > 200.0 + 1.0));
+    assert!(curve.u_full.iter().any(|&u| (u - 200.0).abs() < 1e-9));
+    // on the common speeds (600-2000 rpm) the motoring torque is the steady torque at 2 mg,
+    // more than at 1 mg (less negative) by the indicated work of 1 mg
+    for (k, &n) in curve.n_e.iter().enumerate().filter(|(_, &n)| n <= 2000.0) {
+        let j = published.n_e.iter().position(|&x| x == n).unwrap();
+        assert!(curve.m_motor[k] > published.m_motor[j], "{n} rpm");
+    }
+    // beyond 2000 rpm the curve is the model's, not the clamped 2000 rpm value
+    let m2000 = curve.m_max_at(2000.0);
+    let m2400 = curve.m_max_at(2400.0);
+    assert!((m2400 - m2000).abs() > 1e-3 * m2000, "{m2000} {m2400}");
+    // idle at the bottom of the range; the cycle's speeds inside the range
+    let speeds = curve.reference_speeds(curve.n_e_range().0);
+    assert_eq!(speeds.n_idle, 600.0);
+    let demand = whtc_demand(&whtc_table().unwrap(), &curve, &speeds).unwrap();
+    let ns: Vec<f64> = demand.times().iter().map(|&t| demand.at(t).n_e).collect();
+    assert!(ns.iter().all(|&n| (600.0..=2400.0).contains(&n)));
+    assert_eq!(ns.iter().cloned().fold(f64::MAX, f64::min), 600.0);
+    // a demand outside the engine's range is refused, naming the row and its time
+    let bad = mvem::control::cycle::Demand::new(
+        vec![0.0, 1.0, 2.0],
+        vec![1000.0, 2300.0, 2500.0],
+        vec![0.0; 3],
+        vec![false; 3],
+    )
+    .unwrap();
+    assert!(bad.check_speeds(published.n_e_range()).is_err());
+    let e = bad.check_speeds(curve.n_e_range()).unwrap_err().to_string();
+    assert!(
+        e.contains("row 3 (t = 2 s)") && e.contains("[600, 2400]"),
+        "{e}"
+    );
+    // the baseline's set-point grid spans the range and its fuel limits are the set's
+    let b = Baseline::new(&m, &curve, BaselineTuning::default()).unwrap();
+    assert_eq!(b.maps.n_e.first(), Some(&600.0));
+    assert_eq!(b.maps.n_e.last(), Some(&2400.0));
+    assert_eq!(b.maps.u_delta_range, (2.0, 200.0));
 }

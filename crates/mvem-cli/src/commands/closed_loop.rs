@@ -27,7 +27,8 @@ Examples:
 --cycle whtc: the WHTC (UN GTR No. 4) denormalized with this engine's mapping curve (full-load
 torque at lambda_O >= 1.2, motoring torque for the \"m\" points), speeds 0 s..1800 s.
 --cycle FILE.csv: a header with the columns t [s], n_e [rpm], M_ref [Nm] (any order, more
-columns ignored), time strictly increasing, n_e in [500, 2000] rpm, M_ref at most the full-load
+columns ignored), time strictly increasing, n_e in the model's speed range (the parameter set's
+[input_saturation] n_e, default 500-2000 rpm), M_ref at most the full-load
 torque; linear between rows.
 
 Writes DIR/trajectory.csv (one row per 10 ms controller sample; the commands u_delta, u_egr,

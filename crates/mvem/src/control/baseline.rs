@@ -34,7 +34,7 @@
 //! proportional to the fuel at a given air charge, eq. (15)), so lambda_O stays above
 //! lambda_lim (1.2) during turbo lag; motoring points get the minimum fuel.
 
-use super::cycle::{interp, steady_signals, MappingCurve, U_DELTA_MAX, U_DELTA_MIN};
+use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, Measurement, Output};
 use crate::model::{AnyModel, Drive};
@@ -112,6 +112,9 @@ pub struct SetpointMaps {
     pub x_egr: Vec<Vec<f64>>,
     /// Full-load fuel over `n_e` \[mg\].
     pub u_full: Vec<f64>,
+    /// Fuel range of the model's input saturation (the mapping curve's) \[mg\]: motoring fuel
+    /// and the largest fuel.
+    pub u_delta_range: (f64, f64),
 }
 
 impl SetpointMaps {
@@ -122,11 +125,15 @@ impl SetpointMaps {
         curve: &MappingCurve,
         tuning: &BaselineTuning,
     ) -> Result<Self, ControlError> {
-        let n_e: Vec<f64> = (0..7).map(|i| 500.0 + 250.0 * i as f64).collect();
+        // seven speeds over the engine's range (500, 750, ..., 2000 rpm for the authors')
+        let (lo, hi) = curve.n_e_range();
+        let n_e: Vec<f64> = (0..7).map(|i| lo + (hi - lo) * i as f64 / 6.0).collect();
+        let u_min = curve.u_delta_min();
         let load = vec![0.0, 0.1, 0.25, 0.5, 0.75, 1.0];
         let floor = tuning.lambda_limit * (1.0 + 2.0 * tuning.smoke_margin);
         let mut maps = SetpointMaps {
             u_full: n_e.iter().map(|&n| curve.u_full_at(n)).collect(),
+            u_delta_range: curve.u_delta_range,
             n_e,
             load,
             m_e: vec![],
@@ -137,7 +144,7 @@ impl SetpointMaps {
             let (mut m_row, mut l_row, mut x_row) = (vec![], vec![], vec![]);
             let mut guess = None;
             for &l in &maps.load {
-                let u = U_DELTA_MIN + l * (maps.u_full[i] - U_DELTA_MIN);
+                let u = u_min + l * (maps.u_full[i] - u_min);
                 let (ue, uv) = nominal_actuators(l);
                 let s =
                     steady_signals(model, &Drive::new(n, u, ue, uv), &mut guess).map_err(|e| {
@@ -167,7 +174,8 @@ impl SetpointMaps {
 
     /// Load fraction of `u_delta` at `n`.
     pub fn load_of(&self, n: f64, u_delta: f64) -> f64 {
-        ((u_delta - U_DELTA_MIN) / (self.u_full_at(n) - U_DELTA_MIN)).clamp(0.0, 1.0)
+        let u_min = self.u_delta_range.0;
+        ((u_delta - u_min) / (self.u_full_at(n) - u_min)).clamp(0.0, 1.0)
     }
 
     /// Interval index and weight of `n` on the speed axis (held outside).
@@ -224,7 +232,8 @@ impl SetpointMaps {
             let (m0, m1) = (m_at(j), m_at(j + 1));
             self.load[j] + (self.load[j + 1] - self.load[j]) * (m - m0) / (m1 - m0)
         };
-        U_DELTA_MIN + l * (self.u_full_at(n) - U_DELTA_MIN)
+        let u_min = self.u_delta_range.0;
+        u_min + l * (self.u_full_at(n) - u_min)
     }
 }
 
@@ -291,7 +300,7 @@ impl Controller for Baseline {
         let u = if !self.fuel_override.is_nan() {
             self.fuel_override
         } else if motoring {
-            U_DELTA_MIN
+            self.maps.u_delta_range.0
         } else {
             self.maps.fuel_for_torque(n_e, m_ref)
         };
@@ -321,13 +330,14 @@ impl Controller for Baseline {
         let u_ff = self.maps.fuel_for_torque(m.n_e, m.m_ref);
         let u_smoke =
             s.u_delta * s.lambda_o / (self.tuning.lambda_limit * (1.0 + self.tuning.smoke_margin));
-        let u_hi = U_DELTA_MAX.min(u_smoke).max(U_DELTA_MIN);
+        let (u_min, u_max) = self.maps.u_delta_range;
+        let u_hi = u_max.min(u_smoke).max(u_min);
         let u_delta = if !self.fuel_override.is_nan() {
             self.fuel_override
         } else if m.motoring {
-            U_DELTA_MIN
+            u_min
         } else {
-            (u_ff + self.torque.output(e_m, dt)).clamp(U_DELTA_MIN, u_hi)
+            (u_ff + self.torque.output(e_m, dt)).clamp(u_min, u_hi)
         };
         self.torque.commit(e_m, dt, u_delta - u_ff);
         // air path

@@ -2,10 +2,13 @@
 //! UN GTR No. 4 and speed/torque demands.
 //!
 //! The mapping curve is this model's full-load torque over speed with the smoke limit: at each
-//! speed the largest u_delta (<= 250 mg) whose steady state has lambda_O >= the limit, with the
-//! EGR valve closed and the VGT at [`MappingOptions::u_vgt`]; the motoring curve is the steady
-//! torque at the minimum fuel (1 mg, EGR closed, VGT open). From it the regulation's reference
-//! speeds: n_lo (lowest speed at 55 % of the maximum power), n_hi (highest speed at 70 %),
+//! speed of the parameter set's `[input_saturation] n_e` range (default the authors' 500-2000
+//! rpm) the largest u_delta (at most the top of its `u_delta` range, default 250 mg) whose
+//! steady state has lambda_O >= the limit, with the EGR valve closed and the VGT at
+//! [`MappingOptions::u_vgt`]; the motoring curve is the steady torque at the minimum fuel (the
+//! bottom of the `u_delta` range, default 1 mg, EGR closed, VGT open). So the closed loop
+//! follows the engine the parameter set describes, not the authors'. From it the regulation's
+//! reference speeds (idle: the bottom of the speed range unless given): n_lo (lowest speed at 55 % of the maximum power), n_hi (highest speed at 70 %),
 //! n_pref (where the integral of the full-load torque from n_idle reaches 51 % of its value up to
 //! n_95h, the highest speed at 95 % power), and the denormalized speed
 //! `n = n_norm/100 (0.45 n_lo + 0.45 n_pref + 0.1 n_hi - n_idle) 2.0327 + n_idle`,
@@ -15,13 +18,6 @@ use super::ControlError;
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::dispatch;
 use crate::model::{AnyModel, Drive, Signals};
-
-/// Minimum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
-pub const U_DELTA_MIN: f64 = crate::model::U_DELTA_RANGE.0;
-/// Maximum injected fuel of the authors' input saturation [mg/cycle/cylinder] (item 2).
-pub const U_DELTA_MAX: f64 = crate::model::U_DELTA_RANGE.1;
-/// Speed range of the authors' input saturation \[rpm\] (item 1).
-pub const N_E_RANGE: (f64, f64) = crate::model::N_E_RANGE;
 
 /// How the mapping curve is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +51,9 @@ pub struct MappingCurve {
     pub m_max: Vec<f64>,
     /// Motoring torque at the minimum fuel \[Nm\] (negative: friction and pumping).
     pub m_motor: Vec<f64>,
+    /// Fuel range of the parameter set's input saturation [mg/cycle/cylinder]: the motoring
+    /// fuel and the largest full-load fuel.
+    pub u_delta_range: (f64, f64),
     /// Options used.
     pub opts: MappingOptions,
 }
@@ -98,20 +97,30 @@ pub(crate) fn steady_signals(
 }
 
 impl MappingCurve {
-    /// Compute the curve of `model` (see the module documentation).
+    /// Compute the curve of `model` over the speed and fuel ranges of its parameter set's
+    /// `[input_saturation]` (see the module documentation).
     pub fn compute(model: &AnyModel, opts: MappingOptions) -> Result<Self, ControlError> {
-        let (lo, hi) = N_E_RANGE;
+        let sat = dispatch!(model, m => crate::model::Model::params(m).input_saturation.clone());
+        let [lo, hi] = sat.n_e;
+        let [u_min, u_max] = sat.u_delta;
+        if !(opts.dn.is_finite() && opts.dn > 0.0) {
+            return Err(ControlError::Setup(format!(
+                "mapping curve: speed step {} rpm must be > 0",
+                opts.dn
+            )));
+        }
         let k = ((hi - lo) / opts.dn).round().max(1.0) as usize;
         let mut c = MappingCurve {
             n_e: Vec::new(),
             u_full: Vec::new(),
             m_max: Vec::new(),
             m_motor: Vec::new(),
+            u_delta_range: (u_min, u_max),
             opts,
         };
         let setup = |e: String| ControlError::Setup(format!("mapping curve: {e}"));
         let mut guess = None;
-        let mut u = U_DELTA_MAX;
+        let mut u = u_max;
         for i in 0..=k {
             let n = lo + (hi - lo) * i as f64 / k as f64;
             // lambda_O ~ air / fuel and the air changes slowly with the fuel: the fixed-point
@@ -120,24 +129,34 @@ impl MappingCurve {
             for _ in 0..30 {
                 let d = Drive::new(n, u, 0.0, opts.u_vgt);
                 s = steady_signals(model, &d, &mut guess).map_err(setup)?;
-                let u_new = (u * s.lambda_o / opts.lambda_min).clamp(U_DELTA_MIN, U_DELTA_MAX);
+                let u_new = (u * s.lambda_o / opts.lambda_min).clamp(u_min, u_max);
                 if (u_new - u).abs() < 1e-4 * u {
                     break;
                 }
-                if u >= U_DELTA_MAX && u_new >= U_DELTA_MAX {
+                if u >= u_max && u_new >= u_max {
                     break;
                 }
                 u = u_new;
             }
             let mut g0 = None;
-            let s0 = steady_signals(model, &Drive::new(n, U_DELTA_MIN, 0.0, 100.0), &mut g0)
-                .map_err(setup)?;
+            let s0 =
+                steady_signals(model, &Drive::new(n, u_min, 0.0, 100.0), &mut g0).map_err(setup)?;
             c.n_e.push(n);
             c.u_full.push(u);
             c.m_max.push(s.m_e);
             c.m_motor.push(s0.m_e);
         }
         Ok(c)
+    }
+
+    /// Speed range of the curve \[rpm\] (the parameter set's `[input_saturation] n_e`).
+    pub fn n_e_range(&self) -> (f64, f64) {
+        (self.n_e[0], *self.n_e.last().unwrap())
+    }
+
+    /// Motoring (minimum) fuel [mg/cycle/cylinder].
+    pub fn u_delta_min(&self) -> f64 {
+        self.u_delta_range.0
     }
 
     /// Full-load torque at `n` \[Nm\].
@@ -251,8 +270,9 @@ pub struct Demand {
 }
 
 impl Demand {
-    /// Build from rows; checks finite values, strictly increasing time, at least two rows and
-    /// speeds in the model's range [500, 2000] rpm (the message names the row, 1-based).
+    /// Build from rows; checks finite values, strictly increasing time and at least two rows
+    /// (the message names the row, 1-based). The speeds are checked against an engine's range
+    /// by [`Demand::check_speeds`].
     pub fn new(
         t: Vec<f64>,
         n_e: Vec<f64>,
@@ -279,15 +299,6 @@ impl Demand {
                     i + 1,
                     t[i],
                     t[i - 1]
-                ));
-            }
-            let (lo, hi) = N_E_RANGE;
-            if !(lo..=hi).contains(&n_e[i]) {
-                return bad(format!(
-                    "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm",
-                    i + 1,
-                    t[i],
-                    n_e[i]
                 ));
             }
         }
@@ -321,6 +332,22 @@ impl Demand {
         }
     }
 
+    /// Check that every speed lies in `range` \[rpm\] (the engine's, [`MappingCurve::n_e_range`];
+    /// the message names the row, 1-based, and its time).
+    pub fn check_speeds(&self, range: (f64, f64)) -> Result<(), ControlError> {
+        let (lo, hi) = range;
+        match self.n_e.iter().position(|n| !(lo..=hi).contains(n)) {
+            None => Ok(()),
+            Some(i) => Err(ControlError::Demand(format!(
+                "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm \
+                 (the parameter set's [input_saturation] n_e)",
+                i + 1,
+                self.t[i],
+                self.n_e[i]
+            ))),
+        }
+    }
+
     /// Check that the engine can follow: torque at most `tol` above the full-load curve and,
     /// at fired points, at least the motoring torque (the message names the row and time).
     pub fn check_feasible(&self, curve: &MappingCurve, tol: f64) -> Result<(), ControlError> {
@@ -351,7 +378,8 @@ pub fn whtc_demand(
 ) -> Result<Demand, ControlError> {
     let (mut t, mut n, mut m, mut mot) = (vec![], vec![], vec![], vec![]);
     for &(ti, n_pct, m_pct) in table {
-        let ne = speeds.denormalize(n_pct).clamp(N_E_RANGE.0, N_E_RANGE.1);
+        let (lo, hi) = curve.n_e_range();
+        let ne = speeds.denormalize(n_pct).clamp(lo, hi);
         t.push(ti);
         n.push(ne);
         match m_pct {

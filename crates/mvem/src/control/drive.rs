@@ -124,7 +124,8 @@ pub fn run_cycle_with(
     let curve = MappingCurve::compute(model, MappingOptions::default()).map_err(|e| {
         ControlError::Setup(format!("cannot compute the engine's mapping curve: {e}"))
     })?;
-    let speeds = curve.reference_speeds(500.0);
+    // idle: the bottom of the engine's speed range (the authors': 500 rpm)
+    let speeds = curve.reference_speeds(curve.n_e_range().0);
     let demand = match (&cycle, &scheme) {
         (CycleSource::Whtc, Scheme::Baseline(_)) => whtc_demand(&whtc_table()?, &curve, &speeds)?,
         (CycleSource::Whtc, Scheme::OpenLoop(sched)) => open_loop_demand(sched, &curve)?,
@@ -134,6 +135,7 @@ pub fn run_cycle_with(
             ))
         }
         (CycleSource::Demand(d), Scheme::Baseline(_)) => {
+            d.check_speeds(curve.n_e_range())?;
             d.check_feasible(&curve, FEASIBLE_TOL)?;
             d.clone()
         }

@@ -71,6 +71,7 @@ pub fn setpoint_step(
         vec![0.0, 0.0],
         vec![false, false],
     )?;
+    demand.check_speeds(curve.n_e_range())?;
     let (traj, _) = run(
         model.clone(),
         &demand,

@@ -151,7 +151,8 @@ impl Model<8> for Engine8 {
 
     fn initial_guess(&self, d: &Drive) -> [f64; 8] {
         let pa = self.p.ambient.p_amb;
-        let load = (d.u_delta_mg / 250.0).clamp(0.0, 1.0);
+        // load: the fuel over the top of the set's fuel range (the authors': 250 mg)
+        let load = (d.u_delta_mg / self.p.input_saturation.u_delta[1]).clamp(0.0, 1.0);
         let mut x = [
             pa * (1.0 + 1.0 * load),
             pa * (1.1 + 1.4 * load),
