@@ -367,6 +367,21 @@ fn lab_tune_validate_12_state() {
     assert!(!d.join("bad.toml").exists());
 }
 
+/// `mvem tune --data c --steps 1 --out t.toml --report REP EXTRA...` in `d`: its stderr and
+/// report.
+fn tune_step1(d: &std::path::Path, extra: &[&str], rep: &str) -> (String, serde_json::Value) {
+    let mut args = vec![
+        "tune", "--data", "c", "--steps", "1", "--out", "t.toml", "--report", rep,
+    ];
+    args.extend_from_slice(extra);
+    let o = mvem(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join(rep).join("tune_report.json")).unwrap())
+            .unwrap();
+    (stderr(&o), json)
+}
+
 /// A campaign of another engine (4 cylinders of 15.9 dm^3 in all, the published turbo,
 /// measured at 95 kPa and 288 K): `mvem tune` without --params says that it uses the published engine's
 /// constants, names the constants that differ from the campaign's true engine, and flags the
@@ -415,18 +430,7 @@ fn tune_checks_the_engine_constants_and_takes_the_ambient_from_the_data() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    let tune = |extra: &[&str], rep: &str| {
-        let mut args = vec![
-            "tune", "--data", "c", "--steps", "1", "--out", "t.toml", "--report", rep,
-        ];
-        args.extend_from_slice(extra);
-        let o = mvem(d, &args);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let json: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(d.join(rep).join("tune_report.json")).unwrap())
-                .unwrap();
-        (stderr(&o), json)
-    };
+    let tune = |extra: &[&str], rep: &str| tune_step1(d, extra, rep);
     let (err, json) = tune(&[], "r1");
     assert!(
         err.contains("constants are the published engine's"),
@@ -519,4 +523,77 @@ fn lab_envelope_is_checked_against_the_input_saturation() {
     // idle 600 -> 750 r/min at 10 % of 180 mg; ESC A (1200) -> 1250 r/min at 100 %
     assert!((rows[0][ne] - 750.0).abs() < 1e-9 && (rows[0][ud] - 18.0).abs() < 1e-9);
     assert!((rows[1][ne] - 1250.0).abs() < 1e-9 && (rows[1][ud] - 180.0).abs() < 1e-9);
+}
+
+/// A campaign of an engine that runs beyond the authors' 500-2000 rpm and 250 mg, tuned with a
+/// parameter file that does not set `[input_saturation]`: by default the ranges are widened to
+/// the campaign (said on stderr and in the report, written to --out); `--input-ranges params`
+/// keeps the file's and the report says the points ran clamped.
+#[test]
+fn tune_widens_the_input_ranges_to_the_campaign() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let shown = mvem(d, &["params", "show"]);
+    assert!(shown.status.success());
+    let text = String::from_utf8(shown.stdout).unwrap();
+    assert!(text.contains("n_e = [500.0, 2000.0]") && text.contains("u_delta = [1.0, 250.0]"));
+    std::fs::write(
+        d.join("wide.toml"),
+        text.replace("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]")
+            .replace("u_delta = [1.0, 250.0]", "u_delta = [1.0, 280.0]"),
+    )
+    .unwrap();
+    let o = mvem(
+        d,
+        &[
+            "lab",
+            "--params",
+            "wide.toml",
+            "--out",
+            "c",
+            "--speeds",
+            "1000:2500",
+            "--full-load",
+            "260",
+            "--no-dynamic",
+            "--n-stationary",
+            "30",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let tune = |extra: &[&str], rep: &str| tune_step1(d, extra, rep);
+    let (err, json) = tune(&[], "r1");
+    assert!(
+        err.contains("warning: input_saturation widened to the campaign: n_e 500-"),
+        "{err}"
+    );
+    let w = &json["input_saturation"];
+    let hi = w["n_e"][1].as_f64().unwrap();
+    assert!(hi > 2000.0 && hi < 2600.0, "{w}");
+    assert_eq!(w["n_e_file"][1], 2000.0);
+    assert_eq!(w["u_delta"][1], 260.0, "{w}");
+    let tuned = std::fs::read_to_string(d.join("t.toml")).unwrap();
+    assert!(tuned.contains(&format!("n_e = [500.0, {hi:?}]")), "{tuned}");
+    assert!(tuned.contains("u_delta = [1.0, 260.0]"), "{tuned}");
+    let md = std::fs::read_to_string(d.join("r1").join("tune_report.md")).unwrap();
+    assert!(md.contains("**Note:** input_saturation widened"), "{md}");
+    assert!(json["caveats"].as_array().unwrap().iter().all(|c| !c
+        .as_str()
+        .unwrap()
+        .contains("outside the model's input saturation")));
+    // the file's ranges: nothing widened, the clamped points named
+    let (err, json) = tune(&["--input-ranges", "params"], "r2");
+    assert!(!err.contains("widened"), "{err}");
+    assert!(json["input_saturation"].is_null(), "{json}");
+    assert!(
+        json["caveats"].as_array().unwrap().iter().any(|c| c
+            .as_str()
+            .unwrap()
+            .contains("outside the model's input saturation")),
+        "{json}"
+    );
+    // the wide engine's own file: nothing to widen
+    let (err, json) = tune(&["--params", "wide.toml"], "r3");
+    assert!(!err.contains("widened"), "{err}");
+    assert!(json["input_saturation"].is_null(), "{json}");
 }

@@ -304,3 +304,47 @@ fn sensor_lags_reproduce_a_lagged_campaign() {
     let pem = without.outputs.iter().find(|o| o.output == "p_em").unwrap();
     assert!(pem.max_abs_rel_err > 1e-3, "{pem:?}");
 }
+
+/// Step 1's compressor-efficiency fit reaches the least-squares optimum on another engine: on
+/// the 2-litre engine of `tests/data/engine_2l.toml` (W_c a third of the published engine's),
+/// with the published start alone the variable projection ended in a local minimum whose
+/// projected map missed the measured eta_c by 9.2-9.9 % on average (seeds 2 and 3; the true map
+/// 3.0 %), and the complete model then settled 30 % low in boost on the high-load sets. With
+/// the ellipse centres at the data's quartiles as further starts the fit is at least as good as
+/// the true map on its own criterion (it is that criterion's optimum), on every seed.
+#[test]
+fn eta_c_fit_reaches_the_optimum_on_a_2_litre_engine() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/engine_2l.toml");
+    let truth = mvem::io::params::load_params(&path).unwrap();
+    let mean_err = |p: &Params, pts: &[StationaryPoint], what: &str| {
+        validate::stationary_errors(p, pts)
+            .unwrap()
+            .into_iter()
+            .find(|o| o.output == what)
+            .unwrap()
+            .mean_abs_rel_err
+    };
+    for seed in [1, 2, 3] {
+        let opts = LabOptions {
+            seed,
+            noise: Noise::REALISTIC,
+            n_stationary: 82,
+            dynamic: false,
+            envelope: lab::Envelope {
+                n_lo_rpm: 1750.0,
+                n_hi_rpm: 4250.0,
+                full_load_mg: 52.0,
+            },
+            ..LabOptions::default()
+        };
+        let (_, meas) = lab::stationary(&truth, &opts).unwrap();
+        let (fit, _) = step1(&truth, &meas, &Step1Start::default()).unwrap();
+        let (e_fit, e_true) = (
+            mean_err(&fit, &meas, "eta_c"),
+            mean_err(&truth, &meas, "eta_c"),
+        );
+        eprintln!("seed {seed}: eta_c mean error {e_fit:.4} (true map {e_true:.4})");
+        assert!(e_fit < 0.04, "seed {seed}: {e_fit}");
+        assert!(e_fit <= 1.02 * e_true, "seed {seed}: {e_fit} vs {e_true}");
+    }
+}

@@ -26,7 +26,9 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 displacement, cylinders, compression ratio, heating value, wheel radii, maximum EGR and VGT
 areas, gas properties; for another engine give its own). No step starts from a value of
 --params. The ambient p_amb, T_amb and T_im are the means of the stationary points where
-they contradict --params (--ambient auto|data|params). Constants that the campaign contradicts (the volumetric
+they contradict --params (--ambient auto|data|params). The model's input ranges
+([input_saturation], default the authors' 500-2000 rpm and 1-250 mg) are widened to contain
+the campaign's speeds and largest fuel (--input-ranges campaign|params). Constants that the campaign contradicts (the volumetric
 efficiency the measured flows imply, the indicated efficiency step 1 fits to the torque, or a
 virtual campaign's true_params.toml) are reported as caveats. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is written to the [test_cell] section of the output file, which `mvem
@@ -73,6 +75,13 @@ pub struct Args {
     /// under other conditions); `data`: the means always; `params`: the --params values.
     #[arg(long, value_enum, default_value = "auto")]
     pub ambient: AmbientArg,
+    /// The model's input ranges ([input_saturation]: the speed and fuel ranges it clamps n_e
+    /// and u_delta into, by default the authors' engine's 500-2000 rpm and 1-250 mg):
+    /// `campaign` widens --params' ranges to contain the campaign's engine speeds and largest
+    /// fuel (said on stderr, written to --out); `params` keeps them (points outside run
+    /// clamped, a caveat says so).
+    #[arg(long, value_enum, default_value = "campaign")]
+    pub input_ranges: InputRangesArg,
     /// Start of step 5: the step-1 values or eq. (78) from the bounds.
     #[arg(long, value_enum, default_value = "step1")]
     pub init: InitArg,
@@ -191,6 +200,15 @@ pub enum AmbientArg {
     Params,
 }
 
+/// `--input-ranges`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum InputRangesArg {
+    /// --params' ranges widened to contain the campaign.
+    Campaign,
+    /// --params' ranges as they are.
+    Params,
+}
+
 /// `--fixed-jacobian`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum FixedJacobianArg {
@@ -300,6 +318,10 @@ pub fn run(a: &Args) -> Result<()> {
         AmbientArg::Data => mvem::tuning::constants::AmbientSource::Data,
         AmbientArg::Params => mvem::tuning::constants::AmbientSource::Params,
     };
+    opts.input_ranges = match a.input_ranges {
+        InputRangesArg::Campaign => mvem::tuning::constants::InputRangeSource::Campaign,
+        InputRangesArg::Params => mvem::tuning::constants::InputRangeSource::Params,
+    };
     opts.step5.max_evaluations = a.max_evals;
     opts.step5.broyden_updates = a.broyden;
     if !(a.rel_offset.is_finite() && a.rel_offset >= 0.0) {
@@ -350,6 +372,9 @@ pub fn run(a: &Args) -> Result<()> {
     let (p, mut rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
     if let Some(amb) = &rep.ambient {
         eprintln!("{}", amb.describe());
+    }
+    if let Some(w) = &rep.input_saturation {
+        eprintln!("warning: {}", w.describe());
     }
     // searches stopped by their evaluation limit: results are written, with a warning
     for (step, conv) in [
@@ -492,6 +517,9 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
     if let Some(amb) = &rep.ambient {
         let d = amb.describe();
         let _ = writeln!(s, "{}{}.\n", d[..1].to_uppercase(), &d[1..]);
+    }
+    if let Some(w) = &rep.input_saturation {
+        let _ = writeln!(s, "**Note:** {}.\n", w.describe());
     }
     if !rep.failed_sets.is_empty() {
         let _ = writeln!(

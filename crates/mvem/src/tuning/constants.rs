@@ -372,6 +372,103 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
     })
 }
 
+/// Where the tuned model's input ranges (`[input_saturation]`, the authors' items 1-2) come
+/// from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InputRangeSource {
+    /// The parameter file's ranges, widened to contain the campaign: the speed range to its
+    /// lowest and highest engine speed, the fuel range up to its largest u_delta (the bottom of
+    /// the fuel range stays: the authors' minimum fuel keeps lambda_O of eq. (15) finite).
+    #[default]
+    Campaign,
+    /// The parameter file's ranges as they are; points outside run clamped (a caveat says so).
+    Params,
+}
+
+/// The input ranges a tuning widened ([`widen_input_saturation`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InputRangesWidened {
+    /// The parameter file's speed range \[rpm\].
+    pub n_e_file: [f64; 2],
+    /// The speed range used and written \[rpm\].
+    pub n_e: [f64; 2],
+    /// The parameter file's fuel range [mg/cycle/cylinder].
+    pub u_delta_file: [f64; 2],
+    /// The fuel range used and written [mg/cycle/cylinder].
+    pub u_delta: [f64; 2],
+}
+
+impl InputRangesWidened {
+    /// One line for the report and the command line.
+    pub fn describe(&self) -> String {
+        format!(
+            "input_saturation widened to the campaign: n_e {}-{} rpm (file {}-{}), u_delta {}-{} mg \
+             (file {}-{}); the model would otherwise have run the campaign's points beyond the \
+             file's ranges clamped (the authors' items 1-2 are their engine's ranges), and the \
+             tuned file carries these",
+            self.n_e[0],
+            self.n_e[1],
+            self.n_e_file[0],
+            self.n_e_file[1],
+            self.u_delta[0],
+            self.u_delta[1],
+            self.u_delta_file[0],
+            self.u_delta_file[1]
+        )
+    }
+}
+
+/// The lowest and highest engine speed \[rpm\] and the largest fuel [mg/cycle/cylinder] of the
+/// campaign (stationary points and dynamic samples; None without any).
+fn campaign_input_extent(c: &super::data::Campaign) -> Option<(f64, f64, f64)> {
+    let (mut lo, mut hi, mut u_hi) = (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for x in &c.stationary {
+        lo = lo.min(x.n_e);
+        hi = hi.max(x.n_e);
+        u_hi = u_hi.max(x.u_delta);
+    }
+    for d in &c.dynamic {
+        for &v in d.get("n_e").unwrap_or(&[]) {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        for &v in d.get("u_delta").unwrap_or(&[]) {
+            u_hi = u_hi.max(v);
+        }
+    }
+    (lo.is_finite() && hi.is_finite()).then_some((lo, hi, u_hi))
+}
+
+/// With [`InputRangeSource::Campaign`], widen `p`'s `[input_saturation]` to contain the
+/// campaign's engine speeds and largest fuel (see there) and say what changed; `None` when the
+/// campaign lies inside (or with [`InputRangeSource::Params`]). A campaign of another engine
+/// tuned with a parameter file that does not set the ranges (they default to the authors'
+/// 500-2000 rpm, 1-250 mg) would otherwise be fitted by a model that clamps its high-speed
+/// points to 2000 rpm.
+pub fn widen_input_saturation(
+    p: &mut Params,
+    c: &super::data::Campaign,
+    source: InputRangeSource,
+) -> Option<InputRangesWidened> {
+    if source == InputRangeSource::Params {
+        return None;
+    }
+    let (lo, hi, u_hi) = campaign_input_extent(c)?;
+    let s = &mut p.input_saturation;
+    let before = (s.n_e, s.u_delta);
+    s.n_e = [s.n_e[0].min(lo), s.n_e[1].max(hi)];
+    if u_hi.is_finite() {
+        s.u_delta[1] = s.u_delta[1].max(u_hi);
+    }
+    ((s.n_e, s.u_delta) != before).then_some(InputRangesWidened {
+        n_e_file: before.0,
+        n_e: s.n_e,
+        u_delta_file: before.1,
+        u_delta: s.u_delta,
+    })
+}
+
 /// The published engine's constants in one line (for the note that they are used).
 pub fn describe_constants(p: &Params) -> String {
     format!(
@@ -514,6 +611,26 @@ mod tests {
         let mut q = p.clone();
         q.input_saturation.n_e = [500.0, 3000.0];
         assert!(inputs_outside_saturation(&q, &c).is_none());
+        // the default: the ranges widened to the campaign, so nothing runs clamped
+        let mut w = p.clone();
+        assert!(widen_input_saturation(&mut w, &c, InputRangeSource::Params).is_none());
+        assert_eq!(w, p);
+        c.stationary[3].u_delta = 300.0;
+        c.stationary[4].n_e = 450.0;
+        let r = widen_input_saturation(&mut w, &c, InputRangeSource::Campaign).expect("widened");
+        assert_eq!(w.input_saturation.n_e, [450.0, 2500.0]);
+        assert_eq!(w.input_saturation.u_delta, [1.0, 300.0]);
+        assert_eq!(
+            (r.n_e_file, r.u_delta_file),
+            ([500.0, 2000.0], [1.0, 250.0])
+        );
+        assert!(r.describe().contains("n_e 450-2500 rpm (file 500-2000)"));
+        assert!(inputs_outside_saturation(&w, &c).is_none());
+        assert!(w.validate().is_ok());
+        // a campaign inside the file's ranges leaves them
+        let mut again = w.clone();
+        assert!(widen_input_saturation(&mut again, &c, InputRangeSource::Campaign).is_none());
+        assert_eq!(again, w);
     }
 
     #[test]

@@ -22,7 +22,8 @@ use super::complete::{
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
 use super::constants::{
-    ambient_from_stationary, implausible_constants, AmbientFromData, AmbientSource,
+    ambient_from_stationary, implausible_constants, widen_input_saturation, AmbientFromData,
+    AmbientSource, InputRangeSource, InputRangesWidened,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
@@ -127,6 +128,10 @@ pub struct PipelineOptions {
     /// where they contradict the base parameter set (default), always, or never
     /// ([`super::constants::ambient_from_stationary`]).
     pub ambient: AmbientSource,
+    /// The model's input ranges (`[input_saturation]`): the base parameter set's, widened to
+    /// contain the campaign's speeds and fuel (default), or as they are
+    /// ([`super::constants::widen_input_saturation`]).
+    pub input_ranges: InputRangeSource,
 }
 
 impl Default for PipelineOptions {
@@ -146,6 +151,7 @@ impl Default for PipelineOptions {
             sensor_lags: SensorLagMode::Fit,
             fixed_jacobian: FixedJacobian::Forward,
             ambient: AmbientSource::Auto,
+            input_ranges: InputRangeSource::Campaign,
         }
     }
 }
@@ -182,6 +188,9 @@ pub struct TuneReport {
     /// The ambient conditions chosen before step 1 from the stationary points' means and the
     /// base parameter set (option `ambient`; `None` without stationary points).
     pub ambient: Option<AmbientFromData>,
+    /// The base parameter set's input ranges widened to the campaign before step 1 (option
+    /// `input_ranges`; `None` when the campaign lies inside them).
+    pub input_saturation: Option<InputRangesWidened>,
     /// Step 1 submodel fits.
     pub step1: Option<Step1Report>,
     /// Settled ends of command steps in the compressor-flow fit of step 1 besides the
@@ -342,6 +351,8 @@ pub fn tune(
     };
     // the test cell's ambient conditions: measured at every stationary point
     rep.ambient = ambient_from_stationary(&mut p, &c.stationary, opts.ambient);
+    // the model's input ranges contain the campaign (another engine's speeds run unclamped)
+    rep.input_saturation = widen_input_saturation(&mut p, c, opts.input_ranges);
     // inputs the model would run clamped (the parameter set's input saturation)
     rep.caveats
         .extend(super::constants::inputs_outside_saturation(&p, c));

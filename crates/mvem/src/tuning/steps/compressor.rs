@@ -150,17 +150,67 @@ pub fn fit_eta_c(
             }
         })
     };
-    let fit = Varpro::new(&y, phi)
-        .bounds(Bounds::new(vec![0.0, 0.0, 0.05], vec![2.0, 5.0, 3.0]))
-        .options(lsq_opts())
-        .fit(&start)
-        .map_err(|e| solver_err("eta_c")(e.to_string()))?;
-    let c = &mut p.compressor;
-    c.w_copt = fit.alpha[0];
-    c.pi_copt = fit.alpha[1];
-    c.c_pi = fit.alpha[2];
-    c.eta_cmax = fit.c[0];
-    c.q_c = project_q_c([[fit.c[1], fit.c[3]], [fit.c[3], fit.c[2]]]);
+    // the fit from one start of (W_copt, pi_copt, c_pi), Q_c projected on the PSD cone as the
+    // model uses it, and the squared error of the model's eta_c it gives
+    let fit_from = |start: &[f64]| -> Result<(Params, usize, f64), StepError> {
+        let fit = Varpro::new(&y, phi)
+            .bounds(Bounds::new(vec![0.0, 0.0, 0.05], vec![2.0, 5.0, 3.0]))
+            .options(lsq_opts())
+            .fit(start)
+            .map_err(|e| solver_err("eta_c")(e.to_string()))?;
+        let mut q = p.clone();
+        let c = &mut q.compressor;
+        c.w_copt = fit.alpha[0];
+        c.pi_copt = fit.alpha[1];
+        c.c_pi = fit.alpha[2];
+        c.eta_cmax = fit.c[0];
+        c.q_c = project_q_c([[fit.c[1], fit.c[3]], [fit.c[3], fit.c[2]]]);
+        let (meas, model) = eta_c_series(&q, pts, &d);
+        let sse = meas
+            .iter()
+            .zip(&model)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>();
+        Ok((
+            q,
+            fit.lsq.n_eval,
+            if sse.is_finite() { sse } else { f64::INFINITY },
+        ))
+    };
+    // the given start, then ellipse centres at the quartiles of the measured W_c and
+    // (Pi_c - 1)^0.5: on another engine's campaign the given start (the published engine's
+    // scale) can end in a local minimum whose projected map is far from the data (a 2-litre
+    // engine's W_c is a third of the published one's; docs/tuning.md, session 24). Another
+    // start's result is kept only where its error is lower by more than 1e-6 relative, so a
+    // campaign where they reach the same minimum keeps the given start's bits.
+    let (mut best, mut n_eval, mut best_sse) = fit_from(&start)?;
+    let quartile = |mut v: Vec<f64>, q: f64| -> f64 {
+        v.retain(|x| x.is_finite());
+        v.sort_by(f64::total_cmp);
+        v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+            .unwrap_or(f64::NAN)
+    };
+    let w_c: Vec<f64> = pts.iter().map(|s| s.w_c).collect();
+    let pr: Vec<f64> = d.iter().map(|d| (d.pi_c - 1.0).max(0.0).sqrt()).collect();
+    for q in [0.25, 0.5, 0.75] {
+        let s0 = [
+            quartile(w_c.clone(), q).clamp(1e-3, 1.99),
+            quartile(pr.clone(), q).clamp(1e-3, 4.99),
+            0.5,
+        ];
+        if !s0.iter().all(|v| v.is_finite()) {
+            continue;
+        }
+        // a start that fails (a singular projection) is skipped: the given one succeeded
+        if let Ok((cand, n, sse)) = fit_from(&s0) {
+            n_eval += n;
+            if sse < best_sse * (1.0 - 1e-6) {
+                (best, best_sse) = (cand, sse);
+            }
+        }
+    }
+    p.compressor = best.compressor;
     let (meas, model) = eta_c_series(p, pts, &d);
     let c = &p.compressor;
     Ok(fit_report(
@@ -176,7 +226,7 @@ pub fn fit_eta_c(
         ],
         &meas,
         &model,
-        fit.lsq.n_eval,
+        n_eval,
     ))
 }
 
