@@ -358,6 +358,10 @@ pub const LAG_START_S: f64 = 0.01;
 /// millisecond: nothing 100 Hz data can tell from no lag), see [`fit_dynamic`].
 pub const LAG_AT_BOUND_S: f64 = 1e-4;
 
+/// A fitted sensor time constant within this distance \[s\] of [`MAX_LAG_S`] counts as on its
+/// upper bound (the step's 2 ms output grid), see [`fit_dynamic`].
+pub const LAG_AT_UPPER_S: f64 = 2e-3;
+
 impl Default for Step3Start {
     /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
     /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2. For the
@@ -602,11 +606,14 @@ pub fn fit_dynamic(
         .zip(&segs)
         .flat_map(|(d, sg)| f.window.blocks(&d.t, sg).repeat(DYN_OUTPUTS.len()))
         .collect();
-    // a sensor lag that ended on its bound 0 (the data see no lag there) is held at the bound
-    // for the covariance of the others (an active constraint): its column would otherwise
-    // carry a variance the bound forbids into every parameter correlated with it
-    let at_bound =
-        |k: usize| SensorLags::index(f.names[k]).is_some() && fit.theta[k] <= LAG_AT_BOUND_S;
+    // a sensor lag that ended on its bound 0 (the data see no lag there) or on its upper bound
+    // [`MAX_LAG_S`] is held at the bound for the covariance of the others (an active
+    // constraint): its column would otherwise carry a variance the bound forbids into every
+    // parameter correlated with it
+    let at_upper = |k: usize| fit.theta[k] >= MAX_LAG_S - LAG_AT_UPPER_S;
+    let at_bound = |k: usize| {
+        SensorLags::index(f.names[k]).is_some() && (fit.theta[k] <= LAG_AT_BOUND_S || at_upper(k))
+    };
     let kept: Vec<usize> = (0..f.names.len()).filter(|&k| !at_bound(k)).collect();
     let names: Vec<&str> = kept.iter().map(|&k| f.names[k]).collect();
     let theta: Vec<f64> = kept.iter().map(|&k| fit.theta[k]).collect();
@@ -620,9 +627,19 @@ pub fn fit_dynamic(
             std_error: f64::INFINITY,
             identifiable: false,
             correlated_with: Vec::new(),
-            reason: "at its bound 0 (the data show no lag of this sensor); held there for the \
-                     other parameters' standard errors"
-                .to_string(),
+            reason: if at_upper(k) {
+                format!(
+                    "at its upper bound {:.0} ms: no test-cell sensor is that slow, so the lag \
+                     stands in for something the model gets wrong (it trades with V_im, V_em, \
+                     J_t and the static maps; session 24 in docs/tuning.md); held there for the \
+                     other parameters' standard errors",
+                    MAX_LAG_S * 1e3
+                )
+            } else {
+                "at its bound 0 (the data show no lag of this sensor); held there for the \
+                 other parameters' standard errors"
+                    .to_string()
+            },
             step,
         };
         (f.names[k].to_string(), e)

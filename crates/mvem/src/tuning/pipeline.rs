@@ -304,7 +304,10 @@ fn missing(step: u8, what: &str) -> PipelineError {
         step,
         source: StepError::Solver {
             submodel: "data",
-            message: format!("the campaign has no {what}"),
+            message: format!(
+                "the campaign has no {what}; select the steps it supports (`mvem tune \
+                 --steps`): the steps not run take their parameters from the base set (--params)"
+            ),
         },
     }
 }
@@ -530,6 +533,8 @@ pub fn tune(
     rep.caveats
         .extend(implausible_constants(&p, &c.stationary, opts.steps[0]));
     rep.caveats.extend(inherited_static_bias(&rep.parameters));
+    rep.caveats
+        .extend(lags_at_upper_bound(rep.sensor_lags.as_ref(), opts));
     (rep.oscillations, rep.failed_sets) =
         oscillations_on_campaign(c, &p, opts.model, rep.tau_me_s, &opts.step5.sensor_lags);
     rep.total_seconds = t_all.elapsed().as_secs_f64();
@@ -543,6 +548,32 @@ pub struct SetFailure {
     pub set: String,
     /// What failed (the simulator's message: time and state of the failure).
     pub message: String,
+}
+
+/// A caveat when step 3 fitted a sensor lag onto its upper bound [`MAX_LAG_S`] (within
+/// [`super::complete::LAG_AT_UPPER_S`]): no test-cell sensor is that slow, so the lag stands
+/// in for a model error, and V_im, V_em, J_t fitted with it carry it (seen on a 2-litre
+/// engine's campaign, docs/tuning.md session 24). `None` for given lags or none at the bound.
+fn lags_at_upper_bound(lags: Option<&SensorLags>, opts: &PipelineOptions) -> Option<String> {
+    if !opts.step3.fit_lags {
+        return None;
+    }
+    let at: Vec<String> = super::sensors::LAG_NAMES
+        .iter()
+        .zip(lags?.as_array())
+        .filter(|(_, v)| *v >= MAX_LAG_S - super::complete::LAG_AT_UPPER_S)
+        .map(|(n, v)| format!("{n} {:.1} ms", v * 1e3))
+        .collect();
+    (!at.is_empty()).then(|| {
+        format!(
+            "step 3 put the sensor lag(s) {} on the upper bound of {:.0} ms: no test-cell sensor \
+             is that slow, so the lag stands in for something the model gets wrong, and V_im, \
+             V_em, J_t fitted with it are biased by it; try `--sensor-lags none` or the \
+             sensors' known time constants and compare the validation",
+            at.join(", "),
+            MAX_LAG_S * 1e3
+        )
+    })
 }
 
 /// Step 3's sensor lags (fitted or held, [`CompleteReport::sensor_lags`]) held from now on:
@@ -1877,6 +1908,29 @@ mod tests {
             assert!(m[k].reason.ends_with("(rel. std. error 0.27 %)"), "{k}");
         }
         assert!(m["turbo.j_t"].identifiable);
+    }
+
+    #[test]
+    fn a_fitted_lag_on_its_upper_bound_is_a_caveat() {
+        let mut opts = PipelineOptions::default();
+        opts.step3.fit_lags = true;
+        let lags = |p_im: f64, n_t: f64| SensorLags {
+            p_im,
+            p_em: 0.0,
+            w_c: 0.02,
+            n_t,
+        };
+        assert!(lags_at_upper_bound(Some(&lags(0.01, 0.0)), &opts).is_none());
+        assert!(lags_at_upper_bound(None, &opts).is_none());
+        let c = lags_at_upper_bound(Some(&lags(0.1989, 0.2)), &opts).expect("caveat");
+        assert!(
+            c.contains("tau_p_im 198.9 ms, tau_n_t 200.0 ms") && c.contains("200 ms"),
+            "{c}"
+        );
+        // 197 ms is inside the box by more than the 2 ms grid; given lags are not fitted
+        assert!(lags_at_upper_bound(Some(&lags(0.197, 0.0)), &opts).is_none());
+        opts.step3.fit_lags = false;
+        assert!(lags_at_upper_bound(Some(&lags(0.2, 0.2)), &opts).is_none());
     }
 
     #[test]
