@@ -8,7 +8,8 @@
 //! [`MappingOptions::u_vgt`]; the motoring curve is the steady torque at the minimum fuel (the
 //! bottom of the `u_delta` range, default 1 mg, EGR closed, VGT open). So the closed loop
 //! follows the engine the parameter set describes, not the authors'. From it the regulation's
-//! reference speeds (idle: the bottom of the speed range unless given): n_lo (lowest speed at 55 % of the maximum power), n_hi (highest speed at 70 %),
+//! reference speeds (n_idle given; [`super::drive::run_cycle`] takes the bottom of the speed
+//! range): n_lo (lowest speed at 55 % of the maximum power), n_hi (highest speed at 70 %),
 //! n_pref (where the integral of the full-load torque from n_idle reaches 51 % of its value up to
 //! n_95h, the highest speed at 95 % power), and the denormalized speed
 //! `n = n_norm/100 (0.45 n_lo + 0.45 n_pref + 0.1 n_hi - n_idle) 2.0327 + n_idle`,

@@ -341,21 +341,13 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
         .filter(|x| out(x.n_e, x.u_delta))
         .count();
     let (mut samples, mut total) = (0usize, 0usize);
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for x in &c.stationary {
-        lo = lo.min(x.n_e);
-        hi = hi.max(x.n_e);
-    }
     for d in &c.dynamic {
         if let (Some(n), Some(u)) = (d.get("n_e"), d.get("u_delta")) {
             total += n.len();
             samples += n.iter().zip(u).filter(|(n, u)| out(**n, **u)).count();
-            for &v in n {
-                lo = lo.min(v);
-                hi = hi.max(v);
-            }
         }
     }
+    let (lo, hi, _) = campaign_input_extent(c).unwrap_or((f64::NAN, f64::NAN, f64::NAN));
     (points + samples > 0).then(|| {
         format!(
             "{points} of the {} stationary points and {samples} of the {total} dynamic samples \

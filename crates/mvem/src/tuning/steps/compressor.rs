@@ -184,19 +184,23 @@ pub fn fit_eta_c(
     // start's result is kept only where its error is lower by more than 1e-6 relative, so a
     // campaign where they reach the same minimum keeps the given start's bits.
     let (mut best, mut n_eval, mut best_sse) = fit_from(&start)?;
-    let quartile = |mut v: Vec<f64>, q: f64| -> f64 {
-        v.retain(|x| x.is_finite());
+    // the measured values sorted (non-finite ones dropped) and their q-quantile
+    let sorted = |v: Vec<f64>| {
+        let mut v: Vec<f64> = v.into_iter().filter(|x| x.is_finite()).collect();
         v.sort_by(f64::total_cmp);
+        v
+    };
+    let quantile = |v: &[f64], q: f64| {
         v.get(((v.len() as f64 - 1.0) * q).round() as usize)
             .copied()
             .unwrap_or(f64::NAN)
     };
-    let w_c: Vec<f64> = pts.iter().map(|s| s.w_c).collect();
-    let pr: Vec<f64> = d.iter().map(|d| (d.pi_c - 1.0).max(0.0).sqrt()).collect();
+    let w_c = sorted(pts.iter().map(|s| s.w_c).collect());
+    let pr = sorted(d.iter().map(|d| (d.pi_c - 1.0).max(0.0).sqrt()).collect());
     for q in [0.25, 0.5, 0.75] {
         let s0 = [
-            quartile(w_c.clone(), q).clamp(1e-3, 1.99),
-            quartile(pr.clone(), q).clamp(1e-3, 4.99),
+            quantile(&w_c, q).clamp(1e-3, 1.99),
+            quantile(&pr, q).clamp(1e-3, 4.99),
             0.5,
         ];
         if !s0.iter().all(|v| v.is_finite()) {
