@@ -211,3 +211,13 @@ def test_sliders_span_the_parameter_sets_input_saturation(page):
     assert page.eval_on_selector("input[data-slider=n_e]", "s => Number(s.value)") == 2800
     page.select_option("select[name=params]", "published")
     assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250]}
+
+
+def test_closed_loop_cycle_shows_the_regulation_check(page):
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    info = page.text_content("#cycle-info")
+    # the published engine's closed-loop WHTC passes (docs/control.md)
+    assert "regulation check: passes" in info, info
+    page.screenshot(path=str(ART / "explorer_closed_loop.png"), full_page=True)

@@ -423,7 +423,12 @@
       app.cycle = j;
       Object.assign(app.units, j.units || {});
       drawCycle(j);
-      $("#cycle-info").textContent = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
+      let info = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
+      if (j.mode === "closed") {
+        // the regulation's cycle validation of the run (mvem closed-loop's stats.json)
+        info += j.passes ? "; regulation check: passes" : `; regulation check fails: ${(j.violations || []).join("; ")}`;
+      }
+      $("#cycle-info").textContent = info;
       const sl = $("input[name=cycle_t]");
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
       scrub();
