@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{col, files, mvem, read_csv, stderr, stdout, usage_error};
+use common::{col, files, mvem, read_csv, stderr, stdout, usage_error, write_published_with};
 
 #[test]
 fn short_whtc_run_writes_the_trajectory_and_statistics() {
@@ -196,15 +196,11 @@ fn runtime_failure_writes_nothing() {
 #[test]
 fn a_cycle_follows_the_parameter_sets_speed_range() {
     let d = tempfile::tempdir().unwrap();
-    let shown = mvem(d.path(), &["params", "show"]);
-    assert!(shown.status.success(), "{}", stderr(&shown));
-    let text = stdout(&shown);
-    assert!(text.contains("n_e = [500.0, 2000.0]"), "{text}");
-    std::fs::write(
-        d.path().join("wide.toml"),
-        text.replace("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]"),
-    )
-    .unwrap();
+    write_published_with(
+        d.path(),
+        "wide.toml",
+        &[("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]")],
+    );
     std::fs::write(
         d.path().join("fast.csv"),
         "t,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n8,2300,300\n",

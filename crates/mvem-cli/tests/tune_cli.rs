@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{mvem, stderr};
+use common::{mvem, published_toml, stderr, write_published_with};
 
 #[test]
 fn lab_tune_validate_roundtrip_and_errors() {
@@ -367,6 +367,15 @@ fn lab_tune_validate_12_state() {
     assert!(!d.join("bad.toml").exists());
 }
 
+/// `mvem lab --out c --no-dynamic --n-stationary 30 EXTRA...` in `d` (a stationary campaign of
+/// 30 points for step 1), which must succeed.
+fn stationary_campaign(d: &std::path::Path, extra: &[&str]) {
+    let mut args = vec!["lab", "--out", "c", "--no-dynamic", "--n-stationary", "30"];
+    args.extend_from_slice(extra);
+    let o = mvem(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// `mvem tune --data c --steps 1 --out t.toml --report REP EXTRA...` in `d`: its stderr and
 /// report.
 fn tune_step1(d: &std::path::Path, extra: &[&str], rep: &str) -> (String, serde_json::Value) {
@@ -391,9 +400,7 @@ fn tune_step1(d: &std::path::Path, extra: &[&str], rep: &str) -> (String, serde_
 fn tune_checks_the_engine_constants_and_takes_the_ambient_from_the_data() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let published = mvem(d, &["params", "show"]);
-    assert!(published.status.success());
-    let text = String::from_utf8(published.stdout).unwrap();
+    let text = published_toml(d);
     let set = |t: &str, key: &str, val: &str| -> String {
         let mut n = 0;
         let out: Vec<String> = t
@@ -416,20 +423,7 @@ fn tune_checks_the_engine_constants_and_takes_the_ambient_from_the_data() {
     other = set(&other, "t_amb", "288.0");
     other = set(&other, "t_w", "288.0");
     std::fs::write(d.join("other.toml"), other).unwrap();
-    let o = mvem(
-        d,
-        &[
-            "lab",
-            "--params",
-            "other.toml",
-            "--out",
-            "c",
-            "--no-dynamic",
-            "--n-stationary",
-            "30",
-        ],
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    stationary_campaign(d, &["--params", "other.toml"]);
     let tune = |extra: &[&str], rep: &str| tune_step1(d, extra, rep);
     let (err, json) = tune(&[], "r1");
     assert!(
@@ -533,34 +527,25 @@ fn lab_envelope_is_checked_against_the_input_saturation() {
 fn tune_widens_the_input_ranges_to_the_campaign() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let shown = mvem(d, &["params", "show"]);
-    assert!(shown.status.success());
-    let text = String::from_utf8(shown.stdout).unwrap();
-    assert!(text.contains("n_e = [500.0, 2000.0]") && text.contains("u_delta = [1.0, 250.0]"));
-    std::fs::write(
-        d.join("wide.toml"),
-        text.replace("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]")
-            .replace("u_delta = [1.0, 250.0]", "u_delta = [1.0, 280.0]"),
-    )
-    .unwrap();
-    let o = mvem(
+    write_published_with(
+        d,
+        "wide.toml",
+        &[
+            ("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]"),
+            ("u_delta = [1.0, 250.0]", "u_delta = [1.0, 280.0]"),
+        ],
+    );
+    stationary_campaign(
         d,
         &[
-            "lab",
             "--params",
             "wide.toml",
-            "--out",
-            "c",
             "--speeds",
             "1000:2500",
             "--full-load",
             "260",
-            "--no-dynamic",
-            "--n-stationary",
-            "30",
         ],
     );
-    assert!(o.status.success(), "{}", stderr(&o));
     let tune = |extra: &[&str], rep: &str| tune_step1(d, extra, rep);
     let (err, json) = tune(&[], "r1");
     assert!(

@@ -104,3 +104,21 @@ pub fn usage_error(dir: &Path, args: &[&str]) -> String {
     assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
     err
 }
+
+/// The published parameter set as `mvem params show` prints it (TOML).
+pub fn published_toml(dir: &Path) -> String {
+    let o = mvem(dir, &["params", "show"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    stdout(&o)
+}
+
+/// Write `dir/name`: the published parameter set with each `(from, to)` line replaced (each
+/// `from` must occur).
+pub fn write_published_with(dir: &Path, name: &str, edits: &[(&str, &str)]) {
+    let mut text = published_toml(dir);
+    for (from, to) in edits {
+        assert!(text.contains(from), "{from} not in the published set");
+        text = text.replace(from, to);
+    }
+    std::fs::write(dir.join(name), text).unwrap();
+}

@@ -362,6 +362,12 @@ pub const LAG_AT_BOUND_S: f64 = 1e-4;
 /// upper bound (the step's 2 ms output grid), see [`fit_dynamic`].
 pub const LAG_AT_UPPER_S: f64 = 2e-3;
 
+/// Whether a fitted sensor time constant `tau` \[s\] counts as on its upper bound
+/// [`MAX_LAG_S`] (within [`LAG_AT_UPPER_S`]).
+pub fn lag_at_upper_bound(tau: f64) -> bool {
+    tau >= MAX_LAG_S - LAG_AT_UPPER_S
+}
+
 impl Default for Step3Start {
     /// Start: both manifolds 38 dm^3 (three displacement volumes of a 12.7 l engine),
     /// J_t = 1e-4 kg m^2; bounds: volumes 2-200 dm^3, J_t 1e-5 - 1e-3 kg m^2. For the
@@ -610,7 +616,7 @@ pub fn fit_dynamic(
     // [`MAX_LAG_S`] is held at the bound for the covariance of the others (an active
     // constraint): its column would otherwise carry a variance the bound forbids into every
     // parameter correlated with it
-    let at_upper = |k: usize| fit.theta[k] >= MAX_LAG_S - LAG_AT_UPPER_S;
+    let at_upper = |k: usize| lag_at_upper_bound(fit.theta[k]);
     let at_bound = |k: usize| {
         SensorLags::index(f.names[k]).is_some() && (fit.theta[k] <= LAG_AT_BOUND_S || at_upper(k))
     };

@@ -550,8 +550,8 @@ pub struct SetFailure {
     pub message: String,
 }
 
-/// A caveat when step 3 fitted a sensor lag onto its upper bound [`MAX_LAG_S`] (within
-/// [`super::complete::LAG_AT_UPPER_S`]): no test-cell sensor is that slow, so the lag stands
+/// A caveat when step 3 fitted a sensor lag onto its upper bound [`MAX_LAG_S`]
+/// ([`super::complete::lag_at_upper_bound`]): no test-cell sensor is that slow, so the lag stands
 /// in for a model error, and V_im, V_em, J_t fitted with it carry it (seen on a 2-litre
 /// engine's campaign, docs/tuning.md session 24). `None` for given lags or none at the bound.
 fn lags_at_upper_bound(lags: Option<&SensorLags>, opts: &PipelineOptions) -> Option<String> {
@@ -561,7 +561,7 @@ fn lags_at_upper_bound(lags: Option<&SensorLags>, opts: &PipelineOptions) -> Opt
     let at: Vec<String> = super::sensors::LAG_NAMES
         .iter()
         .zip(lags?.as_array())
-        .filter(|(_, v)| *v >= MAX_LAG_S - super::complete::LAG_AT_UPPER_S)
+        .filter(|(_, v)| super::complete::lag_at_upper_bound(*v))
         .map(|(n, v)| format!("{n} {:.1} ms", v * 1e3))
         .collect();
     (!at.is_empty()).then(|| {
