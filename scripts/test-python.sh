@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Python-side tests: the FMU with FMPy and the Python package mvem (crates/mvem-py).
 # Needs only Rust, python3 with venv (Debian: python3-venv) and pip: creates .venv-ci, installs
-# from PyPI maturin, fmpy, pytest, numpy, pyarrow (Parquet output check),
+# from PyPI maturin, fmpy, pytest, numpy, pyarrow (Parquet output check), scipy (an
+# independent integrator driven by mvem.Model),
 # builds the CLI, the FMU library and the package (Cargo profile $MVEM_PROFILE, default release;
 # scripts/test-all.sh sets ci), and runs pytest on tests/python (the tests build the
 # 10/12-state FMUs with `mvem fmu` and compare with the CLI).
@@ -16,7 +17,7 @@ if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"
 fi
 "$venv/bin/python" -m pip install -q --upgrade pip >/dev/null
-"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy gymnasium pyarrow
+"$venv/bin/python" -m pip install -q "maturin>=1.4,<2" fmpy pytest numpy gymnasium pyarrow scipy
 
 echo "== building the CLI, the FMU library and the 8-state FMU (mvem fmu; profile $profile)"
 scripts/build-fmu.sh "$root/target/fmu/mvem.fmu"

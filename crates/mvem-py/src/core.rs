@@ -7,7 +7,9 @@ use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, L
 use mvem::analysis::steady::{simulate_from_steady, steady_state, SimFromSteadyError};
 use mvem::analysis::step::StepMetrics;
 use mvem::analysis::zeros::{self, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS};
-use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelOptions, ModelOrder, Signals};
+use mvem::model::{
+    AnyModel, CylinderTemp, Drive, Model, ModelInput, ModelOptions, ModelOrder, Signals,
+};
 use mvem::params::Params;
 use mvem::sim::{InputSchedule, SimError, SimOptions};
 use nalgebra::DMatrix;
@@ -695,6 +697,190 @@ impl CorePlant {
     }
 }
 
+/// Input order of [`PointModel`]: that of `steady`, `Plant` and the simulate columns (n_e \[rpm\],
+/// u_delta \[mg/cycle/cylinder\], u_egr \[%\], u_vgt \[%\]).
+pub const POINT_INPUTS: [&str; 4] = ["n_e", "u_delta", "u_egr", "u_vgt"];
+
+/// Columns of the library's linear model ([`mvem::analysis::linearize::INPUT_NAMES`]: u_delta,
+/// u_egr, u_vgt, n_e) for each [`POINT_INPUTS`] entry.
+const LIN_COLUMN: [usize; 4] = [3, 0, 1, 2];
+
+/// The right-hand side `dx/dt = f(x, u)` and its Jacobians at a point of the state space, for
+/// optimal control (`mvem.Model`): the model is built (and its parameters validated) once.
+///
+/// The commands are held: the delayed commands the actuators see equal the given u_egr, u_vgt
+/// (`ModelInput::constant`), so for a model with explicit delays the columns of u_egr and u_vgt
+/// are the derivatives with respect to the commands u_egr(t - tau_degr), u_vgt(t - tau_dvgt)
+/// (the current commands enter no derivative). The cylinder-out temperature is the converged
+/// fixed point (section 4.2).
+#[derive(Debug, Clone)]
+pub struct PointModel {
+    model: AnyModel,
+}
+
+/// `f(x, u)` and its Jacobians at one point ([`PointModel::jacobian`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointJacobian {
+    /// dx/dt at the point (n).
+    pub dx: Vec<f64>,
+    /// A = df/dx (n x n, row-major) \[1/s\].
+    pub a: Vec<f64>,
+    /// B = df/du (n x 4, row-major; columns in [`POINT_INPUTS`] order), per input unit.
+    pub b: Vec<f64>,
+    /// The outputs at the point (p).
+    pub y: Vec<f64>,
+    /// C = dy/dx (p x n, row-major).
+    pub c: Vec<f64>,
+    /// D = dy/du (p x 4, row-major; [`POINT_INPUTS`] order).
+    pub d: Vec<f64>,
+    /// Output names (p).
+    pub output_names: Vec<String>,
+    /// Kinks of the model within the difference stencils (empty at a smooth point).
+    pub kinks: Vec<String>,
+}
+
+impl PointModel {
+    /// The model of `order` with the parameters `params` (None: the published set).
+    pub fn new(params: Option<Params>, order: ModelOrder) -> CoreResult<Self> {
+        let model = model(
+            params,
+            Variant {
+                order,
+                cylinder_temp: CylinderTemp::Converged,
+            },
+        )?;
+        Ok(Self { model })
+    }
+
+    /// State names (n).
+    pub fn state_names(&self) -> Vec<String> {
+        mvem::dispatch!(&self.model, m => m.state_names().iter().map(|s| s.to_string()).collect())
+    }
+
+    /// Typical magnitudes of the states (n), in their units.
+    pub fn state_scales(&self) -> Vec<f64> {
+        mvem::dispatch!(&self.model, m => m.state_scales().to_vec())
+    }
+
+    /// dx/dt (n) at state `x` and held commands `u` ([`POINT_INPUTS`] order).
+    pub fn derivatives(&self, x: &[f64], u: [f64; 4]) -> CoreResult<Vec<f64>> {
+        mvem::dispatch!(&self.model, m => {
+            let (x, input) = point(m, x, u)?;
+            let ev = m.eval(&x, &input, m.memory_start(&x, &input));
+            finite_rows(&m.state_names(), &ev.dx)?;
+            Ok(ev.dx.to_vec())
+        })
+    }
+
+    /// Every signal ([`Signals::NAMES`] order) and the active guard labels at `x`, `u`.
+    pub fn signals(&self, x: &[f64], u: [f64; 4]) -> CoreResult<(Vec<f64>, Vec<String>)> {
+        mvem::dispatch!(&self.model, m => {
+            let (x, input) = point(m, x, u)?;
+            let ev = m.eval(&x, &input, m.memory_start(&x, &input));
+            let flags = mvem::model::Guard::ALL
+                .iter()
+                .filter(|g| ev.signals.has(**g))
+                .map(|g| g.label().to_string())
+                .collect();
+            Ok((ev.signals.values().to_vec(), flags))
+        })
+    }
+
+    /// f(x, u), A = df/dx, B = df/du and, for `outputs` (state or signal names), y, C, D at
+    /// state `x` and held commands `u`, by the library's Richardson-extrapolated central
+    /// differences (`mvem::analysis::linearize`: entries to about 1e-9 relative). With
+    /// `strict`, a point within the difference stencil of a kink of the model is an error;
+    /// otherwise the averaged slopes are returned and the kinks listed.
+    pub fn jacobian(
+        &self,
+        x: &[f64],
+        u: [f64; 4],
+        outputs: &[String],
+        strict: bool,
+    ) -> CoreResult<PointJacobian> {
+        // the library wants at least one output: without any, a state is linearized and dropped
+        let first_state = vec![self.state_names()[0].clone()];
+        let opts = LinearizeOptions {
+            outputs: if outputs.is_empty() {
+                first_state
+            } else {
+                outputs.to_vec()
+            },
+            strict,
+            ..LinearizeOptions::default()
+        };
+        let lin = mvem::dispatch!(&self.model, m => {
+            let (x, input) = point(m, x, u)?;
+            mvem::analysis::linearize::linearize(m, &x, &input.now, &opts).map_err(|e| match e {
+                LinearizeError::Kink(_) => CoreError::Runtime(e.to_string()),
+                other => CoreError::Value(other.to_string()),
+            })
+        })?;
+        let n = lin.a.nrows();
+        let row_major = |m: &DMatrix<f64>, cols: &[usize]| -> Vec<f64> {
+            (0..m.nrows())
+                .flat_map(|i| cols.iter().map(move |&j| m[(i, j)]))
+                .collect()
+        };
+        let all: Vec<usize> = (0..n).collect();
+        let keep = !outputs.is_empty();
+        let some = |v: Vec<f64>| if keep { v } else { Vec::new() };
+        Ok(PointJacobian {
+            dx: lin.dx0.clone(),
+            a: row_major(&lin.a, &all),
+            b: row_major(&lin.b, &LIN_COLUMN),
+            y: some(lin.y0.clone()),
+            c: some(row_major(&lin.c, &all)),
+            d: some(row_major(&lin.d, &LIN_COLUMN)),
+            output_names: if keep {
+                lin.output_names.clone()
+            } else {
+                Vec::new()
+            },
+            kinks: lin.kinks.iter().map(|k| k.to_string()).collect(),
+        })
+    }
+}
+
+/// The state array and the held input of a point, checked: the state's length and finite
+/// values, finite inputs, and n_e > 0 where the paper's equations need it.
+fn point<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64],
+    u: [f64; 4],
+) -> CoreResult<([f64; N], ModelInput)> {
+    let names = m.state_names();
+    let x: [f64; N] = x.try_into().map_err(|_| {
+        CoreError::Value(format!(
+            "state: expected {N} values ({}), got {}",
+            names.join(", "),
+            x.len()
+        ))
+    })?;
+    for (name, v) in names.iter().zip(x) {
+        if !v.is_finite() {
+            return Err(CoreError::Value(format!(
+                "state {name} = {v} is not finite"
+            )));
+        }
+    }
+    check_finite(u)?;
+    let d = Drive::from_array(u);
+    d.check(m.options().semantics)
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    Ok((x, ModelInput::constant(d)))
+}
+
+/// An error naming the first non-finite derivative.
+fn finite_rows(names: &[&str], dx: &[f64]) -> CoreResult<()> {
+    match names.iter().zip(dx).find(|(_, v)| !v.is_finite()) {
+        Some((name, v)) => Err(CoreError::Value(format!(
+            "d{name}/dt = {v}: the model is not finite at this state (outside its physical range?)"
+        ))),
+        None => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -728,6 +914,61 @@ mod tests {
             steady([f64::NAN, 1.0, 1.0, 1.0], None, Variant::default()),
             Err(CoreError::Value(_))
         ));
+    }
+
+    /// `mvem.Model`: at a steady state the derivatives vanish and the Jacobians are the
+    /// library's linearization with B's columns in (n_e, u_delta, u_egr, u_vgt) order; bad
+    /// points are refused naming the field.
+    #[test]
+    fn point_model_is_the_linearization_at_a_steady_state() {
+        let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let m = mvem::model::Engine8::published();
+        let ss = steady_state(&m, &d).unwrap();
+        let lin = linearize_steady(&m, &ss, &LinearizeOptions::default()).unwrap();
+        let pm = PointModel::new(None, ModelOrder::Eight).unwrap();
+        let u = [1500.0, 110.0, 80.0, 75.0];
+        let dx = pm.derivatives(&ss.x, u).unwrap();
+        for (v, s) in dx.iter().zip(pm.state_scales()) {
+            assert!(v.abs() < 1e-9 * s, "{v}");
+        }
+        let outputs: Vec<String> = lin.output_names.clone();
+        let j = pm.jacobian(&ss.x, u, &outputs, true).unwrap();
+        for r in 0..8 {
+            for c in 0..8 {
+                assert_eq!(j.a[r * 8 + c], lin.a[(r, c)]);
+            }
+            for (c, &lc) in LIN_COLUMN.iter().enumerate() {
+                assert_eq!(j.b[r * 4 + c], lin.b[(r, lc)], "B[{r}, {c}]");
+            }
+        }
+        assert_eq!(j.y, lin.y0);
+        assert_eq!(j.d[4 * 2], lin.d[(2, 3)]); // dW_c/dn_e
+        assert!(j.kinks.is_empty());
+        let none = pm.jacobian(&ss.x, u, &[], true).unwrap();
+        assert!(none.c.is_empty() && none.output_names.is_empty() && none.a == j.a);
+
+        let err = |r: CoreResult<Vec<f64>>| match r {
+            Err(CoreError::Value(m)) => m,
+            other => panic!("{other:?}"),
+        };
+        assert!(err(pm.derivatives(&ss.x[..7], u)).contains("expected 8 values"));
+        let mut x = ss.x;
+        x[4] = f64::NAN;
+        assert!(err(pm.derivatives(&x, u)).contains("omega_t = NaN"));
+        assert!(
+            err(pm.derivatives(&ss.x, [f64::INFINITY, 110.0, 80.0, 75.0])).contains("n_e = inf")
+        );
+        assert!(matches!(
+            pm.jacobian(&ss.x, u, &["W_x".to_string()], false),
+            Err(CoreError::Value(m)) if m.contains("W_x")
+        ));
+        // at the authors' u_egr saturation: refused when strict, listed otherwise
+        let at = [1500.0, 110.0, 0.0, 75.0];
+        assert!(matches!(
+            pm.jacobian(&ss.x, at, &[], true),
+            Err(CoreError::Runtime(_))
+        ));
+        assert!(!pm.jacobian(&ss.x, at, &[], false).unwrap().kinks.is_empty());
     }
 
     #[test]

@@ -785,11 +785,295 @@ impl Plant {
     }
 }
 
+/// Points (x, u) of `Model` calls: a state array of shape (n,) with inputs (4,), or states
+/// (K, n) with inputs (K, 4) or (4,) (the same for all). Returns the states, the inputs and
+/// whether the call was batched.
+type Points = (Vec<Vec<f64>>, Vec<[f64; 4]>, bool);
+
+fn points<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    n: usize,
+) -> PyResult<Points> {
+    let np = py.import("numpy")?;
+    let as_array =
+        |obj: &Bound<'py, PyAny>, what: &str| -> PyResult<(Vec<usize>, Bound<'py, PyAny>)> {
+            let arr = np
+                .call_method1("asarray", (obj, "float64"))
+                .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+            Ok((arr.getattr("shape")?.extract()?, arr))
+        };
+    let (xs, xa) = as_array(x, "state")?;
+    let (us, ua) = as_array(u, "inputs")?;
+    let (states, batched): (Vec<Vec<f64>>, bool) = match xs.as_slice() {
+        [m] if *m == n => (vec![xa.call_method0("tolist")?.extract()?], false),
+        [_, m] if *m == n => (xa.call_method0("tolist")?.extract()?, true),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "state: expected shape ({n},) or (K, {n}), got {xs:?}"
+            )))
+        }
+    };
+    let k = states.len();
+    let rows: Vec<Vec<f64>> = match us.as_slice() {
+        [4] => vec![ua.call_method0("tolist")?.extract()?; k],
+        [r, 4] if batched && *r == k => ua.call_method0("tolist")?.extract()?,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "inputs: expected (n_e, u_delta, u_egr, u_vgt) of shape (4,){}, got shape {us:?}",
+                if batched {
+                    format!(" or ({k}, 4) for {k} states")
+                } else {
+                    String::new()
+                }
+            )))
+        }
+    };
+    let inputs = rows.iter().map(|r| [r[0], r[1], r[2], r[3]]).collect();
+    Ok((states, inputs, batched))
+}
+
+/// One `UserWarning` per input channel whose value leaves the saturation range at some point,
+/// naming the first such point.
+fn warn_points_out_of_range(
+    py: Python<'_>,
+    what: &str,
+    inputs: &[[f64; 4]],
+    ranges: &[(&'static str, f64, f64); 4],
+) -> PyResult<()> {
+    for (c, (name, lo, hi)) in ranges.iter().enumerate() {
+        let outside: Vec<usize> = (0..inputs.len())
+            // a non-finite value is refused with its point, not clamped
+            .filter(|&k| inputs[k][c].is_finite() && (inputs[k][c] < *lo || inputs[k][c] > *hi))
+            .collect();
+        if let Some(&k) = outside.first() {
+            let at = if inputs.len() > 1 {
+                format!(
+                    " at point {k} ({} of {} points)",
+                    outside.len(),
+                    inputs.len()
+                )
+            } else {
+                String::new()
+            };
+            user_warning(
+                py,
+                format!(
+                    "{what}: {name} = {}{at} is outside [{lo}, {hi}]; the authors' saturation clamps it",
+                    Num(inputs[k][c])
+                ),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// A point's error, naming the point in a batched call.
+fn at_point(e: CoreError, k: usize, batched: bool) -> PyErr {
+    let e = if batched {
+        match e {
+            CoreError::Value(m) => CoreError::Value(format!("point {k}: {m}")),
+            CoreError::Runtime(m) => CoreError::Runtime(format!("point {k}: {m}")),
+        }
+    } else {
+        e
+    };
+    to_py_err(e)
+}
+
+/// `f` at every point, with the GIL released; an error names its point in a batched call.
+fn each_point<T: Send>(
+    py: Python<'_>,
+    (xs, us, batched): &Points,
+    f: impl Fn(&[f64], [f64; 4]) -> core::CoreResult<T> + Send + Sync,
+) -> PyResult<Vec<T>> {
+    py.allow_threads(|| {
+        xs.iter()
+            .zip(us)
+            .enumerate()
+            .map(|(k, (x, u))| f(x, *u).map_err(|e| (k, e)))
+            .collect::<Result<Vec<T>, _>>()
+    })
+    .map_err(|(k, e)| at_point(e, k, *batched))
+}
+
+/// numpy array of `flat` with `shape`.
+fn shaped<'py>(py: Python<'py>, flat: Vec<f64>, shape: Vec<usize>) -> PyResult<Bound<'py, PyAny>> {
+    py.import("numpy")?
+        .call_method1("array", (flat, "float64"))?
+        .call_method1("reshape", (PyTuple::new(py, shape)?,))
+}
+
+/// The model's right-hand side dx/dt = f(x, u) at any state, and its Jacobians, for optimal
+/// control and custom integrators: the parameters are validated once, each call evaluates.
+///
+/// Model(model=8, params=None): model 8 (the paper's), 10 or 12 states; params as in simulate.
+/// Inputs u = (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]) (input_names), held:
+/// the actuators see u_egr, u_vgt as their delayed commands u_egr(t - tau_degr), u_vgt(t -
+/// tau_dvgt) (the current commands enter no derivative), so a model with explicit delays passes
+/// the delayed values. States in state_names order and units (Pa, -, rad/s, %; 10/12 states add
+/// K and Pa). The cylinder-out temperature is the converged fixed point (section 4.2).
+///
+/// Every method takes one point (state of shape (n,), inputs (4,)) or K points (states (K, n),
+/// inputs (K, 4) or (4,) for all) and returns arrays with a leading K axis when batched. Inputs
+/// outside the parameter set's saturation are clamped by the model, with a UserWarning.
+/// ValueError names the argument or the point (a non-finite state or input, a wrong shape, a
+/// state where the model is not finite); the GIL is released while the model runs.
+#[pyclass(name = "Model", module = "mvem")]
+struct PyModel {
+    inner: core::PointModel,
+    ranges: [(&'static str, f64, f64); 4],
+}
+
+#[pymethods]
+impl PyModel {
+    #[new]
+    #[pyo3(signature = (model=8, params=None))]
+    fn new(py: Python<'_>, model: i64, params: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+        let p = parse_params(py, params)?;
+        let ranges = ranges_of(p.as_ref());
+        let inner = core::PointModel::new(p, variant.order).map_err(to_py_err)?;
+        Ok(Self { inner, ranges })
+    }
+
+    /// State names (n).
+    #[getter]
+    fn state_names(&self) -> Vec<String> {
+        self.inner.state_names()
+    }
+
+    /// Input names, the order of u and of the columns of B and D: n_e, u_delta, u_egr, u_vgt.
+    #[getter]
+    fn input_names(&self) -> Vec<&'static str> {
+        core::POINT_INPUTS.to_vec()
+    }
+
+    /// Typical magnitudes of the states (numpy array, state units), for scaling.
+    #[getter]
+    fn state_scales<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.import("numpy")?
+            .call_method1("array", (self.inner.state_scales(),))
+    }
+
+    /// dx/dt [state units per s] at state x and inputs u: shape (n,), or (K, n) for K points.
+    fn derivatives<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let n = self.inner.state_scales().len();
+        let pts = points(py, x, u, n)?;
+        warn_points_out_of_range(py, "Model.derivatives", &pts.1, &self.ranges)?;
+        let dx = each_point(py, &pts, |x, u| self.inner.derivatives(x, u))?;
+        let shape = if pts.2 { vec![dx.len(), n] } else { vec![n] };
+        shaped(py, dx.concat(), shape)
+    }
+
+    /// Every signal at x, u (W_c [kg/s], lambda_O, x_egr, M_e [Nm], ...): a dict of floats, or
+    /// of arrays (K,) for K points; "flags": the active guard saturations (a list, or a list
+    /// per point).
+    fn signals<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.inner.state_scales().len();
+        let pts = points(py, x, u, n)?;
+        warn_points_out_of_range(py, "Model.signals", &pts.1, &self.ranges)?;
+        let batched = pts.2;
+        let all = each_point(py, &pts, |x, u| self.inner.signals(x, u))?;
+        let out = PyDict::new(py);
+        let np = py.import("numpy")?;
+        for (j, name) in mvem::model::Signals::NAMES.iter().enumerate() {
+            if batched {
+                let col: Vec<f64> = all.iter().map(|(v, _)| v[j]).collect();
+                out.set_item(name, np.call_method1("array", (col, "float64"))?)?;
+            } else {
+                out.set_item(name, all[0].0[j])?;
+            }
+        }
+        if batched {
+            let flags: Vec<Vec<String>> = all.into_iter().map(|(_, f)| f).collect();
+            out.set_item("flags", flags)?;
+        } else {
+            out.set_item("flags", all.into_iter().next().map(|(_, f)| f))?;
+        }
+        Ok(out)
+    }
+
+    /// f(x, u) and its Jacobians at x, u by Richardson-extrapolated central differences (the
+    /// library's linearization: entries to about 1e-9 relative to the row's largest scaled
+    /// entry; not exact derivatives).
+    ///
+    /// outputs: state or signal names whose y, C, D are wanted too (default none).
+    /// strict: raise RuntimeError when a point lies within the difference stencil of a kink of
+    ///     the model (a saturation or switch); default False: the averaged slopes, with the
+    ///     kinks listed.
+    ///
+    /// Returns a dict of numpy arrays: "f" = dx/dt (n), "A" = df/dx (n, n) [1/s], "B" = df/du
+    /// (n, 4) per input unit (columns in input_names order: n_e, u_delta, u_egr, u_vgt), and
+    /// with outputs "y" (p), "C" (p, n), "D" (p, 4), each with a leading K axis when batched;
+    /// "state_names", "input_names", "output_names"; "kinks" (a list of str, or a list per
+    /// point).
+    #[pyo3(signature = (x, u, outputs=None, strict=false))]
+    fn jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+        outputs: Option<Vec<String>>,
+        strict: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let n = self.inner.state_scales().len();
+        let pts = points(py, x, u, n)?;
+        warn_points_out_of_range(py, "Model.jacobian", &pts.1, &self.ranges)?;
+        let batched = pts.2;
+        let outputs = outputs.unwrap_or_default();
+        let all = each_point(py, &pts, |x, u| self.inner.jacobian(x, u, &outputs, strict))?;
+        let p = outputs.len();
+        let k = all.len();
+        let lead = |dims: &[usize]| -> Vec<usize> {
+            if batched {
+                std::iter::once(k).chain(dims.iter().copied()).collect()
+            } else {
+                dims.to_vec()
+            }
+        };
+        let out = PyDict::new(py);
+        let cat = |f: fn(&core::PointJacobian) -> &Vec<f64>| -> Vec<f64> {
+            all.iter().flat_map(|j| f(j).iter().copied()).collect()
+        };
+        out.set_item("f", shaped(py, cat(|j| &j.dx), lead(&[n]))?)?;
+        out.set_item("A", shaped(py, cat(|j| &j.a), lead(&[n, n]))?)?;
+        out.set_item("B", shaped(py, cat(|j| &j.b), lead(&[n, 4]))?)?;
+        if p > 0 {
+            out.set_item("y", shaped(py, cat(|j| &j.y), lead(&[p]))?)?;
+            out.set_item("C", shaped(py, cat(|j| &j.c), lead(&[p, n]))?)?;
+            out.set_item("D", shaped(py, cat(|j| &j.d), lead(&[p, 4]))?)?;
+        }
+        out.set_item("state_names", self.inner.state_names())?;
+        out.set_item("input_names", core::POINT_INPUTS.to_vec())?;
+        out.set_item("output_names", all[0].output_names.clone())?;
+        if batched {
+            let kinks: Vec<Vec<String>> = all.into_iter().map(|j| j.kinks).collect();
+            out.set_item("kinks", kinks)?;
+        } else {
+            out.set_item("kinks", all.into_iter().next().map(|j| j.kinks))?;
+        }
+        Ok(out)
+    }
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
 fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;

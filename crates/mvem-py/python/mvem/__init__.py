@@ -11,6 +11,12 @@ in parallel):
 - steady(n_e, u_delta, u_egr, u_vgt, params=None, model=8) -> dict
 - linearize(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None,
   model=8) -> dict with A, B, C, D, eigenvalues, dc_gain, zeros, ...
+- Model(model=8, params=None): the right-hand side at any state, for optimal control and custom
+  integrators: m.derivatives(x, u) -> dx/dt, m.jacobian(x, u, outputs=None) -> dict with f, A,
+  B (and y, C, D), m.signals(x, u) -> dict; u = (n_e, u_delta, u_egr, u_vgt); one point or K
+  points at once (states (K, n))
+- derivatives(state, inputs, params=None, model=8), jacobian(state, inputs, outputs=None,
+  strict=False, params=None, model=8): the same for one call
 - step_metrics(t, y, t_step, y0, y_final, du) -> dict
 - step_response(n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", ...) -> dict
 - published_params() -> dict
@@ -30,6 +36,7 @@ both carrying the Rust message.
 """
 
 from ._mvem import (
+    Model,
     Plant,
     __version__,
     linearize,
@@ -46,6 +53,9 @@ from ._mvem import (
 INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
 
 __all__ = [
+    "Model",
+    "derivatives",
+    "jacobian",
     "Plant",
     "simulate",
     "simulate_many",
@@ -59,3 +69,19 @@ __all__ = [
     "INPUT_COLUMNS",
     "__version__",
 ]
+
+
+def derivatives(state, inputs, params=None, model=8):
+    """dx/dt at a state and held inputs (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%],
+    u_vgt [%]): Model(model, params).derivatives(state, inputs). For many calls, build the
+    Model once."""
+    return Model(model=model, params=params).derivatives(state, inputs)
+
+
+def jacobian(state, inputs, outputs=None, strict=False, params=None, model=8):
+    """f, A = df/dx, B = df/du (and y, C, D of outputs) at a state and held inputs:
+    Model(model, params).jacobian(state, inputs, outputs, strict). For many calls, build the
+    Model once."""
+    return Model(model=model, params=params).jacobian(
+        state, inputs, outputs=outputs, strict=strict
+    )

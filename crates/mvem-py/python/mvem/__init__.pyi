@@ -164,6 +164,55 @@ class Parameter(TypedDict):
 def parameters() -> List[Parameter]:
     """Every scalar parameter with its unit and description, in parameter-file order."""
 
+class Model:
+    """The right-hand side dx/dt = f(x, u) at any state, and its Jacobians (optimal control,
+    custom integrators). u = (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]),
+    held: the actuators see u_egr, u_vgt as their delayed commands. One point (state (n,),
+    inputs (4,)) or K points (states (K, n), inputs (K, 4) or (4,)); batched results carry a
+    leading K axis. The cylinder-out temperature is the converged fixed point.
+    """
+
+    def __init__(self, model: ModelOrder = 8, params: Params = None) -> None: ...
+    @property
+    def state_names(self) -> List[str]: ...
+    @property
+    def input_names(self) -> List[str]:
+        """n_e, u_delta, u_egr, u_vgt: the order of u and of the columns of B and D."""
+    @property
+    def state_scales(self) -> "np.ndarray[Any, np.dtype[np.float64]]": ...
+    def derivatives(
+        self, x: npt.ArrayLike, u: npt.ArrayLike
+    ) -> "np.ndarray[Any, np.dtype[np.float64]]":
+        """dx/dt [state units per s]: shape (n,), or (K, n)."""
+    def signals(self, x: npt.ArrayLike, u: npt.ArrayLike) -> Dict[str, Any]:
+        """Every signal (floats, or arrays (K,)) and "flags" (active guard saturations)."""
+    def jacobian(
+        self,
+        x: npt.ArrayLike,
+        u: npt.ArrayLike,
+        outputs: Optional[Sequence[str]] = None,
+        strict: bool = False,
+    ) -> Dict[str, Any]:
+        """Keys "f" (n), "A" (n, n) [1/s], "B" (n, 4) and with outputs "y" (p), "C" (p, n),
+        "D" (p, 4) (leading K axis when batched); "state_names", "input_names",
+        "output_names", "kinks". Richardson-extrapolated central differences (entries to about
+        1e-9 relative), not exact derivatives."""
+
+def derivatives(
+    state: npt.ArrayLike, inputs: npt.ArrayLike, params: Params = None, model: ModelOrder = 8
+) -> "np.ndarray[Any, np.dtype[np.float64]]":
+    """Model(model, params).derivatives(state, inputs)."""
+
+def jacobian(
+    state: npt.ArrayLike,
+    inputs: npt.ArrayLike,
+    outputs: Optional[Sequence[str]] = None,
+    strict: bool = False,
+    params: Params = None,
+    model: ModelOrder = 8,
+) -> Dict[str, Any]:
+    """Model(model, params).jacobian(state, inputs, outputs, strict)."""
+
 class Plant:
     """The model advanced sample by sample with the commands held (zero-order hold).
 
