@@ -182,6 +182,45 @@ def test_model_exchange_state_access(fmu):
     s.freeInstance()
 
 
+def test_directional_derivatives_are_the_python_models_jacobian(fmu):
+    """fmi2GetDirectionalDerivative (Model Exchange) off equilibrium: the columns of A for unit
+    state seeds and of B for u_delta and n_e equal mvem.Model's Jacobian (the same library
+    differences, one along the seed, the other per column) to 1e-7 of the column's largest
+    entry; the current u_egr moves no derivative (the actuators see the delayed history)."""
+    mvem = pytest.importorskip("mvem")
+    md = read_model_description(fmu)
+    assert md.modelExchange.providesDirectionalDerivative
+    assert md.coSimulation.providesDirectionalDerivative
+    s, vr = _slave(fmu, FMU2Model)
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    s.enterContinuousTimeMode()
+    from ctypes import c_double
+    xs = (c_double * 8)()
+    s.getContinuousStates(xs, 8)
+    x = np.array(xs[:])
+    x[0] *= 1.05
+    x[4] *= 0.97
+    s.setContinuousStates((c_double * 8)(*x), 8)
+    names = ["p_im", "p_em", "X_Oim", "X_Oem", "omega_t", "u_egr1", "u_egr2", "u_vgt_act"]
+    ders = [vr[f"der({n})"] for n in names]
+    j = mvem.Model().jacobian(x, [1500.0, 110.0, 80.0, 75.0])
+    for k, n in enumerate(names):
+        col = np.array(s.getDirectionalDerivative(ders, [vr[n]], [1.0]))
+        assert np.abs(col - j["A"][:, k]).max() <= 1e-7 * np.abs(j["A"][:, k]).max(), n
+    for k, n in [(0, "n_e"), (1, "u_delta")]:
+        col = np.array(s.getDirectionalDerivative(ders, [vr[n]], [1.0]))
+        assert np.abs(col - j["B"][:, k]).max() <= 1e-7 * np.abs(j["B"][:, k]).max(), n
+    assert s.getDirectionalDerivative(ders, [vr["u_egr"]], [1.0]) == [0.0] * 8
+    assert np.abs(j["B"][:, 2]).max() > 0  # Model's u_egr is the command the actuators see
+    with pytest.raises(FMICallException):
+        s.getDirectionalDerivative(ders, [vr["turbo.j_t"]], [1.0])
+    s.terminate()
+    s.freeInstance()
+
+
 # ---------------------------------------------------------------------------------------------
 # 10- and 12-state FMUs, the one-iteration Co-Simulation FMU, and `mvem fmu`
 

@@ -171,12 +171,12 @@ pub fn model_description(cfg: &FmuConfig) -> String {
     if cfg.model_exchange() {
         let _ = writeln!(
             x,
-            r#"  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
+            r#"  <ModelExchange modelIdentifier="{MODEL_IDENTIFIER}" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="true"/>"#
         );
     }
     let _ = writeln!(
         x,
-        r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"/>"#
+        r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="true"/>"#
     );
     let _ = writeln!(x, "  <UnitDefinitions>");
     for (name, factor, e) in UNITS {

@@ -592,18 +592,26 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
     with(c, |_| Err(unsupported("fmi2DeSerializeFMUstate")))
 }
 
-/// fmi2GetDirectionalDerivative: not supported (providesDirectionalDerivative = false).
+/// fmi2GetDirectionalDerivative (providesDirectionalDerivative = true): see
+/// [`Instance::directional_derivative`].
 #[no_mangle]
 pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     c: fmi2Component,
-    _vu: *const fmi2ValueReference,
-    _nu: usize,
-    _vk: *const fmi2ValueReference,
-    _nk: usize,
-    _dvk: *const fmi2Real,
-    _dvu: *mut fmi2Real,
+    vu: *const fmi2ValueReference,
+    nu: usize,
+    vk: *const fmi2ValueReference,
+    nk: usize,
+    dvk: *const fmi2Real,
+    dvu: *mut fmi2Real,
 ) -> fmi2Status {
-    with(c, |_| Err(unsupported("fmi2GetDirectionalDerivative")))
+    with(c, |i| {
+        const WHAT: &str = "fmi2GetDirectionalDerivative";
+        let vu = unsafe { slice(vu, nu, WHAT) }?;
+        let vk = unsafe { slice(vk, nk, WHAT) }?;
+        let dvk = unsafe { slice(dvk, nk, WHAT) }?;
+        let dvu = unsafe { slice_mut(dvu, nu, WHAT) }?;
+        i.directional_derivative(vu, vk, dvk, dvu)
+    })
 }
 
 // ---------------------------------------------------------------- Model Exchange

@@ -8,7 +8,7 @@
 //!
 //! | range          | what                                                              |
 //! |----------------|-------------------------------------------------------------------|
-//! | 0..4           | inputs n_e [rpm], u_delta [mg/cycle/cyl], u_egr [%], u_vgt [%]    |
+//! | 0..4           | inputs n_e \[rpm\], u_delta \[mg/cycle/cyl\], u_egr \[%\], u_vgt \[%\]    |
 //! | 100..100+n     | the states (also outputs): p_im, p_em, (T_im, T_em, ...) ...      |
 //! | 200..200+n     | their derivatives der(p_im), ...                                  |
 //! | 300..300+S     | the algebraic signals of [`Signals::NAMES`] (outputs), except the  |
@@ -35,7 +35,7 @@ pub const VR_PARAM: u32 = 1000;
 /// Name of the configuration file inside the FMU's `resources/` folder.
 pub const CONFIG_FILE: &str = "mvem.json";
 
-/// Start values of the inputs n_e [rpm], u_delta [mg/cycle], u_egr [%], u_vgt [%] (the demo
+/// Start values of the inputs n_e \[rpm\], u_delta \[mg/cycle\], u_egr \[%\], u_vgt \[%\] (the demo
 /// operating point); names, units and descriptions are the core's
 /// ([`mvem::model::meta::INPUTS`]).
 pub const INPUT_STARTS: [f64; 4] = [1500.0, 110.0, 80.0, 75.0];

@@ -189,9 +189,9 @@ fn check_finite(d: [f64; 4]) -> CoreResult<()> {
 /// Simulation options of the Python API.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SimArgs {
-    /// End time [s]; `None`: the last input time.
+    /// End time \[s\]; `None`: the last input time.
     pub t_end: Option<f64>,
-    /// Output interval [s].
+    /// Output interval \[s\].
     pub dt: f64,
     /// Relative tolerance.
     pub rtol: f64,
@@ -437,7 +437,7 @@ impl Default for LinArgs {
     }
 }
 
-/// Complex numbers as (re, im) [1/s], or why they could not be computed.
+/// Complex numbers as (re, im) \[1/s\], or why they could not be computed.
 pub type ZerosResult = Result<Vec<(f64, f64)>, String>;
 
 /// A linearization with its poles, DC gains and zeros.
@@ -445,11 +445,11 @@ pub type ZerosResult = Result<Vec<(f64, f64)>, String>;
 pub struct Lin {
     /// The linear model (A, B, C, D, names, operating point).
     pub lin: LinearModel,
-    /// Eigenvalues of A [1/s] as (re, im).
+    /// Eigenvalues of A \[1/s\] as (re, im).
     pub eigenvalues: Vec<(f64, f64)>,
     /// DC-gain matrix (outputs x inputs), or why there is none.
     pub dc_gain: Result<DMatrix<f64>, String>,
-    /// Transmission zeros [1/s] of every SISO channel `"input->output"`, or why there are none
+    /// Transmission zeros \[1/s\] of every SISO channel `"input->output"`, or why there are none
     /// (e.g. a kink on the channel).
     pub zeros: Vec<(String, ZerosResult)>,
     /// Transmission zeros of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O), when those
@@ -539,7 +539,7 @@ pub fn step_metrics(
 pub struct StepResponse {
     /// Metrics; y0 and y_final are the steady states before and after the step.
     pub metrics: StepMetrics,
-    /// Output times [s].
+    /// Output times \[s\].
     pub t: Vec<f64>,
     /// The output.
     pub y: Vec<f64>,
@@ -667,7 +667,7 @@ impl CorePlant {
             })
     }
 
-    /// Time [s].
+    /// Time \[s\].
     pub fn t(&self) -> f64 {
         self.plant.t()
     }
