@@ -262,3 +262,29 @@ def test_random_points_give_finite_values_or_a_value_error(model):
             assert "point" in str(e)
             return
     assert np.all(np.isfinite(dx)) and np.all(np.isfinite(j["A"])) and np.all(np.isfinite(j["B"]))
+
+
+def test_plant_delayed_commands_give_its_right_hand_side():
+    """Plant.delayed_commands: 60 ms after a step of u_egr 80 -> 60 % and u_vgt 75 -> 65 %, the
+    VGT actuator already sees 65 % (tau_dvgt = 40 ms), the EGR actuators still 80 % (tau_degr =
+    65 ms). Model.derivatives at the plant's state and those commands is what the plant follows
+    (its next 1 ms to first order); with the current commands instead, the EGR actuators would
+    move."""
+    plant = mvem.Plant(*POINT)
+    assert plant.delayed_commands == (80.0, 75.0)
+    plant.step(0.01)
+    for _ in range(6):
+        plant.step(0.01, u_egr=60.0, u_vgt=65.0)
+    assert plant.delayed_commands == (80.0, 65.0)
+    m = mvem.Model()
+    u = (1500.0, 110.0, *plant.delayed_commands)
+    x = plant.state
+    f = m.derivatives(x, u)
+    plant.step(1e-3)
+    slope = (plant.state - x) / 1e-3
+    scale = m.state_scales
+    assert np.abs(slope - f).max() / np.abs(f).max() < 0.02
+    assert np.abs(f / scale).max() > 1e-3  # the plant is in a transient
+    wrong = m.derivatives(x, (1500.0, 110.0, 60.0, 65.0))
+    k = m.state_names.index("u_egr1")
+    assert f[k] == pytest.approx(0.0, abs=1e-9) and abs(wrong[k]) > 1.0

@@ -677,6 +677,13 @@ impl CorePlant {
         self.plant.state().to_vec()
     }
 
+    /// The delayed commands (u_egr(t - tau_degr), u_vgt(t - tau_dvgt)) \[%\] the actuators
+    /// see now ([`mvem::sim::stepper::Plant::input`]).
+    pub fn delayed_commands(&self) -> [f64; 2] {
+        let u = self.plant.input();
+        [u.u_egr_delayed, u.u_vgt_delayed]
+    }
+
     /// Output names: the states, then the signals that are not states.
     pub fn names(&self) -> &[String] {
         &self.names

@@ -783,6 +783,17 @@ impl Plant {
     fn commands(&self) -> (f64, f64, f64, f64) {
         (self.cmd[0], self.cmd[1], self.cmd[2], self.cmd[3])
     }
+
+    /// The delayed commands (u_egr(t - tau_degr), u_vgt(t - tau_dvgt)) [%] the actuators see
+    /// now, from the command history. The right-hand side at the plant's state is
+    /// Model.derivatives(plant.state, (n_e, u_delta, *plant.delayed_commands)), and
+    /// Model.jacobian at that point linearizes along the run (e.g. for an extended Kalman
+    /// filter).
+    #[getter]
+    fn delayed_commands(&self) -> (f64, f64) {
+        let [e, v] = self.inner.delayed_commands();
+        (e, v)
+    }
 }
 
 /// Points (x, u) of `Model` calls: a state array of shape (n,) with inputs (4,), or states

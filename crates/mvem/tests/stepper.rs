@@ -138,3 +138,59 @@ fn any_plant_runs_every_variant() {
         assert!(p.get("p_im").unwrap() > 1e5);
     }
 }
+
+/// `Plant::input`: the delayed commands the actuators see follow the command history
+/// (tau_dvgt = 40 ms, tau_degr = 65 ms); the model's right-hand side at the plant's state and
+/// that input moves the VGT actuator state toward the delayed command, so it is what the
+/// integrator followed: the actuator's next 1 ms agrees with it to first order.
+#[test]
+fn the_plant_reports_the_delayed_commands_its_actuators_see() {
+    let m = Engine8::published();
+    let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
+    let d1 = Drive::new(1500.0, 110.0, 60.0, 65.0);
+    let mut p = plant_from_steady(m.clone(), d0, 0.0, &SimOptions::default()).unwrap();
+    assert_eq!(p.input(), mvem::model::ModelInput::constant(d0));
+    p.step(0.01, d0).unwrap();
+    let mut seen = Vec::new();
+    for _ in 0..10 {
+        p.step(0.01, d1).unwrap(); // the change at t = 0.01 s
+        let u = p.input();
+        assert_eq!(u.now, d1);
+        seen.push((p.t(), u.u_egr_delayed, u.u_vgt_delayed));
+    }
+    for (t, egr, vgt) in &seen {
+        let since = t - 0.01;
+        // a sample at exactly tau after the change is either side, by rounding of t - tau
+        let want = |tau: f64, old: f64, new: f64| match since - tau {
+            e if e.abs() < 1e-9 => None,
+            e if e > 0.0 => Some(new),
+            _ => Some(old),
+        };
+        if let Some(w) = want(0.04, 75.0, 65.0) {
+            assert_eq!(*vgt, w, "u_vgt at t = {t}");
+        }
+        if let Some(w) = want(0.065, 80.0, 60.0) {
+            assert_eq!(*egr, w, "u_egr at t = {t}");
+        }
+    }
+    // 60 ms after the change: the VGT actuator follows 65 %, the EGR actuators still 80 %
+    let t_now = p.t();
+    let mut p = plant_from_steady(m.clone(), d0, 0.0, &SimOptions::default()).unwrap();
+    p.step(0.01, d0).unwrap();
+    for _ in 0..6 {
+        p.step(0.01, d1).unwrap();
+    }
+    assert!(p.t() < t_now);
+    let x = *p.state();
+    let dx = m.eval(&x, &p.input(), m.memory_start(&x, &p.input())).dx;
+    let before = x[7];
+    p.step(0.001, d1).unwrap();
+    let slope = (p.state()[7] - before) / 0.001;
+    assert!(dx[7] < 0.0, "u_vgt_act moves toward 65 %: {}", dx[7]);
+    assert!(
+        (slope - dx[7]).abs() < 0.02 * dx[7].abs(),
+        "{slope} vs {}",
+        dx[7]
+    );
+    assert!(dx[5].abs() < 1e-9, "u_egr1 still sees 80 %: {}", dx[5]);
+}

@@ -250,6 +250,11 @@ class Plant:
     ) -> None:
         """Start again at t = 0 in the steady state of the commands."""
     @property
+    def delayed_commands(self) -> Tuple[float, float]:
+        """(u_egr(t - tau_degr), u_vgt(t - tau_dvgt)) [%]: the commands the actuators see now.
+        Model.derivatives(plant.state, (n_e, u_delta, *plant.delayed_commands)) is the plant's
+        right-hand side."""
+    @property
     def t(self) -> float: ...
     @property
     def state(self) -> "np.ndarray[Any, np.dtype[np.float64]]": ...

@@ -52,6 +52,9 @@ pub struct Plant<const N: usize, M: Model<N>> {
     carry: Carry<N>,
     stats: SimStats,
     signals: Signals,
+    /// The inputs at the current time: the held commands and the delayed ones the actuators
+    /// see (from the left at a command change).
+    input: ModelInput,
     /// Never written: the integrator is run without output samples.
     scratch: Solution,
 }
@@ -115,7 +118,8 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             lags: run.lags,
             lag_seg: run.lag_seg,
         };
-        let signals = model.eval(&y, &ModelInput::constant(d), memory).signals;
+        let input = ModelInput::constant(d);
+        let signals = model.eval(&y, &input, memory).signals;
         Ok(Self {
             model,
             opts,
@@ -128,6 +132,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             carry,
             stats: SimStats::default(),
             signals,
+            input,
             scratch,
         })
     }
@@ -160,6 +165,14 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
     /// Solver statistics summed over all steps.
     pub fn stats(&self) -> SimStats {
         self.stats
+    }
+
+    /// The inputs at the current time: the commands held in the last step and the delayed
+    /// commands u_egr(t - tau_degr), u_vgt(t - tau_dvgt) \[%\] the actuators see now, from
+    /// the command history (from the left at a command change). The right-hand side at the
+    /// current state is `model().eval(state(), &input(), ..)`.
+    pub fn input(&self) -> ModelInput {
+        self.input
     }
 
     /// Number of history rows kept (for tests of the trimming).
@@ -246,6 +259,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
                 .value_hint(3, t_end - self.delays[1], Side::Left, &mut hint),
         };
         self.signals = self.model.eval(&self.y, &u, self.memory).signals;
+        self.input = u;
         Ok(&self.signals)
     }
 }
@@ -316,6 +330,11 @@ impl AnyPlant {
     /// Solver statistics summed over all steps.
     pub fn stats(&self) -> SimStats {
         each!(self, p => p.stats())
+    }
+
+    /// See [`Plant::input`].
+    pub fn input(&self) -> ModelInput {
+        each!(self, p => p.input())
     }
 
     /// Value of a state or signal by name (states first: `p_im`, `p_em`, `omega_t`, ...).
