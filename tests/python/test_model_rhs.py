@@ -288,3 +288,21 @@ def test_plant_delayed_commands_give_its_right_hand_side():
     wrong = m.derivatives(x, (1500.0, 110.0, 60.0, 65.0))
     k = m.state_names.index("u_egr1")
     assert f[k] == pytest.approx(0.0, abs=1e-9) and abs(wrong[k]) > 1.0
+
+
+def test_ekf_example_estimates_p_em_from_p_im_and_n_t():
+    """examples/python/ekf_air_path.py: an EKF on Model.jacobian and Plant.delayed_commands
+    tracks p_em through EGR and VGT steps with a tenth of the open-loop model's error (measured
+    about 1/60 and 1/15 in the two windows)."""
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "examples" / "python" / "ekf_air_path.py"
+    spec = importlib.util.spec_from_file_location("ekf_air_path", path)
+    ekf = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ekf)
+    _, h = ekf.run(3.0, seed=2, verbose=False)
+    _, h_open = ekf.run(3.0, seed=2, verbose=False, update=False)
+    for lo, hi in [(0.5, 1.5), (1.5, 3.0)]:
+        rms = [np.sqrt(np.mean(x[(x[:, 0] > lo) & (x[:, 0] <= hi), 1] ** 2)) for x in (h, h_open)]
+        assert rms[0] < 0.1 * rms[1], (lo, hi, rms)
