@@ -11,7 +11,7 @@ use mvem::model::{
     AnyModel, CylinderTemp, Drive, Model, ModelInput, ModelOptions, ModelOrder, Signals,
 };
 use mvem::params::Params;
-use mvem::sim::{InputSchedule, SimError, SimOptions};
+use mvem::sim::{InputSchedule, SimError, SimOptions, Start};
 use nalgebra::DMatrix;
 use serde_json::Value;
 use std::path::Path;
@@ -245,12 +245,78 @@ pub fn simulate_rows(
     params: Option<Params>,
     variant: Variant,
 ) -> CoreResult<(Vec<String>, Vec<Vec<f64>>)> {
+    simulate_rows_from(rows, args, params, variant, None)
+}
+
+/// A start state given to [`simulate_rows_from`]: values in the model's state order, or named.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StartState {
+    /// One value per state, in `state_names` order.
+    Values(Vec<f64>),
+    /// Every state by name.
+    Named(Vec<(String, f64)>),
+}
+
+/// [`simulate_rows`] from the state `x0` at the first input time (None: the steady state of the
+/// first inputs). The command history before the first row is that row (the delayed commands
+/// start there). The state must be finite; the integrator clips it into the authors' limits.
+pub fn simulate_rows_from(
+    rows: &[[f64; 5]],
+    args: SimArgs,
+    params: Option<Params>,
+    variant: Variant,
+    x0: Option<&StartState>,
+) -> CoreResult<(Vec<String>, Vec<Vec<f64>>)> {
     let c = case(rows, &args, params, variant)?;
     let opts = args.options()?;
     let t_end = c.t_end.expect("set by case()");
-    let sol = mvem::dispatch!(&c.model, m => simulate_from_steady(m, &c.inputs, c.inputs.t_first(), t_end, &opts))
-        .map_err(steady_sim_error)?;
+    let t0 = c.inputs.t_first();
+    let sol = mvem::dispatch!(&c.model, m => match x0 {
+        None => simulate_from_steady(m, &c.inputs, t0, t_end, &opts).map_err(steady_sim_error),
+        Some(x0) => {
+            let x = start_state(m, x0)?;
+            let guess = mvem::analysis::steady::chunk_guess(m, &c.inputs);
+            mvem::sim::simulate_with_guess(m, &c.inputs, t0, t_end, Start::State(x), &opts, Some(&guess))
+                .map_err(sim_error)
+        }
+    })?;
     Ok((sol.names, sol.columns))
+}
+
+/// The state array of `x0` for model `m`: every state, finite, no unknown names.
+fn start_state<const N: usize, M: Model<N>>(m: &M, x0: &StartState) -> CoreResult<[f64; N]> {
+    let names = m.state_names();
+    let bad = |msg: String| CoreError::Value(format!("x0: {msg}"));
+    let x: [f64; N] = match x0 {
+        StartState::Values(v) => v.as_slice().try_into().map_err(|_| {
+            bad(format!(
+                "expected {N} values ({}), got {}",
+                names.join(", "),
+                v.len()
+            ))
+        })?,
+        StartState::Named(kv) => {
+            if let Some((k, _)) = kv.iter().find(|(k, _)| !names.contains(&k.as_str())) {
+                return Err(bad(format!(
+                    "unknown state {k:?} (the states are {})",
+                    names.join(", ")
+                )));
+            }
+            let mut x = [0.0; N];
+            for (i, n) in names.iter().enumerate() {
+                x[i] = kv
+                    .iter()
+                    .find(|(k, _)| k == n)
+                    .map(|(_, v)| *v)
+                    .ok_or_else(|| bad(format!("missing state {n}")))?;
+            }
+            x
+        }
+    };
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return Err(bad(format!("{} = {} is not finite", names[i], x[i])));
+    }
+    Ok(x)
 }
 
 /// The model, the schedule and the end time of one simulation (checked).

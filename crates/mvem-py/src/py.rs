@@ -183,6 +183,10 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// time_parallel: integrate in this many time chunks at once, one thread each (default 1: the
 ///     sequential run, reproducible bits); the result agrees with the sequential run to far
 ///     below the tolerance (each chunk's start is checked; docs/integrator.md).
+/// x0: start state (a dict of every state name -> value, or an array in state order; default
+///     None: the steady state of the first input row). The commands before the first row are
+///     that row's (so are the delayed commands at the start). Clipped into the authors'
+///     integrator limits like any state.
 ///
 /// Returns a dict of numpy arrays: "t" [s], the states (8 states: p_im [Pa], p_em [Pa], X_Oim,
 /// X_Oem [-], omega_t [rad/s], u_egr1, u_egr2, u_vgt_act [%]; 10 states add T_im, T_em [K];
@@ -190,7 +194,7 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// a state is the state). Raises ValueError for bad inputs/options/parameters, RuntimeError if
 /// the solver fails.
 #[pyfunction]
-#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged", numeric_actuators=false, time_parallel=1))]
+#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged", numeric_actuators=false, time_parallel=1, x0=None))]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
@@ -204,6 +208,7 @@ fn simulate<'py>(
     cylinder_temp: &str,
     numeric_actuators: bool,
     time_parallel: usize,
+    x0: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let rows = input_rows(py, inputs)?;
@@ -213,10 +218,30 @@ fn simulate<'py>(
         time_parallel,
         ..sim_args(t_end, dt, rtol, atol, numeric_actuators)
     };
+    let start = x0.map(|x| start_state(py, x)).transpose()?;
     let cols = py
-        .allow_threads(move || core::simulate_rows(&rows, args, p, variant))
+        .allow_threads(move || core::simulate_rows_from(&rows, args, p, variant, start.as_ref()))
         .map_err(to_py_err)?;
     columns_dict(py, cols)
+}
+
+/// `x0` of simulate: a dict of state name -> value, or an array of the states in order.
+fn start_state(py: Python<'_>, x0: &Bound<'_, PyAny>) -> PyResult<core::StartState> {
+    if let Ok(d) = x0.downcast::<PyDict>() {
+        let mut kv = Vec::with_capacity(d.len());
+        for (k, v) in d.iter() {
+            let name: String = k
+                .extract()
+                .map_err(|_| PyValueError::new_err("x0: the keys must be state names"))?;
+            let value: f64 = v
+                .extract()
+                .map_err(|_| PyValueError::new_err(format!("x0[{name:?}]: not a number")))?;
+            kv.push((name, value));
+        }
+        return Ok(core::StartState::Named(kv));
+    }
+    let np = py.import("numpy")?;
+    Ok(core::StartState::Values(float_list(&np, x0, "x0")?))
 }
 
 /// The simulation options of simulate and simulate_many (atol defaults to rtol).

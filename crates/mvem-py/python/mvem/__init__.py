@@ -4,7 +4,8 @@ Functions (implemented in Rust; the GIL is released while the model runs, so thr
 in parallel):
 
 - simulate(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8,
-  cylinder_temp="converged") -> dict of numpy arrays
+  cylinder_temp="converged", x0=None) -> dict of numpy arrays (from the steady state at the
+  first inputs, or from the state x0)
 - simulate_many(list_of_inputs, params=None, threads=None, on_error="raise", ...) -> list of
   dicts: many simulations at once on all cores (input or parameter variations), each equal to
   simulate() of its inputs

@@ -28,14 +28,16 @@ def simulate(
     cylinder_temp: Literal["converged", "one-iteration"] = "converged",
     numeric_actuators: bool = False,
     time_parallel: int = 1,
+    x0: Union[None, Mapping[str, float], npt.ArrayLike] = None,
 ) -> Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"]:
-    """Simulate from the steady state at the first input row.
+    """Simulate from the steady state at the first input row (or from x0).
 
     inputs: columns time_s [s], n_e_rpm [rpm], u_delta_mg [mg/cycle/cylinder], u_egr_pct [%],
     u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns); linear interpolation,
     two rows with the same time make a step. t_end [s], dt [s]: end time and output interval.
     numeric_actuators: integrate the actuator states numerically too (default: closed form).
     time_parallel: time chunks integrated at once, one thread each (default 1: sequential).
+    x0: start state (dict of every state name -> value, or an array in state order).
     Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
     ValueError: bad inputs/options/params; RuntimeError: solver failure.
     """
