@@ -77,3 +77,29 @@ def test_inputs_must_be_a_list():
     with pytest.raises(ValueError, match="list of inputs"):
         mvem.simulate_many(vgt_step(65.0))
     assert mvem.simulate_many([]) == []
+
+
+def test_start_states_one_for_all_or_one_per_run():
+    """x0: one start state for every run (dict, array or list of numbers), or one per run
+    (a list with None for the steady start, or a 2-D array); each run equals simulate(x0=...);
+    a bad one is that run's error."""
+    m = mvem.Model()
+    s = mvem.steady(1500.0, 110.0, 80.0, 75.0)
+    x_ss = np.array([s[n] for n in m.state_names])
+    x1 = x_ss * np.r_[1.1, 1.05, 1.0, 0.9, 0.97, 1.0, 1.0, 1.0]
+    inputs = [vgt_step(65.0), vgt_step(55.0)]
+    one = mvem.simulate(inputs[1], x0=x1)
+    for x0 in [x1, list(x1), dict(zip(m.state_names, x1))]:
+        runs = mvem.simulate_many(inputs, x0=x0)
+        assert_same(runs[0], mvem.simulate(inputs[0], x0=x1))
+        assert_same(runs[1], one)
+    for x0 in [[None, x1], np.stack([x_ss, x1])]:
+        runs = mvem.simulate_many(inputs, x0=x0)
+        assert_same(runs[0], mvem.simulate(inputs[0]))
+        assert_same(runs[1], one)
+    assert runs[1]["p_im"][0] == x1[0]
+    with pytest.raises(ValueError, match="x0: 3 start states for 2 inputs"):
+        mvem.simulate_many(inputs, x0=[x1, x1, x1])
+    out = mvem.simulate_many(inputs, x0=[x1[:7], None], on_error="return")
+    assert isinstance(out[0], ValueError) and "run 0: x0: expected 8 values" in str(out[0])
+    assert_same(out[1], mvem.simulate(inputs[1]))

@@ -344,6 +344,7 @@ fn case(
         model: m,
         inputs: sched,
         t_end: Some(t_end),
+        start: None,
     })
 }
 
@@ -392,6 +393,19 @@ pub fn simulate_many_rows(
     variant: Variant,
     threads: Option<usize>,
 ) -> CoreResult<Vec<CoreResult<Columns>>> {
+    simulate_many_rows_from(runs, &[], args, variant, threads)
+}
+
+/// [`simulate_many_rows`] with start states: run `i` starts from `starts[i]` where that is
+/// given (`starts` may be shorter than `runs`, even empty), else from the steady state of its
+/// first inputs. A bad start state is that run's error.
+pub fn simulate_many_rows_from(
+    runs: Vec<(Vec<[f64; 5]>, Option<Params>)>,
+    starts: &[Option<StartState>],
+    args: SimArgs,
+    variant: Variant,
+    threads: Option<usize>,
+) -> CoreResult<Vec<CoreResult<Columns>>> {
     let opts = args.options()?;
     if threads == Some(0) {
         return Err(CoreError::Value(
@@ -407,7 +421,15 @@ pub fn simulate_many_rows(
     let mut cases = Vec::new();
     let mut index = Vec::new();
     for (i, (rows, p)) in runs.into_iter().enumerate() {
-        match case(&rows, &args, p, variant) {
+        let start = starts.get(i).and_then(Option::as_ref);
+        let checked = case(&rows, &args, p, variant).and_then(|mut c| {
+            if let Some(s) = start {
+                c.start =
+                    Some(mvem::dispatch!(&c.model, m => start_state(m, s).map(|x| x.to_vec()))?);
+            }
+            Ok(c)
+        });
+        match checked {
             Ok(c) => {
                 cases.push(c);
                 index.push(i);

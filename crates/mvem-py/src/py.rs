@@ -225,6 +225,56 @@ fn simulate<'py>(
     columns_dict(py, cols)
 }
 
+/// `x0` of simulate_many for `runs` runs: none, one start state for all (a dict or a 1-D
+/// array), or one per run (a list of None / dict / array, or a 2-D array with a row per run).
+fn start_states(
+    py: Python<'_>,
+    x0: Option<&Bound<'_, PyAny>>,
+    runs: usize,
+) -> PyResult<Vec<Option<core::StartState>>> {
+    let Some(x0) = x0.filter(|x| !x.is_none()) else {
+        return Ok(Vec::new());
+    };
+    let per_run: Option<Vec<Bound<'_, PyAny>>> =
+        if x0.is_instance_of::<PyList>() || x0.is_instance_of::<PyTuple>() {
+            let items: Vec<Bound<'_, PyAny>> = x0.try_iter()?.collect::<PyResult<_>>()?;
+            // a list of numbers is one state for all runs
+            let numbers = items.iter().all(|i| i.extract::<f64>().is_ok());
+            (!numbers).then_some(items)
+        } else if x0.is_instance_of::<PyDict>() {
+            None
+        } else {
+            let ndim: usize = py
+                .import("numpy")?
+                .call_method1("asarray", (x0,))?
+                .getattr("ndim")?
+                .extract()?;
+            (ndim == 2)
+                .then(|| x0.try_iter().and_then(|it| it.collect()).ok())
+                .flatten()
+        };
+    match per_run {
+        None => Ok(vec![Some(start_state(py, x0)?); runs]),
+        Some(items) if items.len() != runs => Err(PyValueError::new_err(format!(
+            "x0: {} start states for {runs} inputs (give one per run, or one for all)",
+            items.len()
+        ))),
+        Some(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, x)| {
+                if x.is_none() {
+                    Ok(None)
+                } else {
+                    start_state(py, x)
+                        .map(Some)
+                        .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))
+                }
+            })
+            .collect(),
+    }
+}
+
 /// `x0` of simulate: a dict of state name -> value, or an array of the states in order.
 fn start_state(py: Python<'_>, x0: &Bound<'_, PyAny>) -> PyResult<core::StartState> {
     if let Ok(d) = x0.downcast::<PyDict>() {
@@ -286,11 +336,14 @@ fn columns_dict(py: Python<'_>, (names, cols): core::Columns) -> PyResult<Bound<
 ///     or RuntimeError, "run i: ..."); "return": a failed run's slot holds its exception object
 ///     instead of a dict, the other runs are returned as usual.
 /// t_end, dt, rtol, atol, model, cylinder_temp, numeric_actuators: as in simulate, for every run.
+/// x0: None (each run from the steady state at its first row), one start state for every run
+///     (a dict or a 1-D array, as in simulate), or one per run (a list of None, dicts or arrays,
+///     or a 2-D array with a row per run): scenarios from one estimated state, say.
 ///
 /// Returns a list of dicts of numpy arrays, in the order of the inputs; each equals
-/// simulate(inputs[i], ...) of the same arguments.
+/// simulate(inputs[i], ..., x0=x0[i]) of the same arguments.
 #[pyfunction]
-#[pyo3(signature = (inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=8, cylinder_temp="converged", numeric_actuators=false))]
+#[pyo3(signature = (inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=8, cylinder_temp="converged", numeric_actuators=false, x0=None))]
 #[allow(clippy::too_many_arguments)]
 fn simulate_many<'py>(
     py: Python<'py>,
@@ -305,6 +358,7 @@ fn simulate_many<'py>(
     model: i64,
     cylinder_temp: &str,
     numeric_actuators: bool,
+    x0: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyList>> {
     let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
     let raise = match on_error {
@@ -364,10 +418,11 @@ fn simulate_many<'py>(
     for (i, (r, p)) in rows.iter().zip(&per_run).enumerate() {
         warn_rows_out_of_range(py, &format!("simulate_many run {i}"), r, p.as_ref())?;
     }
+    let starts = start_states(py, x0, rows.len())?;
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
     let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
     let results = py
-        .allow_threads(move || core::simulate_many_rows(runs, args, variant, threads))
+        .allow_threads(move || core::simulate_many_rows_from(runs, &starts, args, variant, threads))
         .map_err(to_py_err)?;
     let out = PyList::empty(py);
     for r in results {

@@ -315,6 +315,7 @@ fn ensemble(
             model: model.clone(),
             inputs: sched.clone(),
             t_end: None,
+            start: None,
         })
         .collect();
     let mut walls = [Vec::new(), Vec::new()];

@@ -54,13 +54,16 @@ def simulate_many(
     model: ModelOrder = 8,
     cylinder_temp: Literal["converged", "one-iteration"] = "converged",
     numeric_actuators: bool = False,
+    x0: Any = None,
 ) -> List[Union[Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"], Exception]]:
     """Many simulations at once on `threads` worker threads (None: one per core), GIL released.
 
     Run i simulates inputs[i] (as simulate) with params (one for all runs, or a list with one
     entry per run). on_error="raise": after all runs, raise the first failure ("run i: ...");
     "return": a failed run's slot holds its ValueError/RuntimeError. Results in input order,
-    each equal to simulate(inputs[i], ...) with the same arguments.
+    each equal to simulate(inputs[i], ...) with the same arguments. x0: None (steady starts),
+    one start state for all runs (dict or 1-D array), or one per run (a list of None / dict /
+    array, or a 2-D array with a row per run).
     """
 
 def steady(

@@ -1,8 +1,8 @@
 //! Ensembles: many simulations at once (parameter or input variations) on all cores.
 //!
 //! [`simulate_many`] runs every [`Case`] (a model with its parameters, an input schedule, an end
-//! time) from the steady state at its first inputs, as [`simulate_from_steady`], one case per
-//! task on a rayon thread pool. The runs are independent: one that fails (no initial
+//! time) from the steady state at its first inputs, as [`simulate_from_steady`], or from its
+//! given start state, one case per task on a rayon thread pool. The runs are independent: one that fails (no initial
 //! equilibrium, a solver failure) gives a [`RunError`] naming its index in its own slot and the
 //! others go on. Results come back in the order of the cases.
 //!
@@ -10,9 +10,9 @@
 //! take about as long as one (`mvem bench --ensemble 8` measures the scaling; `docs/python.md`
 //! and the README give the numbers).
 
-use super::steady::{simulate_from_steady, SimFromSteadyError};
-use crate::model::AnyModel;
-use crate::sim::{InputSchedule, SimOptions, Solution};
+use super::steady::{chunk_guess, simulate_from_steady, SimFromSteadyError};
+use crate::model::{AnyModel, Model};
+use crate::sim::{simulate_with_guess, InputSchedule, SimOptions, Solution, Start};
 use rayon::prelude::*;
 
 /// One run of an ensemble.
@@ -24,6 +24,9 @@ pub struct Case {
     pub inputs: InputSchedule,
     /// End time \[s\] (`None`: the last input time).
     pub t_end: Option<f64>,
+    /// The state at the first input time, in the model's state order (`None`: the steady state
+    /// of the first inputs). The commands before the first row are that row's.
+    pub start: Option<Vec<f64>>,
 }
 
 /// A failed run of an ensemble: its index in the cases and why.
@@ -78,11 +81,43 @@ pub fn simulate_many(
             .map(|(index, c)| {
                 let t0 = c.inputs.t_first();
                 let t_end = c.t_end.unwrap_or(c.inputs.t_last());
-                crate::dispatch!(&c.model, m => simulate_from_steady(m, &c.inputs, t0, t_end, opts))
+                crate::dispatch!(&c.model, m => run_case(m, c, t0, t_end, opts))
                     .map_err(|error| RunError { index, error })
             })
             .collect()
     })
+}
+
+/// One case from its start state or the steady state at its first inputs.
+fn run_case<const N: usize, M: Model<N>>(
+    m: &M,
+    c: &Case,
+    t0: f64,
+    t_end: f64,
+    opts: &SimOptions,
+) -> Result<Solution, SimFromSteadyError> {
+    match &c.start {
+        None => simulate_from_steady(m, &c.inputs, t0, t_end, opts),
+        Some(v) => {
+            let x: [f64; N] =
+                v.as_slice()
+                    .try_into()
+                    .map_err(|_| SimFromSteadyError::StartLength {
+                        expected: N,
+                        got: v.len(),
+                    })?;
+            let guess = chunk_guess(m, &c.inputs);
+            Ok(simulate_with_guess(
+                m,
+                &c.inputs,
+                t0,
+                t_end,
+                Start::State(x),
+                opts,
+                Some(&guess),
+            )?)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -103,6 +138,7 @@ mod tests {
             )
             .unwrap(),
             t_end: Some(3.0),
+            start: None,
         }
     }
 
@@ -133,5 +169,45 @@ mod tests {
         // the parameter variation changed the response (the runs are not copies)
         let w = |i: usize| *out[i].as_ref().unwrap().get("W_c").unwrap().last().unwrap();
         assert!((w(0) - w(2)).abs() > 1e-4, "{} {}", w(0), w(2));
+    }
+
+    /// A case with a start state: from the steady state it is the default run to the bit;
+    /// from another state the run starts there; a start of the wrong length is that run's error.
+    #[test]
+    fn a_case_starts_from_its_given_state() {
+        use crate::analysis::steady::steady_state;
+        let j_t = Params::published().turbo.j_t;
+        let opts = SimOptions::default();
+        let x_ss = steady_state(
+            &crate::model::Engine8::published(),
+            &Drive::new(1500.0, 110.0, 80.0, 75.0),
+        )
+        .unwrap()
+        .x;
+        let mut cases = vec![
+            case(65.0, j_t),
+            case(65.0, j_t),
+            case(65.0, j_t),
+            case(65.0, j_t),
+        ];
+        cases[1].start = Some(x_ss.to_vec());
+        let mut x1 = x_ss;
+        x1[0] *= 1.1;
+        cases[2].start = Some(x1.to_vec());
+        cases[3].start = Some(vec![1.0; 7]);
+        let out = simulate_many(&cases, &opts, 2).unwrap();
+        let p_im = |i: usize| out[i].as_ref().unwrap().get("p_im").unwrap().to_vec();
+        assert_eq!(p_im(1), p_im(0));
+        assert_eq!(p_im(2)[0], x1[0]);
+        assert!((p_im(2)[10] - p_im(0)[10]).abs() > 1e3);
+        let e = out[3].as_ref().unwrap_err();
+        assert!(matches!(
+            e.error,
+            SimFromSteadyError::StartLength {
+                expected: 8,
+                got: 7
+            }
+        ));
+        assert!(e.to_string().contains("expected 8 values"), "{e}");
     }
 }

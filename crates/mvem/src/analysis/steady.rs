@@ -85,6 +85,14 @@ pub enum SimFromSteadyError {
     /// The simulation failed (options, interval, or integration).
     #[error("{0}")]
     Sim(#[from] SimError),
+    /// A given start state ([`super::ensemble::Case::start`]) has the wrong number of values.
+    #[error("start state: expected {expected} values (the model's states), got {got}")]
+    StartLength {
+        /// The model's number of states.
+        expected: usize,
+        /// The values given.
+        got: usize,
+    },
 }
 
 /// Simulate `model` driven by `sched` from `t0` to `t_end`, starting at the steady state at
