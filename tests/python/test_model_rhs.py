@@ -229,6 +229,7 @@ def test_out_of_range_inputs_warn_with_the_point():
             lambda m, x: m.signals(np.stack([x, x]), [POINT, [np.inf, 1.0, 1.0, 30.0]]),
             "point 1: n_e = inf",
         ),
+        (lambda m, x: m.jacobian(np.zeros((0, 8)), POINT), "state: no points"),
         (lambda m, x: mvem.Model(model=9), "model = 9"),
         (lambda m, x: mvem.Model(params={"turbo.j_t": -1}), "turbo.j_t"),
     ],

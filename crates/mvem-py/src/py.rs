@@ -907,6 +907,11 @@ fn points<'py>(
         }
     };
     let k = states.len();
+    if k == 0 {
+        return Err(PyValueError::new_err(format!(
+            "state: no points (shape {xs:?}); give at least one state"
+        )));
+    }
     let rows: Vec<Vec<f64>> = match us.as_slice() {
         [4] => vec![ua.call_method0("tolist")?.extract()?; k],
         [r, 4] if batched && *r == k => ua.call_method0("tolist")?.extract()?,
