@@ -250,3 +250,88 @@ fn a_cycle_follows_the_parameter_sets_speed_range() {
     let hi = json["reference_speeds_rpm"]["n_hi"].as_f64().unwrap();
     assert!(hi > 2000.0 && hi <= 2600.0, "{json}");
 }
+
+/// `--tuning FILE.toml` reaches the baseline controllers: on a tip-in at 1200 rpm the smoke
+/// limiter holds lambda_O at 1.22 with the default lambda_lim = 1.2 and lets it fall to 1.12
+/// with `lambda_limit = 1.1` (the cycle's own lambda_O >= 1.2 check then reports it);
+/// stats.json echoes the tuning used. A value out of range, an unknown key and a tuning for the
+/// open-loop schedule are usage errors naming them, and nothing is written.
+#[test]
+fn a_tuning_file_sets_the_baseline_controllers() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("tip.csv"),
+        "t,n_e,M_ref\n0,1200,100\n2,1200,100\n2.2,1200,1500\n8,1200,1500\n",
+    )
+    .unwrap();
+    std::fs::write(d.path().join("t.toml"), "lambda_limit = 1.1\n").unwrap();
+    let run = |out: &str, extra: &[&str]| -> serde_json::Value {
+        let mut args = vec!["closed-loop", "--cycle", "tip.csv", "--out", out];
+        args.extend_from_slice(extra);
+        let o = mvem(d.path(), &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(d.path().join(out).join("stats.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let default = run("a", &[]);
+    let tuned = run("b", &["--tuning", "t.toml"]);
+    let lambda_min = |v: &serde_json::Value| v["stats"]["lambda_o_min"].as_f64().unwrap();
+    assert!(lambda_min(&default) > 1.2, "{}", lambda_min(&default));
+    assert!(lambda_min(&tuned) < 1.15, "{}", lambda_min(&tuned));
+    assert_eq!(default["controller_tuning"]["lambda_limit"], 1.2);
+    assert_eq!(tuned["controller_tuning"]["lambda_limit"], 1.1);
+    assert_eq!(
+        tuned["controller_tuning"]["torque"],
+        serde_json::json!([0.02, 2.0])
+    );
+    assert!(tuned["violations"][0]
+        .as_str()
+        .unwrap()
+        .contains("lambda_O < 1.2"));
+
+    for (name, text, want) in [
+        (
+            "low.toml",
+            "lambda_limit = 0.9\n",
+            "lambda_limit = 0.9: must be >= 1",
+        ),
+        ("gain.toml", "torque = [-0.02, 2.0]\n", "torque[0] = -0.02"),
+        (
+            "typo.toml",
+            "lamda_limit = 1.1\n",
+            "unknown field `lamda_limit`",
+        ),
+    ] {
+        std::fs::write(d.path().join(name), text).unwrap();
+        let err = usage_error(
+            d.path(),
+            &[
+                "closed-loop",
+                "--cycle",
+                "tip.csv",
+                "--tuning",
+                name,
+                "--out",
+                "c",
+            ],
+        );
+        assert!(err.contains(name) && err.contains(want), "{err}");
+    }
+    let err = usage_error(
+        d.path(),
+        &[
+            "closed-loop",
+            "--controller",
+            "open-loop",
+            "--tuning",
+            "t.toml",
+            "--out",
+            "c",
+        ],
+    );
+    assert!(
+        err.contains("--tuning sets the baseline controllers"),
+        "{err}"
+    );
+    assert!(!d.path().join("c").exists());
+}

@@ -23,6 +23,7 @@ Examples:
   mvem closed-loop --cycle whtc --out out/closed-loop --plot
   mvem closed-loop --cycle whtc --controller open-loop --out out/open-loop --json
   mvem closed-loop --cycle my_cycle.csv --out out/mine
+  mvem closed-loop --params car.toml --tuning car_controller.toml --out out/car
 
 --cycle whtc: the WHTC (UN GTR No. 4) denormalized with this engine's mapping curve (full-load
 torque at lambda_O >= 1.2, motoring torque for the \"m\" points), speeds 0 s..1800 s.
@@ -55,6 +56,10 @@ pub struct Args {
     /// Run only the first S seconds of the cycle.
     #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
+    /// The baseline controllers' tuning: a TOML file of `BaselineTuning` fields (the rest keep
+    /// their defaults), e.g. `lambda_limit = 1.1` or `torque = [0.03, 3.0]` (docs/control.md).
+    #[arg(long, value_name = "FILE.toml")]
+    pub tuning: Option<PathBuf>,
 }
 
 /// `--controller`.
@@ -128,12 +133,25 @@ fn read_cycle_csv(path: &Path) -> Result<Demand> {
         .map_err(|e| common::usage(format!("{name}: {e} (rows counted after the header)")))
 }
 
-/// Run the cycle `cycle` (`whtc` or a CSV file) with `controller` (the core's
-/// [`drive::run_cycle_with`]; `on_row` sees the trajectory after each row).
+/// Read `--tuning`: the baseline controllers' tuning from TOML, checked.
+pub fn read_tuning(path: &Path) -> Result<BaselineTuning> {
+    let name = path.display();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| common::usage(format!("--tuning {name}: {e}")))?;
+    let t: BaselineTuning = toml::from_str(&text)
+        .map_err(|e| common::usage(format!("--tuning {name}: {}", e.to_string().trim_end())))?;
+    t.validate()
+        .map_err(|e| common::usage(format!("--tuning {name}: {e}")))?;
+    Ok(t)
+}
+
+/// Run the cycle `cycle` (`whtc` or a CSV file) with `controller` (the baseline with `tuning`;
+/// the core's [`drive::run_cycle_with`]; `on_row` sees the trajectory after each row).
 pub fn run_cycle(
     model: &AnyModel,
     cycle: &str,
     controller: ControllerArg,
+    tuning: BaselineTuning,
     duration: Option<f64>,
     on_row: &mut dyn FnMut(&Trajectory),
 ) -> Result<Run> {
@@ -155,7 +173,7 @@ pub fn run_cycle(
         CycleSource::Demand(read_cycle_csv(Path::new(cycle))?)
     };
     let scheme = match controller {
-        ControllerArg::Baseline => Scheme::Baseline(BaselineTuning::default()),
+        ControllerArg::Baseline => Scheme::Baseline(tuning),
         ControllerArg::OpenLoop => Scheme::OpenLoop(common::whtc_schedule()?),
     };
     let run = match drive::run_cycle_with(model, source, scheme, duration, on_row) {
@@ -250,11 +268,12 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
     fig
 }
 
-fn stats_json(a: &Args, w: &Run) -> serde_json::Value {
+fn stats_json(a: &Args, w: &Run, tuning: &BaselineTuning) -> serde_json::Value {
     let r = &w.run;
     serde_json::json!({
         "cycle": a.cycle,
         "controller": a.controller.to_possible_value().map(|v| v.get_name().to_string()),
+        "controller_tuning": (a.controller == ControllerArg::Baseline).then_some(tuning),
         "model_states": a.model.order().states(),
         "sample_time_s": drive::SAMPLE_TIME,
         "reference_speeds_rpm": r.speeds,
@@ -269,6 +288,15 @@ fn stats_json(a: &Args, w: &Run) -> serde_json::Value {
 /// Run `mvem closed-loop`.
 pub fn run(a: &Args) -> Result<()> {
     outdir::check(&a.out)?;
+    let tuning = match (&a.tuning, a.controller) {
+        (Some(_), ControllerArg::OpenLoop) => {
+            return Err(common::usage(
+                "--tuning sets the baseline controllers; --controller open-loop has none",
+            ))
+        }
+        (Some(p), ControllerArg::Baseline) => read_tuning(p)?,
+        (None, _) => BaselineTuning::default(),
+    };
     let model = a.model.build()?;
     // DIR/trajectory.csv (every column, shortest round-trip numbers, `NaN` for a missing
     // set-point) is formatted and written on a second thread while the loop runs
@@ -287,11 +315,16 @@ pub fn run(a: &Args) -> Result<()> {
         |b| b,
         |tx| {
             let mut sent = 0;
-            let w = run_cycle(&model, &a.cycle, a.controller, a.duration, &mut |traj| {
-                send_rows(traj, &mut sent, &tx, false)
-            })?;
+            let w = run_cycle(
+                &model,
+                &a.cycle,
+                a.controller,
+                tuning,
+                a.duration,
+                &mut |traj| send_rows(traj, &mut sent, &tx, false),
+            )?;
             send_rows(&w.run.traj, &mut sent, &tx, true);
-            let json = stats_json(a, &w);
+            let json = stats_json(a, &w, &tuning);
             let mut files = Files::default();
             files.add(
                 "stats.json",

@@ -41,9 +41,15 @@ use crate::model::{AnyModel, Drive};
 use crate::sim::InputSchedule;
 
 /// Tuning of the baseline controllers (see the module documentation and `docs/control.md`).
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Read from a TOML file by `mvem closed-loop --tuning FILE` (every field optional, the
+/// defaults below for the rest; unknown keys refused; PI gains as `[kp, ki]`), checked by
+/// [`BaselineTuning::validate`]. The sample time is the closed loop's 10 ms and not read.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct BaselineTuning {
     /// Sample time \[s\].
+    #[serde(skip)]
     pub ts: f64,
     /// Smoke limit lambda_lim [-].
     pub lambda_limit: f64,
@@ -86,6 +92,89 @@ impl Default for BaselineTuning {
             lambda_error_cap: 1.0,
             u_vgt_full_load: 35.0,
         }
+    }
+}
+
+impl BaselineTuning {
+    /// Check every field (finite; gains and bands >= 0; lambda_lim >= 1; the smoke margin in
+    /// [0, 1); the lambda_O error cap > 0; the full-load VGT limit in [20, 100] %; the sample
+    /// time in (0, 1] s). The error names the field, its value and the constraint.
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let bad = |field: &str, v: f64, constraint: &str| {
+            Err(ControlError::Setup(format!(
+                "controller tuning {field} = {v}: {constraint}"
+            )))
+        };
+        let checks: [(&str, f64, bool, &str); 9] = [
+            (
+                "ts",
+                self.ts,
+                self.ts > 0.0 && self.ts <= 1.0,
+                "must be in (0, 1] s",
+            ),
+            (
+                "lambda_limit",
+                self.lambda_limit,
+                self.lambda_limit >= 1.0,
+                "must be >= 1 (a smoke limit below stoichiometry)",
+            ),
+            (
+                "smoke_margin",
+                self.smoke_margin,
+                (0.0..1.0).contains(&self.smoke_margin),
+                "must be in [0, 1)",
+            ),
+            ("d_x", self.d_x, self.d_x >= 0.0, "must be >= 0"),
+            (
+                "d_lambda",
+                self.d_lambda,
+                self.d_lambda >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "lambda_error_cap",
+                self.lambda_error_cap,
+                self.lambda_error_cap > 0.0,
+                "must be > 0",
+            ),
+            (
+                "u_vgt_full_load",
+                self.u_vgt_full_load,
+                (20.0..=100.0).contains(&self.u_vgt_full_load),
+                "must be in [20, 100] % (the VGT's command range)",
+            ),
+            (
+                "torque[0]",
+                self.torque.0,
+                self.torque.0 >= 0.0,
+                "must be >= 0",
+            ),
+            (
+                "torque[1]",
+                self.torque.1,
+                self.torque.1 >= 0.0,
+                "must be >= 0",
+            ),
+        ];
+        for (field, v, ok, constraint) in checks {
+            // NaN fails every comparison above
+            if !v.is_finite() || !ok {
+                return bad(field, v, constraint);
+            }
+        }
+        for (name, (kp, ki)) in [
+            ("x_egr_vgt", self.x_egr_vgt),
+            ("x_egr_egr", self.x_egr_egr),
+            ("lambda_egr", self.lambda_egr),
+            ("lambda_vgt", self.lambda_vgt),
+        ] {
+            for (k, v) in [(0, kp), (1, ki)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return bad(&format!("{name}[{k}]"), v, "must be finite and >= 0");
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -262,6 +351,7 @@ impl Baseline {
         curve: &MappingCurve,
         tuning: BaselineTuning,
     ) -> Result<Self, ControlError> {
+        tuning.validate()?;
         let maps = SetpointMaps::compute(model, curve, &tuning)?;
         Ok(Self {
             torque: Pid::new(tuning.torque.0, tuning.torque.1, 0.0),
