@@ -792,6 +792,92 @@ impl CorePlant {
     }
 }
 
+/// The drive cycle of [`closed_loop`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum CycleArg {
+    /// The WHTC denormalized with the engine's mapping curve.
+    Whtc,
+    /// A speed/torque demand: times \[s\], n_e \[rpm\], M_ref \[Nm\] (linear between rows).
+    Demand {
+        /// Times \[s\], strictly increasing.
+        t: Vec<f64>,
+        /// Engine speed \[rpm\].
+        n_e: Vec<f64>,
+        /// Torque demand \[Nm\].
+        m_ref: Vec<f64>,
+    },
+}
+
+/// A closed-loop run for Python: the trajectory's columns and the summary (`stats.json` of
+/// `mvem closed-loop`) as JSON text.
+#[derive(Debug, Clone)]
+pub struct ClosedLoopRun {
+    /// Column names (`mvem::control::Trajectory::NAMES`).
+    pub names: Vec<String>,
+    /// One column per name, one row per 10 ms controller sample.
+    pub columns: Vec<Vec<f64>>,
+    /// `{"stats", "violations", "passes", "reference_speeds_rpm", "solver",
+    /// "controller_tuning", "sample_time_s"}`.
+    pub summary: String,
+}
+
+/// The drive cycle `cycle` with the baseline EGR/VGT and engine controllers (tuning: a JSON
+/// object of `BaselineTuning` fields, the others default; unknown keys refused), the core's
+/// `control::drive::run_cycle` as `mvem closed-loop` runs it. A demand the engine cannot follow
+/// and a bad tuning are `Value` errors naming the row or field; a failed plant is `Runtime`.
+pub fn closed_loop(
+    cycle: CycleArg,
+    tuning: Option<&str>,
+    params: Option<Params>,
+    variant: Variant,
+    duration: Option<f64>,
+) -> CoreResult<ClosedLoopRun> {
+    use mvem::control::baseline::BaselineTuning;
+    use mvem::control::cycle::Demand;
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme, SAMPLE_TIME};
+    use mvem::control::{ControlError, Trajectory};
+    let tuning: BaselineTuning = match tuning {
+        None => BaselineTuning::default(),
+        Some(text) => {
+            serde_json::from_str(text).map_err(|e| CoreError::Value(format!("tuning: {e}")))?
+        }
+    };
+    tuning
+        .validate()
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let m = model(params, variant)?;
+    let source = match cycle {
+        CycleArg::Whtc => CycleSource::Whtc,
+        CycleArg::Demand { t, n_e, m_ref } => {
+            let k = t.len();
+            CycleSource::Demand(
+                Demand::new(t, n_e, m_ref, vec![false; k])
+                    .map_err(|e| CoreError::Value(format!("cycle: {e}")))?,
+            )
+        }
+    };
+    let run = run_cycle(&m, source, Scheme::Baseline(tuning), duration).map_err(|e| match e {
+        ControlError::Demand(_) | ControlError::BadSampleTime(_) => {
+            CoreError::Value(format!("cycle: {e}"))
+        }
+        other => CoreError::Runtime(other.to_string()),
+    })?;
+    let summary = serde_json::json!({
+        "stats": run.stats,
+        "violations": run.violations,
+        "passes": run.violations.is_empty(),
+        "reference_speeds_rpm": run.speeds,
+        "solver": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
+        "controller_tuning": tuning,
+        "sample_time_s": SAMPLE_TIME,
+    });
+    Ok(ClosedLoopRun {
+        names: Trajectory::NAMES.iter().map(|s| s.to_string()).collect(),
+        columns: run.traj.columns,
+        summary: summary.to_string(),
+    })
+}
+
 /// Input order of [`PointModel`]: that of `steady`, `Plant` and the simulate columns (n_e \[rpm\],
 /// u_delta \[mg/cycle/cylinder\], u_egr \[%\], u_vgt \[%\]).
 pub const POINT_INPUTS: [&str; 4] = ["n_e", "u_delta", "u_egr", "u_vgt"];
@@ -1064,6 +1150,46 @@ mod tests {
             Err(CoreError::Runtime(_))
         ));
         assert!(!pm.jacobian(&ss.x, at, &[], false).unwrap().kinks.is_empty());
+    }
+
+    /// `mvem.closed_loop`: 10 s of the WHTC give 1001 samples of every trajectory column and
+    /// the tuning used in the summary; a tuning with an unknown key or an invalid value, and a
+    /// demand outside the speed range, are `Value` errors naming them.
+    #[test]
+    fn closed_loop_runs_and_refuses_bad_tunings() {
+        let r = closed_loop(
+            CycleArg::Whtc,
+            Some(r#"{"lambda_limit": 1.25}"#),
+            None,
+            Variant::default(),
+            Some(10.0),
+        )
+        .unwrap();
+        assert_eq!(r.columns.len(), r.names.len());
+        assert!(r.columns.iter().all(|c| c.len() == 1001));
+        let v: Value = serde_json::from_str(&r.summary).unwrap();
+        assert_eq!(v["controller_tuning"]["lambda_limit"], 1.25);
+        assert_eq!(v["sample_time_s"], 0.01);
+        let value_err = |tuning: Option<&str>, cycle: CycleArg| match closed_loop(
+            cycle,
+            tuning,
+            None,
+            Variant::default(),
+            Some(1.0),
+        ) {
+            Err(CoreError::Value(m)) => m,
+            other => panic!("{:?}", other.map(|r| r.summary)),
+        };
+        assert!(value_err(Some(r#"{"lamda_limit": 1.1}"#), CycleArg::Whtc).contains("lamda_limit"));
+        assert!(
+            value_err(Some(r#"{"smoke_margin": 2}"#), CycleArg::Whtc).contains("smoke_margin = 2")
+        );
+        let fast = CycleArg::Demand {
+            t: vec![0.0, 1.0],
+            n_e: vec![1500.0, 2500.0],
+            m_ref: vec![100.0, 100.0],
+        };
+        assert!(value_err(None, fast).contains("2500 rpm"));
     }
 
     #[test]

@@ -435,6 +435,106 @@ fn simulate_many<'py>(
     Ok(out)
 }
 
+/// A drive cycle in closed loop: the baseline EGR/VGT and engine controllers around the model,
+/// as `mvem closed-loop` runs it (docs/control.md).
+///
+/// cycle: "whtc" or None (default: the WHTC denormalized with this engine's mapping curve), or a speed/torque
+///     demand: a dict with arrays "t" [s], "n_e" [rpm], "M_ref" [Nm], or a 2-D array with these
+///     3 columns (linear between rows; speeds in the parameter set's range, torque at most the
+///     full-load torque).
+/// tuning: a dict of the baseline controllers' tuning fields (control::baseline::BaselineTuning:
+///     lambda_limit, smoke_margin, torque=[kp, ki], x_egr_vgt, x_egr_egr, lambda_egr, lambda_vgt,
+///     d_x, d_lambda, lambda_error_cap, u_vgt_full_load); the others keep their defaults.
+/// params, model: as in simulate. duration: run only the first seconds of the cycle.
+///
+/// Returns a dict: "trajectory" (dict of numpy arrays, one row per 10 ms controller sample: t,
+/// n_e, u_delta, u_egr, u_vgt, M_ref, M_e, lambda_O, lambda_O_ref, x_egr, x_egr_ref, ...),
+/// "stats" (the regulation's cycle statistics), "violations" (list of str), "passes" (bool),
+/// "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s". ValueError for a bad
+/// cycle, tuning or parameters (naming the row or field), RuntimeError if the plant fails.
+#[pyfunction]
+#[pyo3(signature = (cycle=None, tuning=None, params=None, model=8, duration=None))]
+fn closed_loop<'py>(
+    py: Python<'py>,
+    cycle: Option<&Bound<'py, PyAny>>,
+    tuning: Option<&Bound<'py, PyAny>>,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+    duration: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let np = py.import("numpy")?;
+    let cycle = if cycle.is_none_or(|c| c.is_none()) {
+        core::CycleArg::Whtc
+    } else if let Some(name) = cycle.and_then(|c| c.extract::<String>().ok()) {
+        if name != "whtc" {
+            return Err(PyValueError::new_err(format!(
+                "cycle = {name:?}: \"whtc\", or a demand (dict with t, n_e, M_ref, or a 2-D array)"
+            )));
+        }
+        core::CycleArg::Whtc
+    } else if let Some(d) = cycle.and_then(|c| c.downcast::<PyDict>().ok()) {
+        let mut cols = Vec::new();
+        for name in ["t", "n_e", "M_ref"] {
+            let c = d.get_item(name)?.ok_or_else(|| {
+                PyValueError::new_err(format!(
+                    "cycle: missing column `{name}` (need t, n_e, M_ref)"
+                ))
+            })?;
+            cols.push(float_list(&np, &c, &format!("cycle[{name:?}]"))?);
+        }
+        let m_ref = cols.pop().unwrap_or_default();
+        let n_e = cols.pop().unwrap_or_default();
+        let t = cols.pop().unwrap_or_default();
+        core::CycleArg::Demand { t, n_e, m_ref }
+    } else {
+        let arr = np
+            .call_method1("asarray", (cycle, "float64"))
+            .map_err(|e| PyValueError::new_err(format!("cycle: {e}")))?;
+        let shape: Vec<usize> = arr.getattr("shape")?.extract()?;
+        if shape.len() != 2 || shape[1] != 3 {
+            return Err(PyValueError::new_err(format!(
+                "cycle: expected \"whtc\", a dict of t, n_e, M_ref, or a 2-D array with these 3 columns, got shape {shape:?}"
+            )));
+        }
+        let rows: Vec<Vec<f64>> = arr.call_method0("tolist")?.extract()?;
+        core::CycleArg::Demand {
+            t: rows.iter().map(|r| r[0]).collect(),
+            n_e: rows.iter().map(|r| r[1]).collect(),
+            m_ref: rows.iter().map(|r| r[2]).collect(),
+        }
+    };
+    let tuning: Option<String> = match tuning {
+        None => None,
+        Some(t) if t.is_none() => None,
+        Some(t) if t.is_instance_of::<PyDict>() => Some(
+            py.import("json")?
+                .call_method1("dumps", (t,))
+                .map_err(|e| PyValueError::new_err(format!("tuning: {e}")))?
+                .extract()?,
+        ),
+        Some(_) => {
+            return Err(PyValueError::new_err(
+                "tuning: expected a dict of BaselineTuning fields",
+            ))
+        }
+    };
+    let p = parse_params(py, params)?;
+    let run = py
+        .allow_threads(move || core::closed_loop(cycle, tuning.as_deref(), p, variant, duration))
+        .map_err(to_py_err)?;
+    let out: Bound<'py, PyDict> = py
+        .import("json")?
+        .call_method1("loads", (run.summary,))?
+        .downcast_into()?;
+    let traj = PyDict::new(py);
+    for (n, c) in run.names.iter().zip(run.columns) {
+        traj.set_item(n, np.call_method1("array", (c, "float64"))?)?;
+    }
+    out.set_item("trajectory", traj)?;
+    Ok(out)
+}
+
 /// Steady state (equilibrium) at constant inputs.
 ///
 /// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]; params, model as in simulate.
@@ -1170,6 +1270,7 @@ impl PyModel {
 fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_class::<PyModel>()?;
+    m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;

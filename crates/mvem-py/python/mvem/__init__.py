@@ -26,6 +26,9 @@ in parallel):
 - Plant(n_e, u_delta, u_egr, u_vgt, model=8, params=None): the model advanced sample by sample
   with held commands (plant.step(dt, u_egr=..., u_vgt=...) -> dict; plant.t, plant.state,
   plant.reset(...)); exact actuator delays across calls. For controllers written in Python.
+- closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None) -> dict: a drive
+  cycle (the WHTC, or t/n_e/M_ref) with the baseline EGR/VGT and engine controllers (tuning: a
+  dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
 - mvem.gym.AirPathEnv: a Gymnasium environment for EGR/VGT control (needs `gymnasium`).
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
@@ -38,6 +41,7 @@ both carrying the Rust message.
 
 from ._mvem import (
     Model,
+    closed_loop,
     Plant,
     __version__,
     linearize,
@@ -55,6 +59,7 @@ INPUT_COLUMNS = ("time_s", "n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct")
 
 __all__ = [
     "Model",
+    "closed_loop",
     "derivatives",
     "jacobian",
     "Plant",

@@ -169,6 +169,21 @@ class Parameter(TypedDict):
 def parameters() -> List[Parameter]:
     """Every scalar parameter with its unit and description, in parameter-file order."""
 
+def closed_loop(
+    cycle: Union[None, str, Mapping[str, npt.ArrayLike], npt.ArrayLike] = None,
+    tuning: Optional[Mapping[str, Any]] = None,
+    params: Params = None,
+    model: ModelOrder = 8,
+    duration: Optional[float] = None,
+) -> Dict[str, Any]:
+    """A drive cycle in closed loop with the baseline EGR/VGT and engine controllers.
+
+    cycle: None / "whtc" (the WHTC on this engine's mapping curve) or a demand with columns
+    t [s], n_e [rpm], M_ref [Nm] (dict or 2-D array). tuning: BaselineTuning fields (others
+    default). Keys: "trajectory" (dict of arrays, 10 ms rows), "stats", "violations",
+    "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s".
+    """
+
 class Model:
     """The right-hand side dx/dt = f(x, u) at any state, and its Jacobians (optimal control,
     custom integrators). u = (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]),
