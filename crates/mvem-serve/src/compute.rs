@@ -293,6 +293,10 @@ pub(crate) struct SimulateRequest {
     /// Parameter set.
     #[serde(default)]
     pub params: Option<String>,
+    /// The baseline controllers' tuning in `"closed"` mode (`BaselineTuning` fields; the others
+    /// keep their defaults), as `mvem closed-loop --tuning`.
+    #[serde(default)]
+    pub tuning: Option<BaselineTuning>,
 }
 
 /// Series of the drive-cycle panel.
@@ -331,6 +335,14 @@ impl SimulateRequest {
             (Some(_), Some(_)) => return Err(input("cycle and csv: give one of them")),
             (None, None) => return Err(input("cycle or csv: one is required")),
         };
+        if let Some(t) = &self.tuning {
+            if mode != CycleMode::Closed {
+                return Err(input(
+                    "tuning: sets the baseline controllers of mode \"closed\"",
+                ));
+            }
+            t.validate().map_err(|e| input(format!("tuning: {e}")))?;
+        }
         if mode == CycleMode::Closed && (name != "whtc" || self.csv.is_some()) {
             return Err(input(
                 "mode \"closed\": runs the WHTC only (the baseline controllers follow its speed and torque demand); give \"cycle\": \"whtc\"",
@@ -453,13 +465,9 @@ fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> R
             columns.join(", ")
         )));
     }
-    let run = drive::run_cycle(
-        model,
-        CycleSource::Whtc,
-        Scheme::Baseline(BaselineTuning::default()),
-        None,
-    )
-    .map_err(|e| Fail::Model(format!("closed loop: {e}")))?;
+    let tuning = r.tuning.unwrap_or_default();
+    let run = drive::run_cycle(model, CycleSource::Whtc, Scheme::Baseline(tuning), None)
+        .map_err(|e| Fail::Model(format!("closed loop: {e}")))?;
     let every = ((dt / drive::SAMPLE_TIME).round() as usize).max(1);
     let col = |n: &str| -> Vec<f64> {
         run.traj
@@ -493,6 +501,7 @@ fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> R
         "cycle_stats": run.stats,
         "violations": run.violations,
         "passes": run.violations.is_empty(),
+        "controller_tuning": tuning,
     }))
 }
 

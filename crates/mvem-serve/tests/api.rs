@@ -382,6 +382,46 @@ fn closed_loop_mode_answers_with_the_cores_trajectory() {
     );
 }
 
+/// `"tuning"` in closed mode reaches the baseline controllers (a smoke limit of 1.1 lets
+/// lambda_O fall to 1.11 on the WHTC, which then fails the cycle's lambda_O >= 1.2 check) and is
+/// echoed; a bad field, an unknown key and a tuning in open mode are 400 naming them.
+#[test]
+fn closed_loop_mode_takes_the_controllers_tuning() {
+    let r = post(
+        "/api/simulate",
+        r#"{"cycle": "whtc", "mode": "closed", "dt": 10.0, "tuning": {"lambda_limit": 1.1}}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    assert_eq!(v["controller_tuning"]["lambda_limit"], 1.1);
+    assert_eq!(
+        v["controller_tuning"]["torque"],
+        serde_json::json!([0.02, 2.0])
+    );
+    let lambda_min = v["cycle_stats"]["lambda_o_min"].as_f64().unwrap();
+    assert!(lambda_min < 1.15, "{lambda_min}");
+    assert_eq!(v["passes"], false);
+    for (body, want) in [
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "tuning": {"lambda_limit": 0.8}}"#,
+            "lambda_limit = 0.8",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "tuning": {"lamda_limit": 1.1}}"#,
+            "lamda_limit",
+        ),
+        (
+            r#"{"cycle": "whtc", "tuning": {"lambda_limit": 1.1}}"#,
+            "sets the baseline controllers",
+        ),
+    ] {
+        let r = post("/api/simulate", body);
+        let text = String::from_utf8_lossy(&r.body).to_string();
+        assert_eq!(r.status, 400, "{text}");
+        assert!(text.contains(want), "{text}");
+    }
+}
+
 #[test]
 fn saturated_server_answers_503_with_retry_after() {
     let mut c = Config::local(0);
