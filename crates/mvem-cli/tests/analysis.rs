@@ -15,7 +15,8 @@ mod common;
 
 use common::{json_of, mvem, stderr};
 
-fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
+/// `mvem linearize` at 1500 rpm, 110 mg, u_egr 80 % and `u_vgt`, then `extra`.
+fn lin_args<'a>(u_vgt: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut args = vec![
         "linearize",
         "--n-e",
@@ -26,10 +27,15 @@ fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
         "80",
         "--u-vgt",
         u_vgt,
-        "--json",
     ];
     args.extend_from_slice(extra);
-    json_of(&mvem(dir, &args))
+    args
+}
+
+fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
+    let mut extra = extra.to_vec();
+    extra.push("--json");
+    json_of(&mvem(dir, &lin_args(u_vgt, &extra)))
 }
 
 fn complex_list(v: &Value) -> Vec<(f64, f64)> {
@@ -172,25 +178,72 @@ fn linearize_pade_models_and_text() {
         .iter()
         .any(|z| z.0 > 0.0));
     // text output names the sections
-    let o = mvem(
-        d.path(),
-        &[
-            "linearize",
-            "--n-e",
-            "1500",
-            "--u-delta",
-            "110",
-            "--u-egr",
-            "80",
-            "--u-vgt",
-            "75",
-        ],
-    );
+    let o = mvem(d.path(), &lin_args("75", &[]));
     assert!(o.status.success());
     let out = String::from_utf8_lossy(&o.stdout);
     for s in ["Poles", "DC gain", "u_vgt->W_c", "RHP zero", "MIMO"] {
         assert!(out.contains(s), "{s} missing in {out}");
     }
+}
+
+/// `linearize --state FILE.json`: at the steady state (written with 17 digits) the same
+/// matrices as without it and dx0 about 0; at a state of a transient (p_im +5 %) the library's
+/// linearization at that state to the bit, dx0 its derivatives, `"steady_state": false`; a
+/// state file without every state is exit 2 naming the field.
+#[test]
+fn linearize_at_a_given_state() {
+    let d = tempfile::tempdir().unwrap();
+    let m = Engine8::published();
+    let ss = steady_state(&m, &Drive::new(1500.0, 110.0, 80.0, 75.0)).unwrap();
+    let write = |name: &str, x: &[f64; 8]| {
+        let obj: serde_json::Map<String, Value> = STATE_NAMES_8
+            .iter()
+            .zip(x)
+            .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
+            .collect();
+        std::fs::write(d.path().join(name), Value::Object(obj).to_string()).unwrap();
+    };
+    write("ss.json", &ss.x);
+    let mut x1 = ss.x;
+    x1[0] *= 1.05;
+    write("x1.json", &x1);
+    let base = lin_json(d.path(), "75", &[]);
+    let at_ss = lin_json(d.path(), "75", &["--state", "ss.json"]);
+    assert_eq!(base["steady_state"], true);
+    assert_eq!(at_ss["steady_state"], false);
+    for k in ["A", "B", "C", "D"] {
+        assert_eq!(at_ss[k], base[k], "{k}");
+    }
+    let dx0 = matrix(&serde_json::json!([at_ss["dx0"].clone()]))[0].clone();
+    for (v, s) in dx0.iter().zip(mvem::model::Model::state_scales(&m)) {
+        assert!(v.abs() < 1e-9 * s, "{v}");
+    }
+    let at_x1 = lin_json(d.path(), "75", &["--state", "x1.json"]);
+    let lib = mvem::analysis::linearize::linearize(
+        &m,
+        &x1,
+        &Drive::new(1500.0, 110.0, 80.0, 75.0),
+        &LinearizeOptions {
+            strict: false,
+            ..LinearizeOptions::default()
+        },
+    )
+    .unwrap();
+    let a = matrix(&at_x1["A"]);
+    let lib_a: Vec<Vec<f64>> = (0..8)
+        .map(|r| (0..8).map(|c| lib.a[(r, c)]).collect())
+        .collect();
+    assert_eq!(a, lib_a);
+    let dx0 = matrix(&serde_json::json!([at_x1["dx0"].clone()]))[0].clone();
+    assert_eq!(dx0, lib.dx0);
+    assert!(
+        dx0[0] < -1e5,
+        "p_im above its equilibrium falls: {}",
+        dx0[0]
+    );
+    std::fs::write(d.path().join("bad.json"), r#"{"p_im": 1.5e5}"#).unwrap();
+    let err = common::usage_error(d.path(), &lin_args("75", &["--state", "bad.json"]));
+    assert!(err.contains("field p_em: missing state"), "{err}");
 }
 
 /// A state or signal of a steady state.

@@ -17,12 +17,16 @@ Examples:
   mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --json > lin.json
   mvem linearize --n-e 1200 --u-delta 200 --u-egr 50 --u-vgt 40 --pade 2
   mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 30 --outputs W_c,p_im,T_em
+  mvem linearize --n-e 1500 --u-delta 130 --u-egr 80 --u-vgt 75 --state x.json --json
 
 The linear model is dx' = A dx + B du, dy = C dx + D du in deviations from the steady state,
 in SI units (states Pa, -, rad/s, %), inputs (u_delta, u_egr, u_vgt, n_e) in mg/cycle, %, %,
 rpm, outputs in their signal units. Derivatives: Richardson-extrapolated central differences.
 Without --pade the actuator delays are left out (the undelayed system); --pade K replaces them
 by order-K Pade approximants (extra states; their all-pass zeros then appear in the zeros).
+--state x.json linearizes at that state (every state name -> value) with the inputs held,
+e.g. a point of a transient: not an equilibrium, so the JSON's \"dx0\" (the derivatives there) is
+not zero and the poles and zeros are those of the frozen linear model.
 
 With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im}], \"zeros\"
 (object keyed \"u_vgt->W_c\", ..., one entry per SISO channel plus \"MIMO\" for
@@ -30,7 +34,7 @@ With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im
 channel passes a kink of the model, with the reason in \"zero_errors\"), \"dc_gain\" (outputs x
 inputs), \"A\", \"B\", \"C\", \"D\" (lists of rows), \"state_names\", \"input_names\",
 \"output_names\", \"units\", \"operating_point\", \"x0\", \"y0\", \"physically_valid\", \"flags\",
-\"kinks\", \"pade_order\", \"delays_s\".")]
+\"kinks\", \"pade_order\", \"delays_s\", \"dx0\", \"steady_state\".")]
 pub struct Args {
     #[command(flatten)]
     pub point: PointArgs,
@@ -44,6 +48,10 @@ pub struct Args {
     /// Outputs (comma separated state or signal names) [default: p_im,p_em,W_c,n_t,x_egr,lambda_O,M_e]
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub outputs: Vec<String>,
+    /// Linearize at this state instead of the steady state: a JSON object of every state name
+    /// -> value (as `simulate --initial-state`), the inputs held at the operating point's.
+    #[arg(long, value_name = "FILE.json")]
+    pub state: Option<std::path::PathBuf>,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -53,9 +61,19 @@ pub fn run(a: &Args) -> Result<()> {
     let d = a.point.drive(a.model.input_ranges()?.as_ref())?;
     let opts = options(&a.outputs, a.pade as usize)?;
     let model = a.model.build()?;
-    let v = mvem::dispatch!(&model, m => {
-        let ss = steady_state(m, &d).context("steady state")?;
-        analyse(m, &ss, &opts)?
+    let state = match &a.state {
+        Some(p) => Some((super::simulate::read_initial_state(p)?, p.as_path())),
+        None => None,
+    };
+    let v = mvem::dispatch!(&model, m => match &state {
+        None => {
+            let ss = steady_state(m, &d).context("steady state")?;
+            analyse(m, &ss, &opts)?
+        }
+        Some((values, path)) => {
+            let x = super::simulate::state_from_map(m, values, path)?;
+            analyse_at(m, &x, &d, &opts)?
+        }
     });
     if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
         if !w {
@@ -112,7 +130,40 @@ pub fn analyse<const N: usize, M: Model<N>>(
         }
         other => anyhow::Error::new(other).context("linearization"),
     })?;
-    Ok(mvem::analysis::json::linear_model_json(&lin, ss))
+    let mut v = mvem::analysis::json::linear_model_json(&lin, ss);
+    v["steady_state"] = Value::Bool(true);
+    Ok(v)
+}
+
+/// The analysis at the state `x` with the inputs `d` held (not an equilibrium in general: the
+/// JSON's `"dx0"` is the derivatives there, `"steady_state"` false; poles and zeros are those
+/// of the frozen linear model).
+pub fn analyse_at<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    d: &mvem::model::Drive,
+    opts: &LinearizeOptions,
+) -> Result<Value> {
+    let lin = mvem::analysis::linearize::linearize(m, x, d, opts).map_err(|e| match e {
+        mvem::analysis::linearize::LinearizeError::UnknownOutput { .. } => {
+            common::usage(format!("--outputs: {e}"))
+        }
+        e @ mvem::analysis::linearize::LinearizeError::NonFinite { .. } => {
+            common::usage(format!("--state: {e}"))
+        }
+        other => anyhow::Error::new(other).context("linearization"),
+    })?;
+    let u = mvem::model::ModelInput::constant(*d);
+    let signals = m.eval(x, &u, m.memory_start(x, &u)).signals;
+    let active: Vec<&mvem::model::Guard> = mvem::model::Guard::ALL
+        .iter()
+        .filter(|g| signals.has(**g))
+        .collect();
+    let flags: Vec<String> = active.iter().map(|g| g.label().to_string()).collect();
+    let valid = !active.iter().any(|g| g.invalidates());
+    let mut v = mvem::analysis::json::linear_model_json_at(&lin, d, valid, &flags);
+    v["steady_state"] = Value::Bool(false);
+    Ok(v)
 }
 
 fn fmt_c(z: &Value) -> String {
@@ -156,10 +207,33 @@ fn print_matrix(title: &str, m: &Value, row_names: &[String], col_names: &[Strin
 fn print_text(v: &Value) {
     let op = &v["operating_point"];
     println!(
-        "Linearization at n_e = {} rpm, u_delta = {} mg/cycle, u_egr = {} %, u_vgt = {} % (steady state{})",
-        op["n_e_rpm"], op["u_delta_mg"], op["u_egr_pct"], op["u_vgt_pct"],
-        if v["physically_valid"].as_bool() == Some(true) { "" } else { ", NOT physically valid" }
+        "Linearization at n_e = {} rpm, u_delta = {} mg/cycle, u_egr = {} %, u_vgt = {} % ({}{})",
+        op["n_e_rpm"],
+        op["u_delta_mg"],
+        op["u_egr_pct"],
+        op["u_vgt_pct"],
+        if v["steady_state"].as_bool() == Some(false) {
+            "the given state, not an equilibrium: dx0 below, poles and zeros frozen"
+        } else {
+            "steady state"
+        },
+        if v["physically_valid"].as_bool() == Some(true) {
+            ""
+        } else {
+            ", NOT physically valid"
+        }
     );
+    if v["steady_state"].as_bool() == Some(false) {
+        let states = names(&v["state_names"]);
+        let dx0: Vec<String> = v["dx0"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .zip(&states)
+            .map(|(d, s)| format!("d{s}/dt = {:.4e}", d.as_f64().unwrap_or(f64::NAN)))
+            .collect();
+        println!("dx0: {}", dx0.join(", "));
+    }
     let pade = v["pade_order"].as_u64().unwrap_or(0);
     if pade == 0 {
         println!(

@@ -252,8 +252,8 @@ pub fn run(a: &Args) -> Result<()> {
     Ok(())
 }
 
-/// Read `--initial-state`: a JSON object of state name -> value.
-fn read_initial_state(path: &Path) -> Result<BTreeMap<String, f64>> {
+/// Read `--initial-state` (`linearize --state`): a JSON object of state name -> value.
+pub fn read_initial_state(path: &Path) -> Result<BTreeMap<String, f64>> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| common::usage(format!("{}: {e}", path.display())))?;
     let v: serde_json::Value = serde_json::from_str(&text)

@@ -80,11 +80,25 @@ const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
 /// matrices, poles, the transmission zeros of every SISO channel and of the MIMO system, DC
 /// gains, names, units, kinks.
 pub fn linear_model_json<const N: usize>(lin: &LinearModel, ss: &SteadyState<N>) -> Value {
+    linear_model_json_at(lin, &ss.drive, ss.physically_valid(), &ss.flags)
+}
+
+/// [`linear_model_json`] at any point: the inputs `d`, whether the point is physically valid
+/// and its flags (the active guards; `mvem linearize --state`). Away from a steady state the
+/// poles and zeros are those of the frozen linear model, and `"dx0"` (the derivatives at the
+/// point) is not zero.
+pub fn linear_model_json_at(
+    lin: &LinearModel,
+    d: &Drive,
+    physically_valid: bool,
+    flags: &[String],
+) -> Value {
     let zo = ZeroOptions::default();
     let mut o = Map::new();
-    o.insert("operating_point".into(), drive_json(&ss.drive));
-    o.insert("physically_valid".into(), json!(ss.physically_valid()));
-    o.insert("flags".into(), json!(ss.flags));
+    o.insert("operating_point".into(), drive_json(d));
+    o.insert("physically_valid".into(), json!(physically_valid));
+    o.insert("flags".into(), json!(flags));
+    o.insert("dx0".into(), json!(lin.dx0));
     o.insert("pade_order".into(), json!(lin.pade_order));
     o.insert(
         "delays_s".into(),
