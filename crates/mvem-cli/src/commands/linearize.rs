@@ -130,9 +130,7 @@ pub fn analyse<const N: usize, M: Model<N>>(
         }
         other => anyhow::Error::new(other).context("linearization"),
     })?;
-    let mut v = mvem::analysis::json::linear_model_json(&lin, ss);
-    v["steady_state"] = Value::Bool(true);
-    Ok(v)
+    Ok(mvem::analysis::json::linear_model_json(&lin, ss))
 }
 
 /// The analysis at the state `x` with the inputs `d` held (not an equilibrium in general: the
@@ -161,9 +159,9 @@ pub fn analyse_at<const N: usize, M: Model<N>>(
         .collect();
     let flags: Vec<String> = active.iter().map(|g| g.label().to_string()).collect();
     let valid = !active.iter().any(|g| g.invalidates());
-    let mut v = mvem::analysis::json::linear_model_json_at(&lin, d, valid, &flags);
-    v["steady_state"] = Value::Bool(false);
-    Ok(v)
+    Ok(mvem::analysis::json::linear_model_json_at(
+        &lin, d, valid, &flags,
+    ))
 }
 
 fn fmt_c(z: &Value) -> String {

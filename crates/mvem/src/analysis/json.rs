@@ -80,7 +80,7 @@ const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
 /// matrices, poles, the transmission zeros of every SISO channel and of the MIMO system, DC
 /// gains, names, units, kinks.
 pub fn linear_model_json<const N: usize>(lin: &LinearModel, ss: &SteadyState<N>) -> Value {
-    linear_model_json_at(lin, &ss.drive, ss.physically_valid(), &ss.flags)
+    linear_json(lin, &ss.drive, ss.physically_valid(), &ss.flags, true)
 }
 
 /// [`linear_model_json`] at any point: the inputs `d`, whether the point is physically valid
@@ -93,9 +93,21 @@ pub fn linear_model_json_at(
     physically_valid: bool,
     flags: &[String],
 ) -> Value {
+    linear_json(lin, d, physically_valid, flags, false)
+}
+
+/// The object of both: `"steady_state"` says whether the point is an equilibrium.
+fn linear_json(
+    lin: &LinearModel,
+    d: &Drive,
+    physically_valid: bool,
+    flags: &[String],
+    steady: bool,
+) -> Value {
     let zo = ZeroOptions::default();
     let mut o = Map::new();
     o.insert("operating_point".into(), drive_json(d));
+    o.insert("steady_state".into(), json!(steady));
     o.insert("physically_valid".into(), json!(physically_valid));
     o.insert("flags".into(), json!(flags));
     o.insert("dx0".into(), json!(lin.dx0));
