@@ -283,40 +283,32 @@ pub fn simulate_rows_from(
     Ok((sol.names, sol.columns))
 }
 
-/// The state array of `x0` for model `m`: every state, finite, no unknown names.
+/// The state array of `x0` for model `m`: every state, finite, no unknown names
+/// ([`mvem::model::meta::state_from_named`] for named values).
 fn start_state<const N: usize, M: Model<N>>(m: &M, x0: &StartState) -> CoreResult<[f64; N]> {
+    use mvem::model::meta::{state_from_named, NamedStateError};
     let names = m.state_names();
     let bad = |msg: String| CoreError::Value(format!("x0: {msg}"));
-    let x: [f64; N] = match x0 {
-        StartState::Values(v) => v.as_slice().try_into().map_err(|_| {
-            bad(format!(
-                "expected {N} values ({}), got {}",
-                names.join(", "),
-                v.len()
-            ))
-        })?,
-        StartState::Named(kv) => {
-            if let Some((k, _)) = kv.iter().find(|(k, _)| !names.contains(&k.as_str())) {
-                return Err(bad(format!(
-                    "unknown state {k:?} (the states are {})",
-                    names.join(", ")
-                )));
+    match x0 {
+        StartState::Values(v) => {
+            let x: [f64; N] = v.as_slice().try_into().map_err(|_| {
+                bad(format!(
+                    "expected {N} values ({}), got {}",
+                    names.join(", "),
+                    v.len()
+                ))
+            })?;
+            if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+                let e = NamedStateError::NonFinite {
+                    name: names[i].to_string(),
+                    value: x[i],
+                };
+                return Err(bad(e.to_string()));
             }
-            let mut x = [0.0; N];
-            for (i, n) in names.iter().enumerate() {
-                x[i] = kv
-                    .iter()
-                    .find(|(k, _)| k == n)
-                    .map(|(_, v)| *v)
-                    .ok_or_else(|| bad(format!("missing state {n}")))?;
-            }
-            x
+            Ok(x)
         }
-    };
-    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
-        return Err(bad(format!("{} = {} is not finite", names[i], x[i])));
+        StartState::Named(kv) => state_from_named(&names, kv).map_err(|e| bad(e.to_string())),
     }
-    Ok(x)
 }
 
 /// The model, the schedule and the end time of one simulation (checked).
@@ -834,7 +826,7 @@ pub fn closed_loop(
 ) -> CoreResult<ClosedLoopRun> {
     use mvem::control::baseline::BaselineTuning;
     use mvem::control::cycle::Demand;
-    use mvem::control::drive::{run_cycle, CycleSource, Scheme, SAMPLE_TIME};
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme};
     use mvem::control::{ControlError, Trajectory};
     let tuning: BaselineTuning = match tuning {
         None => BaselineTuning::default(),
@@ -862,15 +854,7 @@ pub fn closed_loop(
         }
         other => CoreError::Runtime(other.to_string()),
     })?;
-    let summary = serde_json::json!({
-        "stats": run.stats,
-        "violations": run.violations,
-        "passes": run.violations.is_empty(),
-        "reference_speeds_rpm": run.speeds,
-        "solver": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
-        "controller_tuning": tuning,
-        "sample_time_s": SAMPLE_TIME,
-    });
+    let summary = mvem::analysis::json::cycle_run_json(&run, Some(&tuning));
     Ok(ClosedLoopRun {
         names: Trajectory::NAMES.iter().map(|s| s.to_string()).collect(),
         columns: run.traj.columns,
@@ -938,6 +922,11 @@ impl PointModel {
         mvem::dispatch!(&self.model, m => m.state_names().iter().map(|s| s.to_string()).collect())
     }
 
+    /// Number of states n.
+    pub fn n_states(&self) -> usize {
+        self.model.order().states()
+    }
+
     /// Typical magnitudes of the states (n), in their units.
     pub fn state_scales(&self) -> Vec<f64> {
         mvem::dispatch!(&self.model, m => m.state_scales().to_vec())
@@ -947,9 +936,10 @@ impl PointModel {
     pub fn derivatives(&self, x: &[f64], u: [f64; 4]) -> CoreResult<Vec<f64>> {
         mvem::dispatch!(&self.model, m => {
             let (x, input) = point(m, x, u)?;
-            let ev = m.eval(&x, &input, m.memory_start(&x, &input));
-            finite_rows(&m.state_names(), &ev.dx)?;
-            Ok(ev.dx.to_vec())
+            // the derivatives without the signals (bitwise those of eval)
+            let dx = m.derivatives(&x, &input, m.memory_start(&x, &input)).dx;
+            finite_rows(&m.state_names(), &dx)?;
+            Ok(dx.to_vec())
         })
     }
 
@@ -979,19 +969,19 @@ impl PointModel {
         outputs: &[String],
         strict: bool,
     ) -> CoreResult<PointJacobian> {
-        // the library wants at least one output: without any, a state is linearized and dropped
-        let first_state = vec![self.state_names()[0].clone()];
-        let opts = LinearizeOptions {
-            outputs: if outputs.is_empty() {
-                first_state
-            } else {
-                outputs.to_vec()
-            },
-            strict,
-            ..LinearizeOptions::default()
-        };
         let lin = mvem::dispatch!(&self.model, m => {
             let (x, input) = point(m, x, u)?;
+            // the library wants at least one output: without any, a state is linearized and
+            // dropped
+            let opts = LinearizeOptions {
+                outputs: if outputs.is_empty() {
+                    vec![m.state_names()[0].to_string()]
+                } else {
+                    outputs.to_vec()
+                },
+                strict,
+                ..LinearizeOptions::default()
+            };
             mvem::analysis::linearize::linearize(m, &x, &input.now, &opts).map_err(|e| match e {
                 LinearizeError::Kink(_) => CoreError::Runtime(e.to_string()),
                 other => CoreError::Value(other.to_string()),

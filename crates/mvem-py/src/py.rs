@@ -1122,6 +1122,21 @@ struct PyModel {
     ranges: [(&'static str, f64, f64); 4],
 }
 
+impl PyModel {
+    /// The points of a call ([`points`]), with the range warnings naming `what`.
+    fn points<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        u: &Bound<'py, PyAny>,
+        what: &str,
+    ) -> PyResult<Points> {
+        let pts = points(py, x, u, self.inner.n_states())?;
+        warn_points_out_of_range(py, what, &pts.1, &self.ranges)?;
+        Ok(pts)
+    }
+}
+
 #[pymethods]
 impl PyModel {
     #[new]
@@ -1160,9 +1175,8 @@ impl PyModel {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let n = self.inner.state_scales().len();
-        let pts = points(py, x, u, n)?;
-        warn_points_out_of_range(py, "Model.derivatives", &pts.1, &self.ranges)?;
+        let n = self.inner.n_states();
+        let pts = self.points(py, x, u, "Model.derivatives")?;
         let dx = each_point(py, &pts, |x, u| self.inner.derivatives(x, u))?;
         let shape = if pts.2 { vec![dx.len(), n] } else { vec![n] };
         shaped(py, dx.concat(), shape)
@@ -1177,9 +1191,7 @@ impl PyModel {
         x: &Bound<'py, PyAny>,
         u: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let n = self.inner.state_scales().len();
-        let pts = points(py, x, u, n)?;
-        warn_points_out_of_range(py, "Model.signals", &pts.1, &self.ranges)?;
+        let pts = self.points(py, x, u, "Model.signals")?;
         let batched = pts.2;
         let all = each_point(py, &pts, |x, u| self.inner.signals(x, u))?;
         let out = PyDict::new(py);
@@ -1224,9 +1236,8 @@ impl PyModel {
         outputs: Option<Vec<String>>,
         strict: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let n = self.inner.state_scales().len();
-        let pts = points(py, x, u, n)?;
-        warn_points_out_of_range(py, "Model.jacobian", &pts.1, &self.ranges)?;
+        let n = self.inner.n_states();
+        let pts = self.points(py, x, u, "Model.jacobian")?;
         let batched = pts.2;
         let outputs = outputs.unwrap_or_default();
         let all = each_point(py, &pts, |x, u| self.inner.jacobian(x, u, &outputs, strict))?;

@@ -269,20 +269,16 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
 }
 
 fn stats_json(a: &Args, w: &Run, tuning: &BaselineTuning) -> serde_json::Value {
-    let r = &w.run;
-    serde_json::json!({
-        "cycle": a.cycle,
-        "controller": a.controller.to_possible_value().map(|v| v.get_name().to_string()),
-        "controller_tuning": (a.controller == ControllerArg::Baseline).then_some(tuning),
-        "model_states": a.model.order().states(),
-        "sample_time_s": drive::SAMPLE_TIME,
-        "reference_speeds_rpm": r.speeds,
-        "stats": r.stats,
-        "violations": r.violations,
-        "passes": r.violations.is_empty(),
-        "solver": {"steps": r.solver.steps, "rejected": r.solver.rejected, "rhs_evals": r.solver.rhs_evals},
-        "wall_time_s": w.wall_s,
-    })
+    let baseline = a.controller == ControllerArg::Baseline;
+    let mut v = mvem::analysis::json::cycle_run_json(&w.run, baseline.then_some(tuning));
+    v["cycle"] = serde_json::json!(a.cycle);
+    v["controller"] = serde_json::json!(a
+        .controller
+        .to_possible_value()
+        .map(|v| v.get_name().to_string()));
+    v["model_states"] = serde_json::json!(a.model.order().states());
+    v["wall_time_s"] = serde_json::json!(w.wall_s);
+    v
 }
 
 /// Run `mvem closed-loop`.

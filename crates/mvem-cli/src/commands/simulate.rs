@@ -277,33 +277,27 @@ pub fn read_initial_state(path: &Path) -> Result<BTreeMap<String, f64>> {
     Ok(out)
 }
 
-/// The state vector of model `m` from named values (every state required, no unknown names).
+/// The state vector of model `m` from named values (every state required, no unknown names;
+/// [`mvem::model::meta::state_from_named`]), errors naming the file and the field.
 pub fn state_from_map<const N: usize, M: Model<N>>(
     m: &M,
     values: &BTreeMap<String, f64>,
     source: &Path,
 ) -> Result<[f64; N]> {
-    let names = m.state_names();
+    use mvem::model::meta::{state_from_named, NamedStateError};
     let src = source.display();
-    if let Some(k) = values.keys().find(|k| !names.contains(&k.as_str())) {
-        return Err(common::usage(format!(
-            "{src}: field {k}: unknown state (the states are {})",
-            names.join(", ")
-        )));
-    }
-    let mut x = [0.0; N];
-    for (i, n) in names.iter().enumerate() {
-        let v = *values
-            .get(*n)
-            .ok_or_else(|| common::usage(format!("{src}: field {n}: missing state")))?;
-        if !v.is_finite() {
-            return Err(common::usage(format!(
-                "{src}: field {n}: {v} is not finite"
-            )));
-        }
-        x[i] = v;
-    }
-    Ok(x)
+    let named: Vec<(String, f64)> = values.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    state_from_named(&m.state_names(), &named).map_err(|e| {
+        common::usage(match e {
+            NamedStateError::Unknown { name, states } => {
+                format!("{src}: field {name}: unknown state (the states are {states})")
+            }
+            NamedStateError::Missing(n) => format!("{src}: field {n}: missing state"),
+            NamedStateError::NonFinite { name, value } => {
+                format!("{src}: field {name}: {value} is not finite")
+            }
+        })
+    })
 }
 
 /// Simulate from `initial` (or the steady state at the first inputs) into `into` (a streaming

@@ -252,3 +252,22 @@ pub fn step_metrics_json(m: &StepMetrics) -> Value {
         "settling_time": opt(m.settling_time),
     })
 }
+
+/// The summary of a closed-loop cycle run (`stats.json` of `mvem closed-loop`, Python's
+/// `mvem.closed_loop`): the tuning of the baseline controllers (null for another scheme), the
+/// sample time, the mapping curve's reference speeds, the cycle statistics, the regulation's
+/// violations and `passes`, the plant's solver counters.
+pub fn cycle_run_json(
+    run: &crate::control::drive::CycleRun,
+    tuning: Option<&crate::control::baseline::BaselineTuning>,
+) -> Value {
+    json!({
+        "controller_tuning": tuning,
+        "sample_time_s": crate::control::drive::SAMPLE_TIME,
+        "reference_speeds_rpm": run.speeds,
+        "stats": run.stats,
+        "violations": run.violations,
+        "passes": run.violations.is_empty(),
+        "solver": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
+    })
+}

@@ -125,6 +125,62 @@ pub fn state(name: &str) -> Option<&'static VarMeta> {
     STATES.iter().find(|v| v.name == name)
 }
 
+/// Why named values do not make a state vector ([`state_from_named`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NamedStateError {
+    /// A name that is not a state of the model.
+    #[error("unknown state {name:?} (the states are {states})")]
+    Unknown {
+        /// The name given.
+        name: String,
+        /// The model's state names, comma separated.
+        states: String,
+    },
+    /// A state without a value.
+    #[error("missing state {0}")]
+    Missing(String),
+    /// A NaN or infinite value.
+    #[error("{name} = {value} is not finite")]
+    NonFinite {
+        /// State name.
+        name: String,
+        /// Value.
+        value: f64,
+    },
+}
+
+/// The state vector in `names` order from named values (a start state given by name: `mvem
+/// simulate --initial-state`, `mvem linearize --state`, Python's `x0`): every state needed, no
+/// unknown name, every value finite. Unknown names are reported first, then the states in
+/// order (missing or not finite).
+pub fn state_from_named<const N: usize>(
+    names: &[&str; N],
+    values: &[(String, f64)],
+) -> Result<[f64; N], NamedStateError> {
+    if let Some((k, _)) = values.iter().find(|(k, _)| !names.contains(&k.as_str())) {
+        return Err(NamedStateError::Unknown {
+            name: k.clone(),
+            states: names.join(", "),
+        });
+    }
+    let mut x = [0.0; N];
+    for (i, n) in names.iter().enumerate() {
+        let v = values
+            .iter()
+            .find(|(k, _)| k == n)
+            .map(|(_, v)| *v)
+            .ok_or_else(|| NamedStateError::Missing(n.to_string()))?;
+        if !v.is_finite() {
+            return Err(NamedStateError::NonFinite {
+                name: n.to_string(),
+                value: v,
+            });
+        }
+        x[i] = v;
+    }
+    Ok(x)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -159,5 +215,26 @@ mod tests {
         assert_eq!(unit("W_c"), "kg/s");
         assert_eq!(unit("t"), "s");
         assert_eq!(unit("nonsense"), "");
+    }
+
+    /// Named values in any order make the vector in state order; an unknown name is reported
+    /// before a missing state, a missing or non-finite state by the first in state order.
+    #[test]
+    fn named_values_make_the_state_vector_or_name_what_is_wrong() {
+        let names = ["p_im", "p_em", "omega_t"];
+        let kv = |v: &[(&str, f64)]| -> Vec<(String, f64)> {
+            v.iter().map(|(k, x)| (k.to_string(), *x)).collect()
+        };
+        let ok = kv(&[("omega_t", 3.0), ("p_im", 1.0), ("p_em", 2.0)]);
+        assert_eq!(state_from_named(&names, &ok), Ok([1.0, 2.0, 3.0]));
+        let e = state_from_named(&names, &kv(&[("p_im", 1.0), ("foo", 0.0)])).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown state \"foo\" (the states are p_im, p_em, omega_t)"
+        );
+        let e = state_from_named(&names, &kv(&[("omega_t", 3.0)])).unwrap_err();
+        assert_eq!(e, NamedStateError::Missing("p_im".into()));
+        let e = state_from_named(&names, &kv(&[("p_im", f64::NAN), ("p_em", 2.0)])).unwrap_err();
+        assert_eq!(e.to_string(), "p_im = NaN is not finite");
     }
 }
