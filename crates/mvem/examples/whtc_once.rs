@@ -15,6 +15,8 @@
 //! `--overlap W` sets their warm-up \[s\], `--guess initial` starts the warm-ups from the initial
 //! state instead of the steady state at their inputs; the junctions are printed.
 //! `--model 10|12` runs the 10- or 12-state model (give each model its own REF file).
+//! `--inputs FILE.csv` runs another input file (0..1800 s) instead of the built-in WHTC (give it
+//! its own REF file).
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
 use mvem::model::{Engine10, Engine12, Engine8, Model};
 use mvem::sim::{simulate_with_guess, Method, SimOptions, Solution, Start};
@@ -48,8 +50,12 @@ fn run<const N: usize, M: Model<N>>(m: &M, args: &[String]) {
             .position(|a| a == k)
             .and_then(|i| args.get(i + 1).cloned())
     };
-    let text = include_str!("../../../data/whtc_inputs_10hz.csv");
-    let sched = mvem::io::csv_inputs::parse_inputs_csv(text, std::path::Path::new("whtc")).unwrap();
+    let text = match arg("--inputs") {
+        Some(path) => std::fs::read_to_string(&path).expect("--inputs"),
+        None => include_str!("../../../data/whtc_inputs_10hz.csv").to_string(),
+    };
+    let sched =
+        mvem::io::csv_inputs::parse_inputs_csv(&text, std::path::Path::new("whtc")).unwrap();
     let opts = SimOptions {
         dt_out: 0.1,
         rtol: arg("--rtol").map_or(1e-6, |r| r.parse().expect("--rtol")),
