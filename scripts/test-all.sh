@@ -19,9 +19,10 @@ cargo fmt --all --check
 # the benchmarks too (criterion is behind mvem's `bench` feature, so `cargo test` does not build it)
 cargo clippy --workspace --all-targets --features mvem/bench --profile "$MVEM_PROFILE" -- -D warnings
 lap clippy
-# the library's API documentation: no broken or private intra-doc links (units in brackets are
-# escaped, \[s\], so that rustdoc does not read them as links)
-RUSTDOCFLAGS="-D warnings" cargo doc -p mvem --no-deps --profile "$MVEM_PROFILE" -q
+# the API documentation of every crate: no broken or private intra-doc links (units in brackets
+# are escaped, \[s\], so that rustdoc does not read them as links; the CLI binary is not
+# documented, its doc comments being the --help texts)
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --profile "$MVEM_PROFILE" -q
 lap "cargo doc"
 cargo test --workspace --profile "$MVEM_PROFILE" --no-run
 lap "cargo test build"

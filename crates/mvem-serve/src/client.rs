@@ -135,14 +135,14 @@ pub struct LoadReport {
     pub server_errors: usize,
     /// Requests without an answer (connection refused, reset, time-out, malformed).
     pub dropped: usize,
-    /// Latencies of the answered requests [s], sorted.
+    /// Latencies of the answered requests \[s\], sorted.
     pub latencies: Vec<f64>,
-    /// Wall time of the whole test [s].
+    /// Wall time of the whole test \[s\].
     pub wall: f64,
 }
 
 impl LoadReport {
-    /// Latency quantile `q` in [0, 1] [s] (nearest rank; NaN without answers).
+    /// Latency quantile `q` in \[0, 1\] \[s\] (nearest rank; NaN without answers).
     pub fn quantile(&self, q: f64) -> f64 {
         if self.latencies.is_empty() {
             return f64::NAN;

@@ -37,13 +37,13 @@ pub use compute::{CycleMode, MAX_MAP_POINTS, MAX_MAP_SIDE};
 /// Bounds on what one request may ask.
 #[derive(Debug, Clone)]
 pub struct Limits {
-    /// Largest request body [bytes] (413 beyond).
+    /// Largest request body \[bytes\] (413 beyond).
     pub max_body: usize,
     /// Computations running at once (blocking threads).
     pub workers: usize,
     /// Computations waiting for a worker before the server answers 503.
     pub max_queue: usize,
-    /// Longest time a request may wait and compute [s]; 503 after it.
+    /// Longest time a request may wait and compute \[s\]; 503 after it.
     pub request_timeout: Duration,
 }
 
