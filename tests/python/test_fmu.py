@@ -221,6 +221,37 @@ def test_directional_derivatives_are_the_python_models_jacobian(fmu):
     s.freeInstance()
 
 
+def test_initialization_mode_directional_derivatives_are_the_dc_gains(fmu):
+    """fmi2GetDirectionalDerivative in Initialization Mode (the states are the steady state at
+    the inputs): the outputs' changes per input equal mvem.linearize's DC gain D - C A^-1 B (the
+    same model through the Python package) to 1e-6 of each output's largest gain, the state
+    derivatives' changes are 0, and a state as a known is refused."""
+    mvem = pytest.importorskip("mvem")
+    point = (1500.0, 110.0, 60.0, 75.0)  # u_egr away from the EGR valve's vertex (80.06 %)
+    outputs = ["p_im", "p_em", "W_c", "x_egr", "lambda_O", "M_e"]
+    lin = mvem.linearize(*point, outputs=outputs)
+    s, vr = _slave(fmu, FMU2Model)
+    s.instantiate()
+    s.setupExperiment(startTime=0.0)
+    s.enterInitializationMode()
+    s.setReal([vr["n_e"], vr["u_delta"], vr["u_egr"], vr["u_vgt"]], list(point))
+    names = ["p_im", "p_em", "X_Oim", "X_Oem", "omega_t", "u_egr1", "u_egr2", "u_vgt_act"]
+    ders = [vr[f"der({n})"] for n in names]
+    unknowns = [vr[o] for o in outputs] + ders
+    g = lin["dc_gain"]
+    for k, name in enumerate(lin["input_names"]):
+        dv = np.array(s.getDirectionalDerivative(unknowns, [vr[name]], [1.0]))
+        for o, out in enumerate(outputs):
+            size = np.abs(g[o]).max()
+            assert abs(dv[o] - g[o, k]) <= 1e-6 * size, (name, out, dv[o], g[o, k])
+        assert np.all(dv[len(outputs):] == 0.0), name
+    with pytest.raises(FMICallException):
+        s.getDirectionalDerivative(unknowns, [vr["p_im"]], [1.0])
+    s.exitInitializationMode()
+    s.terminate()
+    s.freeInstance()
+
+
 # ---------------------------------------------------------------------------------------------
 # 10- and 12-state FMUs, the one-iteration Co-Simulation FMU, and `mvem fmu`
 

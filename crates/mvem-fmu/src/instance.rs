@@ -550,8 +550,15 @@ impl Instance {
     }
 
     /// fmi2GetDirectionalDerivative: `dv_unknown = (d unknowns / d knowns) dv_known` at the
-    /// current time, state and inputs (after initialization).
+    /// current time, state and inputs.
     ///
+    /// In Initialization Mode the unknowns are the initial unknowns, and the states there are
+    /// the steady state at the inputs: the knowns are the inputs, a state's change is that of the
+    /// steady state (`-A^-1 B dv`, [`mvem::analysis::linearize::steady_state_sensitivity`]: the
+    /// DC gain), a derivative's change is zero, an output's change is that of its steady-state
+    /// value, and a change of u_egr or u_vgt includes its delayed copy (held at the same value).
+    ///
+    /// After initialization:
     /// Knowns: the inputs (both interfaces) and the states (Model Exchange). Unknowns: the state
     /// derivatives, the outputs (states and signals). The derivative with respect to an input
     /// is that of its current value: the delayed actuator commands come from the input history
@@ -571,6 +578,7 @@ impl Instance {
         self.require(
             WHAT,
             &[
+                Phase::Initialization,
                 Phase::Event,
                 Phase::ContinuousTime,
                 Phase::StepComplete,
@@ -578,6 +586,7 @@ impl Instance {
             ],
         )?;
         self.ensure_initialized()?;
+        let initialization = self.phase == Phase::Initialization;
         let n = self.n_states();
         let mut v_x = vec![0.0; n];
         let mut v_u = [0.0; 6];
@@ -591,9 +600,14 @@ impl Instance {
             match self.layout.lookup(*vr) {
                 Some(Kind::Input(i)) => {
                     v_u[i] += dv;
-                    if i >= 2 && delays[i - 2] == 0.0 {
+                    if i >= 2 && (initialization || delays[i - 2] == 0.0) {
                         v_u[i + 2] += dv;
                     }
+                }
+                Some(Kind::State(_)) if initialization => {
+                    return Err(FmuError::error(format!(
+                        "{WHAT}: vr {vr} is a state; in Initialization Mode the states are the steady state at the inputs, so the knowns are the inputs"
+                    )))
                 }
                 Some(Kind::State(i)) if self.interface == Interface::ModelExchange => v_x[i] += dv,
                 Some(Kind::State(_)) => {
@@ -622,9 +636,20 @@ impl Instance {
         let u = self.model_input();
         let memory = self.memory;
         let (df, ds) = mvem::dispatch!(&self.model, m => {
-            mvem::analysis::linearize::directional_derivative(
-                m, &arr(&self.x), &u, memory, &arr(&v_x), &v_u, 1e-4,
-            )
+            if initialization {
+                // the states follow the inputs; the derivatives stay zero
+                mvem::analysis::linearize::steady_state_sensitivity(
+                    m, &arr(&self.x), &u, memory, &v_u, 1e-4,
+                )
+                .map(|(dx, ds)| {
+                    v_x.copy_from_slice(&dx);
+                    (vec![0.0; dx.len()], ds)
+                })
+            } else {
+                mvem::analysis::linearize::directional_derivative(
+                    m, &arr(&self.x), &u, memory, &arr(&v_x), &v_u, 1e-4,
+                )
+            }
         })
         .map_err(|e| {
             FmuError::discard(format!(
@@ -914,6 +939,73 @@ mod tests {
             .unwrap();
         let dm = lin.d[(1, 0)]; // torque per mg of fuel
         assert!(dm > 1.0 && close(w[0], dm, dm), "{} vs {dm}", w[0]);
+    }
+
+    /// fmi2GetDirectionalDerivative in Initialization Mode: the change of the initial unknowns
+    /// (the steady state at the inputs, its outputs; the derivatives stay zero) per input, equal
+    /// to central differences of the FMU's own initial states and outputs at shifted inputs
+    /// (fmi2SetReal in Initialization Mode moves the steady state), u_egr included (its delayed
+    /// copy moves along); a state as a known is refused there.
+    #[test]
+    fn initialization_mode_derivatives_follow_the_steady_state() {
+        let n = 8u32;
+        let mut unknowns: Vec<u32> = (0..n).map(|i| VR_STATE + i).collect();
+        unknowns.extend((0..n).map(|i| VR_DER + i));
+        unknowns.push(vr_signal("W_c"));
+        unknowns.push(vr_signal("lambda_O"));
+        // u_egr 60 %: away from the EGR valve's vertex at 80.06 % (eq. (38)), where the
+        // differences below would straddle a kink
+        let base = [1500.0, 110.0, 60.0, 75.0];
+        // the initial unknowns' values at inputs shifted by e along `input`
+        let values_at = |input: usize, e: f64| -> Vec<f64> {
+            let mut f = Instance::new(Interface::ModelExchange, &FmuConfig::default());
+            f.setup_experiment(Some(1e-8), 0.0, Some(8.0)).unwrap();
+            f.enter_initialization().unwrap();
+            let mut u = base;
+            u[input] += e;
+            f.set_real(&[VR_INPUT, VR_INPUT + 1, VR_INPUT + 2, VR_INPUT + 3], &u)
+                .unwrap();
+            let mut out = vec![0.0; unknowns.len()];
+            f.get_real(&unknowns, &mut out).unwrap();
+            out
+        };
+        let mut f = Instance::new(Interface::ModelExchange, &FmuConfig::default());
+        f.setup_experiment(Some(1e-8), 0.0, Some(8.0)).unwrap();
+        f.enter_initialization().unwrap();
+        f.set_real(&[VR_INPUT, VR_INPUT + 1, VR_INPUT + 2, VR_INPUT + 3], &base)
+            .unwrap();
+        let mut dv = vec![0.0; unknowns.len()];
+        for (input, step) in [(0usize, 10.0), (1, 2.0), (2, 1.0), (3, 1.0)] {
+            f.directional_derivative(&unknowns, &[VR_INPUT + input as u32], &[1.0], &mut dv)
+                .unwrap();
+            let (p1, m1) = (values_at(input, step), values_at(input, -step));
+            let (p2, m2) = (values_at(input, step / 2.0), values_at(input, -step / 2.0));
+            let scales = Engine8::published().state_scales();
+            for (r, vr) in unknowns.iter().enumerate() {
+                let d1 = (p1[r] - m1[r]) / (2.0 * step);
+                let d2 = (p2[r] - m2[r]) / step;
+                let fd = (4.0 * d2 - d1) / 3.0;
+                let scale = if r < n as usize {
+                    scales[r] * 1e-6
+                } else {
+                    1e-9 * p1[r].abs().max(1.0)
+                };
+                if (n as usize..2 * n as usize).contains(&r) {
+                    assert_eq!(dv[r], 0.0, "input {input}: derivative vr {vr}");
+                } else {
+                    assert!(
+                        (dv[r] - fd).abs() <= 1e-6 * (fd.abs() + scale),
+                        "input {input}, vr {vr}: {} vs {fd}",
+                        dv[r]
+                    );
+                }
+            }
+            // u_egr and u_vgt move the steady state (through their delayed copies)
+            assert!(dv[..n as usize].iter().any(|v| *v != 0.0), "input {input}");
+        }
+        assert!(f
+            .directional_derivative(&unknowns, &[VR_STATE], &[1.0], &mut dv)
+            .is_err());
     }
 
     /// Co-Simulation of a VGT step 75 -> 65 % at 0.5 s in 0.01 s communication steps; returns
