@@ -221,3 +221,65 @@ def test_closed_loop_cycle_shows_the_regulation_check(page):
     # the published engine's closed-loop WHTC passes (docs/control.md)
     assert "regulation check: passes" in info, info
     page.screenshot(path=str(ART / "explorer_closed_loop.png"), full_page=True)
+
+
+def _api(server, path, body=None):
+    """The server's JSON answer to GET (body None) or POST."""
+    from urllib.request import Request, urlopen
+    data = None if body is None else json.dumps(body).encode()
+    req = Request(server.rstrip("/") + path, data=data, headers={"Content-Type": "application/json"})
+    with urlopen(req, timeout=120) as r:
+        return json.loads(r.read())
+
+
+def test_closed_loop_controller_tuning(page, server):
+    """The closed-loop mode's tuning form: shown only in that mode, filled with the defaults of
+    /api/models (a PI pair as kp and ki), a non-number named without a request, the changed
+    entries counted and reset by "Defaults"; a run with two changed entries shows the cycle
+    statistics of the API's own run with that tuning (which differ from the defaults' run)."""
+    assert page.is_hidden("#tuning")
+    page.select_option("select[name=cycle_mode]", "closed")
+    assert page.is_visible("#tuning")
+    page.click("#tuning summary")
+    defaults = _api(server, "/api/models")["controller_tuning"]["defaults"]
+    shown_values = page.eval_on_selector_all(
+        "input[data-tuning]", "els => els.map(e => [e.dataset.tuning, Number(e.value)])")
+    expect = []
+    for k, v in defaults.items():
+        if k == "ts":
+            continue
+        expect += [(f"{k}[0]", v[0]), (f"{k}[1]", v[1])] if isinstance(v, list) else [(k, v)]
+    assert sorted(map(tuple, shown_values)) == sorted(expect)
+    assert page.text_content("#tuning-changed") == "the defaults"
+    # not a number: named, and no request is made
+    page.fill("input[data-tuning='torque[0]']", "")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    assert "torque[0]" in page.text_content("#cycle-error")
+    assert page.is_hidden("#cycle-stats")
+    page.click("[data-action=tuning-defaults]")
+    assert page.input_value("input[data-tuning='torque[0]']") == str(defaults["torque"][0])
+    # two changed entries reach the server
+    page.fill("input[data-tuning='torque[0]']", "0.01")
+    page.fill("input[data-tuning=lambda_limit]", "1.25")
+    assert page.text_content("#tuning-changed") == "2 changed from the defaults"
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-stats:not([hidden])", timeout=120000)
+    assert page.is_hidden("#cycle-error")
+    rows = dict(page.eval_on_selector_all(
+        "#cycle-stats tbody tr", "trs => trs.map(tr => [tr.cells[0].textContent, tr.cells[1].textContent])"))
+    tuning = dict(defaults, torque=[0.01, defaults["torque"][1]], lambda_limit=1.25)
+    body = {"cycle": "whtc", "mode": "closed", "dt": 0.2, "model": 8,
+            "params": page.input_value("select[name=params]")}
+    tuned = _api(server, "/api/simulate", dict(body, tuning=tuning))["cycle_stats"]
+    plain = _api(server, "/api/simulate", body)["cycle_stats"]
+    assert tuned["work_error"] != plain["work_error"]
+    work = rows["positive work, actual / reference"]
+    assert work.startswith(f"{tuned['work_act_kwh']:.3f} / {tuned['work_ref_kwh']:.3f} kWh"), work
+    assert f"{100 * tuned['work_error']:.2f} %" in work, (work, tuned["work_error"])
+    assert rows["lambda_O min (fired)"].startswith(f"{tuned['lambda_o_min']:.3f}"), rows
+    # the check's smoke limit stays the regulation's, whatever the controller aims at
+    assert rows[f"lambda_O below {tuned['lambda_limit']}"].endswith("of fired samples"), rows
+    assert tuned["lambda_limit"] == plain["lambda_limit"]
+    assert "torque = [0.01,2]" in rows["controller tuning"] and "lambda_limit = 1.25" in rows["controller tuning"]
+    page.screenshot(path=str(ART / "explorer_tuning.png"), full_page=True)

@@ -419,8 +419,11 @@
     setStatus("busy", "simulating the cycle…");
     try {
       const t0 = performance.now();
-      const j = await api("/api/simulate", { cycle: $("select[name=cycle]").value, mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() });
+      const body = { cycle: $("select[name=cycle]").value, mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
+      if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
+      const j = await api("/api/simulate", body);
       app.cycle = j;
+      showCycleStats(j);
       Object.assign(app.units, j.units || {});
       drawCycle(j);
       let info = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
@@ -440,6 +443,108 @@
       btn.disabled = false;
       setStatus("ok", "ready");
     }
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // controller tuning of the closed-loop mode (fields, units and defaults from /api/models)
+
+  const TUNING_KEY = /^(\w+)\[(\d)\]$/; // "torque[1]": ki of the torque PI
+
+  function buildTuning(t) {
+    app.tuningDefaults = t.defaults;
+    const cell = (cls, text) => { const td = document.createElement("td"); if (cls) td.className = cls; td.textContent = text; return td; };
+    $("#tuning-fields").replaceChildren(...t.fields.map((f) => {
+      const d = t.defaults[f.name];
+      const keys = Array.isArray(d) ? [[`${f.name}[0]`, "kp"], [`${f.name}[1]`, "ki"]] : [[f.name, ""]];
+      const inputs = document.createElement("td");
+      inputs.className = "i";
+      for (const [key, lab] of keys) {
+        if (lab) { const l = document.createElement("span"); l.className = "unit"; l.textContent = ` ${lab} `; inputs.append(l); }
+        const inp = document.createElement("input");
+        inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key; inp.setAttribute("aria-label", key);
+        inputs.append(inp);
+      }
+      const name = cell("", f.name);
+      name.title = f.description;
+      const tr = document.createElement("tr");
+      tr.append(name, inputs, cell("unit", f.unit), cell("d", f.description));
+      return tr;
+    }));
+    resetTuning();
+  }
+
+  function tuningDefault(key) {
+    const m = TUNING_KEY.exec(key);
+    return m ? app.tuningDefaults[m[1]][Number(m[2])] : app.tuningDefaults[key];
+  }
+
+  function resetTuning() {
+    for (const inp of $$("input[data-tuning]")) inp.value = String(tuningDefault(inp.dataset.tuning));
+    markTuning();
+  }
+
+  // highlight the entries that differ from the defaults
+  function markTuning() {
+    let changed = 0;
+    for (const inp of $$("input[data-tuning]")) {
+      const on = inp.value.trim() === "" || Number(inp.value) !== tuningDefault(inp.dataset.tuning);
+      inp.classList.toggle("changed", on);
+      changed += on ? 1 : 0;
+    }
+    $("#tuning-changed").textContent = changed ? `${changed} changed from the defaults` : "the defaults";
+  }
+
+  // the request's "tuning" from the form; an entry that is not a number is an error naming it
+  // (the server checks the ranges: BaselineTuning::validate)
+  function tuningValue() {
+    const t = {};
+    for (const inp of $$("input[data-tuning]")) {
+      const key = inp.dataset.tuning;
+      const v = inp.value.trim() === "" ? NaN : Number(inp.value);
+      if (!Number.isFinite(v)) throw new Error(`controller tuning ${key}: "${inp.value}" is not a number`);
+      const m = TUNING_KEY.exec(key);
+      if (m) {
+        if (!t[m[1]]) t[m[1]] = [...app.tuningDefaults[m[1]]];
+        t[m[1]][Number(m[2])] = v;
+      } else {
+        t[key] = v;
+      }
+    }
+    return t;
+  }
+
+  function showTuning() {
+    $("#tuning").hidden = $("select[name=cycle_mode]").value !== "closed";
+  }
+
+  // the closed-loop run's cycle statistics (mvem closed-loop's stats.json) and the tuning it used
+  function showCycleStats(j) {
+    const tbl = $("#cycle-stats");
+    const s = j.cycle_stats;
+    if (j.mode !== "closed" || !s) { tbl.hidden = true; return; }
+    const pct = (v) => `${(100 * v).toFixed(2)} %`;
+    const reg = (r, u) => `slope ${r.slope.toFixed(3)}, R² ${r.r2.toFixed(3)}, SEE ${r.see.toFixed(1)} ${u}`;
+    const changed = Object.entries(j.controller_tuning || {})
+      .filter(([k, v]) => k !== "ts" && JSON.stringify(v) !== JSON.stringify(app.tuningDefaults?.[k]))
+      .map(([k, v]) => `${k} = ${JSON.stringify(v)}`);
+    const rows = [
+      ["controller tuning", changed.length ? changed.join(", ") : "the defaults"],
+      ["positive work, actual / reference", `${s.work_act_kwh.toFixed(3)} / ${s.work_ref_kwh.toFixed(3)} kWh (${s.work_error >= 0 ? "+" : ""}${pct(s.work_error)})`],
+      ["torque regression", reg(s.torque, "Nm")],
+      ["power regression", reg(s.power, "kW")],
+      ["speed regression", reg(s.speed, "rpm")],
+      ["lambda_O min (fired)", `${s.lambda_o_min.toFixed(3)} at t = ${s.lambda_o_min_t.toFixed(2)} s`],
+      [`lambda_O below ${s.lambda_limit}`, `${pct(s.lambda_below_limit_share)} of fired samples`],
+      ["x_egr RMS error", s.x_egr_rms_error.toFixed(4)],
+      ["mean p_em − p_im", `${(s.pmep_mean_pa / 1000).toFixed(2)} kPa`],
+      ["fuel, BSFC", `${s.fuel_kg.toFixed(3)} kg, ${s.bsfc_g_kwh.toFixed(1)} g/kWh`],
+    ];
+    $("tbody", tbl).replaceChildren(...rows.map(([k, v]) => {
+      const tr = document.createElement("tr");
+      for (const text of [k, v]) { const td = document.createElement("td"); td.textContent = text; tr.append(td); }
+      return tr;
+    }));
+    tbl.hidden = false;
   }
 
   function cycleValue(j, n, i) {
@@ -532,6 +637,9 @@
     $("[data-action=map]").addEventListener("click", runMap);
     $("[data-action=cycle]").addEventListener("click", runCycle);
     $("input[name=cycle_t]").addEventListener("input", scrub);
+    $("select[name=cycle_mode]").addEventListener("change", showTuning);
+    $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
+    $("#tuning-fields").addEventListener("input", markTuning);
     try {
       const m = await api("/api/models");
       app.units = m.units || {};
@@ -540,6 +648,8 @@
       applyInputRanges();
       if (m.cycles.length) $("select[name=cycle]").replaceChildren(...m.cycles.map((cy) => new Option(cy === "whtc" ? "WHTC (built in)" : cy, cy)));
       $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
+      if (m.controller_tuning) buildTuning(m.controller_tuning);
+      showTuning();
       setStatus("ok", "ready");
     } catch (e) {
       setStatus("error", `server: ${e.message}`);

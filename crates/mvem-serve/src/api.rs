@@ -334,6 +334,15 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
             .collect::<serde_json::Map<String, Value>>(),
         "cycles": app.models.cycles.iter().map(|(n, _)| n).collect::<Vec<_>>(),
         "modes": compute::CycleMode::NAMES,
+        // the baseline controllers' tuning of the closed-loop mode: the defaults and, per field
+        // a user sets, its unit and description (the page's tuning form)
+        "controller_tuning": {
+            "defaults": mvem::control::baseline::BaselineTuning::default(),
+            "fields": mvem::control::baseline::BaselineTuning::FIELDS
+                .iter()
+                .map(|f| json!({"name": f.name, "unit": f.unit, "description": f.description}))
+                .collect::<Vec<_>>(),
+        },
         "limits": {
             "max_body": app.work.limits.max_body,
             "map_side": compute::MAX_MAP_SIDE,

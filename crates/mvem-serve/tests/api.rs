@@ -68,6 +68,19 @@ fn health_models_and_page() {
     assert_eq!(m["units"]["M_ref"], "Nm");
     assert_eq!(m["units"]["lambda_O_ref"], "-");
     assert_eq!(m["units"]["x_egr_ref"], "-");
+    // the closed loop's controller tuning: the core's defaults and a row per field a user sets
+    let tuning = &m["controller_tuning"];
+    assert_eq!(
+        tuning["defaults"],
+        serde_json::to_value(mvem::control::baseline::BaselineTuning::default()).unwrap()
+    );
+    let fields = tuning["fields"].as_array().unwrap();
+    assert_eq!(fields.len(), 11);
+    assert_eq!(fields[2]["name"], "torque");
+    assert_eq!(fields[2]["unit"], "mg/Nm, mg/(Nm s)");
+    assert!(fields.iter().all(|f| tuning["defaults"]
+        .get(f["name"].as_str().unwrap())
+        .is_some()));
     for (path, ty) in [
         ("/", "text/html"),
         ("/app.js", "text/javascript"),

@@ -37,6 +37,7 @@
 use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, Measurement, Output};
+use crate::model::meta::VarMeta;
 use crate::model::{AnyModel, Drive};
 use crate::sim::InputSchedule;
 
@@ -96,6 +97,68 @@ impl Default for BaselineTuning {
 }
 
 impl BaselineTuning {
+    /// Name, unit and description of every field a user sets (all but the sample time `ts`),
+    /// in declaration order: the explorer's tuning form and other front ends read them here. A
+    /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
+    pub const FIELDS: [VarMeta; 11] = [
+        VarMeta {
+            name: "lambda_limit",
+            unit: "-",
+            description:
+                "smoke limit lambda_lim: the torque controller's fuel keeps lambda_O above it",
+        },
+        VarMeta {
+            name: "smoke_margin",
+            unit: "-",
+            description: "margin of the smoke limiter over lambda_lim (relative)",
+        },
+        VarMeta {
+            name: "torque",
+            unit: "mg/Nm, mg/(Nm s)",
+            description: "torque PI [kp, ki] on the fuel, around the inverse torque map",
+        },
+        VarMeta {
+            name: "x_egr_vgt",
+            unit: "%, %/s",
+            description: "x_egr PI [kp, ki] on the VGT (per unit x_egr)",
+        },
+        VarMeta {
+            name: "x_egr_egr",
+            unit: "%, %/s",
+            description: "x_egr PI [kp, ki] on the EGR valve, the limiter above x_egr,s + d_x",
+        },
+        VarMeta {
+            name: "d_x",
+            unit: "-",
+            description: "band d_x of the EGR valve's x_egr limiter above the set-point",
+        },
+        VarMeta {
+            name: "lambda_egr",
+            unit: "%, %/s",
+            description: "lambda_O PI [kp, ki] on the EGR valve (per unit lambda_O)",
+        },
+        VarMeta {
+            name: "lambda_vgt",
+            unit: "%, %/s",
+            description: "lambda_O PI [kp, ki] on the VGT (per unit lambda_O)",
+        },
+        VarMeta {
+            name: "d_lambda",
+            unit: "-",
+            description: "offset d_lambda of the VGT's lambda_O loop below the set-point",
+        },
+        VarMeta {
+            name: "lambda_error_cap",
+            unit: "-",
+            description: "upper limit of the lambda_O errors of both lambda_O loops",
+        },
+        VarMeta {
+            name: "u_vgt_full_load",
+            unit: "%",
+            description: "most open VGT position at full load (100 % at no load)",
+        },
+    ];
+
     /// Check every field (finite; gains and bands >= 0; lambda_lim >= 1; the smoke margin in
     /// [0, 1); the lambda_O error cap > 0; the full-load VGT limit in [20, 100] %; the sample
     /// time in (0, 1] s). The error names the field, its value and the constraint.
@@ -490,5 +553,30 @@ impl Controller for OpenLoop {
     }
     fn update(&mut self, m: &Measurement) -> Output {
         self.out(m.t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BaselineTuning;
+
+    /// The metadata names every serialized field but the sample time, in declaration order, so
+    /// a field added to the struct without its row (or renamed) fails here.
+    #[test]
+    fn fields_metadata_names_every_serialized_field() {
+        let v = serde_json::to_value(BaselineTuning::default()).unwrap();
+        let keys: Vec<&str> = v
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(|k| k.as_str())
+            .filter(|k| *k != "ts")
+            .collect();
+        let mut names: Vec<&str> = BaselineTuning::FIELDS.iter().map(|f| f.name).collect();
+        let mut sorted_keys = keys.clone();
+        sorted_keys.sort_unstable();
+        names.sort_unstable();
+        assert_eq!(names, sorted_keys);
+        assert!(BaselineTuning::FIELDS.iter().all(|f| !f.unit.is_empty()));
     }
 }
