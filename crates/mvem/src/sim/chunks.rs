@@ -163,8 +163,9 @@ pub fn split_times(
         Some(v)
     };
     let warm = |t: f64| w.at(t) - w.at((t - overlap).max(t0));
-    // the calm of every stop, once (kink_from ranks the candidates by it)
-    let calm = calm_gaps(stops);
+    // the calm of the stops, each computed once when a split candidate first needs it
+    // (kink_from ranks the candidates by it; NaN: not computed yet)
+    let mut calm = vec![f64::NAN; n];
     // a chunk shorter than its warm-up would spend more on the warm-up than on its own
     // interval: at most one chunk per `overlap` seconds (this also bounds the search below,
     // whose cost grows with the square of the chunk count)
@@ -185,7 +186,7 @@ pub fn split_times(
         // snapped to stops where a junction can be checked
         let mut splits: Vec<f64> = Vec::with_capacity(k - 1);
         for t in cont {
-            let Some(ts) = kink_from(stops, &calm, stops.partition_point(|s| s.0 < t)) else {
+            let Some(ts) = kink_from(stops, &mut calm, stops.partition_point(|s| s.0 < t)) else {
                 break;
             };
             if splits.last().is_some_and(|&p| ts <= p) || ts - overlap <= t0 {
@@ -220,9 +221,14 @@ const SPLIT_CALM: f64 = 10.0;
 /// step sizes grow without such a bound, differently in two runs that started differently, and
 /// at the next kink their states differ by up to a few tolerance units for a few seconds
 /// (measured on the WHTC, `docs/integrator.md`): no place for a junction.
-fn kink_from(stops: &[(f64, bool)], calm: &[f64], i: usize) -> Option<f64> {
+fn kink_from(stops: &[(f64, bool)], calm: &mut [f64], i: usize) -> Option<f64> {
     let lo = i.saturating_sub(SPLIT_WINDOW).max(1);
     let hi = (i + SPLIT_WINDOW).min(stops.len().saturating_sub(1));
+    for j in lo..hi {
+        if calm[j].is_nan() {
+            calm[j] = calm_gap(stops, j);
+        }
+    }
     (lo..hi)
         .filter(|&j| !stops[j].1)
         // the gap to 0.1 s, the row spacing of a 10 Hz cycle (equal gaps: the candidate
@@ -231,21 +237,17 @@ fn kink_from(stops: &[(f64, bool)], calm: &[f64], i: usize) -> Option<f64> {
         .map(|j| stops[j].0)
 }
 
-/// For every stop `j` (from 1), the largest gap between consecutive stops in the
-/// [`SPLIT_CALM`] seconds before it (from the last stop before that window); 0 for stop 0.
-fn calm_gaps(stops: &[(f64, bool)]) -> Vec<f64> {
-    (0..stops.len())
-        .map(|j| {
-            if j == 0 {
-                return 0.0;
-            }
-            let from = stops[..j].partition_point(|s| s.0 < stops[j].0 - SPLIT_CALM);
-            stops[from.max(1) - 1..=j]
-                .windows(2)
-                .map(|w| w[1].0 - w[0].0)
-                .fold(0.0, f64::max)
-        })
-        .collect()
+/// For stop `j` (from 1), the largest gap between consecutive stops in the [`SPLIT_CALM`]
+/// seconds before it (from the last stop before that window); 0 for stop 0.
+fn calm_gap(stops: &[(f64, bool)], j: usize) -> f64 {
+    if j == 0 {
+        return 0.0;
+    }
+    let from = stops[..j].partition_point(|s| s.0 < stops[j].0 - SPLIT_CALM);
+    stops[from.max(1) - 1..=j]
+        .windows(2)
+        .map(|w| w[1].0 - w[0].0)
+        .fold(0.0, f64::max)
 }
 
 /// Index of the first output sample at or after the split `tk` (within the rounding the
