@@ -419,7 +419,9 @@
     setStatus("busy", "simulating the cycle…");
     try {
       const t0 = performance.now();
-      const body = { cycle: $("select[name=cycle]").value, mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
+      const cycle = $("select[name=cycle]").value;
+      const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
+      if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       const j = await api("/api/simulate", body);
       app.cycle = j;
@@ -514,7 +516,26 @@
   }
 
   function showTuning() {
-    $("#tuning").hidden = $("select[name=cycle_mode]").value !== "closed";
+    const closed = $("select[name=cycle_mode]").value === "closed";
+    $("#tuning").hidden = !closed;
+    // what a file of the cycle menu must hold in this mode (the server names what is wrong)
+    $("#cycle-format").textContent = closed
+      ? "closed loop: the WHTC, or a file of a speed/torque demand with the columns t [s], n_e [rpm], M_ref [Nm] (as mvem closed-loop --cycle FILE.csv)"
+      : "open loop: the WHTC, or a file of inputs with the columns time_s, n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct (as mvem simulate --inputs)";
+  }
+
+  // a user's cycle file: read once, then one more entry of the cycle menu
+  const FILE_CYCLE = "__file";
+  async function loadCycleFile() {
+    const f = $("input[name=cycle_file]").files[0];
+    if (!f) return;
+    app.cycleFile = { name: f.name, text: await f.text() };
+    const sel = $("select[name=cycle]");
+    let opt = sel.querySelector(`option[value="${FILE_CYCLE}"]`);
+    if (!opt) { opt = new Option("", FILE_CYCLE); sel.append(opt); }
+    opt.textContent = `file: ${f.name}`;
+    sel.value = FILE_CYCLE;
+    showError("#cycle-error", null);
   }
 
   // the closed-loop run's cycle statistics (mvem closed-loop's stats.json) and the tuning it used
@@ -638,6 +659,7 @@
     $("[data-action=cycle]").addEventListener("click", runCycle);
     $("input[name=cycle_t]").addEventListener("input", scrub);
     $("select[name=cycle_mode]").addEventListener("change", showTuning);
+    $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
     $("#tuning-fields").addEventListener("input", markTuning);
     try {

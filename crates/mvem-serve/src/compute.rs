@@ -8,7 +8,8 @@ use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleSource, Scheme};
-use mvem::control::Trajectory;
+use mvem::control::{ControlError, Demand, Trajectory};
+use mvem::io::csv_demand::parse_demand_csv;
 use mvem::model::{AnyModel, Drive, Model, Signals};
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
@@ -304,13 +305,54 @@ pub(crate) const CYCLE_OUTPUTS: [&str; 8] = [
     "W_c", "p_im", "p_em", "x_egr", "lambda_O", "M_e", "n_t", "T_em",
 ];
 
+/// What a cycle request runs: the inputs of an open-loop run (or of the built-in WHTC, whose
+/// closed loop follows its own speed and torque demand), or a user's speed/torque demand for the
+/// closed loop.
+pub(crate) enum CycleInput {
+    /// An input schedule (open loop; closed loop: the WHTC's, its demand built in).
+    Schedule(Arc<InputSchedule>),
+    /// A speed/torque demand (closed loop, `"csv"` with the columns t, n_e, M_ref).
+    Demand(Demand),
+}
+
+/// Longest closed-loop demand a request may run \[s\] (twice the WHTC: about 1 s of CPU for the
+/// 8-state model at the 10 ms controller sample).
+pub const MAX_CLOSED_SPAN: f64 = 3600.0;
+
 impl SimulateRequest {
-    /// The schedule, its name, the output interval and the mode (checks that need no model).
+    /// What to run, its name, the output interval and the mode (checks that need no model).
     pub(crate) fn schedule(
         &self,
         cycles: &[(String, Arc<InputSchedule>)],
-    ) -> Result<(Arc<InputSchedule>, String, f64, CycleMode), Fail> {
+    ) -> Result<(CycleInput, String, f64, CycleMode), Fail> {
         let mode = CycleMode::parse(self.mode.as_deref())?;
+        if let Some(t) = &self.tuning {
+            if mode != CycleMode::Closed {
+                return Err(input(
+                    "tuning: sets the baseline controllers of mode \"closed\"",
+                ));
+            }
+            t.validate().map_err(|e| input(format!("tuning: {e}")))?;
+        }
+        if let (CycleMode::Closed, None, Some(csv)) = (mode, &self.cycle, &self.csv) {
+            // a speed/torque demand, as `mvem closed-loop --cycle FILE.csv`
+            let d = parse_demand_csv(csv, std::path::Path::new("csv"))
+                .map_err(|e| input(format!("{e} (mode \"closed\" reads a speed/torque demand: columns t [s], n_e [rpm], M_ref [Nm])")))?;
+            let (t0, t1) = d.span();
+            if t1 - t0 > MAX_CLOSED_SPAN {
+                return Err(input(format!(
+                    "csv: the demand spans {} s ({t0} to {t1} s); mode \"closed\" runs at most {MAX_CLOSED_SPAN} s",
+                    t1 - t0
+                )));
+            }
+            let dt = self.dt.unwrap_or(0.1);
+            if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
+                return Err(input(format!(
+                    "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
+                )));
+            }
+            return Ok((CycleInput::Demand(d), "csv".to_string(), dt, mode));
+        }
         let (sched, name) = match (&self.cycle, &self.csv) {
             (Some(c), None) => match cycles.iter().find(|(n, _)| n == c) {
                 Some((n, s)) => (s.clone(), n.clone()),
@@ -335,17 +377,9 @@ impl SimulateRequest {
             (Some(_), Some(_)) => return Err(input("cycle and csv: give one of them")),
             (None, None) => return Err(input("cycle or csv: one is required")),
         };
-        if let Some(t) = &self.tuning {
-            if mode != CycleMode::Closed {
-                return Err(input(
-                    "tuning: sets the baseline controllers of mode \"closed\"",
-                ));
-            }
-            t.validate().map_err(|e| input(format!("tuning: {e}")))?;
-        }
-        if mode == CycleMode::Closed && (name != "whtc" || self.csv.is_some()) {
+        if mode == CycleMode::Closed && name != "whtc" {
             return Err(input(
-                "mode \"closed\": runs the WHTC only (the baseline controllers follow its speed and torque demand); give \"cycle\": \"whtc\"",
+                "mode \"closed\": runs the WHTC (\"cycle\": \"whtc\") or a speed/torque demand (\"csv\" with the columns t, n_e, M_ref)",
             ));
         }
         let dt = self.dt.unwrap_or(0.1);
@@ -360,7 +394,7 @@ impl SimulateRequest {
                 "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
             )));
         }
-        Ok((sched, name, dt, mode))
+        Ok((CycleInput::Schedule(sched), name, dt, mode))
     }
 }
 
@@ -368,14 +402,24 @@ impl SimulateRequest {
 pub(crate) fn simulate_cycle(
     model: &AnyModel,
     r: &SimulateRequest,
-    sched: &InputSchedule,
+    what: &CycleInput,
     name: &str,
     dt: f64,
     mode: CycleMode,
 ) -> Result<Value, Fail> {
-    match mode {
-        CycleMode::Open => mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt)),
-        CycleMode::Closed => closed_cycle(model, r, name, dt),
+    match (mode, what) {
+        (CycleMode::Open, CycleInput::Schedule(sched)) => {
+            mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt))
+        }
+        (CycleMode::Closed, CycleInput::Schedule(_)) => {
+            closed_cycle(model, r, CycleSource::Whtc, name, dt)
+        }
+        (CycleMode::Closed, CycleInput::Demand(d)) => {
+            closed_cycle(model, r, CycleSource::Demand(d.clone()), name, dt)
+        }
+        (CycleMode::Open, CycleInput::Demand(_)) => Err(input(
+            "mode \"open\": a speed/torque demand needs the closed loop",
+        )),
     }
 }
 
@@ -439,10 +483,18 @@ pub(crate) const CLOSED_OUTPUTS: [&str; 9] = [
     "M_ref",
 ];
 
-/// The WHTC with the baseline controllers (the core's [`drive::run_cycle`], as `mvem
-/// closed-loop --cycle whtc`): the trajectory every `dt` (rounded to a whole number of 10 ms
-/// controller samples), the cycle statistics and the regulation check.
-fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> Result<Value, Fail> {
+/// The WHTC or a speed/torque demand with the baseline controllers (the core's
+/// [`drive::run_cycle`], as `mvem closed-loop --cycle whtc|FILE.csv`): the trajectory every `dt`
+/// (rounded to a whole number of 10 ms controller samples), the cycle statistics and the
+/// regulation check. A demand the engine cannot follow (speeds outside its range, torque above
+/// its full load) is the request's error.
+fn closed_cycle(
+    model: &AnyModel,
+    r: &SimulateRequest,
+    source: CycleSource,
+    name: &str,
+    dt: f64,
+) -> Result<Value, Fail> {
     let outputs: Vec<String> = if r.outputs.is_empty() {
         CLOSED_OUTPUTS.iter().map(|s| s.to_string()).collect()
     } else {
@@ -466,8 +518,11 @@ fn closed_cycle(model: &AnyModel, r: &SimulateRequest, name: &str, dt: f64) -> R
         )));
     }
     let tuning = r.tuning.unwrap_or_default();
-    let run = drive::run_cycle(model, CycleSource::Whtc, Scheme::Baseline(tuning), None)
-        .map_err(|e| Fail::Model(format!("closed loop: {e}")))?;
+    let run =
+        drive::run_cycle(model, source, Scheme::Baseline(tuning), None).map_err(|e| match e {
+            e @ ControlError::Demand(_) => input(format!("csv: {e}")),
+            e => Fail::Model(format!("closed loop: {e}")),
+        })?;
     let every = ((dt / drive::SAMPLE_TIME).round() as usize).max(1);
     let col = |n: &str| -> Vec<f64> {
         run.traj

@@ -255,8 +255,8 @@ fn bad_or_missing_parameters_give_400_naming_them() {
             "/api/simulate",
             r#"{"csv": "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n2,1500,110,80,65\n", "mode": "closed"}"#,
         ),
-        "mode",
-        "closed loop on a CSV",
+        "mode \"closed\" reads a speed/torque demand",
+        "closed loop on an inputs CSV",
     );
     assert_400_naming(
         &post(
@@ -432,6 +432,72 @@ fn closed_loop_mode_takes_the_controllers_tuning() {
         let text = String::from_utf8_lossy(&r.body).to_string();
         assert_eq!(r.status, 400, "{text}");
         assert!(text.contains(want), "{text}");
+    }
+}
+
+/// Mode `"closed"` with `"csv"`: a speed/torque demand (t, n_e, M_ref), the core's run of it
+/// to the bit (as `mvem closed-loop --cycle FILE.csv`); a demand the engine cannot follow, one
+/// longer than the limit and a malformed one are 400 naming the problem.
+#[test]
+fn closed_loop_mode_runs_a_speed_torque_demand() {
+    let csv = "t,n_e,M_ref\n0,1200,300\n2,1200,300\n2.5,1400,900\n6,1400,900\n";
+    let body = serde_json::json!({"csv": csv, "mode": "closed", "dt": 0.5});
+    let r = post("/api/simulate", &body.to_string());
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    assert_eq!(
+        (v["mode"].as_str(), v["source"].as_str()),
+        (Some("closed"), Some("csv"))
+    );
+    let demand = mvem::io::csv_demand::parse_demand_csv(csv, std::path::Path::new("csv")).unwrap();
+    let run = drive::run_cycle(
+        &AnyModel::Eight(Engine8::published()),
+        CycleSource::Demand(demand),
+        Scheme::Baseline(BaselineTuning::default()),
+        None,
+    )
+    .unwrap();
+    let every50 = |n: &str| -> Vec<f64> {
+        run.traj
+            .get(n)
+            .unwrap()
+            .iter()
+            .step_by(50)
+            .copied()
+            .collect()
+    };
+    let t: Vec<f64> = serde_json::from_value(v["t"].clone()).unwrap();
+    assert_eq!(t, every50("t"));
+    assert_eq!(t.len(), 13, "0..6 s every 0.5 s");
+    for (key, n) in [
+        ("series", "M_e"),
+        ("series", "M_ref"),
+        ("inputs", "u_delta"),
+    ] {
+        let got: Vec<f64> = serde_json::from_value(v[key][n].clone()).unwrap();
+        assert_eq!(got, every50(n), "{n}");
+    }
+    assert_eq!(
+        v["cycle_stats"]["work_error"].as_f64().unwrap(),
+        run.stats.work_error
+    );
+    for (csv, want) in [
+        // 5000 Nm is above the published engine's full load
+        ("t,n_e,M_ref\n0,1200,500\n5,1200,5000\n", "cannot follow"),
+        // beyond the engine's speed range (the published set: 500-2000 rpm)
+        ("t,n_e,M_ref\n0,1200,300\n5,2600,300\n", "n_e"),
+        ("t,n_e,M_ref\n0,1200,300\n4000,1200,300\n", "at most 3600 s"),
+        (
+            "t,n_e,M_ref\n0,1200,300\n1,fast,300\n",
+            "line 3, column n_e",
+        ),
+        ("t,n_e\n0,1200\n1,1200\n", "missing column(s) M_ref"),
+    ] {
+        let body = serde_json::json!({"csv": csv, "mode": "closed"});
+        let r = post("/api/simulate", &body.to_string());
+        let text = String::from_utf8_lossy(&r.body).to_string();
+        assert_eq!(r.status, 400, "{csv}: {text}");
+        assert!(text.contains(want), "{csv}: {text}");
     }
 }
 

@@ -80,57 +80,11 @@ pub struct Run {
     pub wall_s: f64,
 }
 
-/// Read a user's cycle CSV: columns t, n_e, M_ref.
+/// Read a user's cycle CSV: columns t, n_e, M_ref ([`mvem::io::csv_demand::parse_demand_csv`]).
 fn read_cycle_csv(path: &Path) -> Result<Demand> {
-    let name = path.display().to_string();
-    let text =
-        std::fs::read_to_string(path).map_err(|e| common::usage(format!("--cycle {name}: {e}")))?;
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let headers = rdr
-        .headers()
-        .map_err(|e| common::usage(format!("{name}: line 1: cannot read the header: {e}")))?
-        .clone();
-    let col = |want: &str| headers.iter().position(|h| h == want);
-    let missing: Vec<&str> = ["t", "n_e", "M_ref"]
-        .into_iter()
-        .filter(|c| col(c).is_none())
-        .collect();
-    if !missing.is_empty() {
-        return Err(common::usage(format!(
-            "{name}: line 1: missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm]; found: {})",
-            missing.join(", "),
-            headers.iter().collect::<Vec<_>>().join(", ")
-        )));
-    }
-    let idx = [
-        col("t").unwrap(),
-        col("n_e").unwrap(),
-        col("M_ref").unwrap(),
-    ];
-    let (mut t, mut n, mut m) = (vec![], vec![], vec![]);
-    for (i, rec) in rdr.records().enumerate() {
-        let line = i + 2;
-        let rec = rec.map_err(|e| common::usage(format!("{name}: line {line}: {e}")))?;
-        let mut v = [0.0; 3];
-        for (k, &c) in idx.iter().enumerate() {
-            let field = rec.get(c).unwrap_or("");
-            v[k] = field.parse::<f64>().map_err(|_| {
-                common::usage(format!(
-                    "{name}: line {line}: {} = '{field}' is not a number",
-                    ["t", "n_e", "M_ref"][k]
-                ))
-            })?;
-        }
-        t.push(v[0]);
-        n.push(v[1]);
-        m.push(v[2]);
-    }
-    let k = t.len();
-    Demand::new(t, n, m, vec![false; k])
-        .map_err(|e| common::usage(format!("{name}: {e} (rows counted after the header)")))
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| common::usage(format!("--cycle {}: {e}", path.display())))?;
+    mvem::io::csv_demand::parse_demand_csv(&text, path).map_err(|e| common::usage(e.to_string()))
 }
 
 /// Read `--tuning`: the baseline controllers' tuning from TOML, checked.

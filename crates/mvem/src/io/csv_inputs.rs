@@ -2,20 +2,11 @@
 //! column order), one row per time, linear interpolation between rows, two rows with the same
 //! time are a step. Every problem is reported with file, line and column.
 
-use super::IoError;
+use super::{format_err as err, IoError};
 use crate::numerics::Num;
 use crate::params::InputSaturation;
 use crate::sim::input::{InputSchedule, ScheduleError, INPUT_COLUMNS};
 use std::path::Path;
-
-fn err(path: &Path, line: Option<usize>, column: Option<&str>, message: String) -> IoError {
-    IoError::Format {
-        path: path.to_path_buf(),
-        line,
-        column: column.map(str::to_string),
-        message,
-    }
-}
 
 /// The rows of an input table read by the csv crate: times, inputs and the file line of each
 /// row; every problem of the file named with its line and column.

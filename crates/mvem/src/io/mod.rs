@@ -2,13 +2,14 @@
 //! atomically (temporary file + rename) so that a failure never leaves a partial file. (The JSON
 //! objects of analysis results are built one layer up, in `analysis::json`.)
 
+pub mod csv_demand;
 pub mod csv_inputs;
 pub mod output;
 pub mod params;
 pub mod params_toml;
 pub mod test_cell;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// A file or format problem, naming the file and, where known, line and column.
 #[derive(Debug, thiserror::Error)]
@@ -41,6 +42,21 @@ pub enum IoError {
         /// Problems.
         issues: crate::params::ParamIssues,
     },
+}
+
+/// An [`IoError::Format`] naming `path` and, where known, the 1-based line and the column.
+pub(crate) fn format_err(
+    path: &Path,
+    line: Option<usize>,
+    column: Option<&str>,
+    message: String,
+) -> IoError {
+    IoError::Format {
+        path: path.to_path_buf(),
+        line,
+        column: column.map(str::to_string),
+        message,
+    }
 }
 
 fn location(line: &Option<usize>, column: &Option<String>) -> String {
