@@ -57,6 +57,8 @@ struct WorkEstimate<'s> {
     tv: Vec<f64>,
     /// The stop times in `(t0, t_end)`, sorted.
     stops: &'s [(f64, bool)],
+    /// Whether the inputs vary in `[t0, t_end]` (else the variation term is left out).
+    varies: bool,
 }
 
 impl<'s> WorkEstimate<'s> {
@@ -91,6 +93,7 @@ impl<'s> WorkEstimate<'s> {
             times: times.to_vec(),
             tv,
             stops: &stops[lo..hi.max(lo)],
+            varies: false,
         };
         // normalized to the variation in [t0, t_end]
         let (a, b) = (me.variation(t0), me.variation(t_end));
@@ -98,6 +101,7 @@ impl<'s> WorkEstimate<'s> {
         for v in &mut me.tv {
             *v = if total > 0.0 { (*v - a) / total } else { 0.0 };
         }
+        me.varies = total > 0.0;
         me
     }
 
@@ -119,9 +123,6 @@ impl<'s> WorkEstimate<'s> {
     /// (t0, 0) and (t_end, 1): 0 before the first, 1 after the last).
     fn stops_passed(&self, t: f64) -> f64 {
         let n = self.stops.len();
-        if n == 0 {
-            return 0.0;
-        }
         let k = self.stops.partition_point(|s| s.0 <= t);
         let (ta, tb) = (
             if k == 0 { self.t0 } else { self.stops[k - 1].0 },
@@ -144,9 +145,21 @@ impl<'s> WorkEstimate<'s> {
         }
     }
 
-    /// The estimated work up to `t` (0 at `t0`, 1 at `t_end`; increasing).
+    /// The estimated work up to `t` (0 at `t0`, 1 at `t_end`; increasing): the mean of the
+    /// terms that are defined (the variation's when the inputs vary in `[t0, t_end]`, the stops'
+    /// when there is one).
     fn at(&self, t: f64) -> f64 {
-        ((t - self.t0) / self.span + self.variation(t) + self.stops_passed(t)) / 3.0
+        let mut sum = (t - self.t0) / self.span;
+        let mut terms = 1.0;
+        if self.varies {
+            sum += self.variation(t);
+            terms += 1.0;
+        }
+        if !self.stops.is_empty() {
+            sum += self.stops_passed(t);
+            terms += 1.0;
+        }
+        sum / terms
     }
 
     /// The time by which the work `w` is done (bisection).
@@ -559,6 +572,26 @@ mod tests {
             "{} chunks",
             many.len() + 1
         );
+    }
+
+    /// The estimate runs from 0 at the start to 1 at the end, increasing, with or without
+    /// varying inputs and stops (a term that is not defined is left out, not counted as 0).
+    #[test]
+    fn work_estimate_spans_zero_to_one() {
+        let (sched, stops) = zigzag(|t| if t < 100.0 { 100.0 } else { 10.0 });
+        let flat =
+            InputSchedule::new(vec![0.0, 200.0], vec![[1500.0, 100.0, 50.0, 50.0]; 2]).unwrap();
+        for (sched, stops) in [(&sched, &stops[..]), (&sched, &[][..]), (&flat, &[][..])] {
+            let w = super::WorkEstimate::new(sched, stops, 0.0, 200.0);
+            assert_eq!(w.at(0.0), 0.0);
+            assert!((w.at(200.0) - 1.0).abs() < 1e-12, "{}", w.at(200.0));
+            let mut last = 0.0;
+            for k in 1..=400 {
+                let a = w.at(k as f64 * 0.5);
+                assert!(a >= last, "not increasing at {} s", k as f64 * 0.5);
+                last = a;
+            }
+        }
     }
 
     #[test]
