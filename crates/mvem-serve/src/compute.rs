@@ -345,12 +345,7 @@ impl SimulateRequest {
                     t1 - t0
                 )));
             }
-            let dt = self.dt.unwrap_or(0.1);
-            if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
-                return Err(input(format!(
-                    "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
-                )));
-            }
+            let dt = self.output_interval(t0, t1)?;
             return Ok((CycleInput::Demand(d), "csv".to_string(), dt, mode));
         }
         let (sched, name) = match (&self.cycle, &self.csv) {
@@ -382,19 +377,26 @@ impl SimulateRequest {
                 "mode \"closed\": runs the WHTC (\"cycle\": \"whtc\") or a speed/torque demand (\"csv\" with the columns t, n_e, M_ref)",
             ));
         }
-        let dt = self.dt.unwrap_or(0.1);
         let (t0, t1) = (sched.t_first(), sched.t_last());
         if t1 <= t0 {
             return Err(input(format!(
                 "{name}: the inputs span no time (first and last row at {t0} s)"
             )));
         }
+        let dt = self.output_interval(t0, t1)?;
+        Ok((CycleInput::Schedule(sched), name, dt, mode))
+    }
+
+    /// `dt` (default 0.1 s), checked: positive, and at most [`MAX_SAMPLES`] samples from `t0`
+    /// to `t1`.
+    fn output_interval(&self, t0: f64, t1: f64) -> Result<f64, Fail> {
+        let dt = self.dt.unwrap_or(0.1);
         if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
             return Err(input(format!(
                 "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
             )));
         }
-        Ok((CycleInput::Schedule(sched), name, dt, mode))
+        Ok(dt)
     }
 }
 
