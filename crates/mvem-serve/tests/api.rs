@@ -435,6 +435,28 @@ fn closed_loop_mode_takes_the_controllers_tuning() {
     }
 }
 
+/// An open-loop run of an uploaded file is the run of the same rows as a server cycle: the
+/// WHTC's text sent as `"csv"` answers the same series as `"cycle": "whtc"`, to the bit.
+#[test]
+fn open_loop_csv_equals_the_same_cycle_by_name() {
+    let by_name = post("/api/simulate", r#"{"cycle": "whtc", "dt": 2.0}"#);
+    assert_eq!(by_name.status, 200);
+    let body = serde_json::json!({"csv": WHTC, "dt": 2.0});
+    let by_text = post("/api/simulate", &body.to_string());
+    assert_eq!(
+        by_text.status,
+        200,
+        "{}",
+        String::from_utf8_lossy(&by_text.body)
+    );
+    let (a, b) = (by_name.json(), by_text.json());
+    assert_eq!(b["source"], "csv");
+    for key in ["t", "series", "inputs", "stats"] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+    assert_eq!(a["t"].as_array().unwrap().len(), 901);
+}
+
 /// Mode `"closed"` with `"csv"`: a speed/torque demand (t, n_e, M_ref), the core's run of it
 /// to the bit (as `mvem closed-loop --cycle FILE.csv`); a demand the engine cannot follow, one
 /// longer than the limit and a malformed one are 400 naming the problem.
