@@ -554,9 +554,9 @@ impl Instance {
     ///
     /// In Initialization Mode the unknowns are the initial unknowns, and the states there are
     /// the steady state at the inputs: the knowns are the inputs, a state's change is that of the
-    /// steady state (`-A^-1 B dv`, [`mvem::analysis::linearize::steady_state_sensitivity`]: the
-    /// DC gain), a derivative's change is zero, an output's change is that of its steady-state
-    /// value, and a change of u_egr or u_vgt includes its delayed copy (held at the same value).
+    /// steady state (`-A^-1 B dv`, the DC gain `D - C A^-1 B` of the library's linearization there), a
+    /// derivative's change is zero, an output's change is that of its steady-state value, and a
+    /// change of u_egr or u_vgt includes its delayed copy (held at the same value).
     ///
     /// After initialization:
     /// Knowns: the inputs (both interfaces) and the states (Model Exchange). Unknowns: the state
@@ -600,7 +600,7 @@ impl Instance {
             match self.layout.lookup(*vr) {
                 Some(Kind::Input(i)) => {
                     v_u[i] += dv;
-                    if i >= 2 && (initialization || delays[i - 2] == 0.0) {
+                    if i >= 2 && delays[i - 2] == 0.0 {
                         v_u[i + 2] += dv;
                     }
                 }
@@ -633,23 +633,15 @@ impl Instance {
                 }
             }
         }
+        if initialization {
+            return self.initial_unknowns_derivative(&kinds, &v_u, out);
+        }
         let u = self.model_input();
         let memory = self.memory;
         let (df, ds) = mvem::dispatch!(&self.model, m => {
-            if initialization {
-                // the states follow the inputs; the derivatives stay zero
-                mvem::analysis::linearize::steady_state_sensitivity(
-                    m, &arr(&self.x), &u, memory, &v_u, 1e-4,
-                )
-                .map(|(dx, ds)| {
-                    v_x.copy_from_slice(&dx);
-                    (vec![0.0; dx.len()], ds)
-                })
-            } else {
-                mvem::analysis::linearize::directional_derivative(
-                    m, &arr(&self.x), &u, memory, &arr(&v_x), &v_u, 1e-4,
-                )
-            }
+            mvem::analysis::linearize::directional_derivative(
+                m, &arr(&self.x), &u, memory, &arr(&v_x), &v_u, 1e-4,
+            )
         })
         .map_err(|e| {
             FmuError::discard(format!(
@@ -663,6 +655,64 @@ impl Instance {
                 Kind::Derivative(i) => df[i],
                 Kind::Signal(i) => ds[i],
                 Kind::Input(_) | Kind::Param(_) => unreachable!("refused above"),
+            };
+        }
+        Ok(())
+    }
+
+    /// [`Self::directional_derivative`] in Initialization Mode, where the states are the
+    /// steady state at the inputs: along the inputs' seed `v_u` (its first four entries, the
+    /// current inputs; at a steady state the delayed commands move with them) the change of
+    /// the steady state and of its outputs, i.e. the DC gain `D - C A^-1 B` of the library's
+    /// linearization there ([`mvem::analysis::zeros::dc_gain_matrix`] of
+    /// [`mvem::analysis::linearize::linearize`], the averaged slopes at a kink); a state
+    /// derivative's change is zero.
+    fn initial_unknowns_derivative(
+        &self,
+        kinds: &[Kind],
+        v_u: &[f64; 6],
+        out: &mut [f64],
+    ) -> FmuResult<()> {
+        const WHAT: &str = "fmi2GetDirectionalDerivative";
+        use mvem::analysis::linearize::{linearize, LinearizeOptions};
+        let outputs: Vec<String> = kinds
+            .iter()
+            .filter_map(|k| match *k {
+                Kind::State(i) => Some(self.layout.states[i].to_string()),
+                Kind::Signal(i) => Some(Signals::NAMES[i].to_string()),
+                _ => None,
+            })
+            .collect();
+        let gain = if outputs.is_empty() {
+            None
+        } else {
+            let opts = LinearizeOptions {
+                outputs,
+                strict: false,
+                ..LinearizeOptions::default()
+            };
+            let d = Drive::from_array(self.inputs);
+            let lin = mvem::dispatch!(&self.model, m => linearize(m, &arr(&self.x), &d, &opts))
+                .map_err(|e| {
+                    FmuError::discard(format!("{WHAT}: {e} at the initial steady state"))
+                })?;
+            let g = mvem::analysis::zeros::dc_gain_matrix(&lin).map_err(|e| {
+                FmuError::discard(format!(
+                    "{WHAT}: no steady-state sensitivity at the initial inputs: {e}"
+                ))
+            })?;
+            Some(g)
+        };
+        // the linear model's inputs are u_delta, u_egr, u_vgt, n_e
+        let dv = [v_u[1], v_u[2], v_u[3], v_u[0]];
+        let mut row = 0;
+        for (k, o) in kinds.iter().zip(out.iter_mut()) {
+            *o = match (k, &gain) {
+                (Kind::State(_) | Kind::Signal(_), Some(g)) => {
+                    row += 1;
+                    (0..4).map(|c| g[(row - 1, c)] * dv[c]).sum()
+                }
+                _ => 0.0,
             };
         }
         Ok(())

@@ -879,61 +879,6 @@ pub fn directional_derivative<const N: usize, M: Model<N>>(
     Ok((dx, sig))
 }
 
-/// How the steady state and its signals move with the inputs: `d/de [x_ss, signals(x_ss)](u +
-/// e v_u)` at `e = 0`, where `x_ss(u)` solves `f(x_ss, u) = 0` near `x` (the steady state the
-/// caller holds, e.g. an FMU in Initialization Mode). With `A = df/dx` and the input
-/// direction's `f_u v_u` from [`directional_derivative`] (N + 1 directions), `dx_ss = -A^-1 f_u
-/// v_u` (implicit-function theorem), and the signals' change is the directional derivative along
-/// `(dx_ss, v_u)`; the derivatives' change is zero by construction.
-///
-/// `v_u` is in [`ModelInput::to_array`]'s order; at a steady state the delayed commands equal
-/// the current ones, so a change of u_egr or u_vgt belongs in both of its entries (the caller's
-/// choice: a direction that moves only the current value moves nothing in the dynamics).
-/// `x` should be a steady state at `u`; it is not checked. Errors: those of
-/// [`directional_derivative`], and [`LinearizeError::NonFinite`] naming the state where `A` is
-/// singular (no isolated steady state to follow).
-pub fn steady_state_sensitivity<const N: usize, M: Model<N>>(
-    m: &M,
-    x: &[f64; N],
-    u: &ModelInput,
-    memory: M::Memory,
-    v_u: &[f64; 6],
-    rel_step: f64,
-) -> Result<(Vec<f64>, Vec<f64>), LinearizeError> {
-    let zero_u = [0.0; 6];
-    let mut a = DMatrix::<f64>::zeros(N, N);
-    for j in 0..N {
-        let mut e_j = [0.0; N];
-        e_j[j] = 1.0;
-        let (col, _) = directional_derivative(m, x, u, memory, &e_j, &zero_u, rel_step)?;
-        a.set_column(j, &nalgebra::DVector::from_vec(col));
-    }
-    let (fu, _) = directional_derivative(m, x, u, memory, &[0.0; N], v_u, rel_step)?;
-    let rhs = -nalgebra::DVector::from_vec(fu);
-    let dx = a
-        .clone()
-        .lu()
-        .solve(&rhs)
-        .filter(|d| d.iter().all(|v| v.is_finite()));
-    let Some(dx) = dx else {
-        // name the state whose column is the most nearly dependent (smallest pivot of A's QR)
-        let r = a.qr().r();
-        let k = (0..N)
-            .min_by(|&i, &j| r[(i, i)].abs().total_cmp(&r[(j, j)].abs()))
-            .unwrap_or(0);
-        return Err(LinearizeError::NonFinite {
-            what: format!(
-                "steady-state sensitivity (A singular: no isolated steady state; smallest pivot at state {})",
-                m.state_names()[k]
-            ),
-            value: f64::NAN,
-        });
-    };
-    let dx: [f64; N] = std::array::from_fn(|i| dx[i]);
-    let (_, ds) = directional_derivative(m, x, u, memory, &dx, v_u, rel_step)?;
-    Ok((dx.to_vec(), ds))
-}
-
 fn pow2_step(h: f64) -> f64 {
     2f64.powi(h.log2().floor() as i32)
 }
@@ -1122,20 +1067,34 @@ impl LinearModel {
 mod tests {
     use super::*;
 
-    /// The steady state's sensitivity to the inputs equals central differences of the steady
+    /// The DC gain of the linearization (`D - C A^-1 B`, [`crate::analysis::zeros::dc_gain_matrix`],
+    /// what the FMU answers in Initialization Mode) equals central differences of the steady
     /// state itself (Newton at u +- e v, Richardson-extrapolated over e and e/2), for the 8-, 10-
-    /// and 12-state models at two operating points, to 1e-7 relative (they agree to about 1e-11),
-    /// and the signals' change is that of the steady states' signals.
+    /// and 12-state models at two operating points, to 1e-7 relative (they agree to about
+    /// 1e-11), for the states and six signals.
     #[test]
-    fn steady_state_sensitivity_is_the_derivative_of_the_steady_state() {
+    fn dc_gain_is_the_derivative_of_the_steady_state() {
         use crate::analysis::steady::steady_state;
+        use crate::analysis::zeros::dc_gain_matrix;
         use crate::model::{Engine10, Engine12, Engine8};
+        const SIGNALS: [&str; 6] = ["W_c", "W_egr", "W_t", "lambda_O", "T_em", "x_egr"];
         fn check<const N: usize, M: Model<N>>(m: &M, d: Drive, v: [f64; 4]) {
-            let u = ModelInput::constant(d);
             let x = steady_state(m, &d).unwrap().x;
-            let mem = m.memory_start(&x, &u);
-            let v_u = [v[0], v[1], v[2], v[3], v[2], v[3]];
-            let (dx, ds) = steady_state_sensitivity(m, &x, &u, mem, &v_u, 1e-4).unwrap();
+            let names = m.state_names();
+            let opts = LinearizeOptions {
+                outputs: names
+                    .iter()
+                    .chain(SIGNALS.iter())
+                    .map(|s| s.to_string())
+                    .collect(),
+                ..LinearizeOptions::default()
+            };
+            let g = dc_gain_matrix(&linearize(m, &x, &d, &opts).unwrap()).unwrap();
+            // the linear model's inputs: u_delta, u_egr, u_vgt, n_e
+            let v_lin = [v[1], v[2], v[3], v[0]];
+            let gain = |row: usize| -> f64 { (0..4).map(|c| g[(row, c)] * v_lin[c]).sum() };
+            let dx: Vec<f64> = (0..N).map(gain).collect();
+            let ds: Vec<f64> = (0..SIGNALS.len()).map(|k| gain(N + k)).collect();
             let at = |e: f64| -> (Vec<f64>, Vec<f64>) {
                 let de = Drive::new(
                     d.n_e_rpm + e * v[0],
@@ -1165,13 +1124,13 @@ mod tests {
                     dx[i]
                 );
             }
-            for name in ["W_c", "W_egr", "W_t", "lambda_O", "T_em", "x_egr"] {
-                let j = Signals::NAMES.iter().position(|s| *s == name).unwrap();
+            for (k, name) in SIGNALS.iter().enumerate() {
+                let j = Signals::NAMES.iter().position(|s| s == name).unwrap();
                 let fd = rich(&p1.1, &m1.1, &p2.1, &m2.1, j);
                 assert!(
-                    (ds[j] - fd).abs() <= 1e-7 * (fd.abs() + 1e-6 * p1.1[j].abs().max(1e-3)),
+                    (ds[k] - fd).abs() <= 1e-7 * (fd.abs() + 1e-6 * p1.1[j].abs().max(1e-3)),
                     "N = {N}, {d:?}, {name}: {} vs {fd}",
-                    ds[j]
+                    ds[k]
                 );
             }
         }
