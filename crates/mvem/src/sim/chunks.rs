@@ -119,30 +119,22 @@ impl<'s> WorkEstimate<'s> {
         self.tv[i - 1] + (self.tv[i] - self.tv[i - 1]) * (t - ta) / (tb - ta)
     }
 
-    /// The fraction of the stops passed at `t`, linear between consecutive stops (through
-    /// (t0, 0) and (t_end, 1): 0 before the first, 1 after the last).
+    /// The fraction of the stops passed at `t`: linear from 0 at `t0` through the stops (the
+    /// k-th of n at k / n), 1 from the last stop on.
     fn stops_passed(&self, t: f64) -> f64 {
         let n = self.stops.len();
         let k = self.stops.partition_point(|s| s.0 <= t);
-        let (ta, tb) = (
-            if k == 0 { self.t0 } else { self.stops[k - 1].0 },
-            if k == n {
-                self.t0 + self.span
-            } else {
-                self.stops[k].0
-            },
-        );
+        if k == n {
+            return 1.0;
+        }
+        let ta = if k == 0 { self.t0 } else { self.stops[k - 1].0 };
+        let tb = self.stops[k].0;
         let frac = if tb > ta {
             ((t - ta) / (tb - ta)).clamp(0.0, 1.0)
         } else {
             0.0
         };
-        // k stops passed, plus the way to the next (after the last: to t_end, no stop)
-        if k == n {
-            1.0
-        } else {
-            (k as f64 + frac) / n as f64
-        }
+        (k as f64 + frac) / n as f64
     }
 
     /// The estimated work up to `t` (0 at `t0`, 1 at `t_end`; increasing): the mean of the
