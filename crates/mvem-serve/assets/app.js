@@ -32,6 +32,13 @@
     return (a >= 1e-3 && a < 1e7) ? v.toPrecision(6) : v.toExponential(5);
   }
   const unit = (n) => app.units[n] ?? "";
+  // a table cell holding `text` as text (not markup: names and values from the server or a file)
+  function cell(cls, text) {
+    const td = document.createElement("td");
+    if (cls) td.className = cls;
+    td.textContent = text;
+    return td;
+  }
 
   async function api(path, body) {
     const opts = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
@@ -454,7 +461,6 @@
 
   function buildTuning(t) {
     app.tuningDefaults = t.defaults;
-    const cell = (cls, text) => { const td = document.createElement("td"); if (cls) td.className = cls; td.textContent = text; return td; };
     $("#tuning-fields").replaceChildren(...t.fields.map((f) => {
       const d = t.defaults[f.name];
       const keys = Array.isArray(d) ? [[`${f.name}[0]`, "kp"], [`${f.name}[1]`, "ki"]] : [[f.name, ""]];
@@ -515,7 +521,8 @@
     return t;
   }
 
-  function showTuning() {
+  // the tuning form in closed-loop mode, and the file format the mode reads
+  function showCycleMode() {
     const closed = $("select[name=cycle_mode]").value === "closed";
     $("#tuning").hidden = !closed;
     // what a file of the cycle menu must hold in this mode (the server names what is wrong)
@@ -562,7 +569,7 @@
     ];
     $("tbody", tbl).replaceChildren(...rows.map(([k, v]) => {
       const tr = document.createElement("tr");
-      for (const text of [k, v]) { const td = document.createElement("td"); td.textContent = text; tr.append(td); }
+      tr.append(cell("", k), cell("", v));
       return tr;
     }));
     tbl.hidden = false;
@@ -658,7 +665,7 @@
     $("[data-action=map]").addEventListener("click", runMap);
     $("[data-action=cycle]").addEventListener("click", runCycle);
     $("input[name=cycle_t]").addEventListener("input", scrub);
-    $("select[name=cycle_mode]").addEventListener("change", showTuning);
+    $("select[name=cycle_mode]").addEventListener("change", showCycleMode);
     $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
     $("#tuning-fields").addEventListener("input", markTuning);
@@ -671,7 +678,7 @@
       if (m.cycles.length) $("select[name=cycle]").replaceChildren(...m.cycles.map((cy) => new Option(cy === "whtc" ? "WHTC (built in)" : cy, cy)));
       $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
       if (m.controller_tuning) buildTuning(m.controller_tuning);
-      showTuning();
+      showCycleMode();
       setStatus("ok", "ready");
     } catch (e) {
       setStatus("error", `server: ${e.message}`);
