@@ -293,7 +293,7 @@ fn a_tuning_file_sets_the_baseline_controllers() {
         (
             "low.toml",
             "lambda_limit = 0.9\n",
-            "lambda_limit = 0.9: must be >= 1",
+            "lambda_limit = 0.9: must be in [1, 5]",
         ),
         ("gain.toml", "torque = [-0.02, 2.0]\n", "torque[0] = -0.02"),
         (

@@ -427,6 +427,15 @@ fn closed_loop_mode_takes_the_controllers_tuning() {
             r#"{"cycle": "whtc", "tuning": {"lambda_limit": 1.1}}"#,
             "sets the baseline controllers",
         ),
+        // these two once passed the check and then broke the run: answered 500
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "tuning": {"lambda_limit": 9.9}}"#,
+            "lambda_limit = 9.9: must be in [1, 5]",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "tuning": {"torque": [1e308, 2]}}"#,
+            "torque[0] = 1e308: must be in [0, 1e6]",
+        ),
     ] {
         let r = post("/api/simulate", body);
         let text = String::from_utf8_lossy(&r.body).to_string();

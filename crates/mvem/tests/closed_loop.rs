@@ -266,3 +266,89 @@ fn the_closed_loop_spans_the_parameter_sets_speed_and_fuel_range() {
     assert_eq!(b.maps.n_e.last(), Some(&2400.0));
     assert_eq!(b.maps.u_delta_range, (2.0, 200.0));
 }
+
+/// Tunings at the edges of what `BaselineTuning::validate` accepts (the largest gains, the
+/// strictest smoke limit, the widest bands) run a short speed/torque demand to its end or fail
+/// with an error: never a panic, never a non-finite command. Before session 27 a smoke limit of
+/// 9.9 or a torque gain of 1e308 passed the check and then panicked in the set-point maps or
+/// the VGT limit.
+#[test]
+fn tunings_at_the_edges_of_the_accepted_ranges_run_or_fail_cleanly() {
+    use mvem::control::cycle::Demand;
+    let m = model();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let demand = Demand::new(
+        vec![0.0, 2.0, 4.0, 6.0],
+        vec![1200.0, 1500.0, 1800.0, 900.0],
+        vec![300.0, 1500.0, 200.0, 0.0],
+        vec![false, false, false, true],
+    )
+    .unwrap();
+    let base = BaselineTuning::default();
+    let edges = [
+        BaselineTuning {
+            lambda_limit: 5.0,
+            smoke_margin: 0.5,
+            ..base
+        },
+        BaselineTuning {
+            lambda_limit: 1.0,
+            smoke_margin: 0.0,
+            ..base
+        },
+        BaselineTuning {
+            torque: (1e6, 1e6),
+            x_egr_vgt: (1e6, 1e6),
+            x_egr_egr: (1e6, 1e6),
+            lambda_egr: (1e6, 1e6),
+            lambda_vgt: (1e6, 1e6),
+            ..base
+        },
+        BaselineTuning {
+            torque: (0.0, 0.0),
+            x_egr_vgt: (0.0, 0.0),
+            x_egr_egr: (0.0, 0.0),
+            lambda_egr: (0.0, 0.0),
+            lambda_vgt: (0.0, 0.0),
+            ..base
+        },
+        BaselineTuning {
+            d_x: 1.0,
+            d_lambda: 10.0,
+            lambda_error_cap: 10.0,
+            ..base
+        },
+        BaselineTuning {
+            u_vgt_full_load: 20.0,
+            ..base
+        },
+        BaselineTuning {
+            u_vgt_full_load: 100.0,
+            ..base
+        },
+    ];
+    let mut finished = 0;
+    for t in edges {
+        t.validate().unwrap();
+        let mut ctrl = Baseline::new(&m, &curve, t).unwrap();
+        match run(m.clone(), &demand, &mut ctrl, &plant_options()) {
+            Ok((traj, _)) => {
+                finished += 1;
+                let t_end = traj.get("t").unwrap().last().copied().unwrap();
+                assert!(t_end >= 6.0 - 0.011, "ended at {t_end} s, {t:?}");
+                for name in ["u_delta", "u_egr", "u_vgt", "M_e", "lambda_O"] {
+                    let u = traj.get(name).unwrap();
+                    assert!(u.iter().all(|v| v.is_finite()), "{name} not finite, {t:?}");
+                }
+            }
+            Err(e) => assert!(!e.to_string().is_empty(), "{t:?}"),
+        }
+    }
+    eprintln!("{finished} of {} edge tunings finished", edges.len());
+    // the strictest smoke limit and the widest bands are ordinary tunings: they finish
+    assert!(
+        finished >= 5,
+        "only {finished} of {} runs finished",
+        edges.len()
+    );
+}

@@ -37,6 +37,7 @@
 use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, Measurement, Output};
+use crate::error::num;
 use crate::model::meta::VarMeta;
 use crate::model::{AnyModel, Drive};
 use crate::sim::InputSchedule;
@@ -97,6 +98,10 @@ impl Default for BaselineTuning {
 }
 
 impl BaselineTuning {
+    /// Largest PI gain accepted (kp or ki, in the gain's unit): a million times the defaults'
+    /// order keeps every product of a gain and an error finite.
+    pub const GAIN_MAX: f64 = 1e6;
+
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
@@ -159,16 +164,19 @@ impl BaselineTuning {
         },
     ];
 
-    /// Check every field (finite; gains and bands >= 0; lambda_lim >= 1; the smoke margin in
-    /// [0, 1); the lambda_O error cap > 0; the full-load VGT limit in [20, 100] %; the sample
-    /// time in (0, 1] s). The error names the field, its value and the constraint.
+    /// Check every field (finite; PI gains in [0, [`Self::GAIN_MAX`]]; lambda_lim in [1, 5]
+    /// and the set-point floor lambda_lim (1 + 2 smoke margin) at most
+    /// [`LAMBDA_SETPOINT_MAX`]; the smoke margin in [0, 1); d_x in [0, 1]; d_lambda in
+    /// [0, 10]; the lambda_O error cap in (0, 10]; the full-load VGT limit in [20, 100] %; the
+    /// sample time in (0, 1] s). The error names the field, its value and the constraint.
     pub fn validate(&self) -> Result<(), ControlError> {
         let bad = |field: &str, v: f64, constraint: &str| {
             Err(ControlError::Setup(format!(
-                "controller tuning {field} = {v}: {constraint}"
+                "controller tuning {field} = {}: {constraint}",
+                num(v)
             )))
         };
-        let checks: [(&str, f64, bool, &str); 9] = [
+        let checks: [(&str, f64, bool, &str); 7] = [
             (
                 "ts",
                 self.ts,
@@ -178,8 +186,8 @@ impl BaselineTuning {
             (
                 "lambda_limit",
                 self.lambda_limit,
-                self.lambda_limit >= 1.0,
-                "must be >= 1 (a smoke limit below stoichiometry)",
+                (1.0..=5.0).contains(&self.lambda_limit),
+                "must be in [1, 5] (below 1: richer than stoichiometric; above 5: no fuel left)",
             ),
             (
                 "smoke_margin",
@@ -187,36 +195,29 @@ impl BaselineTuning {
                 (0.0..1.0).contains(&self.smoke_margin),
                 "must be in [0, 1)",
             ),
-            ("d_x", self.d_x, self.d_x >= 0.0, "must be >= 0"),
+            (
+                "d_x",
+                self.d_x,
+                (0.0..=1.0).contains(&self.d_x),
+                "must be in [0, 1] (a band of the EGR fraction)",
+            ),
             (
                 "d_lambda",
                 self.d_lambda,
-                self.d_lambda >= 0.0,
-                "must be >= 0",
+                (0.0..=10.0).contains(&self.d_lambda),
+                "must be in [0, 10]",
             ),
             (
                 "lambda_error_cap",
                 self.lambda_error_cap,
-                self.lambda_error_cap > 0.0,
-                "must be > 0",
+                self.lambda_error_cap > 0.0 && self.lambda_error_cap <= 10.0,
+                "must be in (0, 10]",
             ),
             (
                 "u_vgt_full_load",
                 self.u_vgt_full_load,
                 (20.0..=100.0).contains(&self.u_vgt_full_load),
                 "must be in [20, 100] % (the VGT's command range)",
-            ),
-            (
-                "torque[0]",
-                self.torque.0,
-                self.torque.0 >= 0.0,
-                "must be >= 0",
-            ),
-            (
-                "torque[1]",
-                self.torque.1,
-                self.torque.1 >= 0.0,
-                "must be >= 0",
             ),
         ];
         for (field, v, ok, constraint) in checks {
@@ -225,21 +226,36 @@ impl BaselineTuning {
                 return bad(field, v, constraint);
             }
         }
+        let floor = self.lambda_limit * (1.0 + 2.0 * self.smoke_margin);
+        if floor > LAMBDA_SETPOINT_MAX {
+            return Err(ControlError::Setup(format!(
+                "controller tuning lambda_limit = {} with smoke_margin = {}: the lambda_O \
+                 set-point floor lambda_limit (1 + 2 smoke_margin) = {} must be at most \
+                 {LAMBDA_SETPOINT_MAX} (the set-point maps' cap)",
+                num(self.lambda_limit),
+                num(self.smoke_margin),
+                num(floor)
+            )));
+        }
         for (name, (kp, ki)) in [
+            ("torque", self.torque),
             ("x_egr_vgt", self.x_egr_vgt),
             ("x_egr_egr", self.x_egr_egr),
             ("lambda_egr", self.lambda_egr),
             ("lambda_vgt", self.lambda_vgt),
         ] {
             for (k, v) in [(0, kp), (1, ki)] {
-                if !(v.is_finite() && v >= 0.0) {
-                    return bad(&format!("{name}[{k}]"), v, "must be finite and >= 0");
+                if !(0.0..=Self::GAIN_MAX).contains(&v) {
+                    return bad(&format!("{name}[{k}]"), v, "must be in [0, 1e6]");
                 }
             }
         }
         Ok(())
     }
 }
+
+/// Upper bound of the lambda_O set-point maps [-] (lean enough for every part load).
+pub const LAMBDA_SETPOINT_MAX: f64 = 10.0;
 
 /// Nominal actuator map: EGR valve and VGT positions [%] at load fraction `l` in [0, 1] (the
 /// open-loop schedule of the shared WHTC inputs: u_egr = 50 (1 - L), u_vgt = 65 - 30 L).
@@ -303,7 +319,8 @@ impl SetpointMaps {
                         ControlError::Setup(format!("set-point maps at {n} rpm, {u:.1} mg: {e}"))
                     })?;
                 m_row.push(s.m_e);
-                l_row.push((0.9 * s.lambda_o).clamp(floor, 10.0));
+                // floor <= LAMBDA_SETPOINT_MAX: checked by BaselineTuning::validate
+                l_row.push((0.9 * s.lambda_o).clamp(floor, LAMBDA_SETPOINT_MAX));
                 x_row.push(s.x_egr);
             }
             // the torque map must increase with the fuel to be inverted
@@ -559,6 +576,105 @@ impl Controller for OpenLoop {
 #[cfg(test)]
 mod tests {
     use super::BaselineTuning;
+
+    /// Values that once passed the check and then broke a run (a gain whose products overflow,
+    /// a smoke limit whose set-point floor is above the maps' cap) are refused, naming the field;
+    /// the bounds themselves are accepted.
+    #[test]
+    fn validate_refuses_values_that_break_a_run() {
+        let base = BaselineTuning::default();
+        for (t, field) in [
+            (
+                BaselineTuning {
+                    lambda_limit: 9.9,
+                    ..base
+                },
+                "lambda_limit = 9.9",
+            ),
+            (
+                BaselineTuning {
+                    lambda_limit: 0.99,
+                    ..base
+                },
+                "lambda_limit = 0.99",
+            ),
+            (
+                BaselineTuning {
+                    lambda_limit: 5.0,
+                    smoke_margin: 0.99,
+                    ..base
+                },
+                "set-point floor",
+            ),
+            (
+                BaselineTuning {
+                    torque: (1e308, 2.0),
+                    ..base
+                },
+                "torque[0] = 1e308",
+            ),
+            (
+                BaselineTuning {
+                    torque: (0.02, -1.0),
+                    ..base
+                },
+                "torque[1] = -1",
+            ),
+            (
+                BaselineTuning {
+                    lambda_vgt: (20.0, f64::NAN),
+                    ..base
+                },
+                "lambda_vgt[1] = NaN",
+            ),
+            (BaselineTuning { d_x: 2.0, ..base }, "d_x = 2"),
+            (
+                BaselineTuning {
+                    d_lambda: 1e308,
+                    ..base
+                },
+                "d_lambda = 1e308",
+            ),
+            (
+                BaselineTuning {
+                    lambda_error_cap: 0.0,
+                    ..base
+                },
+                "lambda_error_cap = 0",
+            ),
+            (
+                BaselineTuning {
+                    lambda_error_cap: f64::INFINITY,
+                    ..base
+                },
+                "lambda_error_cap = inf",
+            ),
+        ] {
+            let e = t.validate().expect_err(field).to_string();
+            assert!(e.contains(field), "{e} (expected {field})");
+        }
+        for t in [
+            base,
+            BaselineTuning {
+                lambda_limit: 5.0,
+                smoke_margin: 0.5,
+                ..base
+            },
+            BaselineTuning {
+                torque: (1e6, 1e6),
+                d_x: 1.0,
+                d_lambda: 10.0,
+                ..base
+            },
+            BaselineTuning {
+                lambda_error_cap: 10.0,
+                x_egr_vgt: (0.0, 0.0),
+                ..base
+            },
+        ] {
+            t.validate().unwrap();
+        }
+    }
 
     /// The metadata names every serialized field but the sample time, in declaration order, so
     /// a field added to the struct without its row (or renamed) fails here.

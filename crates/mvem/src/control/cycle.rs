@@ -18,6 +18,7 @@
 use super::ControlError;
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::dispatch;
+use crate::error::num;
 use crate::model::{AnyModel, Drive, Signals};
 
 /// How the mapping curve is computed.
@@ -343,8 +344,8 @@ impl Demand {
                 "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm \
                  (the parameter set's [input_saturation] n_e)",
                 i + 1,
-                self.t[i],
-                self.n_e[i]
+                num(self.t[i]),
+                num(self.n_e[i])
             ))),
         }
     }
@@ -356,10 +357,10 @@ impl Demand {
             let m_max = curve.m_max_at(self.n_e[i]);
             if self.m_ref[i] > m_max * (1.0 + tol) {
                 return Err(ControlError::Demand(format!(
-                    "row {} (t = {} s): torque {:.1} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm (smoke-limited at lambda_O = {}); the engine cannot follow this demand",
+                    "row {} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm (smoke-limited at lambda_O = {}); the engine cannot follow this demand",
                     i + 1,
-                    self.t[i],
-                    self.m_ref[i],
+                    num(self.t[i]),
+                    num((self.m_ref[i] * 10.0).round() / 10.0),
                     self.n_e[i],
                     m_max,
                     curve.opts.lambda_min
