@@ -321,3 +321,17 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     page.wait_for_selector("canvas[data-plot=cycle][data-drawn='21']", timeout=60000)  # 0..4 s
     assert page.is_hidden("#cycle-stats")
     assert page.is_hidden("#cycle-error")
+    assert "warning" not in page.text_content("#cycle-info")
+    # inputs outside the parameter set's ranges run clamped, and the info line says so
+    wide = tmp_path / "wide.csv"
+    wide.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n"
+                    "2,2600,110,80,75\n4,1500,110,80,75\n")
+    page.set_input_files("input[name=cycle_file]", str(wide))
+    page.wait_for_function(
+        "document.querySelector('select[name=cycle] option[value=__file]').textContent.includes('wide.csv')")
+    page.click("[data-action=cycle]")
+    page.wait_for_function("document.querySelector('#cycle-info').textContent.includes('warning')",
+                           timeout=60000)
+    info = page.text_content("#cycle-info")
+    assert "n_e_rpm leaves [500, 2000] first at t = 2 s (values from 2600 to 2600)" in info, info
+    page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)

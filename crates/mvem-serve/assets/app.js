@@ -440,6 +440,8 @@
         // the regulation's cycle validation of the run (mvem closed-loop's stats.json)
         info += j.passes ? "; regulation check: passes" : `; regulation check fails: ${(j.violations || []).join("; ")}`;
       }
+      // open loop: inputs the model clamped into the parameter set's ranges
+      if ((j.warnings || []).length) info += `; warning: ${j.warnings.join("; ")}`;
       $("#cycle-info").textContent = info;
       const sl = $("input[name=cycle_t]");
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;

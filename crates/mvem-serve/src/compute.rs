@@ -10,7 +10,9 @@ use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleSource, Scheme};
 use mvem::control::{ControlError, Demand, Trajectory};
 use mvem::io::csv_demand::parse_demand_csv;
+use mvem::io::csv_inputs::{input_ranges, range_warnings};
 use mvem::model::{AnyModel, Drive, Model, Signals};
+use mvem::numerics::Num;
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
 use serde_json::{json, Map, Value};
@@ -341,8 +343,10 @@ impl SimulateRequest {
             let (t0, t1) = d.span();
             if t1 - t0 > MAX_CLOSED_SPAN {
                 return Err(input(format!(
-                    "csv: the demand spans {} s ({t0} to {t1} s); mode \"closed\" runs at most {MAX_CLOSED_SPAN} s",
-                    t1 - t0
+                    "csv: the demand spans {} s ({} to {} s); mode \"closed\" runs at most {MAX_CLOSED_SPAN} s",
+                    Num(t1 - t0),
+                    Num(t0),
+                    Num(t1)
                 )));
             }
             let dt = self.output_interval(t0, t1)?;
@@ -380,7 +384,8 @@ impl SimulateRequest {
         let (t0, t1) = (sched.t_first(), sched.t_last());
         if t1 <= t0 {
             return Err(input(format!(
-                "{name}: the inputs span no time (first and last row at {t0} s)"
+                "{name}: the inputs span no time (first and last row at {} s)",
+                Num(t0)
             )));
         }
         let dt = self.output_interval(t0, t1)?;
@@ -393,7 +398,10 @@ impl SimulateRequest {
         let dt = self.dt.unwrap_or(0.1);
         if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
             return Err(input(format!(
-                "dt {dt}: must be > 0 and give at most {MAX_SAMPLES} samples from {t0} to {t1} s"
+                "dt {}: must be > 0 and give at most {MAX_SAMPLES} samples from {} to {} s",
+                Num(dt),
+                Num(t0),
+                Num(t1)
             )));
         }
         Ok(dt)
@@ -461,9 +469,13 @@ fn open_cycle<const N: usize, M: Model<N>>(
         );
         units.insert(n.to_string(), json!(unit(n)));
     }
+    // inputs outside the parameter set's saturation ranges are clamped by the model: say so,
+    // as `mvem simulate` warns on stderr
+    let warnings = range_warnings(sched, &input_ranges(&m.params().input_saturation));
     Ok(json!({
         "source": name,
         "mode": "open",
+        "warnings": warnings,
         "t": sol.t(),
         "series": Value::Object(series),
         "inputs": Value::Object(inputs),

@@ -464,6 +464,30 @@ fn open_loop_csv_equals_the_same_cycle_by_name() {
         assert_eq!(a[key], b[key], "{key}");
     }
     assert_eq!(a["t"].as_array().unwrap().len(), 901);
+    // the WHTC stays inside the published set's input ranges
+    assert_eq!(a["warnings"], serde_json::json!([]));
+}
+
+/// Inputs outside the parameter set's saturation ranges run clamped, and the answer says so
+/// (one warning per channel naming the first row's time outside and the extreme values), as
+/// `mvem simulate` warns on stderr.
+#[test]
+fn open_loop_csv_outside_the_input_ranges_warns() {
+    let csv = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n\
+               0,1200,100,50,50\n2,2600,100,50,50\n4,1200,300,50,50\n";
+    let body = serde_json::json!({"csv": csv, "dt": 1.0});
+    let r = post("/api/simulate", &body.to_string());
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let w: Vec<String> = serde_json::from_value(r.json()["warnings"].clone()).unwrap();
+    assert_eq!(w.len(), 2, "{w:?}");
+    assert!(
+        w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 2 s (values from 2600 to 2600)"),
+        "{w:?}"
+    );
+    assert!(
+        w[1].starts_with("u_delta_mg leaves [1, 250] first at t = 4 s (values from 300 to 300)"),
+        "{w:?}"
+    );
 }
 
 /// Mode `"closed"` with `"csv"`: a speed/torque demand (t, n_e, M_ref), the core's run of it

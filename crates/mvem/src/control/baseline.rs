@@ -37,9 +37,9 @@
 use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, Measurement, Output};
-use crate::error::num;
 use crate::model::meta::VarMeta;
 use crate::model::{AnyModel, Drive};
+use crate::numerics::Num;
 use crate::sim::InputSchedule;
 
 /// Tuning of the baseline controllers (see the module documentation and `docs/control.md`).
@@ -173,7 +173,7 @@ impl BaselineTuning {
         let bad = |field: &str, v: f64, constraint: &str| {
             Err(ControlError::Setup(format!(
                 "controller tuning {field} = {}: {constraint}",
-                num(v)
+                Num(v)
             )))
         };
         let checks: [(&str, f64, bool, &str); 7] = [
@@ -232,9 +232,9 @@ impl BaselineTuning {
                 "controller tuning lambda_limit = {} with smoke_margin = {}: the lambda_O \
                  set-point floor lambda_limit (1 + 2 smoke_margin) = {} must be at most \
                  {LAMBDA_SETPOINT_MAX} (the set-point maps' cap)",
-                num(self.lambda_limit),
-                num(self.smoke_margin),
-                num(floor)
+                Num(self.lambda_limit),
+                Num(self.smoke_margin),
+                Num(floor)
             )));
         }
         for (name, (kp, ki)) in [

@@ -18,8 +18,8 @@
 use super::ControlError;
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::dispatch;
-use crate::error::num;
 use crate::model::{AnyModel, Drive, Signals};
+use crate::numerics::Num;
 
 /// How the mapping curve is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -344,8 +344,8 @@ impl Demand {
                 "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm \
                  (the parameter set's [input_saturation] n_e)",
                 i + 1,
-                num(self.t[i]),
-                num(self.n_e[i])
+                Num(self.t[i]),
+                Num(self.n_e[i])
             ))),
         }
     }
@@ -359,8 +359,8 @@ impl Demand {
                 return Err(ControlError::Demand(format!(
                     "row {} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm (smoke-limited at lambda_O = {}); the engine cannot follow this demand",
                     i + 1,
-                    num(self.t[i]),
-                    num((self.m_ref[i] * 10.0).round() / 10.0),
+                    Num(self.t[i]),
+                    Num((self.m_ref[i] * 10.0).round() / 10.0),
                     self.n_e[i],
                     m_max,
                     curve.opts.lambda_min
