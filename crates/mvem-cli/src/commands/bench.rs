@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use mvem::analysis::ensemble::{simulate_many, Case};
 use mvem::analysis::steady::chunk_guess;
 use mvem::model::{AnyModel, Model, ModelInput};
+use mvem::numerics::Num;
 use mvem::sim::{
     simulate, simulate_into_with_guess, InputSchedule, SimOptions, SimStats, Solution, Start,
 };
@@ -85,8 +86,12 @@ pub fn run(a: &Args) -> Result<()> {
         return ensemble(&model, n as usize, a.repeat, &sched, &source, &opts);
     }
     println!(
-        "mvem bench: {source}, t = {t0} .. {t_end} s, rtol {:e}, atol {:e}, output every {} s",
-        opts.rtol, opts.atol, opts.dt_out
+        "mvem bench: {source}, t = {} .. {} s, rtol {:e}, atol {:e}, output every {} s",
+        Num(t0),
+        Num(t_end),
+        opts.rtol,
+        opts.atol,
+        Num(opts.dt_out)
     );
     mvem::dispatch!(&model, m => bench(m, a, &sched, t0, t_end, &opts))
 }

@@ -6,6 +6,7 @@ use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
 use mvem::analysis::steady::{chunk_guess, simulate_from_steady, simulate_from_steady_into};
 use mvem::model::Model;
+use mvem::numerics::Num;
 use mvem::sim::{
     simulate_into_with_guess, simulate_with_guess, Block, InputSchedule, Junction, SignalEvaluator,
     SimOptions, SimStats, Solution, Start,
@@ -215,7 +216,9 @@ pub fn run(a: &Args) -> Result<()> {
     let wall = written.wall;
     let st = written.stats;
     eprintln!(
-        "simulated {source}, t = {t0} .. {t_end} s, in {} wall time: {} steps ({} rejected), {} RHS evaluations, {} input breakpoints",
+        "simulated {source}, t = {} .. {} s, in {} wall time: {} steps ({} rejected), {} RHS evaluations, {} input breakpoints",
+        Num(t0),
+        Num(t_end),
         common::fmt_duration(wall),
         st.steps,
         st.rejected,
