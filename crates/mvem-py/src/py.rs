@@ -835,8 +835,8 @@ fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 ///
 /// Plant(n_e, u_delta, u_egr, u_vgt, model=8, params=None) starts at t = 0 in the steady state of
 /// these commands (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]). step(dt, n_e=,
-/// u_delta=, u_egr=, u_vgt=) holds the commands for dt [s] (a command left out keeps its last
-/// value) and returns a dict of the outputs at the end: the states (p_im [Pa], p_em [Pa], X_Oim,
+/// u_delta=, u_egr=, u_vgt=) holds the commands for dt [s] (0 < dt <= 1e6; a command left out
+/// keeps its last value) and returns a dict of the outputs at the end: the states (p_im [Pa], p_em [Pa], X_Oim,
 /// X_Oem [-], omega_t [rad/s], actuator states [%], ...) and every signal (W_c [kg/s], lambda_O,
 /// x_egr [-], M_e [Nm], ...). State, cylinder-temperature memory, the exact actuator delays and
 /// the integrator's warm state carry over between calls; the GIL is released while integrating.
@@ -889,7 +889,8 @@ impl Plant {
         Ok(Self { inner, cmd, ranges })
     }
 
-    /// Hold the commands for dt [s]; returns the outputs at the end (dict of floats).
+    /// Hold the commands for dt [s] (0 < dt <= 1e6); returns the outputs at the end (dict of
+    /// floats).
     #[pyo3(signature = (dt, n_e=None, u_delta=None, u_egr=None, u_vgt=None))]
     fn step<'py>(
         &mut self,

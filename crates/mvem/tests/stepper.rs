@@ -104,9 +104,18 @@ fn check_stepping(
 fn bad_commands_and_steps_are_errors() {
     let m = Engine8::published();
     let d0 = Drive::new(1500.0, 110.0, 80.0, 75.0);
-    let mut plant = plant_from_steady(m, d0, 0.0, &SimOptions::default()).unwrap();
+    let mut plant = plant_from_steady(m.clone(), d0, 0.0, &SimOptions::default()).unwrap();
     let e = plant.step(0.0, d0).unwrap_err().to_string();
     assert!(e.contains("dt"), "{e}");
+    // a step longer than MAX_STEP_LENGTH (1e6 s) is refused; 1e308 s once filled the memory
+    for dt in [1e308, f64::INFINITY, f64::NAN, 2e6] {
+        let e = plant.step(dt, d0).unwrap_err().to_string();
+        assert!(e.contains("at most 1e6 s"), "{dt}: {e}");
+    }
+    // the longest step runs (the steady state held: 10^6 s in a few large steps)
+    let mut held = plant_from_steady(m, d0, 0.0, &SimOptions::default()).unwrap();
+    held.step(mvem::sim::stepper::MAX_STEP_LENGTH, d0).unwrap();
+    assert_eq!(held.t(), 1e6);
     let e = plant
         .step(0.01, Drive::new(1500.0, f64::NAN, 80.0, 75.0))
         .unwrap_err()

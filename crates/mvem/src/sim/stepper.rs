@@ -76,8 +76,14 @@ pub fn plant_options() -> SimOptions {
     }
 }
 
-/// Output interval that never comes: the stepper reads the state, not output samples.
+/// Output interval that never comes: the stepper reads the state, not output samples (a step
+/// is at most [`MAX_STEP_LENGTH`], far shorter).
 const NO_OUTPUT: f64 = 1e300;
+
+/// Longest step [`Plant::step`] takes \[s\] (about 11.6 days with the commands held; longer
+/// steps are refused: before session 27 a step of 1e308 s reached the output interval that never
+/// comes and filled the memory with samples).
+pub const MAX_STEP_LENGTH: f64 = 1e6;
 
 impl<const N: usize, M: Model<N>> Plant<N, M> {
     /// Start at `t0` in the state `y0` with the commands `d` held since forever (the delayed
@@ -183,11 +189,11 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
     /// Hold the commands `d` for `dt` seconds and integrate; returns the signals at the end
     /// (with the commands `d`, i.e. the left limit before the next command change).
     pub fn step(&mut self, dt: f64, d: Drive) -> Result<&Signals, SimError> {
-        if !(dt.is_finite() && dt > 0.0) {
+        if !(dt > 0.0 && dt <= MAX_STEP_LENGTH) {
             return Err(SimError::BadOption {
                 field: "dt",
                 value: dt,
-                constraint: "step length must be finite and > 0",
+                constraint: "step length must be > 0 and at most 1e6 s",
             });
         }
         check_drive(&d, self.t)?;
