@@ -375,8 +375,12 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
             }
             if v < c.min || v > c.max {
                 return Err(bad(format!(
-                    "{v} {} is outside the plausible range [{}, {}] {} (wrong unit?)",
-                    c.unit, c.min, c.max, c.unit
+                    "{} {} is outside the plausible range [{}, {}] {} (wrong unit?)",
+                    crate::numerics::Num(v),
+                    c.unit,
+                    c.min,
+                    c.max,
+                    c.unit
                 )));
             }
             row.push(v);
