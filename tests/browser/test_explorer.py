@@ -56,6 +56,8 @@ def page(browser, server):
     errors = []
     pg.on("console", lambda m: errors.append(f"console.{m.type}: {m.text}") if m.type == "error" else None)
     pg.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+    # a test that provokes an error answer on purpose takes its console line out of this list
+    pg.console_errors = errors
     pg.goto(server)
     pg.wait_for_selector("body[data-state=ready]", timeout=15000)
     yield pg
@@ -259,6 +261,30 @@ def test_closed_loop_controller_tuning(page, server):
     assert page.is_hidden("#cycle-stats")
     page.click("[data-action=tuning-defaults]")
     assert page.input_value("input[data-tuning='torque[0]']") == str(defaults["torque"][0])
+    # each field shows its accepted interval (BaselineTuning::BOUNDS through /api/models); a value
+    # outside is marked by the browser and refused by the server naming the interval
+    fields = {f["name"]: f for f in _api(server, "/api/models")["controller_tuning"]["fields"]}
+    intervals = dict(page.eval_on_selector_all(
+        "#tuning-fields tr", "trs => trs.map(tr => [tr.cells[0].textContent, tr.cells[3].textContent])"))
+    assert intervals == {n: f["bounds"]["interval"] for n, f in fields.items()}, intervals
+    assert intervals["lambda_limit"] == "[1, 5]" and intervals["smoke_margin"] == "[0, 1)"
+    page.fill("input[data-tuning=lambda_limit]", "9.9")
+    assert page.eval_on_selector("input[data-tuning=lambda_limit]", "e => !e.checkValidity()")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    page.wait_for_function(
+        "document.querySelector('#cycle-error').textContent.includes('lambda_limit = 9.9: must be in [1, 5]')")
+    assert page.is_hidden("#cycle-stats")
+    # the one console line of that 400 (Chromium logs every failed request; its event may reach
+    # Python after the page has shown the error)
+    line = "console.error: Failed to load resource: the server responded with a status of 400 (Bad Request)"
+    for _ in range(40):
+        if line in page.console_errors:
+            break
+        page.wait_for_timeout(50)
+    page.console_errors.remove(line)
+    page.click("[data-action=tuning-defaults]")
+    assert page.eval_on_selector("input[data-tuning=lambda_limit]", "e => e.checkValidity()")
     # two changed entries reach the server
     page.fill("input[data-tuning='torque[0]']", "0.01")
     page.fill("input[data-tuning=lambda_limit]", "1.25")

@@ -472,12 +472,15 @@
         if (lab) { const l = document.createElement("span"); l.className = "unit"; l.textContent = ` ${lab} `; inputs.append(l); }
         const inp = document.createElement("input");
         inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key; inp.setAttribute("aria-label", key);
+        // the accepted interval (BaselineTuning::BOUNDS): the browser marks a value outside it
+        // (min/max include their ends; an open end is the server's to refuse)
+        if (f.bounds) { inp.min = String(f.bounds.lo); inp.max = String(f.bounds.hi); inp.title = `accepted: ${f.bounds.interval}`; }
         inputs.append(inp);
       }
       const name = cell("", f.name);
       name.title = f.description;
       const tr = document.createElement("tr");
-      tr.append(name, inputs, cell("unit", f.unit), cell("d", f.description));
+      tr.append(name, inputs, cell("unit", f.unit), cell("unit iv", f.bounds ? f.bounds.interval : ""), cell("d", f.description));
       return tr;
     }));
     resetTuning();

@@ -338,9 +338,16 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
         // a user sets, its unit and description (the page's tuning form)
         "controller_tuning": {
             "defaults": mvem::control::baseline::BaselineTuning::default(),
+            // with the interval each value must lie in (BaselineTuning::BOUNDS, in the same
+            // order): "lo", "hi", "lo_open", "hi_open" and the notation "interval"
             "fields": mvem::control::baseline::BaselineTuning::FIELDS
                 .iter()
-                .map(|f| json!({"name": f.name, "unit": f.unit, "description": f.description}))
+                .zip(mvem::control::baseline::BaselineTuning::BOUNDS)
+                .map(|(f, (_, b))| json!({
+                    "name": f.name, "unit": f.unit, "description": f.description,
+                    "bounds": {"lo": b.lo, "hi": b.hi, "lo_open": b.lo_open, "hi_open": b.hi_open,
+                               "interval": b.interval()},
+                }))
                 .collect::<Vec<_>>(),
         },
         "limits": {

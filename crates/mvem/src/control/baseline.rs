@@ -164,66 +164,92 @@ impl BaselineTuning {
         },
     ];
 
-    /// Check every field (finite; PI gains in [0, [`Self::GAIN_MAX`]]; lambda_lim in [1, 5]
-    /// and the set-point floor lambda_lim (1 + 2 smoke margin) at most
-    /// [`LAMBDA_SETPOINT_MAX`]; the smoke margin in [0, 1); d_x in [0, 1]; d_lambda in
-    /// [0, 10]; the lambda_O error cap in (0, 10]; the full-load VGT limit in [20, 100] %; the
-    /// sample time in (0, 1] s). The error names the field, its value and the constraint.
+    /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
+    /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
+    /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
+    pub const BOUNDS: [(&'static str, Bounds); 11] = [
+        (
+            "lambda_limit",
+            Bounds::closed(
+                1.0,
+                5.0,
+                " (below 1: richer than stoichiometric; above 5: no fuel left)",
+            ),
+        ),
+        (
+            "smoke_margin",
+            Bounds {
+                hi_open: true,
+                ..Bounds::closed(0.0, 1.0, "")
+            },
+        ),
+        ("torque", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        ("x_egr_vgt", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        ("x_egr_egr", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        (
+            "d_x",
+            Bounds::closed(0.0, 1.0, " (a band of the EGR fraction)"),
+        ),
+        ("lambda_egr", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        ("lambda_vgt", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        ("d_lambda", Bounds::closed(0.0, 10.0, "")),
+        (
+            "lambda_error_cap",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(0.0, 10.0, "")
+            },
+        ),
+        (
+            "u_vgt_full_load",
+            Bounds::closed(20.0, 100.0, " % (the VGT's command range)"),
+        ),
+    ];
+
+    /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 11] {
+        [
+            ("lambda_limit", [self.lambda_limit, 0.0], 1),
+            ("smoke_margin", [self.smoke_margin, 0.0], 1),
+            ("torque", [self.torque.0, self.torque.1], 2),
+            ("x_egr_vgt", [self.x_egr_vgt.0, self.x_egr_vgt.1], 2),
+            ("x_egr_egr", [self.x_egr_egr.0, self.x_egr_egr.1], 2),
+            ("d_x", [self.d_x, 0.0], 1),
+            ("lambda_egr", [self.lambda_egr.0, self.lambda_egr.1], 2),
+            ("lambda_vgt", [self.lambda_vgt.0, self.lambda_vgt.1], 2),
+            ("d_lambda", [self.d_lambda, 0.0], 1),
+            ("lambda_error_cap", [self.lambda_error_cap, 0.0], 1),
+            ("u_vgt_full_load", [self.u_vgt_full_load, 0.0], 1),
+        ]
+    }
+
+    /// Check every field: finite and in its [`Self::BOUNDS`] (PI gains in [0,
+    /// [`Self::GAIN_MAX`]], lambda_lim in [1, 5], the smoke margin in [0, 1), d_x in [0, 1],
+    /// d_lambda in [0, 10], the lambda_O error cap in (0, 10], the full-load VGT limit in
+    /// [20, 100] %), the set-point floor lambda_lim (1 + 2 smoke margin) at most
+    /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field, its
+    /// value and the constraint.
     pub fn validate(&self) -> Result<(), ControlError> {
-        let bad = |field: &str, v: f64, constraint: &str| {
+        let bad = |field: &str, v: f64, constraint: String| {
             Err(ControlError::Setup(format!(
                 "controller tuning {field} = {}: {constraint}",
                 Num(v)
             )))
         };
-        let checks: [(&str, f64, bool, &str); 7] = [
-            (
-                "ts",
-                self.ts,
-                self.ts > 0.0 && self.ts <= 1.0,
-                "must be in (0, 1] s",
-            ),
-            (
-                "lambda_limit",
-                self.lambda_limit,
-                (1.0..=5.0).contains(&self.lambda_limit),
-                "must be in [1, 5] (below 1: richer than stoichiometric; above 5: no fuel left)",
-            ),
-            (
-                "smoke_margin",
-                self.smoke_margin,
-                (0.0..1.0).contains(&self.smoke_margin),
-                "must be in [0, 1)",
-            ),
-            (
-                "d_x",
-                self.d_x,
-                (0.0..=1.0).contains(&self.d_x),
-                "must be in [0, 1] (a band of the EGR fraction)",
-            ),
-            (
-                "d_lambda",
-                self.d_lambda,
-                (0.0..=10.0).contains(&self.d_lambda),
-                "must be in [0, 10]",
-            ),
-            (
-                "lambda_error_cap",
-                self.lambda_error_cap,
-                self.lambda_error_cap > 0.0 && self.lambda_error_cap <= 10.0,
-                "must be in (0, 10]",
-            ),
-            (
-                "u_vgt_full_load",
-                self.u_vgt_full_load,
-                (20.0..=100.0).contains(&self.u_vgt_full_load),
-                "must be in [20, 100] % (the VGT's command range)",
-            ),
-        ];
-        for (field, v, ok, constraint) in checks {
-            // NaN fails every comparison above
-            if !v.is_finite() || !ok {
-                return bad(field, v, constraint);
+        if !(self.ts > 0.0 && self.ts <= 1.0) {
+            return bad("ts", self.ts, "must be in (0, 1] s".into());
+        }
+        for ((name, vals, n), (bname, b)) in self.field_values().into_iter().zip(Self::BOUNDS) {
+            debug_assert_eq!(name, bname);
+            for (k, &v) in vals[..n].iter().enumerate() {
+                if !b.contains(v) {
+                    let field = if n == 2 {
+                        format!("{name}[{k}]")
+                    } else {
+                        name.to_string()
+                    };
+                    return bad(&field, v, format!("must be in {}{}", b.interval(), b.note));
+                }
             }
         }
         let floor = self.lambda_limit * (1.0 + 2.0 * self.smoke_margin);
@@ -237,20 +263,71 @@ impl BaselineTuning {
                 Num(floor)
             )));
         }
-        for (name, (kp, ki)) in [
-            ("torque", self.torque),
-            ("x_egr_vgt", self.x_egr_vgt),
-            ("x_egr_egr", self.x_egr_egr),
-            ("lambda_egr", self.lambda_egr),
-            ("lambda_vgt", self.lambda_vgt),
-        ] {
-            for (k, v) in [(0, kp), (1, ki)] {
-                if !(0.0..=Self::GAIN_MAX).contains(&v) {
-                    return bad(&format!("{name}[{k}]"), v, "must be in [0, 1e6]");
-                }
-            }
-        }
         Ok(())
+    }
+}
+
+/// The interval a tuning value must lie in: from `lo` to `hi`, each end included unless marked
+/// open (NaN and infinities are never in it).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Bounds {
+    /// Lower end.
+    pub lo: f64,
+    /// Upper end.
+    pub hi: f64,
+    /// Whether `lo` itself is excluded.
+    pub lo_open: bool,
+    /// Whether `hi` itself is excluded.
+    pub hi_open: bool,
+    /// What the error message adds after the interval (a unit, a reason), or "".
+    #[serde(skip)]
+    pub note: &'static str,
+}
+
+impl Bounds {
+    /// `[lo, hi]`.
+    pub const fn closed(lo: f64, hi: f64, note: &'static str) -> Self {
+        Self {
+            lo,
+            hi,
+            lo_open: false,
+            hi_open: false,
+            note,
+        }
+    }
+
+    /// Whether `v` lies in the interval.
+    pub fn contains(&self, v: f64) -> bool {
+        v.is_finite()
+            && (if self.lo_open {
+                v > self.lo
+            } else {
+                v >= self.lo
+            })
+            && (if self.hi_open {
+                v < self.hi
+            } else {
+                v <= self.hi
+            })
+    }
+
+    /// The interval in the usual notation: `[0, 1)`, `(0, 10]`, `[0, 1e6]` (ends from 1e4 on in
+    /// scientific notation).
+    pub fn interval(&self) -> String {
+        let end = |v: f64| {
+            if v.abs() >= 1e4 {
+                format!("{v:e}")
+            } else {
+                Num(v).to_string()
+            }
+        };
+        format!(
+            "{}{}, {}{}",
+            if self.lo_open { "(" } else { "[" },
+            end(self.lo),
+            end(self.hi),
+            if self.hi_open { ")" } else { "]" }
+        )
     }
 }
 
@@ -674,6 +751,27 @@ mod tests {
         ] {
             t.validate().unwrap();
         }
+    }
+
+    /// The bounds name the fields of the metadata in its order, and their notation.
+    #[test]
+    fn bounds_follow_the_fields() {
+        let names: Vec<&str> = BaselineTuning::FIELDS.iter().map(|f| f.name).collect();
+        let bounds: Vec<&str> = BaselineTuning::BOUNDS.iter().map(|b| b.0).collect();
+        assert_eq!(names, bounds);
+        let b = |name: &str| {
+            BaselineTuning::BOUNDS
+                .iter()
+                .find(|b| b.0 == name)
+                .unwrap()
+                .1
+        };
+        assert_eq!(b("smoke_margin").interval(), "[0, 1)");
+        assert_eq!(b("lambda_error_cap").interval(), "(0, 10]");
+        assert_eq!(b("torque").interval(), "[0, 1e6]");
+        assert!(!b("smoke_margin").contains(1.0) && b("smoke_margin").contains(0.0));
+        assert!(!b("lambda_error_cap").contains(0.0) && b("lambda_error_cap").contains(10.0));
+        assert!(!b("d_x").contains(f64::NAN) && !b("d_lambda").contains(f64::INFINITY));
     }
 
     /// The metadata names every serialized field but the sample time, in declaration order, so
