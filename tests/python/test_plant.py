@@ -62,6 +62,17 @@ def test_air_path_env_passes_check_env():
     assert np.isfinite(total)
     assert env.observation_space.contains(obs)
     assert isinstance(gym.__version__, str)
+    # an action of the wrong shape or with NaN is a ValueError naming what is expected; one
+    # outside [-1, 1] is clipped to it (inf too)
+    env.reset(seed=3)
+    for bad in ([0.5], [0.0, np.nan], [[0.0, 0.0], [0.0, 0.0]]):
+        with pytest.raises(ValueError, match=r"action: expected 2 finite numbers in \[-1, 1\]"):
+            env.step(np.array(bad))
+    clipped = env.step(np.array([5.0, -5.0]))
+    env.reset(seed=3)
+    edge = env.step(np.array([1.0, -1.0]))
+    assert clipped[1] == edge[1]
+    np.testing.assert_array_equal(clipped[0], edge[0])
 
 
 def test_out_of_range_commands_are_clamped_with_a_warning():

@@ -85,7 +85,10 @@ class AirPathEnv(gym.Env):
         return obs, {"t": 0.0}
 
     def step(self, action):
-        a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (2,) or not np.isfinite(a).all():
+            raise ValueError(f"action: expected 2 finite numbers in [-1, 1] (u_egr, u_vgt), got {action!r}")
+        a = np.clip(a, -1.0, 1.0)
         u_egr = 50.0 * (a[0] + 1.0)
         u_vgt = 20.0 + 40.0 * (a[1] + 1.0)
         n_e, u_delta = self._point(self._plant.t)
