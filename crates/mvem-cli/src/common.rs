@@ -52,7 +52,11 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
             || c.is::<mvem::sim::ScheduleError>()
             || matches!(
                 c.downcast_ref::<SimError>(),
-                Some(SimError::BadOption { .. } | SimError::BadInterval { .. })
+                Some(
+                    SimError::BadOption { .. }
+                        | SimError::BadCommand { .. }
+                        | SimError::BadInterval { .. }
+                )
             )
             || matches!(
                 c.downcast_ref::<mvem::analysis::steady::SteadyError>(),

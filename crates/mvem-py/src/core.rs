@@ -447,7 +447,7 @@ pub fn simulate_many_rows_from(
 
 fn sim_error(e: SimError) -> CoreError {
     match e {
-        SimError::BadOption { .. } | SimError::BadInterval { .. } => {
+        SimError::BadOption { .. } | SimError::BadCommand { .. } | SimError::BadInterval { .. } => {
             CoreError::Value(e.to_string())
         }
         other => CoreError::Runtime(other.to_string()),
@@ -742,7 +742,9 @@ impl CorePlant {
             .step(dt, Drive::from_array(d))
             .map(|_| ())
             .map_err(|e| match e {
-                SimError::BadOption { .. } => CoreError::Value(e.to_string()),
+                SimError::BadOption { .. } | SimError::BadCommand { .. } => {
+                    CoreError::Value(e.to_string())
+                }
                 other => CoreError::Runtime(other.to_string()),
             })
     }

@@ -355,6 +355,7 @@ pub enum Outcome {
 pub fn error_class(e: &SimError) -> String {
     match e {
         SimError::BadOption { field, .. } => format!("BadOption({field})"),
+        SimError::BadCommand { name, .. } => format!("BadCommand({name})"),
         SimError::BadInterval { .. } => "BadInterval".into(),
         SimError::NonFinite { what, name, .. } => format!("NonFinite({what} {name})"),
         SimError::StepSizeTooSmall { .. } => "StepSizeTooSmall".into(),

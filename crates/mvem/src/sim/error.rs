@@ -16,6 +16,16 @@ pub enum SimError {
         /// Constraint.
         constraint: &'static str,
     },
+    /// A command given to the plant stepper is not a finite number.
+    #[error("command {name} = {} at t = {} s: must be finite", crate::numerics::Num(*value), crate::numerics::Num(*t))]
+    BadCommand {
+        /// Input name (`n_e`, `u_delta`, `u_egr`, `u_vgt`).
+        name: &'static str,
+        /// Value.
+        value: f64,
+        /// The plant's time \[s\].
+        t: f64,
+    },
     /// The end time is not after the start time.
     #[error("end time {t_end} s must be after start time {t0} s")]
     BadInterval {

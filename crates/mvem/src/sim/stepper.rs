@@ -273,15 +273,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
 fn check_drive(d: &Drive, t: f64) -> Result<(), SimError> {
     for (name, v) in Drive::NAMES.iter().zip(d.to_array()) {
         if !v.is_finite() {
-            return Err(SimError::BadOption {
-                field: name,
-                value: v,
-                constraint: if t.is_finite() {
-                    "command must be finite"
-                } else {
-                    "command must be finite (and the time too)"
-                },
-            });
+            return Err(SimError::BadCommand { name, value: v, t });
         }
     }
     Ok(())
