@@ -759,6 +759,10 @@ mod tests {
         let names: Vec<&str> = BaselineTuning::FIELDS.iter().map(|f| f.name).collect();
         let bounds: Vec<&str> = BaselineTuning::BOUNDS.iter().map(|b| b.0).collect();
         assert_eq!(names, bounds);
+        // validate pairs each value with its bound by position
+        let values = BaselineTuning::default().field_values();
+        let value_names: Vec<&str> = values.iter().map(|v| v.0).collect();
+        assert_eq!(value_names, bounds);
         let b = |name: &str| {
             BaselineTuning::BOUNDS
                 .iter()
