@@ -22,7 +22,8 @@ host=$(rustc -vV | awk '/^host:/ {print $2}')
 profdata="$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-profdata"
 if [ ! -x "$profdata" ]; then
     echo "== installing the rustup component llvm-tools (llvm-profdata of this toolchain)"
-    rustup component add llvm-tools
+    # "llvm-tools" since rustup 1.26 knows the rename; older ones only "llvm-tools-preview"
+    rustup component add llvm-tools || rustup component add llvm-tools-preview
 fi
 [ -x "$profdata" ] || { echo "build-pgo.sh: no llvm-profdata at $profdata" >&2; exit 1; }
 
