@@ -121,7 +121,7 @@ fn float_list(np: &Bound<'_, PyModule>, obj: &Bound<'_, PyAny>, what: &str) -> P
             "{what}: expected a 1-D array, got {ndim}-D"
         )));
     }
-    arr.call_method0("tolist")?.extract()
+    f64_values(np, &arr)
 }
 
 /// A 1-D float64 numpy array holding `v`: through one bytearray (`numpy.frombuffer`, writable,
