@@ -3,7 +3,7 @@
 //! keys like `c_wpsiVec`). Loading validates: unknown or missing fields and invalid values are
 //! errors that name the field (and line/column where the parser knows them).
 
-use super::IoError;
+use super::{format_err, IoError};
 use crate::params::Params;
 use std::path::Path;
 
@@ -82,25 +82,16 @@ pub const FLAT_KEYS: &[(&str, &str)] = &[
     ("k_ic", "intercooler.k_ic"),
 ];
 
-fn fmt_err(path: &Path, line: Option<usize>, column: Option<String>, message: String) -> IoError {
-    IoError::Format {
-        path: path.to_path_buf(),
-        line,
-        column,
-        message,
-    }
-}
-
 /// Parse a parameter document (TOML, nested JSON or the authors' flat JSON) and validate it.
 /// `path` is used in error messages only.
 pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
     let trimmed = text.trim_start();
     let p: Params = if trimmed.starts_with('{') {
         let v: serde_json::Value = serde_json::from_str(text).map_err(|e| {
-            fmt_err(
+            format_err(
                 path,
                 Some(e.line()),
-                Some(e.column().to_string()),
+                Some(&e.column().to_string()),
                 e.to_string(),
             )
         })?;
@@ -112,7 +103,7 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                     o.remove(super::test_cell::SECTION);
                 }
                 serde_json::from_value(nested)
-                    .map_err(|e| fmt_err(path, None, None, e.to_string()))?
+                    .map_err(|e| format_err(path, None, None, e.to_string()))?
             }
             // nested JSON with a test-cell section: drop it and read the rest
             None if v.get(super::test_cell::SECTION).is_some() => {
@@ -121,15 +112,15 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
                     o.remove(super::test_cell::SECTION);
                 }
                 serde_json::from_value(nested)
-                    .map_err(|e| fmt_err(path, None, None, e.to_string()))?
+                    .map_err(|e| format_err(path, None, None, e.to_string()))?
             }
             // nested JSON: parse the text again into the typed structure, so that an unknown
             // or missing field is reported at its line and column
             None => serde_json::from_str(text).map_err(|e| {
-                fmt_err(
+                format_err(
                     path,
                     Some(e.line()),
-                    Some(e.column().to_string()),
+                    Some(&e.column().to_string()),
                     e.to_string(),
                 )
             })?,
@@ -141,7 +132,7 @@ pub fn parse_params(text: &str, path: &Path) -> Result<Params, IoError> {
         toml::from_str(text).map_err(|e| {
             // 1-based line of the span's start: newlines before it, plus one
             let line = e.span().map(|s| line_of(text, s.start));
-            fmt_err(path, line, None, e.message().to_string())
+            format_err(path, line, None, e.message().to_string())
         })?
     };
     p.validate().map_err(|issues| IoError::Params {
@@ -162,21 +153,16 @@ pub(crate) fn line_of(text: &str, at: usize) -> usize {
 }
 
 fn flat_to_nested(flat: &serde_json::Value, path: &Path) -> Result<serde_json::Value, IoError> {
-    let obj = flat.as_object().ok_or_else(|| {
-        fmt_err(
-            path,
-            None,
-            Some("parameters".into()),
-            "must be an object".into(),
-        )
-    })?;
+    let obj = flat
+        .as_object()
+        .ok_or_else(|| format_err(path, None, Some("parameters"), "must be an object".into()))?;
     let mut root = serde_json::Map::new();
     for (k, v) in obj {
         let Some((_, dotted)) = FLAT_KEYS.iter().find(|(f, _)| f == k) else {
-            return Err(fmt_err(
+            return Err(format_err(
                 path,
                 None,
-                Some(k.clone()),
+                Some(k),
                 format!("unknown parameter `{k}`"),
             ));
         };
