@@ -131,8 +131,13 @@ fn f64_array<'py>(np: &Bound<'py, PyModule>, v: &[f64]) -> PyResult<Bound<'py, P
     if v.is_empty() {
         return np.call_method1("zeros", (0, "float64"));
     }
-    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_ne_bytes()).collect();
-    let buf = PyByteArray::new(np.py(), &bytes);
+    // the values written straight into the bytearray's memory (no intermediate copy)
+    let buf = PyByteArray::new_with(np.py(), std::mem::size_of_val(v), |b| {
+        for (w, x) in b.chunks_exact_mut(8).zip(v) {
+            w.copy_from_slice(&x.to_ne_bytes());
+        }
+        Ok(())
+    })?;
     np.call_method1("frombuffer", (buf, "float64"))
 }
 
