@@ -6,9 +6,10 @@
 # Usage: bash scripts/build-pgo.sh
 #   1. finds llvm-profdata of the active Rust toolchain (installs the rustup component
 #      `llvm-tools` when it is missing; needs rustup and network access to its server),
-#   2. builds an instrumented binary (target/pgo-gen) and runs the training workload: `mvem bench`
-#      on the WHTC for 8, 10 and 12 states, `mvem simulate --scenario whtc` writing CSV and
-#      Parquet, `mvem closed-loop --cycle whtc`,
+#   2. builds an instrumented binary (target/pgo-gen) and runs the training workload
+#      (scripts/pgo-workload.sh, which CI runs with its test build): `mvem bench` on the WHTC for
+#      8, 10 and 12 states, `mvem simulate --scenario whtc` writing CSV and Parquet,
+#      `mvem closed-loop --cycle whtc`,
 #   3. merges the profiles and builds the optimized binary: target/pgo/release/mvem,
 #   4. checks that it writes the same WHTC CSV (8, 10 and 12 states) and closed-loop trajectory,
 #      byte for byte, as the plain `cargo build --release` binary (built if missing).
@@ -32,13 +33,10 @@ trap 'rm -rf "$work"' EXIT
 echo "== instrumented build (target/pgo-gen)"
 RUSTFLAGS="-Cprofile-generate=$work/raw" cargo build --release -q -p mvem-cli --target-dir target/pgo-gen
 gen=target/pgo-gen/release/mvem
-echo "== training run"
-for m in 8 10 12; do
-    "$gen" bench --model "$m" --repeat 3 --no-reference --time-parallel 1 --evals 100000 >/dev/null
-done
-"$gen" simulate --scenario whtc --dt 0.1 --out "$work/train.csv" >/dev/null 2>&1
-"$gen" simulate --scenario whtc --dt 0.1 --out "$work/train.parquet" >/dev/null 2>&1
-"$gen" closed-loop --cycle whtc --out "$work/train-cl" >/dev/null 2>&1
+echo "== training run (scripts/pgo-workload.sh)"
+bash scripts/pgo-workload.sh "$gen" "$work/train"
+compgen -G "$work/raw/*.profraw" >/dev/null ||
+    { echo "build-pgo.sh: the training run wrote no profile (.profraw) in $work/raw" >&2; exit 1; }
 "$profdata" merge -o "$work/mvem.profdata" "$work/raw"
 echo "== optimized build (target/pgo)"
 RUSTFLAGS="-Cprofile-use=$work/mvem.profdata" cargo build --release -q -p mvem-cli --target-dir target/pgo

@@ -28,6 +28,10 @@ cargo test --workspace --profile "$MVEM_PROFILE" --no-run
 lap "cargo test build"
 cargo test --workspace --profile "$MVEM_PROFILE"
 lap "cargo test"
+# the PGO build's training workload with the test build's binary (seconds): a changed command line
+# fails here instead of leaving scripts/build-pgo.sh (not run by CI, ~8 min) without a profile
+bash scripts/pgo-workload.sh "target/$MVEM_PROFILE/mvem" "target/$MVEM_PROFILE/pgo-workload"
+lap "PGO training workload"
 bash scripts/test-python.sh
 lap "Python tests"
 bash scripts/test-browser.sh
