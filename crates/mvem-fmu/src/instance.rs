@@ -25,6 +25,7 @@ use crate::vars::{self, FmuConfig, Kind, Layout};
 use mvem::analysis::steady::steady_state;
 use mvem::components::cylinder::SeligerIterate;
 use mvem::model::{AnyModel, CylinderTemp, Drive, Model, ModelInput, ModelOptions, Signals};
+use mvem::numerics::Num;
 use mvem::params::Params;
 use mvem::sim::{InputSchedule, Integrator, SimOptions, Solution};
 
@@ -232,13 +233,15 @@ impl Instance {
         self.require("fmi2SetupExperiment", &[Phase::Instantiated])?;
         if !t_start.is_finite() {
             return Err(FmuError::error(format!(
-                "fmi2SetupExperiment: startTime = {t_start} is not finite"
+                "fmi2SetupExperiment: startTime = {} is not finite",
+                Num(t_start)
             )));
         }
         if let Some(tol) = tolerance {
             if !(1e-13..1.0).contains(&tol) {
                 return Err(FmuError::error(format!(
-                    "fmi2SetupExperiment: tolerance = {tol} must lie in [1e-13, 1)"
+                    "fmi2SetupExperiment: tolerance = {} must lie in [1e-13, 1)",
+                    Num(tol)
                 )));
             }
             self.rtol = tol;
@@ -246,7 +249,9 @@ impl Instance {
         if let Some(ts) = t_stop {
             if !(ts.is_finite() && ts >= t_start) {
                 return Err(FmuError::error(format!(
-                    "fmi2SetupExperiment: stopTime = {ts} must be finite and >= startTime = {t_start}"
+                    "fmi2SetupExperiment: stopTime = {} must be finite and >= startTime = {}",
+                    Num(ts),
+                    Num(t_start)
                 )));
             }
         }
@@ -472,11 +477,27 @@ impl Instance {
         self.require("fmi2SetTime", &[Phase::Event, Phase::ContinuousTime])?;
         if !t.is_finite() {
             return Err(FmuError::error(format!(
-                "fmi2SetTime: time = {t} is not finite"
+                "fmi2SetTime: time = {} is not finite",
+                Num(t)
             )));
         }
+        self.check_stop_time("fmi2SetTime", t)?;
         self.t = t;
         Ok(())
+    }
+
+    /// FMI 2.0 (fmi2SetupExperiment): with a stop time defined, computing past it is an error.
+    /// A relative 1e-8 is allowed for rounding (FMPy clips its last communication point to the
+    /// stop time within `math.isclose`, 1e-9 relative).
+    fn check_stop_time(&self, function: &str, t: f64) -> FmuResult<()> {
+        match self.t_stop {
+            Some(ts) if t > ts + 1e-8 * ts.abs().max(1.0) => Err(FmuError::error(format!(
+                "{function}: time {} is past the stopTime {} given to fmi2SetupExperiment",
+                Num(t),
+                Num(ts)
+            ))),
+            _ => Ok(()),
+        }
     }
 
     /// fmi2SetContinuousStates.
@@ -789,18 +810,29 @@ impl Instance {
         self.require("fmi2DoStep", &[Phase::StepComplete])?;
         if !(h.is_finite() && h > 0.0) {
             return Err(FmuError::error(format!(
-                "fmi2DoStep: communicationStepSize = {h} must be finite and > 0"
+                "fmi2DoStep: communicationStepSize = {} must be finite and > 0",
+                Num(h)
             )));
         }
         if !t_c.is_finite() || (t_c - self.t).abs() > 1e-9 * self.t.abs().max(1.0) {
             return Err(FmuError::error(format!(
-                "fmi2DoStep: currentCommunicationPoint = {t_c} differs from the FMU time {}",
-                self.t
+                "fmi2DoStep: currentCommunicationPoint = {} differs from the FMU time {}",
+                Num(t_c),
+                Num(self.t)
             )));
         }
+        let t_end = self.t + h;
+        if t_end <= self.t || !t_end.is_finite() {
+            return Err(FmuError::error(format!(
+                "fmi2DoStep: communicationStepSize = {} at t = {} does not advance the time \
+                 (below its resolution, or past the largest finite time)",
+                Num(h),
+                Num(self.t)
+            )));
+        }
+        self.check_stop_time("fmi2DoStep", t_end)?;
         self.record_inputs();
         let sched = self.schedule()?;
-        let t_end = self.t + h;
         // Held inputs and a fresh integrator per communication step, as the plant of the closed
         // loop (`mvem::sim::stepper::plant_options`): without ROS34PW2's non-autonomous term,
         // whose evaluation at every segment start saves no step on segments this short.
@@ -823,7 +855,13 @@ impl Instance {
                 Ok((run.y.to_vec(), run.memory))
             })
         })
-        .map_err(|e| FmuError::error(format!("fmi2DoStep from t = {t0} to {t_end}: {e}")))?;
+        .map_err(|e| {
+            FmuError::error(format!(
+                "fmi2DoStep from t = {} to {}: {e}",
+                Num(t0),
+                Num(t_end)
+            ))
+        })?;
         self.x = stepped.0;
         if one_iter {
             self.memory = stepped.1;
@@ -1171,5 +1209,62 @@ mod tests {
         f.get_real(&[vr], &mut now).unwrap();
         assert_eq!(old, now);
         f.do_step(0.0, 0.1).unwrap();
+    }
+
+    #[test]
+    fn steps_past_the_stop_time_or_without_progress_are_refused() {
+        // started(): stopTime 8 s
+        let mut f = started(Interface::CoSimulation);
+        f.do_step(0.0, 7.5).unwrap();
+        let x = f.x.clone();
+        let e = f.do_step(7.5, 0.6).unwrap_err();
+        assert!(e.message.contains("past the stopTime 8"), "{}", e.message);
+        assert_eq!(
+            (f.time(), &f.x),
+            (7.5, &x),
+            "a refused step changes nothing"
+        );
+        // up to the stop time, and within the rounding allowance beyond it
+        f.do_step(7.5, 0.5 + 4e-8).unwrap();
+        assert!(f.do_step(f.time(), 1e-6).is_err());
+
+        // without a stop time any length is allowed, but the time must advance
+        let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+        f.setup_experiment(None, 1e17, None).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
+        let e = f.do_step(1e17, 1.0).unwrap_err(); // 1e17 + 1 == 1e17
+        assert!(
+            e.message.contains("does not advance the time"),
+            "{}",
+            e.message
+        );
+        assert_eq!(f.time(), 1e17);
+        let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+        f.setup_experiment(None, 0.0, None).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
+        let r = f.do_step(0.0, 1e308);
+        assert!(r.is_ok(), "{:?}", r.err().map(|e| e.message));
+        let e = f.do_step(1e308, f64::MAX).unwrap_err(); // past the largest finite time
+        assert!(
+            e.message.contains("does not advance the time"),
+            "{}",
+            e.message
+        );
+        assert!(e.message.contains("at t = 1e308"), "{}", e.message);
+
+        // Model Exchange: fmi2SetTime past the stop time
+        let mut f = started(Interface::ModelExchange);
+        f.enter_continuous_time_mode().unwrap();
+        f.set_time(8.0).unwrap();
+        let e = f.set_time(8.1).unwrap_err();
+        assert!(
+            e.message
+                .contains("fmi2SetTime: time 8.1 is past the stopTime 8"),
+            "{}",
+            e.message
+        );
+        assert_eq!(f.time(), 8.0);
     }
 }

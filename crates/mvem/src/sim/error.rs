@@ -35,7 +35,7 @@ pub enum SimError {
         t_end: f64,
     },
     /// A derivative or the initial state is NaN or infinite.
-    #[error("non-finite {what} {name} = {value} at t = {t} s; state: {state}. Hint: {hint}")]
+    #[error("non-finite {what} {name} = {value} at t = {} s; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
     NonFinite {
         /// Time \[s\].
         t: f64,
@@ -51,7 +51,7 @@ pub enum SimError {
         hint: &'static str,
     },
     /// The step size fell below the resolution of the time axis.
-    #[error("step size {h:e} s too small at t = {t} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight")]
+    #[error("step size {h:e} s too small at t = {} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight", crate::numerics::Num(*t))]
     StepSizeTooSmall {
         /// Time \[s\].
         t: f64,
@@ -63,7 +63,7 @@ pub enum SimError {
         state: StateDump,
     },
     /// More steps than allowed.
-    #[error("more than {max_steps} steps before t = {t} s; state: {state}. Hint: raise SimOptions::max_steps for long or fast-varying inputs, loosen a very tight tolerance, or check the inputs (equilibrium lost, inputs far out of range make the model stiff)")]
+    #[error("more than {max_steps} steps before t = {} s; state: {state}. Hint: raise SimOptions::max_steps for long or fast-varying inputs, loosen a very tight tolerance, or check the inputs (equilibrium lost, inputs far out of range make the model stiff)", crate::numerics::Num(*t))]
     TooManySteps {
         /// Limit.
         max_steps: usize,
