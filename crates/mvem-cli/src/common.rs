@@ -160,16 +160,40 @@ pub struct ModelArgs {
     /// Actuator dynamics (eqs (39)-(41), (57)) or bypass.
     #[arg(long, value_enum, default_value = "dynamic")]
     pub actuators: ActuatorsArg,
+    /// The parameter file as first read: a command that asks for the input ranges and then the
+    /// model reads the file once, so both come from the same contents.
+    #[arg(skip)]
+    pub(crate) loaded: std::sync::OnceLock<Params>,
+}
+
+impl Default for ModelArgs {
+    /// The flags' defaults: the published set, 8 states, the authors' semantics, converged
+    /// T_e, dynamic actuators.
+    fn default() -> Self {
+        Self {
+            params: None,
+            model: ModelArg::Eight,
+            semantics: SemanticsArg::Authors,
+            cylinder_temp: CylinderTempArg::Converged,
+            actuators: ActuatorsArg::Dynamic,
+            loaded: std::sync::OnceLock::new(),
+        }
+    }
 }
 
 impl ModelArgs {
-    /// The parameters: the file given with `--params` (validated) or the published set.
+    /// The parameters: the file given with `--params` (validated; read once per command) or
+    /// the published set.
     pub fn load_params(&self) -> Result<Params> {
-        match &self.params {
-            None => Ok(Params::published()),
-            Some(p) => Ok(mvem::io::params::load_params(p)
-                .with_context(|| format!("cannot use parameter file {}", p.display()))?),
+        let Some(path) = &self.params else {
+            return Ok(Params::published());
+        };
+        if let Some(p) = self.loaded.get() {
+            return Ok(p.clone());
         }
+        let p = mvem::io::params::load_params(path)
+            .with_context(|| format!("cannot use parameter file {}", path.display()))?;
+        Ok(self.loaded.get_or_init(|| p).clone())
     }
 
     /// Model options from the flags.

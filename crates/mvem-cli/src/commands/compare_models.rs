@@ -96,6 +96,7 @@ pub fn run(a: &Args) -> Result<()> {
         semantics: a.semantics,
         cylinder_temp: CylinderTempArg::Converged,
         actuators: ActuatorsArg::Dynamic,
+        ..ModelArgs::default()
     };
     let p = margs.load_params()?;
     let opts = margs.options();
