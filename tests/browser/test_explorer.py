@@ -285,6 +285,18 @@ def test_closed_loop_controller_tuning(page, server):
     page.console_errors.remove(line)
     page.click("[data-action=tuning-defaults]")
     assert page.eval_on_selector("input[data-tuning=lambda_limit]", "e => e.checkValidity()")
+    # the open ends, which min/max cannot express: smoke_margin 1 and lambda_error_cap 0 are
+    # marked too, with the interval in the message; a value just inside is not
+    for key, bad, good in (("smoke_margin", "1", "0.999"), ("lambda_error_cap", "0", "0.001")):
+        sel = f"input[data-tuning={key}]"
+        page.fill(sel, bad)
+        assert page.eval_on_selector(sel, "e => !e.checkValidity()"), key
+        msg = page.eval_on_selector(sel, "e => e.validationMessage")
+        assert msg == f"{key} = {bad}: must lie in {intervals[key]}", msg
+        page.fill(sel, good)
+        assert page.eval_on_selector(sel, "e => e.checkValidity()"), key
+    page.click("[data-action=tuning-defaults]")
+    assert page.eval_on_selector_all("input[data-tuning]", "es => es.every(e => e.checkValidity())")
     # two changed entries reach the server
     page.fill("input[data-tuning='torque[0]']", "0.01")
     page.fill("input[data-tuning=lambda_limit]", "1.25")

@@ -463,6 +463,7 @@
 
   function buildTuning(t) {
     app.tuningDefaults = t.defaults;
+    app.tuningBounds = {};
     $("#tuning-fields").replaceChildren(...t.fields.map((f) => {
       const d = t.defaults[f.name];
       const keys = Array.isArray(d) ? [[`${f.name}[0]`, "kp"], [`${f.name}[1]`, "ki"]] : [[f.name, ""]];
@@ -473,8 +474,11 @@
         const inp = document.createElement("input");
         inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key; inp.setAttribute("aria-label", key);
         // the accepted interval (BaselineTuning::BOUNDS): the browser marks a value outside it
-        // (min/max include their ends; an open end is the server's to refuse)
-        if (f.bounds) { inp.min = String(f.bounds.lo); inp.max = String(f.bounds.hi); inp.title = `accepted: ${f.bounds.interval}`; }
+        // (min/max include their ends; an open end is checked in boundsMessage)
+        if (f.bounds) {
+          inp.min = String(f.bounds.lo); inp.max = String(f.bounds.hi); inp.title = `accepted: ${f.bounds.interval}`;
+          app.tuningBounds[key] = f.bounds;
+        }
         inputs.append(inp);
       }
       const name = cell("", f.name);
@@ -496,10 +500,22 @@
     markTuning();
   }
 
-  // highlight the entries that differ from the defaults
+  // "" when the entry lies in its accepted interval, else why not (the open ends, which the
+  // input's min/max cannot express, included); set as the input's custom validity
+  function boundsMessage(key, text) {
+    const b = app.tuningBounds[key];
+    const v = text.trim() === "" ? NaN : Number(text);
+    if (!b || !Number.isFinite(v)) return "";
+    const below = b.lo_open ? v <= b.lo : v < b.lo;
+    const above = b.hi_open ? v >= b.hi : v > b.hi;
+    return below || above ? `${key} = ${v}: must lie in ${b.interval}` : "";
+  }
+
+  // highlight the entries that differ from the defaults, and those outside their interval
   function markTuning() {
     let changed = 0;
     for (const inp of $$("input[data-tuning]")) {
+      inp.setCustomValidity(boundsMessage(inp.dataset.tuning, inp.value));
       const on = inp.value.trim() === "" || Number(inp.value) !== tuningDefault(inp.dataset.tuning);
       inp.classList.toggle("changed", on);
       changed += on ? 1 : 0;
