@@ -407,3 +407,34 @@ def test_parquet_output_equals_csv_and_reads_with_pyarrow(mvem_cli, tmp_path):
     t2 = pq.read_table(tmp_path / "sel.parquet")
     assert t2.column_names == ["t"] + sel
     assert np.array_equal(t2.column("W_c").to_numpy(), t.column("W_c").to_numpy())
+
+
+def test_linearize_sampled_with_exact_delays(mvem_cli):
+    """linearize(ts=...): the sampled model (the CLI's --ts to the bit), its delay registers, and
+    its DC gain C (I - Phi)^-1 Gamma + D equal to the continuous one (the delays and the hold
+    do not change a steady gain)."""
+    lin = mvem.linearize(1500, 110, 40, 75, ts=0.02)
+    dv = lin["discrete"]
+    assert dv["ts"] == 0.02
+    assert dv["state_names"][8:] == ["u_egr(k-1)", "u_egr(k-2)", "u_egr(k-3)", "u_egr(k-4)",
+                                     "u_vgt(k-1)", "u_vgt(k-2)"]
+    (egr_l, egr_r), (vgt_l, vgt_r) = dv["delay_samples"]
+    assert (egr_l, vgt_l, vgt_r) == (3, 2, 0.0) and egr_r == pytest.approx(0.005, abs=1e-12)
+    phi, gamma, c, d = dv["Phi"], dv["Gamma"], dv["C"], dv["D"]
+    assert phi.shape == (14, 14) and gamma.shape == (14, 4) and c.shape == (7, 14)
+    assert np.all(np.abs(np.linalg.eigvals(phi)) < 1.0)
+    dc = c @ np.linalg.solve(np.eye(14) - phi, gamma) + d
+    np.testing.assert_allclose(dc, lin["dc_gain"], rtol=1e-6,
+                               atol=1e-9 * np.abs(lin["dc_gain"]).max())
+    p = subprocess.run([mvem_cli, "linearize", "--n-e", "1500", "--u-delta", "110", "--u-egr", "40",
+                        "--u-vgt", "75", "--ts", "0.02", "--json"],
+                       check=True, capture_output=True, text=True)
+    cli = json.loads(p.stdout)["discrete"]
+    np.testing.assert_array_equal(np.array(cli["Phi"]), phi)
+    np.testing.assert_array_equal(np.array(cli["Gamma"]), gamma)
+    assert "discrete" not in mvem.linearize(1500, 110, 40, 75)
+    for bad in (0.0, 1e-4, float("nan")):
+        with pytest.raises(ValueError, match="ts"):
+            mvem.linearize(1500, 110, 40, 75, ts=bad)
+    with pytest.raises(ValueError, match="pade_order"):
+        mvem.linearize(1500, 110, 40, 75, ts=0.02, pade_order=2)

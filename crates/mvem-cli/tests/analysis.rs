@@ -186,6 +186,99 @@ fn linearize_pade_models_and_text() {
     }
 }
 
+/// `linearize --ts`: the sampled model in the JSON (the library's `discretize`, to the bit), its
+/// registers and poles, the text section, and the refused combinations.
+#[test]
+fn linearize_sampled_model_with_exact_delays() {
+    let d = tempfile::tempdir().unwrap();
+    let v = lin_json(d.path(), "75", &["--ts", "0.02"]);
+    let dv = &v["discrete"];
+    assert_eq!(dv["ts"], 0.02);
+    // 0.065 s = 3 samples + 5 ms (4 registers), 0.04 s = 2 samples (2 registers)
+    assert_eq!(dv["delay_samples"]["u_egr"]["whole"], 3);
+    assert_eq!(dv["delay_samples"]["u_vgt"]["whole"], 2);
+    assert_eq!(dv["delay_samples"]["u_vgt"]["remainder_s"], 0.0);
+    let names: Vec<&str> = dv["state_names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap())
+        .collect();
+    assert_eq!(names.len(), 14);
+    assert_eq!(
+        &names[8..],
+        [
+            "u_egr(k-1)",
+            "u_egr(k-2)",
+            "u_egr(k-3)",
+            "u_egr(k-4)",
+            "u_vgt(k-1)",
+            "u_vgt(k-2)"
+        ]
+    );
+    assert_eq!(dv["state_units"][8], "%");
+    // the library's model, bit for bit
+    let m = Engine8::published();
+    let drive = Drive::from_array([1500.0, 110.0, 80.0, 75.0]);
+    let ss = steady_state(&m, &drive).unwrap();
+    let opts = LinearizeOptions {
+        strict: false,
+        ..LinearizeOptions::default()
+    };
+    let dm = mvem::analysis::discrete::discretize(&m, &ss.x, &drive, &opts, 0.02).unwrap();
+    let phi = matrix(&dv["Phi"]);
+    let gamma = matrix(&dv["Gamma"]);
+    for (i, (phi_row, gamma_row)) in phi.iter().zip(&gamma).enumerate() {
+        for (j, v) in phi_row.iter().enumerate() {
+            assert_eq!(*v, dm.phi[(i, j)], "Phi[{i}][{j}]");
+        }
+        for (j, v) in gamma_row.iter().enumerate() {
+            assert_eq!(*v, dm.gamma[(i, j)], "Gamma[{i}][{j}]");
+        }
+    }
+    assert_eq!((phi.len(), gamma.len()), (14, 14));
+    // shift registers: u_vgt(k-2)(k+1) = u_vgt(k-1)(k); u_egr(k-1)(k+1) = u_egr(k)
+    assert_eq!(phi[13][12], 1.0);
+    assert_eq!(gamma[8][1], 1.0);
+    // poles: e^(lambda ts) of the continuous ones (-40 1/s: the VGT actuator) and 6 at 0
+    let poles = complex_list(&dv["poles"]);
+    assert!(
+        poles
+            .iter()
+            .any(|z| (z.0 - (-40.0f64 * 0.02).exp()).abs() < 1e-9),
+        "{poles:?}"
+    );
+    assert_eq!(
+        poles.iter().filter(|z| z.0.hypot(z.1) < 1e-12).count(),
+        6,
+        "{poles:?}"
+    );
+    assert!(poles.iter().all(|z| z.0.hypot(z.1) < 1.0));
+    // text
+    let o = mvem(d.path(), &lin_args("75", &["--ts", "0.02"]));
+    assert!(o.status.success());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("Sampled with a zero-order hold at ts = 0.02 s"),
+        "{out}"
+    );
+    assert!(out.contains("u_egr 0.065 s = 3 samples + 5 ms"), "{out}");
+    assert!(out.contains("Gamma"), "{out}");
+    // refused: with --pade, outside [1e-3, 100] s
+    for (extra, msg) in [
+        (vec!["--ts", "0.01", "--pade", "2"], "--ts with --pade"),
+        (
+            vec!["--ts", "1e-5"],
+            "--ts 0.00001: must lie in [0.001, 100] s",
+        ),
+        (vec!["--ts", "nan"], "--ts NaN"),
+    ] {
+        let o = mvem(d.path(), &lin_args("75", &extra));
+        assert_eq!(o.status.code(), Some(2), "{extra:?}");
+        assert!(stderr(&o).contains(msg), "{extra:?}: {}", stderr(&o));
+    }
+}
+
 /// `linearize --state FILE.json`: at the steady state (written with 17 digits) the same
 /// matrices as without it and dx0 about 0; at a state of a transient (p_im +5 %) the library's
 /// linearization at that state to the bit, dx0 its derivatives, `"steady_state": false`; a

@@ -97,6 +97,21 @@ fn api_steady_and_linearize_equal_the_cli_to_the_last_bit() {
             ],
         ),
         (
+            "n_e=1500&u_delta=110&u_egr=40&u_vgt=75&ts=0.025",
+            vec![
+                "--n-e",
+                "1500",
+                "--u-delta",
+                "110",
+                "--u-egr",
+                "40",
+                "--u-vgt",
+                "75",
+                "--ts",
+                "0.025",
+            ],
+        ),
+        (
             "n_e=1200&u_delta=200&u_egr=50&u_vgt=40&model=12&pade=2&outputs=W_c,p_im,T_em",
             vec![
                 "--n-e",

@@ -1,6 +1,7 @@
 //! The Python API in plain Rust (no Python types), so it is tested by `cargo test` and the
 //! pyo3 layer only converts values.
 
+use mvem::analysis::discrete::{discretize, DiscreteModel};
 use mvem::analysis::ensemble::{simulate_many, Case};
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
@@ -505,6 +506,9 @@ pub struct LinArgs {
     pub strict: bool,
     /// Padé order of the actuator delays (0: the undelayed system).
     pub pade_order: usize,
+    /// Also sample the model at this time \[s\] with the delays exact
+    /// (`mvem::analysis::discrete`).
+    pub ts: Option<f64>,
 }
 
 impl Default for LinArgs {
@@ -513,6 +517,7 @@ impl Default for LinArgs {
             outputs: None,
             strict: true,
             pade_order: 0,
+            ts: None,
         }
     }
 }
@@ -535,6 +540,8 @@ pub struct Lin {
     /// Transmission zeros of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O), when those
     /// outputs are linearized.
     pub mimo_zeros: Option<ZerosResult>,
+    /// The model sampled at [`LinArgs::ts`], when given.
+    pub discrete: Option<DiscreteModel>,
 }
 
 fn pairs(z: &[zeros::Complex<f64>]) -> Vec<(f64, f64)> {
@@ -561,15 +568,22 @@ pub fn linearize_at(
     opts.validate()
         .map_err(|e| CoreError::Value(e.to_string()))?;
     let m = model(params, variant)?;
-    let lin = mvem::dispatch!(&m, m => {
-        let ss = steady_state(m, &Drive::from_array(d))
+    let lin_err = |e: LinearizeError| match e {
+        LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
+            CoreError::Value(e.to_string())
+        }
+        other => CoreError::Runtime(other.to_string()),
+    };
+    let (lin, discrete) = mvem::dispatch!(&m, m => {
+        let drive = Drive::from_array(d);
+        let ss = steady_state(m, &drive)
             .map_err(|e| CoreError::Runtime(format!("steady state: {e}")))?;
-        linearize_steady(m, &ss, &opts).map_err(|e| match e {
-            LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
-                CoreError::Value(e.to_string())
-            }
-            other => CoreError::Runtime(other.to_string()),
-        })
+        let lin = linearize_steady(m, &ss, &opts).map_err(lin_err)?;
+        let discrete = match args.ts {
+            Some(ts) => Some(discretize(m, &ss.x, &drive, &opts, ts).map_err(lin_err)?),
+            None => None,
+        };
+        Ok::<_, CoreError>((lin, discrete))
     })?;
     let eigenvalues = zeros::poles(&lin)
         .map(|p| pairs(&p))
@@ -594,6 +608,7 @@ pub fn linearize_at(
                 .map_err(|e| e.to_string())
         });
     Ok(Lin {
+        discrete,
         lin,
         eigenvalues,
         dc_gain,

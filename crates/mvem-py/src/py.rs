@@ -623,7 +623,9 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 /// outputs: output names (states or signals; default p_im, p_em, W_c, n_t, x_egr, lambda_O, M_e).
 /// strict: raise RuntimeError when the point sits at a kink of the model (else the averaged
 ///     slopes are returned and the kinks listed). pade_order: 0 (undelayed system) to 3 (Pade
-///     states for the actuator delays). params, model as in simulate.
+///     states for the actuator delays). ts: also sample the model with a zero-order hold at
+///     this time [s] (1e-3 to 100; pade_order 0), the actuator delays exact. params, model as
+///     in simulate.
 ///
 /// Returns a dict: "A" (n x n) [1/s], "B" (n x 4), "C" (p x n), "D" (p x 4) numpy arrays in the
 /// model's units (states Pa, K, -, rad/s, %; inputs in "input_names" order u_delta [mg], u_egr
@@ -632,10 +634,14 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 /// [1/s]); "dc_gain" (p x 4 array, output units per input unit; None if A is singular);
 /// "zeros" {"u_vgt->W_c": complex array [1/s], ...} of every SISO channel (None where a kink
 /// lies on the channel); "mimo_zeros" of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O)
-/// when those outputs are present; "kinks" (list of str); "delays" [s] of (u_egr, u_vgt).
+/// when those outputs are present; "kinks" (list of str); "delays" [s] of (u_egr, u_vgt); with
+/// ts also "discrete": {"ts", "Phi", "Gamma", "C", "D" (arrays: dx(k+1) = Phi dx(k) + Gamma
+/// du(k), dy(k) = C dx(k) + D du(k)), "state_names" (the model's states, then the delay
+/// registers "u_egr(k-1)", ...), "delay_samples" [(whole samples, remainder [s]) of u_egr,
+/// u_vgt]}.
 /// Raises ValueError for bad arguments, RuntimeError when there is no steady state or a kink.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=0, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=0, params=None, model=8, ts=None))]
 #[allow(clippy::too_many_arguments)]
 fn linearize<'py>(
     py: Python<'py>,
@@ -648,6 +654,7 @@ fn linearize<'py>(
     pade_order: usize,
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
+    ts: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
     let p = params_at_point(py, params, "linearize", [n_e, u_delta, u_egr, u_vgt])?;
@@ -655,6 +662,7 @@ fn linearize<'py>(
         outputs,
         strict,
         pade_order,
+        ts,
     };
     let r = py
         .allow_threads(move || core::linearize_at([n_e, u_delta, u_egr, u_vgt], p, variant, &args))
@@ -692,6 +700,17 @@ fn linearize<'py>(
     let kinks: Vec<String> = l.kinks.iter().map(|k| k.to_string()).collect();
     out.set_item("kinks", PyList::new(py, kinks)?)?;
     out.set_item("delays", l.delays.to_vec())?;
+    if let Some(dm) = &r.discrete {
+        let dd = PyDict::new(py);
+        dd.set_item("ts", dm.ts)?;
+        dd.set_item("Phi", matrix(&np, &dm.phi)?)?;
+        dd.set_item("Gamma", matrix(&np, &dm.gamma)?)?;
+        dd.set_item("C", matrix(&np, &dm.c)?)?;
+        dd.set_item("D", matrix(&np, &dm.d)?)?;
+        dd.set_item("state_names", &dm.state_names)?;
+        dd.set_item("delay_samples", dm.delay_samples.to_vec())?;
+        out.set_item("discrete", dd)?;
+    }
     Ok(out)
 }
 

@@ -9,6 +9,7 @@ use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
+use mvem::analysis::discrete::{TS_MAX, TS_MIN};
 use mvem::model::{AnyModel, Drive, Model, ModelOrder};
 use serde::de::DeserializeOwned;
 use serde_json::{json, Value};
@@ -400,10 +401,27 @@ async fn linearize(
                 .collect()
         })
         .unwrap_or_default();
-    p.finish("n_e, u_delta, u_egr, u_vgt, model, params, pade, outputs")?;
+    // the model sampled at ts [s] with the delays exact (`mvem linearize --ts`)
+    let ts = match p.take("ts") {
+        None => None,
+        Some(s) => match s.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() && (TS_MIN..=TS_MAX).contains(&v) && pade == 0 => Some(v),
+            Ok(v) if v.is_finite() && (TS_MIN..=TS_MAX).contains(&v) => {
+                return Err(ApiError::bad(
+                    "ts with pade: the sampled model has the delays exact; leave out pade",
+                ))
+            }
+            _ => {
+                return Err(ApiError::bad(format!(
+                    "ts {s:?}: a sample time in [{TS_MIN}, {TS_MAX}] s"
+                )))
+            }
+        },
+    };
+    p.finish("n_e, u_delta, u_egr, u_vgt, model, params, pade, outputs, ts")?;
     let v = app
         .work
-        .run(move || mvem::dispatch!(&m, m => compute::linearize(m, &d, pade, &outputs)))
+        .run(move || mvem::dispatch!(&m, m => compute::linearize(m, &d, pade, &outputs, ts)))
         .await??;
     Ok(Json(v))
 }

@@ -83,6 +83,7 @@ pub(crate) fn linearize<const N: usize, M: Model<N>>(
     d: &Drive,
     pade: usize,
     outputs: &[String],
+    ts: Option<f64>,
 ) -> Result<Value, Fail> {
     let mut opts = LinearizeOptions {
         pade_order: pade,
@@ -98,7 +99,13 @@ pub(crate) fn linearize<const N: usize, M: Model<N>>(
         LinearizeError::BadOption { .. } => input(e.to_string()),
         other => Fail::Model(format!("linearization: {other}")),
     })?;
-    Ok(linear_model_json(&lin, &ss))
+    let mut v = linear_model_json(&lin, &ss);
+    if let Some(ts) = ts {
+        let dm = mvem::analysis::discrete::discretize(m, &ss.x, d, &opts, ts)
+            .map_err(|e| Fail::Model(format!("sampled model: {e}")))?;
+        v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
+    }
+    Ok(v)
 }
 
 /// An operating point in a JSON body (the CLI's units).

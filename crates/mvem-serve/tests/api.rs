@@ -168,6 +168,16 @@ fn bad_or_missing_parameters_give_400_naming_them() {
         "pade",
     );
     assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&ts=1e-6")),
+        "ts",
+        "sample time",
+    );
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&ts=0.01&pade=2")),
+        "ts",
+        "pade",
+    );
+    assert_400_naming(
         &get(&format!("/api/linearize?{POINT}&outputs=W_c,nope")),
         "nope",
         "outputs",

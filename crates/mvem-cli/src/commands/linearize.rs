@@ -4,6 +4,7 @@
 
 use crate::common::{self, ModelArgs, PointArgs};
 use anyhow::{Context, Result};
+use mvem::analysis::discrete::{discretize, TS_MAX, TS_MIN};
 use mvem::analysis::linearize::{linearize_steady, LinearizeOptions};
 use mvem::analysis::steady::{steady_state, SteadyState};
 use mvem::model::Model;
@@ -18,6 +19,7 @@ Examples:
   mvem linearize --n-e 1200 --u-delta 200 --u-egr 50 --u-vgt 40 --pade 2
   mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 30 --outputs W_c,p_im,T_em
   mvem linearize --n-e 1500 --u-delta 130 --u-egr 80 --u-vgt 75 --state x.json --json
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 40 --u-vgt 75 --ts 0.01 --json > mpc.json
 
 The linear model is dx' = A dx + B du, dy = C dx + D du in deviations from the steady state,
 in SI units (states Pa, -, rad/s, %), inputs (u_delta, u_egr, u_vgt, n_e) in mg/cycle, %, %,
@@ -27,6 +29,9 @@ by order-K Pade approximants (extra states; their all-pass zeros then appear in 
 --state x.json linearizes at that state (every state name -> value) with the inputs held,
 e.g. a point of a transient: not an equilibrium, so the JSON's \"dx0\" (the derivatives there) is
 not zero and the poles and zeros are those of the frozen linear model.
+--ts S also samples the model with a zero-order hold at S seconds (1e-3 to 100), the actuator
+delays exact (dx(k+1) = Phi dx(k) + Gamma du(k), dy(k) = C dx(k) + D du(k); the past commands
+u_egr(k-1), ... are extra states): for MPC and discrete observers. Not with --pade.
 
 With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im}], \"zeros\"
 (object keyed \"u_vgt->W_c\", ..., one entry per SISO channel plus \"MIMO\" for
@@ -34,7 +39,9 @@ With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im
 channel passes a kink of the model, with the reason in \"zero_errors\"), \"dc_gain\" (outputs x
 inputs), \"A\", \"B\", \"C\", \"D\" (lists of rows), \"state_names\", \"input_names\",
 \"output_names\", \"units\", \"operating_point\", \"x0\", \"y0\", \"physically_valid\", \"flags\",
-\"kinks\", \"pade_order\", \"delays_s\", \"dx0\", \"steady_state\".")]
+\"kinks\", \"pade_order\", \"delays_s\", \"dx0\", \"steady_state\"; with --ts also \"discrete\": {\"ts\",
+\"Phi\", \"Gamma\", \"C\", \"D\", \"state_names\", \"state_units\", \"input_names\", \"output_names\",
+\"delays_s\", \"delay_samples\" {u_egr, u_vgt: {whole, remainder_s}}, \"poles\" (eigenvalues of Phi)}.")]
 pub struct Args {
     #[command(flatten)]
     pub point: PointArgs,
@@ -52,6 +59,10 @@ pub struct Args {
     /// -> value (as `simulate --initial-state`), the inputs held at the operating point's.
     #[arg(long, value_name = "FILE.json")]
     pub state: Option<std::path::PathBuf>,
+    /// Also the model sampled with a zero-order hold at this sample time [s] (1e-3 to 100), the
+    /// actuator delays exact: Phi, Gamma, C, D with the past commands as extra states.
+    #[arg(long, value_name = "S")]
+    pub ts: Option<f64>,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -60,20 +71,41 @@ pub struct Args {
 pub fn run(a: &Args) -> Result<()> {
     let d = a.point.drive(a.model.input_ranges()?.as_ref())?;
     let opts = options(&a.outputs, a.pade as usize)?;
+    if let Some(ts) = a.ts {
+        if a.pade > 0 {
+            return Err(common::usage(
+                "--ts with --pade: the sampled model has the delays exact; leave out --pade",
+            ));
+        }
+        if !(ts.is_finite() && (TS_MIN..=TS_MAX).contains(&ts)) {
+            return Err(common::usage(format!(
+                "--ts {}: must lie in [{TS_MIN}, {TS_MAX}] s",
+                mvem::numerics::Num(ts)
+            )));
+        }
+    }
     let model = a.model.build()?;
     let state = match &a.state {
         Some(p) => Some((super::simulate::read_initial_state(p)?, p.as_path())),
         None => None,
     };
-    let v = mvem::dispatch!(&model, m => match &state {
-        None => {
-            let ss = steady_state(m, &d).context("steady state")?;
-            analyse(m, &ss, &opts)?
+    let v = mvem::dispatch!(&model, m => {
+        let (x, mut v) = match &state {
+            None => {
+                let ss = steady_state(m, &d).context("steady state")?;
+                (ss.x, analyse(m, &ss, &opts)?)
+            }
+            Some((values, path)) => {
+                let x = super::simulate::state_from_map(m, values, path)?;
+                let v = analyse_at(m, &x, &d, &opts)?;
+                (x, v)
+            }
+        };
+        if let Some(ts) = a.ts {
+            let dm = discretize(m, &x, &d, &opts, ts).context("sampled model")?;
+            v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
         }
-        Some((values, path)) => {
-            let x = super::simulate::state_from_map(m, values, path)?;
-            analyse_at(m, &x, &d, &opts)?
-        }
+        v
     });
     if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
         if !w {
@@ -315,4 +347,47 @@ fn print_text(v: &Value) {
     print_matrix("B", &v["B"], &states, &inputs);
     print_matrix("C", &v["C"], &outputs, &states);
     print_matrix("D", &v["D"], &outputs, &inputs);
+    if v["discrete"].is_object() {
+        print_discrete(&v["discrete"], &inputs, &outputs);
+    }
+}
+
+/// The sampled model of `--ts`.
+fn print_discrete(dv: &Value, inputs: &[String], outputs: &[String]) {
+    let states = names(&dv["state_names"]);
+    let ds = |k: &str| {
+        let w = dv["delay_samples"][k]["whole"].as_u64().unwrap_or(0);
+        let r = dv["delay_samples"][k]["remainder_s"]
+            .as_f64()
+            .unwrap_or(0.0);
+        // the remainder in ms, rounded to 1 ns (0.065 - 3 x 0.02 is 0.0050000000000000044)
+        format!(
+            "{} s = {w} samples + {} ms",
+            dv["delays_s"][k],
+            (r * 1e9).round() / 1e6
+        )
+    };
+    println!(
+        "\nSampled with a zero-order hold at ts = {} s, delays exact: u_egr {}, u_vgt {}",
+        dv["ts"],
+        ds("u_egr"),
+        ds("u_vgt")
+    );
+    println!(
+        "  dx(k+1) = Phi dx(k) + Gamma du(k), dy(k) = C dx(k) + D du(k); {} states: {}",
+        states.len(),
+        states.join(", ")
+    );
+    println!("\nPoles of the sampled model (eigenvalues of Phi; |z| < 1 stable)");
+    for z in dv["poles"].as_array().into_iter().flatten() {
+        let (re, im) = (
+            z["re"].as_f64().unwrap_or(f64::NAN),
+            z["im"].as_f64().unwrap_or(f64::NAN),
+        );
+        println!("  {}   |z| = {:.6}", fmt_c(z), re.hypot(im));
+    }
+    print_matrix("Phi", &dv["Phi"], &states, &states);
+    print_matrix("Gamma", &dv["Gamma"], &states, inputs);
+    print_matrix("C (sampled)", &dv["C"], outputs, &states);
+    print_matrix("D (sampled)", &dv["D"], outputs, inputs);
 }

@@ -109,6 +109,7 @@ def linearize(
     pade_order: int = 0,
     params: Params = None,
     model: ModelOrder = 8,
+    ts: Optional[float] = None,
 ) -> Dict[str, Any]:
     """Linearize at the steady state of the inputs: dx' = A dx + B du, dy = C dx + D du.
 
@@ -117,6 +118,9 @@ def linearize(
     "output_names"; "x0", "u0", "y0"; "eigenvalues" (complex array [1/s]); "dc_gain"
     (p x 4, output units per input unit, or None); "zeros" {"u_vgt->W_c": complex array or
     None}; "mimo_zeros" (complex array or None); "kinks" (list of str); "delays" [s].
+    ts [s] (1e-3 to 100, with pade_order 0): also "discrete", the model sampled with a
+    zero-order hold, delays exact: {"ts", "Phi", "Gamma", "C", "D", "state_names" (states, then
+    the registers "u_egr(k-1)", ...), "delay_samples" [(whole, remainder [s]) of u_egr, u_vgt]}.
     ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
     """
 

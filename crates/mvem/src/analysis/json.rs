@@ -2,6 +2,7 @@
 //! `mvem linearize --json`, the HTTP API of `mvem serve`) so that they print the same numbers to
 //! the last bit. `serde_json` writes every `f64` in its shortest round-trip form.
 
+use crate::analysis::discrete::DiscreteModel;
 use crate::analysis::experiment::StepSpec;
 use crate::analysis::linearize::LinearModel;
 use crate::analysis::steady::SteadyState;
@@ -66,7 +67,7 @@ fn rows(m: &DMatrix<f64>) -> Value {
 }
 
 fn state_unit(name: &str) -> &'static str {
-    if name.starts_with("pade_") {
+    if name.starts_with("pade_") || name.ends_with(')') {
         "%"
     } else {
         unit(name)
@@ -75,6 +76,43 @@ fn state_unit(name: &str) -> &'static str {
 
 /// Input units in [`crate::analysis::linearize`]'s input order (u_delta, u_egr, u_vgt, n_e).
 const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
+
+/// The JSON object of a sampled linear model (`mvem linearize --ts`, the `"discrete"` key):
+/// `"ts"`, `"Phi"`, `"Gamma"`, `"C"`, `"D"` (lists of rows), `"state_names"` (the model's states,
+/// then the delay registers `u_egr(k-1)`, ...), `"state_units"`, `"input_names"`,
+/// `"output_names"`, `"delays_s"`, `"delay_samples"` ({u_egr, u_vgt}: {"whole", "remainder_s"}),
+/// `"poles"` (eigenvalues of Phi, {re, im}; the registers' poles are 0).
+pub fn discrete_model_json(dm: &DiscreteModel) -> Value {
+    // Phi = [[Phi_x, G], [0, shift]] is block upper triangular and the shift registers are
+    // nilpotent: the poles are those of Phi_x and one 0 per register (exact zeros, which an
+    // eigenvalue solver would return as roots of rounding, ~1e-8, the block being defective)
+    let n = dm.continuous.n_states();
+    let s = &dm.state_scales;
+    // eigenvalues in the scaled coordinates (the same values, better conditioned)
+    let scaled = DMatrix::from_fn(n, n, |i, j| dm.phi[(i, j)] * s[j] / s[i]);
+    let mut poles: Vec<Value> = scaled
+        .complex_eigenvalues()
+        .iter()
+        .map(|z| json!({"re": z.re, "im": z.im}))
+        .collect();
+    poles.extend((n..dm.n_states()).map(|_| json!({"re": 0.0, "im": 0.0})));
+    let ds =
+        |q: usize| json!({"whole": dm.delay_samples[q].0, "remainder_s": dm.delay_samples[q].1});
+    json!({
+        "ts": dm.ts,
+        "Phi": rows(&dm.phi),
+        "Gamma": rows(&dm.gamma),
+        "C": rows(&dm.c),
+        "D": rows(&dm.d),
+        "state_names": dm.state_names,
+        "state_units": dm.state_names.iter().map(|n| state_unit(n)).collect::<Vec<_>>(),
+        "input_names": dm.input_names,
+        "output_names": dm.output_names,
+        "delays_s": {"u_egr": dm.delays[0], "u_vgt": dm.delays[1]},
+        "delay_samples": {"u_egr": ds(0), "u_vgt": ds(1)},
+        "poles": poles,
+    })
+}
 
 /// The JSON object of a linear model at the steady state `ss` (`mvem linearize --json`):
 /// matrices, poles, the transmission zeros of every SISO channel and of the MIMO system, DC

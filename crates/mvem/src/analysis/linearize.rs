@@ -800,8 +800,6 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
     }
 }
 
-/// Largest power of two not above `h` (h > 0).
-#[inline]
 /// The derivative of the model's derivatives and signals along a direction of its state and
 /// inputs: `d/de [f, signals](x + e v_x, u + e v_u)` at `e = 0`, for FMI's
 /// `fmi2GetDirectionalDerivative` and other Jacobian-vector products.
@@ -879,6 +877,8 @@ pub fn directional_derivative<const N: usize, M: Model<N>>(
     Ok((dx, sig))
 }
 
+/// Largest power of two not above `h` (h > 0).
+#[inline]
 fn pow2_step(h: f64) -> f64 {
     2f64.powi(h.log2().floor() as i32)
 }
