@@ -373,3 +373,51 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     info = page.text_content("#cycle-info")
     assert "n_e_rpm leaves [500, 2000] first at t = 2 s (values from 2600 to 2600)" in info, info
     page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)
+
+
+def test_linear_model_panel(page, server):
+    """The linear model at the operating point: the DC gains and RHP zeros of every channel as
+    /api/linearize gives them (u_vgt -> W_c non-minimum phase at the default point, u_egr ->
+    p_im too), the sampled model's delay registers and poles with a sample time, its JSON
+    download equal to the API's answer, and a bad sample time named."""
+    q = "n_e=1500&u_delta=110&u_egr=80&u_vgt=75&model=8&params=" + page.input_value("select[name=params]")
+    api = _api(server, f"/api/linearize?{q}&ts=0.02")
+    page.fill("input[name=lin_ts]", "0.02")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-sampled:not([hidden])")
+    cells = page.eval_on_selector_all(
+        "#lin-channels td[data-channel]",
+        "tds => tds.map(td => [td.dataset.channel, td.dataset.dcGain, td.dataset.rhp])")
+    assert len(cells) == 4 * 7
+    for ch, gain, rhp in cells:
+        i, o = ch.split("->")
+        want = api["dc_gain"][api["output_names"].index(o)][api["input_names"].index(i)]
+        assert float(gain) == want, ch
+        zs = api["zeros"][ch] or []
+        want_rhp = [z["re"] for z in zs if z["re"] > 1e-9 * (1 + abs(complex(z["re"], z["im"])))]
+        assert [float(r) for r in rhp.split(";") if r] == want_rhp, ch
+    rhp = {ch: r for ch, _, r in cells}
+    assert rhp["u_vgt->W_c"] and float(rhp["u_vgt->W_c"]) == pytest.approx(0.613, abs=1e-3)
+    assert rhp["u_egr->p_im"] and float(rhp["u_egr->p_im"]) == pytest.approx(3.055, abs=1e-3)
+    assert "RHP zero" in page.text_content("td[data-channel='u_vgt->W_c']")
+    delays = page.text_content("#lin-delays")
+    assert "u_egr delay 0.065 s = 3 samples + 5 ms" in delays and "(14 states" in delays, delays
+    assert len(page.text_content("#lin-dpoles").split(", ")) == 14
+    with page.expect_download() as d:
+        page.click("[data-download=linear]")
+    assert json.loads(Path(d.value.path()).read_text()) == api
+    page.screenshot(path=str(ART / "explorer_linear.png"), full_page=True)
+    # without a sample time: the continuous model only; a bad one is the server's 400, named
+    page.fill("input[name=lin_ts]", "")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-sampled", state="hidden")
+    page.fill("input[name=lin_ts]", "1e-6")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert "ts" in page.text_content("#lin-error") and "sample time" in page.text_content("#lin-error")
+    line = "console.error: Failed to load resource: the server responded with a status of 400 (Bad Request)"
+    for _ in range(40):
+        if line in page.console_errors:
+            break
+        page.wait_for_timeout(50)
+    page.console_errors.remove(line)

@@ -270,6 +270,86 @@
   }
 
   // ---------------------------------------------------------------------------------------------
+  // linear model panel (/api/linearize: the object of `mvem linearize --json`, with `ts` its
+  // "discrete" part)
+
+  const cplx = (e) => e.im === 0 ? fmt(e.re) : `${fmt(e.re)}${e.im < 0 ? "−" : "+"}${fmt(Math.abs(e.im))}i`;
+  // right half plane, as `mvem linearize` marks it
+  const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
+
+  async function runLinearize() {
+    const btn = $("[data-action=linearize]");
+    btn.disabled = true;
+    setStatus("busy", "linearizing…");
+    try {
+      const q = new URLSearchParams({ ...point(), model: modelSel().model });
+      if (modelSel().params) q.set("params", modelSel().params);
+      const ts = $("input[name=lin_ts]").value.trim();
+      if (ts !== "") q.set("ts", ts);
+      const j = await api(`/api/linearize?${q}`);
+      app.linear = j;
+      showLinear(j);
+      showError("#lin-error", null);
+      $("[data-download=linear]").disabled = false;
+      setStatus("ok", "ready");
+    } catch (e) {
+      showError("#lin-error", e);
+      setStatus("ok", "ready");
+    } finally {
+      btn.disabled = false;
+    }
+  }
+
+  function showLinear(j) {
+    $("#lin-poles").textContent = j.eigenvalues.map(cplx).join(", ");
+    const d = j.discrete;
+    $("#lin-sampled").hidden = !d;
+    if (d) {
+      $("#lin-ts").textContent = String(d.ts);
+      const ds = (k) => `${k} delay ${d.delays_s[k]} s = ${d.delay_samples[k].whole} samples + ${Math.round(d.delay_samples[k].remainder_s * 1e9) / 1e6} ms`; // to 1 ns, as the CLI
+      $("#lin-delays").textContent = `${ds("u_egr")}, ${ds("u_vgt")} (${d.state_names.length} states with the delay registers)`;
+      $("#lin-dpoles").textContent = d.poles.map((z) => fmt(Math.hypot(z.re, z.im))).join(", ");
+    }
+    const outs = j.output_names;
+    const th = document.createElement("tr");
+    th.append(...["input → output", ...outs].map((n) => {
+      const h = document.createElement("th");
+      h.textContent = n;
+      return h;
+    }));
+    $("#lin-channels thead").replaceChildren(th);
+    $("#lin-channels tbody").replaceChildren(...j.input_names.map((inp, i) => {
+      const tr = document.createElement("tr");
+      tr.append(cell("", inp));
+      outs.forEach((out, o) => {
+        const ch = `${inp}->${out}`;
+        const g = j.dc_gain ? j.dc_gain[o][i] : null;
+        const td = cell("", fmt(g));
+        td.dataset.channel = ch;
+        td.dataset.dcGain = g === null ? "" : String(g);
+        const zs = j.zeros[ch];
+        const extra = document.createElement("span");
+        if (zs === null || zs === undefined) {
+          extra.className = "none";
+          extra.textContent = "zeros: –";
+          extra.title = (j.zero_errors && j.zero_errors[ch]) || "";
+          td.dataset.rhp = "";
+        } else {
+          const rhp = zs.filter(isRhp);
+          td.dataset.rhp = rhp.map((z) => String(z.re)).join(";");
+          if (rhp.length) {
+            extra.className = "rhp";
+            extra.textContent = `RHP zero ${rhp.map(cplx).join(", ")}`;
+          }
+        }
+        td.append(extra);
+        tr.append(td);
+      });
+      return tr;
+    }));
+  }
+
+  // ---------------------------------------------------------------------------------------------
   // step panel
 
   async function runStep() {
@@ -666,6 +746,16 @@
       j.dc_gain.forEach((g, idx) => rows.push([j.x.values[Math.floor(idx / ny)], j.y.values[idx % ny], g, j.sign[idx], j.physically_valid[idx]]));
       download("map.csv", rows);
     });
+    $("[data-download=linear]").addEventListener("click", () => {
+      const j = app.linear;
+      if (!j) return;
+      const a = document.createElement("a");
+      a.href = URL.createObjectURL(new Blob([JSON.stringify(j, null, 1) + "\n"], { type: "application/json" }));
+      a.download = "linear_model.json";
+      document.body.appendChild(a);
+      a.click();
+      setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 0);
+    });
     $("[data-download=cycle]").addEventListener("click", () => {
       const j = app.cycle;
       if (!j) return;
@@ -683,6 +773,7 @@
     wireInputs();
     downloads();
     $("[data-action=step]").addEventListener("click", runStep);
+    $("[data-action=linearize]").addEventListener("click", runLinearize);
     $("[data-action=map]").addEventListener("click", runMap);
     $("[data-action=cycle]").addEventListener("click", runCycle);
     $("input[name=cycle_t]").addEventListener("input", scrub);
