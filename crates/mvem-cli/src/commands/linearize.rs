@@ -102,7 +102,12 @@ pub fn run(a: &Args) -> Result<()> {
             }
         };
         if let Some(ts) = a.ts {
-            let dm = discretize(m, &x, &d, &opts, ts).context("sampled model")?;
+            let dm = discretize(m, &x, &d, &opts, ts).map_err(|e| match e {
+                e @ mvem::analysis::linearize::LinearizeError::BadOption { .. } => {
+                    common::usage(format!("--ts: {e}"))
+                }
+                other => anyhow::Error::new(other).context("sampled model"),
+            })?;
             v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
         }
         v

@@ -34,6 +34,9 @@ use nalgebra::DMatrix;
 pub const TS_MIN: f64 = 1e-3;
 /// Longest sample time accepted \[s\].
 pub const TS_MAX: f64 = 100.0;
+/// Most delay registers (past commands as states) of a sampled model: a parameter set with long
+/// delays and a short sample time is refused instead of building a huge Phi.
+pub const MAX_REGISTERS: usize = 1000;
 
 /// A discrete-time linear model `dx(k+1) = Phi dx(k) + Gamma du(k)`,
 /// `dy(k) = C dx(k) + D du(k)` in deviations from the operating point, sampled with a
@@ -186,6 +189,14 @@ fn split_and_sample<const N: usize, M: Model<N>>(
         .map(|&(l, rem)| if rem > 0.0 { l + 1 } else { l })
         .collect();
     let nr: usize = regs.iter().sum();
+    if nr > MAX_REGISTERS {
+        return Err(LinearizeError::BadOption {
+            field: "ts",
+            value: ts,
+            constraint: "too short for the parameter set's delays: more than 1000 delay \
+                         registers (tau / ts summed over u_egr and u_vgt)",
+        });
+    }
     let nt = n + nr;
     let reg_index = |q: usize, i: usize| n + regs[..q].iter().sum::<usize>() + (i - 1);
 
@@ -351,5 +362,15 @@ mod tests {
         };
         let e = discretize(&m, &ss.x, &d, &o, 0.01).unwrap_err();
         assert!(e.to_string().contains("pade_order"), "{e}");
+        // long delays at a short sample time: refused before any large matrix is built
+        let mut p = crate::params::Params::published();
+        p.egr_actuator.tau_degr = 0.9;
+        p.vgt_actuator.tau_dvgt = 0.2;
+        let long = Engine8::new(p, crate::model::ModelOptions::default()).unwrap();
+        let ss = steady_state(&long, &d).unwrap();
+        let e = discretize(&long, &ss.x, &d, &LinearizeOptions::default(), 1e-3).unwrap_err();
+        assert!(e.to_string().contains("1000 delay registers"), "{e}");
+        let ok = discretize(&long, &ss.x, &d, &LinearizeOptions::default(), 0.01).unwrap();
+        assert_eq!(ok.n_states(), 8 + 90 + 20);
     }
 }
