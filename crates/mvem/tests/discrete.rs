@@ -128,6 +128,14 @@ fn sampled_poles_are_the_exponentials_of_the_continuous_ones() {
     assert_eq!(dm.n_states(), 8 + 4 + 2);
     assert_eq!(dm.state_names[8], "u_egr(k-1)");
     assert_eq!(dm.state_names[13], "u_vgt(k-2)");
+    // the current commands u_egr, u_vgt act on the engine only through their delayed copies:
+    // with delays of a sample or more their Gamma columns reach only the first registers
+    for (col, reg) in [(1, 8), (2, 12)] {
+        for r in 0..dm.n_states() {
+            let want = if r == reg { 1.0 } else { 0.0 };
+            assert_eq!(dm.gamma[(r, col)], want, "Gamma[{r}, {col}]");
+        }
+    }
     let n = 8;
     let a = &dm.continuous.a;
     let s = &dm.continuous.state_scales;

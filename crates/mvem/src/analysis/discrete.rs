@@ -159,12 +159,22 @@ fn split_and_sample<const N: usize, M: Model<N>>(
     // current-command part: the undelayed columns minus the delayed copies' (u_egr: 1, u_vgt: 2)
     let mut b_now = lin.b.clone();
     let mut d_now = lin.d.clone();
+    // (an entry that cancels to the rounding of the two difference quotients, e.g. the
+    // actuator rows, which only the delayed copy drives, is an exact 0)
+    let rest = |total: f64, delayed: f64| {
+        let r = total - delayed;
+        if r.abs() <= 1e-9 * total.abs() {
+            0.0
+        } else {
+            r
+        }
+    };
     for q in 0..2 {
         for r in 0..n {
-            b_now[(r, 1 + q)] -= g[(r, q)];
+            b_now[(r, 1 + q)] = rest(b_now[(r, 1 + q)], g[(r, q)]);
         }
         for o in 0..p {
-            d_now[(o, 1 + q)] -= gd[(o, q)];
+            d_now[(o, 1 + q)] = rest(d_now[(o, 1 + q)], gd[(o, q)]);
         }
     }
 
