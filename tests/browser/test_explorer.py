@@ -407,6 +407,15 @@ def test_linear_model_panel(page, server):
         page.click("[data-download=linear]")
     assert json.loads(Path(d.value.path()).read_text()) == api
     page.screenshot(path=str(ART / "explorer_linear.png"), full_page=True)
+    # the point it was computed at; moving an input marks it as another point's
+    at = page.text_content("#lin-at")
+    assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at
+    assert page.get_attribute("#lin-at", "data-stale") == "false"
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("#lin-at[data-stale=true]")
+    assert "the point has changed" in page.text_content("#lin-at")
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("#lin-at[data-stale=false]")
     # without a sample time: the continuous model only; a bad one is the server's 400, named
     page.fill("input[name=lin_ts]", "")
     page.click("[data-action=linearize]")

@@ -84,6 +84,7 @@
   function scheduleSteady() {
     clearTimeout(debounce);
     debounce = setTimeout(requestSteady, 10);
+    markLinearStale();
   }
 
   async function requestSteady() {
@@ -277,6 +278,22 @@
   // right half plane, as `mvem linearize` marks it
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
+  // the point, model and parameter set a linearization was asked for, as a key and as text
+  const linearKey = () => JSON.stringify([point(), modelSel()]);
+  function linearAt() {
+    const p = point();
+    return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states`;
+  }
+  // a shown linear model of another point than the inputs' is marked (not recomputed: the
+  // sliders would ask for one per move)
+  function markLinearStale() {
+    const el = $("#lin-at");
+    if (!app.linearKey) return;
+    const stale = app.linearKey !== linearKey();
+    el.dataset.stale = String(stale);
+    el.textContent = stale ? `${app.linearAtText}; the point has changed: Linearize again` : app.linearAtText;
+  }
+
   async function runLinearize() {
     const btn = $("[data-action=linearize]");
     btn.disabled = true;
@@ -286,8 +303,13 @@
       if (modelSel().params) q.set("params", modelSel().params);
       const ts = $("input[name=lin_ts]").value.trim();
       if (ts !== "") q.set("ts", ts);
+      const key = linearKey();
+      const at = linearAt();
       const j = await api(`/api/linearize?${q}`);
       app.linear = j;
+      app.linearKey = key;
+      app.linearAtText = at;
+      markLinearStale();
       showLinear(j);
       showError("#lin-error", null);
       $("[data-download=linear]").disabled = false;
