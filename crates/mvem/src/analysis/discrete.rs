@@ -179,6 +179,12 @@ fn split_and_sample<const N: usize, M: Model<N>>(
     }
 
     let delays = lin.delays;
+    // the register count bounded in floating point first (a delay of 1e300 s must not reach
+    // the integer conversion below)
+    let bound: f64 = delays.iter().map(|tau| (tau / ts).ceil() + 1.0).sum();
+    if bound.is_nan() || bound > (MAX_REGISTERS + 2) as f64 {
+        return Err(too_many_registers(ts));
+    }
     let split = |tau: f64| -> (usize, f64) {
         // tau = l ts + rem, 0 <= rem < ts; a remainder within rounding of ts or 0 is snapped
         let l = (tau / ts).floor();
@@ -200,12 +206,7 @@ fn split_and_sample<const N: usize, M: Model<N>>(
         .collect();
     let nr: usize = regs.iter().sum();
     if nr > MAX_REGISTERS {
-        return Err(LinearizeError::BadOption {
-            field: "ts",
-            value: ts,
-            constraint: "too short for the parameter set's delays: more than 1000 delay \
-                         registers (tau / ts summed over u_egr and u_vgt)",
-        });
+        return Err(too_many_registers(ts));
     }
     let nt = n + nr;
     let reg_index = |q: usize, i: usize| n + regs[..q].iter().sum::<usize>() + (i - 1);
@@ -297,6 +298,15 @@ fn split_and_sample<const N: usize, M: Model<N>>(
     })
 }
 
+fn too_many_registers(ts: f64) -> LinearizeError {
+    LinearizeError::BadOption {
+        field: "ts",
+        value: ts,
+        constraint: "too short for the parameter set's delays: more than 1000 delay registers \
+                     (tau / ts summed over u_egr and u_vgt)",
+    }
+}
+
 /// Zero-order-hold sampling of `dx/dt = A x + B u` by the exponential of the block matrix
 /// [[A, B], [0, 0]] t (Van Loan), in the coordinates scaled by the states' typical magnitudes.
 struct VanLoan<'a> {
@@ -379,6 +389,12 @@ mod tests {
         let long = Engine8::new(p, crate::model::ModelOptions::default()).unwrap();
         let ss = steady_state(&long, &d).unwrap();
         let e = discretize(&long, &ss.x, &d, &LinearizeOptions::default(), 1e-3).unwrap_err();
+        assert!(e.to_string().contains("1000 delay registers"), "{e}");
+        // a delay of 1e300 s (the parameters only ask for >= 0): an error, not an overflow
+        let mut p = crate::params::Params::published();
+        p.vgt_actuator.tau_dvgt = 1e300;
+        let huge = Engine8::new(p, crate::model::ModelOptions::default()).unwrap();
+        let e = discretize(&huge, &ss.x, &d, &LinearizeOptions::default(), 100.0).unwrap_err();
         assert!(e.to_string().contains("1000 delay registers"), "{e}");
         let ok = discretize(&long, &ss.x, &d, &LinearizeOptions::default(), 0.01).unwrap();
         assert_eq!(ok.n_states(), 8 + 90 + 20);
