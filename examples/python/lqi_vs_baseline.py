@@ -78,7 +78,7 @@ def lqi_gain_delays(lin, w_u):
     controller knows (it sent them)."""
     d = lin["discrete"]
     phi, c = d["Phi"], d["C"]
-    iu = [lin["input_names"].index("u_egr"), lin["input_names"].index("u_vgt")]
+    iu = [d["input_names"].index("u_egr"), d["input_names"].index("u_vgt")]
     gam = d["Gamma"][:, iu]
     n, m = phi.shape[0], 2
     aa = np.block([[phi, np.zeros((n, 2))], [DT * c, np.eye(2)]])

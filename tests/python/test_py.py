@@ -416,6 +416,7 @@ def test_linearize_sampled_with_exact_delays(mvem_cli):
     lin = mvem.linearize(1500, 110, 40, 75, ts=0.02)
     dv = lin["discrete"]
     assert dv["ts"] == 0.02
+    assert dv["input_names"] == lin["input_names"] and dv["output_names"] == lin["output_names"]
     assert dv["state_names"][8:] == ["u_egr(k-1)", "u_egr(k-2)", "u_egr(k-3)", "u_egr(k-4)",
                                      "u_vgt(k-1)", "u_vgt(k-2)"]
     (egr_l, egr_r), (vgt_l, vgt_r) = dv["delay_samples"]

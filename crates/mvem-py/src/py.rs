@@ -637,8 +637,8 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 /// when those outputs are present; "kinks" (list of str); "delays" [s] of (u_egr, u_vgt); with
 /// ts also "discrete": {"ts", "Phi", "Gamma", "C", "D" (arrays: dx(k+1) = Phi dx(k) + Gamma
 /// du(k), dy(k) = C dx(k) + D du(k)), "state_names" (the model's states, then the delay
-/// registers "u_egr(k-1)", ...), "delay_samples" [(whole samples, remainder [s]) of u_egr,
-/// u_vgt]}.
+/// registers "u_egr(k-1)", ...), "input_names", "output_names", "delay_samples" [(whole
+/// samples, remainder [s]) of u_egr, u_vgt]}.
 /// Raises ValueError for bad arguments, RuntimeError when there is no steady state or a kink.
 #[pyfunction]
 #[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=0, params=None, model=8, ts=None))]
@@ -708,6 +708,8 @@ fn linearize<'py>(
         dd.set_item("C", matrix(&np, &dm.c)?)?;
         dd.set_item("D", matrix(&np, &dm.d)?)?;
         dd.set_item("state_names", &dm.state_names)?;
+        dd.set_item("input_names", &dm.input_names)?;
+        dd.set_item("output_names", &dm.output_names)?;
         dd.set_item("delay_samples", dm.delay_samples.to_vec())?;
         out.set_item("discrete", dd)?;
     }

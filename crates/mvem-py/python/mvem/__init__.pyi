@@ -120,7 +120,8 @@ def linearize(
     None}; "mimo_zeros" (complex array or None); "kinks" (list of str); "delays" [s].
     ts [s] (1e-3 to 100, with pade_order 0): also "discrete", the model sampled with a
     zero-order hold, delays exact: {"ts", "Phi", "Gamma", "C", "D", "state_names" (states, then
-    the registers "u_egr(k-1)", ...), "delay_samples" [(whole, remainder [s]) of u_egr, u_vgt]}.
+    the registers "u_egr(k-1)", ...), "input_names", "output_names", "delay_samples" [(whole,
+    remainder [s]) of u_egr, u_vgt]}.
     ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
     """
 
