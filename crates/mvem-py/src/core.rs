@@ -1,7 +1,7 @@
 //! The Python API in plain Rust (no Python types), so it is tested by `cargo test` and the
 //! pyo3 layer only converts values.
 
-use mvem::analysis::discrete::{discretize, DiscreteModel};
+use mvem::analysis::discrete::{discretize_linear, DiscreteModel};
 use mvem::analysis::ensemble::{simulate_many, Case};
 use mvem::analysis::experiment::{run_step, StepRunError, StepSpec};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeError, LinearizeOptions};
@@ -580,7 +580,7 @@ pub fn linearize_at(
             .map_err(|e| CoreError::Runtime(format!("steady state: {e}")))?;
         let lin = linearize_steady(m, &ss, &opts).map_err(lin_err)?;
         let discrete = match args.ts {
-            Some(ts) => Some(discretize(m, &ss.x, &drive, &opts, ts).map_err(lin_err)?),
+            Some(ts) => Some(discretize_linear(m, &ss.x, &drive, &lin, ts).map_err(lin_err)?),
             None => None,
         };
         Ok::<_, CoreError>((lin, discrete))

@@ -101,11 +101,12 @@ pub(crate) fn linearize<const N: usize, M: Model<N>>(
     })?;
     let mut v = linear_model_json(&lin, &ss);
     if let Some(ts) = ts {
-        let dm =
-            mvem::analysis::discrete::discretize(m, &ss.x, d, &opts, ts).map_err(|e| match e {
+        let dm = mvem::analysis::discrete::discretize_linear(m, &ss.x, d, &lin, ts).map_err(
+            |e| match e {
                 LinearizeError::BadOption { .. } => input(e.to_string()),
                 other => Fail::Model(format!("sampled model: {other}")),
-            })?;
+            },
+        )?;
         v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
     }
     Ok(v)

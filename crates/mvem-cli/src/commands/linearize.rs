@@ -4,8 +4,8 @@
 
 use crate::common::{self, ModelArgs, PointArgs};
 use anyhow::{Context, Result};
-use mvem::analysis::discrete::{discretize, TS_MAX, TS_MIN};
-use mvem::analysis::linearize::{linearize_steady, LinearizeOptions};
+use mvem::analysis::discrete::{discretize_linear, TS_MAX, TS_MIN};
+use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeOptions};
 use mvem::analysis::steady::{steady_state, SteadyState};
 use mvem::model::Model;
 use serde_json::Value;
@@ -90,19 +90,18 @@ pub fn run(a: &Args) -> Result<()> {
         None => None,
     };
     let v = mvem::dispatch!(&model, m => {
-        let (x, mut v) = match &state {
+        let (x, (lin, mut v)) = match &state {
             None => {
                 let ss = steady_state(m, &d).context("steady state")?;
                 (ss.x, analyse(m, &ss, &opts)?)
             }
             Some((values, path)) => {
                 let x = super::simulate::state_from_map(m, values, path)?;
-                let v = analyse_at(m, &x, &d, &opts)?;
-                (x, v)
+                (x, analyse_at(m, &x, &d, &opts)?)
             }
         };
         if let Some(ts) = a.ts {
-            let dm = discretize(m, &x, &d, &opts, ts).map_err(|e| match e {
+            let dm = discretize_linear(m, &x, &d, &lin, ts).map_err(|e| match e {
                 e @ mvem::analysis::linearize::LinearizeError::BadOption { .. } => {
                     common::usage(format!("--ts: {e}"))
                 }
@@ -155,19 +154,21 @@ pub fn options(outputs: &[String], pade: usize) -> Result<LinearizeOptions> {
     Ok(o)
 }
 
-/// The whole analysis of the steady state `ss` as the JSON object of the contract.
+/// The whole analysis of the steady state `ss` as the JSON object of the contract, with the
+/// linear model it shows.
 pub fn analyse<const N: usize, M: Model<N>>(
     m: &M,
     ss: &SteadyState<N>,
     opts: &LinearizeOptions,
-) -> Result<Value> {
+) -> Result<(LinearModel, Value)> {
     let lin = linearize_steady(m, ss, opts).map_err(|e| match e {
         mvem::analysis::linearize::LinearizeError::UnknownOutput { .. } => {
             common::usage(format!("--outputs: {e}"))
         }
         other => anyhow::Error::new(other).context("linearization"),
     })?;
-    Ok(mvem::analysis::json::linear_model_json(&lin, ss))
+    let v = mvem::analysis::json::linear_model_json(&lin, ss);
+    Ok((lin, v))
 }
 
 /// The analysis at the state `x` with the inputs `d` held (not an equilibrium in general: the
@@ -178,7 +179,7 @@ pub fn analyse_at<const N: usize, M: Model<N>>(
     x: &[f64; N],
     d: &mvem::model::Drive,
     opts: &LinearizeOptions,
-) -> Result<Value> {
+) -> Result<(LinearModel, Value)> {
     let lin = mvem::analysis::linearize::linearize(m, x, d, opts).map_err(|e| match e {
         mvem::analysis::linearize::LinearizeError::UnknownOutput { .. } => {
             common::usage(format!("--outputs: {e}"))
@@ -196,9 +197,8 @@ pub fn analyse_at<const N: usize, M: Model<N>>(
         .collect();
     let flags: Vec<String> = active.iter().map(|g| g.label().to_string()).collect();
     let valid = !active.iter().any(|g| g.invalidates());
-    Ok(mvem::analysis::json::linear_model_json_at(
-        &lin, d, valid, &flags,
-    ))
+    let v = mvem::analysis::json::linear_model_json_at(&lin, d, valid, &flags);
+    Ok((lin, v))
 }
 
 fn fmt_c(z: &Value) -> String {

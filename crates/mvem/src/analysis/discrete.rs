@@ -102,6 +102,32 @@ pub fn discretize<const N: usize, M: Model<N>>(
     opts: &LinearizeOptions,
     ts: f64,
 ) -> Result<DiscreteModel, LinearizeError> {
+    check_options(opts.pade_order, ts)?;
+    let lin = linearize(m, x, d, opts)?;
+    discretize_linear(m, x, d, &lin, ts)
+}
+
+/// [`discretize`] of a linearization `lin` already made of `m` at `x`, `d` (by
+/// [`linearize`](super::linearize::linearize) without Padé states): the same result, without
+/// linearizing again (a front end that shows both models).
+pub fn discretize_linear<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    d: &Drive,
+    lin: &LinearModel,
+    ts: f64,
+) -> Result<DiscreteModel, LinearizeError> {
+    check_options(lin.pade_order, ts)?;
+    if m.options().cylinder_temp == CylinderTemp::OneIteration {
+        // as linearize: the converged model (the memory is a property of the integration)
+        let mut o = *m.options();
+        o.cylinder_temp = CylinderTemp::Converged;
+        return split_and_sample(&m.with_options(o), x, d, lin.clone(), ts);
+    }
+    split_and_sample(m, x, d, lin.clone(), ts)
+}
+
+fn check_options(pade_order: usize, ts: f64) -> Result<(), LinearizeError> {
     if !(ts.is_finite() && (TS_MIN..=TS_MAX).contains(&ts)) {
         return Err(LinearizeError::BadOption {
             field: "ts",
@@ -109,21 +135,14 @@ pub fn discretize<const N: usize, M: Model<N>>(
             constraint: "must lie in [1e-3, 100] s",
         });
     }
-    if opts.pade_order != 0 {
+    if pade_order != 0 {
         return Err(LinearizeError::BadOption {
             field: "pade_order",
-            value: opts.pade_order as f64,
+            value: pade_order as f64,
             constraint: "must be 0 with a sample time (the delays are exact in discrete time)",
         });
     }
-    let lin = linearize(m, x, d, opts)?;
-    if m.options().cylinder_temp == CylinderTemp::OneIteration {
-        // as linearize: the converged model (the memory is a property of the integration)
-        let mut o = *m.options();
-        o.cylinder_temp = CylinderTemp::Converged;
-        return split_and_sample(&m.with_options(o), x, d, lin, ts);
-    }
-    split_and_sample(m, x, d, lin, ts)
+    Ok(())
 }
 
 fn split_and_sample<const N: usize, M: Model<N>>(
