@@ -108,7 +108,7 @@ pub fn discretize<const N: usize, M: Model<N>>(
 }
 
 /// [`discretize`] of a linearization `lin` already made of `m` at `x`, `d` (by
-/// [`linearize`](super::linearize::linearize) without Padé states): the same result, without
+/// [`linearize`] without Padé states): the same result, without
 /// linearizing again (a front end that shows both models).
 pub fn discretize_linear<const N: usize, M: Model<N>>(
     m: &M,
