@@ -9,7 +9,7 @@ use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use mvem::analysis::discrete::{TS_MAX, TS_MIN};
+use mvem::analysis::discrete::{check_ts, TS_MAX, TS_MIN};
 use mvem::model::{AnyModel, Drive, Model, ModelOrder};
 use serde::de::DeserializeOwned;
 use serde_json::{json, Value};
@@ -405,8 +405,8 @@ async fn linearize(
     let ts = match p.take("ts") {
         None => None,
         Some(s) => match s.trim().parse::<f64>() {
-            Ok(v) if v.is_finite() && (TS_MIN..=TS_MAX).contains(&v) && pade == 0 => Some(v),
-            Ok(v) if v.is_finite() && (TS_MIN..=TS_MAX).contains(&v) => {
+            Ok(v) if check_ts(v).is_ok() && pade == 0 => Some(v),
+            Ok(v) if check_ts(v).is_ok() => {
                 return Err(ApiError::bad(
                     "ts with pade: the sampled model has the delays exact; leave out pade",
                 ))

@@ -4,7 +4,7 @@
 
 use crate::common::{self, ModelArgs, PointArgs};
 use anyhow::{Context, Result};
-use mvem::analysis::discrete::{discretize_linear, TS_MAX, TS_MIN};
+use mvem::analysis::discrete::{check_ts, discretize_linear, TS_MAX, TS_MIN};
 use mvem::analysis::linearize::{linearize_steady, LinearModel, LinearizeOptions};
 use mvem::analysis::steady::{steady_state, SteadyState};
 use mvem::model::Model;
@@ -77,7 +77,7 @@ pub fn run(a: &Args) -> Result<()> {
                 "--ts with --pade: the sampled model has the delays exact; leave out --pade",
             ));
         }
-        if !(ts.is_finite() && (TS_MIN..=TS_MAX).contains(&ts)) {
+        if check_ts(ts).is_err() {
             return Err(common::usage(format!(
                 "--ts {}: must lie in [{TS_MIN}, {TS_MAX}] s",
                 mvem::numerics::Num(ts)

@@ -127,14 +127,22 @@ pub fn discretize_linear<const N: usize, M: Model<N>>(
     split_and_sample(m, x, d, lin.clone(), ts)
 }
 
-fn check_options(pade_order: usize, ts: f64) -> Result<(), LinearizeError> {
-    if !(ts.is_finite() && (TS_MIN..=TS_MAX).contains(&ts)) {
-        return Err(LinearizeError::BadOption {
+/// Whether `ts` is a sample time [`discretize`] accepts ([`TS_MIN`] ..= [`TS_MAX`], finite): the
+/// one check, which front ends also call to refuse a bad value before any work.
+pub fn check_ts(ts: f64) -> Result<(), LinearizeError> {
+    if ts.is_finite() && (TS_MIN..=TS_MAX).contains(&ts) {
+        Ok(())
+    } else {
+        Err(LinearizeError::BadOption {
             field: "ts",
             value: ts,
             constraint: "must lie in [1e-3, 100] s",
-        });
+        })
     }
+}
+
+fn check_options(pade_order: usize, ts: f64) -> Result<(), LinearizeError> {
+    check_ts(ts)?;
     if pade_order != 0 {
         return Err(LinearizeError::BadOption {
             field: "pade_order",

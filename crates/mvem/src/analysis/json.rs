@@ -8,7 +8,8 @@ use crate::analysis::linearize::LinearModel;
 use crate::analysis::steady::SteadyState;
 use crate::analysis::step::{Excursion, StepMetrics};
 use crate::analysis::zeros::{
-    dc_gain_matrix, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS, MIMO_OUTPUTS,
+    dc_gain_matrix, eigenvalues, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS,
+    MIMO_OUTPUTS,
 };
 use crate::model::{Drive, Model, Signals};
 use nalgebra::DMatrix;
@@ -88,14 +89,18 @@ pub fn discrete_model_json(dm: &DiscreteModel) -> Value {
     // eigenvalue solver would return as roots of rounding, ~1e-8, the block being defective)
     let n = dm.continuous.n_states();
     let s = &dm.state_scales;
-    // eigenvalues in the scaled coordinates (the same values, better conditioned)
+    // eigenvalues in the scaled coordinates (the same values, better conditioned), by the
+    // routine of the continuous poles (balancing, real Schur form); null if it fails, as they
     let scaled = DMatrix::from_fn(n, n, |i, j| dm.phi[(i, j)] * s[j] / s[i]);
-    let mut poles: Vec<Value> = scaled
-        .complex_eigenvalues()
-        .iter()
-        .map(|z| json!({"re": z.re, "im": z.im}))
-        .collect();
-    poles.extend((n..dm.n_states()).map(|_| json!({"re": 0.0, "im": 0.0})));
+    let poles = match eigenvalues(&scaled) {
+        Ok(p) => Value::Array(
+            p.iter()
+                .map(cjson)
+                .chain((n..dm.n_states()).map(|_| json!({"re": 0.0, "im": 0.0})))
+                .collect(),
+        ),
+        Err(_) => Value::Null,
+    };
     let ds =
         |q: usize| json!({"whole": dm.delay_samples[q].0, "remainder_s": dm.delay_samples[q].1});
     json!({
