@@ -234,6 +234,17 @@ def _api(server, path, body=None):
         return json.loads(r.read())
 
 
+def _take_console_400(page):
+    """Take the one console line of a 400 a test provoked out of the page's errors (Chromium
+    logs every failed request; its event may reach Python after the page has shown the error)."""
+    line = "console.error: Failed to load resource: the server responded with a status of 400 (Bad Request)"
+    for _ in range(40):
+        if line in page.console_errors:
+            break
+        page.wait_for_timeout(50)
+    page.console_errors.remove(line)
+
+
 def test_closed_loop_controller_tuning(page, server):
     """The closed-loop mode's tuning form: shown only in that mode, filled with the defaults of
     /api/models (a PI pair as kp and ki), a non-number named without a request, the changed
@@ -275,14 +286,7 @@ def test_closed_loop_controller_tuning(page, server):
     page.wait_for_function(
         "document.querySelector('#cycle-error').textContent.includes('lambda_limit = 9.9: must be in [1, 5]')")
     assert page.is_hidden("#cycle-stats")
-    # the one console line of that 400 (Chromium logs every failed request; its event may reach
-    # Python after the page has shown the error)
-    line = "console.error: Failed to load resource: the server responded with a status of 400 (Bad Request)"
-    for _ in range(40):
-        if line in page.console_errors:
-            break
-        page.wait_for_timeout(50)
-    page.console_errors.remove(line)
+    _take_console_400(page)
     page.click("[data-action=tuning-defaults]")
     assert page.eval_on_selector("input[data-tuning=lambda_limit]", "e => e.checkValidity()")
     # the open ends, which min/max cannot express: smoke_margin 1 and lambda_error_cap 0 are
@@ -424,9 +428,4 @@ def test_linear_model_panel(page, server):
     page.click("[data-action=linearize]")
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "ts" in page.text_content("#lin-error") and "sample time" in page.text_content("#lin-error")
-    line = "console.error: Failed to load resource: the server responded with a status of 400 (Bad Request)"
-    for _ in range(40):
-        if line in page.console_errors:
-            break
-        page.wait_for_timeout(50)
-    page.console_errors.remove(line)
+    _take_console_400(page)

@@ -67,15 +67,23 @@
   }
   const modelSel = () => ({ model: Number($("select[name=model]").value), params: $("select[name=params]").value || undefined });
 
-  function download(name, rows) {
-    const text = rows.map((r) => r.map((c) => (typeof c === "string" && /[",\n]/.test(c)) ? `"${c.replace(/"/g, '""')}"` : String(c ?? "")).join(",")).join("\n") + "\n";
+  // the browser's download of `text` as the file `name`
+  function saveFile(name, text, type) {
     const a = document.createElement("a");
-    a.href = URL.createObjectURL(new Blob([text], { type: "text/csv" }));
+    a.href = URL.createObjectURL(new Blob([text], { type }));
     a.download = name;
     document.body.appendChild(a);
     a.click();
     setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 0);
   }
+
+  function download(name, rows) {
+    const text = rows.map((r) => r.map((c) => (typeof c === "string" && /[",\n]/.test(c)) ? `"${c.replace(/"/g, '""')}"` : String(c ?? "")).join(",")).join("\n") + "\n";
+    saveFile(name, text, "text/csv");
+  }
+
+  // a complex number {re, im} as "-1.23" or "-1.23+4.56i"
+  const cplx = (e) => e.im === 0 ? fmt(e.re) : `${fmt(e.re)}${e.im < 0 ? "−" : "+"}${fmt(Math.abs(e.im))}i`;
 
   // ---------------------------------------------------------------------------------------------
   // steady state: debounced, at most one request in flight, the latest inputs always win
@@ -128,7 +136,7 @@
       return s;
     }));
     if (!(j.flags || []).length) flags.textContent = "no flags";
-    $("#eigenvalues").textContent = (j.eigenvalues || []).map((e) => e.im === 0 ? fmt(e.re) : `${fmt(e.re)}${e.im < 0 ? "−" : "+"}${fmt(Math.abs(e.im))}i`).join(", ");
+    $("#eigenvalues").textContent = (j.eigenvalues || []).map(cplx).join(", ");
     app.shown = seq;
     document.body.dataset.steadySeq = String(seq);
     if (document.body.dataset.state !== "ready") {
@@ -274,7 +282,6 @@
   // linear model panel (/api/linearize: the object of `mvem linearize --json`, with `ts` its
   // "discrete" part)
 
-  const cplx = (e) => e.im === 0 ? fmt(e.re) : `${fmt(e.re)}${e.im < 0 ? "−" : "+"}${fmt(Math.abs(e.im))}i`;
   // right half plane, as `mvem linearize` marks it
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
@@ -771,12 +778,7 @@
     $("[data-download=linear]").addEventListener("click", () => {
       const j = app.linear;
       if (!j) return;
-      const a = document.createElement("a");
-      a.href = URL.createObjectURL(new Blob([JSON.stringify(j, null, 1) + "\n"], { type: "application/json" }));
-      a.download = "linear_model.json";
-      document.body.appendChild(a);
-      a.click();
-      setTimeout(() => { URL.revokeObjectURL(a.href); a.remove(); }, 0);
+      saveFile("linear_model.json", JSON.stringify(j, null, 1) + "\n", "application/json");
     });
     $("[data-download=cycle]").addEventListener("click", () => {
       const j = app.cycle;
