@@ -1377,3 +1377,57 @@ mod tests {
         assert!(matches!(with("u_vgt", "W_x"), Err(CoreError::Value(m)) if m.contains("W_x")));
     }
 }
+
+/// What [`tune`] returns, as JSON texts for the Python layer.
+#[derive(Debug)]
+pub struct TuneOut {
+    /// The tuned parameter set (the nested form `params=` takes).
+    pub params_json: String,
+    /// The test-cell quantities (tau_me, sensor time constants) estimated or kept.
+    pub test_cell_json: String,
+    /// The parameter file `mvem tune --out FILE.toml` writes (parameters and `[test_cell]`).
+    pub toml: String,
+    /// The report `mvem tune --report DIR` writes as `tune_report.json`.
+    pub report_json: String,
+    /// Warnings and notes (`warning: ...`, `note: ...`), as `mvem tune` prints them.
+    pub messages: Vec<String>,
+}
+
+/// The paper's tuning steps on the campaign in `data` (the core's
+/// `tuning::request::tune_campaign`, as `mvem tune` runs it). `base`: the engine's constants and
+/// the parameters of the steps not run, with its parameter file's test-cell section (`None`: the
+/// published set). `settings`: a JSON object of `TuneSettings` fields (the command line's
+/// option names in snake case; unknown names refused). A bad setting or campaign file is a
+/// `Value` error naming it; a failed step is `Runtime`.
+pub fn tune(
+    data: &Path,
+    base: Option<(Params, Option<mvem::io::test_cell::TestCell>)>,
+    order: ModelOrder,
+    settings: Option<&str>,
+) -> CoreResult<TuneOut> {
+    use mvem::tuning::request::{tune_campaign, TuneCampaignError, TuneSettings};
+    let settings: TuneSettings = match settings {
+        None => TuneSettings::default(),
+        Some(text) => serde_json::from_str(text)
+            .map_err(|e| CoreError::Value(format!("tuning settings: {e}")))?,
+    };
+    let given = base.is_some();
+    let (base, cell) = base.unwrap_or_else(|| (Params::published(), None));
+    let run =
+        tune_campaign(data, &base, cell.as_ref(), given, order, &settings).map_err(
+            |e| match e {
+                TuneCampaignError::Pipeline(e) => CoreError::Runtime(e.to_string()),
+                other => CoreError::Value(other.to_string()),
+            },
+        )?;
+    let json = |v: serde_json::Result<String>| {
+        v.map_err(|e| CoreError::Runtime(format!("tuning result: {e}")))
+    };
+    Ok(TuneOut {
+        params_json: json(serde_json::to_string(&run.params))?,
+        test_cell_json: json(serde_json::to_string(&run.test_cell))?,
+        toml: mvem::io::test_cell::params_with_test_cell_text(&run.params, &run.test_cell, false),
+        report_json: json(serde_json::to_string(&run.report))?,
+        messages: run.messages,
+    })
+}

@@ -1326,6 +1326,83 @@ impl PyModel {
     }
 }
 
+/// The paper's tuning steps (sections 3-6, 8.1) on a campaign directory, as `mvem tune` runs
+/// them: the same parameters and report from the same campaign and settings.
+///
+/// data: the campaign directory (manifest.toml, docs/tuning-data.md). params: the engine's
+/// constants and the parameters of the steps not run (None: the published set, whose constants
+/// are right only for the published engine; a path also supplies its [test_cell] section).
+/// model: 8 or 12. Keyword settings: the options of `mvem tune` in snake case (steps="1-5",
+/// ambient, input_ranges, init, cost, beta, refine_dynamics, joint_uncertainty, fixed_jacobian,
+/// max_evals, broyden, rel_offset, restarts, step5_single_pass, step5_first_pass_max,
+/// settled_flow_points, step3_window (None: infinite), step3_tail_weight, step_levels,
+/// sensor_lags); an unknown name is a ValueError. Returns a dict: "params" (the tuned set as a
+/// nested dict, usable as params=), "test_cell" (tau_me and sensor time constants), "toml" (the
+/// parameter file mvem tune writes), "report" (tune_report.json as a dict), "messages" (the
+/// warnings and notes mvem tune prints; each "warning: ..." is also issued as a UserWarning).
+/// ValueError for a bad setting, parameter set or campaign file (naming it), RuntimeError when a
+/// step fails (naming it). Runs without the GIL.
+#[pyfunction]
+#[pyo3(signature = (data, params=None, model=8, **settings))]
+fn tune<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+    settings: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let os = py.import("os")?;
+    let fspath = |obj: &Bound<'py, PyAny>, what: &str| -> PyResult<String> {
+        os.call_method1("fspath", (obj,))
+            .and_then(|p| p.extract::<String>())
+            .map_err(|_| PyValueError::new_err(format!("{what} must be a str path")))
+    };
+    let data = std::path::PathBuf::from(fspath(data, "data")?);
+    let base = match parse_params(py, params)? {
+        None => None,
+        Some(p) => {
+            // a parameter file's [test_cell] section (tau_Me, sensor lags) comes along
+            let cell = match params.filter(|o| !o.is_instance_of::<PyDict>()) {
+                Some(obj) => {
+                    let path = fspath(obj, "params")?;
+                    mvem::io::test_cell::load_test_cell(std::path::Path::new(&path))
+                        .map_err(|e| PyValueError::new_err(format!("params {path}: {e}")))?
+                }
+                None => None,
+            };
+            Some((p, cell))
+        }
+    };
+    let json = py.import("json")?;
+    let settings: Option<String> = match settings {
+        Some(d) if !d.is_empty() => Some(
+            json.call_method1("dumps", (d,))
+                .map_err(|e| PyValueError::new_err(format!("tuning settings: {e}")))?
+                .extract()?,
+        ),
+        _ => None,
+    };
+    let out = py
+        .allow_threads(move || core::tune(&data, base, variant.order, settings.as_deref()))
+        .map_err(to_py_err)?;
+    let d = PyDict::new(py);
+    d.set_item("params", json.call_method1("loads", (out.params_json,))?)?;
+    d.set_item(
+        "test_cell",
+        json.call_method1("loads", (out.test_cell_json,))?,
+    )?;
+    d.set_item("toml", out.toml)?;
+    d.set_item("report", json.call_method1("loads", (out.report_json,))?)?;
+    for m in &out.messages {
+        if let Some(w) = m.strip_prefix("warning: ") {
+            user_warning(py, w.to_string())?;
+        }
+    }
+    d.set_item("messages", out.messages)?;
+    Ok(d)
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
@@ -1333,6 +1410,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
+    m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;

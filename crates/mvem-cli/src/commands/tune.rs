@@ -3,10 +3,13 @@
 use crate::common;
 use anyhow::Result;
 use mvem::io::test_cell::TestCell;
-use mvem::model::ModelOrder;
 use mvem::params::Params;
-use mvem::tuning::pipeline::{self, Init, PipelineOptions, TuneReport};
-use mvem::tuning::sensors::{SensorLagMode, SensorLags};
+use mvem::tuning::complete::StepLevels;
+use mvem::tuning::constants::{AmbientSource, InputRangeSource};
+use mvem::tuning::pipeline::{Init, TuneReport};
+use mvem::tuning::request::{self, CostRows, SettingError, TuneCampaignError, TuneSettings};
+use mvem::tuning::sensors::SensorLags;
+use mvem::tuning::uncertainty::FixedJacobian;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -230,12 +233,60 @@ pub enum CostArg {
 }
 
 /// Run `mvem tune`.
-pub fn run(a: &Args) -> Result<()> {
-    let steps =
-        pipeline::parse_steps(&a.steps).map_err(|e| common::usage(format!("--steps: {e}")))?;
-    if !(a.beta.is_finite() && a.beta > 0.0) {
-        return Err(common::usage(format!("--beta {}: must be > 0", a.beta)));
+/// The command line's options as the core's settings (the same names, snake case).
+fn settings(a: &Args) -> TuneSettings {
+    TuneSettings {
+        steps: a.steps.clone(),
+        ambient: match a.ambient {
+            AmbientArg::Auto => AmbientSource::Auto,
+            AmbientArg::Data => AmbientSource::Data,
+            AmbientArg::Params => AmbientSource::Params,
+        },
+        input_ranges: match a.input_ranges {
+            InputRangesArg::Campaign => InputRangeSource::Campaign,
+            InputRangesArg::Params => InputRangeSource::Params,
+        },
+        init: match a.init {
+            InitArg::Step1 => Init::Step1,
+            InitArg::Naive => Init::Naive,
+        },
+        cost: match a.cost {
+            CostArg::Full => CostRows::Full,
+            CostArg::Dynamic => CostRows::Dynamic,
+            CostArg::Static => CostRows::Static,
+        },
+        beta: a.beta,
+        refine_dynamics: a.refine_dynamics,
+        joint_uncertainty: a.joint_uncertainty,
+        fixed_jacobian: match a.fixed_jacobian {
+            FixedJacobianArg::Forward => FixedJacobian::Forward,
+            FixedJacobianArg::SigmaPoints => FixedJacobian::SigmaPoints,
+        },
+        max_evals: a.max_evals,
+        broyden: a.broyden,
+        rel_offset: a.rel_offset,
+        restarts: a.restarts,
+        step5_single_pass: a.step5_single_pass,
+        step5_first_pass_max: a.step5_first_pass_max,
+        settled_flow_points: a.settled_flow_points,
+        step3_window: Some(a.step3_window),
+        step3_tail_weight: a.step3_tail_weight,
+        step_levels: match a.step_levels {
+            LevelsArg::LeastSquares => StepLevels::LeastSquares,
+            LevelsArg::Means => StepLevels::Means,
+        },
+        sensor_lags: a.sensor_lags.clone(),
     }
+}
+
+pub fn run(a: &Args) -> Result<()> {
+    let settings = settings(a);
+    // the settings first: a bad one is refused before any file is read
+    let setting_error =
+        |e: SettingError| common::usage(format!("--{}{}", e.field.replace('_', "-"), e.detail));
+    settings
+        .pipeline_options(a.model.order(), None)
+        .map_err(setting_error)?;
     common::check_output_path(&a.out, "--out")?;
     if let Some(r) = &a.report {
         if r.exists() && !r.is_dir() {
@@ -255,193 +306,25 @@ pub fn run(a: &Args) -> Result<()> {
         Some(p) => mvem::io::test_cell::load_test_cell(p)
             .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
     };
-    let model = a.model.order();
-    if model == ModelOrder::Ten {
-        return Err(common::usage(
-            "--model 10: the tuning pipeline tunes the 8- or 12-state model (the 10-state model \
-             has no parameters of its own)",
-        ));
+    let run = common::with_spinner("tuning", || {
+        request::tune_campaign(
+            &a.data,
+            &base,
+            base_cell.as_ref(),
+            a.params.is_some(),
+            a.model.order(),
+            &settings,
+        )
+    })
+    .map_err(|e| match e {
+        TuneCampaignError::Setting(e) => setting_error(e),
+        TuneCampaignError::Data(e) => common::usage(e.to_string()),
+        TuneCampaignError::Pipeline(e) => anyhow::Error::from(e),
+    })?;
+    for m in &run.messages {
+        eprintln!("{m}");
     }
-    let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
-    // the engine's constants: nothing estimates them, so say where they come from, and whether
-    // a virtual campaign's engine has others
-    let mut constant_caveats = Vec::new();
-    // truth, if the campaign is virtual (also for the report's comparison)
-    let truth = c
-        .manifest
-        .true_params
-        .as_ref()
-        .and_then(|f| mvem::io::params::load_params(&a.data.join(f)).ok());
-    if a.params.is_none() {
-        eprintln!(
-            "note: the engine's constants are the published engine's ({}): for another engine \
-             give --params FILE with its constants (`mvem params show > FILE`, then edit)",
-            mvem::tuning::constants::describe_constants(&base)
-        );
-    }
-    if let Some(truth) = &truth {
-        let d = mvem::tuning::constants::constant_differences(&base, truth);
-        if !d.is_empty() {
-            let list: Vec<String> = d
-                .iter()
-                .map(|x| format!("{} {} (the campaign's engine: {})", x.name, x.used, x.other))
-                .collect();
-            let msg = format!(
-                "the constants used differ from those of the engine that generated this campaign \
-                 ({} of its manifest): {}; the tuned parameters absorb the difference. Give its \
-                 constants with --params",
-                c.manifest.true_params.as_deref().unwrap_or_default(),
-                list.join(", ")
-            );
-            eprintln!("warning: {msg}");
-            constant_caveats.push(msg);
-        }
-    }
-    let mut opts = PipelineOptions {
-        model,
-        steps,
-        init: match a.init {
-            InitArg::Step1 => Init::Step1,
-            InitArg::Naive => Init::Naive,
-        },
-        ..PipelineOptions::default()
-    };
-    opts.step5.beta = a.beta;
-    opts.refine_dynamics = a.refine_dynamics;
-    opts.joint_uncertainty = a.joint_uncertainty;
-    opts.fixed_jacobian = match a.fixed_jacobian {
-        FixedJacobianArg::Forward => mvem::tuning::uncertainty::FixedJacobian::Forward,
-        FixedJacobianArg::SigmaPoints => mvem::tuning::uncertainty::FixedJacobian::SigmaPoints,
-    };
-    opts.ambient = match a.ambient {
-        AmbientArg::Auto => mvem::tuning::constants::AmbientSource::Auto,
-        AmbientArg::Data => mvem::tuning::constants::AmbientSource::Data,
-        AmbientArg::Params => mvem::tuning::constants::AmbientSource::Params,
-    };
-    opts.input_ranges = match a.input_ranges {
-        InputRangesArg::Campaign => mvem::tuning::constants::InputRangeSource::Campaign,
-        InputRangesArg::Params => mvem::tuning::constants::InputRangeSource::Params,
-    };
-    opts.step5.max_evaluations = a.max_evals;
-    opts.step5.broyden_updates = a.broyden;
-    if !(a.rel_offset.is_finite() && a.rel_offset >= 0.0) {
-        return Err(common::usage(format!(
-            "--rel-offset {}: must be >= 0",
-            a.rel_offset
-        )));
-    }
-    opts.step5.rel_offset_tol = a.rel_offset;
-    opts.step5.restarts = a.restarts;
-    opts.stage_oscillating = !a.step5_single_pass;
-    opts.stage_first_pass_max_evaluations = a.step5_first_pass_max;
-    opts.settled_flow_points = a.settled_flow_points;
-    if a.step3_window.is_nan() || a.step3_window <= 0.0 {
-        return Err(common::usage(format!(
-            "--step3-window {}: must be > 0 seconds (inf: every sample alike)",
-            a.step3_window
-        )));
-    }
-    if !(a.step3_tail_weight.is_finite() && a.step3_tail_weight > 0.0 && a.step3_tail_weight <= 1.0)
-    {
-        return Err(common::usage(format!(
-            "--step3-tail-weight {}: must lie in (0, 1]",
-            a.step3_tail_weight
-        )));
-    }
-    opts.step3.window = mvem::tuning::complete::ResponseWindow {
-        seconds: a.step3_window,
-        tail_weight: a.step3_tail_weight,
-        levels: match a.step_levels {
-            LevelsArg::LeastSquares => mvem::tuning::complete::StepLevels::LeastSquares,
-            LevelsArg::Means => mvem::tuning::complete::StepLevels::Means,
-        },
-    };
-    opts.sensor_lags = match a.sensor_lags.as_deref().map(str::trim) {
-        Some("fit") => SensorLagMode::Fit,
-        Some(v) => SensorLagMode::Known(
-            SensorLags::parse(v).map_err(|e| common::usage(format!("--sensor-lags: {e}")))?,
-        ),
-        None if steps[2] => SensorLagMode::Fit,
-        None => match base_cell.as_ref().and_then(TestCell::lags) {
-            Some(l) => SensorLagMode::Known(l),
-            None => SensorLagMode::None,
-        },
-    };
-    opts.step5.dynamic_row = a.cost != CostArg::Static;
-    opts.step5.static_row = a.cost != CostArg::Dynamic;
-    let (p, mut rep) = common::with_spinner("tuning", || pipeline::tune(&c, &base, &opts))?;
-    if let Some(amb) = &rep.ambient {
-        eprintln!("{}", amb.describe());
-    }
-    if let Some(w) = &rep.input_saturation {
-        eprintln!("warning: {}", w.describe());
-    }
-    // searches stopped by their evaluation limit: results are written, with a warning
-    for (step, conv) in [
-        (3, rep.step3.as_ref().map(|r| r.converged)),
-        (4, rep.step4.as_ref().map(|r| r.converged)),
-        (5, rep.step5.as_ref().map(|r| r.converged)),
-        (5, rep.step5_refined.as_ref().map(|r| r.converged)),
-        (
-            7,
-            rep.twelve
-                .as_ref()
-                .and_then(|t| t.dynamic.as_ref().map(|r| r.converged)),
-        ),
-        (
-            8,
-            rep.twelve
-                .as_ref()
-                .and_then(|t| t.statics.as_ref().map(|r| r.converged)),
-        ),
-    ] {
-        if conv == Some(false) {
-            eprintln!(
-                "warning: step {step} stopped at its evaluation limit before a convergence test \
-                 was met{}",
-                if step == 5 || step == 8 {
-                    " (raise --max-evals)"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
-    // a step 5 stopped away from its optimum by more than the noise (relative offset)
-    for r in [&rep.step5, &rep.step5_refined].into_iter().flatten() {
-        if let Some(note) = r.passes_note() {
-            let kind = if r.first_pass_discarded_for.is_empty() {
-                "note"
-            } else {
-                "warning"
-            };
-            eprintln!("{kind}: {note}; --step5-single-pass turns this off");
-        }
-        if let Some(note) = r.stop_note() {
-            eprintln!("warning: {note}");
-        }
-    }
-    // the tuned model oscillates where the engine does not
-    for o in &rep.oscillations {
-        eprintln!(
-            "warning: {}: check the compressor efficiency at low pressure ratios (docs/tuning.md, \
-             session 12) and the figures of mvem validate",
-            o.describe()
-        );
-    }
-    // what the standard errors do not cover
-    for c in &rep.caveats {
-        eprintln!("note: {c}");
-    }
-    // printed above, before the tuning
-    rep.caveats.extend(constant_caveats);
-    // sets the tuned model cannot run: its parameters are not usable there
-    for f in &rep.failed_sets {
-        eprintln!(
-            "warning: the tuned model does not simulate data set {}: {} (tune_report.md)",
-            f.set, f.message
-        );
-    }
+    let (rep, c, truth) = (&run.report, &run.campaign, run.truth.as_ref());
     let cell_truth = TestCell {
         tau_me: c.manifest.true_tau_me_s,
         ..TestCell::default()
@@ -450,20 +333,11 @@ pub fn run(a: &Args) -> Result<()> {
         Some(l) => cell_truth.with_lags(SensorLags::from_array(l)),
         None => cell_truth,
     };
-    let md = markdown(&rep, truth.as_ref(), &cell_truth);
+    let md = markdown(rep, truth, &cell_truth);
     // render everything, then write
-    let json = serde_json::to_string_pretty(&rep)?;
-    // test-cell quantities next to the model parameters; a value of --params is kept when the
-    // step that estimates it is not run
-    let cell = TestCell {
-        tau_me: rep.tau_me_s.or(base_cell.as_ref().and_then(|c| c.tau_me)),
-        ..TestCell::default()
-    };
-    let cell = match rep.sensor_lags.filter(SensorLags::any) {
-        Some(l) => cell.with_lags(l),
-        None => cell,
-    };
-    mvem::io::test_cell::save_params_with_test_cell(&p, &cell, &a.out)?;
+    let json = serde_json::to_string_pretty(rep)?;
+    let cell = &run.test_cell;
+    mvem::io::test_cell::save_params_with_test_cell(&run.params, cell, &a.out)?;
     if let Some(dir) = &a.report {
         std::fs::create_dir_all(dir)
             .map_err(|e| common::usage(format!("--report {}: {e}", dir.display())))?;

@@ -29,6 +29,10 @@ in parallel):
 - closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None) -> dict: a drive
   cycle (the WHTC, or t/n_e/M_ref) with the baseline EGR/VGT and engine controllers (tuning: a
   dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
+- tune(data, params=None, model=8, **settings) -> dict: the paper's tuning steps on a campaign
+  directory, as `mvem tune` (settings: its options in snake case, steps="1-5", ...): "params"
+  (the tuned set, usable as params=), "test_cell", "toml" (the file mvem tune writes), "report"
+  (tune_report.json), "messages"
 - mvem.gym.AirPathEnv: a Gymnasium environment for EGR/VGT control (needs `gymnasium`).
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
@@ -48,6 +52,7 @@ from ._mvem import (
     parameters,
     published_params,
     simulate,
+    tune,
     simulate_many,
     steady,
     step_metrics,
@@ -65,6 +70,7 @@ __all__ = [
     "Plant",
     "simulate",
     "simulate_many",
+    "tune",
     "steady",
     "linearize",
     "step_metrics",

@@ -189,6 +189,41 @@ def closed_loop(
     "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s".
     """
 
+def tune(
+    data: Union[str, "os.PathLike[str]"],
+    params: Params = None,
+    model: Literal[8, 12] = 8,
+    *,
+    steps: str = "1-5",
+    ambient: Literal["auto", "data", "params"] = "auto",
+    input_ranges: Literal["campaign", "params"] = "campaign",
+    init: Literal["step1", "naive"] = "step1",
+    cost: Literal["full", "dynamic", "static"] = "full",
+    beta: float = 1.0,
+    refine_dynamics: bool = True,
+    joint_uncertainty: bool = False,
+    fixed_jacobian: Literal["forward", "sigma-points"] = "forward",
+    max_evals: int = 3600,
+    broyden: int = 0,
+    rel_offset: float = ...,
+    restarts: int = ...,
+    step5_single_pass: bool = False,
+    step5_first_pass_max: int = 3600,
+    settled_flow_points: bool = True,
+    step3_window: Optional[float] = None,
+    step3_tail_weight: float = ...,
+    step_levels: Literal["least-squares", "means"] = "least-squares",
+    sensor_lags: Optional[str] = None,
+) -> Dict[str, Any]:
+    """The paper's tuning steps on a campaign directory (manifest.toml; docs/tuning-data.md),
+    as `mvem tune` runs them: the same parameters and report from the same campaign and
+    settings. params: the engine's constants and the parameters of the steps not run (a path
+    also supplies its [test_cell] section). Keys: "params" (nested dict, usable as params=),
+    "test_cell", "toml" (the parameter file), "report" (tune_report.json), "messages"
+    (warnings and notes; each warning also a UserWarning). ValueError for a bad setting,
+    parameter set or campaign file; RuntimeError when a step fails.
+    """
+
 class Model:
     """The right-hand side dx/dt = f(x, u) at any state, and its Jacobians (optimal control,
     custom integrators). u = (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]),

@@ -200,7 +200,13 @@ pub fn save_params_with_test_cell(p: &Params, tc: &TestCell, path: &Path) -> Res
     let json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let text = if json {
+    let text = params_with_test_cell_text(p, tc, json);
+    super::output::write_atomic(path, text.as_bytes())
+}
+
+/// The text [`save_params_with_test_cell`] writes: TOML, or JSON when `json`.
+pub fn params_with_test_cell_text(p: &Params, tc: &TestCell, json: bool) -> String {
+    if json {
         let mut v = serde_json::to_value(p).expect("parameters serialize");
         if !tc.is_empty() {
             if let Some(o) = v.as_object_mut() {
@@ -223,8 +229,7 @@ pub fn save_params_with_test_cell(p: &Params, tc: &TestCell, path: &Path) -> Res
             s.push_str(&toml::to_string(tc).expect("test cell serializes"));
         }
         s
-    };
-    super::output::write_atomic(path, text.as_bytes())
+    }
 }
 
 #[cfg(test)]

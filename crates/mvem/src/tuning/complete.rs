@@ -41,7 +41,7 @@ use crate::model::ModelOrder;
 use crate::params::Params;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The outputs of eqs (75) and (77): p_im, p_em, W_c, n_t.
 pub const DYN_OUTPUTS: [&str; 4] = ["p_im", "p_em", "W_c", "n_t"];
@@ -235,7 +235,7 @@ fn level_fit(meas: &[f64], sim: &[f64], s0: f64, scaled: bool) -> (f64, f64) {
 /// levels (eq. (75): "each output and each step response is normalized so that the initial and
 /// final values for each step response are the same for both the measurements and the
 /// simulations").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum StepLevels {
     /// The measured levels are means: 0.2 s before the step and the step's last 20 %; the

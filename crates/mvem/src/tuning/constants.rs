@@ -25,7 +25,7 @@
 use super::data::StationaryPoint;
 use crate::components::cylinder;
 use crate::params::Params;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Parameters that no tuning step estimates (names of the parameter registry, paths of the
 /// parameter file) besides the ambient conditions: the engine's geometry and properties.
@@ -62,7 +62,7 @@ pub const ENGINE_CONSTANTS: [&str; 29] = [
 ];
 
 /// Where the ambient conditions of the tuned model come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AmbientSource {
     /// Each of p_amb, T_amb, T_im from the stationary points' mean where the campaign
@@ -366,7 +366,7 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
 
 /// Where the tuned model's input ranges (`[input_saturation]`, the authors' items 1-2) come
 /// from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum InputRangeSource {
     /// The parameter file's ranges, widened to contain the campaign: the speed range to its

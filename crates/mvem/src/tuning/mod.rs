@@ -15,6 +15,8 @@
 //! - [`complete`]: steps 3 (V_im, V_em, J_t), 4 (tau_Me) and 5 (cost (77)) on the complete model.
 //! - [`twelve`]: the three 12-state steps of section 9.2.1 (k_ic, V_ic, cost (77) with W_ic).
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
+//! - [`request`]: one tuning run on a campaign directory as the front ends ask for it (settings
+//!   by the command line's names, constants checked, warnings and notes).
 //! - [`settled`]: settled operating points at the ends of the dynamic sets' command steps
 //!   (compressor flow points for step 1).
 //! - [`sensors`]: first-order lags of the test cell's sensors (Table 6), known or fitted.
@@ -28,6 +30,7 @@ pub mod constants;
 pub mod data;
 pub mod lab;
 pub mod pipeline;
+pub mod request;
 pub mod sensors;
 pub mod settled;
 pub mod steps;

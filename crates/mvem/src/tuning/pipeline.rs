@@ -48,7 +48,8 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Initialization of the static parameters of step 5.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all(deserialize = "kebab-case"))]
 pub enum Init {
     /// The step-1 values (or the values of `base` when step 1 is not run).
     Step1,

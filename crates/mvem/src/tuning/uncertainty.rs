@@ -64,7 +64,7 @@ use super::steps::{
 };
 use crate::params::Params;
 use nalgebra::DMatrix;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Largest relative standard error of an identifiable parameter.
 pub const MAX_REL_STD_ERR: f64 = 0.25;
@@ -554,7 +554,7 @@ pub fn fd_jacobian_named(
 
 /// How a step's Jacobian J_f with respect to the parameters it holds fixed is computed
 /// ([`with_fixed`]; `mvem tune --fixed-jacobian`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FixedJacobian {
     /// Forward differences at `complete::FD_STEP` (1e-4) relative ([`fd_jacobian_named`]): the

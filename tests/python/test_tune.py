@@ -1,0 +1,128 @@
+"""mvem.tune: the paper's tuning steps on a campaign directory, the same as `mvem tune`."""
+
+import json
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+
+import mvem
+
+# steps 1-4 (static submodels, actuators, V_im / V_em / J_t, tau_Me): seconds, not minutes
+STEPS = "1-4"
+
+
+@pytest.fixture(scope="module")
+def campaign(mvem_cli, tmp_path_factory):
+    """A virtual test-cell campaign of the published engine (`mvem lab`, its default seed)."""
+    d = tmp_path_factory.mktemp("campaign")
+    subprocess.run([mvem_cli, "lab", "--out", str(d)], check=True, capture_output=True)
+    return d
+
+
+@pytest.fixture(scope="module")
+def cli_run(mvem_cli, campaign, tmp_path_factory):
+    """`mvem tune --steps 1-4` on the campaign: (parameter file, report dict, stderr)."""
+    d = tmp_path_factory.mktemp("cli")
+    out, rep = d / "tuned.toml", d / "rep"
+    p = subprocess.run(
+        [mvem_cli, "tune", "--data", str(campaign), "--out", str(out), "--steps", STEPS,
+         "--report", str(rep)],
+        check=True, capture_output=True, text=True)
+    return out, json.loads((rep / "tune_report.json").read_text()), p.stderr
+
+
+def without_timings(x):
+    """A report without its wall times (the only entries that differ between two runs)."""
+    if isinstance(x, dict):
+        return {k: without_timings(v) for k, v in x.items() if "second" not in k}
+    if isinstance(x, list):
+        return [without_timings(v) for v in x]
+    return x
+
+
+def test_tune_equals_the_cli(campaign, cli_run):
+    cli_file, cli_report, cli_stderr = cli_run
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # this campaign gives no warning, only notes
+        r = mvem.tune(campaign, steps=STEPS)
+    # the parameter file, byte for byte, and the report apart from wall times
+    assert r["toml"] == cli_file.read_text()
+    assert without_timings(r["report"]) == without_timings(cli_report)
+    assert r["report"]["total_seconds"] > 0
+    # every message is one the command line printed
+    assert r["messages"], "the published constants' note at least"
+    for m in r["messages"]:
+        assert m.startswith(("note: ", "warning: "))
+        assert m in cli_stderr, m
+    # the test cell estimated by step 4 and the fitted sensor lags (step 3)
+    assert set(r["test_cell"]) == {"tau_me", "tau_p_im", "tau_p_em", "tau_w_c", "tau_n_t"}
+    assert r["test_cell"]["tau_me"] == r["report"]["tau_me_s"]
+
+
+def test_tuned_parameters_are_near_the_truth_within_their_standard_errors(campaign):
+    """The campaign comes from the published set: each tuned actuator and dynamic parameter
+    the report calls identifiable lies within 4 of its standard errors of the published value
+    (standard errors below 20 % of the values); the others carry the reason (a correlation or
+    a large standard error)."""
+    r = mvem.tune(campaign, steps=STEPS)
+    truth = mvem.published_params()
+    est = r["report"]["parameters"]
+    actuators = ["vgt_actuator.tau_vgt", "vgt_actuator.tau_dvgt", "egr_actuator.tau_egr1",
+                 "egr_actuator.tau_egr2", "egr_actuator.tau_degr", "egr_actuator.k_egr"]
+    dynamic = ["intake_manifold.v_im", "exhaust_manifold.v_em", "turbo.j_t"]
+    checked = []
+    for name in actuators + dynamic:
+        group, key = name.split(".")
+        e, want = est[name], truth[group][key]
+        assert e["value"] == r["params"][group][key]
+        if not e["identifiable"]:
+            assert name in dynamic and e["reason"], (name, e)
+            continue
+        assert 0 < e["std_error"] < 0.2 * abs(e["value"]), (name, e)
+        assert abs(e["value"] - want) <= 4 * e["std_error"], (name, e["value"], want, e)
+        checked.append(name)
+    # every actuator parameter and at least one of the dynamic ones
+    assert set(actuators) <= set(checked) and len(checked) > len(actuators), checked
+
+
+def test_the_tuned_set_runs_as_params_and_a_files_test_cell_comes_along(campaign, cli_run,
+                                                                        tmp_path):
+    cli_file, _, _ = cli_run
+    r = mvem.tune(campaign, steps=STEPS)
+    inputs = np.array([[0.0, 1500, 110, 60, 70], [2.0, 1500, 110, 60, 50]])
+    a = mvem.simulate(inputs, params=r["params"], dt=0.1)
+    b = mvem.simulate(inputs, params=cli_file, dt=0.1)
+    for k in ("p_im", "p_em", "W_c", "omega_t"):
+        np.testing.assert_array_equal(a[k], b[k])
+    # steps 1-2 from the tuned file: tau_Me and the sensor lags (steps 4 and 3, not run) are
+    # the file's [test_cell] values
+    r12 = mvem.tune(campaign, params=cli_file, steps="1,2")
+    assert r12["test_cell"] == r["test_cell"]
+    assert "published engine's" not in " ".join(r12["messages"])
+    # a dict has no test cell: nothing to keep
+    r12d = mvem.tune(campaign, params=r["params"], steps="1,2")
+    assert "tau_me" not in r12d["test_cell"]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"betta": 2.0}, "unknown field `betta`"),
+    ({"beta": 0.0}, "beta 0: must be > 0"),
+    ({"cost": "both"}, "unknown variant `both`"),
+    ({"steps": "9"}, "steps: "),
+    ({"step3_tail_weight": 2.0}, "step3_tail_weight 2: must lie in (0, 1]"),
+    ({"model": 10}, "model 10: "),
+])
+def test_bad_settings_are_named(campaign, kwargs, message):
+    with pytest.raises(ValueError) as e:
+        mvem.tune(campaign, **kwargs)
+    assert message in str(e.value)
+
+
+def test_a_bad_campaign_is_named(tmp_path):
+    with pytest.raises(ValueError, match="manifest.toml"):
+        mvem.tune(tmp_path)
+    (tmp_path / "manifest.toml").write_text("stationary = 'nope.csv'\n")
+    with pytest.raises(ValueError, match="nope.csv"):
+        mvem.tune(tmp_path)
