@@ -126,3 +126,59 @@ def test_a_bad_campaign_is_named(tmp_path):
     (tmp_path / "manifest.toml").write_text("stationary = 'nope.csv'\n")
     with pytest.raises(ValueError, match="nope.csv"):
         mvem.tune(tmp_path)
+
+
+def test_validate_equals_the_cli(mvem_cli, campaign, cli_run):
+    cli_file, _, _ = cli_run
+    p = subprocess.run(
+        [mvem_cli, "validate", "--data", str(campaign), "--params", str(cli_file), "--json"],
+        check=True, capture_output=True, text=True)
+    want = json.loads(p.stdout)
+    v = mvem.validate(campaign, params=cli_file)
+    for k in want:
+        assert v[k] == want[k], k
+    # tau_Me and the sensor lags of the file's [test_cell] section, said so
+    tuned = mvem.tune(campaign, steps=STEPS)["test_cell"]
+    assert v["tau_me"] == tuned["tau_me"]
+    assert v["sensor_lags"]["p_im"] == tuned["tau_p_im"]
+    assert len(v["messages"]) == 2
+    for m in v["messages"]:
+        assert m in p.stderr, m
+    # the overrides and a subset of roles
+    v2 = mvem.validate(campaign, params=cli_file, tau_me=0.5, sensor_lags="none")
+    assert v2["tau_me"] == 0.5 and set(v2["sensor_lags"].values()) == {0.0}
+    assert v2["messages"] == []
+    assert v2["datasets"]["Q"]["M_e"] != want["datasets"]["Q"]["M_e"]
+    assert v2["datasets"]["J"] == want["datasets"]["J"]  # the actuator set: no lags
+    assert set(mvem.validate(campaign, params=cli_file, roles="actuator")["datasets"]) == {"J"}
+
+
+def test_validate_traces_are_the_curves_behind_the_errors(campaign, cli_run):
+    """Eq. (5) normalizes each output by one number (the mean of its stationary measurements),
+    so mean |measured - simulated| / error must be the same for an output in every set."""
+    cli_file, _, _ = cli_run
+    v = mvem.validate(campaign, params=cli_file, traces=True)
+    assert set(v["traces"]) == set(v["datasets"])
+    norms = {}
+    for s, outputs in v["datasets"].items():
+        tr = v["traces"][s]
+        for o, pct in outputs.items():
+            meas, sim = tr[o]["measured"], tr[o]["simulated"]
+            assert meas.shape == sim.shape == tr["t"].shape
+            assert np.all(np.isfinite(sim))
+            norms.setdefault(o, []).append(np.mean(np.abs(meas - sim)) / (pct / 100))
+    assert len(norms["p_im"]) >= 10
+    for o, n in norms.items():
+        assert np.ptp(n) <= 1e-9 * np.mean(n), (o, n)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"tau_me": 0.0}, "tau_me 0: must be > 0"),
+    ({"roles": "static,bogus"}, "roles: unknown role \"bogus\""),
+    ({"sensor_lags": "1,2"}, "sensor_lags: "),
+    ({"model": 9}, "model"),
+])
+def test_validate_bad_settings_are_named(campaign, kwargs, message):
+    with pytest.raises(ValueError) as e:
+        mvem.validate(campaign, **kwargs)
+    assert message in str(e.value)

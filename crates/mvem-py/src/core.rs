@@ -1405,7 +1405,7 @@ pub fn tune(
     order: ModelOrder,
     settings: Option<&str>,
 ) -> CoreResult<TuneOut> {
-    use mvem::tuning::request::{tune_campaign, TuneCampaignError, TuneSettings};
+    use mvem::tuning::request::{tune_campaign, RequestError, TuneSettings};
     let settings: TuneSettings = match settings {
         None => TuneSettings::default(),
         Some(text) => serde_json::from_str(text)
@@ -1416,7 +1416,7 @@ pub fn tune(
     let run =
         tune_campaign(data, &base, cell.as_ref(), given, order, &settings).map_err(
             |e| match e {
-                TuneCampaignError::Pipeline(e) => CoreError::Runtime(e.to_string()),
+                RequestError::Pipeline(e) => CoreError::Runtime(e.to_string()),
                 other => CoreError::Value(other.to_string()),
             },
         )?;
@@ -1429,5 +1429,102 @@ pub fn tune(
         toml: mvem::io::test_cell::params_with_test_cell_text(&run.params, &run.test_cell, false),
         report_json: json(serde_json::to_string(&run.report))?,
         messages: run.messages,
+    })
+}
+
+/// What [`validate`] returns.
+#[derive(Debug)]
+pub struct ValidateOut {
+    /// The summary (`validation.json` of `mvem validate`).
+    pub summary_json: String,
+    /// The dynamometer time constant tau_Me \[s\] applied, if any.
+    pub tau_me: Option<f64>,
+    /// The sensor time constants (p_im, p_em, W_c, n_t) \[s\] applied.
+    pub sensor_lags: [f64; 4],
+    /// Notes and warnings, as `mvem validate` prints them.
+    pub messages: Vec<String>,
+    /// Per validated dynamic data set (when asked): its name, time \[s\] and per output the
+    /// measured and simulated series (as `mvem validate --report` plots them).
+    pub traces: Vec<Trace>,
+}
+
+/// One data set's measured and simulated outputs.
+#[derive(Debug)]
+pub struct Trace {
+    /// Data set name.
+    pub set: String,
+    /// Sample times \[s\].
+    pub t: Vec<f64>,
+    /// (output, measured, simulated).
+    pub outputs: Vec<(String, Vec<f64>, Vec<f64>)>,
+}
+
+/// The relative errors (eqs (4), (5)) of `params` on the campaign in `data`, as `mvem validate`
+/// computes them (the core's `tuning::request::validate_campaign`); with `traces`, also the
+/// measured and simulated outputs of each validated dynamic set.
+pub fn validate(
+    data: &Path,
+    params: (Params, Option<mvem::io::test_cell::TestCell>),
+    order: ModelOrder,
+    tau_me: Option<f64>,
+    sensor_lags: Option<&str>,
+    roles: Option<&str>,
+    traces: bool,
+) -> CoreResult<ValidateOut> {
+    use mvem::tuning::data::StepKind;
+    use mvem::tuning::request::{validate_campaign, RequestError};
+    let (p, cell) = params;
+    let run = validate_campaign(data, &p, cell.as_ref(), order, tau_me, sensor_lags, roles)
+        .map_err(|e| match e {
+            RequestError::Setting(_) | RequestError::Data(_) => CoreError::Value(e.to_string()),
+            other => CoreError::Runtime(other.to_string()),
+        })?;
+    let mut out = Vec::new();
+    if traces {
+        let c = &run.campaign;
+        for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+            if !run.report.datasets.iter().any(|x| x.name == d.name) {
+                continue;
+            }
+            let outputs = match info.kind {
+                StepKind::Actuator => [("u_egr", "u_egr_pos", true), ("u_vgt", "u_vgt_pos", false)]
+                    .into_iter()
+                    .filter_map(|(cmd, pos, egr)| {
+                        let (u, y) = (d.get(cmd)?, d.get(pos)?);
+                        let model = mvem::tuning::steps::actuator_response(&p, &d.t, u, egr);
+                        Some((pos.to_string(), y.to_vec(), model))
+                    })
+                    .collect(),
+                _ => {
+                    let rtol = SimOptions::default().rtol;
+                    let sims = mvem::tuning::validate::simulated_outputs(
+                        order,
+                        &p,
+                        d,
+                        run.tau_me,
+                        &run.sensor_lags,
+                        rtol,
+                    )
+                    .map_err(|e| CoreError::Runtime(format!("data set {}: {e}", d.name)))?;
+                    sims.into_iter()
+                        .filter_map(|(name, sim)| {
+                            Some((name.to_string(), d.get(name)?.to_vec(), sim))
+                        })
+                        .collect()
+                }
+            };
+            out.push(Trace {
+                set: d.name.clone(),
+                t: d.t.clone(),
+                outputs,
+            });
+        }
+    }
+    Ok(ValidateOut {
+        summary_json: run.report.summary_json().to_string(),
+        tau_me: run.tau_me,
+        sensor_lags: run.sensor_lags.as_array(),
+        messages: run.messages,
+        traces: out,
     })
 }

@@ -1352,27 +1352,11 @@ fn tune<'py>(
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
-    let os = py.import("os")?;
-    let fspath = |obj: &Bound<'py, PyAny>, what: &str| -> PyResult<String> {
-        os.call_method1("fspath", (obj,))
-            .and_then(|p| p.extract::<String>())
-            .map_err(|_| PyValueError::new_err(format!("{what} must be a str path")))
-    };
-    let data = std::path::PathBuf::from(fspath(data, "data")?);
+    let data = std::path::PathBuf::from(fspath(py, data, "data")?);
+    // a parameter file's [test_cell] section (tau_Me, sensor lags) comes along
     let base = match parse_params(py, params)? {
         None => None,
-        Some(p) => {
-            // a parameter file's [test_cell] section (tau_Me, sensor lags) comes along
-            let cell = match params.filter(|o| !o.is_instance_of::<PyDict>()) {
-                Some(obj) => {
-                    let path = fspath(obj, "params")?;
-                    mvem::io::test_cell::load_test_cell(std::path::Path::new(&path))
-                        .map_err(|e| PyValueError::new_err(format!("params {path}: {e}")))?
-                }
-                None => None,
-            };
-            Some((p, cell))
-        }
+        Some(p) => Some((p, test_cell_of(py, params)?)),
     };
     let json = py.import("json")?;
     let settings: Option<String> = match settings {
@@ -1403,6 +1387,107 @@ fn tune<'py>(
     Ok(d)
 }
 
+/// The relative errors (eqs (4), (5), per cent) of a parameter set on a campaign directory, as
+/// `mvem validate` computes them (its tables, like the paper's Tables 2-4).
+///
+/// params: None (the published set), a dict, or a path (whose [test_cell] section supplies
+/// tau_Me and the sensor time constants, as `mvem tune` writes them). tau_me [s] and
+/// sensor_lags ("none", "table6" or "p_im=0.015,...") override those; roles: e.g.
+/// "validation" or "static,dynamic" (default: every set). Returns a dict: "datasets" ({set:
+/// {output: percent}}), "stationary" ({submodel: percent}), "oscillations" (if any),
+/// "tau_me", "sensor_lags" (dict, s), "messages"; with traces=True also "traces": {set: {"t":
+/// array, output: {"measured": array, "simulated": array}}} (the curves of mvem validate's
+/// figures). ValueError for a bad setting, parameter set or campaign file, RuntimeError when a
+/// simulation fails (naming the set). Runs without the GIL.
+#[pyfunction]
+#[pyo3(signature = (data, params=None, model=8, tau_me=None, sensor_lags=None, roles=None, traces=false))]
+#[allow(clippy::too_many_arguments)]
+fn validate<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+    tau_me: Option<f64>,
+    sensor_lags: Option<String>,
+    roles: Option<String>,
+    traces: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let data = std::path::PathBuf::from(fspath(py, data, "data")?);
+    let p = parse_params(py, params)?.unwrap_or_else(Params::published);
+    let cell = test_cell_of(py, params)?;
+    let out = py
+        .allow_threads(move || {
+            core::validate(
+                &data,
+                (p, cell),
+                variant.order,
+                tau_me,
+                sensor_lags.as_deref(),
+                roles.as_deref(),
+                traces,
+            )
+        })
+        .map_err(to_py_err)?;
+    let np = py.import("numpy")?;
+    let d: Bound<'py, PyDict> = py
+        .import("json")?
+        .call_method1("loads", (out.summary_json,))?
+        .downcast_into()?;
+    d.set_item("tau_me", out.tau_me)?;
+    let lags = PyDict::new(py);
+    for (n, v) in ["p_im", "p_em", "W_c", "n_t"].iter().zip(out.sensor_lags) {
+        lags.set_item(n, v)?;
+    }
+    d.set_item("sensor_lags", lags)?;
+    for m in &out.messages {
+        if let Some(w) = m.strip_prefix("warning: ") {
+            user_warning(py, w.to_string())?;
+        }
+    }
+    d.set_item("messages", out.messages)?;
+    if traces {
+        let all = PyDict::new(py);
+        for tr in out.traces {
+            let set = PyDict::new(py);
+            set.set_item("t", f64_array(&np, &tr.t)?)?;
+            for (name, meas, sim) in tr.outputs {
+                let o = PyDict::new(py);
+                o.set_item("measured", f64_array(&np, &meas)?)?;
+                o.set_item("simulated", f64_array(&np, &sim)?)?;
+                set.set_item(name, o)?;
+            }
+            all.set_item(tr.set, set)?;
+        }
+        d.set_item("traces", all)?;
+    }
+    Ok(d)
+}
+
+/// `obj` as a file-system path (str or os.PathLike), `what` naming the argument in the error.
+fn fspath(py: Python<'_>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<String> {
+    py.import("os")?
+        .call_method1("fspath", (obj,))
+        .and_then(|p| p.extract::<String>())
+        .map_err(|_| PyValueError::new_err(format!("{what} must be a str path")))
+}
+
+/// The [test_cell] section (tau_Me, sensor lags) of `params` when it is a parameter file's
+/// path (a dict or None has none).
+fn test_cell_of(
+    py: Python<'_>,
+    params: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<mvem::io::test_cell::TestCell>> {
+    match params.filter(|o| !o.is_none() && !o.is_instance_of::<PyDict>()) {
+        Some(obj) => {
+            let path = fspath(py, obj, "params")?;
+            mvem::io::test_cell::load_test_cell(std::path::Path::new(&path))
+                .map_err(|e| PyValueError::new_err(format!("params {path}: {e}")))
+        }
+        None => Ok(None),
+    }
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
@@ -1411,6 +1496,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(tune, m)?)?;
+    m.add_function(wrap_pyfunction!(validate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;

@@ -7,7 +7,7 @@ use mvem::params::Params;
 use mvem::tuning::complete::StepLevels;
 use mvem::tuning::constants::{AmbientSource, InputRangeSource};
 use mvem::tuning::pipeline::{Init, TuneReport};
-use mvem::tuning::request::{self, CostRows, SettingError, TuneCampaignError, TuneSettings};
+use mvem::tuning::request::{self, CostRows, RequestError, SettingError, TuneSettings};
 use mvem::tuning::sensors::SensorLags;
 use mvem::tuning::uncertainty::FixedJacobian;
 use std::fmt::Write as _;
@@ -317,9 +317,9 @@ pub fn run(a: &Args) -> Result<()> {
         )
     })
     .map_err(|e| match e {
-        TuneCampaignError::Setting(e) => setting_error(e),
-        TuneCampaignError::Data(e) => common::usage(e.to_string()),
-        TuneCampaignError::Pipeline(e) => anyhow::Error::from(e),
+        RequestError::Setting(e) => setting_error(e),
+        RequestError::Data(e) => common::usage(e.to_string()),
+        other => anyhow::Error::from(other),
     })?;
     for m in &run.messages {
         eprintln!("{m}");

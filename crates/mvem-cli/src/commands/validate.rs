@@ -4,11 +4,11 @@
 use crate::common;
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::Result;
-use mvem::io::test_cell::TestCell;
-use mvem::tuning::data::{Role, StepKind};
+use mvem::tuning::data::StepKind;
+use mvem::tuning::request::{self, RequestError};
 use mvem::tuning::sensors::SensorLags;
 use mvem::tuning::validate::{self as v, ValidationReport};
-use serde_json::{Map, Value};
+use serde_json::Value;
 use std::path::PathBuf;
 
 /// Arguments of `mvem validate`.
@@ -61,65 +61,22 @@ pub struct Args {
     pub model: common::ModelArg,
 }
 
-fn parse_roles(s: &str) -> Result<Vec<Role>> {
-    s.split(',')
-        .map(|r| match r.trim() {
-            "static" => Ok(Role::Static),
-            "dynamic" => Ok(Role::Dynamic),
-            "actuator" => Ok(Role::Actuator),
-            "validation" => Ok(Role::Validation),
-            o => Err(common::usage(format!(
-                "--roles: unknown role {o:?} (static, dynamic, actuator, validation)"
-            ))),
-        })
-        .collect()
-}
-
-/// The JSON object of `--json`.
+/// The JSON object of `--json` (and `validation.json`).
 pub fn json(r: &ValidationReport) -> Value {
-    let mut sets = Map::new();
-    for d in &r.datasets {
-        let mut o = Map::new();
-        for e in &d.outputs {
-            o.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
-        }
-        sets.insert(d.name.clone(), Value::Object(o));
-    }
-    let mut st = Map::new();
-    for e in &r.stationary {
-        st.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
-    }
-    let mut top = Map::new();
-    let osc: Vec<Value> = r
-        .oscillation_rows()
-        .into_iter()
-        .map(|o| {
-            serde_json::json!({
-                "set": o.set,
-                "output": o.output,
-                "windows": o.windows,
-                "worst_window_s": [o.worst.t_start, o.worst.t_end],
-                "simulated_p2p_pct": 100.0 * o.worst.simulated_p2p,
-                "measured_p2p_pct": 100.0 * o.worst.measured_p2p,
-            })
-        })
-        .collect();
-    if !osc.is_empty() {
-        top.insert("oscillations".into(), Value::Array(osc));
-    }
-    top.insert("datasets".into(), Value::Object(sets));
-    top.insert("stationary".into(), Value::Object(st));
-    Value::Object(top)
+    r.summary_json()
 }
 
 /// Run `mvem validate`.
 pub fn run(a: &Args) -> Result<()> {
+    // the settings first: a bad one is refused before any file is read
     if let Some(t) = a.tau_me {
         if !(t.is_finite() && t > 0.0) {
             return Err(common::usage(format!("--tau-me {t}: must be > 0")));
         }
     }
-    let roles = a.roles.as_deref().map(parse_roles).transpose()?;
+    if let Some(r) = a.roles.as_deref() {
+        request::parse_roles(r).map_err(|e| common::usage(format!("--{e}")))?;
+    }
     if let Some(r) = &a.report {
         if r.exists() && !r.is_dir() {
             return Err(common::usage(format!(
@@ -130,40 +87,31 @@ pub fn run(a: &Args) -> Result<()> {
     }
     let p = mvem::io::params::load_params(&a.params)
         .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
-    // the tuned dynamometer constant of the file's [test_cell] section; --tau-me overrides
+    // the tuned dynamometer constant and sensor lags of the file's [test_cell] section
     let cell = mvem::io::test_cell::load_test_cell(&a.params)
         .map_err(|e| common::usage(format!("--params {}: {e}", a.params.display())))?;
-    let tau_me = a.tau_me.or(cell.as_ref().and_then(|c| c.tau_me));
-    if let (None, Some(t)) = (a.tau_me, tau_me) {
-        eprintln!(
-            "tau_Me = {t} s from the [test_cell] section of {} (override with --tau-me)",
-            a.params.display()
-        );
-    }
-    let lags = match a.sensor_lags.as_deref() {
-        Some(v) => {
-            SensorLags::parse(v).map_err(|e| common::usage(format!("--sensor-lags: {e}")))?
+    let run = common::with_spinner("validating", || {
+        request::validate_campaign(
+            &a.data,
+            &p,
+            cell.as_ref(),
+            a.model.order(),
+            a.tau_me,
+            a.sensor_lags.as_deref(),
+            a.roles.as_deref(),
+        )
+    })
+    .map_err(|e| match e {
+        RequestError::Setting(e) => {
+            common::usage(format!("--{}{}", e.field.replace('_', "-"), e.detail))
         }
-        None => match cell.as_ref().and_then(TestCell::lags) {
-            Some(l) => {
-                eprintln!(
-                    "sensor time constants p_im, p_em, W_c, n_t = {:?} s from the [test_cell] \
-                     section of {} (override with --sensor-lags)",
-                    l.as_array(),
-                    a.params.display()
-                );
-                l
-            }
-            None => SensorLags::NONE,
-        },
-    };
-    let c = mvem::tuning::data::load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
-    let rep = common::with_spinner("validating", || {
-        v::validate_campaign_with(a.model.order(), &c, &p, tau_me, &lags, roles.as_deref())
+        RequestError::Data(e) => common::usage(e.to_string()),
+        other => anyhow::Error::from(other),
     })?;
-    for o in rep.oscillation_rows() {
-        eprintln!("warning: {}; see the report", o.describe());
+    for m in &run.messages {
+        eprintln!("{m}");
     }
+    let (rep, c, tau_me, lags) = (&run.report, &run.campaign, run.tau_me, &run.sensor_lags);
     let md = rep.to_markdown();
     if let Some(dir) = &a.report {
         // render every file in memory first
@@ -172,7 +120,7 @@ pub fn run(a: &Args) -> Result<()> {
             ("validation.csv".into(), rep.to_csv().into_bytes()),
             (
                 "validation.json".into(),
-                serde_json::to_string_pretty(&json(&rep))?.into_bytes(),
+                serde_json::to_string_pretty(&json(rep))?.into_bytes(),
             ),
         ];
         for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
@@ -181,7 +129,7 @@ pub fn run(a: &Args) -> Result<()> {
             }
             let fig = match info.kind {
                 StepKind::Actuator => actuator_figure(&p, d),
-                _ => dynamic_figure(a.model.order(), &p, d, tau_me, &lags)?,
+                _ => dynamic_figure(a.model.order(), &p, d, tau_me, lags)?,
             };
             files.push((
                 format!("{}.png", d.name),
@@ -196,7 +144,7 @@ pub fn run(a: &Args) -> Result<()> {
         eprintln!("wrote {} files to {}", files.len(), dir.display());
     }
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&json(&rep))?);
+        println!("{}", serde_json::to_string_pretty(&json(rep))?);
     } else {
         print!("{md}");
     }

@@ -33,6 +33,9 @@ in parallel):
   directory, as `mvem tune` (settings: its options in snake case, steps="1-5", ...): "params"
   (the tuned set, usable as params=), "test_cell", "toml" (the file mvem tune writes), "report"
   (tune_report.json), "messages"
+- validate(data, params=None, model=8, tau_me=None, sensor_lags=None, roles=None,
+  traces=False) -> dict: the relative errors of a parameter set on a campaign, as `mvem
+  validate` (datasets, stationary; with traces=True the measured and simulated curves)
 - mvem.gym.AirPathEnv: a Gymnasium environment for EGR/VGT control (needs `gymnasium`).
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
@@ -53,6 +56,7 @@ from ._mvem import (
     published_params,
     simulate,
     tune,
+    validate,
     simulate_many,
     steady,
     step_metrics,
@@ -71,6 +75,7 @@ __all__ = [
     "simulate",
     "simulate_many",
     "tune",
+    "validate",
     "steady",
     "linearize",
     "step_metrics",

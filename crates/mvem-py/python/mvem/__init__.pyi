@@ -224,6 +224,23 @@ def tune(
     parameter set or campaign file; RuntimeError when a step fails.
     """
 
+def validate(
+    data: Union[str, "os.PathLike[str]"],
+    params: Params = None,
+    model: ModelOrder = 8,
+    tau_me: Optional[float] = None,
+    sensor_lags: Optional[str] = None,
+    roles: Optional[str] = None,
+    traces: bool = False,
+) -> Dict[str, Any]:
+    """The relative errors (eqs (4), (5), per cent) of a parameter set on a campaign, as
+    `mvem validate`: "datasets" ({set: {output: percent}}), "stationary" ({submodel:
+    percent}), "oscillations" (if any), "tau_me", "sensor_lags", "messages"; with traces=True
+    "traces": {set: {"t": array, output: {"measured": array, "simulated": array}}}. A path
+    params supplies its [test_cell] (tau_Me, sensor time constants); tau_me and sensor_lags
+    override them.
+    """
+
 class Model:
     """The right-hand side dx/dt = f(x, u) at any state, and its Jacobians (optimal control,
     custom integrators). u = (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]),

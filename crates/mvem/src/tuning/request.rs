@@ -3,15 +3,18 @@
 //! constants checked against a virtual campaign's truth, the pipeline ([`super::pipeline`]),
 //! the test-cell quantities it estimates, and the warnings and notes a user must see.
 //!
-//! The command line (`mvem tune`) and Python (`mvem.tune`) both call [`tune_campaign`], so the
-//! same campaign and settings give the same parameter file and report from either.
+//! The command line (`mvem tune`, `mvem validate`) and Python (`mvem.tune`, `mvem.validate`)
+//! both call [`tune_campaign`] and [`validate_campaign`], so the same campaign and settings give
+//! the same parameter file, report and error tables from either.
 
 use super::complete::{ResponseWindow, StepLevels, STEP5_REL_OFFSET_TOL, STEP5_RESTARTS};
 use super::constants::{constant_differences, describe_constants, AmbientSource, InputRangeSource};
+use super::data::Role;
 use super::data::{load_campaign, Campaign, DataError};
 use super::pipeline::{self, Init, PipelineError, PipelineOptions, TuneReport};
 use super::sensors::{SensorLagMode, SensorLags};
 use super::uncertainty::FixedJacobian;
+use super::validate::{validate_campaign_with, ValidateError, ValidationReport};
 use crate::io::test_cell::TestCell;
 use crate::model::ModelOrder;
 use crate::params::Params;
@@ -220,28 +223,31 @@ impl TuneSettings {
     }
 }
 
-/// Why a tuning run did not produce parameters.
+/// Why a tuning or validation run on a campaign did not produce its result.
 #[derive(Debug)]
-pub enum TuneCampaignError {
+pub enum RequestError {
     /// A setting cannot be used.
     Setting(SettingError),
     /// The campaign directory cannot be read (file, line and field named).
     Data(DataError),
-    /// A step failed (named).
+    /// A tuning step failed (named).
     Pipeline(PipelineError),
+    /// A validation simulation or submodel failed (the data set named).
+    Validate(ValidateError),
 }
 
-impl fmt::Display for TuneCampaignError {
+impl fmt::Display for RequestError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Setting(e) => e.fmt(f),
             Self::Data(e) => e.fmt(f),
             Self::Pipeline(e) => e.fmt(f),
+            Self::Validate(e) => e.fmt(f),
         }
     }
 }
 
-impl std::error::Error for TuneCampaignError {}
+impl std::error::Error for RequestError {}
 
 /// What a tuning run gives: the tuned parameter set, the test-cell quantities it estimated
 /// (written next to the parameters), the report (`tune_report.json`), and the warnings and
@@ -273,11 +279,11 @@ pub fn tune_campaign(
     constants_given: bool,
     model: ModelOrder,
     settings: &TuneSettings,
-) -> Result<CampaignTuning, TuneCampaignError> {
+) -> Result<CampaignTuning, RequestError> {
     let opts = settings
         .pipeline_options(model, base_cell)
-        .map_err(TuneCampaignError::Setting)?;
-    let campaign = load_campaign(data_dir).map_err(TuneCampaignError::Data)?;
+        .map_err(RequestError::Setting)?;
+    let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
     let mut messages = Vec::new();
     if !constants_given {
         messages.push(format!(
@@ -312,7 +318,7 @@ pub fn tune_campaign(
         }
     }
     let (params, mut report) =
-        pipeline::tune(&campaign, base, &opts).map_err(TuneCampaignError::Pipeline)?;
+        pipeline::tune(&campaign, base, &opts).map_err(RequestError::Pipeline)?;
     messages.extend(report_messages(&report));
     report.caveats.extend(constant_caveats);
     // test-cell quantities next to the model parameters; a value of the base file is kept
@@ -411,6 +417,107 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
     out
 }
 
+/// What a validation run gives: the campaign, the relative errors, the dynamometer and sensor
+/// time constants the simulations used, and notes on where they came from.
+#[derive(Debug)]
+pub struct CampaignValidation {
+    /// The campaign as loaded.
+    pub campaign: Campaign,
+    /// Relative errors, eqs (4), (5).
+    pub report: ValidationReport,
+    /// The dynamometer time constant tau_Me \[s\] applied to the simulated torque, if any.
+    pub tau_me: Option<f64>,
+    /// The sensor time constants applied to the simulated outputs.
+    pub sensor_lags: SensorLags,
+    /// Notes (`note: ...`) and warnings (`warning: ...`), as `mvem validate` prints them.
+    pub messages: Vec<String>,
+}
+
+/// The roles of a comma-separated list (`static`, `dynamic`, `actuator`, `validation`).
+pub fn parse_roles(s: &str) -> Result<Vec<Role>, SettingError> {
+    s.split(',')
+        .map(|r| match r.trim() {
+            "static" => Ok(Role::Static),
+            "dynamic" => Ok(Role::Dynamic),
+            "actuator" => Ok(Role::Actuator),
+            "validation" => Ok(Role::Validation),
+            o => Err(SettingError {
+                field: "roles",
+                detail: format!(": unknown role {o:?} (static, dynamic, actuator, validation)"),
+            }),
+        })
+        .collect()
+}
+
+/// The relative errors of `p` on the campaign in `data_dir` (eqs (4), (5)), as `mvem
+/// validate` computes them. `cell`: the parameter file's test-cell section, whose tau_Me and
+/// sensor time constants apply unless `tau_me` (> 0 s) or `sensor_lags` (`none`, `table6` or
+/// `p_im=0.015,...`) are given; `roles`: the data sets' roles to validate (all if `None`).
+pub fn validate_campaign(
+    data_dir: &Path,
+    p: &Params,
+    cell: Option<&TestCell>,
+    model: ModelOrder,
+    tau_me: Option<f64>,
+    sensor_lags: Option<&str>,
+    roles: Option<&str>,
+) -> Result<CampaignValidation, RequestError> {
+    if let Some(t) = tau_me {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(RequestError::Setting(SettingError {
+                field: "tau_me",
+                detail: format!(" {t}: must be > 0"),
+            }));
+        }
+    }
+    let roles = roles
+        .map(parse_roles)
+        .transpose()
+        .map_err(RequestError::Setting)?;
+    let mut messages = Vec::new();
+    let cell_tau = cell.and_then(|c| c.tau_me);
+    if let (None, Some(t)) = (tau_me, cell_tau) {
+        messages.push(format!(
+            "note: tau_Me = {t} s from the [test_cell] section of the parameter file (override \
+             with --tau-me)"
+        ));
+    }
+    let tau_me = tau_me.or(cell_tau);
+    let sensor_lags = match sensor_lags {
+        Some(v) => SensorLags::parse(v).map_err(|e| {
+            RequestError::Setting(SettingError {
+                field: "sensor_lags",
+                detail: format!(": {e}"),
+            })
+        })?,
+        None => match cell.and_then(TestCell::lags) {
+            Some(l) => {
+                messages.push(format!(
+                    "note: sensor time constants p_im, p_em, W_c, n_t = {:?} s from the \
+                     [test_cell] section of the parameter file (override with --sensor-lags)",
+                    l.as_array()
+                ));
+                l
+            }
+            None => SensorLags::NONE,
+        },
+    };
+    let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
+    let report =
+        validate_campaign_with(model, &campaign, p, tau_me, &sensor_lags, roles.as_deref())
+            .map_err(RequestError::Validate)?;
+    for o in report.oscillation_rows() {
+        messages.push(format!("warning: {}; see the report", o.describe()));
+    }
+    Ok(CampaignValidation {
+        campaign,
+        report,
+        tau_me,
+        sensor_lags,
+        messages,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -443,6 +550,18 @@ mod tests {
         assert_eq!(o.fixed_jacobian, FixedJacobian::SigmaPoints);
         assert_eq!(o.step3.window.seconds, 2.5);
         assert_eq!(o.sensor_lags, SensorLagMode::Known(SensorLags::NONE));
+    }
+
+    #[test]
+    fn roles_parse_and_an_unknown_one_is_named() {
+        assert_eq!(
+            parse_roles("static, validation").unwrap(),
+            vec![Role::Static, Role::Validation]
+        );
+        assert_eq!(
+            parse_roles("actuator,x").unwrap_err().to_string(),
+            "roles: unknown role \"x\" (static, dynamic, actuator, validation)"
+        );
     }
 
     #[test]

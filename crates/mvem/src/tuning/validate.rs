@@ -724,6 +724,48 @@ impl ValidationReport {
         s
     }
 
+    /// The summary as JSON (`mvem validate --json`, `validation.json`, Python's
+    /// `mvem.validate`): `{"datasets": {SET: {OUTPUT: percent}}, "stationary": {SUBMODEL:
+    /// percent}}` (mean absolute relative errors, eqs (4), (5), in per cent), plus
+    /// `"oscillations"` (set, output, windows, worst window, peak-to-peak in per cent) when the
+    /// model oscillates where the engine does not.
+    pub fn summary_json(&self) -> serde_json::Value {
+        use serde_json::{Map, Value};
+        let mut sets = Map::new();
+        for d in &self.datasets {
+            let mut o = Map::new();
+            for e in &d.outputs {
+                o.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
+            }
+            sets.insert(d.name.clone(), Value::Object(o));
+        }
+        let mut st = Map::new();
+        for e in &self.stationary {
+            st.insert(e.output.clone(), Value::from(100.0 * e.mean_abs_rel_err));
+        }
+        let mut top = Map::new();
+        let osc: Vec<Value> = self
+            .oscillation_rows()
+            .into_iter()
+            .map(|o| {
+                serde_json::json!({
+                    "set": o.set,
+                    "output": o.output,
+                    "windows": o.windows,
+                    "worst_window_s": [o.worst.t_start, o.worst.t_end],
+                    "simulated_p2p_pct": 100.0 * o.worst.simulated_p2p,
+                    "measured_p2p_pct": 100.0 * o.worst.measured_p2p,
+                })
+            })
+            .collect();
+        if !osc.is_empty() {
+            top.insert("oscillations".into(), Value::Array(osc));
+        }
+        top.insert("datasets".into(), Value::Object(sets));
+        top.insert("stationary".into(), Value::Object(st));
+        Value::Object(top)
+    }
+
     /// Per data set and output with [`Oscillation`] windows: their number and the worst, in
     /// set order.
     pub fn oscillation_rows(&self) -> Vec<OscillationSummary> {
