@@ -182,3 +182,50 @@ def test_validate_bad_settings_are_named(campaign, kwargs, message):
     with pytest.raises(ValueError) as e:
         mvem.validate(campaign, **kwargs)
     assert message in str(e.value)
+
+
+def test_lab_writes_the_same_campaign_as_the_cli(mvem_cli, tmp_path):
+    args = {"seed": 5, "sets": ["B", "C"], "max_steps": 3, "n_stationary": 20,
+            "noise": "0.01,2", "sensor_lags": True, "tau_me": 0.5}
+    cli = tmp_path / "cli"
+    subprocess.run([mvem_cli, "lab", "--out", str(cli), "--seed", "5", "--sets", "B,C",
+                    "--max-steps", "3", "--n-stationary", "20", "--noise", "0.01,2",
+                    "--sensor-lags", "--tau-me", "0.5"], check=True, capture_output=True)
+    r = mvem.lab(tmp_path / "py", **args)
+    assert r["stationary"] == 20 and r["datasets"] == ["B", "C", "J"] and r["samples"] > 0
+    files = sorted(p.name for p in cli.iterdir())
+    assert files == sorted(p.name for p in (tmp_path / "py").iterdir())
+    for name in files:
+        assert (tmp_path / "py" / name).read_bytes() == (cli / name).read_bytes(), name
+    # another seed, another campaign
+    mvem.lab(tmp_path / "py6", **{**args, "seed": 6})
+    assert (tmp_path / "py6" / "B.csv").read_bytes() != (cli / "B.csv").read_bytes()
+
+
+def test_lab_then_tune_on_another_engine_finds_its_actuators(tmp_path):
+    """The whole loop in Python: a virtual engine with a slower VGT actuator (time constant
+    and delay twice and 1.5 times the published), its campaign, steps 1-2: both come back
+    within 4 standard errors."""
+    engine = {"vgt_actuator": {"tau_vgt": 0.05, "tau_dvgt": 0.06}}
+    mvem.lab(tmp_path, params=engine, sets=["B"], max_steps=2, n_stationary=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t = mvem.tune(tmp_path, steps="1,2")
+    for name, want in [("vgt_actuator.tau_vgt", 0.05), ("vgt_actuator.tau_dvgt", 0.06)]:
+        e = t["report"]["parameters"][name]
+        assert abs(e["value"] - want) <= 4 * e["std_error"] < 0.2 * want, (name, e)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"sead": 1}, "unknown field `sead`"),
+    ({"noise": "loud"}, "noise \"loud\": expected realistic, none or REL,KELVIN"),
+    ({"n_stationary": 5}, "n_stationary 5: at least 13"),
+    ({"sets": ["Z"]}, "sets: unknown data set \"Z\""),
+    ({"max_steps": 0}, "max_steps 0: at least 1"),
+    ({"speeds": "100:5000"}, "speeds \"100:5000\" with full_load 220: "),
+])
+def test_lab_bad_settings_are_named(tmp_path, kwargs, message):
+    with pytest.raises(ValueError) as e:
+        mvem.lab(tmp_path / "c", **kwargs)
+    assert message in str(e.value)
+    assert not (tmp_path / "c").exists()

@@ -1528,3 +1528,30 @@ pub fn validate(
         traces: out,
     })
 }
+
+/// A virtual test-cell campaign written to `out` as `mvem lab` writes it (the core's
+/// `tuning::request::write_lab_campaign`): `settings` a JSON object of `LabSettings` fields
+/// (unknown names refused). Returns (stationary points, data set names, dynamic samples).
+pub fn lab(
+    out: &Path,
+    params: Option<Params>,
+    order: ModelOrder,
+    settings: Option<&str>,
+) -> CoreResult<(usize, Vec<String>, usize)> {
+    use mvem::tuning::request::{write_lab_campaign, LabSettings, RequestError};
+    let settings: LabSettings = match settings {
+        None => LabSettings::default(),
+        Some(text) => serde_json::from_str(text)
+            .map_err(|e| CoreError::Value(format!("lab settings: {e}")))?,
+    };
+    let p = params.unwrap_or_else(Params::published);
+    let c = write_lab_campaign(out, &p, order, &settings).map_err(|e| match e {
+        RequestError::Setting(_) => CoreError::Value(e.to_string()),
+        other => CoreError::Runtime(other.to_string()),
+    })?;
+    Ok((
+        c.stationary.len(),
+        c.dynamic.iter().map(|d| d.name.clone()).collect(),
+        c.dynamic.iter().map(|d| d.t.len()).sum(),
+    ))
+}

@@ -1359,14 +1359,7 @@ fn tune<'py>(
         Some(p) => Some((p, test_cell_of(py, params)?)),
     };
     let json = py.import("json")?;
-    let settings: Option<String> = match settings {
-        Some(d) if !d.is_empty() => Some(
-            json.call_method1("dumps", (d,))
-                .map_err(|e| PyValueError::new_err(format!("tuning settings: {e}")))?
-                .extract()?,
-        ),
-        _ => None,
-    };
+    let settings = settings_json(py, settings, "tuning settings")?;
     let out = py
         .allow_threads(move || core::tune(&data, base, variant.order, settings.as_deref()))
         .map_err(to_py_err)?;
@@ -1488,6 +1481,59 @@ fn test_cell_of(
     }
 }
 
+/// A virtual test-cell campaign (the stationary points, the dynamic sets of the paper's Table 1
+/// and the actuator set J, with noise) generated from a parameter set and written to the
+/// directory `out`, as `mvem lab` writes it (the same files for the same settings): input for
+/// `tune` and `validate`.
+///
+/// params: the virtual engine (None: the published set). model: 8, 10 or 12 (the model that
+/// plays the engine). Keyword settings: the options of `mvem lab` in snake case (seed=1,
+/// noise="realistic" | "none" | "REL,KELVIN", n_stationary=82, tau_me=1.0, sensor_lags=False,
+/// sets=None (a list of Table 1 names), max_steps=None, dynamic=True, speeds="900:2100",
+/// full_load=220.0); an unknown name is a ValueError. Returns a dict: "dir", "stationary"
+/// (number of points), "datasets" (names), "samples" (dynamic samples). Runs without the GIL.
+#[pyfunction]
+#[pyo3(signature = (out, params=None, model=8, **settings))]
+fn lab<'py>(
+    py: Python<'py>,
+    out: &Bound<'py, PyAny>,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+    settings: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let dir = fspath(py, out, "out")?;
+    let p = parse_params(py, params)?;
+    let settings = settings_json(py, settings, "lab settings")?;
+    let path = std::path::PathBuf::from(&dir);
+    let (n_stationary, sets, samples) = py
+        .allow_threads(move || core::lab(&path, p, variant.order, settings.as_deref()))
+        .map_err(to_py_err)?;
+    let d = PyDict::new(py);
+    d.set_item("dir", dir)?;
+    d.set_item("stationary", n_stationary)?;
+    d.set_item("datasets", sets)?;
+    d.set_item("samples", samples)?;
+    Ok(d)
+}
+
+/// Keyword settings as a JSON object (None when there are none).
+fn settings_json(
+    py: Python<'_>,
+    settings: Option<&Bound<'_, PyDict>>,
+    what: &str,
+) -> PyResult<Option<String>> {
+    match settings {
+        Some(d) if !d.is_empty() => Ok(Some(
+            py.import("json")?
+                .call_method1("dumps", (d,))
+                .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?
+                .extract()?,
+        )),
+        _ => Ok(None),
+    }
+}
+
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
 #[pymodule]
 #[pyo3(name = "_mvem")]
@@ -1497,6 +1543,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;

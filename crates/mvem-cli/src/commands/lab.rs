@@ -4,7 +4,7 @@
 use crate::common;
 use anyhow::Result;
 use mvem::params::Params;
-use mvem::tuning::lab::{self, LabOptions, Noise};
+use mvem::tuning::request::{self, LabSettings, RequestError, SettingError};
 use std::path::PathBuf;
 
 /// Arguments of `mvem lab`.
@@ -67,107 +67,38 @@ pub struct Args {
 }
 
 /// Parse `--noise`.
-pub fn parse_noise(s: &str) -> Result<Noise> {
-    match s {
-        "realistic" => Ok(Noise::REALISTIC),
-        "none" => Ok(Noise::NONE),
-        _ => {
-            let bad = || {
-                common::usage(format!(
-                    "--noise {s:?}: expected realistic, none or REL,KELVIN (e.g. 0.005,1)"
-                ))
-            };
-            let (a, b) = s.split_once(',').ok_or_else(bad)?;
-            let rel: f64 = a.trim().parse().map_err(|_| bad())?;
-            let temp_k: f64 = b.trim().parse().map_err(|_| bad())?;
-            if !(rel.is_finite()
-                && (0.0..0.5).contains(&rel)
-                && temp_k.is_finite()
-                && temp_k >= 0.0)
-            {
-                return Err(common::usage(format!(
-                    "--noise {s:?}: REL must be in [0, 0.5), KELVIN >= 0"
-                )));
-            }
-            Ok(Noise { rel, temp_k })
-        }
-    }
-}
-
-/// Run `mvem lab`.
 pub fn run(a: &Args) -> Result<()> {
-    let noise = parse_noise(&a.noise)?;
-    if a.n_stationary < 13 {
-        return Err(common::usage(format!(
-            "--n-stationary {}: at least 13 (the ESC points)",
-            a.n_stationary
-        )));
-    }
-    if !(a.tau_me.is_finite() && a.tau_me >= 0.0) {
-        return Err(common::usage(format!(
-            "--tau-me {}: must be >= 0",
-            a.tau_me
-        )));
-    }
-    let sets = match &a.sets {
-        None => None,
-        Some(s) => {
-            let v: Vec<String> = s.split(',').map(|x| x.trim().to_string()).collect();
-            for n in &v {
-                if !lab::TABLE1.iter().any(|r| r.name == n) {
-                    return Err(common::usage(format!(
-                        "--sets: unknown data set {n:?} (Table 1: A-I, Q-V)"
-                    )));
-                }
-            }
-            Some(v)
-        }
+    let settings = LabSettings {
+        seed: a.seed,
+        noise: a.noise.clone(),
+        n_stationary: a.n_stationary,
+        tau_me: a.tau_me,
+        sensor_lags: a.sensor_lags,
+        sets: a
+            .sets
+            .as_ref()
+            .map(|s| s.split(',').map(|x| x.trim().to_string()).collect()),
+        max_steps: a.max_steps,
+        dynamic: !a.no_dynamic,
+        speeds: a.speeds.clone(),
+        full_load: a.full_load,
     };
-    if a.max_steps == Some(0) {
-        return Err(common::usage("--max-steps 0: at least 1"));
-    }
-    if a.out.exists() && !a.out.is_dir() {
-        return Err(common::usage(format!(
-            "--out {}: exists and is not a directory",
-            a.out.display()
-        )));
-    }
+    let flag =
+        |e: SettingError| common::usage(format!("--{}{}", e.field.replace('_', "-"), e.detail));
     let params = match &a.params {
         None => Params::published(),
         Some(p) => mvem::io::params::load_params(p)
             .map_err(|e| common::usage(format!("--params {}: {e}", p.display())))?,
     };
-    let bad = || common::usage(format!("--speeds {:?}: expected LO:HI in r/min", a.speeds));
-    let (lo, hi) = a.speeds.split_once(':').ok_or_else(bad)?;
-    let envelope = lab::Envelope {
-        n_lo_rpm: lo.trim().parse().map_err(|_| bad())?,
-        n_hi_rpm: hi.trim().parse().map_err(|_| bad())?,
-        full_load_mg: a.full_load,
-    };
-    envelope
-        .validate(&params.input_saturation)
-        .map_err(|e| common::usage(format!("--speeds/--full-load: {e}")))?;
-    let opts = LabOptions {
-        envelope,
-        seed: a.seed,
-        noise,
-        n_stationary: a.n_stationary,
-        dynamic: !a.no_dynamic,
-        sets,
-        max_steps: a.max_steps,
-        tau_me_s: a.tau_me,
-        sensor_lags: a.sensor_lags,
-        model: a.model.order(),
-        ..LabOptions::default()
-    };
     let t = std::time::Instant::now();
     // everything is generated in memory before the first file is written
-    let c = common::with_spinner("generating the campaign", || lab::campaign(&params, &opts))
-        .map_err(|e| anyhow::anyhow!("virtual test cell: {e}"))?
-        .0;
-    mvem::tuning::data::save_campaign(&a.out, &c)
-        .map_err(|e| anyhow::anyhow!("writing the campaign: {e}"))?;
-    mvem::io::params::save_params(&params, &a.out.join("true_params.toml"))?;
+    let c = common::with_spinner("generating the campaign", || {
+        request::write_lab_campaign(&a.out, &params, a.model.order(), &settings)
+    })
+    .map_err(|e| match e {
+        RequestError::Setting(e) => flag(e),
+        other => anyhow::Error::from(other),
+    })?;
     let samples: usize = c.dynamic.iter().map(|d| d.t.len()).sum();
     eprintln!(
         "wrote {}: {} stationary points, {} data sets ({} samples), true parameters; {}",

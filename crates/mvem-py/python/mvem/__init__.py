@@ -29,6 +29,8 @@ in parallel):
 - closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None) -> dict: a drive
   cycle (the WHTC, or t/n_e/M_ref) with the baseline EGR/VGT and engine controllers (tuning: a
   dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
+- lab(out, params=None, model=8, **settings) -> dict: a virtual test-cell campaign written to a
+  directory, as `mvem lab` (settings: its options in snake case, seed=1, noise="realistic", ...)
 - tune(data, params=None, model=8, **settings) -> dict: the paper's tuning steps on a campaign
   directory, as `mvem tune` (settings: its options in snake case, steps="1-5", ...): "params"
   (the tuned set, usable as params=), "test_cell", "toml" (the file mvem tune writes), "report"
@@ -55,6 +57,7 @@ from ._mvem import (
     parameters,
     published_params,
     simulate,
+    lab,
     tune,
     validate,
     simulate_many,
@@ -74,6 +77,7 @@ __all__ = [
     "Plant",
     "simulate",
     "simulate_many",
+    "lab",
     "tune",
     "validate",
     "steady",

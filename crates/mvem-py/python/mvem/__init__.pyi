@@ -189,6 +189,27 @@ def closed_loop(
     "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s".
     """
 
+def lab(
+    out: Union[str, "os.PathLike[str]"],
+    params: Params = None,
+    model: ModelOrder = 8,
+    *,
+    seed: int = 1,
+    noise: str = "realistic",
+    n_stationary: int = 82,
+    tau_me: float = 1.0,
+    sensor_lags: bool = False,
+    sets: Optional[Sequence[str]] = None,
+    max_steps: Optional[int] = None,
+    dynamic: bool = True,
+    speeds: str = "900:2100",
+    full_load: float = 220.0,
+) -> Dict[str, Any]:
+    """A virtual test-cell campaign (stationary points, Table 1 sets, actuator set J, noise)
+    of the engine `params`, written to the directory `out` as `mvem lab` writes it. Keys: "dir",
+    "stationary", "datasets", "samples".
+    """
+
 def tune(
     data: Union[str, "os.PathLike[str]"],
     params: Params = None,

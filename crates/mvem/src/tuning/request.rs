@@ -10,7 +10,8 @@
 use super::complete::{ResponseWindow, StepLevels, STEP5_REL_OFFSET_TOL, STEP5_RESTARTS};
 use super::constants::{constant_differences, describe_constants, AmbientSource, InputRangeSource};
 use super::data::Role;
-use super::data::{load_campaign, Campaign, DataError};
+use super::data::{load_campaign, save_campaign, Campaign, DataError};
+use super::lab::{campaign, Envelope, LabOptions, Noise, TABLE1};
 use super::pipeline::{self, Init, PipelineError, PipelineOptions, TuneReport};
 use super::sensors::{SensorLagMode, SensorLags};
 use super::uncertainty::FixedJacobian;
@@ -234,6 +235,8 @@ pub enum RequestError {
     Pipeline(PipelineError),
     /// A validation simulation or submodel failed (the data set named).
     Validate(ValidateError),
+    /// Something else failed (said what).
+    Failed(String),
 }
 
 impl fmt::Display for RequestError {
@@ -243,6 +246,7 @@ impl fmt::Display for RequestError {
             Self::Data(e) => e.fmt(f),
             Self::Pipeline(e) => e.fmt(f),
             Self::Validate(e) => e.fmt(f),
+            Self::Failed(m) => f.write_str(m),
         }
     }
 }
@@ -516,6 +520,165 @@ pub fn validate_campaign(
         sensor_lags,
         messages,
     })
+}
+
+/// The settings of a virtual test-cell campaign: the options of `mvem lab` by their names (snake
+/// case), with its defaults; unknown names are refused.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LabSettings {
+    /// Seed of the noise and of the stationary points' placement.
+    pub seed: u64,
+    /// `realistic` (0.5 % relative, 1 K), `none`, or `REL,KELVIN`.
+    pub noise: String,
+    /// Stationary points (at least 13: the ESC points).
+    pub n_stationary: usize,
+    /// Dynamometer time constant tau_Me \[s\] of the torque measurement (>= 0).
+    pub tau_me: f64,
+    /// Apply the Table 6 sensor lags to p_im, p_em, W_c, n_t.
+    pub sensor_lags: bool,
+    /// Only these dynamic sets of Table 1 (`None`: all).
+    pub sets: Option<Vec<String>>,
+    /// At most this many command steps per set (>= 1).
+    pub max_steps: Option<usize>,
+    /// Generate the dynamic sets (else stationary points only).
+    pub dynamic: bool,
+    /// The engine's speed range `LO:HI` \[rpm\].
+    pub speeds: String,
+    /// Full-load fuel \[mg/cycle/cylinder\].
+    pub full_load: f64,
+}
+
+impl Default for LabSettings {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            noise: "realistic".into(),
+            n_stationary: 82,
+            tau_me: 1.0,
+            sensor_lags: false,
+            sets: None,
+            max_steps: None,
+            dynamic: true,
+            speeds: "900:2100".into(),
+            full_load: 220.0,
+        }
+    }
+}
+
+impl LabSettings {
+    /// The virtual test cell's options for `model` on the engine `p`, every setting checked (the
+    /// first bad one named).
+    pub fn lab_options(&self, p: &Params, model: ModelOrder) -> Result<LabOptions, SettingError> {
+        let bad = |field: &'static str, detail: String| SettingError { field, detail };
+        let noise = match self.noise.as_str() {
+            "realistic" => Noise::REALISTIC,
+            "none" => Noise::NONE,
+            s => {
+                let form = || {
+                    bad(
+                        "noise",
+                        format!(" {s:?}: expected realistic, none or REL,KELVIN (e.g. 0.005,1)"),
+                    )
+                };
+                let (a, b) = s.split_once(',').ok_or_else(form)?;
+                let rel: f64 = a.trim().parse().map_err(|_| form())?;
+                let temp_k: f64 = b.trim().parse().map_err(|_| form())?;
+                if !(rel.is_finite()
+                    && (0.0..0.5).contains(&rel)
+                    && temp_k.is_finite()
+                    && temp_k >= 0.0)
+                {
+                    return Err(bad(
+                        "noise",
+                        format!(" {s:?}: REL must be in [0, 0.5), KELVIN >= 0"),
+                    ));
+                }
+                Noise { rel, temp_k }
+            }
+        };
+        if self.n_stationary < 13 {
+            return Err(bad(
+                "n_stationary",
+                format!(" {}: at least 13 (the ESC points)", self.n_stationary),
+            ));
+        }
+        if !(self.tau_me.is_finite() && self.tau_me >= 0.0) {
+            return Err(bad("tau_me", format!(" {}: must be >= 0", self.tau_me)));
+        }
+        if let Some(v) = &self.sets {
+            if let Some(n) = v
+                .iter()
+                .find(|n| !TABLE1.iter().any(|r| r.name == n.as_str()))
+            {
+                return Err(bad(
+                    "sets",
+                    format!(": unknown data set {n:?} (Table 1: A-I, Q-V)"),
+                ));
+            }
+        }
+        if self.max_steps == Some(0) {
+            return Err(bad("max_steps", " 0: at least 1".into()));
+        }
+        let form = || {
+            bad(
+                "speeds",
+                format!(" {:?}: expected LO:HI in r/min", self.speeds),
+            )
+        };
+        let (lo, hi) = self.speeds.split_once(':').ok_or_else(form)?;
+        let envelope = Envelope {
+            n_lo_rpm: lo.trim().parse().map_err(|_| form())?,
+            n_hi_rpm: hi.trim().parse().map_err(|_| form())?,
+            full_load_mg: self.full_load,
+        };
+        envelope.validate(&p.input_saturation).map_err(|e| {
+            bad(
+                "speeds",
+                format!(" {:?} with full_load {}: {e}", self.speeds, self.full_load),
+            )
+        })?;
+        Ok(LabOptions {
+            envelope,
+            seed: self.seed,
+            noise,
+            n_stationary: self.n_stationary,
+            dynamic: self.dynamic,
+            sets: self.sets.clone(),
+            max_steps: self.max_steps,
+            tau_me_s: self.tau_me,
+            sensor_lags: self.sensor_lags,
+            model,
+            ..LabOptions::default()
+        })
+    }
+}
+
+/// A virtual campaign of the engine `p` (the `model`-state model) with `settings`, written to
+/// `out_dir` as `mvem lab` writes it (manifest, stationary and dynamic CSVs, the true
+/// parameters), everything generated before the first file is written. Returns the campaign.
+pub fn write_lab_campaign(
+    out_dir: &Path,
+    p: &Params,
+    model: ModelOrder,
+    settings: &LabSettings,
+) -> Result<Campaign, RequestError> {
+    let opts = settings
+        .lab_options(p, model)
+        .map_err(RequestError::Setting)?;
+    if out_dir.exists() && !out_dir.is_dir() {
+        return Err(RequestError::Setting(SettingError {
+            field: "out",
+            detail: format!(" {}: exists and is not a directory", out_dir.display()),
+        }));
+    }
+    let c = campaign(p, &opts)
+        .map_err(|e| RequestError::Failed(format!("virtual test cell: {e}")))?
+        .0;
+    save_campaign(out_dir, &c).map_err(RequestError::Data)?;
+    crate::io::params::save_params(p, &out_dir.join("true_params.toml"))
+        .map_err(|e| RequestError::Failed(format!("writing the true parameters: {e}")))?;
+    Ok(c)
 }
 
 #[cfg(test)]
