@@ -3,6 +3,7 @@
 //! (any order, other columns ignored, `#` comments), linear between rows
 //! ([`crate::control::Demand`]).
 
+use super::csv_columns::{read_columns, ColumnsError};
 use super::{format_err as err, IoError};
 use crate::control::Demand;
 use std::path::Path;
@@ -16,51 +17,32 @@ pub const DEMAND_COLUMNS: [&str; 3] = ["t", "n_e", "M_ref"];
 /// values: the row counted after the header). The speeds are checked against an engine's range
 /// when the cycle runs ([`Demand::check_speeds`]).
 pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let headers = rdr
-        .headers()
-        .map_err(|e| err(path, Some(1), None, format!("cannot read the header: {e}")))?
-        .clone();
-    let col = |want: &str| headers.iter().position(|h| h == want);
-    let missing: Vec<&str> = DEMAND_COLUMNS
-        .into_iter()
-        .filter(|c| col(c).is_none())
-        .collect();
-    if !missing.is_empty() {
-        return Err(err(
+    let rows = read_columns(text, &DEMAND_COLUMNS).map_err(|e| match e {
+        ColumnsError::Header(m) => err(path, Some(1), None, format!("cannot read the header: {m}")),
+        ColumnsError::Missing { missing, found } => err(
             path,
             Some(1),
             None,
             format!(
                 "missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm]; found: {})",
                 missing.join(", "),
-                headers.iter().collect::<Vec<_>>().join(", ")
+                found.join(", ")
             ),
-        ));
-    }
-    let idx = DEMAND_COLUMNS.map(|c| col(c).unwrap_or_default());
+        ),
+        ColumnsError::Record { line, message } => err(path, line, None, message),
+        ColumnsError::NotANumber {
+            line,
+            column,
+            field,
+        } => err(
+            path,
+            Some(line),
+            Some(DEMAND_COLUMNS[column]),
+            format!("'{field}' is not a number"),
+        ),
+    })?;
     let (mut t, mut n, mut m) = (vec![], vec![], vec![]);
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| {
-            let line = e.position().map(|p| p.line() as usize);
-            err(path, line, None, e.to_string())
-        })?;
-        let line = rec.position().map(|p| p.line() as usize);
-        let mut v = [0.0; 3];
-        for (k, &c) in idx.iter().enumerate() {
-            let field = rec.get(c).unwrap_or("");
-            v[k] = field.parse::<f64>().map_err(|_| {
-                err(
-                    path,
-                    line,
-                    Some(DEMAND_COLUMNS[k]),
-                    format!("'{field}' is not a number"),
-                )
-            })?;
-        }
+    for (_, v) in rows {
         t.push(v[0]);
         n.push(v[1]);
         m.push(v[2]);
@@ -96,6 +78,11 @@ mod tests {
         assert_eq!(
             parse("t,n_e,M_ref\n0,1000,100\n1,fast,100\n").unwrap_err(),
             "c.csv, line 3, column n_e: 'fast' is not a number"
+        );
+        // the file's line, after comment and blank lines
+        assert_eq!(
+            parse("t,n_e,M_ref\n0,1000,100\n# a pause\n\n1,fast,100\n").unwrap_err(),
+            "c.csv, line 5, column n_e: 'fast' is not a number"
         );
         let e = parse("t,n_e,M_ref\n0,1000,100\n2,1000,100\n1,1000,100\n").unwrap_err();
         assert!(

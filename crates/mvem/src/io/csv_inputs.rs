@@ -99,17 +99,9 @@ fn csv_table(text: &str, path: &Path) -> Result<Table, IoError> {
     Ok((times, rows, lines))
 }
 
-/// The file line of a csv crate record position. The crate takes a record's position where
-/// the previous record ended, before its line end and any blank lines (line and byte), i.e.
-/// one line early after a CRLF line end and one per blank line: the record starts after the
-/// line-end bytes at that position, and each `\n` among them is one more line.
+/// The file line of a csv crate record position (no comment lines in these files).
 fn file_line(text: &str, p: &csv::Position) -> usize {
-    let skipped = text.as_bytes()[(p.byte() as usize).min(text.len())..]
-        .iter()
-        .take_while(|b| matches!(b, b'\r' | b'\n'))
-        .filter(|b| **b == b'\n')
-        .count();
-    p.line() as usize + skipped
+    super::csv_columns::file_line(text, p, None)
 }
 
 /// Times, the inputs (n_e, u_delta, u_egr, u_vgt) and the file line of each data row.

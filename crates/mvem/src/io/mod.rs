@@ -2,6 +2,7 @@
 //! atomically (temporary file + rename) so that a failure never leaves a partial file. (The JSON
 //! objects of analysis results are built one layer up, in `analysis::json`.)
 
+pub mod csv_columns;
 pub mod csv_demand;
 pub mod csv_inputs;
 pub mod output;

@@ -6,6 +6,7 @@
 //! degrees Celsius or a speed in rad/s where r/min is expected is caught), time strictly
 //! increasing. Errors name the file, the line (1-based, the header is line 1) and the column.
 
+use crate::io::csv_columns::{read_columns, ColumnsError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -334,42 +335,38 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
         path: path.to_path_buf(),
         message,
     };
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let header = rdr
-        .headers()
-        .map_err(|e| fmt(format!("cannot read the header: {e}")))?
-        .clone();
-    let mut idx = Vec::with_capacity(required.len());
-    for c in required {
-        match header.iter().position(|h| h == c.name) {
-            Some(i) => idx.push(i),
-            None => {
-                return Err(DataError::MissingColumn {
-                    path: path.to_path_buf(),
-                    column: c.name.to_string(),
-                })
-            }
-        }
-    }
-    let mut rows = Vec::new();
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| fmt(format!("malformed CSV: {e}")))?;
-        let line = rec.position().map(|p| p.line() as usize).unwrap_or(0);
-        let mut row = Vec::with_capacity(required.len());
-        for (c, &i) in required.iter().zip(&idx) {
+    let names: Vec<&str> = required.iter().map(|c| c.name).collect();
+    let read = read_columns(text, &names).map_err(|e| match e {
+        ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
+        ColumnsError::Missing { missing, .. } => DataError::MissingColumn {
+            path: path.to_path_buf(),
+            column: missing[0].clone(),
+        },
+        ColumnsError::Record { message, .. } => fmt(format!("malformed CSV: {message}")),
+        ColumnsError::NotANumber {
+            line,
+            column,
+            field,
+        } => DataError::Value {
+            path: path.to_path_buf(),
+            line,
+            column: names[column].to_string(),
+            message: if field.is_empty() {
+                "missing value".into()
+            } else {
+                format!("`{field}` is not a number")
+            },
+        },
+    })?;
+    let mut rows = Vec::with_capacity(read.len());
+    for (line, row) in read {
+        for (c, &v) in required.iter().zip(&row) {
             let bad = |message: String| DataError::Value {
                 path: path.to_path_buf(),
                 line,
                 column: c.name.to_string(),
                 message,
             };
-            let s = rec.get(i).ok_or_else(|| bad("missing value".into()))?;
-            let v: f64 = s
-                .parse()
-                .map_err(|_| bad(format!("`{s}` is not a number")))?;
             if !v.is_finite() {
                 return Err(bad(format!("{v} is not finite")));
             }
@@ -383,7 +380,6 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
                     c.unit
                 )));
             }
-            row.push(v);
         }
         rows.push(row);
     }

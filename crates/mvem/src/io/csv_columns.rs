@@ -1,0 +1,151 @@
+//! Named numeric columns of a CSV file: the reader shared by the demand cycles
+//! ([`super::csv_demand`]) and the tuning campaigns' stationary and dynamic files
+//! ([`crate::tuning::data`]). Columns in any order, other columns ignored, blanks around names
+//! and fields trimmed, `#` comment lines skipped; every value a number, with its 1-based line.
+//! (The input time series have their own reader with a fast path, [`super::csv_inputs`].)
+
+/// Why a CSV's named columns could not be read: each caller words it for its own file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ColumnsError {
+    /// The header cannot be read.
+    Header(String),
+    /// Required columns are missing (in the order asked), with the columns found.
+    Missing {
+        /// The names not found.
+        missing: Vec<String>,
+        /// The header's names.
+        found: Vec<String>,
+    },
+    /// A malformed record (e.g. a different number of fields), at its line if known.
+    Record {
+        /// 1-based line.
+        line: Option<usize>,
+        /// The CSV reader's message.
+        message: String,
+    },
+    /// A field is missing or not a number.
+    NotANumber {
+        /// 1-based line.
+        line: usize,
+        /// Index of the column in the names asked for.
+        column: usize,
+        /// The field's text (empty if missing).
+        field: String,
+    },
+}
+
+/// The file line of a csv crate record position. The crate takes a record's position where
+/// the previous record ended, before its line end and any blank or comment lines (line and
+/// byte), i.e. one line early after a CRLF line end and one per blank or comment line: the record
+/// starts after the line-end bytes and the comment lines (starting with `comment`) at that
+/// position, and each `\n` among them is one more line.
+pub(crate) fn file_line(text: &str, p: &csv::Position, comment: Option<u8>) -> usize {
+    let b = text.as_bytes();
+    let mut k = (p.byte() as usize).min(b.len());
+    let mut line = p.line() as usize;
+    while k < b.len() {
+        let line_start = k == 0 || b[k - 1] == b'\n';
+        match b[k] {
+            b'\r' => k += 1,
+            b'\n' => {
+                line += 1;
+                k += 1;
+            }
+            c if line_start && Some(c) == comment => {
+                match b[k..].iter().position(|&x| x == b'\n') {
+                    Some(n) => {
+                        line += 1;
+                        k += n + 1;
+                    }
+                    None => break,
+                }
+            }
+            _ => break,
+        }
+    }
+    line
+}
+
+/// The values of the columns `names` (in that order) of every data row of `text`, each row with
+/// its 1-based line in the file.
+pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>, ColumnsError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let header = rdr
+        .headers()
+        .map_err(|e| ColumnsError::Header(e.to_string()))?
+        .clone();
+    let col = |want: &str| header.iter().position(|h| h == want);
+    let missing: Vec<String> = names
+        .iter()
+        .filter(|c| col(c).is_none())
+        .map(|c| c.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(ColumnsError::Missing {
+            missing,
+            found: header.iter().map(str::to_string).collect(),
+        });
+    }
+    let idx: Vec<usize> = names.iter().map(|c| col(c).unwrap_or_default()).collect();
+    let mut rows = Vec::new();
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| ColumnsError::Record {
+            line: e.position().map(|p| file_line(text, p, Some(b'#'))),
+            message: e.to_string(),
+        })?;
+        let line = rec.position().map_or(0, |p| file_line(text, p, Some(b'#')));
+        let mut row = Vec::with_capacity(names.len());
+        for (column, &i) in idx.iter().enumerate() {
+            let field = rec.get(i).unwrap_or("");
+            row.push(field.parse::<f64>().map_err(|_| ColumnsError::NotANumber {
+                line,
+                column,
+                field: field.to_string(),
+            })?);
+        }
+        rows.push((line, row));
+    }
+    Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn columns_by_name_with_their_lines_and_every_problem_named() {
+        // the lines after blank and comment lines and a CRLF line end
+        let text = "# comment\n b , a ,x\n1, 2 ,q\r\n\n# more\n\n3,4,r\n#\n5,6,s";
+        assert_eq!(
+            read_columns(text, &["a", "b"]).unwrap(),
+            vec![
+                (3, vec![2.0, 1.0]),
+                (7, vec![4.0, 3.0]),
+                (9, vec![6.0, 5.0])
+            ]
+        );
+        assert_eq!(
+            read_columns(text, &["a", "c", "d"]).unwrap_err(),
+            ColumnsError::Missing {
+                missing: vec!["c".into(), "d".into()],
+                found: vec!["b".into(), "a".into(), "x".into()],
+            }
+        );
+        assert_eq!(
+            read_columns("a,b\n1,2\n1,zz\n", &["b"]).unwrap_err(),
+            ColumnsError::NotANumber {
+                line: 3,
+                column: 0,
+                field: "zz".into()
+            }
+        );
+        assert!(matches!(
+            read_columns("a,b\n1,2\n1\n", &["a"]).unwrap_err(),
+            ColumnsError::Record { line: Some(3), .. }
+        ));
+        assert_eq!(read_columns("a,b\n", &["a"]).unwrap(), vec![]);
+    }
+}
