@@ -440,10 +440,10 @@ async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> Ap
 async fn simulate(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
     let r: SimulateRequest = body(b)?;
     let m = app.model(order_n(r.model)?, r.params.as_deref())?;
-    let (what, name, dt, mode) = r.schedule(&app.models.cycles)?;
+    let (what, name, dt) = r.schedule(&app.models.cycles)?;
     let v = app
         .work
-        .run(move || compute::simulate_cycle(&m, &r, &what, &name, dt, mode))
+        .run(move || compute::simulate_cycle(&m, &r, &what, &name, dt))
         .await??;
     Ok(Json(v))
 }

@@ -318,14 +318,14 @@ pub(crate) const CYCLE_OUTPUTS: [&str; 8] = [
     "W_c", "p_im", "p_em", "x_egr", "lambda_O", "M_e", "n_t", "T_em",
 ];
 
-/// What a cycle request runs: the inputs of an open-loop run (or of the built-in WHTC, whose
-/// closed loop follows its own speed and torque demand), or a user's speed/torque demand for the
-/// closed loop.
+/// What a cycle request runs (each mode with what it can run).
 pub(crate) enum CycleInput {
-    /// An input schedule (open loop; closed loop: the WHTC's, its demand built in).
-    Schedule(Arc<InputSchedule>),
-    /// A speed/torque demand (closed loop, `"csv"` with the columns t, n_e, M_ref).
-    Demand(Demand),
+    /// Open loop: an input schedule.
+    Open(Arc<InputSchedule>),
+    /// Closed loop on the built-in WHTC (its speed and torque demand built in).
+    ClosedWhtc,
+    /// Closed loop on a user's speed/torque demand (`"csv"` with the columns t, n_e, M_ref).
+    ClosedDemand(Demand),
 }
 
 /// Longest closed-loop demand a request may run \[s\] (twice the WHTC: about 1 s of CPU for the
@@ -333,11 +333,11 @@ pub(crate) enum CycleInput {
 pub const MAX_CLOSED_SPAN: f64 = 3600.0;
 
 impl SimulateRequest {
-    /// What to run, its name, the output interval and the mode (checks that need no model).
+    /// What to run (in its mode), its name and the output interval (checks that need no model).
     pub(crate) fn schedule(
         &self,
         cycles: &[(String, Arc<InputSchedule>)],
-    ) -> Result<(CycleInput, String, f64, CycleMode), Fail> {
+    ) -> Result<(CycleInput, String, f64), Fail> {
         let mode = CycleMode::parse(self.mode.as_deref())?;
         if let Some(t) = &self.tuning {
             if mode != CycleMode::Closed {
@@ -361,7 +361,7 @@ impl SimulateRequest {
                 )));
             }
             let dt = self.output_interval(t0, t1)?;
-            return Ok((CycleInput::Demand(d), "csv".to_string(), dt, mode));
+            return Ok((CycleInput::ClosedDemand(d), "csv".to_string(), dt));
         }
         let (sched, name) = match (&self.cycle, &self.csv) {
             (Some(c), None) => match cycles.iter().find(|(n, _)| n == c) {
@@ -400,7 +400,11 @@ impl SimulateRequest {
             )));
         }
         let dt = self.output_interval(t0, t1)?;
-        Ok((CycleInput::Schedule(sched), name, dt, mode))
+        let what = match mode {
+            CycleMode::Open => CycleInput::Open(sched),
+            CycleMode::Closed => CycleInput::ClosedWhtc,
+        };
+        Ok((what, name, dt))
     }
 
     /// `dt` (default 0.1 s), checked: positive, and at most [`MAX_SAMPLES`] samples from `t0`
@@ -419,28 +423,22 @@ impl SimulateRequest {
     }
 }
 
-/// `POST /api/simulate` in `mode`.
+/// `POST /api/simulate`.
 pub(crate) fn simulate_cycle(
     model: &AnyModel,
     r: &SimulateRequest,
     what: &CycleInput,
     name: &str,
     dt: f64,
-    mode: CycleMode,
 ) -> Result<Value, Fail> {
-    match (mode, what) {
-        (CycleMode::Open, CycleInput::Schedule(sched)) => {
+    match what {
+        CycleInput::Open(sched) => {
             mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt))
         }
-        (CycleMode::Closed, CycleInput::Schedule(_)) => {
-            closed_cycle(model, r, CycleSource::Whtc, name, dt)
-        }
-        (CycleMode::Closed, CycleInput::Demand(d)) => {
+        CycleInput::ClosedWhtc => closed_cycle(model, r, CycleSource::Whtc, name, dt),
+        CycleInput::ClosedDemand(d) => {
             closed_cycle(model, r, CycleSource::Demand(d.clone()), name, dt)
         }
-        (CycleMode::Open, CycleInput::Demand(_)) => Err(input(
-            "mode \"open\": a speed/torque demand needs the closed loop",
-        )),
     }
 }
 
