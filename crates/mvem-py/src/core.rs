@@ -847,9 +847,8 @@ pub fn closed_loop(
     use mvem::control::{ControlError, Trajectory};
     let tuning: BaselineTuning = match tuning {
         None => BaselineTuning::default(),
-        Some(text) => {
-            serde_json::from_str(text).map_err(|e| CoreError::Value(format!("tuning: {e}")))?
-        }
+        Some(text) => mvem::io::settings_from_json(text)
+            .map_err(|e| CoreError::Value(format!("tuning: {e}")))?,
     };
     tuning
         .validate()
@@ -1408,7 +1407,7 @@ pub fn tune(
     use mvem::tuning::request::{tune_campaign, RequestError, TuneSettings};
     let settings: TuneSettings = match settings {
         None => TuneSettings::default(),
-        Some(text) => serde_json::from_str(text)
+        Some(text) => mvem::io::settings_from_json(text)
             .map_err(|e| CoreError::Value(format!("tuning settings: {e}")))?,
     };
     let given = base.is_some();
@@ -1541,7 +1540,7 @@ pub fn lab(
     use mvem::tuning::request::{write_lab_campaign, LabSettings, RequestError};
     let settings: LabSettings = match settings {
         None => LabSettings::default(),
-        Some(text) => serde_json::from_str(text)
+        Some(text) => mvem::io::settings_from_json(text)
             .map_err(|e| CoreError::Value(format!("lab settings: {e}")))?,
     };
     let p = params.unwrap_or_else(Params::published);

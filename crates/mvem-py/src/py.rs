@@ -1523,15 +1523,32 @@ fn settings_json(
     settings: Option<&Bound<'_, PyDict>>,
     what: &str,
 ) -> PyResult<Option<String>> {
-    match settings {
-        Some(d) if !d.is_empty() => Ok(Some(
-            py.import("json")?
-                .call_method1("dumps", (d,))
-                .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?
-                .extract()?,
-        )),
-        _ => Ok(None),
+    let Some(d) = settings.filter(|d| !d.is_empty()) else {
+        return Ok(None);
+    };
+    // JSON has no inf or NaN: an infinite step3_window is its default (None), any other
+    // non-finite number is refused here, naming the setting
+    let d = d.copy()?;
+    for (k, v) in d.clone().iter() {
+        if let Ok(x) = v.extract::<f64>() {
+            if !x.is_finite() && !v.is_instance_of::<pyo3::types::PyBool>() {
+                let key: String = k.extract()?;
+                if key == "step3_window" && x == f64::INFINITY {
+                    d.set_item(k, py.None())?;
+                } else {
+                    return Err(PyValueError::new_err(format!(
+                        "{what}: {key} = {x}: must be a finite number"
+                    )));
+                }
+            }
+        }
     }
+    Ok(Some(
+        py.import("json")?
+            .call_method1("dumps", (d,))
+            .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?
+            .extract()?,
+    ))
 }
 
 /// mvem: mean-value diesel engine model (VGT + EGR) of Wahlstrom & Eriksson (2011).
