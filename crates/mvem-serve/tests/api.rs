@@ -574,32 +574,39 @@ fn saturated_server_answers_503_with_retry_after() {
     c.limits.max_queue = 0;
     let s = mvem_serve::start(c).unwrap();
     let addr = s.addr;
-    // one long computation (the closed-loop WHTC: seconds, not the ~0.1 s of an open-loop run
-    // on a quiet machine) holds the only worker; requests meanwhile are refused, not queued
-    let long = std::thread::spawn(move || {
-        client::post(
-            addr,
-            "/api/simulate",
-            br#"{"cycle": "whtc", "mode": "closed", "dt": 1.0}"#,
-        )
-        .unwrap()
-    });
-    // let it take the worker first (a steady request polled at once could hold the worker
-    // and have the long one refused instead)
-    std::thread::sleep(Duration::from_millis(300));
+    // one long computation (the closed-loop WHTC: about 0.4 s on a quiet machine, against the
+    // milliseconds of a steady request) holds the only worker; a request meanwhile is refused,
+    // not queued. The server's own count of admitted requests (/api/health "busy") says when
+    // the long one holds the worker, so a loaded machine cannot reorder the two; should the
+    // long one end between that poll and the steady request (a 200), the attempt is repeated.
+    let busy = || {
+        client::get(addr, "/api/health").unwrap().json()["busy"]
+            .as_u64()
+            .unwrap()
+    };
     let mut saw_503 = None;
-    for _ in 0..200 {
+    for _attempt in 0..5 {
+        let long = std::thread::spawn(move || {
+            client::post(
+                addr,
+                "/api/simulate",
+                br#"{"cycle": "whtc", "mode": "closed", "dt": 1.0}"#,
+            )
+            .unwrap()
+        });
+        while busy() == 0 && !long.is_finished() {
+            std::thread::sleep(Duration::from_millis(1));
+        }
         let r = client::get(addr, &format!("/api/steady?{POINT}")).unwrap();
+        assert_eq!(long.join().unwrap().status, 200);
         if r.status == 503 {
             saw_503 = Some(r);
             break;
         }
-        std::thread::sleep(Duration::from_millis(2));
     }
     let r = saw_503.expect("a 503 while the only worker is busy");
     assert_eq!(r.header("retry-after"), Some("1"));
     assert!(r.json()["error"].as_str().unwrap().contains("busy"));
-    assert_eq!(long.join().unwrap().status, 200);
     assert_eq!(
         client::get(addr, &format!("/api/steady?{POINT}"))
             .unwrap()
