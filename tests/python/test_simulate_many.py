@@ -103,3 +103,32 @@ def test_start_states_one_for_all_or_one_per_run():
     out = mvem.simulate_many(inputs, x0=[x1[:7], None], on_error="return")
     assert isinstance(out[0], ValueError) and "run 0: x0: expected 8 values" in str(out[0])
     assert_same(out[1], mvem.simulate(inputs[1]))
+
+
+def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path):
+    """KeyboardInterrupt (as Ctrl-C raises it) while an ensemble runs: the runs not started are
+    cancelled, the call raises within about one run's time, and a later call is unaffected."""
+    import _thread
+    import threading
+    import time
+
+    from conftest import ROOT, read_csv
+
+    whtc = read_csv(ROOT / "data" / "whtc_inputs_10hz.csv")
+    one = mvem.simulate_many([whtc], dt=10.0)[0]
+    t0 = time.perf_counter()
+    mvem.simulate_many([whtc] * 4, dt=10.0, threads=2)
+    per_run = (time.perf_counter() - t0) / 2  # 4 runs on 2 threads
+    n = 200  # about 100 x per_run if it were not stopped
+    timer = threading.Timer(5 * per_run, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        mvem.simulate_many([whtc] * n, dt=10.0, threads=2)
+    elapsed = time.perf_counter() - t0
+    timer.join()
+    # stopped at the signal plus the runs in progress (2 threads): far below the 100 run-times
+    # the whole ensemble takes; 25 run-times of margin for a loaded machine
+    assert elapsed < 30 * per_run, (elapsed, per_run)
+    again = mvem.simulate_many([whtc], dt=10.0)[0]
+    assert_same(again, one)

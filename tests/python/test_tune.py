@@ -251,3 +251,25 @@ def test_the_tune_own_engine_example_recovers_the_virtual_engine(tmp_path):
     for _, errors in rows:
         for item in errors.split(", "):
             assert float(item.split()[1]) < 3.0, (item, p.stdout)
+
+
+def test_ctrl_c_stops_a_tuning_and_the_next_call_runs(campaign):
+    """KeyboardInterrupt (as Ctrl-C raises it) 1.5 s into a full tuning (steps 1-5, about 20 s
+    on the 2-core CI machine): the tuning stops at its next residual evaluation and raises
+    KeyboardInterrupt instead of running to its end; a later call is unaffected."""
+    import _thread
+    import threading
+    import time
+
+    quick = mvem.tune(campaign, steps="1")
+    timer = threading.Timer(1.5, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        mvem.tune(campaign)
+    elapsed = time.perf_counter() - t0
+    timer.join()
+    # one round of step simulations after the signal, with margin for a loaded machine
+    print(f"interrupted tuning returned {elapsed - 1.5:.2f} s after the signal")
+    assert elapsed < 1.5 + 6.0, elapsed
+    assert mvem.tune(campaign, steps="1")["toml"] == quick["toml"]

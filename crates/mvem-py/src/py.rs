@@ -360,7 +360,8 @@ fn columns_dict(py: Python<'_>, (names, cols): core::Columns) -> PyResult<Bound<
 ///     simulates inputs[i] from the steady state at its first row.
 /// params: None (published set), one dict of overrides or path for every run, or a list with one
 ///     entry (None, dict or path) per run (parameter variations: repeat the inputs).
-/// threads: worker threads (None: one per core). The GIL is released while the runs execute.
+/// threads: worker threads (None: one per core). The GIL is released while the runs execute;
+///     Ctrl-C (KeyboardInterrupt) stops the ensemble once the runs in progress end.
 /// on_error: "raise" (default): after all runs, raise the first failed run's error (ValueError
 ///     or RuntimeError, "run i: ..."); "return": a failed run's slot holds its exception object
 ///     instead of a dict, the other runs are returned as usual.
@@ -450,9 +451,10 @@ fn simulate_many<'py>(
     let starts = start_states(py, x0, rows.len())?;
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
     let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
-    let results = py
-        .allow_threads(move || core::simulate_many_rows_from(runs, &starts, args, variant, threads))
-        .map_err(to_py_err)?;
+    let results = interruptible(py, move || {
+        core::simulate_many_rows_from(runs, &starts, args, variant, threads)
+    })?
+    .map_err(to_py_err)?;
     let out = PyList::empty(py);
     for r in results {
         match r {
@@ -1341,7 +1343,8 @@ impl PyModel {
 /// parameter file mvem tune writes), "report" (tune_report.json as a dict), "messages" (the
 /// warnings and notes mvem tune prints; each "warning: ..." is also issued as a UserWarning).
 /// ValueError for a bad setting, parameter set or campaign file (naming it), RuntimeError when a
-/// step fails (naming it). Runs without the GIL.
+/// step fails (naming it). Runs without the GIL; Ctrl-C (KeyboardInterrupt) stops the tuning
+/// within one residual evaluation (one round of simulations) and raises KeyboardInterrupt.
 #[pyfunction]
 #[pyo3(signature = (data, params=None, model=8, **settings))]
 fn tune<'py>(
@@ -1360,9 +1363,10 @@ fn tune<'py>(
     };
     let json = py.import("json")?;
     let settings = settings_json(py, settings, "tuning settings")?;
-    let out = py
-        .allow_threads(move || core::tune(&data, base, variant.order, settings.as_deref()))
-        .map_err(to_py_err)?;
+    let out = interruptible(py, move || {
+        core::tune(&data, base, variant.order, settings.as_deref())
+    })?
+    .map_err(to_py_err)?;
     let d = PyDict::new(py);
     d.set_item("params", json.call_method1("loads", (out.params_json,))?)?;
     d.set_item(
@@ -1515,6 +1519,63 @@ fn lab<'py>(
     d.set_item("datasets", sets)?;
     d.set_item("samples", samples)?;
     Ok(d)
+}
+
+/// Run `f` on a worker thread without the GIL so that Ctrl-C can stop it: this (the calling
+/// Python) thread checks Python's signals every 50 ms while it waits; on KeyboardInterrupt (or
+/// any exception a signal handler raises) it cancels the work through the worker's
+/// [`CancelToken`] (the tuning's searches, the pipeline between its steps and an ensemble
+/// before each run poll it: `mvem::numerics::cancel`), waits for the worker to reach its next
+/// checkpoint and raises the handler's exception. A panic in the worker is resumed here, where
+/// PyO3 turns it into a PanicException as for work run on this thread.
+fn interruptible<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
+    use mvem::numerics::cancel::{with_token, CancelToken};
+    use std::sync::{Condvar, Mutex, PoisonError};
+    use std::time::Duration;
+    /// Sets the flag and wakes the waiting thread when the worker ends, also by a panic.
+    struct Done<'a>(&'a (Mutex<bool>, Condvar));
+    impl Drop for Done<'_> {
+        fn drop(&mut self) {
+            *self.0 .0.lock().unwrap_or_else(PoisonError::into_inner) = true;
+            self.0 .1.notify_all();
+        }
+    }
+    let token = CancelToken::new();
+    let done = (Mutex::new(false), Condvar::new());
+    let wait = |timeout: Duration| {
+        let g = done.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let (g, _) = done
+            .1
+            .wait_timeout_while(g, timeout, |d| !*d)
+            .unwrap_or_else(PoisonError::into_inner);
+        *g
+    };
+    std::thread::scope(|s| {
+        let (token, done) = (&token, &done);
+        let worker = std::thread::Builder::new()
+            .name("mvem-worker".into())
+            // the size of a main thread's stack: the work ran on the caller's thread before
+            .stack_size(8 << 20)
+            .spawn_scoped(s, move || {
+                let _done = Done(done);
+                with_token(token, f)
+            })
+            .map_err(|e| PyRuntimeError::new_err(format!("cannot start a worker thread: {e}")))?;
+        let join = |w: std::thread::ScopedJoinHandle<'_, T>| {
+            w.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+        };
+        loop {
+            if py.allow_threads(|| wait(Duration::from_millis(50))) {
+                return Ok(join(worker));
+            }
+            if let Err(e) = py.check_signals() {
+                token.cancel();
+                py.allow_threads(|| while !wait(Duration::from_secs(3600)) {});
+                drop(join(worker));
+                return Err(e);
+            }
+        }
+    })
 }
 
 /// Keyword settings as a JSON object (None when there are none).

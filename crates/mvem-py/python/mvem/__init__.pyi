@@ -57,6 +57,7 @@ def simulate_many(
     x0: Any = None,
 ) -> List[Union[Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"], Exception]]:
     """Many simulations at once on `threads` worker threads (None: one per core), GIL released.
+    Ctrl-C (KeyboardInterrupt) stops the ensemble once the runs in progress end.
 
     Run i simulates inputs[i] (as simulate) with params (one for all runs, or a list with one
     entry per run). on_error="raise": after all runs, raise the first failure ("run i: ...");
@@ -242,7 +243,8 @@ def tune(
     also supplies its [test_cell] section). Keys: "params" (nested dict, usable as params=),
     "test_cell", "toml" (the parameter file), "report" (tune_report.json), "messages"
     (warnings and notes; each warning also a UserWarning). ValueError for a bad setting,
-    parameter set or campaign file; RuntimeError when a step fails.
+    parameter set or campaign file; RuntimeError when a step fails. Ctrl-C stops it within
+    one round of simulations (KeyboardInterrupt).
     """
 
 def validate(

@@ -4,7 +4,9 @@
 //! time) from the steady state at its first inputs, as [`simulate_from_steady`], or from its
 //! given start state, one case per task on a rayon thread pool. The runs are independent: one that fails (no initial
 //! equilibrium, a solver failure) gives a [`RunError`] naming its index in its own slot and the
-//! others go on. Results come back in the order of the cases.
+//! others go on. Results come back in the order of the cases. A caller that cancels
+//! ([`crate::numerics::cancel`]) gets the runs not yet started as
+//! [`SimFromSteadyError::Cancelled`].
 //!
 //! The runs share nothing but the read-only options, so on a machine with k idle cores k runs
 //! take about as long as one (`mvem bench --ensemble 8` measures the scaling; `docs/python.md`
@@ -74,11 +76,19 @@ pub fn simulate_many(
     opts: &SimOptions,
     threads: usize,
 ) -> Result<Vec<Result<Solution, RunError>>, PoolError> {
+    // the caller's cancellation token, polled by the workers before each run
+    let cancel = crate::numerics::cancel::current();
     in_pool(threads, || {
         cases
             .par_iter()
             .enumerate()
             .map(|(index, c)| {
+                if cancel.as_ref().is_some_and(|t| t.is_cancelled()) {
+                    return Err(RunError {
+                        index,
+                        error: SimFromSteadyError::Cancelled,
+                    });
+                }
                 let t0 = c.inputs.t_first();
                 let t_end = c.t_end.unwrap_or(c.inputs.t_last());
                 crate::dispatch!(&c.model, m => run_case(m, c, t0, t_end, opts))
@@ -209,5 +219,31 @@ mod tests {
             }
         ));
         assert!(e.to_string().contains("expected 8 values"), "{e}");
+    }
+
+    #[test]
+    fn a_cancelled_ensemble_reports_the_runs_it_did_not_start() {
+        use crate::numerics::cancel::{with_token, CancelToken};
+        let cases: Vec<Case> = (0..4).map(|k| case(60.0 + k as f64, 0.1)).collect();
+        let opts = SimOptions::default();
+        let token = CancelToken::new();
+        let sols = with_token(&token, || simulate_many(&cases, &opts, 2)).unwrap();
+        assert!(sols.iter().all(Result::is_ok));
+        token.cancel();
+        let sols = with_token(&token, || simulate_many(&cases, &opts, 2)).unwrap();
+        for (i, s) in sols.iter().enumerate() {
+            assert_eq!(
+                s.as_ref().unwrap_err(),
+                &RunError {
+                    index: i,
+                    error: SimFromSteadyError::Cancelled
+                }
+            );
+        }
+        // the token is the caller's: outside its scope the ensemble runs
+        assert!(simulate_many(&cases, &opts, 2)
+            .unwrap()
+            .iter()
+            .all(Result::is_ok));
     }
 }

@@ -93,6 +93,10 @@ pub enum SimFromSteadyError {
         /// The values given.
         got: usize,
     },
+    /// Not run: the caller cancelled the ensemble before this run started
+    /// ([`crate::numerics::cancel`]).
+    #[error("not run: the ensemble was cancelled")]
+    Cancelled,
 }
 
 /// Simulate `model` driven by `sched` from `t0` to `t_end`, starting at the steady state at

@@ -355,6 +355,13 @@ pub enum LsqError {
     /// The SVD did not converge (only for non-finite or pathological matrices).
     #[error("singular value decomposition failed to converge")]
     Svd,
+    /// The caller cancelled the search ([`super::cancel`]) after `evaluations` residual
+    /// evaluations.
+    #[error("cancelled after {evaluations} residual evaluations")]
+    Cancelled {
+        /// Residual evaluations before the cancellation.
+        evaluations: usize,
+    },
 }
 
 /// Outcome of [`least_squares`].
@@ -773,11 +780,22 @@ fn fd_column(
 
 impl Evaluator<'_> {
     fn eval(&mut self, x: &DVector<f64>) -> Result<DVector<f64>, LsqError> {
+        self.check_cancelled()?;
         self.n_eval += 1;
         checked((self.f)(x.as_slice()), self.m)
     }
 
+    fn check_cancelled(&self) -> Result<(), LsqError> {
+        if super::cancel::requested() {
+            return Err(LsqError::Cancelled {
+                evaluations: self.n_eval,
+            });
+        }
+        Ok(())
+    }
+
     fn jacobian(&mut self, x: &DVector<f64>, f0: &DVector<f64>) -> Result<DMatrix<f64>, LsqError> {
+        self.check_cancelled()?;
         self.n_jac += 1;
         let n = x.len();
         let jm = if let Some(jf) = self.jac.as_mut() {
@@ -808,9 +826,18 @@ impl Evaluator<'_> {
                 }
                 None => {
                     let f = &mut self.f;
-                    (0..n)
-                        .map(|j| counted_fd_column(&spec, &mut **f, m, x, f0, j))
-                        .collect()
+                    let mut cols = Vec::with_capacity(n);
+                    for j in 0..n {
+                        // a cancellation is also seen between the columns
+                        if super::cancel::requested() {
+                            let done: usize = cols.iter().map(|c: &(_, usize)| c.1).sum();
+                            return Err(LsqError::Cancelled {
+                                evaluations: self.n_eval + done,
+                            });
+                        }
+                        cols.push(counted_fd_column(&spec, &mut **f, m, x, f0, j));
+                    }
+                    cols
                 }
             };
             let mut jm = DMatrix::zeros(m, n);
@@ -961,6 +988,7 @@ fn trf_with<'a>(
         typical: typical.clone(),
     };
     // First evaluation fixes m.
+    ev.check_cancelled()?;
     ev.n_eval += 1;
     let r0 = (ev.f)(x0.as_slice());
     if r0.is_empty() {
@@ -1961,6 +1989,46 @@ mod tests {
             nan_calls.get() > 0,
             "test did not exercise the non-finite path"
         );
+    }
+
+    #[test]
+    fn a_cancelled_search_stops_at_its_next_evaluation() {
+        use crate::numerics::cancel::{with_token, CancelToken};
+        let (t, y) = exp_data();
+        let token = CancelToken::new();
+        let calls = std::cell::Cell::new(0usize);
+        let mut inner = exp_residual(&t, &y);
+        let r = |th: &[f64]| {
+            calls.set(calls.get() + 1);
+            if calls.get() == 7 {
+                token.cancel(); // as another thread would, during the 7th evaluation
+            }
+            inner(th)
+        };
+        let e = with_token(&token, || {
+            least_squares(
+                r,
+                &[1.0, 0.1, 0.0],
+                &Bounds::none(3),
+                &LsqOptions::default(),
+            )
+        })
+        .unwrap_err();
+        // no residual evaluation after the one that saw the request
+        assert!(
+            matches!(e, LsqError::Cancelled { evaluations } if evaluations >= 7),
+            "{e:?}"
+        );
+        assert_eq!(calls.get(), 7);
+        // without a token (or outside its scope) the same search runs to its end
+        let fit = least_squares(
+            exp_residual(&t, &y),
+            &[1.0, 0.1, 0.0],
+            &Bounds::none(3),
+            &LsqOptions::default(),
+        )
+        .unwrap();
+        assert!(fit.termination.converged());
     }
 
     #[test]

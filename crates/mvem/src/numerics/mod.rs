@@ -1,5 +1,7 @@
 //! Numerics shared by the simulator and the tuning, with no knowledge of the engine model.
 //!
+//! - [`cancel`]: a token another thread sets to stop a long computation (the least-squares
+//!   search, the tuning, an ensemble) at its next checkpoint.
 //! - `linalg`: dense LU with partial pivoting on fixed-size arrays (the Rosenbrock iteration
 //!   matrices of [`crate::sim`]).
 //! - [`lsq`]: bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
@@ -8,6 +10,7 @@
 //! - [`varpro`]: separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
 //!   projection (Golub–Pereyra).
 
+pub mod cancel;
 pub(crate) mod linalg;
 pub mod lsq;
 pub mod varpro;

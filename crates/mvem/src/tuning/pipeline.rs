@@ -296,6 +296,19 @@ pub fn step_title(step: u8) -> &'static str {
     }
 }
 
+/// Stop before step `step` if the caller cancelled ([`crate::numerics::cancel`]): a step
+/// whose searches were cancelled may have ended with what it had, so the pipeline checks
+/// between its steps too.
+fn checkpoint(step: u8) -> Result<(), PipelineError> {
+    if crate::numerics::cancel::requested() {
+        return Err(PipelineError {
+            step,
+            source: StepError::Cancelled,
+        });
+    }
+    Ok(())
+}
+
 fn at(step: u8) -> impl Fn(StepError) -> PipelineError {
     move |source| PipelineError { step, source }
 }
@@ -368,6 +381,7 @@ pub fn tune(
     let mut cond5: Option<Conditional> = None;
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
+        checkpoint(1)?;
         let t = Instant::now();
         let (q, r) =
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
@@ -380,6 +394,7 @@ pub fn tune(
         rep.seconds[0] = t.elapsed().as_secs_f64();
     }
     if opts.steps[1] {
+        checkpoint(2)?;
         let t = Instant::now();
         let j = sets_with_role(infos, &c.dynamic, Role::Actuator, false);
         let j = j
@@ -397,6 +412,7 @@ pub fn tune(
         rep.step_levels = Some(opts.step3.window.levels);
     }
     if opts.steps[2] {
+        checkpoint(3)?;
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if sets.is_empty() {
@@ -408,6 +424,7 @@ pub fn tune(
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
+        checkpoint(4)?;
         let t = Instant::now();
         let set = infos
             .iter()
@@ -424,6 +441,7 @@ pub fn tune(
         rep.seconds[3] = t.elapsed().as_secs_f64();
     }
     if opts.steps[4] {
+        checkpoint(5)?;
         let t = Instant::now();
         let th0 = match opts.init {
             Init::Step1 => static_theta(&p),
@@ -435,6 +453,7 @@ pub fn tune(
         rep.seconds[4] = t.elapsed().as_secs_f64();
     }
     if opts.refine_dynamics && opts.steps[4] {
+        checkpoint(3)?;
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
@@ -466,6 +485,7 @@ pub fn tune(
             .map(|(_, d)| d)
             .filter(|_| opts.steps[3])
         {
+            checkpoint(4)?;
             let (tau, r) = run_step4(&p, set, c, true, opts, &mut cov, &mut est)?;
             rep.tau_me_s = Some(tau);
             rep.step4_refined = Some(r);
@@ -473,8 +493,16 @@ pub fn tune(
         rep.seconds[2] += t.elapsed().as_secs_f64();
     }
     if opts.model == ModelOrder::Twelve {
+        checkpoint(6)?;
         rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
     }
+    // a search cancelled in the last step may have returned what it had
+    checkpoint(
+        opts.steps
+            .iter()
+            .rposition(|s| *s)
+            .map_or(0, |i| i as u8 + 1),
+    )?;
     p.validate().map_err(|e| PipelineError {
         step: opts
             .steps

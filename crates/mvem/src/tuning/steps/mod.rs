@@ -90,6 +90,9 @@ pub enum StepError {
         /// Column.
         column: &'static str,
     },
+    /// The caller cancelled the tuning ([`crate::numerics::cancel`]).
+    #[error("cancelled")]
+    Cancelled,
 }
 
 /// Result of fitting one submodel.
