@@ -625,7 +625,7 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 /// outputs: output names (states or signals; default p_im, p_em, W_c, n_t, x_egr, lambda_O, M_e).
 /// strict: raise RuntimeError when the point sits at a kink of the model (else the averaged
 ///     slopes are returned and the kinks listed). pade_order: 0 (undelayed system) to 3 (Pade
-///     states for the actuator delays). ts: also sample the model with a zero-order hold at
+///     states for the actuator delays; none for a delay of 0). ts: also sample the model with a zero-order hold at
 ///     this time [s] (1e-3 to 100; pade_order 0), the actuator delays exact. params, model as
 ///     in simulate.
 ///

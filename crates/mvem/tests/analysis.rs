@@ -302,6 +302,69 @@ fn toy_model_pade_states_split_the_delayed_inputs() {
 }
 
 #[test]
+fn pade_realizations_scale_with_the_delay_over_the_whole_range() {
+    // A(tau) = A(1) / tau, B(tau) = B(1) / tau, C and D independent of tau: finite for any
+    // positive delay (the earlier form built tau^k and gave NaN beyond about 1e154 s)
+    for k in 1..=3 {
+        let (a1, b1, c1, d1) = pade_realization(1.0, k);
+        for tau in [1e-300, 1e-6, 0.04, 7.5, 1e150, 1e300] {
+            let (a, b, c, d) = pade_realization(tau, k);
+            for i in 0..k {
+                for j in 0..k {
+                    assert!(a[i][j].is_finite(), "tau {tau} k {k}");
+                    assert!((a[i][j] * tau - a1[i][j]).abs() <= 1e-15 * a1[i][j].abs());
+                }
+                assert!((b[i] * tau - b1[i]).abs() <= 1e-15 * b1[i].abs());
+                assert_eq!(c[i], c1[i]);
+            }
+            assert_eq!(d, d1);
+        }
+    }
+}
+
+#[test]
+fn pade_states_of_a_zero_or_huge_delay() {
+    let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
+    let with_delay = |tau: f64, pade: usize| {
+        let mut p = Params::published();
+        p.vgt_actuator.tau_dvgt = tau;
+        let m = Engine8::new(p, ModelOptions::default()).unwrap();
+        let ss = ss_at(&m, d);
+        let o = LinearizeOptions {
+            pade_order: pade,
+            ..LinearizeOptions::default()
+        };
+        linearize_steady(&m, &ss, &o).unwrap()
+    };
+    for pade in 1..=3 {
+        // a zero delay: no Padé states for u_vgt (its delayed copy is the command), and the
+        // model equals the undelayed linearization
+        let l = with_delay(0.0, pade);
+        let base = with_delay(0.0, 0);
+        assert_eq!(l.n_states(), 8 + pade, "pade {pade}");
+        assert!(l.state_names.iter().all(|n| !n.starts_with("pade_vgt")));
+        assert_eq!(l.state_names[8], "pade_egr_1");
+        assert!(l.a.iter().chain(l.b.iter()).all(|v| v.is_finite()));
+        let g0 =
+            dc_gain(&StateSpace::new(base.a, base.b.clone(), base.c, base.d).unwrap()).unwrap();
+        let g = dc_gain(&StateSpace::new(l.a, l.b.clone(), l.c, l.d).unwrap()).unwrap();
+        assert!((&g - &g0).norm() < 1e-8 * g0.norm(), "pade {pade}");
+        // the u_vgt column: the command's and its delayed copy's differences, summed
+        for r in 0..8 {
+            let (x, y) = (l.b[(r, 2)], base.b[(r, 2)]);
+            assert!(
+                (x - y).abs() <= 1e-8 * y.abs().max(1e-12),
+                "row {r}: {x} vs {y}"
+            );
+        }
+        // a huge delay: finite matrices, Padé poles near 0 (about -1/tau)
+        let l = with_delay(1e300, pade);
+        assert_eq!(l.n_states(), 8 + 2 * pade);
+        assert!(l.a.iter().chain(l.b.iter()).all(|v| v.is_finite()));
+    }
+}
+
+#[test]
 fn pade_realizations_are_all_pass_and_approximate_the_delay() {
     for tau in [0.04, 0.065] {
         for k in 1..=3 {

@@ -276,7 +276,17 @@ fn print_text(v: &Value) {
             v["delays_s"]["u_egr"], v["delays_s"]["u_vgt"]
         );
     } else {
-        println!("Actuator delays replaced by order-{pade} Pade approximants.");
+        // a channel with a zero delay has no Padé states (its delayed copy is the command)
+        let zero: Vec<&str> = ["u_egr", "u_vgt"]
+            .into_iter()
+            .filter(|c| v["delays_s"][c].as_f64() == Some(0.0))
+            .collect();
+        let note = if zero.is_empty() {
+            String::new()
+        } else {
+            format!(" ({}: delay 0, no states)", zero.join(", "))
+        };
+        println!("Actuator delays replaced by order-{pade} Pade approximants{note}.");
     }
     let states = names(&v["state_names"]);
     let inputs = names(&v["input_names"]);

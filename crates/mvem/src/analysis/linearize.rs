@@ -76,7 +76,8 @@ pub struct LinearizeOptions {
     /// Costs `2 (L + 1)` model evaluations per direction.
     pub richardson: usize,
     /// Order of the Padé approximants of the actuator delays added as states (0 = none,
-    /// the undelayed system; 1-3).
+    /// the undelayed system; 1-3): `pade_order` states per delayed channel (named
+    /// `pade_egr_1`, ...), none for a channel whose delay is 0 (its delayed copy is the command).
     pub pade_order: usize,
     /// Fail with [`LinearizeError::Kink`] when any kink is found (default true); otherwise
     /// return the model with [`LinearModel::kinks`] filled in.
@@ -582,8 +583,12 @@ fn linearize_impl<const N: usize, M: Model<N>>(
         return Err(LinearizeError::Kink(kinks));
     }
 
-    // Assemble A, B, C, D (with Padé states for the delayed copies of u_egr, u_vgt).
-    let np = pade * 2;
+    // Assemble A, B, C, D (with Padé states for the delayed copies of u_egr, u_vgt; a channel
+    // whose delay is 0 needs none: its delayed copy is the command, exp(0 s) = 1).
+    let p_ = m.params();
+    let delays = [p_.egr_actuator.tau_degr, p_.vgt_actuator.tau_dvgt];
+    let pade_states = delays.map(|tau| if tau > 0.0 { pade } else { 0 });
+    let np = pade_states[0] + pade_states[1];
     let n = N + np;
     let mut a = DMatrix::zeros(n, n);
     let mut b = DMatrix::zeros(n, 4);
@@ -600,8 +605,6 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             }
         }
     }
-    let p_ = m.params();
-    let delays = [p_.egr_actuator.tau_degr, p_.vgt_actuator.tau_dvgt];
     let mut state_names: Vec<String> = names.iter().map(|s| s.to_string()).collect();
     let mut state_scales: Vec<f64> = scales.to_vec();
     if pade > 0 {
@@ -609,12 +612,18 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             .into_iter()
             .enumerate()
         {
-            let (pa, pb, pc, pd) = pade_realization(tau, pade);
-            let off = N + q * pade;
+            let kq = pade_states[q];
+            // z' = pa z + pb u_k;   w = pc z + pd u_k  (w replaces the delayed command);
+            // without states (delay 0) w = u_k
+            let (pa, pb, pc, pd) = if kq > 0 {
+                pade_realization(tau, kq)
+            } else {
+                (Vec::new(), Vec::new(), Vec::new(), 1.0)
+            };
+            let off = N + pade_states[..q].iter().sum::<usize>();
             let col = N + 4 + q; // the delayed-copy direction
-                                 // z' = pa z + pb u_k;   w = pc z + pd u_k  (w replaces the delayed command)
-            for i in 0..pade {
-                for j in 0..pade {
+            for i in 0..kq {
+                for j in 0..kq {
                     a[(off + i, off + j)] = pa[i][j];
                 }
                 b[(off + i, k)] = pb[i];
@@ -624,7 +633,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
                 if g == 0.0 {
                     continue;
                 }
-                for j in 0..pade {
+                for j in 0..kq {
                     if r < N {
                         a[(r, off + j)] += g * pc[j];
                     } else {
@@ -638,7 +647,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
                 }
             }
             let tag = if k == 1 { "egr" } else { "vgt" };
-            for j in 0..pade {
+            for j in 0..kq {
                 state_names.push(format!("pade_{tag}_{}", j + 1));
                 state_scales.push(INPUT_SCALES[k]);
             }
@@ -936,44 +945,34 @@ pub fn pade_coefficients(tau: f64, order: usize) -> (Vec<f64>, Vec<f64>) {
     (num, den)
 }
 
-/// State-space realization (A, B, C, D) of the order-`k` Padé approximant of exp(-tau s):
-/// the controllable canonical form with the diagonal similarity `z_j = tau^(k-j) w_j`, which
-/// makes every entry of A and B O(1/tau) and of C O(1) (the states have the input's units).
+/// State-space realization (A, B, C, D) of the order-`k` Padé approximant of exp(-tau s)
+/// (tau > 0): the controllable canonical form of the approximant in the scaled variable
+/// `tau s` (the delay 1), with A and B divided by tau, which is the canonical form of exp(-tau s)
+/// under the diagonal similarity `z_j = tau^(k-j) w_j`: every entry of A and B is O(1/tau) and of
+/// C O(1) (the states have the input's units), and no power of tau is formed, so any positive
+/// finite delay gives finite matrices (1e-300 s to 1e300 s).
 #[allow(clippy::type_complexity)]
 pub fn pade_realization(tau: f64, k: usize) -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>, f64) {
-    let (num, den) = pade_coefficients(tau, k);
+    let (num, den) = pade_coefficients(1.0, k);
     // monic denominator: s^k + a_{k-1} s^{k-1} + ... + a_0
     let lead = den[k];
     let a: Vec<f64> = den.iter().map(|c| c / lead).collect();
     let nn: Vec<f64> = num.iter().map(|c| c / lead).collect();
     // feedthrough dd = (-1)^k; strictly proper remainder n(s) - dd d(s), degree < k
     let dd = nn[k];
-    let rem: Vec<f64> = (0..k).map(|j| nn[j] - dd * a[j]).collect();
-    // Controllable canonical form with z_1 = the lowest state: z_j' = z_{j+1}, z_k' = -sum a_j z_{j+1} + u
-    // Balance: z = S w with S = diag(tau^(k-j)).
+    // Controllable canonical form with z_1 = the lowest state: z_j' = z_{j+1},
+    // z_k' = -sum a_j z_{j+1} + u; for the delay tau, A / tau and B / tau
     let mut am = vec![vec![0.0; k]; k];
     let mut bm = vec![0.0; k];
-    let mut cm = vec![0.0; k];
-    // unscaled companion
+    let cm: Vec<f64> = (0..k).map(|j| nn[j] - dd * a[j]).collect();
     for j in 0..k - 1 {
-        am[j][j + 1] = 1.0;
+        am[j][j + 1] = 1.0 / tau;
     }
     for j in 0..k {
-        am[k - 1][j] = -a[j];
-        cm[j] = rem[j];
+        am[k - 1][j] = -a[j] / tau;
     }
-    bm[k - 1] = 1.0;
-    // w = S^-1 z -> A' = S^-1 A S, B' = S^-1 B, C' = C S
-    let s: Vec<f64> = (0..k).map(|j| tau.powi((k - j) as i32)).collect();
-    let mut a2 = vec![vec![0.0; k]; k];
-    for i in 0..k {
-        for j in 0..k {
-            a2[i][j] = am[i][j] * s[j] / s[i];
-        }
-    }
-    let b2: Vec<f64> = (0..k).map(|i| bm[i] / s[i]).collect();
-    let c2: Vec<f64> = (0..k).map(|j| cm[j] * s[j]).collect();
-    (a2, b2, c2, dd)
+    bm[k - 1] = 1.0 / tau;
+    (am, bm, cm, dd)
 }
 
 impl LinearModel {
