@@ -273,3 +273,36 @@ def test_ctrl_c_stops_a_tuning_and_the_next_call_runs(campaign):
     print(f"interrupted tuning returned {elapsed - 1.5:.2f} s after the signal")
     assert elapsed < 1.5 + 6.0, elapsed
     assert mvem.tune(campaign, steps="1")["toml"] == quick["toml"]
+
+
+def test_progress_reports_the_steps_and_never_changes_the_result(campaign, cli_run):
+    seen = []
+    r = mvem.tune(campaign, steps=STEPS, progress=seen.append)
+    assert r["toml"] == cli_run[0].read_text()
+    # every step's start, in order, then its searches (throttled), with the time since the start
+    starts = [d["stage"] for d in seen if d["evaluations"] is None]
+    assert [s.split(" (")[0] for s in starts] == ["step 1", "step 2", "step 3", "step 4"]
+    assert starts[2] == "step 3 (V_im, V_em, J_t)"
+    searches = [d for d in seen if d["evaluations"] is not None]
+    assert searches and all(d["evaluations"] >= 1 and d["cost"] >= 0 for d in searches)
+    t = [d["elapsed_s"] for d in seen]
+    assert t == sorted(t) and t[0] >= 0
+
+
+def test_an_exception_in_progress_stops_the_tuning_and_is_raised(campaign):
+    import time
+
+    class Enough(Exception):
+        pass
+
+    def stop_in_step_3(d):
+        if d["stage"].startswith("step 3") and d["evaluations"]:
+            raise Enough(d["stage"])
+
+    t0 = time.perf_counter()
+    with pytest.raises(Enough, match="step 3"):
+        mvem.tune(campaign, progress=stop_in_step_3)
+    # steps 1-2 take about a second, a full tuning about 20 s on the CI machine
+    assert time.perf_counter() - t0 < 10.0
+    with pytest.raises(ValueError, match="progress: must be a callable"):
+        mvem.tune(campaign, progress=3)

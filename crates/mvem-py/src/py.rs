@@ -451,7 +451,8 @@ fn simulate_many<'py>(
     let starts = start_states(py, x0, rows.len())?;
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
     let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
-    let results = interruptible(py, move || {
+    let token = mvem::numerics::cancel::CancelToken::new();
+    let results = interruptible(py, &token, None, move || {
         core::simulate_many_rows_from(runs, &starts, args, variant, threads)
     })?
     .map_err(to_py_err)?;
@@ -1345,13 +1346,18 @@ impl PyModel {
 /// ValueError for a bad setting, parameter set or campaign file (naming it), RuntimeError when a
 /// step fails (naming it). Runs without the GIL; Ctrl-C (KeyboardInterrupt) stops the tuning
 /// within one residual evaluation (one round of simulations) and raises KeyboardInterrupt.
+/// progress: None or a callable, called with a dict {"stage": "step 5 (...)", "evaluations",
+/// "cost", "elapsed_s"} at the start of each step (evaluations and cost None) and during its
+/// least-squares searches (at most every 0.2 s); an exception it raises stops the tuning (as
+/// Ctrl-C does) and is raised. The result does not depend on it.
 #[pyfunction]
-#[pyo3(signature = (data, params=None, model=8, **settings))]
+#[pyo3(signature = (data, params=None, model=8, *, progress=None, **settings))]
 fn tune<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
+    progress: Option<&Bound<'py, PyAny>>,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
@@ -1363,10 +1369,25 @@ fn tune<'py>(
     };
     let json = py.import("json")?;
     let settings = settings_json(py, settings, "tuning settings")?;
-    let out = interruptible(py, move || {
+    let token = mvem::numerics::cancel::CancelToken::new();
+    let failed = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let observer = match progress {
+        None => None,
+        Some(cb) if cb.is_none() => None,
+        Some(cb) if !cb.is_callable() => {
+            return Err(PyValueError::new_err(
+                "progress: must be a callable (called with one dict) or None",
+            ))
+        }
+        Some(cb) => Some(progress_observer(cb, &token, &failed)),
+    };
+    let out = interruptible(py, &token, observer.as_ref(), move || {
         core::tune(&data, base, variant.order, settings.as_deref())
-    })?
-    .map_err(to_py_err)?;
+    })?;
+    if let Some(e) = failed.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        return Err(e);
+    }
+    let out = out.map_err(to_py_err)?;
     let d = PyDict::new(py);
     d.set_item("params", json.call_method1("loads", (out.params_json,))?)?;
     d.set_item(
@@ -1528,8 +1549,14 @@ fn lab<'py>(
 /// before each run poll it: `mvem::numerics::cancel`), waits for the worker to reach its next
 /// checkpoint and raises the handler's exception. A panic in the worker is resumed here, where
 /// PyO3 turns it into a PanicException as for work run on this thread.
-fn interruptible<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
-    use mvem::numerics::cancel::{with_token, CancelToken};
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    token: &mvem::numerics::cancel::CancelToken,
+    observer: Option<&mvem::numerics::progress::Observer>,
+    f: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
+    use mvem::numerics::cancel::with_token;
+    use mvem::numerics::progress::with_observer;
     use std::sync::{Condvar, Mutex, PoisonError};
     use std::time::Duration;
     /// Sets the flag and wakes the waiting thread when the worker ends, also by a panic.
@@ -1540,7 +1567,6 @@ fn interruptible<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyRes
             self.0 .1.notify_all();
         }
     }
-    let token = CancelToken::new();
     let done = (Mutex::new(false), Condvar::new());
     let wait = |timeout: Duration| {
         let g = done.0.lock().unwrap_or_else(PoisonError::into_inner);
@@ -1558,7 +1584,10 @@ fn interruptible<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyRes
             .stack_size(8 << 20)
             .spawn_scoped(s, move || {
                 let _done = Done(done);
-                with_token(token, f)
+                match observer {
+                    Some(o) => with_observer(o, || with_token(token, f)),
+                    None => with_token(token, f),
+                }
             })
             .map_err(|e| PyRuntimeError::new_err(format!("cannot start a worker thread: {e}")))?;
         let join = |w: std::thread::ScopedJoinHandle<'_, T>| {
@@ -1575,6 +1604,66 @@ fn interruptible<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyRes
                 return Err(e);
             }
         }
+    })
+}
+
+/// A progress observer (`mvem::numerics::progress`) that calls the Python callable `cb` with a
+/// dict {"stage": str, "evaluations": int or None, "cost": float or None, "elapsed_s": float}:
+/// at the start of every stage, and for a search's iterations at most every 0.2 s. It runs on
+/// the worker thread of [`interruptible`] and takes the GIL for the call (the waiting thread
+/// releases it). An exception the callable raises cancels the work through `token` and is kept
+/// in `failed` for the caller to raise.
+fn progress_observer(
+    cb: &Bound<'_, PyAny>,
+    token: &mvem::numerics::cancel::CancelToken,
+    failed: &std::sync::Arc<std::sync::Mutex<Option<PyErr>>>,
+) -> mvem::numerics::progress::Observer {
+    use mvem::numerics::progress::Progress;
+    use std::time::{Duration, Instant};
+    let cb = cb.clone().unbind();
+    let (token, failed) = (token.clone(), failed.clone());
+    let start = Instant::now();
+    // the current stage and the time of the last search report
+    let state = std::sync::Mutex::new((String::new(), None::<Instant>));
+    std::sync::Arc::new(move |p: &Progress| {
+        if token.is_cancelled() {
+            return;
+        }
+        let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+        let (evaluations, cost) = match p {
+            Progress::Stage { name } => {
+                st.0 = name.clone();
+                st.1 = None;
+                (None, None)
+            }
+            Progress::Search { evaluations, cost } => {
+                if st
+                    .1
+                    .is_some_and(|t| t.elapsed() < Duration::from_millis(200))
+                {
+                    return;
+                }
+                st.1 = Some(Instant::now());
+                (Some(*evaluations), Some(*cost))
+            }
+        };
+        let stage = st.0.clone();
+        drop(st);
+        Python::with_gil(|py| {
+            let call = || -> PyResult<()> {
+                let d = PyDict::new(py);
+                d.set_item("stage", &stage)?;
+                d.set_item("evaluations", evaluations)?;
+                d.set_item("cost", cost)?;
+                d.set_item("elapsed_s", start.elapsed().as_secs_f64())?;
+                cb.call1(py, (d,))?;
+                Ok(())
+            };
+            if let Err(e) = call() {
+                *failed.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+                token.cancel();
+            }
+        });
     })
 }
 

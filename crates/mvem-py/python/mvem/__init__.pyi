@@ -1,7 +1,7 @@
 """Type stubs of mvem (the Python bindings of the Rust crate mvem-py)."""
 
 import os
-from typing import Any, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, TypedDict, Union
+from typing import Any, Callable, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -216,6 +216,7 @@ def tune(
     params: Params = None,
     model: Literal[8, 12] = 8,
     *,
+    progress: Optional[Callable[[Dict[str, Any]], Any]] = None,
     steps: str = "1-5",
     ambient: Literal["auto", "data", "params"] = "auto",
     input_ranges: Literal["campaign", "params"] = "campaign",
@@ -244,7 +245,10 @@ def tune(
     "test_cell", "toml" (the parameter file), "report" (tune_report.json), "messages"
     (warnings and notes; each warning also a UserWarning). ValueError for a bad setting,
     parameter set or campaign file; RuntimeError when a step fails. Ctrl-C stops it within
-    one round of simulations (KeyboardInterrupt).
+    one round of simulations (KeyboardInterrupt). progress: called with {"stage",
+    "evaluations", "cost", "elapsed_s"} at each step's start (evaluations and cost None) and
+    during its searches (at most every 0.2 s); an exception it raises stops the tuning and is
+    raised. The result does not depend on it.
     """
 
 def validate(

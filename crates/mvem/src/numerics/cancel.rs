@@ -49,22 +49,10 @@ thread_local! {
     static CURRENT: RefCell<Option<CancelToken>> = const { RefCell::new(None) };
 }
 
-/// Restores the thread's previous token when dropped (also while unwinding).
-struct Restore(Option<CancelToken>);
-
-impl Drop for Restore {
-    fn drop(&mut self) {
-        let prev = self.0.take();
-        CURRENT.with(|c| *c.borrow_mut() = prev);
-    }
-}
-
 /// Run `f` on this thread with `token` as the thread's cancellation token ([`requested`],
 /// [`current`]); the previous token (usually none) is restored afterwards.
 pub fn with_token<R>(token: &CancelToken, f: impl FnOnce() -> R) -> R {
-    let prev = CURRENT.with(|c| c.borrow_mut().replace(token.clone()));
-    let _restore = Restore(prev);
-    f()
+    super::with_thread_value(&CURRENT, token, f)
 }
 
 /// The calling thread's token, if it runs inside [`with_token`].

@@ -1112,6 +1112,10 @@ impl Trf<'_> {
         let mut n_updates = 0;
 
         loop {
+            super::progress::report(|| super::progress::Progress::Search {
+                evaluations: self.ev.n_eval,
+                cost,
+            });
             let (v, dv) = self.cl_scaling(&x, &g);
             opt = self.optimality(&jm, &f, &g, &v, &dv);
             if opt < self.gtol {

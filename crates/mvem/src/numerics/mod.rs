@@ -1,7 +1,8 @@
 //! Numerics shared by the simulator and the tuning, with no knowledge of the engine model.
 //!
 //! - [`cancel`]: a token another thread sets to stop a long computation (the least-squares
-//!   search, the tuning, an ensemble) at its next checkpoint.
+//!   search, the tuning, an ensemble) at its next checkpoint; [`progress`]: what such a
+//!   computation reports as it goes (tuning steps, search iterations) to an observer.
 //! - `linalg`: dense LU with partial pivoting on fixed-size arrays (the Rosenbrock iteration
 //!   matrices of [`crate::sim`]).
 //! - [`lsq`]: bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
@@ -13,7 +14,31 @@
 pub mod cancel;
 pub(crate) mod linalg;
 pub mod lsq;
+pub mod progress;
 pub mod varpro;
+
+/// Run `f` with `value` in the thread-local slot `key` (the per-thread cancellation token of
+/// [`cancel`], the observer of [`progress`]); the slot's previous value is restored afterwards,
+/// also when `f` panics.
+fn with_thread_value<T: Clone + 'static, R>(
+    key: &'static std::thread::LocalKey<std::cell::RefCell<Option<T>>>,
+    value: &T,
+    f: impl FnOnce() -> R,
+) -> R {
+    struct Restore<T: 'static>(
+        &'static std::thread::LocalKey<std::cell::RefCell<Option<T>>>,
+        Option<T>,
+    );
+    impl<T: 'static> Drop for Restore<T> {
+        fn drop(&mut self) {
+            let prev = self.1.take();
+            self.0.with(|c| *c.borrow_mut() = prev);
+        }
+    }
+    let prev = key.with(|c| c.borrow_mut().replace(value.clone()));
+    let _restore = Restore(key, prev);
+    f()
+}
 
 /// Iteration limit of every SVD in the crate (`nalgebra::SVD::try_new`; 0 would mean no limit,
 /// and a non-finite matrix would then never converge). A decomposition that needs more is

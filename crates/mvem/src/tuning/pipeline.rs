@@ -309,6 +309,20 @@ fn checkpoint(step: u8) -> Result<(), PipelineError> {
     Ok(())
 }
 
+/// Begin step `step`: stop if the caller cancelled ([`checkpoint`]), else report the stage
+/// ([`crate::numerics::progress`]; `again`: a repeated step).
+fn begin(step: u8, again: bool) -> Result<(), PipelineError> {
+    checkpoint(step)?;
+    crate::numerics::progress::report(|| crate::numerics::progress::Progress::Stage {
+        name: format!(
+            "step {step} ({}){}",
+            step_title(step),
+            if again { ", again" } else { "" }
+        ),
+    });
+    Ok(())
+}
+
 fn at(step: u8) -> impl Fn(StepError) -> PipelineError {
     move |source| PipelineError { step, source }
 }
@@ -381,7 +395,7 @@ pub fn tune(
     let mut cond5: Option<Conditional> = None;
     let infos = &c.manifest.datasets;
     if opts.steps[0] {
-        checkpoint(1)?;
+        begin(1, false)?;
         let t = Instant::now();
         let (q, r) =
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
@@ -394,7 +408,7 @@ pub fn tune(
         rep.seconds[0] = t.elapsed().as_secs_f64();
     }
     if opts.steps[1] {
-        checkpoint(2)?;
+        begin(2, false)?;
         let t = Instant::now();
         let j = sets_with_role(infos, &c.dynamic, Role::Actuator, false);
         let j = j
@@ -412,7 +426,7 @@ pub fn tune(
         rep.step_levels = Some(opts.step3.window.levels);
     }
     if opts.steps[2] {
-        checkpoint(3)?;
+        begin(3, false)?;
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if sets.is_empty() {
@@ -424,7 +438,7 @@ pub fn tune(
         rep.seconds[2] = t.elapsed().as_secs_f64();
     }
     if opts.steps[3] {
-        checkpoint(4)?;
+        begin(4, false)?;
         let t = Instant::now();
         let set = infos
             .iter()
@@ -441,7 +455,7 @@ pub fn tune(
         rep.seconds[3] = t.elapsed().as_secs_f64();
     }
     if opts.steps[4] {
-        checkpoint(5)?;
+        begin(5, false)?;
         let t = Instant::now();
         let th0 = match opts.init {
             Init::Step1 => static_theta(&p),
@@ -453,7 +467,7 @@ pub fn tune(
         rep.seconds[4] = t.elapsed().as_secs_f64();
     }
     if opts.refine_dynamics && opts.steps[4] {
-        checkpoint(3)?;
+        begin(3, true)?;
         let t = Instant::now();
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if opts.steps[2] && !sets.is_empty() {
@@ -485,7 +499,7 @@ pub fn tune(
             .map(|(_, d)| d)
             .filter(|_| opts.steps[3])
         {
-            checkpoint(4)?;
+            begin(4, true)?;
             let (tau, r) = run_step4(&p, set, c, true, opts, &mut cov, &mut est)?;
             rep.tau_me_s = Some(tau);
             rep.step4_refined = Some(r);
@@ -493,7 +507,7 @@ pub fn tune(
         rep.seconds[2] += t.elapsed().as_secs_f64();
     }
     if opts.model == ModelOrder::Twelve {
-        checkpoint(6)?;
+        begin(6, false)?;
         rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
     }
     // a search cancelled in the last step may have returned what it had
@@ -1588,6 +1602,7 @@ fn tune_twelve(
     p.intercooler.k_ic = k;
     let mut dynamic = None;
     if opts.steps[2] {
+        begin(7, false)?;
         let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
         if sets.is_empty() {
             return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
@@ -1631,6 +1646,7 @@ fn tune_twelve(
     }
     let mut statics = None;
     if opts.steps[4] {
+        begin(8, false)?;
         let sets: Vec<_> = infos
             .iter()
             .zip(&c.dynamic)
