@@ -344,7 +344,7 @@ fn bad_inputs_exit_2_with_location_and_no_output() {
         (
             "malformed line",
             format!("{HEADER}\n0,1500,110,80,75\n1,1500,110,80\n"),
-            &["line 3", "malformed CSV", "4 fields"],
+            &["line 3", "expected 5 fields, found 4"],
         ),
         (
             "non-monotonic time",
@@ -746,4 +746,22 @@ fn time_parallel_simulate_and_bench() {
         out.contains("junctions          2 chunks, 0 re-run"),
         "{out}"
     );
+}
+
+#[test]
+fn a_spreadsheet_export_with_semicolons_and_decimal_commas_simulates_the_same() {
+    let d = tempfile::tempdir().unwrap();
+    let comma = format!("{HEADER}\n0,1500,110.5,80,75\n1.5,1500,110.5,80,75\n1.5,1500,110.5,80,65\n4,1500,110.5,80,65\n");
+    let semi = comma.replace(',', ";").replace('.', ",");
+    std::fs::write(d.path().join("comma.csv"), &comma).unwrap();
+    std::fs::write(d.path().join("semi.csv"), &semi).unwrap();
+    for (inp, out) in [("comma.csv", "a.csv"), ("semi.csv", "b.csv")] {
+        let o = mvem(d.path(), &["simulate", "--inputs", inp, "--out", out]);
+        assert!(o.status.success(), "{inp}: {}", stderr(&o));
+    }
+    let (a, b) = (
+        std::fs::read(d.path().join("a.csv")).unwrap(),
+        std::fs::read(d.path().join("b.csv")).unwrap(),
+    );
+    assert!(a.len() > 1000 && a == b, "the same output, byte for byte");
 }

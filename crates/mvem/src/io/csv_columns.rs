@@ -3,6 +3,60 @@
 //! ([`crate::tuning::data`]). Columns in any order, other columns ignored, blanks around names
 //! and fields trimmed, `#` comment lines skipped; every value a number, with its 1-based line.
 //! (The input time series have their own reader with a fast path, [`super::csv_inputs`].)
+//!
+//! Both read the comma-separated files mvem writes and, as a spreadsheet in a locale with a
+//! decimal comma exports them, files separated by `;` or tabs whose numbers may be written
+//! `1,5` ([`Dialect`]).
+
+/// How a CSV text separates its fields and writes its numbers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dialect {
+    /// Field separator: `,`, or `;` / tab.
+    pub delimiter: u8,
+    /// Whether a number may use a decimal comma (`1,5`): only when the separator is not `,`.
+    pub decimal_comma: bool,
+}
+
+impl Dialect {
+    /// The dialect of `text`, from its header (the first line that is neither blank nor a
+    /// `comment` line): `;` or tab when the header has no comma but that separator (`;` first),
+    /// with decimal commas allowed; `,` otherwise.
+    pub fn of(text: &str, comment: Option<u8>) -> Self {
+        let header = text
+            .lines()
+            .map(str::trim)
+            .find(|l| !l.is_empty() && comment.is_none_or(|c| !l.as_bytes().starts_with(&[c])))
+            .unwrap_or("");
+        let other = |sep: char| !header.contains(',') && header.contains(sep);
+        match (other(';'), other('\t')) {
+            (true, _) => Self::with(b';'),
+            (false, true) => Self::with(b'\t'),
+            _ => Self {
+                delimiter: b',',
+                decimal_comma: false,
+            },
+        }
+    }
+
+    fn with(delimiter: u8) -> Self {
+        Self {
+            delimiter,
+            decimal_comma: true,
+        }
+    }
+
+    /// A (trimmed) field as a number: `str::parse`, and with a decimal comma a field with one
+    /// `,` and no `.` read with the comma as the point (`-1,5e3` is -1500).
+    pub fn number(&self, field: &str) -> Option<f64> {
+        if let Ok(v) = field.parse::<f64>() {
+            return Some(v);
+        }
+        if self.decimal_comma && field.matches(',').count() == 1 && !field.contains('.') {
+            return field.replacen(',', ".", 1).parse().ok();
+        }
+        None
+    }
+}
 
 /// Why a CSV's named columns could not be read: each caller words it for its own file.
 #[derive(Debug, Clone, PartialEq)]
@@ -69,7 +123,9 @@ pub(crate) fn file_line(text: &str, p: &csv::Position, comment: Option<u8>) -> u
 /// The values of the columns `names` (in that order) of every data row of `text`, each row with
 /// its 1-based line in the file.
 pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>, ColumnsError> {
+    let dialect = Dialect::of(text, Some(b'#'));
     let mut rdr = csv::ReaderBuilder::new()
+        .delimiter(dialect.delimiter)
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
@@ -100,11 +156,15 @@ pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>
         let mut row = Vec::with_capacity(names.len());
         for (column, &i) in idx.iter().enumerate() {
             let field = rec.get(i).unwrap_or("");
-            row.push(field.parse::<f64>().map_err(|_| ColumnsError::NotANumber {
-                line,
-                column,
-                field: field.to_string(),
-            })?);
+            row.push(
+                dialect
+                    .number(field)
+                    .ok_or_else(|| ColumnsError::NotANumber {
+                        line,
+                        column,
+                        field: field.to_string(),
+                    })?,
+            );
         }
         rows.push((line, row));
     }
@@ -147,5 +207,35 @@ mod tests {
             ColumnsError::Record { line: Some(3), .. }
         ));
         assert_eq!(read_columns("a,b\n", &["a"]).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn spreadsheet_exports_with_semicolons_or_tabs_and_decimal_commas() {
+        // the same table as a spreadsheet in a decimal-comma locale writes it
+        let comma = "# x\nt,a,b\n0,1.5,-2e3\n1,2,0.25\n";
+        let semi = "# x\nt;a;b\n0;1,5;-2e3\n1;2;0,25\n";
+        let tab = "t\ta\tb\n0\t1,5\t-2e3\n1\t2.0\t0,25\n";
+        let want = read_columns(comma, &["b", "a"]).unwrap();
+        assert_eq!(read_columns(semi, &["b", "a"]).unwrap(), want);
+        let tab_rows = read_columns(tab, &["b", "a"]).unwrap();
+        let values = |r: &[(usize, Vec<f64>)]| r.iter().map(|x| x.1.clone()).collect::<Vec<_>>();
+        assert_eq!(values(&tab_rows), values(&want));
+        // a comma file never takes a decimal comma (a quoted "1,5" is not a number there), and
+        // a thousands separator is not a number in either
+        assert!(matches!(
+            read_columns("a,b\n\"1,5\",2\n", &["a"]).unwrap_err(),
+            ColumnsError::NotANumber { line: 2, .. }
+        ));
+        assert_eq!(
+            read_columns("a;b\n1.234,5;2\n", &["a"]).unwrap_err(),
+            ColumnsError::NotANumber {
+                line: 2,
+                column: 0,
+                field: "1.234,5".into()
+            }
+        );
+        assert_eq!(Dialect::of("\n# c;d\na,b\n", Some(b'#')).delimiter, b',');
+        assert_eq!(Dialect::of("a;b\n1,5;2", None).number("1,5"), Some(1.5));
+        assert_eq!(Dialect::of("a,b\n", None).number("1,5"), None);
     }
 }

@@ -1,6 +1,8 @@
 //! Input time series from CSV: header `time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct` (any
 //! column order), one row per time, linear interpolation between rows, two rows with the same
-//! time are a step. Every problem is reported with file, line and column.
+//! time are a step. Every problem is reported with file, line and column. Also `;`- or
+//! tab-separated with decimal commas (`1,5`), as spreadsheets in such locales export
+//! ([`super::csv_columns::Dialect`]).
 
 use super::{format_err as err, IoError};
 use crate::numerics::Num;
@@ -11,7 +13,11 @@ use std::path::Path;
 /// The rows of an input table read by the csv crate: times, inputs and the file line of each
 /// row; every problem of the file named with its line and column.
 fn csv_table(text: &str, path: &Path) -> Result<Table, IoError> {
+    // `;` or tab separated with decimal commas, as spreadsheets in such locales export
+    let dialect = super::csv_columns::Dialect::of(text, Some(b'#'));
     let mut rdr = csv::ReaderBuilder::new()
+        .delimiter(dialect.delimiter)
+        .flexible(true) // a wrong field count is reported below, with a hint
         .has_headers(true)
         .trim(csv::Trim::Headers) // fields are trimmed where they are parsed (cheaper)
         .comment(Some(b'#'))
@@ -64,17 +70,26 @@ fn csv_table(text: &str, path: &Path) -> Result<Table, IoError> {
     })? {
         let line = rec.position().map(|p| file_line(text, p)).unwrap_or(0);
         if rec.len() != headers.len() {
+            let hint = if rec.len() > headers.len() && dialect.delimiter == b',' {
+                " (a decimal comma? write 1.5, or separate the fields by `;`)"
+            } else {
+                ""
+            };
             return Err(err(
                 path,
                 Some(line),
                 None,
-                format!("expected {} fields, found {}", headers.len(), rec.len()),
+                format!(
+                    "expected {} fields, found {}{hint}",
+                    headers.len(),
+                    rec.len()
+                ),
             ));
         }
         let mut vals = [0.0; 5];
         for k in 0..5 {
             let s = rec[index[k]].trim();
-            let v: f64 = s.parse().map_err(|_| {
+            let v: f64 = dialect.number(s).ok_or_else(|| {
                 err(
                     path,
                     Some(line),
@@ -366,6 +381,30 @@ mod tests {
         let e =
             parse("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0, ,110,80,75\n").unwrap_err();
         assert_eq!(e, "in.csv, line 2, column n_e_rpm: `` is not a number");
+    }
+
+    #[test]
+    fn semicolon_and_tab_files_with_decimal_commas_read_the_same_schedule() {
+        let comma = parse(
+            "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110.5,80,75\n1.5,1500,110.5,80,65\n",
+        )
+        .unwrap();
+        for text in [
+            "time_s;n_e_rpm;u_delta_mg;u_egr_pct;u_vgt_pct\n0;1500;110,5;80;75\n1,5;1500;110,5;80;65\n",
+            "time_s\tn_e_rpm\tu_delta_mg\tu_egr_pct\tu_vgt_pct\r\n0\t1500\t110,5\t80\t75\r\n1,5\t1500\t110.5\t80\t65\r\n",
+        ] {
+            let s = parse(text).unwrap();
+            for t in [0.0, 0.75, 1.5] {
+                assert_eq!(s.at(t), comma.at(t), "{text:?} at {t}");
+            }
+        }
+        // a decimal comma in a comma-separated file is a field count error, named by line
+        let e = parse("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,5,80,75\n")
+            .unwrap_err();
+        assert!(
+            e.contains("line 2") && e.contains("expected 5 fields, found 6 (a decimal comma?"),
+            "{e}"
+        );
     }
 
     #[test]
