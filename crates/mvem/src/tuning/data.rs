@@ -8,7 +8,76 @@
 
 use crate::io::csv_columns::{read_columns, ColumnsError};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// Units of a campaign's columns where they are not mvem's: column name -> unit name (the
+/// manifest's `[units]` table, e.g. `p_im = "kPa"`, `T_em = "degC"`). Values are converted to
+/// mvem's units on load, before the range checks.
+pub type ColumnUnits = BTreeMap<String, String>;
+
+/// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
+/// mvem's unit being `scale * v + offset`.
+fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
+    match base {
+        "Pa" => &[
+            ("Pa", 1.0, 0.0),
+            ("hPa", 100.0, 0.0),
+            ("mbar", 100.0, 0.0),
+            ("kPa", 1e3, 0.0),
+            ("bar", 1e5, 0.0),
+            ("MPa", 1e6, 0.0),
+            ("psi", 6894.757293168361, 0.0),
+        ],
+        "K" => &[("K", 1.0, 0.0), ("degC", 1.0, 273.15), ("°C", 1.0, 273.15)],
+        "r/min" => &[
+            ("r/min", 1.0, 0.0),
+            ("rpm", 1.0, 0.0),
+            ("krpm", 1e3, 0.0),
+            ("rad/s", 30.0 / std::f64::consts::PI, 0.0),
+        ],
+        "kg/s" => &[
+            ("kg/s", 1.0, 0.0),
+            ("g/s", 1e-3, 0.0),
+            ("kg/min", 1.0 / 60.0, 0.0),
+            ("kg/h", 1.0 / 3600.0, 0.0),
+        ],
+        "Nm" => &[("Nm", 1.0, 0.0), ("N m", 1.0, 0.0), ("kNm", 1e3, 0.0)],
+        "%" => &[("%", 1.0, 0.0), ("-", 100.0, 0.0)],
+        "-" => &[("-", 1.0, 0.0), ("%", 0.01, 0.0)],
+        "mg/cycle" => &[("mg/cycle", 1.0, 0.0), ("mg/cycle/cylinder", 1.0, 0.0)],
+        "s" => &[("s", 1.0, 0.0), ("ms", 1e-3, 0.0)],
+        _ => &[],
+    }
+}
+
+/// Every column a campaign file may have, with its mvem unit (`t` of the dynamic sets first).
+fn campaign_columns() -> impl Iterator<Item = Column> {
+    std::iter::once(col("t", "s", -1.0e6, 1.0e6))
+        .chain(STATIONARY_COLUMNS)
+        .chain(DYNAMIC_COLUMNS)
+}
+
+/// The conversion (scale, offset) of `column` given in `unit`, or why there is none.
+fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String> {
+    let Some(c) = campaign_columns().find(|c| c.name == column) else {
+        return Err(format!(
+            "`{column}` is no column of the campaign files (docs/tuning-data.md)"
+        ));
+    };
+    let units = units_of(c.unit);
+    units
+        .iter()
+        .find(|(n, _, _)| *n == unit.trim())
+        .map(|&(_, s, o)| (s, o))
+        .ok_or_else(|| {
+            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
+            format!(
+                "{column} = \"{unit}\": not a unit of {column} (one of {})",
+                names.join(", ")
+            )
+        })
+}
 
 /// Errors of loading or writing tuning data.
 #[derive(Debug, thiserror::Error)]
@@ -266,6 +335,9 @@ pub struct Manifest {
     pub true_sensor_lags_s: Option<[f64; 4]>,
     /// Description of how the data were obtained (noise, seed, ...).
     pub description: String,
+    /// Units of the CSV columns where they are not mvem's ([`ColumnUnits`]): `[units]`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub units: ColumnUnits,
     /// Dynamic data sets.
     #[serde(rename = "dataset", default)]
     pub datasets: Vec<DataSetInfo>,
@@ -329,12 +401,29 @@ fn read(path: &Path) -> Result<String, DataError> {
 }
 
 /// Parse a CSV into (header, rows), checking that `required` columns exist and every value of
-/// them is finite and within its range. Returns the rows of the required columns in order.
-fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec<f64>>, DataError> {
+/// them is finite and, converted from its unit in `units` to mvem's, within its range. Returns
+/// the rows of the required columns in order, in mvem's units.
+fn parse_columns(
+    text: &str,
+    path: &Path,
+    required: &[Column],
+    units: &ColumnUnits,
+) -> Result<Vec<Vec<f64>>, DataError> {
     let fmt = |message: String| DataError::Format {
         path: path.to_path_buf(),
         message,
     };
+    let conv: Vec<Option<(f64, f64, &str)>> = required
+        .iter()
+        .map(|c| {
+            units.get(c.name).map(|u| {
+                conversion(c.name, u)
+                    .map(|(s, o)| (s, o, u.as_str()))
+                    .map_err(|m| fmt(format!("units: {m}")))
+            })
+        })
+        .map(Option::transpose)
+        .collect::<Result<_, _>>()?;
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
     let read = read_columns(text, &names).map_err(|e| match e {
         ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
@@ -359,8 +448,8 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
         },
     })?;
     let mut rows = Vec::with_capacity(read.len());
-    for (line, row) in read {
-        for (c, &v) in required.iter().zip(&row) {
+    for (line, mut row) in read {
+        for ((c, v), cv) in required.iter().zip(row.iter_mut()).zip(&conv) {
             let bad = |message: String| DataError::Value {
                 path: path.to_path_buf(),
                 line,
@@ -370,10 +459,20 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
             if !v.is_finite() {
                 return Err(bad(format!("{v} is not finite")));
             }
-            if v < c.min || v > c.max {
+            // the value as given, for the message
+            let given = match cv {
+                Some((s, o, u)) => {
+                    let g = format!("{} {u} = ", crate::numerics::Num(*v));
+                    *v = s * *v + o;
+                    g
+                }
+                None => String::new(),
+            };
+            if *v < c.min || *v > c.max {
                 return Err(bad(format!(
-                    "{} {} is outside the plausible range [{}, {}] {} (wrong unit?)",
-                    crate::numerics::Num(v),
+                    "{given}{} {} is outside the plausible range [{}, {}] {} (wrong unit? a \
+                     manifest's [units] table converts, docs/tuning-data.md)",
+                    crate::numerics::Num(*v),
                     c.unit,
                     c.min,
                     c.max,
@@ -390,8 +489,12 @@ fn parse_columns(text: &str, path: &Path, required: &[Column]) -> Result<Vec<Vec
 }
 
 /// Parse a stationary CSV (Table 5 columns, any order, extra columns ignored).
-pub fn parse_stationary_csv(text: &str, path: &Path) -> Result<Vec<StationaryPoint>, DataError> {
-    let rows = parse_columns(text, path, &STATIONARY_COLUMNS)?;
+pub fn parse_stationary_csv(
+    text: &str,
+    path: &Path,
+    units: &ColumnUnits,
+) -> Result<Vec<StationaryPoint>, DataError> {
+    let rows = parse_columns(text, path, &STATIONARY_COLUMNS, units)?;
     Ok(rows
         .into_iter()
         .map(|r| {
@@ -403,8 +506,11 @@ pub fn parse_stationary_csv(text: &str, path: &Path) -> Result<Vec<StationaryPoi
 }
 
 /// Load a stationary CSV file.
-pub fn load_stationary_csv(path: &Path) -> Result<Vec<StationaryPoint>, DataError> {
-    parse_stationary_csv(&read(path)?, path)
+pub fn load_stationary_csv(
+    path: &Path,
+    units: &ColumnUnits,
+) -> Result<Vec<StationaryPoint>, DataError> {
+    parse_stationary_csv(&read(path)?, path, units)
 }
 
 /// Stationary points as CSV text (header of [`STATIONARY_COLUMNS`]; full precision).
@@ -445,9 +551,10 @@ pub fn parse_dynamic_csv(
     path: &Path,
     name: &str,
     kind: StepKind,
+    units: &ColumnUnits,
 ) -> Result<DynamicData, DataError> {
     let req = dynamic_required(kind);
-    let rows = parse_columns(text, path, &req)?;
+    let rows = parse_columns(text, path, &req, units)?;
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
             return Err(DataError::Value {
@@ -498,6 +605,12 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
         path: path.to_path_buf(),
         message: format!("invalid manifest: {e}"),
     })?;
+    for (column, unit) in &m.units {
+        conversion(column, unit).map_err(|e| DataError::Format {
+            path: path.to_path_buf(),
+            message: format!("[units]: {e}"),
+        })?;
+    }
     for d in &m.datasets {
         let bad = |message: String| DataError::Format {
             path: path.to_path_buf(),
@@ -535,11 +648,17 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
 pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mpath = dir.join("manifest.toml");
     let manifest = parse_manifest(&read(&mpath)?, &mpath)?;
-    let stationary = load_stationary_csv(&dir.join(&manifest.stationary))?;
+    let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &manifest.units)?;
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        dynamic.push(parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind)?);
+        dynamic.push(parse_dynamic_csv(
+            &read(&p)?,
+            &p,
+            &d.name,
+            d.kind,
+            &manifest.units,
+        )?);
     }
     Ok(Campaign {
         manifest,
@@ -548,7 +667,8 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     })
 }
 
-/// Write a campaign directory atomically file by file (manifest last).
+/// Write a campaign directory atomically file by file (manifest last). The files hold the
+/// loaded values, in mvem's units, so the manifest is written without a `[units]` table.
 pub fn save_campaign(dir: &Path, c: &Campaign) -> Result<(), DataError> {
     let io = |path: &Path, e: crate::io::IoError| DataError::Format {
         path: path.to_path_buf(),
@@ -566,7 +686,11 @@ pub fn save_campaign(dir: &Path, c: &Campaign) -> Result<(), DataError> {
         crate::io::output::write_atomic(&p, dynamic_csv(d).as_bytes()).map_err(|e| io(&p, e))?;
     }
     let mp = dir.join("manifest.toml");
-    let text = toml::to_string_pretty(&c.manifest).map_err(|e| DataError::Format {
+    let manifest = Manifest {
+        units: ColumnUnits::new(),
+        ..c.manifest.clone()
+    };
+    let text = toml::to_string_pretty(&manifest).map_err(|e| DataError::Format {
         path: mp.clone(),
         message: e.to_string(),
     })?;
@@ -588,16 +712,70 @@ mod tests {
         "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
 
     #[test]
+    fn columns_in_other_units_convert_on_load() {
+        let p = Path::new("s.csv");
+        let si = parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &ColumnUnits::new())
+            .unwrap();
+        // p_im in kPa, T_em in degrees Celsius, W_c in g/s, n_t in rad/s, x_egr in %
+        let row = "1000,1500,8377.580409572781,101300,200000,250000,200,298,390,526.85,310,700,20,50,150,300,10";
+        let units: ColumnUnits = [
+            ("p_im", "kPa"),
+            ("T_em", "degC"),
+            ("W_c", "g/s"),
+            ("n_t", "rad/s"),
+            ("x_egr", "%"),
+        ]
+        .into_iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect();
+        let got = parse_stationary_csv(&format!("{}\n{row}\n", header()), p, &units).unwrap();
+        for (a, b) in got[0].values().iter().zip(si[0].values()) {
+            assert!((a - b).abs() <= 1e-12 * b.abs(), "{a} vs {b}");
+        }
+        // a value out of range names both units
+        let e = parse_stationary_csv(
+            &format!("{}\n{}\n", header(), row.replace(",200,298", ",2000,298")),
+            p,
+            &units,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("2000 kPa = 2000000 Pa is outside the plausible range"),
+            "{e}"
+        );
+        // the manifest refuses an unknown unit or column, naming it and the choices
+        let manifest = |units: &str| {
+            parse_manifest(
+                &format!("stationary = \"s.csv\"\ndescription = \"\"\n[units]\n{units}\n"),
+                Path::new("manifest.toml"),
+            )
+        };
+        assert_eq!(manifest("p_im = \"kPa\"").unwrap().units["p_im"], "kPa");
+        let e = manifest("p_im = \"kp\"").unwrap_err().to_string();
+        assert!(
+            e.contains("p_im = \"kp\": not a unit of p_im (one of Pa, hPa"),
+            "{e}"
+        );
+        let e = manifest("p_xx = \"kPa\"").unwrap_err().to_string();
+        assert!(e.contains("`p_xx` is no column"), "{e}");
+    }
+
+    #[test]
     fn stationary_roundtrip_and_errors() {
         let p = Path::new("s.csv");
         let text = format!("{}\n{ROW}\n", header());
-        let pts = parse_stationary_csv(&text, p).unwrap();
+        let pts = parse_stationary_csv(&text, p, &ColumnUnits::new()).unwrap();
         assert_eq!(pts.len(), 1);
         assert_eq!(pts[0].p_em, 250000.0);
-        assert_eq!(parse_stationary_csv(&stationary_csv(&pts), p).unwrap(), pts);
+        assert_eq!(
+            parse_stationary_csv(&stationary_csv(&pts), p, &ColumnUnits::new()).unwrap(),
+            pts
+        );
         // kPa instead of Pa in p_im (column 7), line 2
         let bad = ROW.replace(",200000,298", ",200,298");
-        let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p).unwrap_err();
+        let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p, &ColumnUnits::new())
+            .unwrap_err();
         let msg = e.to_string();
         assert!(
             msg.contains("line 2") && msg.contains("`p_im`") && msg.contains("s.csv"),
@@ -606,11 +784,16 @@ mod tests {
         let e = parse_stationary_csv(
             &format!("{}\n{}\n", header(), ROW.replace("0.3,", "NaN,")),
             p,
+            &ColumnUnits::new(),
         )
         .unwrap_err();
         assert!(e.to_string().contains("`W_c`"), "{e}");
-        let e = parse_stationary_csv(&format!("{}\n{ROW}\n", header().replace("T_t,", "")), p)
-            .unwrap_err();
+        let e = parse_stationary_csv(
+            &format!("{}\n{ROW}\n", header().replace("T_t,", "")),
+            p,
+            &ColumnUnits::new(),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("missing column `T_t`"), "{e}");
     }
 
@@ -648,7 +831,14 @@ mod tests {
     fn dynamic_duplicate_time() {
         let text =
             "t,u_egr,u_vgt,u_egr_pos,u_vgt_pos\n0,0,50,0,50\n0.01,0,50,0,50\n0.01,0,50,0,50\n";
-        let e = parse_dynamic_csv(text, Path::new("J.csv"), "J", StepKind::Actuator).unwrap_err();
+        let e = parse_dynamic_csv(
+            text,
+            Path::new("J.csv"),
+            "J",
+            StepKind::Actuator,
+            &ColumnUnits::new(),
+        )
+        .unwrap_err();
         let msg = e.to_string();
         assert!(msg.contains("line 4") && msg.contains("`t`"), "{msg}");
         let ok = parse_dynamic_csv(
@@ -656,6 +846,7 @@ mod tests {
             Path::new("J.csv"),
             "J",
             StepKind::Actuator,
+            &ColumnUnits::new(),
         )
         .unwrap();
         assert_eq!(ok.t, vec![0.0, 0.01]);
