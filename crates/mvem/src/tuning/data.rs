@@ -488,16 +488,31 @@ fn parse_columns(
     Ok(rows)
 }
 
-/// Parse a stationary CSV (Table 5 columns, any order, extra columns ignored).
+/// Index of `T_t` in [`STATIONARY_COLUMNS`]: the temperature after the turbine is in the
+/// paper's Table 5, but no tuning step uses it, so a campaign may leave it out.
+const T_T: usize = 11;
+
+/// Parse a stationary CSV (Table 5 columns, any order, extra columns ignored; `T_t` optional:
+/// NaN in the points when the file has no such column).
 pub fn parse_stationary_csv(
     text: &str,
     path: &Path,
     units: &ColumnUnits,
 ) -> Result<Vec<StationaryPoint>, DataError> {
-    let rows = parse_columns(text, path, &STATIONARY_COLUMNS, units)?;
+    let (rows, t_t_given) = match parse_columns(text, path, &STATIONARY_COLUMNS, units) {
+        Err(DataError::MissingColumn { column, .. }) if column == "T_t" => {
+            let mut cols = STATIONARY_COLUMNS.to_vec();
+            cols.remove(T_T);
+            (parse_columns(text, path, &cols, units)?, false)
+        }
+        r => (r?, true),
+    };
     Ok(rows
         .into_iter()
-        .map(|r| {
+        .map(|mut r| {
+            if !t_t_given {
+                r.insert(T_T, f64::NAN);
+            }
             let mut v = [0.0; 17];
             v.copy_from_slice(&r);
             StationaryPoint::from_values(v)
@@ -513,16 +528,26 @@ pub fn load_stationary_csv(
     parse_stationary_csv(&read(path)?, path, units)
 }
 
-/// Stationary points as CSV text (header of [`STATIONARY_COLUMNS`]; full precision).
+/// Stationary points as CSV text (header of [`STATIONARY_COLUMNS`]; full precision; without
+/// `T_t` when a point has none, as read from a campaign without it).
 pub fn stationary_csv(points: &[StationaryPoint]) -> String {
+    let keep = |k: usize| k != T_T || points.iter().all(|p| p.t_t.is_finite());
     let mut s = STATIONARY_COLUMNS
         .iter()
-        .map(|c| c.name)
+        .enumerate()
+        .filter(|(k, _)| keep(*k))
+        .map(|(_, c)| c.name)
         .collect::<Vec<_>>()
         .join(",");
     s.push('\n');
     for p in points {
-        let row: Vec<String> = p.values().iter().map(|v| format!("{v:?}")).collect();
+        let row: Vec<String> = p
+            .values()
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| keep(*k))
+            .map(|(_, v)| format!("{v:?}"))
+            .collect();
         s.push_str(&row.join(","));
         s.push('\n');
     }
@@ -794,7 +819,38 @@ mod tests {
             &ColumnUnits::new(),
         )
         .unwrap_err();
-        assert!(e.to_string().contains("missing column `T_t`"), "{e}");
+        // T_t, which no step uses, may be left out: NaN, and written back without it
+        let no_t_t = parse_stationary_csv(
+            &format!(
+                "{}\n{}\n",
+                header().replace("T_t,", ""),
+                ROW.replace(",700,", ",")
+            ),
+            p,
+            &ColumnUnits::new(),
+        )
+        .unwrap();
+        assert!(no_t_t[0].t_t.is_nan());
+        assert_eq!(
+            StationaryPoint {
+                t_t: 700.0,
+                ..no_t_t[0]
+            },
+            pts[0]
+        );
+        let text = stationary_csv(&no_t_t);
+        assert!(!text.contains("T_t"));
+        let again = parse_stationary_csv(&text, p, &ColumnUnits::new()).unwrap();
+        assert_eq!(again[0].p_em, pts[0].p_em);
+        assert!(again[0].t_t.is_nan());
+        // another column missing is still an error
+        let e = parse_stationary_csv(
+            &format!("{}\n{ROW}\n", header().replace("T_c,", "")),
+            p,
+            &ColumnUnits::new(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("missing column `T_c`"), "{e}");
     }
 
     /// Fuzz finding (`fuzz/` target `data`): a manifest with `speed_rpm = nan` was accepted and
