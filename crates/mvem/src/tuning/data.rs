@@ -813,12 +813,6 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("`W_c`"), "{e}");
-        let e = parse_stationary_csv(
-            &format!("{}\n{ROW}\n", header().replace("T_t,", "")),
-            p,
-            &ColumnUnits::new(),
-        )
-        .unwrap_err();
         // T_t, which no step uses, may be left out: NaN, and written back without it
         let no_t_t = parse_stationary_csv(
             &format!(
