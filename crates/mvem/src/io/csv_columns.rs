@@ -120,6 +120,20 @@ pub(crate) fn file_line(text: &str, p: &csv::Position, comment: Option<u8>) -> u
     line
 }
 
+/// The column names of `text`'s header (trimmed), read as [`read_columns`] reads it.
+pub fn header_names(text: &str) -> Result<Vec<String>, ColumnsError> {
+    let dialect = Dialect::of(text, Some(b'#'));
+    let mut rdr = csv::ReaderBuilder::new()
+        .delimiter(dialect.delimiter)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let header = rdr
+        .headers()
+        .map_err(|e| ColumnsError::Header(e.to_string()))?;
+    Ok(header.iter().map(str::to_string).collect())
+}
+
 /// The values of the columns `names` (in that order) of every data row of `text`, each row with
 /// its 1-based line in the file.
 pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>, ColumnsError> {

@@ -6,7 +6,7 @@
 //! degrees Celsius or a speed in rad/s where r/min is expected is caught), time strictly
 //! increasing. Errors name the file, the line (1-based, the header is line 1) and the column.
 
-use crate::io::csv_columns::{read_columns, ColumnsError};
+use crate::io::csv_columns::{header_names, read_columns, ColumnsError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -569,8 +569,13 @@ pub fn dynamic_required(kind: StepKind) -> Vec<Column> {
     v
 }
 
+/// Columns a dynamic set other than the actuator set may leave out: the measured actuator
+/// positions, which only the actuator set's step 2 and its validation use.
+pub const OPTIONAL_DYNAMIC_COLUMNS: [&str; 2] = ["u_egr_pos", "u_vgt_pos"];
+
 /// Parse a dynamic CSV: `t` \[s\] strictly increasing plus the columns of `kind`
-/// ([`DYNAMIC_COLUMNS`], or [`ACTUATOR_COLUMNS`] for the actuator set).
+/// ([`DYNAMIC_COLUMNS`], or [`ACTUATOR_COLUMNS`] for the actuator set; the positions
+/// [`OPTIONAL_DYNAMIC_COLUMNS`] only where the file has them, except in the actuator set).
 pub fn parse_dynamic_csv(
     text: &str,
     path: &Path,
@@ -578,7 +583,14 @@ pub fn parse_dynamic_csv(
     kind: StepKind,
     units: &ColumnUnits,
 ) -> Result<DynamicData, DataError> {
-    let req = dynamic_required(kind);
+    let mut req = dynamic_required(kind);
+    if kind != StepKind::Actuator {
+        if let Ok(header) = header_names(text) {
+            req.retain(|c| {
+                !OPTIONAL_DYNAMIC_COLUMNS.contains(&c.name) || header.iter().any(|h| h == c.name)
+            });
+        }
+    }
     let rows = parse_columns(text, path, &req, units)?;
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
@@ -875,6 +887,44 @@ mod tests {
         assert_eq!(ok.datasets[0].speed_rpm, Some(1200.0));
         let back = parse_manifest(&toml::to_string(&ok).unwrap(), p).unwrap();
         assert_eq!(back, ok);
+    }
+
+    #[test]
+    fn positions_are_optional_outside_the_actuator_set() {
+        let text = "t,n_t,p_em,p_im,W_c,M_e,n_e,u_egr,u_vgt,u_delta\n0,9e4,2e5,1.8e5,0.3,900,1500,20,50,150\n0.1,9e4,2e5,1.8e5,0.3,900,1500,20,50,150\n";
+        let none = ColumnUnits::new();
+        let d = parse_dynamic_csv(text, Path::new("A.csv"), "A", StepKind::VgtEgr, &none).unwrap();
+        assert_eq!(d.get("p_im"), Some(&[1.8e5, 1.8e5][..]));
+        assert!(d.get("u_egr_pos").is_none() && d.get("u_vgt_pos").is_none());
+        // written back without them, read again the same
+        let again = parse_dynamic_csv(
+            &dynamic_csv(&d),
+            Path::new("A.csv"),
+            "A",
+            StepKind::VgtEgr,
+            &none,
+        )
+        .unwrap();
+        assert_eq!(again, d);
+        // the actuator set needs them; another column is still required
+        let e = parse_dynamic_csv(
+            "t,u_egr,u_vgt,u_egr_pos\n0,0,50,0\n",
+            Path::new("J.csv"),
+            "J",
+            StepKind::Actuator,
+            &none,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("u_vgt_pos"), "{e}");
+        let e = parse_dynamic_csv(
+            &text.replace(",W_c", "").replace(",0.3,", ","),
+            Path::new("A.csv"),
+            "A",
+            StepKind::VgtEgr,
+            &none,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("W_c"), "{e}");
     }
 
     #[test]
