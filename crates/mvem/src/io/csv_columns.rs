@@ -120,14 +120,20 @@ pub(crate) fn file_line(text: &str, p: &csv::Position, comment: Option<u8>) -> u
     line
 }
 
-/// The column names of `text`'s header (trimmed), read as [`read_columns`] reads it.
-pub fn header_names(text: &str) -> Result<Vec<String>, ColumnsError> {
+/// A reader of `text` in its dialect: fields trimmed, `#` comment lines skipped.
+fn reader(text: &str) -> (Dialect, csv::Reader<&[u8]>) {
     let dialect = Dialect::of(text, Some(b'#'));
-    let mut rdr = csv::ReaderBuilder::new()
+    let rdr = csv::ReaderBuilder::new()
         .delimiter(dialect.delimiter)
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
+    (dialect, rdr)
+}
+
+/// The column names of `text`'s header (trimmed), read as [`read_columns`] reads it.
+pub fn header_names(text: &str) -> Result<Vec<String>, ColumnsError> {
+    let (_, mut rdr) = reader(text);
     let header = rdr
         .headers()
         .map_err(|e| ColumnsError::Header(e.to_string()))?;
@@ -137,12 +143,7 @@ pub fn header_names(text: &str) -> Result<Vec<String>, ColumnsError> {
 /// The values of the columns `names` (in that order) of every data row of `text`, each row with
 /// its 1-based line in the file.
 pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>, ColumnsError> {
-    let dialect = Dialect::of(text, Some(b'#'));
-    let mut rdr = csv::ReaderBuilder::new()
-        .delimiter(dialect.delimiter)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
+    let (dialect, mut rdr) = reader(text);
     let header = rdr
         .headers()
         .map_err(|e| ColumnsError::Header(e.to_string()))?
