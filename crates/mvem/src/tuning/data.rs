@@ -16,6 +16,35 @@ use std::path::{Path, PathBuf};
 /// mvem's units on load, before the range checks.
 pub type ColumnUnits = BTreeMap<String, String>;
 
+/// Names of a campaign's columns where they are not mvem's: column name -> the files' header
+/// name (the manifest's `[columns]` table, e.g. `p_im = "P_IM"`).
+pub type ColumnNames = BTreeMap<String, String>;
+
+/// How a campaign's files name and measure their columns (the manifest's `[columns]` and
+/// `[units]` tables; empty: mvem's names and units).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Layout {
+    /// Header names ([`ColumnNames`]).
+    pub names: ColumnNames,
+    /// Units ([`ColumnUnits`]).
+    pub units: ColumnUnits,
+}
+
+impl Layout {
+    /// The layout of a manifest's files.
+    pub fn of(m: &Manifest) -> Self {
+        Self {
+            names: m.columns.clone(),
+            units: m.units.clone(),
+        }
+    }
+
+    /// The header name of mvem's column `name`.
+    fn header<'a>(&'a self, name: &'a str) -> &'a str {
+        self.names.get(name).map_or(name, |s| s.trim())
+    }
+}
+
 /// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
 /// mvem's unit being `scale * v + offset`.
 fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
@@ -58,13 +87,16 @@ fn campaign_columns() -> impl Iterator<Item = Column> {
         .chain(DYNAMIC_COLUMNS)
 }
 
+/// mvem's column `name` of the campaign files, or why there is none.
+fn campaign_column(name: &str) -> Result<Column, String> {
+    campaign_columns()
+        .find(|c| c.name == name)
+        .ok_or_else(|| format!("`{name}` is no column of the campaign files (docs/tuning-data.md)"))
+}
+
 /// The conversion (scale, offset) of `column` given in `unit`, or why there is none.
 fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String> {
-    let Some(c) = campaign_columns().find(|c| c.name == column) else {
-        return Err(format!(
-            "`{column}` is no column of the campaign files (docs/tuning-data.md)"
-        ));
-    };
+    let c = campaign_column(column)?;
     let units = units_of(c.unit);
     units
         .iter()
@@ -91,12 +123,14 @@ pub enum DataError {
         source: std::io::Error,
     },
     /// A required column is missing from the header.
-    #[error("{path}: missing column `{column}` in the header (line 1)")]
+    #[error("{path}: missing column `{column}` in the header (line 1){}", renamed.as_ref().map_or(String::new(), |m| format!(" (mvem's `{m}`, renamed by the manifest's [columns])")))]
     MissingColumn {
         /// File.
         path: PathBuf,
-        /// Column name.
+        /// Column name in the file.
         column: String,
+        /// mvem's name of the column, where the manifest's `[columns]` renames it.
+        renamed: Option<String>,
     },
     /// A value is not a finite number or is outside its plausible range.
     #[error("{path}: line {line}, column `{column}`: {message}")]
@@ -335,6 +369,9 @@ pub struct Manifest {
     pub true_sensor_lags_s: Option<[f64; 4]>,
     /// Description of how the data were obtained (noise, seed, ...).
     pub description: String,
+    /// Header names of the CSV columns where they are not mvem's ([`ColumnNames`]): `[columns]`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub columns: ColumnNames,
     /// Units of the CSV columns where they are not mvem's ([`ColumnUnits`]): `[units]`.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub units: ColumnUnits,
@@ -407,8 +444,9 @@ fn parse_columns(
     text: &str,
     path: &Path,
     required: &[Column],
-    units: &ColumnUnits,
+    layout: &Layout,
 ) -> Result<Vec<Vec<f64>>, DataError> {
+    let units = &layout.units;
     let fmt = |message: String| DataError::Format {
         path: path.to_path_buf(),
         message,
@@ -425,10 +463,16 @@ fn parse_columns(
         .map(Option::transpose)
         .collect::<Result<_, _>>()?;
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
-    let read = read_columns(text, &names).map_err(|e| match e {
+    let headers: Vec<&str> = names.iter().map(|n| layout.header(n)).collect();
+    let read = read_columns(text, &headers).map_err(|e| match e {
         ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
         ColumnsError::Missing { missing, .. } => DataError::MissingColumn {
             path: path.to_path_buf(),
+            renamed: headers
+                .iter()
+                .position(|h| *h == missing[0])
+                .filter(|&k| headers[k] != names[k])
+                .map(|k| names[k].to_string()),
             column: missing[0].clone(),
         },
         ColumnsError::Record { message, .. } => fmt(format!("malformed CSV: {message}")),
@@ -497,13 +541,15 @@ const T_T: usize = 11;
 pub fn parse_stationary_csv(
     text: &str,
     path: &Path,
-    units: &ColumnUnits,
+    layout: &Layout,
 ) -> Result<Vec<StationaryPoint>, DataError> {
-    let (rows, t_t_given) = match parse_columns(text, path, &STATIONARY_COLUMNS, units) {
-        Err(DataError::MissingColumn { column, .. }) if column == "T_t" => {
+    let t_t_given =
+        header_names(text).map_or(true, |h| h.iter().any(|n| n == layout.header("T_t")));
+    let (rows, t_t_given) = match parse_columns(text, path, &STATIONARY_COLUMNS, layout) {
+        Err(DataError::MissingColumn { .. }) if !t_t_given => {
             let mut cols = STATIONARY_COLUMNS.to_vec();
             cols.remove(T_T);
-            (parse_columns(text, path, &cols, units)?, false)
+            (parse_columns(text, path, &cols, layout)?, false)
         }
         r => (r?, true),
     };
@@ -523,9 +569,9 @@ pub fn parse_stationary_csv(
 /// Load a stationary CSV file.
 pub fn load_stationary_csv(
     path: &Path,
-    units: &ColumnUnits,
+    layout: &Layout,
 ) -> Result<Vec<StationaryPoint>, DataError> {
-    parse_stationary_csv(&read(path)?, path, units)
+    parse_stationary_csv(&read(path)?, path, layout)
 }
 
 /// Stationary points as CSV text (header of [`STATIONARY_COLUMNS`]; full precision; without
@@ -581,17 +627,18 @@ pub fn parse_dynamic_csv(
     path: &Path,
     name: &str,
     kind: StepKind,
-    units: &ColumnUnits,
+    layout: &Layout,
 ) -> Result<DynamicData, DataError> {
     let mut req = dynamic_required(kind);
     if kind != StepKind::Actuator {
         if let Ok(header) = header_names(text) {
             req.retain(|c| {
-                !OPTIONAL_DYNAMIC_COLUMNS.contains(&c.name) || header.iter().any(|h| h == c.name)
+                !OPTIONAL_DYNAMIC_COLUMNS.contains(&c.name)
+                    || header.iter().any(|h| h == layout.header(c.name))
             });
         }
     }
-    let rows = parse_columns(text, path, &req, units)?;
+    let rows = parse_columns(text, path, &req, layout)?;
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
             return Err(DataError::Value {
@@ -642,6 +689,16 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
         path: path.to_path_buf(),
         message: format!("invalid manifest: {e}"),
     })?;
+    for (column, header) in &m.columns {
+        let bad = |message: String| DataError::Format {
+            path: path.to_path_buf(),
+            message: format!("[columns]: {message}"),
+        };
+        campaign_column(column).map_err(bad)?;
+        if header.trim().is_empty() {
+            return Err(bad(format!("{column}: an empty header name")));
+        }
+    }
     for (column, unit) in &m.units {
         conversion(column, unit).map_err(|e| DataError::Format {
             path: path.to_path_buf(),
@@ -685,17 +742,12 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
 pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mpath = dir.join("manifest.toml");
     let manifest = parse_manifest(&read(&mpath)?, &mpath)?;
-    let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &manifest.units)?;
+    let layout = Layout::of(&manifest);
+    let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &layout)?;
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        dynamic.push(parse_dynamic_csv(
-            &read(&p)?,
-            &p,
-            &d.name,
-            d.kind,
-            &manifest.units,
-        )?);
+        dynamic.push(parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind, &layout)?);
     }
     Ok(Campaign {
         manifest,
@@ -724,6 +776,7 @@ pub fn save_campaign(dir: &Path, c: &Campaign) -> Result<(), DataError> {
     }
     let mp = dir.join("manifest.toml");
     let manifest = Manifest {
+        columns: ColumnNames::new(),
         units: ColumnUnits::new(),
         ..c.manifest.clone()
     };
@@ -751,24 +804,44 @@ mod tests {
     #[test]
     fn columns_in_other_units_convert_on_load() {
         let p = Path::new("s.csv");
-        let si = parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &ColumnUnits::new())
-            .unwrap();
+        let si =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
         // p_im in kPa, T_em in degrees Celsius, W_c in g/s, n_t in rad/s, x_egr in %
         let row = "1000,1500,8377.580409572781,101300,200000,250000,200,298,390,526.85,310,700,20,50,150,300,10";
-        let units: ColumnUnits = [
-            ("p_im", "kPa"),
-            ("T_em", "degC"),
-            ("W_c", "g/s"),
-            ("n_t", "rad/s"),
-            ("x_egr", "%"),
-        ]
-        .into_iter()
-        .map(|(a, b)| (a.to_string(), b.to_string()))
-        .collect();
+        let table = |v: &[(&str, &str)]| {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect::<BTreeMap<_, _>>()
+        };
+        let units = Layout {
+            units: table(&[
+                ("p_im", "kPa"),
+                ("T_em", "degC"),
+                ("W_c", "g/s"),
+                ("n_t", "rad/s"),
+                ("x_egr", "%"),
+            ]),
+            ..Layout::default()
+        };
         let got = parse_stationary_csv(&format!("{}\n{row}\n", header()), p, &units).unwrap();
         for (a, b) in got[0].values().iter().zip(si[0].values()) {
             assert!((a - b).abs() <= 1e-12 * b.abs(), "{a} vs {b}");
         }
+        // and with the test cell's own header names ([columns])
+        let renamed = Layout {
+            names: table(&[("p_im", "P_IM"), ("T_em", " T_exh ")]),
+            ..units.clone()
+        };
+        let own = header().replace("p_im", "P_IM").replace("T_em", "T_exh");
+        let again = parse_stationary_csv(&format!("{own}\n{row}\n"), p, &renamed).unwrap();
+        assert_eq!(again, got);
+        let e = parse_stationary_csv(&format!("{}\n{row}\n", header()), p, &renamed)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("missing column `P_IM` in the header (line 1) (mvem's `p_im`, renamed"),
+            "{e}"
+        );
         // a value out of range names both units
         let e = parse_stationary_csv(
             &format!("{}\n{}\n", header(), row.replace(",200,298", ",2000,298")),
@@ -789,6 +862,17 @@ mod tests {
             )
         };
         assert_eq!(manifest("p_im = \"kPa\"").unwrap().units["p_im"], "kPa");
+        let columns = |t: &str| {
+            parse_manifest(
+                &format!("stationary = \"s.csv\"\ndescription = \"\"\n[columns]\n{t}\n"),
+                Path::new("manifest.toml"),
+            )
+        };
+        assert_eq!(columns("p_im = \"P_IM\"").unwrap().columns["p_im"], "P_IM");
+        let e = columns("pim = \"P_IM\"").unwrap_err().to_string();
+        assert!(e.contains("[columns]: `pim` is no column"), "{e}");
+        let e = columns("p_im = \" \"").unwrap_err().to_string();
+        assert!(e.contains("[columns]: p_im: an empty header name"), "{e}");
         let e = manifest("p_im = \"kp\"").unwrap_err().to_string();
         assert!(
             e.contains("p_im = \"kp\": not a unit of p_im (one of Pa, hPa"),
@@ -802,16 +886,16 @@ mod tests {
     fn stationary_roundtrip_and_errors() {
         let p = Path::new("s.csv");
         let text = format!("{}\n{ROW}\n", header());
-        let pts = parse_stationary_csv(&text, p, &ColumnUnits::new()).unwrap();
+        let pts = parse_stationary_csv(&text, p, &Layout::default()).unwrap();
         assert_eq!(pts.len(), 1);
         assert_eq!(pts[0].p_em, 250000.0);
         assert_eq!(
-            parse_stationary_csv(&stationary_csv(&pts), p, &ColumnUnits::new()).unwrap(),
+            parse_stationary_csv(&stationary_csv(&pts), p, &Layout::default()).unwrap(),
             pts
         );
         // kPa instead of Pa in p_im (column 7), line 2
         let bad = ROW.replace(",200000,298", ",200,298");
-        let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p, &ColumnUnits::new())
+        let e = parse_stationary_csv(&format!("{}\n{bad}\n", header()), p, &Layout::default())
             .unwrap_err();
         let msg = e.to_string();
         assert!(
@@ -821,7 +905,7 @@ mod tests {
         let e = parse_stationary_csv(
             &format!("{}\n{}\n", header(), ROW.replace("0.3,", "NaN,")),
             p,
-            &ColumnUnits::new(),
+            &Layout::default(),
         )
         .unwrap_err();
         assert!(e.to_string().contains("`W_c`"), "{e}");
@@ -833,7 +917,7 @@ mod tests {
                 ROW.replace(",700,", ",")
             ),
             p,
-            &ColumnUnits::new(),
+            &Layout::default(),
         )
         .unwrap();
         assert!(no_t_t[0].t_t.is_nan());
@@ -846,14 +930,14 @@ mod tests {
         );
         let text = stationary_csv(&no_t_t);
         assert!(!text.contains("T_t"));
-        let again = parse_stationary_csv(&text, p, &ColumnUnits::new()).unwrap();
+        let again = parse_stationary_csv(&text, p, &Layout::default()).unwrap();
         assert_eq!(again[0].p_em, pts[0].p_em);
         assert!(again[0].t_t.is_nan());
         // another column missing is still an error
         let e = parse_stationary_csv(
             &format!("{}\n{ROW}\n", header().replace("T_c,", "")),
             p,
-            &ColumnUnits::new(),
+            &Layout::default(),
         )
         .unwrap_err();
         assert!(e.to_string().contains("missing column `T_c`"), "{e}");
@@ -892,7 +976,7 @@ mod tests {
     #[test]
     fn positions_are_optional_outside_the_actuator_set() {
         let text = "t,n_t,p_em,p_im,W_c,M_e,n_e,u_egr,u_vgt,u_delta\n0,9e4,2e5,1.8e5,0.3,900,1500,20,50,150\n0.1,9e4,2e5,1.8e5,0.3,900,1500,20,50,150\n";
-        let none = ColumnUnits::new();
+        let none = Layout::default();
         let d = parse_dynamic_csv(text, Path::new("A.csv"), "A", StepKind::VgtEgr, &none).unwrap();
         assert_eq!(d.get("p_im"), Some(&[1.8e5, 1.8e5][..]));
         assert!(d.get("u_egr_pos").is_none() && d.get("u_vgt_pos").is_none());
@@ -936,7 +1020,7 @@ mod tests {
             Path::new("J.csv"),
             "J",
             StepKind::Actuator,
-            &ColumnUnits::new(),
+            &Layout::default(),
         )
         .unwrap_err();
         let msg = e.to_string();
@@ -946,7 +1030,7 @@ mod tests {
             Path::new("J.csv"),
             "J",
             StepKind::Actuator,
-            &ColumnUnits::new(),
+            &Layout::default(),
         )
         .unwrap();
         assert_eq!(ok.t, vec![0.0, 0.01]);

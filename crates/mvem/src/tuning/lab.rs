@@ -509,6 +509,7 @@ pub fn campaign(
             opts.tau_me_s,
             if opts.sensor_lags { "Table 6" } else { "none" }
         ),
+        columns: Default::default(),
         units: Default::default(),
         datasets: infos,
     };

@@ -128,6 +128,7 @@ mod tests {
                 true_tau_me_s: None,
                 true_sensor_lags_s: None,
                 description: String::new(),
+                columns: Default::default(),
                 units: Default::default(),
                 datasets: vec![DataSetInfo {
                     name: "A".into(),
