@@ -75,6 +75,8 @@ enum Command {
     Fmu(commands::fmu::Args),
     /// Virtual test cell: a tuning campaign generated from a parameter set, with noise.
     Lab(commands::lab::Args),
+    /// What a tuning campaign holds and which tuning steps it supports (before tuning).
+    Campaign(commands::campaign::Args),
     /// Parameter estimation: the paper's five tuning steps on a campaign.
     Tune(commands::tune::Args),
     /// Relative errors of a parameter set on a campaign: tables and figures.
@@ -132,6 +134,7 @@ fn main() -> ExitCode {
         Command::Lab(a) => commands::lab::run(a),
         Command::Tune(a) => commands::tune::run(a),
         Command::Validate(a) => commands::validate::run(a),
+        Command::Campaign(a) => commands::campaign::run(a),
         Command::CompareModels(a) => commands::compare_models::run(a),
         Command::TeStudy(a) => commands::te_study::run(a),
         Command::Robustness(a) => commands::robustness::run(a),

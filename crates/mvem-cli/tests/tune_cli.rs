@@ -582,3 +582,55 @@ fn tune_widens_the_input_ranges_to_the_campaign() {
     assert!(!err.contains("widened"), "{err}");
     assert!(json["input_saturation"].is_null(), "{json}");
 }
+
+#[test]
+fn campaign_summary_says_which_steps_the_data_support() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let o = mvem(
+        d,
+        &[
+            "lab",
+            "--out",
+            "c",
+            "--sets",
+            "B,C,Q",
+            "--max-steps",
+            "2",
+            "--n-stationary",
+            "20",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = mvem(d, &["campaign", "--data", "c", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["stationary_points"], 20);
+    // B, C, Q and the actuator set J; no fuel set: step 4 is not supported
+    let sets: Vec<&str> = v["datasets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(sets, ["B", "Q", "C", "J"]);
+    let ok: Vec<bool> = v["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["supported"].as_bool().unwrap())
+        .collect();
+    assert_eq!(ok, [true, true, true, false, true]);
+    assert_eq!(v["steps"][2]["uses"], "sets B, C");
+    let o = mvem(d, &["campaign", "--data", "c"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("NO  step 4 (tau_Me): no fuel-step set"),
+        "{text}"
+    );
+    // a bad campaign: the loader's error, exit code 2
+    std::fs::write(d.join("c").join("manifest.toml"), "stationary = 3\n").unwrap();
+    let o = mvem(d, &["campaign", "--data", "c"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("manifest.toml"), "{}", stderr(&o));
+}

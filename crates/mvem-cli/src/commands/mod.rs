@@ -1,6 +1,7 @@
 //! One module per subcommand; each has an `Args` struct (clap) and a `run` function.
 
 pub mod bench;
+pub mod campaign;
 pub mod closed_loop;
 pub mod compare_models;
 pub mod components;

@@ -20,6 +20,7 @@
 //! - [`settled`]: settled operating points at the ends of the dynamic sets' command steps
 //!   (compressor flow points for step 1).
 //! - [`sensors`]: first-order lags of the test cell's sensors (Table 6), known or fitted.
+//! - [`summary`]: what a campaign holds and which steps it supports, before any tuning.
 //! - [`uncertainty`]: standard errors and identifiability of every tuned parameter.
 //! - [`validate`]: relative errors (eqs (4), (5)) and error tables.
 //!
@@ -34,6 +35,7 @@ pub mod request;
 pub mod sensors;
 pub mod settled;
 pub mod steps;
+pub mod summary;
 pub mod twelve;
 pub mod uncertainty;
 pub mod validate;

@@ -1,0 +1,328 @@
+//! What a loaded campaign holds and which tuning steps it supports, before any tuning: the
+//! check a user runs on a campaign made elsewhere (`mvem campaign --data DIR`).
+//!
+//! The steps' data needs are the pipeline's ([`super::pipeline::tune`]): step 1 the stationary
+//! points, step 2 a set with role `actuator`, steps 3 and 4 sets with role `dynamic` (VGT/EGR
+//! steps for step 3, a fuel step for step 4), step 5 sets with role `static` (not the actuator
+//! set); sets with role `validation` only serve `mvem validate`.
+
+use super::data::{Campaign, DynamicData, Role, StepKind};
+use super::pipeline::step_title;
+use serde::Serialize;
+
+/// A campaign's summary ([`summarize`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CampaignSummary {
+    /// The manifest's description.
+    pub description: String,
+    /// Number of stationary points.
+    pub stationary_points: usize,
+    /// Range of the stationary points' engine speed [r/min].
+    pub n_e_rpm: [f64; 2],
+    /// Range of their fuel [mg/cycle/cylinder].
+    pub u_delta_mg: [f64; 2],
+    /// Range of their torque \[Nm\].
+    pub m_e_nm: [f64; 2],
+    /// Whether the stationary file has `T_t` (optional: no step uses it).
+    pub t_t: bool,
+    /// The manifest's `[columns]` renames (mvem's name -> the files').
+    pub renamed: super::data::ColumnNames,
+    /// The manifest's `[units]` conversions (column -> unit).
+    pub units: super::data::ColumnUnits,
+    /// The dynamic sets in manifest order.
+    pub datasets: Vec<SetSummary>,
+    /// Steps 1-5: which sets each would use, or what is missing.
+    pub steps: Vec<StepSupport>,
+}
+
+/// One dynamic set.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SetSummary {
+    /// Name.
+    pub name: String,
+    /// What is stepped (`vgt-egr`, `fuel`, `actuator`).
+    pub kind: StepKind,
+    /// Roles.
+    pub roles: Vec<Role>,
+    /// Samples.
+    pub samples: usize,
+    /// Time span \[s\].
+    pub duration_s: f64,
+    /// The manifest's sample rate \[Hz\].
+    pub sample_rate_hz: f64,
+    /// The data's sample rate: 1 / the median time step \[Hz\] (0 for a single sample).
+    pub measured_rate_hz: f64,
+    /// Command steps: samples where u_egr, u_vgt or u_delta moves by more than
+    /// [`STEP_THRESHOLD`] from the sample before.
+    pub command_steps: usize,
+    /// Whether the set has the measured actuator positions (u_egr_pos, u_vgt_pos).
+    pub positions: bool,
+}
+
+/// Smallest command change counted as a step (% for u_egr and u_vgt, mg for u_delta).
+pub const STEP_THRESHOLD: f64 = 0.1;
+
+/// Whether the campaign supports a tuning step, with the sets it would use.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StepSupport {
+    /// Step 1-5.
+    pub step: u8,
+    /// What the step estimates.
+    pub title: &'static str,
+    /// Whether the data support it.
+    pub supported: bool,
+    /// The data it would use (stationary points or set names), or what is missing.
+    pub uses: String,
+}
+
+fn range(v: impl Iterator<Item = f64>) -> [f64; 2] {
+    v.fold([f64::INFINITY, f64::NEG_INFINITY], |[lo, hi], x| {
+        [lo.min(x), hi.max(x)]
+    })
+}
+
+fn median_step(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    d.sort_by(f64::total_cmp);
+    d[d.len() / 2]
+}
+
+fn command_steps(d: &DynamicData) -> usize {
+    let cmds: Vec<&[f64]> = ["u_egr", "u_vgt", "u_delta"]
+        .iter()
+        .filter_map(|c| d.get(c))
+        .collect();
+    (1..d.t.len())
+        .filter(|&k| {
+            cmds.iter()
+                .any(|u| (u[k] - u[k - 1]).abs() > STEP_THRESHOLD)
+        })
+        .count()
+}
+
+/// Summarize a loaded campaign (see the module documentation).
+pub fn summarize(c: &Campaign) -> CampaignSummary {
+    let st = &c.stationary;
+    let m = &c.manifest;
+    let datasets: Vec<SetSummary> = m
+        .datasets
+        .iter()
+        .zip(&c.dynamic)
+        .map(|(i, d)| {
+            let dt = median_step(&d.t);
+            SetSummary {
+                name: i.name.clone(),
+                kind: i.kind,
+                roles: i.roles.clone(),
+                samples: d.t.len(),
+                duration_s: d.t.last().copied().unwrap_or(0.0)
+                    - d.t.first().copied().unwrap_or(0.0),
+                sample_rate_hz: i.sample_rate_hz,
+                measured_rate_hz: if dt > 0.0 { 1.0 / dt } else { 0.0 },
+                command_steps: command_steps(d),
+                positions: d.get("u_egr_pos").is_some() && d.get("u_vgt_pos").is_some(),
+            }
+        })
+        .collect();
+    let names = |f: &dyn Fn(&SetSummary) -> bool| -> Vec<String> {
+        datasets
+            .iter()
+            .filter(|s| f(s))
+            .map(|s| s.name.clone())
+            .collect()
+    };
+    let support = |step: u8, sets: Vec<String>, what: &str| StepSupport {
+        step,
+        title: step_title(step),
+        supported: !sets.is_empty(),
+        uses: if sets.is_empty() {
+            format!("no {what}")
+        } else {
+            format!("sets {}", sets.join(", "))
+        },
+    };
+    let has = |s: &SetSummary, r: Role| s.roles.contains(&r);
+    let steps = vec![
+        StepSupport {
+            step: 1,
+            title: step_title(1),
+            supported: !st.is_empty(),
+            uses: format!("{} stationary points", st.len()),
+        },
+        // the pipeline takes the first actuator set
+        support(
+            2,
+            names(&|s| has(s, Role::Actuator) && s.positions)
+                .into_iter()
+                .take(1)
+                .collect(),
+            "set with role \"actuator\"",
+        ),
+        support(
+            3,
+            names(&|s| has(s, Role::Dynamic) && s.kind == StepKind::VgtEgr),
+            "VGT/EGR set with role \"dynamic\"",
+        ),
+        support(
+            4,
+            names(&|s| has(s, Role::Dynamic) && s.kind == StepKind::Fuel)
+                .into_iter()
+                .take(1)
+                .collect(),
+            "fuel-step set with role \"dynamic\"",
+        ),
+        support(
+            5,
+            names(&|s| has(s, Role::Static) && s.kind != StepKind::Actuator),
+            "set with role \"static\"",
+        ),
+    ];
+    CampaignSummary {
+        description: m.description.clone(),
+        stationary_points: st.len(),
+        n_e_rpm: range(st.iter().map(|p| p.n_e)),
+        u_delta_mg: range(st.iter().map(|p| p.u_delta)),
+        m_e_nm: range(st.iter().map(|p| p.m_e)),
+        t_t: st.iter().all(|p| p.t_t.is_finite()),
+        renamed: m.columns.clone(),
+        units: m.units.clone(),
+        datasets,
+        steps,
+    }
+}
+
+impl CampaignSummary {
+    /// The summary as text (what `mvem campaign` prints).
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        if !self.description.is_empty() {
+            s.push_str(&format!("{}\n\n", self.description));
+        }
+        s.push_str(&format!(
+            "Stationary points: {} (n_e {:.0}-{:.0} r/min, u_delta {:.1}-{:.1} mg/cycle, M_e {:.0}-{:.0} Nm{})\n",
+            self.stationary_points,
+            self.n_e_rpm[0],
+            self.n_e_rpm[1],
+            self.u_delta_mg[0],
+            self.u_delta_mg[1],
+            self.m_e_nm[0],
+            self.m_e_nm[1],
+            if self.t_t { "" } else { "; no T_t, which no step uses" }
+        ));
+        let pairs = |v: &std::collections::BTreeMap<String, String>, sep: &str| {
+            v.iter()
+                .map(|(a, b)| format!("{a}{sep}{b}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        if !self.renamed.is_empty() {
+            s.push_str(&format!(
+                "Columns renamed: {}\n",
+                pairs(&self.renamed, " <- ")
+            ));
+        }
+        if !self.units.is_empty() {
+            s.push_str(&format!(
+                "Units converted: {}\n",
+                pairs(&self.units, " in ")
+            ));
+        }
+        s.push_str(
+            "\n| set | kind | roles | samples | duration [s] | rate [Hz] (measured) | command steps | positions |\n\
+             |---|---|---|---:|---:|---:|---:|---|\n",
+        );
+        for d in &self.datasets {
+            let kind = serde_json::to_value(d.kind)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default();
+            let roles: Vec<String> = d
+                .roles
+                .iter()
+                .filter_map(|r| serde_json::to_value(r).ok())
+                .filter_map(|v| v.as_str().map(str::to_string))
+                .collect();
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | {:.1} | {} ({:.4}) | {} | {} |\n",
+                d.name,
+                kind,
+                roles.join(", "),
+                d.samples,
+                d.duration_s,
+                d.sample_rate_hz,
+                d.measured_rate_hz,
+                d.command_steps,
+                if d.positions { "yes" } else { "no" }
+            ));
+        }
+        s.push_str("\nTuning steps the data support (mvem tune --steps):\n");
+        for st in &self.steps {
+            s.push_str(&format!(
+                "  {} step {} ({}): {}\n",
+                if st.supported { "yes" } else { "NO " },
+                st.step,
+                st.title,
+                st.uses
+            ));
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::Params;
+    use crate::tuning::lab::{campaign, LabOptions};
+
+    #[test]
+    fn a_virtual_campaign_supports_every_step_and_its_sets_are_counted() {
+        let opts = LabOptions {
+            max_steps: Some(3),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let s = summarize(&c);
+        assert_eq!(s.stationary_points, c.stationary.len());
+        assert!(s.steps.iter().all(|x| x.supported), "{:?}", s.steps);
+        assert_eq!(s.datasets.len(), c.dynamic.len());
+        for (d, set) in s.datasets.iter().zip(&c.dynamic) {
+            assert_eq!(d.samples, set.t.len());
+            // the manifest's rate is the data's
+            assert!(
+                (d.measured_rate_hz / d.sample_rate_hz - 1.0).abs() < 1e-6,
+                "{d:?}"
+            );
+            // the steps the lab made are the steps counted
+            let info = c
+                .manifest
+                .datasets
+                .iter()
+                .find(|i| i.name == d.name)
+                .unwrap();
+            assert_eq!(d.command_steps, info.steps, "{d:?}");
+        }
+        assert!(s
+            .text()
+            .contains("yes step 5 (static parameters by cost (77)): sets "));
+        // without the actuator and fuel sets: steps 2 and 4 not supported
+        let mut c2 = c.clone();
+        let keep: Vec<bool> = c2
+            .manifest
+            .datasets
+            .iter()
+            .map(|i| i.kind == StepKind::VgtEgr)
+            .collect();
+        let mut k = keep.iter();
+        c2.manifest.datasets.retain(|_| *k.next().unwrap());
+        let mut k = keep.iter();
+        c2.dynamic.retain(|_| *k.next().unwrap());
+        let s2 = summarize(&c2);
+        let ok: Vec<bool> = s2.steps.iter().map(|x| x.supported).collect();
+        assert_eq!(ok, [true, false, true, false, true]);
+        assert!(s2.text().contains("NO  step 2"), "{}", s2.text());
+    }
+}
