@@ -306,3 +306,14 @@ def test_an_exception_in_progress_stops_the_tuning_and_is_raised(campaign):
     assert time.perf_counter() - t0 < 10.0
     with pytest.raises(ValueError, match="progress: must be a callable"):
         mvem.tune(campaign, progress=3)
+
+
+def test_campaign_summary_equals_the_cli(mvem_cli, campaign):
+    s = mvem.campaign(campaign)
+    cli = json.loads(subprocess.run([mvem_cli, "campaign", "--data", str(campaign), "--json"],
+                                    check=True, capture_output=True, text=True).stdout)
+    assert s == cli
+    assert [x["supported"] for x in s["steps"]] == [True] * 5
+    assert s["stationary_points"] > 0 and len(s["datasets"]) == 16
+    with pytest.raises(ValueError, match="manifest.toml"):
+        mvem.campaign(campaign / "no-such-dir")

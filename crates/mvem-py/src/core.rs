@@ -1458,6 +1458,15 @@ pub struct Trace {
     pub outputs: Vec<(String, Vec<f64>, Vec<f64>)>,
 }
 
+/// What the campaign in `data` holds and which tuning steps it supports, as JSON (the object of
+/// `mvem campaign --json`; `mvem::tuning::summary`). A campaign that does not load is a
+/// [`CoreError::Value`] naming the file, line and column.
+pub fn campaign(data: &std::path::Path) -> CoreResult<String> {
+    let c = mvem::tuning::data::load_campaign(data).map_err(|e| CoreError::Value(e.to_string()))?;
+    serde_json::to_string(&mvem::tuning::summary::summarize(&c))
+        .map_err(|e| CoreError::Runtime(e.to_string()))
+}
+
 /// The relative errors (eqs (4), (5)) of `params` on the campaign in `data`, as `mvem validate`
 /// computes them (the core's `tuning::request::validate_campaign`); with `traces`, also the
 /// measured and simulated outputs of each validated dynamic set.

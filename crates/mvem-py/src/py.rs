@@ -1405,6 +1405,20 @@ fn tune<'py>(
     Ok(d)
 }
 
+/// What a campaign directory holds and which tuning steps it supports, before any tuning, as
+/// `mvem campaign --json`: a dict with "stationary_points", the ranges "n_e_rpm",
+/// "u_delta_mg", "m_e_nm", "t_t", "renamed" and "units" (the manifest's [columns] and [units]),
+/// "datasets" (per set: name, kind, roles, samples, duration_s, sample_rate_hz,
+/// measured_rate_hz, command_steps, positions) and "steps" (per step 1-5: step, title,
+/// supported, uses). ValueError naming the file, line and column when the campaign does not
+/// load.
+#[pyfunction]
+fn campaign<'py>(py: Python<'py>, data: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let data = std::path::PathBuf::from(fspath(py, data, "data")?);
+    let json = py.allow_threads(move || core::campaign(&data)).map_err(to_py_err)?;
+    py.import("json")?.call_method1("loads", (json,))
+}
+
 /// The relative errors (eqs (4), (5), per cent) of a parameter set on a campaign directory, as
 /// `mvem validate` computes them (its tables, like the paper's Tables 2-4).
 ///
@@ -1710,6 +1724,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(closed_loop, m)?)?;
     m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(validate, m)?)?;
+    m.add_function(wrap_pyfunction!(campaign, m)?)?;
     m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;

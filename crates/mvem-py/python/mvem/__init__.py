@@ -31,10 +31,13 @@ in parallel):
   dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
 - lab(out, params=None, model=8, **settings) -> dict: a virtual test-cell campaign written to a
   directory, as `mvem lab` (settings: its options in snake case, seed=1, noise="realistic", ...)
-- tune(data, params=None, model=8, **settings) -> dict: the paper's tuning steps on a campaign
-  directory, as `mvem tune` (settings: its options in snake case, steps="1-5", ...): "params"
-  (the tuned set, usable as params=), "test_cell", "toml" (the file mvem tune writes), "report"
-  (tune_report.json), "messages"
+- campaign(data) -> dict: what a campaign directory holds and which tuning steps it supports,
+  as `mvem campaign --json` (points, sets, sample rates, command steps, steps 1-5)
+- tune(data, params=None, model=8, progress=None, **settings) -> dict: the paper's tuning steps
+  on a campaign directory, as `mvem tune` (settings: its options in snake case, steps="1-5",
+  ...): "params" (the tuned set, usable as params=), "test_cell", "toml" (the file mvem tune
+  writes), "report" (tune_report.json), "messages"; Ctrl-C or an exception in progress(dict)
+  stops it
 - validate(data, params=None, model=8, tau_me=None, sensor_lags=None, roles=None,
   traces=False) -> dict: the relative errors of a parameter set on a campaign, as `mvem
   validate` (datasets, stationary; with traces=True the measured and simulated curves)
@@ -57,6 +60,7 @@ from ._mvem import (
     parameters,
     published_params,
     simulate,
+    campaign,
     lab,
     tune,
     validate,
@@ -77,6 +81,7 @@ __all__ = [
     "Plant",
     "simulate",
     "simulate_many",
+    "campaign",
     "lab",
     "tune",
     "validate",

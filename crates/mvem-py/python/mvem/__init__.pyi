@@ -251,6 +251,12 @@ def tune(
     raised. The result does not depend on it.
     """
 
+def campaign(data: Union[str, "os.PathLike[str]"]) -> Dict[str, Any]:
+    """What a campaign directory holds and which tuning steps 1-5 it supports, before any
+    tuning (as `mvem campaign --json`): "stationary_points", ranges, "renamed", "units",
+    "datasets" (kind, roles, samples, duration_s, sample rates, command_steps, positions) and
+    "steps" (step, title, supported, uses). ValueError when the campaign does not load."""
+
 def validate(
     data: Union[str, "os.PathLike[str]"],
     params: Params = None,
