@@ -1415,7 +1415,9 @@ fn tune<'py>(
 #[pyfunction]
 fn campaign<'py>(py: Python<'py>, data: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
     let data = std::path::PathBuf::from(fspath(py, data, "data")?);
-    let json = py.allow_threads(move || core::campaign(&data)).map_err(to_py_err)?;
+    let json = py
+        .allow_threads(move || core::campaign(&data))
+        .map_err(to_py_err)?;
     py.import("json")?.call_method1("loads", (json,))
 }
 
