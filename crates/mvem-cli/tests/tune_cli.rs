@@ -614,12 +614,7 @@ fn campaign_summary_says_which_steps_the_data_support() {
         .map(|s| s["name"].as_str().unwrap())
         .collect();
     assert_eq!(sets, ["B", "Q", "C", "J"]);
-    let ok: Vec<bool> = v["steps"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["supported"].as_bool().unwrap())
-        .collect();
+    let ok = supported(&v);
     assert_eq!(ok, [true, true, true, false, true]);
     assert_eq!(v["steps"][2]["uses"], "sets B, C");
     let o = mvem(d, &["campaign", "--data", "c"]);
@@ -633,4 +628,49 @@ fn campaign_summary_says_which_steps_the_data_support() {
     let o = mvem(d, &["campaign", "--data", "c"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("manifest.toml"), "{}", stderr(&o));
+}
+
+#[test]
+fn campaign_init_drafts_a_manifest_that_loads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let lab = [
+        "lab",
+        "--out",
+        "c",
+        "--sets",
+        "B,I",
+        "--max-steps",
+        "2",
+        "--n-stationary",
+        "20",
+    ];
+    assert!(mvem(d, &lab).status.success());
+    std::fs::remove_file(d.join("c/manifest.toml")).unwrap();
+    let o = mvem(d, &["campaign", "--data", "c", "--init", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("B.csv: set B, kind vgt-egr, roles static, dynamic"));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // B, I and the actuator set J: every step supported
+    let ok = supported(&v);
+    assert_eq!(ok, [true; 5]);
+    let text = std::fs::read_to_string(d.join("c/manifest.toml")).unwrap();
+    assert!(text.starts_with("# drafted by `mvem campaign --init`"));
+    // an existing manifest is kept unless --force
+    let o = mvem(d, &["campaign", "--data", "c", "--init"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--force replaces it"), "{}", stderr(&o));
+    assert!(mvem(d, &["campaign", "--data", "c", "--init", "--force"])
+        .status
+        .success());
+}
+
+/// The "supported" flags of `mvem campaign --json`'s steps 1-5.
+fn supported(v: &serde_json::Value) -> Vec<bool> {
+    v["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["supported"].as_bool().unwrap())
+        .collect()
 }

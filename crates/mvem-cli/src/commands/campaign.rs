@@ -4,6 +4,7 @@
 use crate::common;
 use anyhow::Result;
 use mvem::tuning::data::load_campaign;
+use mvem::tuning::draft::draft_manifest;
 use mvem::tuning::summary::summarize;
 use std::path::PathBuf;
 
@@ -13,12 +14,16 @@ use std::path::PathBuf;
 Examples:
   mvem campaign --data campaign
   mvem campaign --data campaign --json
+  mvem campaign --data my_test_cell_csvs --init   # draft manifest.toml, then the summary
 
 Loads the campaign as `mvem tune` does (manifest, [columns] and [units], every file checked:
 errors name the file, line and column) and prints the stationary points' ranges, one row per
 dynamic set (kind, roles, samples, duration, the manifest's and the measured sample rate, the
 command steps found, whether the actuator positions are there) and which of the tuning steps
-1-5 the data support. --json prints the same as one object. Format: docs/tuning-data.md.")]
+1-5 the data support. --json prints the same as one object. --init first drafts DIR/manifest.toml
+from the CSV files in DIR (the stationary file, each set's kind, roles, sample rate and steps,
+units guessed where values are out of range in mvem's unit; every guess listed as a comment
+and on stderr; an existing manifest is kept unless --force). Format: docs/tuning-data.md.")]
 pub struct Args {
     /// Campaign directory (manifest.toml).
     #[arg(long, value_name = "DIR")]
@@ -26,10 +31,32 @@ pub struct Args {
     /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
+    /// First draft DIR/manifest.toml from the CSV files in DIR.
+    #[arg(long)]
+    pub init: bool,
+    /// With --init: replace an existing manifest.toml.
+    #[arg(long, requires = "init")]
+    pub force: bool,
 }
 
 /// Run `mvem campaign`.
 pub fn run(a: &Args) -> Result<()> {
+    if a.init {
+        let path = a.data.join("manifest.toml");
+        if path.exists() && !a.force {
+            return Err(common::usage(format!(
+                "{}: exists; --force replaces it",
+                path.display()
+            )));
+        }
+        let d = draft_manifest(&a.data).map_err(|e| common::usage(e.to_string()))?;
+        let text = d.toml().map_err(anyhow::Error::msg)?;
+        mvem::io::output::write_atomic(&path, text.as_bytes())?;
+        eprintln!("wrote {} (check what was guessed):", path.display());
+        for n in &d.notes {
+            eprintln!("  {n}");
+        }
+    }
     let c = load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
     let s = summarize(&c);
     if a.json {

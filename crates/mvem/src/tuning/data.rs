@@ -47,7 +47,7 @@ impl Layout {
 
 /// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
 /// mvem's unit being `scale * v + offset`.
-fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
+pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
     match base {
         "Pa" => &[
             ("Pa", 1.0, 0.0),
@@ -430,7 +430,7 @@ impl Campaign {
     }
 }
 
-fn read(path: &Path) -> Result<String, DataError> {
+pub(crate) fn read(path: &Path) -> Result<String, DataError> {
     std::fs::read_to_string(path).map_err(|source| DataError::Io {
         path: path.to_path_buf(),
         source,

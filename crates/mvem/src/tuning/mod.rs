@@ -7,6 +7,8 @@
 //! - [`varpro`] (in [`crate::numerics`], re-exported here): separable nonlinear least squares `min ||y - Phi(alpha) c||` by variable
 //!   projection (Golub–Pereyra), the linear coefficients eliminated by linear least squares.
 //! - [`data`]: campaign formats (stationary/dynamic CSV, manifest) with validated loading.
+//! - [`draft`]: a first manifest for a directory of a test cell's CSV files (kinds, roles,
+//!   rates, steps and units guessed, each guess noted).
 //! - [`lab`]: virtual test cell generating campaigns from known parameters.
 //! - [`steps`]: tuning steps 1 (static submodels, one file per submodel) and 2 (actuators) of
 //!   section 8.1.
@@ -29,6 +31,7 @@
 pub mod complete;
 pub mod constants;
 pub mod data;
+pub mod draft;
 pub mod lab;
 pub mod pipeline;
 pub mod request;
