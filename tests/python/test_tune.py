@@ -317,3 +317,15 @@ def test_campaign_summary_equals_the_cli(mvem_cli, campaign):
     assert s["stationary_points"] > 0 and len(s["datasets"]) == 16
     with pytest.raises(ValueError, match="manifest.toml"):
         mvem.campaign(campaign / "no-such-dir")
+
+
+def test_campaign_init_drafts_the_manifest_of_a_directory_of_csv_files(tmp_path):
+    mvem.lab(tmp_path / "c", sets=["B", "I"], max_steps=2, n_stationary=20)
+    (tmp_path / "c" / "manifest.toml").unlink()
+    s = mvem.campaign(tmp_path / "c", init=True)
+    assert [x["supported"] for x in s["steps"]] == [True] * 5
+    assert any(n.startswith("I.csv: set I, kind fuel") for n in s["notes"]), s["notes"]
+    with pytest.raises(ValueError, match="force=True replaces it"):
+        mvem.campaign(tmp_path / "c", init=True)
+    assert "notes" in mvem.campaign(tmp_path / "c", init=True, force=True)
+    assert "notes" not in mvem.campaign(tmp_path / "c")

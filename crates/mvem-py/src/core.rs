@@ -1458,6 +1458,25 @@ pub struct Trace {
     pub outputs: Vec<(String, Vec<f64>, Vec<f64>)>,
 }
 
+/// Draft `data/manifest.toml` from the CSV files in `data` as `mvem campaign --init` does
+/// (`mvem::tuning::draft`; an existing manifest is kept unless `force`): the notes on what was
+/// guessed.
+pub fn draft_manifest(data: &std::path::Path, force: bool) -> CoreResult<Vec<String>> {
+    let path = data.join("manifest.toml");
+    if path.exists() && !force {
+        return Err(CoreError::Value(format!(
+            "{}: exists; force=True replaces it",
+            path.display()
+        )));
+    }
+    let d =
+        mvem::tuning::draft::draft_manifest(data).map_err(|e| CoreError::Value(e.to_string()))?;
+    let text = d.toml().map_err(CoreError::Runtime)?;
+    mvem::io::output::write_atomic(&path, text.as_bytes())
+        .map_err(|e| CoreError::Runtime(e.to_string()))?;
+    Ok(d.notes)
+}
+
 /// What the campaign in `data` holds and which tuning steps it supports, as JSON (the object of
 /// `mvem campaign --json`; `mvem::tuning::summary`). A campaign that does not load is a
 /// [`CoreError::Value`] naming the file, line and column.

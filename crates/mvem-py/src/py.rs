@@ -1411,14 +1411,37 @@ fn tune<'py>(
 /// "datasets" (per set: name, kind, roles, samples, duration_s, sample_rate_hz,
 /// measured_rate_hz, command_steps, positions) and "steps" (per step 1-5: step, title,
 /// supported, uses). ValueError naming the file, line and column when the campaign does not
-/// load.
+/// load. init=True first drafts data/manifest.toml from the directory's CSV files as `mvem
+/// campaign --init` does (kinds, roles, rates, steps and units guessed; the dict then has
+/// "notes", what was guessed; an existing manifest is kept unless force=True).
 #[pyfunction]
-fn campaign<'py>(py: Python<'py>, data: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+#[pyo3(signature = (data, init=false, force=false))]
+fn campaign<'py>(
+    py: Python<'py>,
+    data: &Bound<'py, PyAny>,
+    init: bool,
+    force: bool,
+) -> PyResult<Bound<'py, PyAny>> {
     let data = std::path::PathBuf::from(fspath(py, data, "data")?);
+    let notes = if init {
+        let d = data.clone();
+        Some(
+            py.allow_threads(move || core::draft_manifest(&d, force))
+                .map_err(to_py_err)?,
+        )
+    } else if force {
+        return Err(PyValueError::new_err("force: only with init=True"));
+    } else {
+        None
+    };
     let json = py
         .allow_threads(move || core::campaign(&data))
         .map_err(to_py_err)?;
-    py.import("json")?.call_method1("loads", (json,))
+    let d = py.import("json")?.call_method1("loads", (json,))?;
+    if let Some(n) = notes {
+        d.set_item("notes", n)?;
+    }
+    Ok(d)
 }
 
 /// The relative errors (eqs (4), (5), per cent) of a parameter set on a campaign directory, as

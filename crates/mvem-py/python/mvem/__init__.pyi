@@ -251,11 +251,15 @@ def tune(
     raised. The result does not depend on it.
     """
 
-def campaign(data: Union[str, "os.PathLike[str]"]) -> Dict[str, Any]:
+def campaign(
+    data: Union[str, "os.PathLike[str]"], init: bool = False, force: bool = False
+) -> Dict[str, Any]:
     """What a campaign directory holds and which tuning steps 1-5 it supports, before any
     tuning (as `mvem campaign --json`): "stationary_points", ranges, "renamed", "units",
     "datasets" (kind, roles, samples, duration_s, sample rates, command_steps, positions) and
-    "steps" (step, title, supported, uses). ValueError when the campaign does not load."""
+    "steps" (step, title, supported, uses). init=True first drafts data/manifest.toml from the
+    directory's CSV files (as `mvem campaign --init`; "notes": what was guessed; an existing
+    manifest is kept unless force=True). ValueError when the campaign does not load."""
 
 def validate(
     data: Union[str, "os.PathLike[str]"],
