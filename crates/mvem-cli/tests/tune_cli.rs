@@ -216,7 +216,8 @@ fn lab_tune_validate_roundtrip_and_errors() {
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("tuning step 2 (actuators from the actuator set)")
-            && stderr(&o).contains("no actuator data set"),
+            && stderr(&o).contains("no actuator data set")
+            && stderr(&o).contains("this campaign supports steps 1,3,4,5"),
         "{}",
         stderr(&o)
     );

@@ -273,6 +273,36 @@ pub struct CampaignTuning {
     pub messages: Vec<String>,
 }
 
+/// A step that failed for lack of data ([`pipeline::tune`]'s "the campaign has no ..."): its
+/// message also names the steps the campaign supports ([`super::summary`]).
+fn with_supported_steps(
+    mut e: pipeline::PipelineError,
+    campaign: &super::data::Campaign,
+) -> pipeline::PipelineError {
+    if let super::steps::StepError::Solver {
+        submodel: "data",
+        message,
+    } = &mut e.source
+    {
+        let s = super::summary::summarize(campaign);
+        let ok: Vec<String> = s
+            .steps
+            .iter()
+            .filter(|x| x.supported)
+            .map(|x| x.step.to_string())
+            .collect();
+        message.push_str(&format!(
+            " (this campaign supports steps {}: `mvem campaign --data DIR` lists its sets)",
+            if ok.is_empty() {
+                "none".to_string()
+            } else {
+                ok.join(",")
+            }
+        ));
+    }
+    e
+}
+
 /// Tune on the campaign in `data_dir` from `base` (the engine's constants and the parameters
 /// of the steps not run; `base_cell` its test-cell section, if any). `constants_given`: the
 /// caller gave the engine's constants (else a note says they are the published engine's).
@@ -321,8 +351,8 @@ pub fn tune_campaign(
             constant_caveats.push(msg);
         }
     }
-    let (params, mut report) =
-        pipeline::tune(&campaign, base, &opts).map_err(RequestError::Pipeline)?;
+    let (params, mut report) = pipeline::tune(&campaign, base, &opts)
+        .map_err(|e| RequestError::Pipeline(with_supported_steps(e, &campaign)))?;
     messages.extend(report_messages(&report));
     report.caveats.extend(constant_caveats);
     // test-cell quantities next to the model parameters; a value of the base file is kept
