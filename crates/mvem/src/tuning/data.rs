@@ -532,6 +532,22 @@ fn parse_columns(
     Ok(rows)
 }
 
+/// `cols` without those named in `optional` that the header of `text` lacks (by the file's
+/// names, `layout`); all of `cols` when the header cannot be read (the parse reports that).
+fn without_absent(
+    text: &str,
+    layout: &Layout,
+    mut cols: Vec<Column>,
+    optional: &[&str],
+) -> Vec<Column> {
+    if let Ok(header) = header_names(text) {
+        cols.retain(|c| {
+            !optional.contains(&c.name) || header.iter().any(|h| h == layout.header(c.name))
+        });
+    }
+    cols
+}
+
 /// Index of `T_t` in [`STATIONARY_COLUMNS`]: the temperature after the turbine is in the
 /// paper's Table 5, but no tuning step uses it, so a campaign may leave it out.
 const T_T: usize = 11;
@@ -543,16 +559,9 @@ pub fn parse_stationary_csv(
     path: &Path,
     layout: &Layout,
 ) -> Result<Vec<StationaryPoint>, DataError> {
-    let t_t_given =
-        header_names(text).map_or(true, |h| h.iter().any(|n| n == layout.header("T_t")));
-    let (rows, t_t_given) = match parse_columns(text, path, &STATIONARY_COLUMNS, layout) {
-        Err(DataError::MissingColumn { .. }) if !t_t_given => {
-            let mut cols = STATIONARY_COLUMNS.to_vec();
-            cols.remove(T_T);
-            (parse_columns(text, path, &cols, layout)?, false)
-        }
-        r => (r?, true),
-    };
+    let cols = without_absent(text, layout, STATIONARY_COLUMNS.to_vec(), &["T_t"]);
+    let t_t_given = cols.len() == STATIONARY_COLUMNS.len();
+    let rows = parse_columns(text, path, &cols, layout)?;
     Ok(rows
         .into_iter()
         .map(|mut r| {
@@ -629,15 +638,15 @@ pub fn parse_dynamic_csv(
     kind: StepKind,
     layout: &Layout,
 ) -> Result<DynamicData, DataError> {
-    let mut req = dynamic_required(kind);
-    if kind != StepKind::Actuator {
-        if let Ok(header) = header_names(text) {
-            req.retain(|c| {
-                !OPTIONAL_DYNAMIC_COLUMNS.contains(&c.name)
-                    || header.iter().any(|h| h == layout.header(c.name))
-            });
-        }
-    }
+    let req = match kind {
+        StepKind::Actuator => dynamic_required(kind),
+        _ => without_absent(
+            text,
+            layout,
+            dynamic_required(kind),
+            &OPTIONAL_DYNAMIC_COLUMNS,
+        ),
+    };
     let rows = parse_columns(text, path, &req, layout)?;
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
