@@ -13,10 +13,10 @@
 //! columns they lack.
 
 use super::data::{
-    read, units_of, Column, DataError, DataSetInfo, Manifest, Role, StepKind, ACTUATOR_COLUMNS,
-    DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
+    dynamic_required, read, units_of, Column, DataError, DataSetInfo, Manifest, Role, StepKind,
+    ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
 };
-use super::summary::STEP_THRESHOLD;
+use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
 use crate::io::csv_columns::{header_names, read_columns};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -83,14 +83,6 @@ fn columns(text: &str, cols: &[Column]) -> Vec<(Column, Vec<f64>)> {
     }
 }
 
-fn steps_of(v: Option<&Vec<f64>>) -> usize {
-    v.map_or(0, |u| {
-        u.windows(2)
-            .filter(|w| (w[1] - w[0]).abs() > STEP_THRESHOLD)
-            .count()
-    })
-}
-
 /// Draft a manifest for the CSV files in `dir` (see the module documentation). An error only
 /// when the directory cannot be read or holds no stationary file.
 pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
@@ -152,25 +144,36 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                 .filter(|n| !OPTIONAL_DYNAMIC_COLUMNS.contains(n)),
         );
         let act_missing = lacks(&mut ACTUATOR_COLUMNS.iter().copied());
-        let t_col = [Column {
-            name: "t",
-            unit: "s",
-            min: -1e6,
-            max: 1e6,
-        }];
-        let cols = columns(&text, &[&t_col[..], &DYNAMIC_COLUMNS[..]].concat());
+        // t and every dynamic column the file has
+        let cols = columns(&text, &dynamic_required(StepKind::VgtEgr));
         let get = |n: &str| cols.iter().find(|c| c.0.name == n).map(|c| &c.1);
+        // the command steps, counted as `mvem campaign` counts them (tuning::summary)
+        let steps = |names: &[&str]| -> usize {
+            let chans: Vec<&[f64]> = names
+                .iter()
+                .filter_map(|n| get(n))
+                .map(|v| &v[..])
+                .collect();
+            steps_in(&chans)
+        };
         let (kind, roles, steps) = if dyn_missing.is_empty() {
-            let fuel = steps_of(get("u_delta"));
-            let air = steps_of(get("u_egr")) + steps_of(get("u_vgt"));
+            let fuel = steps(&["u_delta"]);
+            let air = steps(&["u_egr", "u_vgt"]);
             if fuel > 0 && air == 0 {
                 (StepKind::Fuel, vec![Role::Dynamic, Role::Static], fuel)
             } else {
-                (StepKind::VgtEgr, vec![Role::Static], air + fuel)
+                (
+                    StepKind::VgtEgr,
+                    vec![Role::Static],
+                    steps(&["u_egr", "u_vgt", "u_delta"]),
+                )
             }
         } else if act_missing.is_empty() {
-            let steps = steps_of(get("u_egr")) + steps_of(get("u_vgt"));
-            (StepKind::Actuator, vec![Role::Actuator], steps)
+            (
+                StepKind::Actuator,
+                vec![Role::Actuator],
+                steps(&["u_egr", "u_vgt"]),
+            )
         } else {
             notes.push(format!(
                 "{f}: skipped (a dynamic set lacks {}; an actuator set lacks {})",
@@ -179,10 +182,8 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             ));
             continue;
         };
-        let t = get("t").cloned().unwrap_or_default();
-        let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        dt.sort_by(f64::total_cmp);
-        let rate = dt.get(dt.len() / 2).filter(|d| **d > 0.0).map_or(1.0, |d| {
+        let dt = get("t").map_or(0.0, |t| median_step(t));
+        let rate = Some(dt).filter(|d| *d > 0.0).map_or(1.0, |d| {
             let r = 1.0 / d;
             // to 6 significant digits
             let scale = 10f64.powi(5 - r.log10().floor() as i32);
@@ -192,26 +193,14 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         if kind == StepKind::VgtEgr && rate >= 10.0 {
             roles.push(Role::Dynamic);
         }
-        let speed = get("n_e").and_then(|n| {
-            let mut v = n.clone();
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2)
-                .copied()
-                .filter(|s| (300.0..=6000.0).contains(s))
-                .map(|s| s.round())
-        });
+        let speed = get("n_e")
+            .and_then(|n| median(n.clone()))
+            .filter(|s| (300.0..=6000.0).contains(s))
+            .map(f64::round);
         notes.push(format!(
             "{f}: set {name}, kind {}, roles {} ({steps} command steps, {rate} Hz)",
-            serde_json::to_value(kind)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .unwrap_or_default(),
-            roles
-                .iter()
-                .filter_map(|r| serde_json::to_value(r).ok())
-                .filter_map(|v| v.as_str().map(str::to_string))
-                .collect::<Vec<_>>()
-                .join(", ")
+            manifest_name(&kind),
+            roles_text(&roles)
         ));
         keep(cols.into_iter().filter(|c| c.0.name != "t").collect());
         sets.push(DataSetInfo {

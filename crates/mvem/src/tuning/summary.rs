@@ -81,13 +81,28 @@ fn range(v: impl Iterator<Item = f64>) -> [f64; 2] {
     })
 }
 
-fn median_step(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return 0.0;
-    }
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2]
+/// The median (the upper one of an even count) of `v`, `None` when empty.
+pub(crate) fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
+/// The median time step of `t` (0 for fewer than two samples).
+pub(crate) fn median_step(t: &[f64]) -> f64 {
+    median(t.windows(2).map(|w| w[1] - w[0]).collect()).unwrap_or(0.0)
+}
+
+/// Command steps of equally long channels: the samples where any of them moves by more than
+/// [`STEP_THRESHOLD`] from the sample before.
+pub(crate) fn steps_in(channels: &[&[f64]]) -> usize {
+    let n = channels.iter().map(|u| u.len()).min().unwrap_or(0);
+    (1..n)
+        .filter(|&k| {
+            channels
+                .iter()
+                .any(|u| (u[k] - u[k - 1]).abs() > STEP_THRESHOLD)
+        })
+        .count()
 }
 
 fn command_steps(d: &DynamicData) -> usize {
@@ -95,12 +110,24 @@ fn command_steps(d: &DynamicData) -> usize {
         .iter()
         .filter_map(|c| d.get(c))
         .collect();
-    (1..d.t.len())
-        .filter(|&k| {
-            cmds.iter()
-                .any(|u| (u[k] - u[k - 1]).abs() > STEP_THRESHOLD)
-        })
-        .count()
+    steps_in(&cmds)
+}
+
+/// A kind or role by its manifest name (`vgt-egr`, `static`, ...).
+pub(crate) fn manifest_name<T: Serialize>(v: &T) -> String {
+    serde_json::to_value(v)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default()
+}
+
+/// Roles by their manifest names, comma separated.
+pub(crate) fn roles_text(roles: &[Role]) -> String {
+    roles
+        .iter()
+        .map(manifest_name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Summarize a loaded campaign (see the module documentation).
@@ -235,21 +262,13 @@ impl CampaignSummary {
              |---|---|---|---:|---:|---:|---:|---|\n",
         );
         for d in &self.datasets {
-            let kind = serde_json::to_value(d.kind)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .unwrap_or_default();
-            let roles: Vec<String> = d
-                .roles
-                .iter()
-                .filter_map(|r| serde_json::to_value(r).ok())
-                .filter_map(|v| v.as_str().map(str::to_string))
-                .collect();
+            let kind = manifest_name(&d.kind);
+            let roles = roles_text(&d.roles);
             s.push_str(&format!(
                 "| {} | {} | {} | {} | {:.1} | {} ({:.4}) | {} | {} |\n",
                 d.name,
                 kind,
-                roles.join(", "),
+                roles,
                 d.samples,
                 d.duration_s,
                 d.sample_rate_hz,
