@@ -1462,18 +1462,14 @@ pub struct Trace {
 /// (`mvem::tuning::draft`; an existing manifest is kept unless `force`): the notes on what was
 /// guessed.
 pub fn draft_manifest(data: &std::path::Path, force: bool) -> CoreResult<Vec<String>> {
-    let path = data.join("manifest.toml");
-    if path.exists() && !force {
-        return Err(CoreError::Value(format!(
-            "{}: exists; force=True replaces it",
-            path.display()
-        )));
-    }
-    let d =
-        mvem::tuning::draft::draft_manifest(data).map_err(|e| CoreError::Value(e.to_string()))?;
-    let text = d.toml().map_err(CoreError::Runtime)?;
-    mvem::io::output::write_atomic(&path, text.as_bytes())
-        .map_err(|e| CoreError::Runtime(e.to_string()))?;
+    use mvem::tuning::draft::{write_draft, WriteDraftError};
+    let d = write_draft(data, force).map_err(|e| match e {
+        WriteDraftError::Exists(p) => {
+            CoreError::Value(format!("{}: exists; force=True replaces it", p.display()))
+        }
+        WriteDraftError::Data(e) => CoreError::Value(e.to_string()),
+        WriteDraftError::Write(m) => CoreError::Runtime(m),
+    })?;
     Ok(d.notes)
 }
 

@@ -4,7 +4,7 @@
 use crate::common;
 use anyhow::Result;
 use mvem::tuning::data::load_campaign;
-use mvem::tuning::draft::draft_manifest;
+use mvem::tuning::draft::{write_draft, WriteDraftError};
 use mvem::tuning::summary::summarize;
 use std::path::PathBuf;
 
@@ -42,16 +42,14 @@ pub struct Args {
 /// Run `mvem campaign`.
 pub fn run(a: &Args) -> Result<()> {
     if a.init {
+        let d = write_draft(&a.data, a.force).map_err(|e| match e {
+            WriteDraftError::Exists(p) => {
+                common::usage(format!("{}: exists; --force replaces it", p.display()))
+            }
+            WriteDraftError::Data(e) => common::usage(e.to_string()),
+            WriteDraftError::Write(m) => anyhow::Error::msg(m),
+        })?;
         let path = a.data.join("manifest.toml");
-        if path.exists() && !a.force {
-            return Err(common::usage(format!(
-                "{}: exists; --force replaces it",
-                path.display()
-            )));
-        }
-        let d = draft_manifest(&a.data).map_err(|e| common::usage(e.to_string()))?;
-        let text = d.toml().map_err(anyhow::Error::msg)?;
-        mvem::io::output::write_atomic(&path, text.as_bytes())?;
         eprintln!("wrote {} (check what was guessed):", path.display());
         for n in &d.notes {
             eprintln!("  {n}");

@@ -19,7 +19,7 @@ use super::data::{
 use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
 use crate::io::csv_columns::{header_names, read_columns};
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A drafted manifest and what was guessed.
 #[derive(Debug, Clone, PartialEq)]
@@ -265,6 +265,31 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         },
         notes,
     })
+}
+
+/// Why [`write_draft`] wrote nothing.
+#[derive(Debug)]
+pub enum WriteDraftError {
+    /// `manifest.toml` exists and was not to be replaced (its path).
+    Exists(PathBuf),
+    /// The directory could not be drafted ([`draft_manifest`]).
+    Data(DataError),
+    /// The draft could not be serialized or written.
+    Write(String),
+}
+
+/// Draft `dir/manifest.toml` ([`draft_manifest`]) and write it atomically, replacing an
+/// existing one only when `replace`; the draft (its notes say what was guessed).
+pub fn write_draft(dir: &Path, replace: bool) -> Result<ManifestDraft, WriteDraftError> {
+    let path = dir.join("manifest.toml");
+    if path.exists() && !replace {
+        return Err(WriteDraftError::Exists(path));
+    }
+    let d = draft_manifest(dir).map_err(WriteDraftError::Data)?;
+    let text = d.toml().map_err(WriteDraftError::Write)?;
+    crate::io::output::write_atomic(&path, text.as_bytes())
+        .map_err(|e| WriteDraftError::Write(e.to_string()))?;
+    Ok(d)
 }
 
 #[cfg(test)]
