@@ -275,10 +275,7 @@ pub struct CampaignTuning {
 
 /// A step that failed for lack of data ([`pipeline::tune`]'s "the campaign has no ..."): its
 /// message also names the steps the campaign supports ([`super::summary`]).
-fn with_supported_steps(
-    mut e: pipeline::PipelineError,
-    campaign: &super::data::Campaign,
-) -> pipeline::PipelineError {
+fn with_supported_steps(mut e: PipelineError, campaign: &Campaign) -> PipelineError {
     if let super::steps::StepError::Solver {
         submodel: "data",
         message,
