@@ -510,19 +510,16 @@ pub fn tune(
         begin(6, false)?;
         rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
     }
+    // the last step run (0: none), which the checks of the result are reported under
+    let last_step = opts
+        .steps
+        .iter()
+        .rposition(|s| *s)
+        .map_or(0, |i| i as u8 + 1);
     // a search cancelled in the last step may have returned what it had
-    checkpoint(
-        opts.steps
-            .iter()
-            .rposition(|s| *s)
-            .map_or(0, |i| i as u8 + 1),
-    )?;
+    checkpoint(last_step)?;
     p.validate().map_err(|e| PipelineError {
-        step: opts
-            .steps
-            .iter()
-            .rposition(|s| *s)
-            .map_or(0, |i| i as u8 + 1),
+        step: last_step,
         source: StepError::Solver {
             submodel: "result",
             message: format!("the tuned parameters are invalid: {e}"),
