@@ -132,3 +132,38 @@ def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path):
     assert elapsed < 30 * per_run, (elapsed, per_run)
     again = mvem.simulate_many([whtc], dt=10.0)[0]
     assert_same(again, one)
+
+
+@pytest.mark.parametrize("call", ["simulate", "closed_loop"])
+def test_ctrl_c_stops_a_long_single_run(call):
+    """KeyboardInterrupt while one long run integrates (mvem.simulate of the WHTC at rtol 1e-10,
+    about 20 times the default run's work; mvem.closed_loop of the whole WHTC): the integrator
+    polls the cancellation before every step, so the call raises soon after the signal instead
+    of finishing the run; a later call gives the same result as before."""
+    import _thread
+    import threading
+    import time
+
+    from conftest import ROOT, read_csv
+
+    whtc = read_csv(ROOT / "data" / "whtc_inputs_10hz.csv")
+    if call == "simulate":
+        run = lambda: mvem.simulate(whtc, rtol=1e-10, atol=1e-10, dt=1.0)  # noqa: E731
+        last = lambda r: r["p_im"][-1]  # noqa: E731
+    else:
+        run = lambda: mvem.closed_loop("whtc")  # noqa: E731
+        last = lambda r: r["trajectory"]["p_im"][-1]  # noqa: E731
+    t0 = time.perf_counter()
+    full = run()
+    t_full = time.perf_counter() - t0
+    timer = threading.Timer(0.1 * t_full, _thread.interrupt_main)
+    t0 = time.perf_counter()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        run()
+    elapsed = time.perf_counter() - t0
+    timer.join()
+    print(f"{call}: full run {t_full:.2f} s, interrupted at 10 % returned after {elapsed:.2f} s")
+    # the signal at 10 % of the run; without the integrator's check the call ran to its end
+    assert elapsed < 0.6 * t_full, (elapsed, t_full)
+    assert last(run()) == last(full)

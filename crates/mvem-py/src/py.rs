@@ -248,9 +248,10 @@ fn simulate<'py>(
         ..sim_args(t_end, dt, rtol, atol, numeric_actuators)
     };
     let start = x0.map(|x| start_state(py, x)).transpose()?;
-    let cols = py
-        .allow_threads(move || core::simulate_rows_from(&rows, args, p, variant, start.as_ref()))
-        .map_err(to_py_err)?;
+    let cols = cancellable(py, move || {
+        core::simulate_rows_from(&rows, args, p, variant, start.as_ref())
+    })?
+    .map_err(to_py_err)?;
     columns_dict(py, cols)
 }
 
@@ -552,9 +553,10 @@ fn closed_loop<'py>(
         }
     };
     let p = parse_params(py, params)?;
-    let run = py
-        .allow_threads(move || core::closed_loop(cycle, tuning.as_deref(), p, variant, duration))
-        .map_err(to_py_err)?;
+    let run = cancellable(py, move || {
+        core::closed_loop(cycle, tuning.as_deref(), p, variant, duration)
+    })?
+    .map_err(to_py_err)?;
     let out: Bound<'py, PyDict> = py
         .import("json")?
         .call_method1("loads", (run.summary,))?
@@ -817,21 +819,20 @@ fn step_response<'py>(
         ..SimArgs::default()
     };
     let (input, output) = (input.to_string(), output.to_string());
-    let r = py
-        .allow_threads(move || {
-            core::step_response(
-                [n_e, u_delta, u_egr, u_vgt],
-                &input,
-                to,
-                &output,
-                t_step,
-                t_end,
-                args,
-                p,
-                variant,
-            )
-        })
-        .map_err(to_py_err)?;
+    let r = cancellable(py, move || {
+        core::step_response(
+            [n_e, u_delta, u_egr, u_vgt],
+            &input,
+            to,
+            &output,
+            t_step,
+            t_end,
+            args,
+            p,
+            variant,
+        )
+    })?
+    .map_err(to_py_err)?;
     let np = py.import("numpy")?;
     let d = metrics_dict(py, &r.metrics)?;
     d.set_item("t", np.call_method1("array", (r.t,))?)?;
@@ -1473,19 +1474,18 @@ fn validate<'py>(
     let data = std::path::PathBuf::from(fspath(py, data, "data")?);
     let p = parse_params(py, params)?.unwrap_or_else(Params::published);
     let cell = test_cell_of(py, params)?;
-    let out = py
-        .allow_threads(move || {
-            core::validate(
-                &data,
-                (p, cell),
-                variant.order,
-                tau_me,
-                sensor_lags.as_deref(),
-                roles.as_deref(),
-                traces,
-            )
-        })
-        .map_err(to_py_err)?;
+    let out = cancellable(py, move || {
+        core::validate(
+            &data,
+            (p, cell),
+            variant.order,
+            tau_me,
+            sensor_lags.as_deref(),
+            roles.as_deref(),
+            traces,
+        )
+    })?
+    .map_err(to_py_err)?;
     let np = py.import("numpy")?;
     let d: Bound<'py, PyDict> = py
         .import("json")?
@@ -1570,9 +1570,10 @@ fn lab<'py>(
     let p = parse_params(py, params)?;
     let settings = settings_json(py, settings, "lab settings")?;
     let path = std::path::PathBuf::from(&dir);
-    let (n_stationary, sets, samples) = py
-        .allow_threads(move || core::lab(&path, p, variant.order, settings.as_deref()))
-        .map_err(to_py_err)?;
+    let (n_stationary, sets, samples) = cancellable(py, move || {
+        core::lab(&path, p, variant.order, settings.as_deref())
+    })?
+    .map_err(to_py_err)?;
     let d = PyDict::new(py);
     d.set_item("dir", dir)?;
     d.set_item("stationary", n_stationary)?;
@@ -1644,6 +1645,13 @@ fn interruptible<T: Send>(
             }
         }
     })
+}
+
+/// [`interruptible`] with a token of its own and no progress: the long calls without a
+/// progress callback (simulate, step_response, closed_loop, validate, lab). Ctrl-C stops the
+/// simulation within one integrator step (`SimError::Cancelled`) and raises KeyboardInterrupt.
+fn cancellable<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> PyResult<T> {
+    interruptible(py, &mvem::numerics::cancel::CancelToken::new(), None, f)
 }
 
 /// A progress observer (`mvem::numerics::progress`) that calls the Python callable `cb` with a

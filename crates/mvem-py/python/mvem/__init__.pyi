@@ -39,7 +39,8 @@ def simulate(
     time_parallel: time chunks integrated at once, one thread each (default 1: sequential).
     x0: start state (dict of every state name -> value, or an array in state order).
     Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
-    ValueError: bad inputs/options/params; RuntimeError: solver failure.
+    ValueError: bad inputs/options/params; RuntimeError: solver failure. Ctrl-C
+    (KeyboardInterrupt) stops the run within one integrator step.
     """
 
 def simulate_many(
@@ -57,7 +58,7 @@ def simulate_many(
     x0: Any = None,
 ) -> List[Union[Dict[str, "np.ndarray[Any, np.dtype[np.float64]]"], Exception]]:
     """Many simulations at once on `threads` worker threads (None: one per core), GIL released.
-    Ctrl-C (KeyboardInterrupt) stops the ensemble once the runs in progress end.
+    Ctrl-C (KeyboardInterrupt) stops the ensemble, the runs in progress within one step.
 
     Run i simulates inputs[i] (as simulate) with params (one for all runs, or a list with one
     entry per run). on_error="raise": after all runs, raise the first failure ("run i: ...");

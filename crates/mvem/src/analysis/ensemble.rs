@@ -78,24 +78,22 @@ pub fn simulate_many(
 ) -> Result<Vec<Result<Solution, RunError>>, PoolError> {
     // the caller's cancellation token, polled by the workers before each run
     let cancel = crate::numerics::cancel::current();
-    in_pool(threads, || {
-        cases
-            .par_iter()
-            .enumerate()
-            .map(|(index, c)| {
-                if cancel.as_ref().is_some_and(|t| t.is_cancelled()) {
-                    return Err(RunError {
-                        index,
-                        error: SimFromSteadyError::Cancelled,
-                    });
-                }
-                let t0 = c.inputs.t_first();
-                let t_end = c.t_end.unwrap_or(c.inputs.t_last());
-                crate::dispatch!(&c.model, m => run_case(m, c, t0, t_end, opts))
-                    .map_err(|error| RunError { index, error })
-            })
-            .collect()
-    })
+    // (taken here: `in_pool` runs its closure on a worker of the pool, without the token)
+    let run = crate::numerics::cancel::carry(|(index, c): (usize, &Case)| {
+        if cancel.as_ref().is_some_and(|t| t.is_cancelled()) {
+            return Err(RunError {
+                index,
+                error: SimFromSteadyError::Cancelled,
+            });
+        }
+        let t0 = c.inputs.t_first();
+        let t_end = c.t_end.unwrap_or(c.inputs.t_last());
+        // (the run's integrator polls the carried token too: a long run stops within
+        // one step)
+        crate::dispatch!(&c.model, m => run_case(m, c, t0, t_end, opts))
+            .map_err(|error| RunError { index, error })
+    });
+    in_pool(threads, || cases.par_iter().enumerate().map(&run).collect())
 }
 
 /// One case from its start state or the steady state at its first inputs.

@@ -360,6 +360,7 @@ pub fn error_class(e: &SimError) -> String {
         SimError::NonFinite { what, name, .. } => format!("NonFinite({what} {name})"),
         SimError::StepSizeTooSmall { .. } => "StepSizeTooSmall".into(),
         SimError::TooManySteps { .. } => "TooManySteps".into(),
+        SimError::Cancelled { .. } => "Cancelled".into(),
     }
 }
 
@@ -371,7 +372,9 @@ pub fn error_is_located(e: &SimError) -> bool {
         SimError::NonFinite { .. } | SimError::StepSizeTooSmall { .. } => {
             m.contains("t = ") && m.contains("state: [") && m.contains("Hint:")
         }
-        SimError::TooManySteps { .. } => m.contains("t = ") && m.contains("state: ["),
+        SimError::TooManySteps { .. } | SimError::Cancelled { .. } => {
+            m.contains("t = ") && m.contains("state: [")
+        }
         _ => !m.is_empty(),
     }
 }

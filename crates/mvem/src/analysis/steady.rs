@@ -74,6 +74,13 @@ pub enum SteadyError {
         /// What failed.
         reason: String,
     },
+    /// The settling simulation was cancelled by the caller's token
+    /// ([`crate::numerics::cancel`]): no verdict on the equilibrium.
+    #[error("cancelled while settling at n_e={} rpm, u_delta={} mg, u_egr={} %, u_vgt={} % (a cancellation request, e.g. Ctrl-C)", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
+    Cancelled {
+        /// Inputs.
+        drive: Drive,
+    },
 }
 
 /// Why [`simulate_from_steady`] failed: no initial equilibrium, or the simulation itself.
@@ -322,6 +329,9 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
                     {
                         return Ok(ss);
                     }
+                }
+                Err(SimError::Cancelled { .. }) => {
+                    return Err(SteadyError::Cancelled { drive: *d });
                 }
                 Err(e) => {
                     reason = format!("settling simulation failed: {e}");

@@ -16,8 +16,14 @@
 //! The token is per thread (set by [`with_token`] for the duration of one call, restored after
 //! it, also when the call panics), so concurrent computations on different threads are cancelled
 //! independently. Parallel code that wants its workers to see the caller's token takes it with
-//! [`current`] before it fans out and polls that (rayon's workers are other threads). Code that
-//! runs without a token is never cancelled, and [`requested`] costs one thread-local read.
+//! [`current`] before it fans out and polls that (rayon's workers are other threads), or wraps
+//! its workers' closure in [`carry`]. Code that runs without a token is never cancelled, and
+//! [`requested`] costs one thread-local read.
+//!
+//! - the integrator ([`crate::sim`]) before every trial step: [`crate::sim::SimError::Cancelled`]
+//!   with the time and state reached (it takes the token when it is created; the time chunks of
+//!   one run and the runs of an ensemble, the campaign's sets of the virtual test cell and of a
+//!   validation carry it to their threads), so a long simulation stops within one step.
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -65,6 +71,18 @@ pub fn requested() -> bool {
     CURRENT.with(|c| c.borrow().as_ref().is_some_and(CancelToken::is_cancelled))
 }
 
+/// `f` made to run with the calling thread's token (taken now, by [`current`]) on whichever
+/// thread calls it: for the closures of parallel iterators, whose workers are other threads
+/// (`items.par_iter().map(carry(|x| simulate(x)))`), so that the integrators and searches they
+/// run see the caller's cancellation. Without a token `f` runs as it is.
+pub fn carry<A, R>(f: impl Fn(A) -> R + Sync + Send) -> impl Fn(A) -> R + Sync + Send {
+    let token = current();
+    move |a| match &token {
+        Some(t) => with_token(t, || f(a)),
+        None => f(a),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -85,6 +103,18 @@ mod tests {
         });
         assert!(!requested());
         assert!(current().is_none());
+    }
+
+    #[test]
+    fn a_carried_closure_sees_the_callers_token_on_another_thread() {
+        let t = CancelToken::new();
+        let f = with_token(&t, || carry(|k: u32| (k, requested())));
+        t.cancel();
+        let (k, seen) = std::thread::scope(|s| s.spawn(|| f(7)).join().unwrap());
+        assert_eq!((k, seen), (7, true));
+        // taken outside any scope: no token, on any thread
+        let g = carry(|()| requested());
+        assert!(!std::thread::scope(|s| s.spawn(|| g(())).join().unwrap()));
     }
 
     #[test]

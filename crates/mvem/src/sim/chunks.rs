@@ -438,6 +438,8 @@ pub(super) fn simulate_chunked<const N: usize, M: Dynamics<N>>(
         .chain(std::iter::once(t_end))
         .collect();
     let y_first = first.y;
+    // the chunks' threads poll the caller's cancellation token, as the first chunk does
+    let cancel = crate::numerics::cancel::current();
     std::thread::scope(|s| {
         let handles: Vec<_> = (1..k_all)
             .map(|k| {
@@ -445,10 +447,17 @@ pub(super) fn simulate_chunked<const N: usize, M: Dynamics<N>>(
                 let (tk, te) = (starts[k], ends[k]);
                 let last = k + 1 == k_all;
                 let stops = &stops;
+                let cancel = cancel.clone();
                 s.spawn(move || {
-                    run_chunk(
-                        model, sched, t0, tk, te, last, y_first, opts, guess, stops, out,
-                    )
+                    let run = || {
+                        run_chunk(
+                            model, sched, t0, tk, te, last, y_first, opts, guess, stops, out,
+                        )
+                    };
+                    match &cancel {
+                        Some(c) => crate::numerics::cancel::with_token(c, run),
+                        None => run(),
+                    }
                 })
             })
             .collect();

@@ -72,6 +72,15 @@ pub enum SimError {
         /// State.
         state: StateDump,
     },
+    /// The caller's cancellation token ([`crate::numerics::cancel`], e.g. Ctrl-C in Python)
+    /// asked the run to stop; `t` is where it stopped, with the state there.
+    #[error("cancelled at t = {} s (a cancellation request, e.g. Ctrl-C); state: {state}", crate::numerics::Num(*t))]
+    Cancelled {
+        /// Time reached \[s\].
+        t: f64,
+        /// State.
+        state: StateDump,
+    },
 }
 
 /// A state vector with its names, for error messages.

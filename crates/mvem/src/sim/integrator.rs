@@ -64,6 +64,9 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     pub(super) lag_seg: Vec<LagSegment>,
     /// Statistics so far.
     pub stats: SimStats,
+    /// The cancellation token of the thread that created the integrator
+    /// ([`crate::numerics::cancel::current`]), polled before every trial step.
+    pub(super) cancel: Option<crate::numerics::cancel::CancelToken>,
 }
 
 /// One linear piece of a lag's saturated, delayed driving command in simulation time:
@@ -350,6 +353,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             lags: Vec::new(),
             lag_seg: Vec::new(),
             stats: SimStats::default(),
+            cancel: crate::numerics::cancel::current(),
         };
         if opts.exact_actuators && opts.method.is_rosenbrock() {
             let lags = model.linear_lags();
@@ -643,6 +647,12 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             if self.stats.steps + self.stats.rejected >= self.opts.max_steps {
                 return Err(SimError::TooManySteps {
                     max_steps: self.opts.max_steps,
+                    t: self.t,
+                    state: dump(self.model, &self.y),
+                });
+            }
+            if self.cancel.as_ref().is_some_and(|c| c.is_cancelled()) {
+                return Err(SimError::Cancelled {
                     t: self.t,
                     state: dump(self.model, &self.y),
                 });

@@ -237,6 +237,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             lags: std::mem::take(&mut c.lags),
             lag_seg: std::mem::take(&mut c.lag_seg),
             stats: SimStats::default(),
+            cancel: crate::numerics::cancel::current(),
         };
         let res = run.advance(t_end, &mut self.scratch, false);
         c.h = run.h;

@@ -671,7 +671,7 @@ pub fn dynamic_sets(
         })
         .collect();
     rows.par_iter()
-        .map(|r| {
+        .map(crate::numerics::cancel::carry(|r: &&Table1Row| {
             let n_steps = opts.max_steps.map_or(r.steps, |m| m.min(r.steps)).max(1);
             let t_end = (n_steps + 1) as f64 * r.hold_s;
             let mut last = String::new();
@@ -698,7 +698,7 @@ pub fn dynamic_sets(
                 "data set {}: no valid step sequence in 10 draws ({last})",
                 r.name
             )))
-        })
+        }))
         .collect()
 }
 

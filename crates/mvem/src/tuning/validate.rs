@@ -15,7 +15,7 @@
 //! sets; entries: mean absolute relative error in per cent, as in Table 2).
 
 use super::data::{
-    load_campaign, Campaign, DataError, DynamicData, Role, StationaryPoint, StepKind,
+    load_campaign, Campaign, DataError, DataSetInfo, DynamicData, Role, StationaryPoint, StepKind,
 };
 use super::sensors::SensorLags;
 use super::steps::{self, rel_errors, StepError};
@@ -642,10 +642,12 @@ pub fn validate_campaign_with(
         .collect();
     let datasets = sel
         .par_iter()
-        .map(|(info, d)| match info.kind {
-            StepKind::Actuator => actuator_errors(p, d),
-            _ => dynamic_errors_with(order, p, d, &c.stationary, tau_me, lags),
-        })
+        .map(crate::numerics::cancel::carry(
+            |(info, d): &(&DataSetInfo, &DynamicData)| match info.kind {
+                StepKind::Actuator => actuator_errors(p, d),
+                _ => dynamic_errors_with(order, p, d, &c.stationary, tau_me, lags),
+            },
+        ))
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ValidationReport {
         stationary,
