@@ -327,9 +327,22 @@ def test_closed_loop_controller_tuning(page, server):
     page.screenshot(path=str(ART / "explorer_tuning.png"), full_page=True)
 
 
+def _page_work_equals_the_api(page, server, text):
+    """The closed-loop statistics the page shows for the cycle file `text` (its positive work,
+    actual / reference) are the API's run of the same text."""
+    rows = dict(page.eval_on_selector_all(
+        "#cycle-stats tbody tr", "trs => trs.map(tr => [tr.cells[0].textContent, tr.cells[1].textContent])"))
+    api = _api(server, "/api/simulate", {"csv": text, "mode": "closed", "dt": 0.2,
+                                          "model": 8, "params": page.input_value("select[name=params]")})
+    s = api["cycle_stats"]
+    assert rows["positive work, actual / reference"].startswith(
+        f"{s['work_act_kwh']:.3f} / {s['work_ref_kwh']:.3f} kWh"), rows
+
+
 def test_uploaded_cycle_files(page, server, tmp_path):
-    """A cycle from a file: in closed-loop mode a speed/torque demand (t, n_e, M_ref) runs with
-    the baseline controllers and shows its statistics, equal to the API's run of the same text;
+    """A cycle from a file: in closed-loop mode a speed/torque demand (t, n_e, M_ref) and a
+    normalized cycle (Time, Speed %, Torque %) run with the baseline controllers and show their
+    statistics, equal to the API's run of the same text;
     in open-loop mode an inputs file runs from its steady state (a file of the wrong kind is the
     server's 400 naming the missing columns: crates/mvem-serve/tests/api.rs)."""
     demand = tmp_path / "demand.csv"
@@ -346,14 +359,22 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     page.click("[data-action=cycle]")
     page.wait_for_selector("#cycle-stats:not([hidden])", timeout=60000)
     assert page.get_attribute("canvas[data-plot=cycle]", "data-drawn") == "31"  # 0..6 s every 0.2 s
-    rows = dict(page.eval_on_selector_all(
-        "#cycle-stats tbody tr", "trs => trs.map(tr => [tr.cells[0].textContent, tr.cells[1].textContent])"))
-    api = _api(server, "/api/simulate", {"csv": demand.read_text(), "mode": "closed", "dt": 0.2,
-                                          "model": 8, "params": page.input_value("select[name=params]")})
-    s = api["cycle_stats"]
-    assert rows["positive work, actual / reference"].startswith(
-        f"{s['work_act_kwh']:.3f} / {s['work_ref_kwh']:.3f} kWh"), rows
+    _page_work_equals_the_api(page, server, demand.read_text())
     page.screenshot(path=str(ART / "explorer_demand_file.png"), full_page=True)
+    # a normalized cycle (UN GTR No. 4's form) in the same mode: denormalized on this engine
+    assert "Speed [%], Torque [%]" in page.text_content("#cycle-format")
+    modes = tmp_path / "modes.tsv"
+    modes.write_text("Time\tSpeed\tTorque\ns\t%\t%\n0\t0\t0\n2\t0\t0\n4\t40\t60\n6\t40\tm\n")
+    page.set_input_files("input[name=cycle_file]", str(modes))
+    page.wait_for_function(
+        "() => document.querySelector('select[name=cycle] option[value=__file]')"
+        ".textContent.includes('modes.tsv')")
+    page.eval_on_selector("#cycle-info", "e => { e.textContent = ''; }")
+    page.click("[data-action=cycle]")
+    page.wait_for_function(
+        "() => document.querySelector('#cycle-info').textContent.includes('regulation check')",
+        timeout=60000)
+    _page_work_equals_the_api(page, server, modes.read_text())
     # open loop: an inputs file replaces the demand as the menu's file entry
     page.select_option("select[name=cycle_mode]", "open")
     page.set_input_files("input[name=cycle_file]", str(inputs))

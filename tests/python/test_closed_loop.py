@@ -46,8 +46,33 @@ def test_a_demand_with_a_tuning_dict():
     np.testing.assert_array_equal(again["trajectory"]["lambda_O"], tuned["trajectory"]["lambda_O"])
 
 
+def test_a_normalized_cycle_file_equals_the_cli(mvem_cli, tmp_path):
+    """A normalized cycle (UN GTR No. 4's form: Time, Speed [%], Torque [%], "m" motoring) given
+    as a path (str or pathlib) runs as `mvem closed-loop --cycle FILE`, every column to the bit;
+    a bad row is a ValueError naming its line."""
+    path = tmp_path / "modes.tsv"
+    path.write_text("Time\tSpeed\tTorque\ns\t%\t%\n0\t0\t0\n10\t0\t0\n30\t55\t50\n"
+                    "45\t55\t50\n50\t20\tm\n60\t20\tm\n")
+    r = mvem.closed_loop(path)
+    subprocess.run([mvem_cli, "closed-loop", "--cycle", str(path), "--out", str(tmp_path / "cl")],
+                   check=True, capture_output=True)
+    cli = read_csv(tmp_path / "cl" / "trajectory.csv")
+    for name, col in r["trajectory"].items():
+        np.testing.assert_array_equal(col, cli[name], err_msg=name)
+    np.testing.assert_array_equal(mvem.closed_loop(str(path))["trajectory"]["M_e"],
+                                  r["trajectory"]["M_e"])
+    # half the full-load torque at 55 % speed, delivered by the end of the hold
+    m_ref, m_e, t = (r["trajectory"][k] for k in ("M_ref", "M_e", "t"))
+    k = int(np.searchsorted(t, 45.0))
+    assert abs(m_e[k] - m_ref[k]) < 0.01 * m_ref[k]
+    bad = tmp_path / "bad.tsv"
+    bad.write_text("Time\tSpeed\tTorque\n0\t0\t0\n1\t50\t120\n")
+    with pytest.raises(ValueError, match=r"line 3: torque 120 % is outside \[0, 100\] %"):
+        mvem.closed_loop(bad)
+
+
 @pytest.mark.parametrize("kwargs, msg", [
-    ({"cycle": "nedc"}, 'cycle = "nedc"'),
+    ({"cycle": "nedc"}, 'cycle: nedc: .*give "whtc", a demand, or the path of a cycle file'),
     ({"cycle": {"t": [0.0, 1.0], "n_e": [1200.0, 1200.0]}}, "missing column `M_ref`"),
     ({"cycle": {"t": [0.0, 1.0], "n_e": [1200.0, 3000.0], "M_ref": [1.0, 1.0]}},
      r"row 2 \(t = 1 s\): speed 3000 rpm is outside"),

@@ -815,6 +815,9 @@ pub enum CycleArg {
         /// Torque demand \[Nm\].
         m_ref: Vec<f64>,
     },
+    /// A cycle file: a speed/torque demand (t, n_e, M_ref) or a normalized cycle (time, speed
+    /// [%], torque [%]), as `mvem closed-loop --cycle FILE` reads it.
+    File(std::path::PathBuf),
 }
 
 /// A closed-loop run for Python: the trajectory's columns and the summary (`stats.json` of
@@ -862,6 +865,16 @@ pub fn closed_loop(
                 Demand::new(t, n_e, m_ref, vec![false; k])
                     .map_err(|e| CoreError::Value(format!("cycle: {e}")))?,
             )
+        }
+        CycleArg::File(path) => {
+            let text = std::fs::read_to_string(&path).map_err(|e| {
+                CoreError::Value(format!(
+                    "cycle: {}: {e} (give \"whtc\", a demand, or the path of a cycle file)",
+                    path.display()
+                ))
+            })?;
+            mvem::io::csv_demand::parse_cycle_file(&text, &path)
+                .map_err(|e| CoreError::Value(format!("cycle: {e}")))?
         }
     };
     let run = run_cycle(&m, source, Scheme::Baseline(tuning), duration).map_err(|e| match e {

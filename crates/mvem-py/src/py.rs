@@ -474,7 +474,10 @@ fn simulate_many<'py>(
 /// cycle: "whtc" or None (default: the WHTC denormalized with this engine's mapping curve), or a speed/torque
 ///     demand: a dict with arrays "t" [s], "n_e" [rpm], "M_ref" [Nm], or a 2-D array with these
 ///     3 columns (linear between rows; speeds in the parameter set's range, torque at most the
-///     full-load torque).
+///     full-load torque), or the path of a cycle file (os.PathLike, or a str other than
+///     "whtc"): a demand CSV (t, n_e, M_ref) or a normalized cycle (Time [s], Speed [%],
+///     Torque [%], "m" motoring: UN GTR No. 4's form, denormalized as the WHTC), as
+///     `mvem closed-loop --cycle FILE` reads it.
 /// tuning: a dict of the baseline controllers' tuning fields (control::baseline::BaselineTuning:
 ///     lambda_limit, smoke_margin, torque=[kp, ki], x_egr_vgt, x_egr_egr, lambda_egr, lambda_vgt,
 ///     d_x, d_lambda, lambda_error_cap, u_vgt_full_load); the others keep their defaults.
@@ -500,12 +503,16 @@ fn closed_loop<'py>(
     let cycle = if cycle.is_none_or(|c| c.is_none()) {
         core::CycleArg::Whtc
     } else if let Some(name) = cycle.and_then(|c| c.extract::<String>().ok()) {
-        if name != "whtc" {
-            return Err(PyValueError::new_err(format!(
-                "cycle = {name:?}: \"whtc\", or a demand (dict with t, n_e, M_ref, or a 2-D array)"
-            )));
+        if name == "whtc" {
+            core::CycleArg::Whtc
+        } else {
+            core::CycleArg::File(name.into())
         }
-        core::CycleArg::Whtc
+    } else if let Some(path) = cycle
+        .filter(|c| c.hasattr("__fspath__").unwrap_or(false))
+        .map(|c| fspath(py, c, "cycle"))
+    {
+        core::CycleArg::File(path?.into())
     } else if let Some(d) = cycle.and_then(|c| c.downcast::<PyDict>().ok()) {
         let mut cols = Vec::new();
         for name in ["t", "n_e", "M_ref"] {

@@ -657,7 +657,7 @@
     $("#tuning").hidden = !closed;
     // what a file of the cycle menu must hold in this mode (the server names what is wrong)
     $("#cycle-format").textContent = closed
-      ? "closed loop: the WHTC, or a file of a speed/torque demand with the columns t [s], n_e [rpm], M_ref [Nm] (as mvem closed-loop --cycle FILE.csv)"
+      ? "closed loop: the WHTC, or a file of a speed/torque demand with the columns t [s], n_e [rpm], M_ref [Nm], or a normalized cycle with the columns Time [s], Speed [%], Torque [%] (\"m\": motoring; as mvem closed-loop --cycle FILE)"
       : "open loop: the WHTC, or a file of inputs with the columns time_s, n_e_rpm, u_delta_mg, u_egr_pct, u_vgt_pct (as mvem simulate --inputs)";
   }
 

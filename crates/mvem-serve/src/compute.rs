@@ -8,8 +8,8 @@ use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleSource, Scheme};
-use mvem::control::{ControlError, Demand, Trajectory};
-use mvem::io::csv_demand::parse_demand_csv;
+use mvem::control::{ControlError, Trajectory};
+use mvem::io::csv_demand::parse_cycle_file;
 use mvem::io::csv_inputs::{input_ranges, range_warnings};
 use mvem::model::{AnyModel, Drive, Model, Signals};
 use mvem::numerics::Num;
@@ -324,8 +324,9 @@ pub(crate) enum CycleInput {
     Open(Arc<InputSchedule>),
     /// Closed loop on the built-in WHTC (its speed and torque demand built in).
     ClosedWhtc,
-    /// Closed loop on a user's speed/torque demand (`"csv"` with the columns t, n_e, M_ref).
-    ClosedDemand(Demand),
+    /// Closed loop on a user's cycle (`"csv"`): a speed/torque demand (columns t, n_e, M_ref) or
+    /// a normalized cycle (time, speed [%], torque [%]; `parse_cycle_file`).
+    ClosedFile(CycleSource),
 }
 
 /// Longest closed-loop demand a request may run \[s\] (twice the WHTC: about 1 s of CPU for the
@@ -348,10 +349,10 @@ impl SimulateRequest {
             t.validate().map_err(|e| input(format!("tuning: {e}")))?;
         }
         if let (CycleMode::Closed, None, Some(csv)) = (mode, &self.cycle, &self.csv) {
-            // a speed/torque demand, as `mvem closed-loop --cycle FILE.csv`
-            let d = parse_demand_csv(csv, std::path::Path::new("csv"))
-                .map_err(|e| input(format!("{e} (mode \"closed\" reads a speed/torque demand: columns t [s], n_e [rpm], M_ref [Nm])")))?;
-            let (t0, t1) = d.span();
+            // a speed/torque demand or a normalized cycle, as `mvem closed-loop --cycle FILE`
+            let source = parse_cycle_file(csv, std::path::Path::new("csv"))
+                .map_err(|e| input(format!("{e} (mode \"closed\" reads a speed/torque demand: columns t [s], n_e [rpm], M_ref [Nm], or a normalized cycle: time [s], speed [%], torque [%])")))?;
+            let (t0, t1) = source.span().map_err(|e| input(format!("csv: {e}")))?;
             if t1 - t0 > MAX_CLOSED_SPAN {
                 return Err(input(format!(
                     "csv: the demand spans {} s ({} to {} s); mode \"closed\" runs at most {MAX_CLOSED_SPAN} s",
@@ -361,7 +362,7 @@ impl SimulateRequest {
                 )));
             }
             let dt = self.output_interval(t0, t1)?;
-            return Ok((CycleInput::ClosedDemand(d), "csv".to_string(), dt));
+            return Ok((CycleInput::ClosedFile(source), "csv".to_string(), dt));
         }
         let (sched, name) = match (&self.cycle, &self.csv) {
             (Some(c), None) => match cycles.iter().find(|(n, _)| n == c) {
@@ -436,9 +437,7 @@ pub(crate) fn simulate_cycle(
             mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt))
         }
         CycleInput::ClosedWhtc => closed_cycle(model, r, CycleSource::Whtc, name, dt),
-        CycleInput::ClosedDemand(d) => {
-            closed_cycle(model, r, CycleSource::Demand(d.clone()), name, dt)
-        }
+        CycleInput::ClosedFile(source) => closed_cycle(model, r, source.clone(), name, dt),
     }
 }
 

@@ -500,28 +500,34 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
     );
 }
 
+/// The API's closed-loop run of the cycle file `csv` (every 0.5 s) and the core's run of the
+/// same text (`parse_cycle_file`, `run_cycle` with the default tuning, as `mvem closed-loop`).
+fn closed_csv(csv: &str) -> (serde_json::Value, drive::CycleRun) {
+    let body = serde_json::json!({"csv": csv, "mode": "closed", "dt": 0.5});
+    let r = post("/api/simulate", &body.to_string());
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let source = mvem::io::csv_demand::parse_cycle_file(csv, std::path::Path::new("csv")).unwrap();
+    let run = drive::run_cycle(
+        &AnyModel::Eight(Engine8::published()),
+        source,
+        Scheme::Baseline(BaselineTuning::default()),
+        None,
+    )
+    .unwrap();
+    (r.json(), run)
+}
+
 /// Mode `"closed"` with `"csv"`: a speed/torque demand (t, n_e, M_ref), the core's run of it
 /// to the bit (as `mvem closed-loop --cycle FILE.csv`); a demand the engine cannot follow, one
 /// longer than the limit and a malformed one are 400 naming the problem.
 #[test]
 fn closed_loop_mode_runs_a_speed_torque_demand() {
     let csv = "t,n_e,M_ref\n0,1200,300\n2,1200,300\n2.5,1400,900\n6,1400,900\n";
-    let body = serde_json::json!({"csv": csv, "mode": "closed", "dt": 0.5});
-    let r = post("/api/simulate", &body.to_string());
-    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
-    let v = r.json();
+    let (v, run) = closed_csv(csv);
     assert_eq!(
         (v["mode"].as_str(), v["source"].as_str()),
         (Some("closed"), Some("csv"))
     );
-    let demand = mvem::io::csv_demand::parse_demand_csv(csv, std::path::Path::new("csv")).unwrap();
-    let run = drive::run_cycle(
-        &AnyModel::Eight(Engine8::published()),
-        CycleSource::Demand(demand),
-        Scheme::Baseline(BaselineTuning::default()),
-        None,
-    )
-    .unwrap();
     let every50 = |n: &str| -> Vec<f64> {
         run.traj
             .get(n)
@@ -557,6 +563,11 @@ fn closed_loop_mode_runs_a_speed_torque_demand() {
             "line 3, column n_e",
         ),
         ("t,n_e\n0,1200\n1,1200\n", "missing column(s) M_ref"),
+        // a normalized cycle's own checks
+        (
+            "Time,Speed,Torque\n0,0,0\n5,50,130\n",
+            "torque 130 % is outside [0, 100] %",
+        ),
     ] {
         let body = serde_json::json!({"csv": csv, "mode": "closed"});
         let r = post("/api/simulate", &body.to_string());
@@ -564,6 +575,34 @@ fn closed_loop_mode_runs_a_speed_torque_demand() {
         assert_eq!(r.status, 400, "{csv}: {text}");
         assert!(text.contains(want), "{csv}: {text}");
     }
+}
+
+/// Mode `"closed"` with `"csv"` of a normalized cycle (UN GTR No. 4's form: Time, Speed [%],
+/// Torque [%], "m" motoring): the core's run of it to the bit, as `mvem closed-loop --cycle FILE`.
+#[test]
+fn closed_loop_mode_runs_a_normalized_cycle() {
+    let csv = "Time\tSpeed\tTorque\ns\t%\t%\n0\t0\t0\n2\t0\t0\n4\t40\t60\n6\t40\tm\n";
+    let (v, run) = closed_csv(csv);
+    assert!(matches!(
+        mvem::io::csv_demand::parse_cycle_file(csv, std::path::Path::new("csv")),
+        Ok(CycleSource::Normalized(_))
+    ));
+    for n in ["M_ref", "M_e"] {
+        let want: Vec<f64> = run
+            .traj
+            .get(n)
+            .unwrap()
+            .iter()
+            .step_by(50)
+            .copied()
+            .collect();
+        let got: Vec<f64> = serde_json::from_value(v["series"][n].clone()).unwrap();
+        assert_eq!(got, want, "{n}");
+    }
+    assert_eq!(
+        v["cycle_stats"]["work_error"].as_f64().unwrap(),
+        run.stats.work_error
+    );
 }
 
 #[test]

@@ -352,3 +352,65 @@ fn tunings_at_the_edges_of_the_accepted_ranges_run_or_fail_cleanly() {
         edges.len()
     );
 }
+
+/// A user's normalized cycle (`CycleSource::Normalized`, read from a file as `mvem closed-loop
+/// --cycle FILE` reads it) is denormalized exactly as the built-in WHTC: the WHTC's own table
+/// written as a comma-separated file drives the same trajectory, bit for bit; a ramp between
+/// two modes of a user's table (WHSC-like) follows the denormalized speed and torque.
+#[test]
+fn a_normalized_cycle_file_is_driven_as_the_built_in_whtc() {
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme};
+    use mvem::io::csv_demand::parse_cycle_file;
+    let m = model();
+    let text: String = std::iter::once("time,speed,torque".to_string())
+        .chain(
+            whtc_table()
+                .unwrap()
+                .iter()
+                .map(|(t, n, q)| format!("{t},{n},{}", q.map_or("m".into(), |v| v.to_string()))),
+        )
+        .collect::<Vec<_>>()
+        .join("\n");
+    let file = parse_cycle_file(&text, std::path::Path::new("whtc.csv")).unwrap();
+    assert!(matches!(file, CycleSource::Normalized(_)));
+    let baseline = || Scheme::Baseline(BaselineTuning::default());
+    let a = run_cycle(&m, CycleSource::Whtc, baseline(), Some(60.0)).unwrap();
+    let b = run_cycle(&m, file, baseline(), Some(60.0)).unwrap();
+    assert_eq!(a.traj.columns, b.traj.columns);
+    assert_eq!(a.stats, b.stats);
+
+    // a user's table: idle, a 20 s ramp to 55 % speed / 50 % torque, held
+    let text = "Time [s]\tSpeed [%]\tTorque [%]\n0\t0\t0\n10\t0\t0\n30\t55\t50\n60\t55\t50\n";
+    let CycleSource::Normalized(table) =
+        parse_cycle_file(text, std::path::Path::new("modes.tsv")).unwrap()
+    else {
+        panic!("expected a normalized cycle")
+    };
+    let run = run_cycle(&m, CycleSource::Normalized(table.clone()), baseline(), None).unwrap();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let speeds = curve.reference_speeds(curve.n_e_range().0);
+    let n_55 = speeds.denormalize(55.0);
+    let m_55 = 0.5 * curve.m_max_at(n_55);
+    let col = |name: &str| {
+        let k = Trajectory::NAMES.iter().position(|n| *n == name).unwrap();
+        &run.traj.columns[k]
+    };
+    let (t, n_e, m_ref, m_e) = (col("t"), col("n_e"), col("M_ref"), col("M_e"));
+    let last = t.len() - 1;
+    assert!((t[last] - 60.0).abs() < 1e-9, "{}", t[last]);
+    // the dynamometer holds the denormalized speed; the torque demand is half the full load
+    assert!((n_e[last] - n_55).abs() < 1e-9, "{} vs {n_55}", n_e[last]);
+    assert!(
+        (m_ref[last] - m_55).abs() < 1e-6 * m_55,
+        "{} vs {m_55}",
+        m_ref[last]
+    );
+    // 30 s after the ramp the engine delivers it (the baseline's torque loop: within 1 %)
+    assert!(
+        (m_e[last] - m_55).abs() < 0.01 * m_55,
+        "M_e {} vs {m_55}",
+        m_e[last]
+    );
+    // the idle start: speed n_idle (the bottom of the range)
+    assert!((n_e[0] - speeds.n_idle).abs() < 1e-9);
+}

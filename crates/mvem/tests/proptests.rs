@@ -374,3 +374,55 @@ proptest! {
         restart_matches(&Engine12::published(), t1, uv, dopri)?;
     }
 }
+
+/// Lines of a cycle file built from fragments a user's file holds (names, units, numbers in
+/// and out of range, "m", separators, comments, junk), so that both readers are reached.
+fn cycle_text() -> impl Strategy<Value = String> {
+    let field = prop_oneof![
+        Just("Time".to_string()),
+        Just("Speed [%]".to_string()),
+        Just("Torque".to_string()),
+        Just("t".to_string()),
+        Just("n_e".to_string()),
+        Just("M_ref".to_string()),
+        Just("%".to_string()),
+        Just("m".to_string()),
+        Just("".to_string()),
+        Just("1e400".to_string()),
+        Just("NaN".to_string()),
+        (-50.0..3000.0f64).prop_map(|v| format!("{v}")),
+        (0u32..200).prop_map(|v| v.to_string()),
+        "[a-z%;#\\t ,.]{0,6}",
+    ];
+    let sep = prop_oneof![Just("\t"), Just(";"), Just(","), Just(" ")];
+    let line = (prop::collection::vec(field, 0..5), sep).prop_map(|(f, s)| f.join(s));
+    prop::collection::vec(line, 0..8).prop_map(|l| l.join("\n"))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 3000, ..ProptestConfig::default() })]
+
+    /// A cycle file (`parse_cycle_file`) is a demand, a normalized cycle or an error naming the
+    /// problem, never a panic; an accepted normalized cycle has at least two rows, increasing
+    /// times, speeds in [0, 120] % and torques in [0, 100] % or motoring.
+    #[test]
+    fn cycle_files_read_or_fail_cleanly(text in cycle_text()) {
+        use mvem::control::cycle::MAX_SPEED_PCT;
+        use mvem::control::drive::CycleSource;
+        match mvem::io::csv_demand::parse_cycle_file(&text, Path::new("c.txt")) {
+            Ok(CycleSource::Normalized(rows)) => {
+                prop_assert!(rows.len() >= 2);
+                for w in rows.windows(2) {
+                    prop_assert!(w[1].0 > w[0].0, "{rows:?}");
+                }
+                for (t, n, q) in &rows {
+                    prop_assert!(t.is_finite() && (0.0..=MAX_SPEED_PCT).contains(n));
+                    prop_assert!(q.is_none_or(|q| (0.0..=100.0).contains(&q)));
+                }
+            }
+            Ok(CycleSource::Demand(d)) => prop_assert!(d.times().len() >= 2),
+            Ok(CycleSource::Whtc) => prop_assert!(false, "a file is never the built-in WHTC"),
+            Err(e) => prop_assert!(e.to_string().starts_with("c.txt"), "{e}"),
+        }
+    }
+}

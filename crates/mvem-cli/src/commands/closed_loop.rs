@@ -7,7 +7,6 @@ use crate::plot::{Figure, Panel, Series};
 use anyhow::Result;
 use clap::ValueEnum;
 use mvem::control::baseline::BaselineTuning;
-use mvem::control::cycle::Demand;
 use mvem::control::drive::{self, CycleRun, CycleSource, Scheme};
 use mvem::control::{ControlError, Trajectory};
 use mvem::io::output::{write_streaming, StreamError};
@@ -23,6 +22,7 @@ Examples:
   mvem closed-loop --cycle whtc --out out/closed-loop --plot
   mvem closed-loop --cycle whtc --controller open-loop --out out/open-loop --json
   mvem closed-loop --cycle my_cycle.csv --out out/mine
+  mvem closed-loop --cycle whsc_normalized.tsv --out out/whsc
   mvem closed-loop --params car.toml --tuning car_controller.toml --out out/car
 
 --cycle whtc: the WHTC (UN GTR No. 4) denormalized with this engine's mapping curve (full-load
@@ -31,13 +31,20 @@ torque at lambda_O >= 1.2, motoring torque for the \"m\" points), speeds 0 s..18
 columns ignored), time strictly increasing, n_e in the model's speed range (the parameter set's
 [input_saturation] n_e, default 500-2000 rpm), M_ref at most the full-load
 torque; linear between rows.
+--cycle FILE (normalized): a cycle as UN GTR No. 4 publishes them (the WHTC, the WHSC's ramped
+modes, your own), told apart by its header: a time [s], a speed [%] and a torque [%] column
+(e.g. `Time Speed Torque`, an optional units row `s % %`; tab, semicolon, comma or space
+separated), speed 0-120 %, torque 0-100 % or \"m\" for motoring; denormalized with this
+engine's mapping curve and reference speeds exactly as the built-in WHTC (speeds clamped into the
+model's range). data/whtc_normalized.tsv is an example.
 
 Writes DIR/trajectory.csv (one row per 10 ms controller sample; the commands u_delta, u_egr,
 u_vgt are held until the next row), DIR/stats.json and with --plot DIR/closed_loop.svg/.png.
 --json prints the statistics to stdout. Nothing is written unless the whole run succeeds.")]
 pub struct Args {
-    /// Drive cycle: `whtc` or a CSV file with t, n_e, M_ref.
-    #[arg(long, value_name = "whtc|FILE.csv", default_value = "whtc")]
+    /// Drive cycle: `whtc`, a CSV file with t, n_e, M_ref, or a normalized cycle (time, speed %,
+    /// torque %).
+    #[arg(long, value_name = "whtc|FILE", default_value = "whtc")]
     pub cycle: String,
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
@@ -80,11 +87,12 @@ pub struct Run {
     pub wall_s: f64,
 }
 
-/// Read a user's cycle CSV: columns t, n_e, M_ref ([`mvem::io::csv_demand::parse_demand_csv`]).
-fn read_cycle_csv(path: &Path) -> Result<Demand> {
+/// Read a user's cycle file: a demand (columns t, n_e, M_ref) or a normalized cycle
+/// ([`mvem::io::csv_demand::parse_cycle_file`]).
+fn read_cycle_file(path: &Path) -> Result<CycleSource> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| common::usage(format!("--cycle {}: {e}", path.display())))?;
-    mvem::io::csv_demand::parse_demand_csv(&text, path).map_err(|e| common::usage(e.to_string()))
+    mvem::io::csv_demand::parse_cycle_file(&text, path).map_err(|e| common::usage(e.to_string()))
 }
 
 /// Read `--tuning`: the baseline controllers' tuning from TOML, checked.
@@ -124,7 +132,7 @@ pub fn run_cycle(
     let source = if whtc {
         CycleSource::Whtc
     } else {
-        CycleSource::Demand(read_cycle_csv(Path::new(cycle))?)
+        read_cycle_file(Path::new(cycle))?
     };
     let scheme = match controller {
         ControllerArg::Baseline => Scheme::Baseline(tuning),

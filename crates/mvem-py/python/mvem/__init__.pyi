@@ -177,7 +177,9 @@ def parameters() -> List[Parameter]:
     """Every scalar parameter with its unit and description, in parameter-file order."""
 
 def closed_loop(
-    cycle: Union[None, str, Mapping[str, npt.ArrayLike], npt.ArrayLike] = None,
+    cycle: Union[
+        None, str, "os.PathLike[str]", Mapping[str, npt.ArrayLike], npt.ArrayLike
+    ] = None,
     tuning: Optional[Mapping[str, Any]] = None,
     params: Params = None,
     model: ModelOrder = 8,
@@ -185,9 +187,10 @@ def closed_loop(
 ) -> Dict[str, Any]:
     """A drive cycle in closed loop with the baseline EGR/VGT and engine controllers.
 
-    cycle: None / "whtc" (the WHTC on this engine's mapping curve) or a demand with columns
-    t [s], n_e [rpm], M_ref [Nm] (dict or 2-D array). tuning: BaselineTuning fields (others
-    default). Keys: "trajectory" (dict of arrays, 10 ms rows), "stats", "violations",
+    cycle: None / "whtc" (the WHTC on this engine's mapping curve), a demand with columns
+    t [s], n_e [rpm], M_ref [Nm] (dict or 2-D array), or a cycle file's path (a demand CSV, or
+    a normalized cycle: Time [s], Speed [%], Torque [%], "m" motoring, denormalized as the
+    WHTC). tuning: BaselineTuning fields (others default). Keys: "trajectory" (dict of arrays, 10 ms rows), "stats", "violations",
     "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s".
     """
 

@@ -371,10 +371,13 @@ impl Demand {
     }
 }
 
-/// The WHTC of UN GTR No. 4 denormalized for an engine: the 1 Hz table of normalized speed and
-/// torque [%] ("m" = motoring), as (time \[s\], speed [%], torque [%] or None for "m").
+/// A normalized cycle of UN GTR No. 4 (the WHTC, or any table normalized the same way,
+/// [`parse_normalized_table`]) denormalized for an engine: the speed by
+/// [`ReferenceSpeeds::denormalize`], clamped into the engine's speed range; the torque as the
+/// percentage of the full-load torque at that speed, the motoring torque at the "m" rows.
+/// `table`: (time \[s\], speed [%], torque [%] or None for "m").
 pub fn whtc_demand(
-    table: &[(f64, f64, Option<f64>)],
+    table: &[NormalizedRow],
     curve: &MappingCurve,
     speeds: &ReferenceSpeeds,
 ) -> Result<Demand, ControlError> {
@@ -398,35 +401,158 @@ pub fn whtc_demand(
     Demand::new(t, n, m, mot)
 }
 
-/// Parse the normalized WHTC table (tab-separated `Time Speed Torque` with a units row; "m" in
-/// the torque column for motoring). Errors name the line.
-pub fn parse_normalized_table(text: &str) -> Result<Vec<(f64, f64, Option<f64>)>, String> {
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let f: Vec<&str> = line.split_whitespace().collect();
-        if f.is_empty() || f[0].parse::<f64>().is_err() {
-            continue; // header and units rows
+/// One row of a normalized cycle (UN GTR No. 4): time \[s\], speed [%], torque [%] (`None`:
+/// motoring, "m").
+pub type NormalizedRow = (f64, f64, Option<f64>);
+
+/// Highest normalized speed accepted [%] (the WHTC reaches 100 %; a larger value is most likely
+/// a speed in rpm in a file taken for a normalized one).
+pub const MAX_SPEED_PCT: f64 = 120.0;
+
+/// The fields of one line of a cycle table: split at tabs, else semicolons, else commas, else
+/// runs of spaces; each field trimmed.
+pub fn split_fields(line: &str) -> Vec<&str> {
+    let f: Vec<&str> = if line.contains('\t') {
+        line.split('\t').collect()
+    } else if line.contains(';') {
+        line.split(';').collect()
+    } else if line.contains(',') {
+        line.split(',').collect()
+    } else {
+        line.split_whitespace().collect()
+    };
+    f.into_iter().map(str::trim).collect()
+}
+
+/// A header name without its unit in brackets, lower case ("Speed [%]" -> "speed").
+pub fn bare_name(field: &str) -> String {
+    field
+        .split(['[', '('])
+        .next()
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase()
+}
+
+/// Whether a header row names the columns of a normalized cycle (a "speed" and a "torque"
+/// column, as `data/whtc_normalized.tsv`: `Time Speed Torque`).
+pub fn is_normalized_header(fields: &[&str]) -> bool {
+    let names: Vec<String> = fields.iter().map(|f| bare_name(f)).collect();
+    names.iter().any(|n| n.contains("speed")) && names.iter().any(|n| n.contains("torque"))
+}
+
+/// Parse a normalized cycle as UN GTR No. 4 publishes them (the WHTC, the WHSC's ramped modes, or
+/// a user's own cycle normalized the same way): a header naming a time, a speed and a torque
+/// column (in any order: "t" or a name starting with "time", the names containing "speed" and
+/// "torque"; units in brackets after a name are ignored; without a header the first three
+/// columns in that order), an optional units row
+/// (the speed's and torque's units must be %), then one row per time: time \[s\], speed [%] in
+/// [0, [`MAX_SPEED_PCT`]], torque [%] in [0, 100] or "m" for motoring. Fields are separated by
+/// tabs, semicolons, commas or spaces; `#` starts a comment line. Errors name the line (1-based);
+/// times must increase.
+pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> {
+    let mut out: Vec<NormalizedRow> = Vec::new();
+    let mut cols = [0usize, 1, 2];
+    let mut header_seen = false;
+    let mut units_checked = false;
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
         }
-        if f.len() < 3 {
-            return Err(format!("line {}: expected Time, Speed, Torque", i + 1));
+        let f = split_fields(line);
+        let numeric = f[0].replace(',', ".").parse::<f64>().is_ok();
+        if !numeric && out.is_empty() {
+            if !header_seen {
+                header_seen = true;
+                let names: Vec<String> = f.iter().map(|x| bare_name(x)).collect();
+                let find = |pred: &dyn Fn(&str) -> bool, what: &str| {
+                    names.iter().position(|n| pred(n)).ok_or_else(|| {
+                        format!(
+                            "line {}: no {what} column in the header ({}); a normalized cycle \
+                             has time [s], speed [%] and torque [%] columns",
+                            i + 1,
+                            f.join(", ")
+                        )
+                    })
+                };
+                cols = [
+                    find(&|n| n == "t" || n.starts_with("time"), "time")?,
+                    find(&|n| n.contains("speed"), "speed")?,
+                    find(&|n| n.contains("torque"), "torque")?,
+                ];
+            } else if !units_checked {
+                units_checked = true;
+                for (k, what) in [(1, "speed"), (2, "torque")] {
+                    let unit = f.get(cols[k]).copied().unwrap_or("");
+                    if !unit.is_empty() && unit != "%" {
+                        return Err(format!(
+                            "line {}: the {what} column's unit is '{unit}', not %: this reads \
+                             normalized cycles only (for speeds in rpm and torques in Nm give \
+                             the columns t, n_e, M_ref)",
+                            i + 1
+                        ));
+                    }
+                }
+            } else {
+                return Err(format!(
+                    "line {}: '{}' is not a number (a third row of names?)",
+                    i + 1,
+                    f[0]
+                ));
+            }
+            continue;
+        }
+        let need = cols.iter().max().copied().unwrap_or(2) + 1;
+        if f.len() < need {
+            return Err(format!(
+                "line {}: expected {need} fields (time, speed, torque), found {}",
+                i + 1,
+                f.len()
+            ));
         }
         let num = |s: &str, what: &str| {
-            s.parse::<f64>()
+            s.replace(',', ".")
+                .parse::<f64>()
                 .ok()
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| format!("line {}: {what} '{s}' is not a number", i + 1))
         };
-        let t = num(f[0], "time")?;
-        let n = num(f[1], "speed")?;
-        let m = if f[2] == "m" {
+        let t = num(f[cols[0]], "time")?;
+        let n = num(f[cols[1]], "speed")?;
+        if !(0.0..=MAX_SPEED_PCT).contains(&n) {
+            return Err(format!(
+                "line {}: speed {n} % is outside [0, {MAX_SPEED_PCT}] % (normalized speeds are \
+                 percent; for speeds in rpm give the columns t, n_e, M_ref)",
+                i + 1
+            ));
+        }
+        let tq = f[cols[2]];
+        let m = if tq.eq_ignore_ascii_case("m") {
             None
         } else {
-            Some(num(f[2], "torque")?)
+            let v = num(tq, "torque")?;
+            if !(0.0..=100.0).contains(&v) {
+                return Err(format!(
+                    "line {}: torque {v} % is outside [0, 100] % (motoring: \"m\")",
+                    i + 1
+                ));
+            }
+            Some(v)
         };
+        if let Some(&(t_prev, _, _)) = out.last() {
+            if t <= t_prev {
+                return Err(format!(
+                    "line {}: time {t} s is not after the previous row's {t_prev} s (time must \
+                     increase)",
+                    i + 1
+                ));
+            }
+        }
         out.push((t, n, m));
     }
     if out.len() < 2 {
-        return Err("no data rows".into());
+        return Err("needs at least two rows (time, speed, torque)".into());
     }
     Ok(out)
 }

@@ -5,8 +5,8 @@
 
 use super::baseline::{Baseline, BaselineTuning, OpenLoop};
 use super::cycle::{
-    parse_normalized_table, whtc_demand, Demand, MappingCurve, MappingOptions, ReferenceSpeeds,
-    WHTC_NORMALIZED,
+    parse_normalized_table, whtc_demand, Demand, MappingCurve, MappingOptions, NormalizedRow,
+    ReferenceSpeeds, WHTC_NORMALIZED,
 };
 use super::stats::CycleStats;
 use super::{ControlError, Controller, Trajectory};
@@ -29,6 +29,24 @@ pub enum CycleSource {
     Whtc,
     /// A speed/torque demand (checked against the full-load curve).
     Demand(Demand),
+    /// A normalized cycle ([`super::cycle::parse_normalized_table`]: time \[s\], speed [%],
+    /// torque [%] or motoring) denormalized with this engine's mapping curve as the WHTC is.
+    Normalized(Vec<NormalizedRow>),
+}
+
+impl CycleSource {
+    /// First and last time of the cycle \[s\] (the built-in WHTC: 0 and 1800 s).
+    pub fn span(&self) -> Result<(f64, f64), ControlError> {
+        let ends = |rows: &[NormalizedRow]| match (rows.first(), rows.last()) {
+            (Some(a), Some(b)) => Ok((a.0, b.0)),
+            _ => Err(ControlError::Demand("the cycle has no rows".into())),
+        };
+        match self {
+            Self::Whtc => ends(&whtc_table()?),
+            Self::Demand(d) => Ok(d.span()),
+            Self::Normalized(rows) => ends(rows),
+        }
+    }
 }
 
 /// The controller of a cycle run.
@@ -58,7 +76,7 @@ pub struct CycleRun {
 
 /// The normalized WHTC table with the first sample repeated at t = 0 (as
 /// `data/whtc_inputs_10hz.csv`): (time \[s\], speed [%], torque [%] or None for motoring).
-pub fn whtc_table() -> Result<Vec<(f64, f64, Option<f64>)>, ControlError> {
+pub fn whtc_table() -> Result<Vec<NormalizedRow>, ControlError> {
     let mut table = parse_normalized_table(WHTC_NORMALIZED)
         .map_err(|e| ControlError::Setup(format!("built-in WHTC table: {e}")))?;
     let first = table[0];
@@ -129,10 +147,13 @@ pub fn run_cycle_with(
     let demand = match (&cycle, &scheme) {
         (CycleSource::Whtc, Scheme::Baseline(_)) => whtc_demand(&whtc_table()?, &curve, &speeds)?,
         (CycleSource::Whtc, Scheme::OpenLoop(sched)) => open_loop_demand(sched, &curve)?,
-        (CycleSource::Demand(_), Scheme::OpenLoop(_)) => {
+        (CycleSource::Demand(_) | CycleSource::Normalized(_), Scheme::OpenLoop(_)) => {
             return Err(ControlError::Demand(
                 "the open-loop schedule runs the WHTC only".into(),
             ))
+        }
+        (CycleSource::Normalized(table), Scheme::Baseline(_)) => {
+            whtc_demand(table, &curve, &speeds)?
         }
         (CycleSource::Demand(d), Scheme::Baseline(_)) => {
             d.check_speeds(curve.n_e_range())?;

@@ -1,10 +1,19 @@
-//! Speed/torque demand cycles for the closed loop (`mvem closed-loop --cycle FILE.csv`, the
-//! explorer's closed-loop mode): a CSV with the columns `t` \[s\], `n_e` \[rpm\] and `M_ref` \[Nm\]
-//! (any order, other columns ignored, `#` comments), linear between rows
-//! ([`crate::control::Demand`]).
+//! Drive cycles for the closed loop (`mvem closed-loop --cycle FILE`, the explorer's closed-loop
+//! mode, Python's `closed_loop(cycle=PATH)`), in one of two forms told apart by the header
+//! ([`parse_cycle_file`]):
+//!
+//! - a speed/torque demand: a CSV with the columns `t` \[s\], `n_e` \[rpm\] and `M_ref` \[Nm\]
+//!   (any order, other columns ignored, `#` comments), linear between rows
+//!   ([`crate::control::Demand`]);
+//! - a normalized cycle as UN GTR No. 4 publishes them (`Time Speed Torque` with speed and
+//!   torque in percent, "m" for motoring: `data/whtc_normalized.tsv`, the WHSC, a user's own),
+//!   denormalized with the engine's mapping curve as the built-in WHTC is
+//!   ([`crate::control::cycle::parse_normalized_table`]).
 
 use super::csv_columns::{read_columns, ColumnsError};
 use super::{format_err as err, IoError};
+use crate::control::cycle::{is_normalized_header, parse_normalized_table, split_fields};
+use crate::control::drive::CycleSource;
 use crate::control::Demand;
 use std::path::Path;
 
@@ -24,7 +33,8 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
             Some(1),
             None,
             format!(
-                "missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm]; found: {})",
+                "missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm], or for a normalized \
+                 cycle time [s], speed [%], torque [%]; found: {})",
                 missing.join(", "),
                 found.join(", ")
             ),
@@ -58,6 +68,26 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
     })
 }
 
+/// Read a drive cycle (`path` only names it in messages): a normalized cycle when the header
+/// names a speed and a torque column but not all of `t`, `n_e`, `M_ref`
+/// ([`parse_normalized_table`]), else a speed/torque demand ([`parse_demand_csv`]). Every problem
+/// is named with its line.
+pub fn parse_cycle_file(text: &str, path: &Path) -> Result<CycleSource, IoError> {
+    let header = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap_or("");
+    let fields = split_fields(header);
+    let demand = DEMAND_COLUMNS.iter().all(|c| fields.contains(c));
+    if !demand && is_normalized_header(&fields) {
+        return parse_normalized_table(text)
+            .map(CycleSource::Normalized)
+            .map_err(|m| err(path, None, None, format!("normalized cycle, {m}")));
+    }
+    parse_demand_csv(text, path).map(CycleSource::Demand)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -73,7 +103,8 @@ mod tests {
         assert_eq!((p.n_e, p.m_ref), (1300.0, 200.0));
         assert_eq!(
             parse("t,n_e\n0,1000\n1,1000\n").unwrap_err(),
-            "c.csv, line 1: missing column(s) M_ref (needed: t [s], n_e [rpm], M_ref [Nm]; found: t, n_e)"
+            "c.csv, line 1: missing column(s) M_ref (needed: t [s], n_e [rpm], M_ref [Nm], or for a \
+             normalized cycle time [s], speed [%], torque [%]; found: t, n_e)"
         );
         assert_eq!(
             parse("t,n_e,M_ref\n0,1000,100\n1,fast,100\n").unwrap_err(),
@@ -93,5 +124,92 @@ mod tests {
         assert!(e.contains("c.csv: "), "{e}");
         let e = parse("t,n_e,M_ref\n0,1000,100\n1,1000\n").unwrap_err();
         assert!(e.contains("line 3"), "{e}");
+    }
+
+    fn cycle(text: &str) -> Result<CycleSource, String> {
+        parse_cycle_file(text, Path::new("c.txt")).map_err(|e| e.to_string())
+    }
+
+    fn rows(text: &str) -> Vec<crate::control::cycle::NormalizedRow> {
+        match cycle(text) {
+            Ok(CycleSource::Normalized(r)) => r,
+            other => panic!("expected a normalized cycle, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_cycle_file_is_a_demand_or_a_normalized_cycle_by_its_header() {
+        // the built-in WHTC table (tabs, a units row) reads as a normalized cycle, row for row
+        let whtc = rows(crate::control::cycle::WHTC_NORMALIZED);
+        assert_eq!(whtc.len(), 1800);
+        assert_eq!(whtc[0], (1.0, 0.0, Some(0.0)));
+        assert!(whtc.iter().any(|r| r.2.is_none()), "motoring rows");
+        // the same rows with other separators, names with units, columns in another order
+        let text: String = std::iter::once("Torque [%];Time [s];Speed [%]".to_string())
+            .chain(whtc.iter().map(|(t, n, m)| {
+                let m = m.map_or("m".to_string(), |v| v.to_string().replace('.', ","));
+                format!("{m};{t};{}", n.to_string().replace('.', ","))
+            }))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert_eq!(rows(&text), whtc);
+        let spaces = "time speed torque\n0 0 0\n10 55 100\n20 55 M\n";
+        assert_eq!(
+            rows(spaces),
+            vec![
+                (0.0, 0.0, Some(0.0)),
+                (10.0, 55.0, Some(100.0)),
+                (20.0, 55.0, None)
+            ]
+        );
+        // a demand stays a demand (also with extra speed/torque columns)
+        for text in [
+            "t,n_e,M_ref\n0,1000,100\n1,1000,200\n",
+            "t,n_e,M_ref,speed,torque\n0,1000,100,1,1\n1,1000,200,1,1\n",
+        ] {
+            assert!(matches!(cycle(text), Ok(CycleSource::Demand(_))), "{text}");
+        }
+        // neither: the demand's message, which names both forms
+        let e = cycle("time,rpm,Nm\n0,1000,100\n1,1000,200\n").unwrap_err();
+        assert!(
+            e.contains("normalized cycle time [s], speed [%], torque [%]"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_normalized_cycle_names_the_line_of_every_problem() {
+        let bad = |text: &str, want: &str| {
+            let e = cycle(text).unwrap_err();
+            assert!(e.starts_with("c.txt: normalized cycle, "), "{e}");
+            assert!(e.contains(want), "{want:?} not in {e:?}");
+        };
+        bad(
+            "t speed torque\n0 0 0\n1 fast 0\n",
+            "line 3: speed 'fast' is not a number",
+        );
+        bad(
+            "t speed torque\n0 0 0\n1 1500 50\n",
+            "line 3: speed 1500 % is outside [0, 120] %",
+        );
+        bad(
+            "t speed torque\n0 0 0\n1 50 -3\n",
+            "line 3: torque -3 % is outside [0, 100] %",
+        );
+        bad("t speed torque\n0 0 0\n1 50 101\n", "torque 101 %");
+        bad(
+            "t speed torque\n0 0 0\n0 50 10\n",
+            "line 3: time 0 s is not after",
+        );
+        bad("t speed torque\n0 0 0\n1 50\n", "line 3: expected 3 fields");
+        bad(
+            "t\tspeed\ttorque\ns\trpm\tNm\n0\t0\t0\n",
+            "line 2: the speed column's unit is 'rpm'",
+        );
+        bad(
+            "t speed torque\n# only one row\n0 0 0\n",
+            "needs at least two rows",
+        );
+        bad("speed torque\n0 0\n1 1\n", "line 1: no time column");
     }
 }
