@@ -449,3 +449,35 @@ def test_linearize_sampled_with_exact_delays(mvem_cli):
             mvem.linearize(1500, 110, 40, 75, ts=bad)
     with pytest.raises(ValueError, match="pade_order"):
         mvem.linearize(1500, 110, 40, 75, ts=0.02, pade_order=2)
+
+
+def test_frequency_response_with_exact_delays(mvem_cli):
+    """frequency_response: the CLI's --bode to the bit; the fuel path equal to C (jwI - A)^-1 B
+    + D of linearize's matrices, u_vgt -> W_c to the undelayed response times e^(-jw tau) (the
+    delays exact); f = 0 gives the DC gains; bad frequencies are ValueErrors."""
+    f = np.logspace(-2, 2, 25)
+    fr = mvem.frequency_response(1500, 110, 80, 75, f, strict=False)
+    assert fr["input_names"] == ["u_delta", "u_egr", "u_vgt", "n_e"]
+    np.testing.assert_array_equal(fr["f_hz"], f)
+    lin = mvem.linearize(1500, 110, 80, 75, strict=False)
+    a, b, c, d = lin["A"], lin["B"], lin["C"], lin["D"]
+    n = a.shape[0]
+    w = 2 * np.pi * f
+    und = np.array([c @ np.linalg.solve(1j * wk * np.eye(n) - a, b) + d for wk in w])
+    o = lin["output_names"].index("W_c")
+    tau_vgt = fr["delays"][1]
+    np.testing.assert_allclose(fr["G"]["u_delta->W_c"], und[:, o, 0], rtol=1e-8)
+    np.testing.assert_allclose(fr["G"]["u_vgt->W_c"], und[:, o, 2] * np.exp(-1j * w * tau_vgt),
+                               rtol=1e-8)
+    p = subprocess.run([mvem_cli, "linearize", "--n-e", "1500", "--u-delta", "110", "--u-egr", "80",
+                        "--u-vgt", "75", "--bode", "0.01:100:25", "--json"],
+                       check=True, capture_output=True, text=True)
+    cli = json.loads(p.stdout)["frequency_response"]["channels"]["u_vgt->W_c"]
+    g = fr["G"]["u_vgt->W_c"]
+    np.testing.assert_allclose(np.abs(g), cli["mag"], rtol=1e-12)
+    np.testing.assert_allclose(g.real, cli["re"], rtol=1e-12, atol=1e-18)
+    dc = mvem.frequency_response(1500, 110, 80, 75, [0.0], strict=False)["G"]
+    np.testing.assert_allclose(dc["u_vgt->W_c"].real, lin["dc_gain"][o, 2], rtol=1e-9)
+    for bad, msg in [([1.0, 0.5], "strictly increasing"), ([float("nan")], "f_hz"), ([], "points")]:
+        with pytest.raises(ValueError, match=msg):
+            mvem.frequency_response(1500, 110, 80, 75, bad)

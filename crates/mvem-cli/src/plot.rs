@@ -100,6 +100,8 @@ pub struct Panel {
     pub y_label: String,
     /// The lines.
     pub series: Vec<Series>,
+    /// The series' x are log10 of the quantity: the ticks show 10^x (a frequency axis).
+    pub log_x: bool,
 }
 
 impl Panel {
@@ -110,7 +112,14 @@ impl Panel {
             x_label: x_label.into(),
             y_label: y_label.into(),
             series: Vec::new(),
+            log_x: false,
         }
+    }
+
+    /// The x values are log10 of the quantity; ticks are labelled with 10^x.
+    pub fn log_x(mut self) -> Self {
+        self.log_x = true;
+        self
     }
 
     /// Set the title.
@@ -446,6 +455,13 @@ fn legend_corner(
     (best.1, best.0, wy)
 }
 
+/// The tick label of a log10 axis at `v`: 10^v to two significant digits (0.032, 3.2, 32, 320).
+fn log_tick(v: f64) -> String {
+    let f = 10f64.powf(v);
+    let decimals = (1.0 - f.log10().floor()).clamp(0.0, 12.0) as usize;
+    format!("{f:.decimals$}")
+}
+
 fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     panel: &Panel,
@@ -486,7 +502,13 @@ fn draw_panel<DB: DrawingBackend>(
         .y_desc(panel.y_label.as_str())
         .x_labels(8)
         .y_labels(6)
-        .x_label_formatter(&|v| format!("{v:.dx$}"))
+        .x_label_formatter(&|v| {
+            if panel.log_x {
+                log_tick(*v)
+            } else {
+                format!("{v:.dx$}")
+            }
+        })
         .y_label_formatter(&|v| format!("{v:.dy$}"))
         .label_style((FAMILY, 16))
         .axis_desc_style((FAMILY, 18))

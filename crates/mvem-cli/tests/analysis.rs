@@ -38,6 +38,24 @@ fn lin_json(dir: &Path, u_vgt: &str, extra: &[&str]) -> Value {
     json_of(&mvem(dir, &lin_args(u_vgt, &extra)))
 }
 
+/// The library's view of `lin_args("75", ..)`: the model, the inputs, their steady state and
+/// the CLI's linearization options (non-strict).
+fn cli_point() -> (
+    Engine8,
+    Drive,
+    mvem::analysis::steady::SteadyState<8>,
+    LinearizeOptions,
+) {
+    let m = Engine8::published();
+    let drive = Drive::from_array([1500.0, 110.0, 80.0, 75.0]);
+    let ss = steady_state(&m, &drive).unwrap();
+    let opts = LinearizeOptions {
+        strict: false,
+        ..LinearizeOptions::default()
+    };
+    (m, drive, ss, opts)
+}
+
 fn complex_list(v: &Value) -> Vec<(f64, f64)> {
     v.as_array()
         .unwrap_or_else(|| panic!("not a list: {v}"))
@@ -188,6 +206,89 @@ fn linearize_pade_models_and_text() {
 
 /// `linearize --ts`: the sampled model in the JSON (the library's `discretize`, to the bit), its
 /// registers and poles, the text section, and the refused combinations.
+/// `--bode`: the library's frequency response in the JSON to the bit, the CSV and the plot
+/// written, the table printed, and bad grids, channels and --pade refused (exit code 2).
+#[test]
+fn linearize_frequency_response_with_exact_delays() {
+    let d = tempfile::tempdir().unwrap();
+    let csv = d.path().join("bode.csv");
+    let png = d.path().join("bode.png");
+    let v = lin_json(
+        d.path(),
+        "75",
+        &[
+            "--bode",
+            "0.01:100:41",
+            "--bode-out",
+            csv.to_str().unwrap(),
+            "--plot",
+            png.to_str().unwrap(),
+        ],
+    );
+    let fv = &v["frequency_response"];
+    let f: Vec<f64> = serde_json::from_value(fv["f_hz"].clone()).unwrap();
+    assert_eq!(f.len(), 41);
+    assert_eq!((f[0], f[40]), (0.01, 100.0));
+    assert_eq!(fv["delays_s"]["u_vgt"], 0.04);
+    // the library's response, bit for bit (the CLI linearizes non-strict)
+    let (m, drive, ss, opts) = cli_point();
+    let fr = mvem::analysis::frequency::frequency_response(&m, &ss.x, &drive, &opts, &f).unwrap();
+    let (mag, phase) = fr.magnitude_phase("u_vgt", "W_c").unwrap();
+    let got_mag: Vec<f64> =
+        serde_json::from_value(fv["channels"]["u_vgt->W_c"]["mag"].clone()).unwrap();
+    let got_phase: Vec<f64> =
+        serde_json::from_value(fv["channels"]["u_vgt->W_c"]["phase_deg"].clone()).unwrap();
+    assert_eq!((got_mag, got_phase), (mag.clone(), phase.clone()));
+    // the sign reversal of u_vgt -> W_c: a negative DC gain (phase near 180 deg at 0.01 Hz)
+    let dc = dc_gain_matrix(&linearize_steady(&m, &ss, &opts).unwrap()).unwrap();
+    assert!(dc[(index(&v, "output_names", "W_c"), 2)] < 0.0);
+    assert!((phase[0] - 180.0).abs() < 30.0, "{}", phase[0]);
+    // CSV: f_hz and a magnitude and a phase per channel (4 inputs x 7 outputs)
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    assert_eq!(header.len(), 1 + 2 * 4 * 7);
+    assert_eq!(
+        &header[..3],
+        ["f_hz", "u_delta->p_im mag", "u_delta->p_im phase_deg"]
+    );
+    assert_eq!(text.lines().count(), 42);
+    assert!(std::fs::metadata(&png).unwrap().len() > 10_000);
+    // the text table of the chosen channels
+    let o = mvem(
+        d.path(),
+        &lin_args("75", &["--bode", "0.1:10:3", "--channels", "u_egr->x_egr"]),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("u_egr -> x_egr   |G| [- per %]"), "{out}");
+    assert!(!out.contains("u_vgt -> W_c   |G|"), "{out}");
+    for (extra, want) in [
+        (
+            vec!["--bode", "0:10:5"],
+            "f_min = 0: must be a frequency > 0 Hz",
+        ),
+        (vec!["--bode", "1:10"], "expected FMIN:FMAX:N"),
+        (vec!["--bode", "1:10:x"], "N 'x' is not a whole number"),
+        (
+            vec!["--bode", "1:10:5", "--pade", "2"],
+            "--bode with --pade",
+        ),
+        (
+            vec!["--bode", "1:10:5", "--channels", "u_vgt-W_c"],
+            "is not input->output",
+        ),
+        (
+            vec!["--bode", "1:10:5", "--channels", "u_vgt->T_em"],
+            "add it with --outputs",
+        ),
+        (vec!["--bode", "1:10:5", "--plot", "bode.txt"], "bode.txt"),
+    ] {
+        let o = mvem(d.path(), &lin_args("75", &extra));
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{extra:?}: {}", stderr(&o));
+    }
+}
+
 #[test]
 fn linearize_sampled_model_with_exact_delays() {
     let d = tempfile::tempdir().unwrap();
@@ -218,13 +319,7 @@ fn linearize_sampled_model_with_exact_delays() {
     );
     assert_eq!(dv["state_units"][8], "%");
     // the library's model, bit for bit
-    let m = Engine8::published();
-    let drive = Drive::from_array([1500.0, 110.0, 80.0, 75.0]);
-    let ss = steady_state(&m, &drive).unwrap();
-    let opts = LinearizeOptions {
-        strict: false,
-        ..LinearizeOptions::default()
-    };
+    let (m, drive, ss, opts) = cli_point();
     let dm = mvem::analysis::discrete::discretize(&m, &ss.x, &drive, &opts, 0.02).unwrap();
     let phi = matrix(&dv["Phi"]);
     let gamma = matrix(&dv["Gamma"]);

@@ -617,6 +617,41 @@ pub fn linearize_at(
     })
 }
 
+/// The frequency response with exact delays at the steady state of `d`
+/// (`mvem::analysis::frequency::frequency_response`): the frequencies \[Hz\], the inputs and
+/// outputs, and per channel the complex gains.
+pub fn frequency_response_at(
+    d: [f64; 4],
+    params: Option<Params>,
+    variant: Variant,
+    f_hz: &[f64],
+    outputs: Option<Vec<String>>,
+    strict: bool,
+) -> CoreResult<mvem::analysis::frequency::FrequencyResponse> {
+    check_finite(d)?;
+    let mut opts = LinearizeOptions {
+        strict,
+        ..LinearizeOptions::default()
+    };
+    if let Some(o) = outputs {
+        opts.outputs = o;
+    }
+    opts.validate()
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let m = model(params, variant)?;
+    mvem::dispatch!(&m, m => {
+        let drive = Drive::from_array(d);
+        let ss = steady_state(m, &drive)
+            .map_err(|e| CoreError::Runtime(format!("steady state: {e}")))?;
+        mvem::analysis::frequency::frequency_response(m, &ss.x, &drive, &opts, f_hz).map_err(|e| match e {
+            LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
+                CoreError::Value(e.to_string())
+            }
+            other => CoreError::Runtime(other.to_string()),
+        })
+    })
+}
+
 /// Step metrics of samples (`mvem::analysis::step::StepMetrics::compute`).
 pub fn step_metrics(
     t: &[f64],

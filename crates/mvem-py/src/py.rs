@@ -629,6 +629,76 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
         .call_method1("astype", ("complex128",))
 }
 
+/// Frequency response of the linearized model at the steady state of constant inputs, the
+/// actuator delays exact: G(jw) = C (jwI - A)^-1 B + D with the delayed commands' columns times
+/// e^(-jw tau) (no Pade approximation).
+///
+/// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]: the operating point.
+/// f_hz: frequencies [Hz] (1-D, finite, >= 0, strictly increasing; e.g. numpy.logspace(-2, 2,
+///     200)). outputs, strict, params, model: as in linearize.
+///
+/// Returns a dict: "f_hz" (array), "G" {"u_vgt->W_c": complex array (output unit per input
+/// unit), ...} for every input (u_delta, u_egr, u_vgt, n_e) and output, "input_names",
+/// "output_names", "delays" [s] of (u_egr, u_vgt). abs() and numpy.angle() give the Bode
+/// diagram; at f = 0 the gains are the DC gains. Raises ValueError for bad arguments,
+/// RuntimeError when there is no steady state (or a kink with strict).
+#[pyfunction]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, strict=true, params=None, model=8))]
+#[allow(clippy::too_many_arguments)]
+fn frequency_response<'py>(
+    py: Python<'py>,
+    n_e: f64,
+    u_delta: f64,
+    u_egr: f64,
+    u_vgt: f64,
+    f_hz: &Bound<'py, PyAny>,
+    outputs: Option<Vec<String>>,
+    strict: bool,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let np = py.import("numpy")?;
+    let f = float_list(&np, f_hz, "f_hz")?;
+    let p = params_at_point(
+        py,
+        params,
+        "frequency_response",
+        [n_e, u_delta, u_egr, u_vgt],
+    )?;
+    let fr = py
+        .allow_threads(move || {
+            core::frequency_response_at(
+                [n_e, u_delta, u_egr, u_vgt],
+                p,
+                variant,
+                &f,
+                outputs,
+                strict,
+            )
+        })
+        .map_err(to_py_err)?;
+    let out = PyDict::new(py);
+    out.set_item(
+        "f_hz",
+        np.call_method1("array", (fr.f_hz.clone(), "float64"))?,
+    )?;
+    let g = PyDict::new(py);
+    for i in &fr.input_names {
+        for o in &fr.output_names {
+            if let Some(z) = fr.channel(i, o) {
+                let pairs: Vec<(f64, f64)> = z.iter().map(|c| (c.re, c.im)).collect();
+                g.set_item(format!("{i}->{o}"), complex_array(&np, &pairs)?)?;
+            }
+        }
+    }
+    out.set_item("G", g)?;
+    out.set_item("input_names", &fr.input_names)?;
+    out.set_item("output_names", &fr.output_names)?;
+    out.set_item("delays", fr.delays.to_vec())?;
+    Ok(out)
+}
+
 /// Linearize at the steady state of constant inputs: dx' = A dx + B du, dy = C dx + D du.
 ///
 /// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]: the operating point.
@@ -1770,6 +1840,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(steady, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;
+    m.add_function(wrap_pyfunction!(frequency_response, m)?)?;
     m.add_function(wrap_pyfunction!(step_metrics, m)?)?;
     m.add_function(wrap_pyfunction!(step_response, m)?)?;
     m.add_function(wrap_pyfunction!(variables, m)?)?;

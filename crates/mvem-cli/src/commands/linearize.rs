@@ -20,6 +20,7 @@ Examples:
   mvem linearize --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 30 --outputs W_c,p_im,T_em
   mvem linearize --n-e 1500 --u-delta 130 --u-egr 80 --u-vgt 75 --state x.json --json
   mvem linearize --n-e 1500 --u-delta 110 --u-egr 40 --u-vgt 75 --ts 0.01 --json > mpc.json
+  mvem linearize --n-e 1500 --u-delta 110 --u-egr 50 --u-vgt 60 --bode 0.01:100:300 --plot bode.png --bode-out bode.csv
 
 The linear model is dx' = A dx + B du, dy = C dx + D du in deviations from the steady state,
 in SI units (states Pa, -, rad/s, %), inputs (u_delta, u_egr, u_vgt, n_e) in mg/cycle, %, %,
@@ -32,6 +33,12 @@ not zero and the poles and zeros are those of the frozen linear model.
 --ts S also samples the model with a zero-order hold at S seconds (1e-3 to 100), the actuator
 delays exact (dx(k+1) = Phi dx(k) + Gamma du(k), dy(k) = C dx(k) + D du(k); the past commands
 u_egr(k-1), ... are extra states): for MPC and discrete observers. Not with --pade.
+--bode FMIN:FMAX:N also the frequency response G(jw) = C (jwI - A)^-1 B + D of every channel
+with the delays exact (the delayed commands' columns times e^(-jw tau); no Pade approximation),
+at N log-spaced frequencies; the phase unwrapped along the grid (a grid too coarse for a delay's
+phase turn shows as a jump: use more points). --bode-out writes it (CSV or Parquet), --plot
+draws the --channels, and the text output tabulates them; --json adds \"frequency_response\".
+Not with --pade (the printed model would not be the one of the response).
 
 With --json, stdout holds one JSON object with the keys \"eigenvalues\" [{re, im}], \"zeros\"
 (object keyed \"u_vgt->W_c\", ..., one entry per SISO channel plus \"MIMO\" for
@@ -41,7 +48,9 @@ inputs), \"A\", \"B\", \"C\", \"D\" (lists of rows), \"state_names\", \"input_na
 \"output_names\", \"units\", \"operating_point\", \"x0\", \"y0\", \"physically_valid\", \"flags\",
 \"kinks\", \"pade_order\", \"delays_s\", \"dx0\", \"steady_state\"; with --ts also \"discrete\": {\"ts\",
 \"Phi\", \"Gamma\", \"C\", \"D\", \"state_names\", \"state_units\", \"input_names\", \"output_names\",
-\"delays_s\", \"delay_samples\" {u_egr, u_vgt: {whole, remainder_s}}, \"poles\" (eigenvalues of Phi)}.")]
+\"delays_s\", \"delay_samples\" {u_egr, u_vgt: {whole, remainder_s}}, \"poles\" (eigenvalues of Phi)};
+with --bode also \"frequency_response\": {\"f_hz\", \"delays_s\", \"channels\": {\"u_vgt->W_c\": {\"mag\",
+\"phase_deg\", \"re\", \"im\"}, ...}}.")]
 pub struct Args {
     #[command(flatten)]
     pub point: PointArgs,
@@ -63,6 +72,21 @@ pub struct Args {
     /// actuator delays exact: Phi, Gamma, C, D with the past commands as extra states.
     #[arg(long, value_name = "S")]
     pub ts: Option<f64>,
+    /// Frequency response (Bode) of every channel with the actuator delays exact: N frequencies
+    /// from FMIN to FMAX [Hz], evenly spaced in log scale (e.g. 0.01:100:200). Not with --pade.
+    #[arg(long, value_name = "FMIN:FMAX:N")]
+    pub bode: Option<String>,
+    /// Write the frequency response to this CSV (or .parquet) file: f_hz, then per channel
+    /// `<input>-><output> mag` (output unit per input unit) and `<input>-><output> phase_deg`.
+    #[arg(long, value_name = "FILE", requires = "bode")]
+    pub bode_out: Option<std::path::PathBuf>,
+    /// Bode plot (.png or .svg) of the --channels: magnitude [dB] and phase [deg] over log f.
+    #[arg(long, value_name = "FILE.png|svg", requires = "bode")]
+    pub plot: Option<std::path::PathBuf>,
+    /// Channels (`input->output`, comma separated) of the Bode plot and the printed table
+    /// [default: u_vgt->W_c, u_egr->p_im, u_vgt->p_im, u_egr->x_egr, those among the outputs].
+    #[arg(long, value_name = "LIST", value_delimiter = ',', requires = "bode")]
+    pub channels: Vec<String>,
     #[command(flatten)]
     pub model: ModelArgs,
 }
@@ -84,6 +108,21 @@ pub fn run(a: &Args) -> Result<()> {
             )));
         }
     }
+    let bode = match &a.bode {
+        None => None,
+        Some(spec) => {
+            if a.pade > 0 {
+                return Err(common::usage(
+                    "--bode with --pade: the frequency response has the delays exact; leave out --pade",
+                ));
+            }
+            Some(bode_grid(spec)?)
+        }
+    };
+    for p in [&a.bode_out, &a.plot].into_iter().flatten() {
+        common::check_output_path(p, "output")?;
+    }
+    let plot_format = a.plot.as_deref().map(crate::plot::Format::of).transpose()?;
     let model = a.model.build()?;
     let state = match &a.state {
         Some(p) => Some((super::simulate::read_initial_state(p)?, p.as_path())),
@@ -109,8 +148,35 @@ pub fn run(a: &Args) -> Result<()> {
             })?;
             v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
         }
-        v
+        let fr = match &bode {
+            None => None,
+            Some(f) => Some(
+                mvem::analysis::frequency::frequency_response_linear(m, &x, &d, &lin, f)
+                    .context("frequency response")?,
+            ),
+        };
+        (v, fr)
     });
+    let (mut v, fr) = v;
+    let channels = match &fr {
+        Some(fr) => bode_channels(fr, &a.channels)?,
+        None => Vec::new(),
+    };
+    if let Some(fr) = &fr {
+        // everything rendered before anything is written (a failure leaves no file behind)
+        let figure = match (&a.plot, plot_format) {
+            (Some(_), Some(fmt)) => Some(crate::plot::render(&bode_figure(fr, &channels), fmt)?),
+            _ => None,
+        };
+        if let Some(path) = &a.bode_out {
+            write_bode(fr, path)?;
+        }
+        if let (Some(path), Some(bytes)) = (&a.plot, figure) {
+            mvem::io::output::write_atomic(path, &bytes)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        v["frequency_response"] = mvem::analysis::json::frequency_response_json(fr);
+    }
     if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
         if !w {
             eprintln!(
@@ -136,8 +202,185 @@ pub fn run(a: &Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_text(&v);
+        if let Some(fr) = &fr {
+            print_bode(fr, &channels);
+        }
+    }
+    for (what, p) in [("frequency response", &a.bode_out), ("Bode plot", &a.plot)] {
+        if let Some(p) = p {
+            eprintln!("Wrote the {what} to {}", p.display());
+        }
     }
     Ok(())
+}
+
+/// The frequencies of `--bode FMIN:FMAX:N`.
+fn bode_grid(spec: &str) -> Result<Vec<f64>> {
+    let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
+    let bad = |why: String| common::usage(format!("--bode {spec}: {why}"));
+    let [lo, hi, n] = parts[..] else {
+        return Err(bad(
+            "expected FMIN:FMAX:N (Hz, Hz, points), e.g. 0.01:100:200".into(),
+        ));
+    };
+    let num = |s: &str, what: &str| {
+        s.parse::<f64>()
+            .map_err(|_| bad(format!("{what} '{s}' is not a number")))
+    };
+    let (lo, hi) = (num(lo, "FMIN")?, num(hi, "FMAX")?);
+    let n: usize = n
+        .parse()
+        .map_err(|_| bad(format!("N '{n}' is not a whole number of points")))?;
+    mvem::analysis::frequency::log_grid(lo, hi, n).map_err(|e| bad(e.to_string()))
+}
+
+/// The channels of the plot and the table: `--channels`, each checked against the response's
+/// inputs and outputs, or the default ones among its outputs.
+fn bode_channels(
+    fr: &mvem::analysis::frequency::FrequencyResponse,
+    given: &[String],
+) -> Result<Vec<(String, String)>> {
+    let split = |c: &str| -> Option<(String, String)> {
+        let (i, o) = c.split_once("->")?;
+        Some((i.trim().to_string(), o.trim().to_string()))
+    };
+    if given.is_empty() {
+        let mut out: Vec<(String, String)> =
+            ["u_vgt->W_c", "u_egr->p_im", "u_vgt->p_im", "u_egr->x_egr"]
+                .iter()
+                .filter_map(|c| split(c))
+                .filter(|(_, o)| fr.output_names.contains(o))
+                .collect();
+        if out.is_empty() {
+            out = fr
+                .output_names
+                .iter()
+                .take(4)
+                .map(|o| ("u_vgt".to_string(), o.clone()))
+                .collect();
+        }
+        return Ok(out);
+    }
+    given
+        .iter()
+        .map(|c| {
+            let (i, o) = split(c).ok_or_else(|| {
+                common::usage(format!(
+                    "--channels: '{c}' is not input->output (e.g. u_vgt->W_c)"
+                ))
+            })?;
+            if !fr.input_names.contains(&i) {
+                return Err(common::usage(format!(
+                    "--channels {c}: no input {i} (inputs: {})",
+                    fr.input_names.join(", ")
+                )));
+            }
+            if !fr.output_names.contains(&o) {
+                return Err(common::usage(format!(
+                    "--channels {c}: no output {o} (outputs: {}; add it with --outputs)",
+                    fr.output_names.join(", ")
+                )));
+            }
+            Ok((i, o))
+        })
+        .collect()
+}
+
+/// Write every channel's magnitude and phase (CSV or Parquet by the extension).
+fn write_bode(
+    fr: &mvem::analysis::frequency::FrequencyResponse,
+    path: &std::path::Path,
+) -> Result<()> {
+    let mut names: Vec<String> = vec!["f_hz".into()];
+    let mut cols: Vec<Vec<f64>> = vec![fr.f_hz.clone()];
+    for i in &fr.input_names {
+        for o in &fr.output_names {
+            if let Some((mag, phase)) = fr.magnitude_phase(i, o) {
+                names.push(format!("{i}->{o} mag"));
+                cols.push(mag);
+                names.push(format!("{i}->{o} phase_deg"));
+                cols.push(phase);
+            }
+        }
+    }
+    let table: Vec<(&str, &[f64])> = names
+        .iter()
+        .map(String::as_str)
+        .zip(cols.iter().map(Vec::as_slice))
+        .collect();
+    mvem::io::output::write_columns(&table, path)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Magnitude [dB re 1 output unit per input unit] and phase panels of each channel, over log f.
+fn bode_figure(
+    fr: &mvem::analysis::frequency::FrequencyResponse,
+    channels: &[(String, String)],
+) -> crate::plot::Figure {
+    use crate::plot::{Figure, Panel, Series};
+    let lf: Vec<f64> = fr.f_hz.iter().map(|f| f.max(1e-300).log10()).collect();
+    let mut fig = Figure::new(2);
+    fig.title = Some(format!(
+        "frequency response, delays exact (u_egr {} s, u_vgt {} s)",
+        mvem::numerics::Num(fr.delays[0]),
+        mvem::numerics::Num(fr.delays[1])
+    ));
+    for (k, (i, o)) in channels.iter().enumerate() {
+        let Some((mag, phase)) = fr.magnitude_phase(i, o) else {
+            continue;
+        };
+        let db: Vec<f64> = mag.iter().map(|m| 20.0 * m.max(1e-300).log10()).collect();
+        let unit = format!("{} per {}", common::unit(o), common::unit(i));
+        fig.panels.push(
+            Panel::new("f [Hz]", format!("|G| [dB re 1 {unit}]"))
+                .title(format!("{i} -> {o}: magnitude"))
+                .with(Series::line("", &lf, &db, k))
+                .log_x(),
+        );
+        fig.panels.push(
+            Panel::new("f [Hz]", "phase [deg]")
+                .title(format!("{i} -> {o}: phase"))
+                .with(Series::line("", &lf, &phase, k))
+                .log_x(),
+        );
+    }
+    fig
+}
+
+/// A table per channel at up to nine frequencies of the grid (evenly spaced in log f).
+fn print_bode(fr: &mvem::analysis::frequency::FrequencyResponse, channels: &[(String, String)]) {
+    println!(
+        "\nFrequency response ({} points, {} to {} Hz; delays exact: u_egr {} s, u_vgt {} s)",
+        fr.f_hz.len(),
+        mvem::numerics::Num(fr.f_hz[0]),
+        mvem::numerics::Num(*fr.f_hz.last().unwrap_or(&f64::NAN)),
+        mvem::numerics::Num(fr.delays[0]),
+        mvem::numerics::Num(fr.delays[1])
+    );
+    let n = fr.f_hz.len();
+    let rows: Vec<usize> = if n <= 9 {
+        (0..n).collect()
+    } else {
+        let mut r: Vec<usize> = (0..9).map(|k| k * (n - 1) / 8).collect();
+        r.dedup();
+        r
+    };
+    for (i, o) in channels {
+        let Some((mag, phase)) = fr.magnitude_phase(i, o) else {
+            continue;
+        };
+        println!(
+            "\n  {i} -> {o}   |G| [{} per {}], phase [deg]",
+            common::unit(o),
+            common::unit(i)
+        );
+        for &k in &rows {
+            println!(
+                "    {:>10.4} Hz  {:>12.4e}  {:>9.2}",
+                fr.f_hz[k], mag[k], phase[k]
+            );
+        }
+    }
 }
 
 /// Linearization options from `--outputs` and `--pade` (non-strict: kinks are judged per

@@ -12,6 +12,8 @@ in parallel):
 - steady(n_e, u_delta, u_egr, u_vgt, params=None, model=8) -> dict
 - linearize(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None,
   model=8) -> dict with A, B, C, D, eigenvalues, dc_gain, zeros, ...
+- frequency_response(n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, ...) -> dict with "f_hz"
+  and "G" {"u_vgt->W_c": complex array, ...}: the Bode diagram, the actuator delays exact
 - Model(model=8, params=None): the right-hand side at any state, for optimal control and custom
   integrators: m.derivatives(x, u) -> dx/dt, m.jacobian(x, u, outputs=None) -> dict with f, A,
   B (and y, C, D), m.signals(x, u) -> dict; u = (n_e, u_delta, u_egr, u_vgt); one point or K
@@ -27,7 +29,7 @@ in parallel):
   with held commands (plant.step(dt, u_egr=..., u_vgt=...) -> dict; plant.t, plant.state,
   plant.reset(...)); exact actuator delays across calls. For controllers written in Python.
 - closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None) -> dict: a drive
-  cycle (the WHTC, or t/n_e/M_ref) with the baseline EGR/VGT and engine controllers (tuning: a
+  cycle (the WHTC, t/n_e/M_ref, or a cycle file's path: a demand or a normalized cycle) with the baseline EGR/VGT and engine controllers (tuning: a
   dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
 - lab(out, params=None, model=8, **settings) -> dict: a virtual test-cell campaign written to a
   directory, as `mvem lab` (settings: its options in snake case, seed=1, noise="realistic", ...)
@@ -56,6 +58,7 @@ from ._mvem import (
     closed_loop,
     Plant,
     __version__,
+    frequency_response,
     linearize,
     parameters,
     published_params,
@@ -86,6 +89,7 @@ __all__ = [
     "tune",
     "validate",
     "steady",
+    "frequency_response",
     "linearize",
     "step_metrics",
     "step_response",

@@ -127,6 +127,25 @@ def linearize(
     ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
     """
 
+def frequency_response(
+    n_e: float,
+    u_delta: float,
+    u_egr: float,
+    u_vgt: float,
+    f_hz: npt.ArrayLike,
+    outputs: Optional[Sequence[str]] = None,
+    strict: bool = True,
+    params: Params = None,
+    model: ModelOrder = 8,
+) -> Dict[str, Any]:
+    """Frequency response at the steady state of the inputs, the actuator delays exact.
+
+    f_hz [Hz]: finite, >= 0, strictly increasing. Keys: "f_hz" (array), "G" {"u_vgt->W_c":
+    complex array (output unit per input unit), ...} for every input and output,
+    "input_names", "output_names", "delays" [s] of (u_egr, u_vgt). At f = 0: the DC gains.
+    ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
+    """
+
 def step_metrics(
     t: npt.ArrayLike,
     y: npt.ArrayLike,

@@ -24,9 +24,10 @@
 //! is well conditioned.
 
 use super::linearize::{
-    directional_derivative, linearize, LinearModel, LinearizeError, LinearizeOptions, INPUT_SCALES,
+    converged, directional_derivative, linearize, LinearModel, LinearizeError, LinearizeOptions,
+    INPUT_SCALES,
 };
-use crate::model::{CylinderTemp, Drive, Model, ModelInput, Signals};
+use crate::model::{Drive, Model, ModelInput, Signals};
 use nalgebra::DMatrix;
 
 /// Shortest sample time accepted \[s\]: the delay registers grow as 1/ts (at 1 ms the authors'
@@ -118,13 +119,9 @@ pub fn discretize_linear<const N: usize, M: Model<N>>(
     ts: f64,
 ) -> Result<DiscreteModel, LinearizeError> {
     check_options(lin.pade_order, ts)?;
-    if m.options().cylinder_temp == CylinderTemp::OneIteration {
-        // as linearize: the converged model (the memory is a property of the integration)
-        let mut o = *m.options();
-        o.cylinder_temp = CylinderTemp::Converged;
-        return split_and_sample(&m.with_options(o), x, d, lin.clone(), ts);
-    }
-    split_and_sample(m, x, d, lin.clone(), ts)
+    // as linearize: the converged model (the memory is a property of the integration)
+    let conv = converged(m);
+    split_and_sample(conv.as_ref().unwrap_or(m), x, d, lin.clone(), ts)
 }
 
 /// Whether `ts` is a sample time [`discretize`] accepts ([`TS_MIN`] ..= [`TS_MAX`], finite): the
@@ -153,13 +150,31 @@ fn check_options(pade_order: usize, ts: f64) -> Result<(), LinearizeError> {
     Ok(())
 }
 
-fn split_and_sample<const N: usize, M: Model<N>>(
+/// The input columns of a linearization without Padé states split into the current commands'
+/// part and the delayed copies' part (u_egr(t - tau_degr), u_vgt(t - tau_dvgt)): `b = b_now + g`,
+/// `d = d_now + gd` in the u_egr and u_vgt columns. Shared by the sampled model (exact delays in
+/// discrete time) and the frequency response ([`super::frequency`], exact delays e^(-s tau)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DelaySplit {
+    /// Derivatives' sensitivity to the delayed copies (n x 2: u_egr, u_vgt).
+    pub g: DMatrix<f64>,
+    /// Outputs' sensitivity to the delayed copies (p x 2; state outputs 0).
+    pub gd: DMatrix<f64>,
+    /// The input matrix of the current commands (n x 4).
+    pub b_now: DMatrix<f64>,
+    /// The feedthrough of the current commands (p x 4).
+    pub d_now: DMatrix<f64>,
+}
+
+/// [`DelaySplit`] of `lin`, a linearization of `m` at `x`, `d` without Padé states (the delayed
+/// copies' columns by [`directional_derivative`]; an entry of the current part that cancels to
+/// the rounding of the two difference quotients is an exact 0).
+pub fn delay_split<const N: usize, M: Model<N>>(
     m: &M,
     x: &[f64; N],
     d: &Drive,
-    lin: LinearModel,
-    ts: f64,
-) -> Result<DiscreteModel, LinearizeError> {
+    lin: &LinearModel,
+) -> Result<DelaySplit, LinearizeError> {
     let n = N;
     let p = lin.output_names.len();
     // The delayed copies' columns (directions 4 and 5 of ModelInput::to_array): derivatives
@@ -204,6 +219,29 @@ fn split_and_sample<const N: usize, M: Model<N>>(
             d_now[(o, 1 + q)] = rest(d_now[(o, 1 + q)], gd[(o, q)]);
         }
     }
+    Ok(DelaySplit {
+        g,
+        gd,
+        b_now,
+        d_now,
+    })
+}
+
+fn split_and_sample<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    d: &Drive,
+    lin: LinearModel,
+    ts: f64,
+) -> Result<DiscreteModel, LinearizeError> {
+    let n = N;
+    let p = lin.output_names.len();
+    let DelaySplit {
+        g,
+        gd,
+        b_now,
+        d_now,
+    } = delay_split(m, x, d, &lin)?;
 
     let delays = lin.delays;
     // the register count bounded in floating point first (a delay of 1e300 s must not reach

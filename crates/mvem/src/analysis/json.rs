@@ -78,6 +78,37 @@ fn state_unit(name: &str) -> &'static str {
 /// Input units in [`crate::analysis::linearize`]'s input order (u_delta, u_egr, u_vgt, n_e).
 const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
 
+/// The frequency response as JSON: `{"f_hz": [...], "delays_s": {"u_egr", "u_vgt"},
+/// "channels": {"u_vgt->W_c": {"mag": [...], "phase_deg": [...], "re": [...], "im": [...]}, ...}}`,
+/// one channel per input and output (magnitude in output unit per input unit, the phase
+/// unwrapped along the grid).
+pub fn frequency_response_json(fr: &crate::analysis::frequency::FrequencyResponse) -> Value {
+    let mut channels = serde_json::Map::new();
+    for input in &fr.input_names {
+        for output in &fr.output_names {
+            let (Some(g), Some((mag, phase))) =
+                (fr.channel(input, output), fr.magnitude_phase(input, output))
+            else {
+                continue;
+            };
+            channels.insert(
+                format!("{input}->{output}"),
+                json!({
+                    "mag": mag,
+                    "phase_deg": phase,
+                    "re": g.iter().map(|z| z.re).collect::<Vec<_>>(),
+                    "im": g.iter().map(|z| z.im).collect::<Vec<_>>(),
+                }),
+            );
+        }
+    }
+    json!({
+        "f_hz": fr.f_hz,
+        "delays_s": {"u_egr": fr.delays[0], "u_vgt": fr.delays[1]},
+        "channels": channels,
+    })
+}
+
 /// The JSON object of a sampled linear model (`mvem linearize --ts`, the `"discrete"` key):
 /// `"ts"`, `"Phi"`, `"Gamma"`, `"C"`, `"D"` (lists of rows), `"state_names"` (the model's states,
 /// then the delay registers `u_egr(k-1)`, ...), `"state_units"`, `"input_names"`,

@@ -306,12 +306,19 @@ pub fn linearize<const N: usize, M: Model<N>>(
     d: &Drive,
     opts: &LinearizeOptions,
 ) -> Result<LinearModel, LinearizeError> {
-    if m.options().cylinder_temp == CylinderTemp::OneIteration {
+    let conv = converged(m);
+    linearize_impl(conv.as_ref().unwrap_or(m), x, d, opts)
+}
+
+/// `m` in [`CylinderTemp::Converged`] mode when it runs in one-iteration mode (None: it is
+/// converged already): the linear analyses work on the converged model, the memory of the
+/// one-iteration mode being a property of the integration.
+pub fn converged<const N: usize, M: Model<N>>(m: &M) -> Option<M> {
+    (m.options().cylinder_temp == CylinderTemp::OneIteration).then(|| {
         let mut o = *m.options();
         o.cylinder_temp = CylinderTemp::Converged;
-        return linearize_impl(&m.with_options(o), x, d, opts);
-    }
-    linearize_impl(m, x, d, opts)
+        m.with_options(o)
+    })
 }
 
 /// Rows of one evaluation: the N derivatives then the signal outputs.

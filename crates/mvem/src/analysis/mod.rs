@@ -8,6 +8,7 @@ pub mod discrete;
 pub mod ensemble;
 pub mod experiment;
 pub mod extensions;
+pub mod frequency;
 pub mod json;
 pub mod linearize;
 pub mod map;
