@@ -403,10 +403,11 @@ def test_uploaded_cycle_files(page, server, tmp_path):
 def test_linear_model_panel(page, server):
     """The linear model at the operating point: the DC gains and RHP zeros of every channel as
     /api/linearize gives them (u_vgt -> W_c non-minimum phase at the default point, u_egr ->
-    p_im too), the sampled model's delay registers and poles with a sample time, its JSON
-    download equal to the API's answer, and a bad sample time named."""
+    p_im too), the sampled model's delay registers and poles with a sample time, the Bode
+    diagram of a chosen channel (delays exact), its JSON download equal to the API's answer,
+    and a bad sample time named."""
     q = "n_e=1500&u_delta=110&u_egr=80&u_vgt=75&model=8&params=" + page.input_value("select[name=params]")
-    api = _api(server, f"/api/linearize?{q}&ts=0.02")
+    api = _api(server, f"/api/linearize?{q}&ts=0.02&bode=0.01:100:200")
     page.fill("input[name=lin_ts]", "0.02")
     page.click("[data-action=linearize]")
     page.wait_for_selector("#lin-sampled:not([hidden])")
@@ -431,7 +432,15 @@ def test_linear_model_panel(page, server):
     with page.expect_download() as d:
         page.click("[data-download=linear]")
     assert json.loads(Path(d.value.path()).read_text()) == api
+    # the Bode diagram (exact delays): u_vgt -> W_c first, another channel from the menu
+    page.wait_for_selector("canvas[data-plot=bode]:not([hidden])")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-drawn") == "u_vgt->W_c"
+    chans = page.eval_on_selector_all("select[name=bode_channel] option", "os => os.map(o => o.value)")
+    assert sorted(chans) == sorted(api["frequency_response"]["channels"]), chans
+    page.select_option("select[name=bode_channel]", "u_egr->p_im")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_egr->p_im']")
     page.screenshot(path=str(ART / "explorer_linear.png"), full_page=True)
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode.png"))
     # the point it was computed at; moving an input marks it as another point's
     at = page.text_content("#lin-at")
     assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at

@@ -81,56 +81,23 @@ fn api_steady_and_linearize_equal_the_cli_to_the_last_bit() {
         assert!(api["p_im"].as_f64().unwrap() > 1e5, "{q}: p_im");
         assert_bitwise(&api, &cli, &format!("steady {q}"));
     }
-    // the linearization (matrices, zeros, DC gains), with Pade states and chosen outputs
-    for (q, args) in [
-        (
-            "n_e=1500&u_delta=110&u_egr=80&u_vgt=75",
-            vec![
-                "--n-e",
-                "1500",
-                "--u-delta",
-                "110",
-                "--u-egr",
-                "80",
-                "--u-vgt",
-                "75",
-            ],
-        ),
-        (
-            "n_e=1500&u_delta=110&u_egr=40&u_vgt=75&ts=0.025",
-            vec![
-                "--n-e",
-                "1500",
-                "--u-delta",
-                "110",
-                "--u-egr",
-                "40",
-                "--u-vgt",
-                "75",
-                "--ts",
-                "0.025",
-            ],
-        ),
-        (
-            "n_e=1200&u_delta=200&u_egr=50&u_vgt=40&model=12&pade=2&outputs=W_c,p_im,T_em",
-            vec![
-                "--n-e",
-                "1200",
-                "--u-delta",
-                "200",
-                "--u-egr",
-                "50",
-                "--u-vgt",
-                "40",
-                "--model",
-                "12",
-                "--pade",
-                "2",
-                "--outputs",
-                "W_c,p_im,T_em",
-            ],
-        ),
+    // the linearization (matrices, zeros, DC gains), with Pade states and chosen outputs, the
+    // sampled model and the frequency response; the command line of each query: the same
+    // names as options (n_e -> --n-e, ...)
+    for q in [
+        "n_e=1500&u_delta=110&u_egr=80&u_vgt=75",
+        "n_e=1500&u_delta=110&u_egr=40&u_vgt=75&ts=0.025",
+        "n_e=1500&u_delta=110&u_egr=50&u_vgt=60&bode=0.01:100:40",
+        "n_e=1200&u_delta=200&u_egr=50&u_vgt=40&model=12&pade=2&outputs=W_c,p_im,T_em",
     ] {
+        let args: Vec<String> = q
+            .split('&')
+            .flat_map(|kv| {
+                let (k, v) = kv.split_once('=').unwrap();
+                [format!("--{}", k.replace('_', "-")), v.to_string()]
+            })
+            .collect();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let cli = cli_json(&[&["linearize", "--json"][..], &args[..]].concat());
         let r = client::get(server.addr, &format!("/api/linearize?{q}")).unwrap();
         assert_eq!(r.status, 200, "{q}: {}", String::from_utf8_lossy(&r.body));

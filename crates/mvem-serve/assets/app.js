@@ -223,7 +223,8 @@
   }
 
   // one panel: frame, ticks, title; returns the coordinate maps
-  function panel(ctx, box, xr, yr, title) {
+  // (opts.logX: the x values are log10 of the quantity; ticks at the decades, labelled 10^x)
+  function panel(ctx, box, xr, yr, title, opts = {}) {
     const [x0, y0, w, h] = box;
     const L = 56, R = 8, T = 16, B = 18;
     const px = (x) => x0 + L + (x - xr[0]) / (xr[1] - xr[0]) * (w - L - R);
@@ -238,7 +239,16 @@
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
     ctx.textAlign = "center"; ctx.textBaseline = "top";
-    for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
+    if (opts.logX) {
+      for (let v = Math.ceil(xr[0]); v <= xr[1] + 1e-9; v++) {
+        // (the label at the right edge ends there instead of being cut)
+        ctx.textAlign = px(v) > x0 + w - R - 12 ? "right" : "center";
+        ctx.fillText(tickLabel(Number(Math.pow(10, v).toPrecision(6))), px(v), y0 + h - B + 3);
+        ctx.save(); ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(px(v), y0 + T); ctx.lineTo(px(v), y0 + h - B); ctx.stroke(); ctx.restore();
+      }
+    } else {
+      for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
+    }
     ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.font = "12px system-ui, sans-serif";
     ctx.fillText(title, x0 + L + 4, y0 + 2);
     ctx.restore();
@@ -310,6 +320,7 @@
       if (modelSel().params) q.set("params", modelSel().params);
       const ts = $("input[name=lin_ts]").value.trim();
       if (ts !== "") q.set("ts", ts);
+      q.set("bode", BODE_GRID);
       const key = linearKey();
       const at = linearAt();
       const j = await api(`/api/linearize?${q}`);
@@ -329,7 +340,54 @@
     }
   }
 
+  // the frequency grid of the Bode diagram (Hz: from, to, points)
+  const BODE_GRID = "0.01:100:200";
+
+  // the channel menu of the Bode diagram (the previous choice kept when the new model has it)
+  function showBodeChannels(j) {
+    const fr = j.frequency_response;
+    $("#lin-bode-controls").hidden = !fr;
+    $("[data-plot=bode]").hidden = !fr;
+    if (!fr) return;
+    const sel = $("select[name=bode_channel]");
+    const names = Object.keys(fr.channels);
+    const keep = names.includes(sel.value) ? sel.value : (names.includes("u_vgt->W_c") ? "u_vgt->W_c" : names[0]);
+    sel.replaceChildren(...names.map((n) => {
+      const o = document.createElement("option");
+      o.value = n; o.textContent = n.replace("->", " → ");
+      return o;
+    }));
+    sel.value = keep;
+    drawBode();
+  }
+
+  // magnitude [dB] and phase [deg] of the chosen channel over log f
+  function drawBode() {
+    const j = app.linear;
+    const fr = j && j.frequency_response;
+    if (!fr) return;
+    const ch = $("select[name=bode_channel]").value;
+    const g = fr.channels[ch];
+    if (!g) return;
+    const [inp, out] = ch.split("->");
+    const c = $("[data-plot=bode]");
+    const ctx = clearCanvas(c);
+    const lf = fr.f_hz.map((f) => Math.log10(f));
+    const xr = [lf[0], lf[lf.length - 1]];
+    const db = g.mag.map((m) => 20 * Math.log10(m));
+    const w = c.width / 2;
+    const units = `${unit(out)} per ${unit(inp)}`;
+    const pm = panel(ctx, [0, 0, w, c.height], xr, niceRange(Math.min(...db), Math.max(...db)),
+      `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true });
+    line(ctx, pm, lf, db, COLORS[0], 2);
+    const pp = panel(ctx, [w, 0, w, c.height], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
+      "phase [deg]   f [Hz]", { logX: true });
+    line(ctx, pp, lf, g.phase_deg, COLORS[1], 2);
+    c.dataset.drawn = ch;
+  }
+
   function showLinear(j) {
+    showBodeChannels(j);
     $("#lin-poles").textContent = j.eigenvalues.map(cplx).join(", ");
     const d = j.discrete;
     $("#lin-sampled").hidden = !d;
@@ -802,6 +860,7 @@
     $("[data-action=cycle]").addEventListener("click", runCycle);
     $("input[name=cycle_t]").addEventListener("input", scrub);
     $("select[name=cycle_mode]").addEventListener("change", showCycleMode);
+    $("select[name=bode_channel]").addEventListener("change", drawBode);
     $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
     $("#tuning-fields").addEventListener("input", markTuning);

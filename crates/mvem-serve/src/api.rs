@@ -418,12 +418,45 @@ async fn linearize(
             }
         },
     };
-    p.finish("n_e, u_delta, u_egr, u_vgt, model, params, pade, outputs, ts")?;
+    // the frequency response with the delays exact (`mvem linearize --bode FMIN:FMAX:N`)
+    let bode = match p.take("bode") {
+        None => None,
+        Some(_) if pade > 0 => {
+            return Err(ApiError::bad(
+                "bode with pade: the frequency response has the delays exact; leave out pade",
+            ))
+        }
+        Some(s) => Some(bode_grid(&s)?),
+    };
+    p.finish("n_e, u_delta, u_egr, u_vgt, model, params, pade, outputs, ts, bode")?;
     let v = app
         .work
-        .run(move || mvem::dispatch!(&m, m => compute::linearize(m, &d, pade, &outputs, ts)))
+        .run(move || {
+            mvem::dispatch!(&m, m => compute::linearize(m, &d, pade, &outputs, ts, bode.as_deref()))
+        })
         .await??;
     Ok(Json(v))
+}
+
+/// Most frequencies of one `bode` request (a figure needs a few hundred).
+const MAX_BODE_POINTS: usize = 2000;
+
+/// The frequencies of `bode=FMIN:FMAX:N` (Hz, log-spaced).
+fn bode_grid(spec: &str) -> Result<Vec<f64>, ApiError> {
+    let bad = |why: String| ApiError::bad(format!("bode {spec:?}: {why}"));
+    let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
+    let [lo, hi, n] = parts[..] else {
+        return Err(bad("expected FMIN:FMAX:N (Hz, Hz, points)".into()));
+    };
+    let (Ok(lo), Ok(hi), Ok(n)) = (lo.parse::<f64>(), hi.parse::<f64>(), n.parse::<usize>()) else {
+        return Err(bad(
+            "FMIN and FMAX numbers [Hz], N a whole number of points".into(),
+        ));
+    };
+    if n > MAX_BODE_POINTS {
+        return Err(bad(format!("at most {MAX_BODE_POINTS} points")));
+    }
+    mvem::analysis::frequency::log_grid(lo, hi, n).map_err(|e| bad(e.to_string()))
 }
 
 async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {

@@ -77,13 +77,14 @@ pub(crate) fn steady<const N: usize, M: Model<N>>(m: &M, d: &Drive) -> Result<Va
     Ok(steady_json(m, &ss))
 }
 
-/// `mvem linearize --json` (with `--pade K` and `--outputs`).
+/// `mvem linearize --json` (with `--pade K`, `--outputs`, `--ts` and `--bode`).
 pub(crate) fn linearize<const N: usize, M: Model<N>>(
     m: &M,
     d: &Drive,
     pade: usize,
     outputs: &[String],
     ts: Option<f64>,
+    bode: Option<&[f64]>,
 ) -> Result<Value, Fail> {
     let mut opts = LinearizeOptions {
         pade_order: pade,
@@ -108,6 +109,14 @@ pub(crate) fn linearize<const N: usize, M: Model<N>>(
             },
         )?;
         v["discrete"] = mvem::analysis::json::discrete_model_json(&dm);
+    }
+    if let Some(f) = bode {
+        let fr = mvem::analysis::frequency::frequency_response_linear(m, &ss.x, d, &lin, f)
+            .map_err(|e| match e {
+                LinearizeError::BadOption { .. } => input(e.to_string()),
+                other => Fail::Model(format!("frequency response: {other}")),
+            })?;
+        v["frequency_response"] = mvem::analysis::json::frequency_response_json(&fr);
     }
     Ok(v)
 }

@@ -9,7 +9,7 @@
 //! | `GET /api/health` | `{"status": "ok", ...}` |
 //! | `GET /api/models` | the model orders and parameter sets the server was started with |
 //! | `GET /api/steady?n_e=&u_delta=&u_egr=&u_vgt=[&model=&params=]` | `mvem steady --json` |
-//! | `GET /api/linearize?...[&pade=&outputs=]` | `mvem linearize --json` |
+//! | `GET /api/linearize?...[&pade=&outputs=&ts=&bode=FMIN:FMAX:N]` | `mvem linearize --json` |
 //! | `POST /api/step` | step responses and their metrics (`mvem step --json` plus the series) |
 //! | `POST /api/simulate` | a drive cycle (the built-in WHTC or a CSV table), open loop |
 //! | `POST /api/map` | DC gain and its sign of one channel over two inputs (parallel) |

@@ -182,6 +182,23 @@ fn bad_or_missing_parameters_give_400_naming_them() {
         "nope",
         "outputs",
     );
+    for (bode, what) in [
+        ("0:100:10", "f_min"),
+        ("1:100", "FMIN:FMAX:N"),
+        ("1:100:x", "whole number"),
+        ("1:100:5000", "at most 2000 points"),
+    ] {
+        assert_400_naming(
+            &get(&format!("/api/linearize?{POINT}&bode={bode}")),
+            "bode",
+            what,
+        );
+    }
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&bode=1:10:5&pade=1")),
+        "bode",
+        "pade",
+    );
     // bodies
     let step = |s: &str| post("/api/step", s);
     assert_400_naming(&step("{"), "body", "truncated JSON");
