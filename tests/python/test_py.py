@@ -476,6 +476,11 @@ def test_frequency_response_with_exact_delays(mvem_cli):
     g = fr["G"]["u_vgt->W_c"]
     np.testing.assert_allclose(np.abs(g), cli["mag"], rtol=1e-12)
     np.testing.assert_allclose(g.real, cli["re"], rtol=1e-12, atol=1e-18)
+    np.testing.assert_allclose(fr["phase_deg"]["u_vgt->W_c"], cli["phase_deg"], rtol=1e-12)
+    # the phase of three points a decade apart is the fine grid's (continuous, not wrapped)
+    coarse = mvem.frequency_response(1500, 110, 80, 75, [0.01, 1.0, 100.0], strict=False)
+    np.testing.assert_allclose(coarse["phase_deg"]["u_vgt->W_c"],
+                               fr["phase_deg"]["u_vgt->W_c"][[0, 12, 24]], atol=1e-9)
     dc = mvem.frequency_response(1500, 110, 80, 75, [0.0], strict=False)["G"]
     np.testing.assert_allclose(dc["u_vgt->W_c"].real, lin["dc_gain"][o, 2], rtol=1e-9)
     for bad, msg in [([1.0, 0.5], "strictly increasing"), ([float("nan")], "f_hz"), ([], "points")]:

@@ -638,9 +638,10 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 ///     200)). outputs, strict, params, model: as in linearize.
 ///
 /// Returns a dict: "f_hz" (array), "G" {"u_vgt->W_c": complex array (output unit per input
-/// unit), ...} for every input (u_delta, u_egr, u_vgt, n_e) and output, "input_names",
-/// "output_names", "delays" [s] of (u_egr, u_vgt). abs() and numpy.angle() give the Bode
-/// diagram; at f = 0 the gains are the DC gains. Raises ValueError for bad arguments,
+/// unit), ...} for every input (u_delta, u_egr, u_vgt, n_e) and output, "phase_deg" {channel:
+/// array [deg]} continuous along the frequencies whatever their spacing (followed on a grid fine
+/// enough for the delays), "input_names", "output_names", "delays" [s] of (u_egr, u_vgt).
+/// abs(G) and phase_deg are the Bode diagram; at f = 0 the gains are the DC gains. Raises ValueError for bad arguments,
 /// RuntimeError when there is no steady state (or a kink with strict).
 #[pyfunction]
 #[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, strict=true, params=None, model=8))]
@@ -693,6 +694,18 @@ fn frequency_response<'py>(
         }
     }
     out.set_item("G", g)?;
+    let ph = PyDict::new(py);
+    for i in &fr.input_names {
+        for o in &fr.output_names {
+            if let Some((_, phase)) = fr.magnitude_phase(i, o) {
+                ph.set_item(
+                    format!("{i}->{o}"),
+                    np.call_method1("array", (phase, "float64"))?,
+                )?;
+            }
+        }
+    }
+    out.set_item("phase_deg", ph)?;
     out.set_item("input_names", &fr.input_names)?;
     out.set_item("output_names", &fr.output_names)?;
     out.set_item("delays", fr.delays.to_vec())?;

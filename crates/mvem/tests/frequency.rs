@@ -126,6 +126,42 @@ fn sinusoids_through_the_nonlinear_model_meet_the_frequency_response() {
     }
 }
 
+/// The phase does not depend on the caller's grid: three frequencies a decade apart (where a
+/// 0.065 s delay turns the phase by 230 deg between 1 and 10 Hz) get the phases of a fine grid.
+#[test]
+fn the_phase_is_continuous_whatever_the_grid() {
+    let fine_f = log_grid(0.1, 10.0, 401).unwrap();
+    let fine = response_at(&egr_point(), &fine_f);
+    let coarse = response_at(&egr_point(), &[0.1, 1.0, 10.0]);
+    for (i, o) in [
+        ("u_egr", "p_im"),
+        ("u_vgt", "W_c"),
+        ("u_egr", "x_egr"),
+        ("u_delta", "M_e"),
+    ] {
+        let (_, pf) = fine.magnitude_phase(i, o).unwrap();
+        let (_, pc) = coarse.magnitude_phase(i, o).unwrap();
+        for (k, j) in [(0, 0), (1, 200), (2, 400)] {
+            assert!(
+                (pc[k] - pf[j]).abs() < 1e-9,
+                "{i} -> {o} at {} Hz: {} vs {}",
+                fine_f[j],
+                pc[k],
+                pf[j]
+            );
+        }
+        // and the fine grid's own steps are small (no jump left)
+        assert!(
+            pf.windows(2).all(|w| (w[1] - w[0]).abs() < 30.0),
+            "{i} -> {o}"
+        );
+    }
+    // the delay alone: u_egr -> x_egr loses at least 360 * 10 Hz * 0.065 s = 234 deg more
+    // between 0.1 and 10 Hz than the undelayed system would
+    let (_, p) = coarse.magnitude_phase("u_egr", "x_egr").unwrap();
+    assert!(p[2] < -200.0, "{p:?}");
+}
+
 #[test]
 fn at_zero_frequency_the_response_is_the_dc_gain() {
     let m = Engine8::published();

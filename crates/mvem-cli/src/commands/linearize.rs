@@ -35,8 +35,8 @@ delays exact (dx(k+1) = Phi dx(k) + Gamma du(k), dy(k) = C dx(k) + D du(k); the 
 u_egr(k-1), ... are extra states): for MPC and discrete observers. Not with --pade.
 --bode FMIN:FMAX:N also the frequency response G(jw) = C (jwI - A)^-1 B + D of every channel
 with the delays exact (the delayed commands' columns times e^(-jw tau); no Pade approximation),
-at N log-spaced frequencies; the phase unwrapped along the grid (a grid too coarse for a delay's
-phase turn shows as a jump: use more points). --bode-out writes it (CSV or Parquet), --plot
+at N log-spaced frequencies; the phase continuous from its value in (-180, 180] at FMIN (followed
+on an internal grid fine enough for the delays, whatever N). --bode-out writes it (CSV or Parquet), --plot
 draws the --channels, and the text output tabulates them; --json adds \"frequency_response\".
 Not with --pade (the printed model would not be the one of the response).
 

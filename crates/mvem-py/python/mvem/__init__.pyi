@@ -141,8 +141,9 @@ def frequency_response(
     """Frequency response at the steady state of the inputs, the actuator delays exact.
 
     f_hz [Hz]: finite, >= 0, strictly increasing. Keys: "f_hz" (array), "G" {"u_vgt->W_c":
-    complex array (output unit per input unit), ...} for every input and output,
-    "input_names", "output_names", "delays" [s] of (u_egr, u_vgt). At f = 0: the DC gains.
+    complex array (output unit per input unit), ...} for every input and output, "phase_deg"
+    {channel: array [deg], continuous whatever the spacing of f_hz}, "input_names",
+    "output_names", "delays" [s] of (u_egr, u_vgt). At f = 0: the DC gains.
     ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
     """
 

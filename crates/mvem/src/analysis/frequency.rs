@@ -13,8 +13,10 @@
 //!
 //! with no approximation of the delays (a Padé model, [`frequency_response_rational`], matches
 //! it only while w tau is small). Units: output unit per input unit (e.g. kg/s per % for
-//! u_vgt -> W_c); the phase in degrees, unwrapped along the frequency grid from its value in
-//! (-180, 180] at the lowest frequency. At f -> 0 the response is the DC gain
+//! u_vgt -> W_c); the phase in degrees, continuous from its value in (-180, 180] at the lowest
+//! frequency: it is followed on an internal grid at most 5 % apart in f and pi/8 of the longest
+//! delay's phase apart, so the caller's spacing does not matter (three points at 0.1, 1 and
+//! 10 Hz get the phases of a fine grid). At f -> 0 the response is the DC gain
 //! (C (-A)^-1 B + D).
 
 use super::discrete::{delay_split, DelaySplit};
@@ -36,6 +38,10 @@ pub struct FrequencyResponse {
     pub output_names: Vec<String>,
     /// `g[k]`: the complex gains at `f_hz[k]` (outputs x inputs; output unit per input unit).
     pub g: Vec<DMatrix<Complex<f64>>>,
+    /// `phase_deg[k]`: their phases \[deg\], continuous along the frequencies (followed on a grid
+    /// fine enough for the delays and the poles whatever the spacing of `f_hz`), the first in
+    /// (-180, 180].
+    pub phase_deg: Vec<DMatrix<f64>>,
     /// The delays \[s\] of u_egr and u_vgt in the response (exact), or 0 where a Padé model's
     /// response was taken ([`frequency_response_rational`]).
     pub delays: [f64; 2],
@@ -51,30 +57,14 @@ impl FrequencyResponse {
     }
 
     /// Magnitude (output unit per input unit) and phase \[deg\] of `input -> output`, the phase
-    /// unwrapped along the grid (see [`unwrap_deg`]).
+    /// continuous along the frequencies ([`FrequencyResponse::phase_deg`]).
     pub fn magnitude_phase(&self, input: &str, output: &str) -> Option<(Vec<f64>, Vec<f64>)> {
-        let g = self.channel(input, output)?;
-        let mag = g.iter().map(|z| z.norm()).collect();
-        let phase = unwrap_deg(&g.iter().map(|z| z.arg().to_degrees()).collect::<Vec<_>>());
+        let i = self.input_names.iter().position(|n| n == input)?;
+        let o = self.output_names.iter().position(|n| n == output)?;
+        let mag = self.g.iter().map(|g| g[(o, i)].norm()).collect();
+        let phase = self.phase_deg.iter().map(|p| p[(o, i)]).collect();
         Some((mag, phase))
     }
-}
-
-/// Phases \[deg\] made continuous: each value moved by a multiple of 360 deg to lie within 180
-/// deg of its predecessor (a channel whose phase turns by more than 180 deg between two grid
-/// points, e.g. a long delay on a coarse grid, needs a finer grid). The first value is kept.
-pub fn unwrap_deg(phase: &[f64]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(phase.len());
-    let mut prev: Option<f64> = None;
-    for &p in phase {
-        let v = match prev {
-            None => p,
-            Some(q) => p + 360.0 * ((q - p) / 360.0).round(),
-        };
-        out.push(v);
-        prev = Some(v);
-    }
-    out
 }
 
 /// `n` frequencies from `f_min` to `f_max` \[Hz\], evenly spaced in log scale (both ends
@@ -207,8 +197,7 @@ fn respond(
     };
     let g_del = delayed.map(|(sp, _)| (cx(&scale_rows(&sp.g)), cx(&sp.gd)));
     let delays = delayed.map_or([0.0; 2], |(_, t)| t);
-    let mut out = Vec::with_capacity(f_hz.len());
-    for &f in f_hz {
+    let gain_at = |f: f64| -> Result<DMatrix<Complex<f64>>, LinearizeError> {
         let w = 2.0 * std::f64::consts::PI * f;
         let mut bw = b_now.clone();
         let mut dw = d_now.clone();
@@ -246,6 +235,28 @@ fn respond(
                 g[(o, k)] += y[o];
             }
         }
+        Ok(g)
+    };
+    // The phase is followed along a grid finer than the caller's, so that it is continuous
+    // whatever the caller's spacing: between two frequencies at most 5 % apart in f (the
+    // rational part: a pole or zero turns the phase by at most a few degrees per such step) and
+    // at most pi/8 of the longest delay's phase (w tau).
+    let tau = delays[0].max(delays[1]);
+    let mut out = Vec::with_capacity(f_hz.len());
+    let mut phase = Vec::with_capacity(f_hz.len());
+    let mut prev: Option<DMatrix<f64>> = None;
+    let mut budget = MAX_FOLLOWED;
+    for (k, &f) in f_hz.iter().enumerate() {
+        if let (Some(_), Some(&f0)) = (&prev, k.checked_sub(1).map(|j| &f_hz[j])) {
+            for fi in between(f0, f, tau, &mut budget) {
+                let g = gain_at(fi)?;
+                prev = Some(follow(prev.as_ref(), &g));
+            }
+        }
+        let g = gain_at(f)?;
+        let ph = follow(prev.as_ref(), &g);
+        prev = Some(ph.clone());
+        phase.push(ph);
         out.push(g);
     }
     Ok(FrequencyResponse {
@@ -253,7 +264,52 @@ fn respond(
         input_names: lin.input_names.clone(),
         output_names: lin.output_names.clone(),
         g: out,
+        phase_deg: phase,
         delays,
+    })
+}
+
+/// Most intermediate frequencies of one response's phase following (beyond them the phase is
+/// unwrapped between the caller's frequencies only: a delay's phase at extreme frequencies).
+pub const MAX_FOLLOWED: usize = 200_000;
+
+/// The frequencies strictly between `f0` and `f1` \[Hz\] on which the phase is followed (see
+/// `respond`): at most 5 % apart in f and pi/8 of `tau` apart in phase; from f0 = 0, from
+/// f1 / 1e6 up. Takes them from `budget`.
+fn between(f0: f64, f1: f64, tau: f64, budget: &mut usize) -> Vec<f64> {
+    let lo = if f0 > 0.0 { f0 } else { f1 * 1e-6 };
+    let half = (*budget / 2) as f64;
+    // geometric steps for the ratio, arithmetic ones for the delay's phase: the union keeps the
+    // finer of the two everywhere
+    let by_ratio = ((f1 / lo).ln() / 1.05f64.ln()).ceil().max(1.0).min(half) as usize;
+    let by_delay = (2.0 * std::f64::consts::PI * (f1 - lo) * tau / (std::f64::consts::PI / 8.0))
+        .ceil()
+        .min(half) as usize;
+    let mut v: Vec<f64> = Vec::with_capacity(by_ratio + by_delay + 1);
+    if f0 == 0.0 && lo < f1 {
+        v.push(lo);
+    }
+    for j in 1..by_ratio {
+        v.push(lo * (f1 / lo).powf(j as f64 / by_ratio as f64));
+    }
+    for j in 1..by_delay {
+        v.push(lo + (f1 - lo) * j as f64 / by_delay as f64);
+    }
+    v.retain(|&x| x > f0 && x < f1);
+    v.sort_by(f64::total_cmp);
+    *budget = budget.saturating_sub(v.len());
+    v
+}
+
+/// The phases [deg] of `g`, each moved by a multiple of 360 deg to lie within 180 deg of
+/// `prev`'s (the first: in (-180, 180]).
+fn follow(prev: Option<&DMatrix<f64>>, g: &DMatrix<Complex<f64>>) -> DMatrix<f64> {
+    DMatrix::from_fn(g.nrows(), g.ncols(), |o, i| {
+        let p = g[(o, i)].arg().to_degrees();
+        match prev {
+            None => p,
+            Some(q) => p + 360.0 * ((q[(o, i)] - p) / 360.0).round(),
+        }
     })
 }
 
@@ -285,8 +341,28 @@ mod tests {
     }
 
     #[test]
-    fn unwrapping_removes_the_360_degree_jumps_only() {
-        let p = unwrap_deg(&[-170.0, 175.0, 160.0, -179.0, 170.0]);
-        assert_eq!(p, vec![-170.0, -185.0, -200.0, -179.0, -190.0]);
+    fn the_followed_grid_is_fine_enough_and_bounded() {
+        let mut budget = MAX_FOLLOWED;
+        let v = between(1.0, 10.0, 0.0, &mut budget);
+        assert!(v
+            .windows(2)
+            .all(|w| w[1] / w[0] <= 1.05 + 1e-12 && w[1] > w[0]));
+        assert!(v[0] / 1.0 <= 1.05 + 1e-12 && 10.0 / v[v.len() - 1] <= 1.05 + 1e-12);
+        // a delay of 0.1 s from 10 to 100 Hz: steps of at most 1/16 / 0.1 s = 0.625 Hz
+        let v = between(10.0, 100.0, 0.1, &mut budget);
+        assert!(v.windows(2).all(|w| w[1] - w[0] <= 0.625 + 1e-9), "{v:?}");
+        // from 0 Hz: geometric from f1 / 1e6
+        let v = between(0.0, 1.0, 0.0, &mut budget);
+        assert_eq!(v[0], 1e-6);
+        // the budget bounds the work
+        let mut small = 10;
+        let v = between(1.0, 1e6, 1.0, &mut small);
+        assert!(
+            v.len() <= 10 && small == 10 - v.len(),
+            "{} {small}",
+            v.len()
+        );
+        let mut none = 0;
+        assert!(between(1.0, 1e6, 1.0, &mut none).is_empty());
     }
 }

@@ -81,7 +81,7 @@ const INPUT_UNITS: [&str; 4] = ["mg/cycle", "%", "%", "rpm"];
 /// The frequency response as JSON: `{"f_hz": [...], "delays_s": {"u_egr", "u_vgt"},
 /// "channels": {"u_vgt->W_c": {"mag": [...], "phase_deg": [...], "re": [...], "im": [...]}, ...}}`,
 /// one channel per input and output (magnitude in output unit per input unit, the phase
-/// unwrapped along the grid).
+/// continuous along the frequencies).
 pub fn frequency_response_json(fr: &crate::analysis::frequency::FrequencyResponse) -> Value {
     let mut channels = serde_json::Map::new();
     for input in &fr.input_names {
