@@ -18,6 +18,7 @@
 use super::ControlError;
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::dispatch;
+use crate::io::csv_columns::{header_line, Dialect};
 use crate::model::{AnyModel, Drive, Signals};
 use crate::numerics::Num;
 
@@ -409,19 +410,50 @@ pub type NormalizedRow = (f64, f64, Option<f64>);
 /// a speed in rpm in a file taken for a normalized one).
 pub const MAX_SPEED_PCT: f64 = 120.0;
 
-/// The fields of one line of a cycle table: split at tabs, else semicolons, else commas, else
-/// runs of spaces; each field trimmed.
-pub fn split_fields(line: &str) -> Vec<&str> {
-    let f: Vec<&str> = if line.contains('\t') {
-        line.split('\t').collect()
-    } else if line.contains(';') {
-        line.split(';').collect()
-    } else if line.contains(',') {
-        line.split(',').collect()
-    } else {
-        line.split_whitespace().collect()
-    };
-    f.into_iter().map(str::trim).collect()
+/// How a cycle table separates its fields, from its header: the CSV dialect ([`Dialect::of`]:
+/// `;` or tab with decimal commas allowed, else `,`), or runs of blanks when the header has no
+/// comma either (as `Time Speed Torque`; decimal commas allowed). `#` starts a comment line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TableFields {
+    dialect: Dialect,
+    blanks: bool,
+}
+
+impl TableFields {
+    /// The separation of `text`'s fields, read off its header.
+    pub fn of(text: &str) -> Self {
+        let dialect = Dialect::of(text, Some(b'#'));
+        let blanks = dialect.delimiter == b',' && !header_line(text, Some(b'#')).contains(',');
+        Self {
+            dialect: Dialect {
+                decimal_comma: dialect.decimal_comma || blanks,
+                ..dialect
+            },
+            blanks,
+        }
+    }
+
+    /// The fields of one line, each trimmed.
+    pub fn split<'a>(&self, line: &'a str) -> Vec<&'a str> {
+        if self.blanks {
+            line.split_whitespace().collect()
+        } else {
+            line.split(char::from(self.dialect.delimiter))
+                .map(str::trim)
+                .collect()
+        }
+    }
+
+    /// A field as a number ([`Dialect::number`]).
+    pub fn number(&self, field: &str) -> Option<f64> {
+        self.dialect.number(field)
+    }
+}
+
+/// The header fields of a cycle table (its first line that is neither blank nor a `#` comment),
+/// split as its rows are ([`TableFields`]).
+pub fn header_fields(text: &str) -> Vec<&str> {
+    TableFields::of(text).split(header_line(text, Some(b'#')))
 }
 
 /// A header name without its unit in brackets, lower case ("Speed [%]" -> "speed").
@@ -448,9 +480,10 @@ pub fn is_normalized_header(fields: &[&str]) -> bool {
 /// columns in that order), an optional units row
 /// (the speed's and torque's units must be %), then one row per time: time \[s\], speed [%] in
 /// [0, [`MAX_SPEED_PCT`]], torque [%] in [0, 100] or "m" for motoring. Fields are separated by
-/// tabs, semicolons, commas or spaces; `#` starts a comment line. Errors name the line (1-based);
-/// times must increase.
+/// tabs, semicolons, commas or blanks, as the header is ([`TableFields`]); `#` starts a comment
+/// line. Errors name the line (1-based); times must increase.
 pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> {
+    let fields = TableFields::of(text);
     let mut out: Vec<NormalizedRow> = Vec::new();
     let mut cols = [0usize, 1, 2];
     let mut header_seen = false;
@@ -460,8 +493,8 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let f = split_fields(line);
-        let numeric = f[0].replace(',', ".").parse::<f64>().is_ok();
+        let f = fields.split(line);
+        let numeric = fields.number(f[0]).is_some();
         if !numeric && out.is_empty() {
             if !header_seen {
                 header_seen = true;
@@ -512,9 +545,8 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
             ));
         }
         let num = |s: &str, what: &str| {
-            s.replace(',', ".")
-                .parse::<f64>()
-                .ok()
+            fields
+                .number(s)
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| format!("line {}: {what} '{s}' is not a number", i + 1))
         };

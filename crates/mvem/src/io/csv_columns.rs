@@ -22,11 +22,7 @@ impl Dialect {
     /// `comment` line): `;` or tab when the header has no comma but that separator (`;` first),
     /// with decimal commas allowed; `,` otherwise.
     pub fn of(text: &str, comment: Option<u8>) -> Self {
-        let header = text
-            .lines()
-            .map(str::trim)
-            .find(|l| !l.is_empty() && comment.is_none_or(|c| !l.as_bytes().starts_with(&[c])))
-            .unwrap_or("");
+        let header = header_line(text, comment);
         let other = |sep: char| !header.contains(',') && header.contains(sep);
         match (other(';'), other('\t')) {
             (true, _) => Self::with(b';'),
@@ -56,6 +52,15 @@ impl Dialect {
         }
         None
     }
+}
+
+/// The header of `text`: its first line (trimmed) that is neither blank nor a `comment` line
+/// ("" when there is none).
+pub fn header_line(text: &str, comment: Option<u8>) -> &str {
+    text.lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && comment.is_none_or(|c| !l.as_bytes().starts_with(&[c])))
+        .unwrap_or("")
 }
 
 /// Why a CSV's named columns could not be read: each caller words it for its own file.

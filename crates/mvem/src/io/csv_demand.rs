@@ -12,7 +12,7 @@
 
 use super::csv_columns::{read_columns, ColumnsError};
 use super::{format_err as err, IoError};
-use crate::control::cycle::{is_normalized_header, parse_normalized_table, split_fields};
+use crate::control::cycle::{header_fields, is_normalized_header, parse_normalized_table};
 use crate::control::drive::CycleSource;
 use crate::control::Demand;
 use std::path::Path;
@@ -73,12 +73,7 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
 /// ([`parse_normalized_table`]), else a speed/torque demand ([`parse_demand_csv`]). Every problem
 /// is named with its line.
 pub fn parse_cycle_file(text: &str, path: &Path) -> Result<CycleSource, IoError> {
-    let header = text
-        .lines()
-        .map(str::trim)
-        .find(|l| !l.is_empty() && !l.starts_with('#'))
-        .unwrap_or("");
-    let fields = split_fields(header);
+    let fields = header_fields(text);
     let demand = DEMAND_COLUMNS.iter().all(|c| fields.contains(c));
     if !demand && is_normalized_header(&fields) {
         return parse_normalized_table(text)
@@ -161,6 +156,12 @@ mod tests {
                 (10.0, 55.0, Some(100.0)),
                 (20.0, 55.0, None)
             ]
+        );
+        // the separator is the header's for every row: a blank-separated row with a decimal
+        // comma is not split at the comma
+        assert_eq!(
+            rows("time speed torque\n0 0 0\n10 50,5 20\n"),
+            vec![(0.0, 0.0, Some(0.0)), (10.0, 50.5, Some(20.0))]
         );
         // a demand stays a demand (also with extra speed/torque columns)
         for text in [
