@@ -684,20 +684,12 @@ fn frequency_response<'py>(
         "f_hz",
         np.call_method1("array", (fr.f_hz.clone(), "float64"))?,
     )?;
-    let g = PyDict::new(py);
+    let (g, ph) = (PyDict::new(py), PyDict::new(py));
     for i in &fr.input_names {
         for o in &fr.output_names {
-            if let Some(z) = fr.channel(i, o) {
+            if let (Some(z), Some((_, phase))) = (fr.channel(i, o), fr.magnitude_phase(i, o)) {
                 let pairs: Vec<(f64, f64)> = z.iter().map(|c| (c.re, c.im)).collect();
                 g.set_item(format!("{i}->{o}"), complex_array(&np, &pairs)?)?;
-            }
-        }
-    }
-    out.set_item("G", g)?;
-    let ph = PyDict::new(py);
-    for i in &fr.input_names {
-        for o in &fr.output_names {
-            if let Some((_, phase)) = fr.magnitude_phase(i, o) {
                 ph.set_item(
                     format!("{i}->{o}"),
                     np.call_method1("array", (phase, "float64"))?,
@@ -705,6 +697,7 @@ fn frequency_response<'py>(
             }
         }
     }
+    out.set_item("G", g)?;
     out.set_item("phase_deg", ph)?;
     out.set_item("input_names", &fr.input_names)?;
     out.set_item("output_names", &fr.output_names)?;

@@ -443,20 +443,8 @@ const MAX_BODE_POINTS: usize = 2000;
 
 /// The frequencies of `bode=FMIN:FMAX:N` (Hz, log-spaced).
 fn bode_grid(spec: &str) -> Result<Vec<f64>, ApiError> {
-    let bad = |why: String| ApiError::bad(format!("bode {spec:?}: {why}"));
-    let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
-    let [lo, hi, n] = parts[..] else {
-        return Err(bad("expected FMIN:FMAX:N (Hz, Hz, points)".into()));
-    };
-    let (Ok(lo), Ok(hi), Ok(n)) = (lo.parse::<f64>(), hi.parse::<f64>(), n.parse::<usize>()) else {
-        return Err(bad(
-            "FMIN and FMAX numbers [Hz], N a whole number of points".into(),
-        ));
-    };
-    if n > MAX_BODE_POINTS {
-        return Err(bad(format!("at most {MAX_BODE_POINTS} points")));
-    }
-    mvem::analysis::frequency::log_grid(lo, hi, n).map_err(|e| bad(e.to_string()))
+    mvem::analysis::frequency::parse_grid(spec, MAX_BODE_POINTS)
+        .map_err(|e| ApiError::bad(format!("bode {spec:?}: {e}")))
 }
 
 async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {

@@ -216,22 +216,8 @@ pub fn run(a: &Args) -> Result<()> {
 
 /// The frequencies of `--bode FMIN:FMAX:N`.
 fn bode_grid(spec: &str) -> Result<Vec<f64>> {
-    let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
-    let bad = |why: String| common::usage(format!("--bode {spec}: {why}"));
-    let [lo, hi, n] = parts[..] else {
-        return Err(bad(
-            "expected FMIN:FMAX:N (Hz, Hz, points), e.g. 0.01:100:200".into(),
-        ));
-    };
-    let num = |s: &str, what: &str| {
-        s.parse::<f64>()
-            .map_err(|_| bad(format!("{what} '{s}' is not a number")))
-    };
-    let (lo, hi) = (num(lo, "FMIN")?, num(hi, "FMAX")?);
-    let n: usize = n
-        .parse()
-        .map_err(|_| bad(format!("N '{n}' is not a whole number of points")))?;
-    mvem::analysis::frequency::log_grid(lo, hi, n).map_err(|e| bad(e.to_string()))
+    use mvem::analysis::frequency::{parse_grid, MAX_POINTS};
+    parse_grid(spec, MAX_POINTS).map_err(|e| common::usage(format!("--bode {spec}: {e}")))
 }
 
 /// The channels of the plot and the table: `--channels`, each checked against the response's

@@ -51,16 +51,21 @@ impl FrequencyResponse {
     /// The complex gains of the channel `input -> output` over the frequencies (None: not a
     /// channel of this response).
     pub fn channel(&self, input: &str, output: &str) -> Option<Vec<Complex<f64>>> {
+        let (o, i) = self.index(input, output)?;
+        Some(self.g.iter().map(|g| g[(o, i)]).collect())
+    }
+
+    /// The (output, input) position of `input -> output` in the gain matrices.
+    fn index(&self, input: &str, output: &str) -> Option<(usize, usize)> {
         let i = self.input_names.iter().position(|n| n == input)?;
         let o = self.output_names.iter().position(|n| n == output)?;
-        Some(self.g.iter().map(|g| g[(o, i)]).collect())
+        Some((o, i))
     }
 
     /// Magnitude (output unit per input unit) and phase \[deg\] of `input -> output`, the phase
     /// continuous along the frequencies ([`FrequencyResponse::phase_deg`]).
     pub fn magnitude_phase(&self, input: &str, output: &str) -> Option<(Vec<f64>, Vec<f64>)> {
-        let i = self.input_names.iter().position(|n| n == input)?;
-        let o = self.output_names.iter().position(|n| n == output)?;
+        let (o, i) = self.index(input, output)?;
         let mag = self.g.iter().map(|g| g[(o, i)].norm()).collect();
         let phase = self.phase_deg.iter().map(|p| p[(o, i)]).collect();
         Some((mag, phase))
@@ -98,6 +103,28 @@ pub fn log_grid(f_min: f64, f_max: f64, n: usize) -> Result<Vec<f64>, LinearizeE
             _ => (a + (b - a) * k as f64 / (n - 1) as f64).exp(),
         })
         .collect())
+}
+
+/// The frequencies of a grid written `FMIN:FMAX:N` (\[Hz\], \[Hz\], points; [`log_grid`]), as
+/// `mvem linearize --bode` and the explorer's API take it, with at most `max_points` points. The
+/// message says what is wrong with the text.
+pub fn parse_grid(spec: &str, max_points: usize) -> Result<Vec<f64>, String> {
+    let parts: Vec<&str> = spec.split(':').map(str::trim).collect();
+    let [lo, hi, n] = parts[..] else {
+        return Err("expected FMIN:FMAX:N (Hz, Hz, points), e.g. 0.01:100:200".into());
+    };
+    let num = |s: &str, what: &str| {
+        s.parse::<f64>()
+            .map_err(|_| format!("{what} '{s}' is not a number"))
+    };
+    let (lo, hi) = (num(lo, "FMIN")?, num(hi, "FMAX")?);
+    let n: usize = n
+        .parse()
+        .map_err(|_| format!("N '{n}' is not a whole number of points"))?;
+    if n > max_points {
+        return Err(format!("at most {max_points} points"));
+    }
+    log_grid(lo, hi, n).map_err(|e| e.to_string())
 }
 
 fn check_grid(f_hz: &[f64]) -> Result<(), LinearizeError> {
@@ -337,6 +364,25 @@ mod tests {
         ] {
             let e = log_grid(a, b, n).unwrap_err().to_string();
             assert!(e.contains(field), "{a} {b} {n}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_grid_spec_names_what_is_wrong() {
+        assert_eq!(
+            parse_grid(" 0.01 : 100 : 5 ", 10),
+            log_grid(0.01, 100.0, 5).map_err(|e| e.to_string())
+        );
+        for (spec, want) in [
+            ("1:100", "expected FMIN:FMAX:N"),
+            ("a:100:5", "FMIN 'a' is not a number"),
+            ("1:b:5", "FMAX 'b' is not a number"),
+            ("1:100:x", "N 'x' is not a whole number of points"),
+            ("1:100:11", "at most 10 points"),
+            ("0:100:5", "f_min = 0"),
+        ] {
+            let e = parse_grid(spec, 10).unwrap_err();
+            assert!(e.contains(want), "{spec}: {e}");
         }
     }
 

@@ -77,9 +77,15 @@ pub fn requested() -> bool {
 /// run see the caller's cancellation. Without a token `f` runs as it is.
 pub fn carry<A, R>(f: impl Fn(A) -> R + Sync + Send) -> impl Fn(A) -> R + Sync + Send {
     let token = current();
-    move |a| match &token {
-        Some(t) => with_token(t, || f(a)),
-        None => f(a),
+    move |a| with_token_if(token.as_ref(), || f(a))
+}
+
+/// [`with_token`] when there is a token (one taken with [`current`] on another thread), else
+/// `f` as it is.
+pub fn with_token_if<R>(token: Option<&CancelToken>, f: impl FnOnce() -> R) -> R {
+    match token {
+        Some(t) => with_token(t, f),
+        None => f(),
     }
 }
 

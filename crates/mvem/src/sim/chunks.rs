@@ -447,17 +447,14 @@ pub(super) fn simulate_chunked<const N: usize, M: Dynamics<N>>(
                 let (tk, te) = (starts[k], ends[k]);
                 let last = k + 1 == k_all;
                 let stops = &stops;
-                let cancel = cancel.clone();
+                let cancel = cancel.as_ref();
                 s.spawn(move || {
                     let run = || {
                         run_chunk(
                             model, sched, t0, tk, te, last, y_first, opts, guess, stops, out,
                         )
                     };
-                    match &cancel {
-                        Some(c) => crate::numerics::cancel::with_token(c, run),
-                        None => run(),
-                    }
+                    crate::numerics::cancel::with_token_if(cancel, run)
                 })
             })
             .collect();
