@@ -557,23 +557,8 @@ pub fn linearize_at(
     args: &LinArgs,
 ) -> CoreResult<Lin> {
     check_finite(d)?;
-    let mut opts = LinearizeOptions {
-        strict: args.strict,
-        pade_order: args.pade_order,
-        ..LinearizeOptions::default()
-    };
-    if let Some(o) = &args.outputs {
-        opts.outputs = o.clone();
-    }
-    opts.validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let opts = linearize_options(args)?;
     let m = model(params, variant)?;
-    let lin_err = |e: LinearizeError| match e {
-        LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
-            CoreError::Value(e.to_string())
-        }
-        other => CoreError::Runtime(other.to_string()),
-    };
     let (lin, discrete) = mvem::dispatch!(&m, m => {
         let drive = Drive::from_array(d);
         let ss = steady_state(m, &drive)
@@ -617,6 +602,31 @@ pub fn linearize_at(
     })
 }
 
+/// The linearization options of `args` (its outputs, strict, Padé order), checked.
+fn linearize_options(args: &LinArgs) -> CoreResult<LinearizeOptions> {
+    let mut opts = LinearizeOptions {
+        strict: args.strict,
+        pade_order: args.pade_order,
+        ..LinearizeOptions::default()
+    };
+    if let Some(o) = &args.outputs {
+        opts.outputs = o.clone();
+    }
+    opts.validate()
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    Ok(opts)
+}
+
+/// A linearization's error for Python: bad options and outputs are `Value`, the rest `Runtime`.
+fn lin_err(e: LinearizeError) -> CoreError {
+    match e {
+        LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
+            CoreError::Value(e.to_string())
+        }
+        other => CoreError::Runtime(other.to_string()),
+    }
+}
+
 /// The frequency response with exact delays at the steady state of `d`
 /// (`mvem::analysis::frequency::frequency_response`): the frequencies \[Hz\], the inputs and
 /// outputs, and per channel the complex gains.
@@ -625,30 +635,17 @@ pub fn frequency_response_at(
     params: Option<Params>,
     variant: Variant,
     f_hz: &[f64],
-    outputs: Option<Vec<String>>,
-    strict: bool,
+    args: &LinArgs,
 ) -> CoreResult<mvem::analysis::frequency::FrequencyResponse> {
     check_finite(d)?;
-    let mut opts = LinearizeOptions {
-        strict,
-        ..LinearizeOptions::default()
-    };
-    if let Some(o) = outputs {
-        opts.outputs = o;
-    }
-    opts.validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let opts = linearize_options(args)?;
     let m = model(params, variant)?;
     mvem::dispatch!(&m, m => {
         let drive = Drive::from_array(d);
         let ss = steady_state(m, &drive)
             .map_err(|e| CoreError::Runtime(format!("steady state: {e}")))?;
-        mvem::analysis::frequency::frequency_response(m, &ss.x, &drive, &opts, f_hz).map_err(|e| match e {
-            LinearizeError::BadOption { .. } | LinearizeError::UnknownOutput { .. } => {
-                CoreError::Value(e.to_string())
-            }
-            other => CoreError::Runtime(other.to_string()),
-        })
+        mvem::analysis::frequency::frequency_response(m, &ss.x, &drive, &opts, f_hz)
+            .map_err(lin_err)
     })
 }
 

@@ -667,16 +667,14 @@ fn frequency_response<'py>(
         "frequency_response",
         [n_e, u_delta, u_egr, u_vgt],
     )?;
+    let args = LinArgs {
+        outputs,
+        strict,
+        ..LinArgs::default()
+    };
     let fr = py
         .allow_threads(move || {
-            core::frequency_response_at(
-                [n_e, u_delta, u_egr, u_vgt],
-                p,
-                variant,
-                &f,
-                outputs,
-                strict,
-            )
+            core::frequency_response_at([n_e, u_delta, u_egr, u_vgt], p, variant, &f, &args)
         })
         .map_err(to_py_err)?;
     let out = PyDict::new(py);

@@ -331,11 +331,10 @@ pub(crate) const CYCLE_OUTPUTS: [&str; 8] = [
 pub(crate) enum CycleInput {
     /// Open loop: an input schedule.
     Open(Arc<InputSchedule>),
-    /// Closed loop on the built-in WHTC (its speed and torque demand built in).
-    ClosedWhtc,
-    /// Closed loop on a user's cycle (`"csv"`): a speed/torque demand (columns t, n_e, M_ref) or
-    /// a normalized cycle (time, speed [%], torque [%]; `parse_cycle_file`).
-    ClosedFile(CycleSource),
+    /// Closed loop: the built-in WHTC (its speed and torque demand built in) or a user's cycle
+    /// (`"csv"`): a speed/torque demand (columns t, n_e, M_ref) or a normalized cycle (time,
+    /// speed [%], torque [%]; `parse_cycle_file`).
+    Closed(CycleSource),
 }
 
 /// Longest closed-loop demand a request may run \[s\] (twice the WHTC: about 1 s of CPU for the
@@ -371,7 +370,7 @@ impl SimulateRequest {
                 )));
             }
             let dt = self.output_interval(t0, t1)?;
-            return Ok((CycleInput::ClosedFile(source), "csv".to_string(), dt));
+            return Ok((CycleInput::Closed(source), "csv".to_string(), dt));
         }
         let (sched, name) = match (&self.cycle, &self.csv) {
             (Some(c), None) => match cycles.iter().find(|(n, _)| n == c) {
@@ -412,7 +411,7 @@ impl SimulateRequest {
         let dt = self.output_interval(t0, t1)?;
         let what = match mode {
             CycleMode::Open => CycleInput::Open(sched),
-            CycleMode::Closed => CycleInput::ClosedWhtc,
+            CycleMode::Closed => CycleInput::Closed(CycleSource::Whtc),
         };
         Ok((what, name, dt))
     }
@@ -445,8 +444,7 @@ pub(crate) fn simulate_cycle(
         CycleInput::Open(sched) => {
             mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt))
         }
-        CycleInput::ClosedWhtc => closed_cycle(model, r, CycleSource::Whtc, name, dt),
-        CycleInput::ClosedFile(source) => closed_cycle(model, r, source.clone(), name, dt),
+        CycleInput::Closed(source) => closed_cycle(model, r, source.clone(), name, dt),
     }
 }
 

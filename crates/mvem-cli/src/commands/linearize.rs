@@ -119,8 +119,10 @@ pub fn run(a: &Args) -> Result<()> {
             Some(bode_grid(spec)?)
         }
     };
-    for p in [&a.bode_out, &a.plot].into_iter().flatten() {
-        common::check_output_path(p, "output")?;
+    for (p, what) in [(&a.bode_out, "--bode-out"), (&a.plot, "--plot")] {
+        if let Some(p) = p {
+            common::check_output_path(p, what)?;
+        }
     }
     let plot_format = a.plot.as_deref().map(crate::plot::Format::of).transpose()?;
     let model = a.model.build()?;
@@ -175,7 +177,9 @@ pub fn run(a: &Args) -> Result<()> {
             mvem::io::output::write_atomic(path, &bytes)
                 .with_context(|| format!("cannot write {}", path.display()))?;
         }
-        v["frequency_response"] = mvem::analysis::json::frequency_response_json(fr);
+        if a.json {
+            v["frequency_response"] = mvem::analysis::json::frequency_response_json(fr);
+        }
     }
     if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
         if !w {
