@@ -97,5 +97,5 @@ if [ "$tune" = 1 ]; then
 fi
 echo "load after: $(uptime)"
 if [ -n "$peer" ]; then
-    MVEM_BIN=$mvem bash "$root/bench/peer.sh" "$peer" 7 | tail -5
+    MVEM_BIN=$mvem bash "$root/bench/peer.sh" "$peer" 7 | tail -6
 fi

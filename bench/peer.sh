@@ -7,7 +7,8 @@
 #             temporary directory and built there with `make` (needs libsundials-dev; Debian 12:
 #             SUNDIALS 6.4.1). Nothing of it enters this repository.
 #   ROUNDS    alternated rounds (default 7); each round runs mvem's integration, the peer's
-#             integration, and both whole processes with CSV output once.
+#             integration, and both whole processes with CSV output twice: replacing the
+#             previous run's file, and writing a new one.
 #   MVEM_BIN  (environment) an already built `mvem` binary to use instead of building one.
 #   REPEAT    (environment, default 1) runs per round of each integration: a round then takes
 #             the min of REPEAT runs of each program (mvem bench --repeat, the peer's --repeat),
@@ -43,7 +44,11 @@ now() { date +%s.%N; }
 median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 
 echo "load before: $(uptime)"
-: >"$work/mi"; : >"$work/mp"; : >"$work/pi"; : >"$work/mw"; : >"$work/pw"
+# the output files the first round's "replacing" runs replace
+"$mvem" simulate --scenario whtc --dt 0.1 --out "$work/mvem.csv" >/dev/null 2>&1
+"$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
+    --dt 0.1 --mode stop --rtol 1e-6 --out "$work/peer.csv" --quiet 2>/dev/null
+: >"$work/mi"; : >"$work/mp"; : >"$work/pi"; : >"$work/mw"; : >"$work/pw"; : >"$work/nmw"; : >"$work/npw"
 for r in $(seq 1 "$rounds"); do
     # integration alone: the sequential run (first wall time), then 2 time chunks (second)
     "$mvem" bench --repeat "${REPEAT:-1}" --no-reference --evals 1 --dt 0.1 --time-parallel 2 >"$work/b"
@@ -52,16 +57,29 @@ for r in $(seq 1 "$rounds"); do
     pi=$("$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
         --dt 0.1 --mode stop --rtol 1e-6 --repeat "${REPEAT:-1}" 2>&1 |
         tr ' ' '\n' | awk -F= '/^integrate_s_min=/ {print $2}')
-    # whole process with CSV output
-    t=$(now); "$mvem" simulate --scenario whtc --dt 0.1 --out "$work/mvem.csv" >/dev/null 2>&1
-    mw=$(echo "$(now) - $t" | bc -l)
-    t=$(now); "$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
-        --dt 0.1 --mode stop --rtol 1e-6 --out "$work/peer.csv" --quiet 2>/dev/null
-    pw=$(echo "$(now) - $t" | bc -l)
-    printf 'round %d: integration mvem %.4f s (2 time chunks %.4f s), peer %.4f s; whole process mvem %.4f s, peer %.4f s\n' \
-        "$r" "$mi" "$mp" "$pi" "$mw" "$pw"
+    # whole process with CSV output, twice: replacing the file the previous run wrote (as a
+    # user rerunning into the same path does), then writing a new file (both outputs removed
+    # before, outside the timing). mvem replaces its output atomically (a temporary file renamed
+    # over the old one), and on ext4 that rename makes the kernel allocate the new file's blocks
+    # (auto_da_alloc), which the next replacement frees again (with the `discard` mount option,
+    # a synchronous TRIM inside the rename: docs/integrator.md, session 32); the peer truncates
+    # its file in place.
+    whole() {
+        local t
+        t=$(now); "$mvem" simulate --scenario whtc --dt 0.1 --out "$work/mvem.csv" >/dev/null 2>&1
+        echo "$(now) - $t" | bc -l >>"$work/$1mw"
+        t=$(now); "$work/peer/whtc_cvode" --inputs "$inputs" --params "$params" --x0 "$work/peer/x0.txt" \
+            --dt 0.1 --mode stop --rtol 1e-6 --out "$work/peer.csv" --quiet 2>/dev/null
+        echo "$(now) - $t" | bc -l >>"$work/$1pw"
+    }
+    whole ""
+    rm -f "$work/mvem.csv" "$work/peer.csv"
+    whole "n"
+    mw=$(tail -1 "$work/mw"); pw=$(tail -1 "$work/pw")
+    nmw=$(tail -1 "$work/nmw"); npw=$(tail -1 "$work/npw")
+    printf 'round %d: integration mvem %.4f s (2 time chunks %.4f s), peer %.4f s; whole process (replacing / new file) mvem %.4f / %.4f s, peer %.4f / %.4f s\n' \
+        "$r" "$mi" "$mp" "$pi" "$mw" "$nmw" "$pw" "$npw"
     echo "$mi" >>"$work/mi"; echo "$mp" >>"$work/mp"; echo "$pi" >>"$work/pi"
-    echo "$mw" >>"$work/mw"; echo "$pw" >>"$work/pw"
 done
 echo "load after: $(uptime)"
 mi=$(median <"$work/mi"); mp=$(median <"$work/mp"); pi=$(median <"$work/pi")
@@ -70,3 +88,5 @@ printf 'median integration:   mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' 
 printf 'median integration, mvem in 2 time chunks on 2 threads (the peer on 1): mvem %.4f s, peer %.4f s, ratio %.3f\n' \
     "$mp" "$pi" "$(echo "$mp / $pi" | bc -l)"
 printf 'median whole process: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mw" "$pw" "$(echo "$mw / $pw" | bc -l)"
+nmw=$(median <"$work/nmw"); npw=$(median <"$work/npw")
+printf 'median whole process, new output file: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$nmw" "$npw" "$(echo "$nmw / $npw" | bc -l)"
