@@ -439,8 +439,31 @@ def test_linear_model_panel(page, server):
     assert sorted(chans) == sorted(api["frequency_response"]["channels"]), chans
     page.select_option("select[name=bode_channel]", "u_egr->p_im")
     page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_egr->p_im']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-range") == "0.01:100"
+    assert page.text_content("#bode-range") == "0.01 to 100 Hz"
     page.screenshot(path=str(ART / "explorer_linear.png"), full_page=True)
     page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode.png"))
+    # another frequency range: the same channel drawn over it, its download the API's answer
+    # for that grid; a range the server cannot use is its 400, naming bode
+    page.fill("input[name=bode_fmin]", "0.1")
+    page.fill("input[name=bode_fmax]", "1000")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("canvas[data-plot=bode][data-range='0.1:1000']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-drawn") == "u_egr->p_im"
+    assert page.text_content("#bode-range") == "0.1 to 1000 Hz"
+    with page.expect_download() as d:
+        page.click("[data-download=linear]")
+    assert json.loads(Path(d.value.path()).read_text()) == _api(
+        server, f"/api/linearize?{q}&ts=0.02&bode=0.1:1000:200")
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode_range.png"))
+    page.fill("input[name=bode_fmin]", "10")
+    page.fill("input[name=bode_fmax]", "1")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert "bode" in page.text_content("#lin-error"), page.text_content("#lin-error")
+    _take_console_400(page)
+    page.fill("input[name=bode_fmin]", "0.01")
+    page.fill("input[name=bode_fmax]", "100")
     # the point it was computed at; moving an input marks it as another point's
     at = page.text_content("#lin-at")
     assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at

@@ -320,7 +320,7 @@
       if (modelSel().params) q.set("params", modelSel().params);
       const ts = $("input[name=lin_ts]").value.trim();
       if (ts !== "") q.set("ts", ts);
-      q.set("bode", BODE_GRID);
+      q.set("bode", bodeGrid());
       const key = linearKey();
       const at = linearAt();
       const j = await api(`/api/linearize?${q}`);
@@ -340,8 +340,16 @@
     }
   }
 
-  // the frequency grid of the Bode diagram (Hz: from, to, points)
-  const BODE_GRID = "0.01:100:200";
+  // the frequency grid of the Bode diagram (Hz: from, to, points): the range of the two inputs
+  // (empty: 0.01 and 100 Hz), checked by the server (a bad range is its 400, naming `bode`)
+  const BODE_POINTS = 200;
+  function bodeGrid() {
+    const v = (name, dflt) => {
+      const s = $(`input[name=${name}]`).value.trim();
+      return s === "" ? dflt : s;
+    };
+    return `${v("bode_fmin", "0.01")}:${v("bode_fmax", "100")}:${BODE_POINTS}`;
+  }
 
   // the channel menu of the Bode diagram (the previous choice kept when the new model has it)
   function showBodeChannels(j) {
@@ -383,6 +391,10 @@
     const pp = panel(ctx, [w, 0, w, c.height], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
       "phase [deg]   f [Hz]", { logX: true });
     line(ctx, pp, lf, g.phase_deg, COLORS[1], 2);
+    const [f0, f1] = [fr.f_hz[0], fr.f_hz[fr.f_hz.length - 1]];
+    const hz = (f) => String(Number(f.toPrecision(6)));
+    $("#bode-range").textContent = `${hz(f0)} to ${hz(f1)} Hz`;
+    c.dataset.range = `${f0}:${f1}`;
     c.dataset.drawn = ch;
   }
 
