@@ -87,6 +87,6 @@ mw=$(median <"$work/mw"); pw=$(median <"$work/pw")
 printf 'median integration:   mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mi" "$pi" "$(echo "$mi / $pi" | bc -l)"
 printf 'median integration, mvem in 2 time chunks on 2 threads (the peer on 1): mvem %.4f s, peer %.4f s, ratio %.3f\n' \
     "$mp" "$pi" "$(echo "$mp / $pi" | bc -l)"
-printf 'median whole process: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mw" "$pw" "$(echo "$mw / $pw" | bc -l)"
+printf 'median whole process, replacing the previous output: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$mw" "$pw" "$(echo "$mw / $pw" | bc -l)"
 nmw=$(median <"$work/nmw"); npw=$(median <"$work/npw")
 printf 'median whole process, new output file: mvem %.4f s, peer %.4f s, ratio mvem/peer %.3f\n' "$nmw" "$npw" "$(echo "$nmw / $npw" | bc -l)"
