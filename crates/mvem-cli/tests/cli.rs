@@ -734,13 +734,36 @@ fn time_parallel_simulate_and_bench() {
             "--repeat",
             "1",
             "--evals",
-            "10",
+            "1000",
             "--no-reference",
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     assert!(out.contains("Simulation (1 runs, 1 thread)"), "{out}");
+    // the estimate of where the run's time goes names the run's own counts
+    let field = |prefix: &str| -> Vec<u64> {
+        let line = out
+            .lines()
+            .find(|l| l.trim_start().starts_with(prefix))
+            .unwrap();
+        line.split(|c: char| !c.is_ascii_digit())
+            .filter_map(|w| w.parse().ok())
+            .collect()
+    };
+    let (steps, evals) = (field("steps")[..2].to_vec(), field("RHS evaluations")[0]);
+    let est = out
+        .lines()
+        .find(|l| l.contains("in the run above (estimate)"))
+        .unwrap();
+    assert!(
+        est.contains(&format!("its {evals} RHS evaluations")),
+        "{est}"
+    );
+    assert!(
+        est.contains(&format!("({} trial steps)", steps[0] + steps[1])),
+        "{est}"
+    );
     assert!(out.contains("Time-parallel (1 runs alternated"), "{out}");
     assert!(
         out.contains("junctions          2 chunks, 0 re-run"),

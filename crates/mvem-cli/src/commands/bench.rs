@@ -246,6 +246,21 @@ fn bench<const N: usize, M: Model<N>>(
         common::fmt_duration(w / a.evals as f64),
         common::fmt_duration(wd / a.evals as f64)
     );
+    // Where the sequential run's time goes, estimated from that cost (one state, a warm cache:
+    // an estimate, not a profile): the right-hand side at this cost, the rest per trial step.
+    if a.evals >= 1000 {
+        let rhs = wd / a.evals as f64 * st.rhs_evals as f64;
+        let trials = (st.steps + st.rejected) as f64;
+        println!(
+            "  in the run above (estimate): its {} RHS evaluations at this cost take {} ({:.0} % of \
+             the min run), everything else the integrator does {} per trial step ({} trial steps)",
+            st.rhs_evals,
+            common::fmt_duration(rhs),
+            100.0 * rhs / min,
+            common::fmt_duration(((min - rhs) / trials).max(0.0)),
+            st.steps + st.rejected
+        );
+    }
 
     if a.no_reference {
         return Ok(());
