@@ -93,6 +93,9 @@ enum Command {
     /// A drive cycle (the WHTC or a speed/torque CSV) in closed loop: baseline EGR/VGT and
     /// torque controllers around the model; trajectory, cycle statistics, figures.
     ClosedLoop(commands::closed_loop::Args),
+    /// Stability margins of the baseline controller's air-path loops at an operating point
+    /// (gain, phase and delay margins, peak sensitivity; exact actuator delays).
+    Margins(commands::margins::Args),
 }
 
 /// Restore the default SIGPIPE action so that `mvem ... | head` ends quietly when the reader
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
     let result = match &cli.cmd {
         Command::Simulate(a) => commands::simulate::run(a),
         Command::Steady(a) => commands::steady::run(a),
+        Command::Margins(a) => commands::margins::run(a),
         Command::Linearize(a) => commands::linearize::run(a),
         Command::Step(a) => commands::step::run(a),
         Command::Map(a) => commands::map::run(a),

@@ -335,3 +335,95 @@ fn a_tuning_file_sets_the_baseline_controllers() {
     );
     assert!(!d.path().join("c").exists());
 }
+
+/// `mvem margins`: the JSON holds the library's analysis to the bit, a tuning file's gains reach
+/// it (both x_egr -> u_vgt gains doubled: that loop's gain margin halves, the other loop's alone
+/// figures stay), the table names every loop, and a bad point or tuning is a usage error.
+#[test]
+fn margins_of_the_baseline_loops() {
+    use mvem::control::baseline::BaselineTuning;
+    use mvem::control::margins::{baseline_loops, loop_analysis_json, margins_at};
+    use mvem::model::{Drive, Engine8};
+    let d = tempfile::tempdir().unwrap();
+    let point = [
+        "--n-e",
+        "1500",
+        "--u-delta",
+        "110",
+        "--u-egr",
+        "50",
+        "--u-vgt",
+        "60",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = vec!["margins"];
+        args.extend(point);
+        args.extend(extra);
+        mvem(d.path(), &args)
+    };
+    let o = run(&["--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = BaselineTuning::default();
+    let (_, a) = margins_at(
+        &Engine8::published(),
+        &Drive::new(1500.0, 110.0, 50.0, 60.0),
+        &baseline_loops(&t),
+        t.ts,
+    )
+    .unwrap();
+    let lib = loop_analysis_json(&a);
+    assert_eq!(j["loops"], lib["loops"]);
+    assert_eq!(j["max_pole_all"], lib["max_pole_all"]);
+    assert_eq!(j["stable"], true);
+    assert_eq!(j["model_states"], 8);
+    assert_eq!(j["operating_point"]["u_vgt"], 60.0);
+    let gm =
+        |j: &serde_json::Value, k: usize| j["loops"][k]["alone"]["gain_margin"].as_f64().unwrap();
+    // doubled x_egr -> u_vgt gains
+    std::fs::write(d.path().join("t.toml"), "x_egr_vgt = [300.0, 1600.0]\n").unwrap();
+    let doubled: serde_json::Value =
+        serde_json::from_slice(&run(&["--json", "--tuning", "t.toml"]).stdout).unwrap();
+    assert!(
+        (gm(&doubled, 1) / gm(&j, 1) - 0.5).abs() < 1e-8,
+        "{} {}",
+        gm(&doubled, 1),
+        gm(&j, 1)
+    );
+    assert_eq!(doubled["loops"][0]["alone"], j["loops"][0]["alone"]);
+    assert_eq!(doubled["loops"][1]["kp"], 300.0);
+    // the table
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    for want in [
+        "lambda_O->u_egr",
+        "x_egr->u_vgt",
+        "gain margin",
+        "phase margin",
+        "Every loop closed: stable",
+    ] {
+        assert!(text.contains(want), "{want}: {text}");
+    }
+    // bad input
+    let o = mvem(
+        d.path(),
+        &[
+            "margins",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "nan",
+            "--u-vgt",
+            "60",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--u-egr NaN"), "{}", stderr(&o));
+    std::fs::write(d.path().join("bad.toml"), "x_egr_vgt = [300.0, -1.0]\n").unwrap();
+    let o = run(&["--tuning", "bad.toml"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad.toml"), "{}", stderr(&o));
+}

@@ -10,6 +10,7 @@ pub mod fmu;
 pub mod lab;
 pub mod linearize;
 pub mod map;
+pub mod margins;
 pub mod params;
 pub mod report;
 pub mod robustness;

@@ -12,6 +12,7 @@
 //!   controller with a smoke limiter; the open-loop schedule as a "controller" for comparison.
 //! - [`cycle`]: the engine's mapping curve, the WHTC denormalization (UN GTR No. 4), demands.
 //! - [`stats`]: the regulation's cycle statistics and the air-path figures of merit.
+//! - [`margins`]: stability margins of discrete PI loops around the sampled linear model.
 //! - [`drive`]: a whole cycle run (mapping curve, demand, controller, loop, statistics), shared
 //!   by `mvem closed-loop` and the closed-loop mode of `mvem serve`.
 //!
@@ -20,6 +21,7 @@
 pub mod baseline;
 pub mod cycle;
 pub mod drive;
+pub mod margins;
 pub mod pid;
 pub mod stats;
 pub mod steps;
