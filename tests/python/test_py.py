@@ -451,6 +451,26 @@ def test_linearize_sampled_with_exact_delays(mvem_cli):
         mvem.linearize(1500, 110, 40, 75, ts=0.02, pade_order=2)
 
 
+def test_loop_margins_equal_the_cli(mvem_cli):
+    """loop_margins: the dict of `mvem margins --json` to the bit, a tuning dict reaches it (the
+    x_egr -> u_vgt gains doubled halve that loop's gain margin), bad arguments are ValueErrors."""
+    m = mvem.loop_margins(1500, 110, 50, 60)
+    p = subprocess.run([mvem_cli, "margins", "--n-e", "1500", "--u-delta", "110", "--u-egr", "50",
+                        "--u-vgt", "60", "--json"], check=True, capture_output=True, text=True)
+    assert m == json.loads(p.stdout)
+    assert m["stable"] and [l["name"] for l in m["loops"]] == ["lambda_O->u_egr", "x_egr->u_vgt"]
+    gm = m["loops"][1]["alone"]["gain_margin"]
+    assert 2.0 < gm < 4.0
+    doubled = mvem.loop_margins(1500, 110, 50, 60, tuning={"x_egr_vgt": [300.0, 1600.0]})
+    assert doubled["loops"][1]["alone"]["gain_margin"] == pytest.approx(gm / 2, rel=1e-8)
+    with pytest.raises(ValueError, match="u_egr"):
+        mvem.loop_margins(1500, 110, float("nan"), 60)
+    with pytest.raises(ValueError, match="tuning"):
+        mvem.loop_margins(1500, 110, 50, 60, tuning={"no_such_field": 1.0})
+    with pytest.raises(ValueError, match="tuning"):
+        mvem.loop_margins(1500, 110, 50, 60, tuning=[1, 2])
+
+
 def test_frequency_response_with_exact_delays(mvem_cli):
     """frequency_response: the CLI's --bode to the bit; the fuel path equal to C (jwI - A)^-1 B
     + D of linearize's matrices, u_vgt -> W_c to the undelayed response times e^(-jw tau) (the

@@ -865,6 +865,49 @@ pub struct ClosedLoopRun {
     pub summary: String,
 }
 
+/// The baseline tuning from a JSON object of `BaselineTuning` fields (the others default;
+/// unknown keys refused), validated.
+fn baseline_tuning(tuning: Option<&str>) -> CoreResult<mvem::control::baseline::BaselineTuning> {
+    use mvem::control::baseline::BaselineTuning;
+    let tuning: BaselineTuning = match tuning {
+        None => BaselineTuning::default(),
+        Some(text) => mvem::io::settings_from_json(text)
+            .map_err(|e| CoreError::Value(format!("tuning: {e}")))?,
+    };
+    tuning
+        .validate()
+        .map_err(|e| CoreError::Value(e.to_string()))?;
+    Ok(tuning)
+}
+
+/// The margins of the baseline's air-path loops at the steady state of `d`
+/// (`control::margins`, `mvem margins --json`): the JSON object of the CLI.
+pub fn loop_margins(
+    d: [f64; 4],
+    tuning: Option<&str>,
+    params: Option<Params>,
+    variant: Variant,
+) -> CoreResult<String> {
+    use mvem::control::margins::{baseline_loops, loop_analysis_json, margins_at};
+    check_finite(d)?;
+    let tuning = baseline_tuning(tuning)?;
+    let m = model(params, variant)?;
+    let drive = Drive::from_array(d);
+    let (n, an) = mvem::dispatch!(&m, m => {
+        fn states<const N: usize, M: Model<N>>(_: &M) -> usize {
+            N
+        }
+        (states(m), margins_at(m, &drive, &baseline_loops(&tuning), tuning.ts))
+    });
+    let (_, an) = an.map_err(CoreError::Runtime)?;
+    let mut v = loop_analysis_json(&an);
+    v["operating_point"] = serde_json::json!({
+        "n_e": d[0], "u_delta": d[1], "u_egr": d[2], "u_vgt": d[3],
+    });
+    v["model_states"] = serde_json::json!(n);
+    Ok(v.to_string())
+}
+
 /// The drive cycle `cycle` with the baseline EGR/VGT and engine controllers (tuning: a JSON
 /// object of `BaselineTuning` fields, the others default; unknown keys refused), the core's
 /// `control::drive::run_cycle` as `mvem closed-loop` runs it. A demand the engine cannot follow
@@ -876,18 +919,10 @@ pub fn closed_loop(
     variant: Variant,
     duration: Option<f64>,
 ) -> CoreResult<ClosedLoopRun> {
-    use mvem::control::baseline::BaselineTuning;
     use mvem::control::cycle::Demand;
     use mvem::control::drive::{run_cycle, CycleSource, Scheme};
     use mvem::control::{ControlError, Trajectory};
-    let tuning: BaselineTuning = match tuning {
-        None => BaselineTuning::default(),
-        Some(text) => mvem::io::settings_from_json(text)
-            .map_err(|e| CoreError::Value(format!("tuning: {e}")))?,
-    };
-    tuning
-        .validate()
-        .map_err(|e| CoreError::Value(e.to_string()))?;
+    let tuning = baseline_tuning(tuning)?;
     let m = model(params, variant)?;
     let source = match cycle {
         CycleArg::Whtc => CycleSource::Whtc,

@@ -544,21 +544,7 @@ fn closed_loop<'py>(
             m_ref: rows.iter().map(|r| r[2]).collect(),
         }
     };
-    let tuning: Option<String> = match tuning {
-        None => None,
-        Some(t) if t.is_none() => None,
-        Some(t) if t.is_instance_of::<PyDict>() => Some(
-            py.import("json")?
-                .call_method1("dumps", (t,))
-                .map_err(|e| PyValueError::new_err(format!("tuning: {e}")))?
-                .extract()?,
-        ),
-        Some(_) => {
-            return Err(PyValueError::new_err(
-                "tuning: expected a dict of BaselineTuning fields",
-            ))
-        }
-    };
+    let tuning = tuning_json(py, tuning)?;
     let p = parse_params(py, params)?;
     let run = cancellable(py, move || {
         core::closed_loop(cycle, tuning.as_deref(), p, variant, duration)
@@ -574,6 +560,63 @@ fn closed_loop<'py>(
     }
     out.set_item("trajectory", traj)?;
     Ok(out)
+}
+
+/// A `tuning` argument (None or a dict of BaselineTuning fields) as the JSON text the core reads.
+fn tuning_json(py: Python<'_>, tuning: Option<&Bound<'_, PyAny>>) -> PyResult<Option<String>> {
+    match tuning {
+        None => Ok(None),
+        Some(t) if t.is_none() => Ok(None),
+        Some(t) if t.is_instance_of::<PyDict>() => Ok(Some(
+            py.import("json")?
+                .call_method1("dumps", (t,))
+                .map_err(|e| PyValueError::new_err(format!("tuning: {e}")))?
+                .extract()?,
+        )),
+        Some(_) => Err(PyValueError::new_err(
+            "tuning: expected a dict of BaselineTuning fields",
+        )),
+    }
+}
+
+/// Stability margins of the baseline controller's air-path loops (lambda_O -> u_egr,
+/// x_egr -> u_vgt: discrete PIs sampled every 10 ms) at the steady state of constant inputs,
+/// as `mvem margins --json` (docs/control.md, "Loop margins").
+///
+/// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]; tuning: a dict of
+/// BaselineTuning fields as in closed_loop; params, model as in simulate.
+/// Returns a dict: "operating_point", "model_states", "ts", "stable" (every loop closed),
+/// "max_pole_all", "loops": [{"name", "input", "output", "kp", "ki", "alone", "others_closed"}],
+/// each margins dict {"stable", "gain_margin", "gain_margin_db", "gain_margin_hz",
+/// "gain_reduction_margin", "phase_margin_deg", "gain_crossover_hz", "delay_margin_s",
+/// "peak_sensitivity", "peak_sensitivity_hz"} (None where a figure does not exist). ValueError
+/// for non-finite inputs, a bad tuning or parameters; RuntimeError if there is no equilibrium
+/// or the point sits at a kink the loops see.
+#[pyfunction]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, tuning=None, params=None, model=8))]
+#[allow(clippy::too_many_arguments)]
+fn loop_margins<'py>(
+    py: Python<'py>,
+    n_e: f64,
+    u_delta: f64,
+    u_egr: f64,
+    u_vgt: f64,
+    tuning: Option<&Bound<'py, PyAny>>,
+    params: Option<&Bound<'py, PyAny>>,
+    model: i64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let tuning = tuning_json(py, tuning)?;
+    let p = params_at_point(py, params, "loop_margins", [n_e, u_delta, u_egr, u_vgt])?;
+    let text = py
+        .allow_threads(move || {
+            core::loop_margins([n_e, u_delta, u_egr, u_vgt], tuning.as_deref(), p, variant)
+        })
+        .map_err(to_py_err)?;
+    py.import("json")?
+        .call_method1("loads", (text,))?
+        .downcast_into()
+        .map_err(Into::into)
 }
 
 /// Steady state (equilibrium) at constant inputs.
@@ -1842,6 +1885,7 @@ fn mvem_native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lab, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_many, m)?)?;
     m.add_function(wrap_pyfunction!(steady, m)?)?;
+    m.add_function(wrap_pyfunction!(loop_margins, m)?)?;
     m.add_function(wrap_pyfunction!(published_params, m)?)?;
     m.add_function(wrap_pyfunction!(linearize, m)?)?;
     m.add_function(wrap_pyfunction!(frequency_response, m)?)?;

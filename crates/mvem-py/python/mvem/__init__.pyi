@@ -147,6 +147,26 @@ def frequency_response(
     ValueError: bad arguments; RuntimeError: no steady state, or a kink with strict=True.
     """
 
+def loop_margins(
+    n_e: float,
+    u_delta: float,
+    u_egr: float,
+    u_vgt: float,
+    tuning: Optional[Dict[str, Any]] = None,
+    params: Params = None,
+    model: ModelOrder = 8,
+) -> Dict[str, Any]:
+    """Stability margins of the baseline controller's air-path loops (lambda_O -> u_egr,
+    x_egr -> u_vgt; discrete PIs every 10 ms around the sampled model, delays exact) at the
+    steady state of the inputs, as `mvem margins --json`. Keys: "operating_point",
+    "model_states", "ts", "stable", "max_pole_all", "loops" [{"name", "input", "output", "kp",
+    "ki", "alone", "others_closed"}], each margins dict {"stable", "gain_margin",
+    "gain_margin_db", "gain_margin_hz", "gain_reduction_margin", "phase_margin_deg",
+    "gain_crossover_hz", "delay_margin_s", "peak_sensitivity", "peak_sensitivity_hz"}.
+    ValueError: bad inputs, tuning or parameters; RuntimeError: no steady state, or a kink the
+    loops see.
+    """
+
 def step_metrics(
     t: npt.ArrayLike,
     y: npt.ArrayLike,
