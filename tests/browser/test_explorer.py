@@ -245,6 +245,52 @@ def _take_console_400(page):
     page.console_errors.remove(line)
 
 
+def test_loop_margins(page, server):
+    """The linear-model panel's loop margins: the table shows the numbers of POST /api/margins
+    (as mvem margins) at the inputs' point, the drive-cycle panel's controller tuning reaches
+    them (the x_egr -> u_vgt gains doubled halve that loop's gain margin), and a point where the
+    two loops are unstable together is marked so."""
+    def fill_point(n_e, u_delta, u_egr, u_vgt):
+        for name, v in (("n_e", n_e), ("u_delta", u_delta), ("u_egr", u_egr), ("u_vgt", u_vgt)):
+            page.fill(f"input[name={name}]", str(v))
+
+    def shown():
+        page.click("[data-action=margins]")
+        page.wait_for_selector("#margins:not([hidden]) tbody tr")
+        page.wait_for_function("document.querySelector('[data-action=margins]').disabled === false")
+        return {(r[0], r[1]): r[2] for r in page.eval_on_selector_all(
+            "#margins tbody tr", "rs => rs.map(r => [r.dataset.loop, r.dataset.other, r.dataset.gainMargin])")}
+
+    fill_point(1500, 110, 50, 60)
+    params = page.input_value("select[name=params]")
+    point = {"n_e": 1500, "u_delta": 110, "u_egr": 50, "u_vgt": 60}
+    api = _api(server, "/api/margins", {"point": point, "model": 8, "params": params})
+    rows = shown()
+    for lp in api["loops"]:
+        assert float(rows[(lp["name"], "open")]) == lp["alone"]["gain_margin"], lp["name"]
+        assert float(rows[(lp["name"], "closed")]) == lp["others_closed"]["gain_margin"], lp["name"]
+    summary = page.text_content("#margins-summary")
+    assert "every loop closed stable" in summary and "u_egr 50 %" in summary, summary
+    page.locator("#linear").screenshot(path=str(ART / "explorer_margins.png"))
+    # the controller tuning of the drive-cycle panel (shown in closed-loop mode): x_egr -> u_vgt
+    # gains doubled
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.click("#tuning summary")
+    kp, ki = api["loops"][1]["kp"], api["loops"][1]["ki"]
+    page.fill("input[data-tuning='x_egr_vgt[0]']", str(2 * kp))
+    page.fill("input[data-tuning='x_egr_vgt[1]']", str(2 * ki))
+    doubled = shown()
+    gm = api["loops"][1]["alone"]["gain_margin"]
+    assert float(doubled[("x_egr->u_vgt", "open")]) == pytest.approx(gm / 2, rel=1e-8)
+    page.click("[data-action=tuning-defaults]")
+    # each loop stable alone, the pair not (docs/control.md, "Loop margins")
+    fill_point(2000, 160, 10, 40)
+    shown()
+    assert page.get_attribute("#margins-summary", "data-stable") == "false"
+    assert "UNSTABLE" in page.text_content("#margins-summary")
+    assert page.eval_on_selector_all("#margins tbody tr.bad", "rs => rs.length") == 2
+
+
 def test_closed_loop_controller_tuning(page, server):
     """The closed-loop mode's tuning form: shown only in that mode, filled with the defaults of
     /api/models (a PI pair as kp and ki), a non-number named without a request, the changed
@@ -408,6 +454,10 @@ def test_linear_model_panel(page, server):
     and a bad sample time named."""
     q = "n_e=1500&u_delta=110&u_egr=80&u_vgt=75&model=8&params=" + page.input_value("select[name=params]")
     api = _api(server, f"/api/linearize?{q}&ts=0.02&bode=0.01:100:200")
+    # nothing of the Bode diagram before a linearization (the hidden attribute wins over the
+    # display of .controls and canvas: a first version showed an empty frame)
+    assert page.is_hidden("#lin-bode-controls") and page.is_hidden("canvas[data-plot=bode]")
+    assert page.is_hidden("#margins")
     page.fill("input[name=lin_ts]", "0.02")
     page.click("[data-action=linearize]")
     page.wait_for_selector("#lin-sampled:not([hidden])")

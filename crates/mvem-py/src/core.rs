@@ -888,7 +888,7 @@ pub fn loop_margins(
     params: Option<Params>,
     variant: Variant,
 ) -> CoreResult<String> {
-    use mvem::control::margins::{baseline_loops, loop_analysis_json, margins_at};
+    use mvem::control::margins::{baseline_loops, margins_at, margins_report_json};
     check_finite(d)?;
     let tuning = baseline_tuning(tuning)?;
     let m = model(params, variant)?;
@@ -900,12 +900,7 @@ pub fn loop_margins(
         (states(m), margins_at(m, &drive, &baseline_loops(&tuning), tuning.ts))
     });
     let (_, an) = an.map_err(CoreError::Runtime)?;
-    let mut v = loop_analysis_json(&an);
-    v["operating_point"] = serde_json::json!({
-        "n_e": d[0], "u_delta": d[1], "u_egr": d[2], "u_vgt": d[3],
-    });
-    v["model_states"] = serde_json::json!(n);
-    Ok(v.to_string())
+    Ok(margins_report_json(&drive, n, &an).to_string())
 }
 
 /// The drive cycle `cycle` with the baseline EGR/VGT and engine controllers (tuning: a JSON

@@ -398,6 +398,56 @@
     c.dataset.drawn = ch;
   }
 
+  // the baseline's air-path loop margins at the inputs' point (POST /api/margins, as
+  // mvem margins), with the tuning of the drive-cycle panel's form
+  async function runMargins() {
+    const btn = $("[data-action=margins]");
+    btn.disabled = true;
+    setStatus("busy", "loop margins…");
+    try {
+      const body = { point: point(), ...modelSel() };
+      if (app.tuningDefaults) body.tuning = tuningValue();
+      const j = await api("/api/margins", body);
+      app.margins = j;
+      showMargins(j);
+      showError("#margins-error", null);
+      setStatus("ok", "ready");
+    } catch (e) {
+      showError("#margins-error", e);
+      setStatus("ok", "ready");
+    } finally {
+      btn.disabled = false;
+    }
+  }
+
+  function showMargins(j) {
+    const p = j.operating_point;
+    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})`;
+    $("#margins-summary").dataset.stable = String(j.stable);
+    const hz = (f) => `${Number(f.toPrecision(4))} Hz`;
+    const rows = [];
+    for (const l of j.loops) {
+      for (const [other, m] of [["open", l.alone], ["closed", l.others_closed]]) {
+        const tr = document.createElement("tr");
+        tr.dataset.loop = l.name;
+        tr.dataset.other = other;
+        tr.dataset.gainMargin = m.gain_margin === null ? "" : String(m.gain_margin);
+        tr.dataset.phaseMargin = m.phase_margin_deg === null ? "" : String(m.phase_margin_deg);
+        const gm = !m.stable ? "unstable" : m.gain_margin === null ? "none up to 1e4"
+          : `${fmt(m.gain_margin)} (${(20 * Math.log10(m.gain_margin)).toFixed(1)} dB) at ${hz(m.gain_margin_hz)}`;
+        const pm = !m.stable ? "–" : m.phase_margin_deg === null ? "no crossover"
+          : `${m.phase_margin_deg.toFixed(1)} deg at ${hz(m.gain_crossover_hz)}`;
+        const dm = !m.stable || m.delay_margin_s === null ? "–" : `${Number(m.delay_margin_s.toPrecision(4))} s`;
+        tr.append(cell("", l.name.replace("->", " → ")), cell("", other), cell("", gm), cell("", pm), cell("", dm),
+          cell("", `${fmt(m.peak_sensitivity)} at ${hz(m.peak_sensitivity_hz)}`));
+        if (!m.stable) tr.className = "bad";
+        rows.push(tr);
+      }
+    }
+    $("#margins tbody").replaceChildren(...rows);
+    $("#margins").hidden = false;
+  }
+
   function showLinear(j) {
     showBodeChannels(j);
     $("#lin-poles").textContent = j.eigenvalues.map(cplx).join(", ");
@@ -873,6 +923,7 @@
     $("input[name=cycle_t]").addEventListener("input", scrub);
     $("select[name=cycle_mode]").addEventListener("change", showCycleMode);
     $("select[name=bode_channel]").addEventListener("change", drawBode);
+    $("[data-action=margins]").addEventListener("click", runMargins);
     $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
     $("#tuning-fields").addEventListener("input", markTuning);

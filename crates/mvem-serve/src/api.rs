@@ -1,6 +1,6 @@
 //! Routes, request parsing, errors and the bounded work queue.
 
-use crate::compute::{self, Fail, MapRequest, SimulateRequest, StepRequest};
+use crate::compute::{self, Fail, MapRequest, MarginsRequest, SimulateRequest, StepRequest};
 use crate::{Limits, Models};
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, QueryRejection};
@@ -151,6 +151,7 @@ pub(crate) fn router(models: Arc<Models>, limits: Limits) -> Router {
         .route("/api/steady", get(steady))
         .route("/api/linearize", get(linearize))
         .route("/api/step", post(step))
+        .route("/api/margins", post(margins))
         .route("/api/simulate", post(simulate))
         .route("/api/map", post(map))
         .fallback(not_found)
@@ -454,6 +455,16 @@ async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> Ap
     let v = app
         .work
         .run(move || mvem::dispatch!(&m, m => compute::step(m, &r, slot)))
+        .await??;
+    Ok(Json(v))
+}
+
+async fn margins(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
+    let r: MarginsRequest = body(b)?;
+    let m = app.model(order_n(r.model)?, r.params.as_deref())?;
+    let v = app
+        .work
+        .run(move || mvem::dispatch!(&m, m => compute::margins(m, &r)))
         .await??;
     Ok(Json(v))
 }

@@ -141,6 +141,40 @@ impl Point {
     }
 }
 
+/// Body of `POST /api/margins`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct MarginsRequest {
+    /// Operating point.
+    pub point: Point,
+    /// The baseline controllers' tuning (`BaselineTuning` fields; the others keep their
+    /// defaults), as `mvem margins --tuning`.
+    #[serde(default)]
+    pub tuning: Option<BaselineTuning>,
+    /// Model order 8, 10 or 12 (default 8).
+    #[serde(default)]
+    pub model: Option<u32>,
+    /// Parameter set (default: the first the server was started with).
+    #[serde(default)]
+    pub params: Option<String>,
+}
+
+/// `POST /api/margins`: the object of `mvem margins --json` (`control::margins`).
+pub(crate) fn margins<const N: usize, M: Model<N>>(
+    m: &M,
+    r: &MarginsRequest,
+) -> Result<Value, Fail> {
+    use mvem::control::margins::{baseline_loops, margins_at, margins_report_json};
+    let tuning = r.tuning.unwrap_or_default();
+    tuning
+        .validate()
+        .map_err(|e| input(format!("tuning: {e}")))?;
+    let d = r.point.drive();
+    let (_, a) = margins_at(m, &d, &baseline_loops(&tuning), tuning.ts)
+        .map_err(|e| Fail::Model(format!("loop margins: {e}")))?;
+    Ok(margins_report_json(&d, N, &a))
+}
+
 /// Body of `POST /api/step`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

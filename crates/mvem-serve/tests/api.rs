@@ -471,6 +471,42 @@ fn closed_loop_mode_takes_the_controllers_tuning() {
     }
 }
 
+/// `POST /api/margins`: the object of `mvem margins --json` (the library's report) to the bit,
+/// with the default tuning and a given one (both x_egr -> u_vgt gains doubled: that loop's gain
+/// margin halves); a bad tuning, an unknown field and a missing point are 400s naming them.
+#[test]
+fn margins_equal_the_library() {
+    use mvem::control::margins::{baseline_loops, margins_at, margins_report_json};
+    let d = Drive::new(1500.0, 110.0, 50.0, 60.0);
+    let r = post(
+        "/api/margins",
+        r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 50, "u_vgt": 60}}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let t = BaselineTuning::default();
+    let (_, a) = margins_at(&Engine8::published(), &d, &baseline_loops(&t), t.ts).unwrap();
+    assert_eq!(r.json(), margins_report_json(&d, 8, &a));
+    let doubled = post(
+        "/api/margins",
+        r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 50, "u_vgt": 60},
+            "tuning": {"x_egr_vgt": [300, 1600]}, "model": 8}"#,
+    )
+    .json();
+    let gm = |v: &serde_json::Value| v["loops"][1]["alone"]["gain_margin"].as_f64().unwrap();
+    assert!((gm(&doubled) / gm(&r.json()) - 0.5).abs() < 1e-8);
+    let point = r#""point": {"n_e": 1500, "u_delta": 110, "u_egr": 50, "u_vgt": 60}"#;
+    for (body, name) in [
+        (
+            format!(r#"{{{point}, "tuning": {{"x_egr_vgt": [-1, 800]}}}}"#),
+            "x_egr_vgt",
+        ),
+        (format!(r#"{{{point}, "tunning": {{}}}}"#), "tunning"),
+        (r#"{"model": 8}"#.to_string(), "point"),
+    ] {
+        assert_400_naming(&post("/api/margins", &body), name, &body);
+    }
+}
+
 /// An open-loop run of an uploaded file is the run of the same rows as a server cycle: the
 /// WHTC's text sent as `"csv"` answers the same series as `"cycle": "whtc"`, to the bit.
 #[test]

@@ -5,7 +5,7 @@ use crate::common::{self, ModelArgs};
 use anyhow::{Context, Result};
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::margins::{
-    baseline_loops, loop_analysis_json, margins_at, LoopAnalysis, LoopMargins,
+    baseline_loops, margins_at, margins_report_json, LoopAnalysis, LoopMargins,
 };
 use mvem::model::{Drive, Model};
 use std::path::PathBuf;
@@ -65,11 +65,7 @@ fn report<const N: usize, M: Model<N>>(
         .map_err(anyhow::Error::msg)
         .context("loop margins")?;
     if json {
-        let mut v = loop_analysis_json(&an);
-        v["operating_point"] = serde_json::json!({
-            "n_e": d.n_e_rpm, "u_delta": d.u_delta_mg, "u_egr": d.u_egr_pct, "u_vgt": d.u_vgt_pct,
-        });
-        v["model_states"] = serde_json::json!(N);
+        let v = margins_report_json(d, N, &an);
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         print_table(d, N, &an);

@@ -559,6 +559,22 @@ pub fn margins_at<const N: usize, M: crate::model::Model<N>>(
     Ok((dm, a))
 }
 
+/// The report of `mvem margins --json` (and of Python's `loop_margins`, the explorer's
+/// `POST /api/margins`): [`loop_analysis_json`] plus `"operating_point"` {n_e, u_delta, u_egr,
+/// u_vgt} and `"model_states"`.
+pub fn margins_report_json(
+    d: &crate::model::Drive,
+    model_states: usize,
+    a: &LoopAnalysis,
+) -> serde_json::Value {
+    let mut v = loop_analysis_json(a);
+    v["operating_point"] = serde_json::json!({
+        "n_e": d.n_e_rpm, "u_delta": d.u_delta_mg, "u_egr": d.u_egr_pct, "u_vgt": d.u_vgt_pct,
+    });
+    v["model_states"] = serde_json::json!(model_states);
+    v
+}
+
 /// One loop's margins as JSON (`mvem margins --json`): the fields of [`LoopMargins`] by name,
 /// plus `gain_margin_db` (20 log10 of the gain margin); `null` where a figure does not exist.
 pub fn loop_margins_json(m: &LoopMargins) -> serde_json::Value {
