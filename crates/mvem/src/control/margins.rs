@@ -6,7 +6,9 @@
 //! The plant is the zero-order-hold model sampled at the controller's period with the actuator
 //! delays exact ([`DiscreteModel`], `mvem linearize --ts`), so the loops are analysed as they
 //! run: the controller reads the outputs at a sample and holds its commands until the next.
-//! Each loop is the discrete PI of [`super::pid::Pid`] (backward-Euler integral, no selector,
+//! An output that reacts to a command within the sample (the actuators bypassed) is read with
+//! the command held over the last interval (a register per such command). Each loop is the
+//! discrete PI of [`super::pid::Pid`] (backward-Euler integral, no selector,
 //! no saturation): with the error e_k = y_k - r_k,
 //!
 //! ```text
@@ -106,9 +108,6 @@ pub struct LoopAnalysis {
 pub enum MarginsError {
     /// A loop names an input or output the sampled model does not have.
     UnknownChannel(String),
-    /// A loop's output depends on a loop's command within the sample (D != 0): the loop would
-    /// be algebraic.
-    DirectFeedthrough(String),
     /// A gain that is not a finite number.
     BadGain(String),
     /// No loop, or two loops on one command.
@@ -120,11 +119,9 @@ pub enum MarginsError {
 impl std::fmt::Display for MarginsError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::UnknownChannel(s)
-            | Self::DirectFeedthrough(s)
-            | Self::BadGain(s)
-            | Self::BadLoops(s)
-            | Self::Eigen(s) => f.write_str(s),
+            Self::UnknownChannel(s) | Self::BadGain(s) | Self::BadLoops(s) | Self::Eigen(s) => {
+                f.write_str(s)
+            }
         }
     }
 }
@@ -149,6 +146,9 @@ pub struct SampledPlant {
     pub input_names: Vec<String>,
     /// Output names (rows of C and D).
     pub output_names: Vec<String>,
+    /// A typical magnitude of each state (the closed-loop matrix's eigenvalues are computed in
+    /// the states divided by it: the same values, better conditioned); empty: all 1.
+    pub state_scales: Vec<f64>,
 }
 
 impl SampledPlant {
@@ -167,6 +167,7 @@ impl From<&DiscreteModel> for SampledPlant {
             d: dm.d.clone(),
             input_names: dm.input_names.clone(),
             output_names: dm.output_names.clone(),
+            state_scales: dm.state_scales.clone(),
         }
     }
 }
@@ -216,19 +217,6 @@ fn channels(dm: &SampledPlant, loops: &[PiLoop]) -> Result<Vec<(usize, usize)>, 
         }
         idx.push((i, o));
     }
-    for &(_, o) in &idx {
-        for (l, &(i, _)) in loops.iter().zip(&idx) {
-            if dm.d[(o, i)] != 0.0 {
-                return Err(MarginsError::DirectFeedthrough(format!(
-                    "{} reacts to {} within the sample (D = {:e}): loop {} would be algebraic",
-                    dm.output_names[o],
-                    dm.input_names[i],
-                    dm.d[(o, i)],
-                    l.name
-                )));
-            }
-        }
-    }
     Ok(idx)
 }
 
@@ -275,12 +263,32 @@ fn closed_loop_matrix(
             a[(n + q, n + q)] = 1.0;
         }
     }
-    a
+    // in the scaled states (D^-1 A D: the same eigenvalues; the integrals in command units)
+    let scale = |i: usize| {
+        dm.state_scales
+            .get(i)
+            .copied()
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .unwrap_or(1.0)
+    };
+    DMatrix::from_fn(n + m, n + m, |i, j| a[(i, j)] * scale(j) / scale(i))
 }
 
 /// Largest |z| (and the frequency of that pole \[Hz\]) of the closed loop.
 fn max_pole(a: &DMatrix<f64>, ts: f64) -> Result<(f64, f64), MarginsError> {
-    let ev = eigenvalues(a).map_err(|e| MarginsError::Eigen(e.to_string()))?;
+    // the delay registers make the matrix defective (a nilpotent chain per delayed command),
+    // where the real Schur iteration to machine precision can stall: then a looser tolerance
+    // (the decision |z| < 1 needs far less than 1e-10)
+    let ev = match eigenvalues(a) {
+        Ok(ev) => ev,
+        Err(first) => [1e-14, 1e-12, 1e-10]
+            .iter()
+            .find_map(|&tol| {
+                nalgebra::linalg::Schur::try_new(a.clone(), tol, 200_000)
+                    .map(|s| s.complex_eigenvalues().iter().copied().collect::<Vec<_>>())
+            })
+            .ok_or_else(|| MarginsError::Eigen(format!("closed-loop poles: {first}")))?,
+    };
     Ok(ev
         .iter()
         .map(|z| (z.norm(), z.arg().abs() / (2.0 * std::f64::consts::PI * ts)))
@@ -325,9 +333,55 @@ pub fn loop_margins(dm: &DiscreteModel, loops: &[PiLoop]) -> Result<LoopAnalysis
     loop_margins_of(&SampledPlant::from(dm), loops)
 }
 
+/// The plant as the controller reads it: where a loop's output reacts to a loop's command
+/// within the sample (D != 0: the actuators bypassed), the output measured at sample k is that
+/// of the command held over the last interval, y_k = C x_k + D u_{k-1} (the controller measures,
+/// then commands: `control::run`), so each such command gets a register v_k = u_{k-1}:
+/// x+ = Phi x + Gamma u, v+ = u, y = C x + D v. Unchanged when every such D is 0.
+fn as_measured(dm: &SampledPlant, idx: &[(usize, usize)]) -> SampledPlant {
+    let held: Vec<usize> = idx
+        .iter()
+        .map(|&(i, _)| i)
+        .filter(|&i| idx.iter().any(|&(_, o)| dm.d[(o, i)] != 0.0))
+        .collect();
+    if held.is_empty() {
+        return dm.clone();
+    }
+    let (n, h) = (dm.n_states(), held.len());
+    let mut phi = DMatrix::zeros(n + h, n + h);
+    phi.view_mut((0, 0), (n, n)).copy_from(&dm.phi);
+    let mut gamma = DMatrix::zeros(n + h, dm.gamma.ncols());
+    gamma
+        .view_mut((0, 0), (n, dm.gamma.ncols()))
+        .copy_from(&dm.gamma);
+    let mut c = DMatrix::zeros(dm.c.nrows(), n + h);
+    c.view_mut((0, 0), (dm.c.nrows(), n)).copy_from(&dm.c);
+    let mut d = dm.d.clone();
+    let mut state_scales = dm.state_scales.clone();
+    state_scales.resize(n, 1.0);
+    for (q, &i) in held.iter().enumerate() {
+        gamma[(n + q, i)] = 1.0;
+        for o in 0..d.nrows() {
+            c[(o, n + q)] = d[(o, i)];
+            d[(o, i)] = 0.0;
+        }
+        state_scales.push(1.0);
+    }
+    SampledPlant {
+        phi,
+        gamma,
+        c,
+        d,
+        state_scales,
+        ..dm.clone()
+    }
+}
+
 /// [`loop_margins`] of any sampled plant.
 pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalysis, MarginsError> {
     let idx = channels(dm, loops)?;
+    let measured = as_measured(dm, &idx);
+    let dm = &measured;
     let ts = dm.ts;
     let n_loops = loops.len();
     let nyquist = 0.5 / ts;
@@ -615,6 +669,31 @@ pub fn loop_analysis_json(a: &LoopAnalysis) -> serde_json::Value {
 mod tests {
     use super::*;
 
+    /// x+ = phi x + gamma u, y = c x + d u, sampled every 10 ms.
+    fn scalar(phi: f64, gamma: f64, c: f64, d: f64) -> SampledPlant {
+        SampledPlant {
+            ts: 0.01,
+            phi: DMatrix::from_element(1, 1, phi),
+            gamma: DMatrix::from_element(1, 1, gamma),
+            c: DMatrix::from_element(1, 1, c),
+            d: DMatrix::from_element(1, 1, d),
+            input_names: vec!["u".into()],
+            output_names: vec!["y".into()],
+            state_scales: Vec::new(),
+        }
+    }
+
+    /// The loop u = kp y (+ ki) on the scalar plant's channel.
+    fn p_loop(kp: f64, ki: f64) -> PiLoop {
+        PiLoop {
+            name: "y->u".into(),
+            input: "u".into(),
+            output: "y".into(),
+            kp,
+            ki,
+        }
+    }
+
     /// x+ = 0.9 x + 0.1 u, y = x, P control u = kp y with kp = -2: the closed-loop pole
     /// 0.9 + 0.1 kp a (a the gain factor) leaves the unit circle at a = 9.5 (z = -1); never for
     /// a < 1; L = 0.2 / (z - 0.9) crosses |L| = 1 where cos theta = 1.77 / 1.8, phase margin
@@ -622,23 +701,7 @@ mod tests {
     #[test]
     fn first_order_plant_with_p_control_has_the_analytic_margins() {
         let ts = 0.01;
-        let plant = SampledPlant {
-            ts,
-            phi: DMatrix::from_element(1, 1, 0.9),
-            gamma: DMatrix::from_element(1, 1, 0.1),
-            c: DMatrix::from_element(1, 1, 1.0),
-            d: DMatrix::zeros(1, 1),
-            input_names: vec!["u".into()],
-            output_names: vec!["y".into()],
-        };
-        let lp = PiLoop {
-            name: "y->u".into(),
-            input: "u".into(),
-            output: "y".into(),
-            kp: -2.0,
-            ki: 0.0,
-        };
-        let a = loop_margins_of(&plant, &[lp]).unwrap();
+        let a = loop_margins_of(&scalar(0.9, 0.1, 1.0, 0.0), &[p_loop(-2.0, 0.0)]).unwrap();
         assert!((a.max_pole_all - 0.7).abs() < 1e-12);
         let m = &a.alone[0];
         assert!(m.stable);
@@ -670,15 +733,7 @@ mod tests {
 
     #[test]
     fn bad_loops_are_named() {
-        let plant = SampledPlant {
-            ts: 0.01,
-            phi: DMatrix::from_element(1, 1, 0.5),
-            gamma: DMatrix::from_element(1, 1, 1.0),
-            c: DMatrix::from_element(1, 1, 1.0),
-            d: DMatrix::from_element(1, 1, 0.3),
-            input_names: vec!["u".into()],
-            output_names: vec!["y".into()],
-        };
+        let plant = scalar(0.5, 1.0, 1.0, 0.3);
         let lp = |input: &str, output: &str, kp: f64| PiLoop {
             name: "l".into(),
             input: input.into(),
@@ -692,6 +747,19 @@ mod tests {
         assert!(e(vec![lp("u", "z", 1.0)]).contains("output \"z\""));
         assert!(e(vec![lp("u", "y", f64::NAN)]).contains("finite"));
         assert!(e(vec![lp("u", "y", 1.0), lp("u", "y", 2.0)]).contains("another loop"));
-        assert!(e(vec![lp("u", "y", 1.0)]).contains("algebraic"));
+    }
+
+    /// A static plant y_k = 0.3 u_{k-1} (D = 0.3: the controller reads the command held over the
+    /// last interval) with u = kp y, kp = -1: the pole kp 0.3 = -0.3; it reaches -1 at the gain
+    /// factor 1 / 0.3 (the Nyquist frequency); |L| = 0.3 never crosses 1.
+    #[test]
+    fn direct_feedthrough_acts_through_the_held_command() {
+        let a = loop_margins_of(&scalar(0.0, 0.0, 0.0, 0.3), &[p_loop(-1.0, 0.0)]).unwrap();
+        assert!((a.max_pole_all - 0.3).abs() < 1e-12, "{}", a.max_pole_all);
+        let m = &a.alone[0];
+        assert!((m.gain_margin.unwrap() * 0.3 - 1.0).abs() < 1e-8, "{m:?}");
+        assert!((m.gain_margin_hz.unwrap() - 50.0).abs() < 1e-6, "{m:?}");
+        assert_eq!(m.phase_margin_deg, None);
+        assert!(a.l_alone[0].iter().all(|l| (l.norm() - 0.3).abs() < 1e-12));
     }
 }
