@@ -587,7 +587,7 @@ fn tuning_json(py: Python<'_>, tuning: Option<&Bound<'_, PyAny>>) -> PyResult<Op
 /// BaselineTuning fields as in closed_loop; params, model as in simulate.
 /// Returns a dict: "operating_point", "model_states", "ts", "stable" (every loop closed),
 /// "max_pole_all", "loops": [{"name", "input", "output", "kp", "ki", "alone", "others_closed"}],
-/// each margins dict {"stable", "gain_margin", "gain_margin_db", "gain_margin_hz",
+/// each margins dict {"inert", "stable", "gain_margin", "gain_margin_db", "gain_margin_hz",
 /// "gain_reduction_margin", "phase_margin_deg", "gain_crossover_hz", "delay_margin_s",
 /// "peak_sensitivity", "peak_sensitivity_hz"} (None where a figure does not exist). ValueError
 /// for non-finite inputs, a bad tuning or parameters; RuntimeError if there is no equilibrium

@@ -433,9 +433,9 @@
         tr.dataset.other = other;
         tr.dataset.gainMargin = m.gain_margin === null ? "" : String(m.gain_margin);
         tr.dataset.phaseMargin = m.phase_margin_deg === null ? "" : String(m.phase_margin_deg);
-        const gm = !m.stable ? "unstable" : m.gain_margin === null ? "none up to 1e4"
+        const gm = m.inert ? "no effect at this point" : !m.stable ? "unstable" : m.gain_margin === null ? "none up to 1e4"
           : `${fmt(m.gain_margin)} (${(20 * Math.log10(m.gain_margin)).toFixed(1)} dB) at ${hz(m.gain_margin_hz)}`;
-        const pm = !m.stable ? "–" : m.phase_margin_deg === null ? "no crossover"
+        const pm = m.inert || !m.stable ? "–" : m.phase_margin_deg === null ? "no crossover"
           : `${m.phase_margin_deg.toFixed(1)} deg at ${hz(m.gain_crossover_hz)}`;
         const dm = !m.stable || m.delay_margin_s === null ? "–" : `${Number(m.delay_margin_s.toPrecision(4))} s`;
         tr.append(cell("", l.name.replace("->", " → ")), cell("", other), cell("", gm), cell("", pm), cell("", dm),

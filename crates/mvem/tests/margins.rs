@@ -207,3 +207,19 @@ fn the_coupled_loops_are_unstable_where_the_analysis_says() {
     let decay = nonlinear_amplitudes(stable, 0, 1.0, true);
     assert!(decay[9] < 0.5 * decay[1], "{decay:?}");
 }
+
+/// Where no EGR flows (1000 rpm, 250 mg: p_em below p_im) the valve moves no loop output and
+/// x_egr is 0 whatever the VGT does: both loops are reported inert (no feedback, no margins)
+/// instead of a closed-loop pole at 1 of integrators nothing moves; the plant alone is stable.
+#[test]
+fn loops_without_effect_are_inert() {
+    let (_, a) = analysis(Drive::new(1000.0, 250.0, 30.0, 60.0));
+    for m in a.alone.iter().chain(&a.others_closed) {
+        assert!(m.inert && m.stable && m.gain_margin.is_none() && m.phase_margin_deg.is_none());
+        assert_eq!(m.peak_sensitivity, 1.0);
+    }
+    assert!(a.max_pole_all < 1.0);
+    // and where it flows, neither is
+    let (_, a) = analysis(Drive::new(1500.0, 110.0, 50.0, 60.0));
+    assert!(a.alone.iter().all(|m| !m.inert));
+}

@@ -27,7 +27,7 @@ limiters, selectors and saturations of the controller are not part of the linear
 
 With --json, stdout holds one JSON object: \"operating_point\", \"model_states\", \"ts\",
 \"stable\", \"max_pole_all\", \"loops\" [{name, input, output, kp, ki, alone, others_closed}],
-each margins object {stable, gain_margin, gain_margin_db, gain_margin_hz, gain_reduction_margin,
+each margins object {inert, stable, gain_margin, gain_margin_db, gain_margin_hz, gain_reduction_margin,
 phase_margin_deg, gain_crossover_hz, delay_margin_s, peak_sensitivity, peak_sensitivity_hz}.")]
 pub struct Args {
     /// The operating point (--n-e, --u-delta, --u-egr, --u-vgt).
@@ -96,6 +96,9 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
     for (k, l) in an.loops.iter().enumerate() {
         for (other, mm) in [("open", &an.alone[k]), ("closed", &an.others_closed[k])] {
             let row = |mm: &LoopMargins| -> [String; 4] {
+                if mm.inert {
+                    return ["no effect here".into(), "-".into(), "-".into(), "1".into()];
+                }
                 if !mm.stable {
                     return [
                         "UNSTABLE".into(),
@@ -131,7 +134,13 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
         }
     }
     for (l, m) in an.loops.iter().zip(&an.alone) {
-        if m.stable && m.gain_crossover_hz.is_none() && m.gain_margin.is_none() {
+        if m.inert {
+            println!(
+                "\n{}: {} moves none of the loops' outputs, or no loop command moves {}, at this \
+                 point (no EGR flow?): the loop is left open in the others' figures",
+                l.name, l.input, l.output
+            );
+        } else if m.stable && m.gain_crossover_hz.is_none() && m.gain_margin.is_none() {
             println!(
                 "\n{}: |L| < 1 at every frequency and no gain up to 1e4 destabilizes it: {} barely \
                  moves {} at this point (a saturated valve area?)",

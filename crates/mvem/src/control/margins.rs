@@ -60,6 +60,10 @@ pub struct PiLoop {
 /// The margins of one loop.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopMargins {
+    /// The loop's command moves none of the loops' outputs at this point, or no loop command
+    /// moves its output (e.g. where no EGR flows): no feedback, nothing to analyse; the loop is left open in the other
+    /// loops' figures and the other fields say so (stable, no margins, |1/(1+L)| = 1).
+    pub inert: bool,
     /// Whether the closed loop (this loop, with the others open or closed as the field says) is
     /// stable at the nominal gains; the gain margins are `None` when it is not.
     pub stable: bool,
@@ -281,13 +285,31 @@ fn max_pole(a: &DMatrix<f64>, ts: f64) -> Result<(f64, f64), MarginsError> {
     // (the decision |z| < 1 needs far less than 1e-10)
     let ev = match eigenvalues(a) {
         Ok(ev) => ev,
-        Err(first) => [1e-14, 1e-12, 1e-10]
-            .iter()
-            .find_map(|&tol| {
-                nalgebra::linalg::Schur::try_new(a.clone(), tol, 200_000)
-                    .map(|s| s.complex_eigenvalues().iter().copied().collect::<Vec<_>>())
-            })
-            .ok_or_else(|| MarginsError::Eigen(format!("closed-loop poles: {first}")))?,
+        Err(first) => {
+            // the same eigenvalues after an orthogonal similarity that fills the exact zeros of
+            // the register chains (a fixed pseudo-random Q from a QR factorization), then looser
+            // tolerances
+            let n = a.nrows();
+            let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+            let r = DMatrix::from_fn(n, n, |_, _| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            });
+            let q = r.qr().q();
+            let rotated = q.transpose() * a * &q;
+            match eigenvalues(&rotated) {
+                Ok(ev) => ev,
+                Err(_) => [1e-14, 1e-12, 1e-10]
+                    .iter()
+                    .find_map(|&tol| {
+                        nalgebra::linalg::Schur::try_new(rotated.clone(), tol, 200_000)
+                            .map(|s| s.complex_eigenvalues().iter().copied().collect::<Vec<_>>())
+                    })
+                    .ok_or_else(|| MarginsError::Eigen(format!("closed-loop poles: {first}")))?,
+            }
+        }
     };
     Ok(ev
         .iter()
@@ -409,7 +431,23 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
         })?;
         g_grid.push((&cc * x, z));
     }
-    let all: Vec<usize> = (0..n_loops).collect();
+    // a loop whose command moves no loop output here, or whose output no loop command moves
+    // (G's column or row exactly 0: the EGR valve without flow, x_egr = 0 whatever the VGT
+    // does) has no feedback: left open (its PI integral would be a pole at 1 that no feedback
+    // moves)
+    let zero = Complex::new(0.0, 0.0);
+    let inert: Vec<bool> = (0..n_loops)
+        .map(|k| {
+            let column = g_grid
+                .iter()
+                .all(|(g, _)| (0..n_loops).all(|j| g[(j, k)] == zero));
+            let row = g_grid
+                .iter()
+                .all(|(g, _)| (0..n_loops).all(|j| g[(k, j)] == zero));
+            column || row
+        })
+        .collect();
+    let all: Vec<usize> = (0..n_loops).filter(|&k| !inert[k]).collect();
     let ones = vec![1.0; n_loops];
     let (max_pole_all, _) = max_pole(&closed_loop_matrix(dm, loops, &idx, &all, &ones), ts)?;
     let mut alone = Vec::with_capacity(n_loops);
@@ -417,7 +455,26 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
     let mut l_alone = Vec::with_capacity(n_loops);
     let mut l_others = Vec::with_capacity(n_loops);
     for k in 0..n_loops {
-        let others: Vec<usize> = (0..n_loops).filter(|&j| j != k).collect();
+        if inert[k] {
+            let m = LoopMargins {
+                inert: true,
+                stable: true,
+                gain_margin: None,
+                gain_reduction_margin: None,
+                gain_margin_hz: None,
+                phase_margin_deg: None,
+                gain_crossover_hz: None,
+                delay_margin_s: None,
+                peak_sensitivity: 1.0,
+                peak_sensitivity_hz: f_hz[0],
+            };
+            alone.push(m.clone());
+            others_closed.push(m);
+            l_alone.push(vec![Complex::new(0.0, 0.0); f_hz.len()]);
+            l_others.push(vec![Complex::new(0.0, 0.0); f_hz.len()]);
+            continue;
+        }
+        let others: Vec<usize> = all.iter().copied().filter(|&j| j != k).collect();
         // L alone: -g_kk K_k; others closed: -K_k (g_kk + G_ko (I - K_o G_oo)^-1 K_o G_ok)
         let mut la = Vec::with_capacity(f_hz.len());
         let mut lo = Vec::with_capacity(f_hz.len());
@@ -535,6 +592,7 @@ fn margins_of(
         .map(|(v, &f)| ((Complex::new(1.0, 0.0) + v).inv().norm(), f))
         .fold((0.0, 0.0), |b, p| if p.0 > b.0 { p } else { b });
     LoopMargins {
+        inert: false,
         stable,
         gain_margin: up.map(|u| u.0),
         gain_reduction_margin: down.map(|d| d.0),
@@ -633,6 +691,7 @@ pub fn margins_report_json(
 /// plus `gain_margin_db` (20 log10 of the gain margin); `null` where a figure does not exist.
 pub fn loop_margins_json(m: &LoopMargins) -> serde_json::Value {
     serde_json::json!({
+        "inert": m.inert,
         "stable": m.stable,
         "gain_margin": m.gain_margin,
         "gain_margin_db": m.gain_margin.map(|g| 20.0 * g.log10()),
