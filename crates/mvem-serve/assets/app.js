@@ -311,11 +311,25 @@
     el.textContent = stale ? `${app.linearAtText}; the point has changed: Linearize again` : app.linearAtText;
   }
 
-  async function runLinearize() {
-    const btn = $("[data-action=linearize]");
+  // a button's computation: the button disabled and the status busy meanwhile; its panel's
+  // error line cleared when it succeeds, showing the failure when it throws
+  async function busy(button, text, errorId, work) {
+    const btn = $(button);
     btn.disabled = true;
-    setStatus("busy", "linearizing…");
+    setStatus("busy", text);
     try {
+      await work();
+      showError(errorId, null);
+    } catch (e) {
+      showError(errorId, e);
+    } finally {
+      btn.disabled = false;
+      setStatus("ok", "ready");
+    }
+  }
+
+  async function runLinearize() {
+    await busy("[data-action=linearize]", "linearizing…", "#lin-error", async () => {
       const q = new URLSearchParams({ ...point(), model: modelSel().model });
       if (modelSel().params) q.set("params", modelSel().params);
       const ts = $("input[name=lin_ts]").value.trim();
@@ -329,15 +343,8 @@
       app.linearAtText = at;
       markLinearStale();
       showLinear(j);
-      showError("#lin-error", null);
       $("[data-download=linear]").disabled = false;
-      setStatus("ok", "ready");
-    } catch (e) {
-      showError("#lin-error", e);
-      setStatus("ok", "ready");
-    } finally {
-      btn.disabled = false;
-    }
+    });
   }
 
   // the frequency grid of the Bode diagram (Hz: from, to, points): the range of the two inputs
@@ -401,23 +408,13 @@
   // the baseline's air-path loop margins at the inputs' point (POST /api/margins, as
   // mvem margins), with the tuning of the drive-cycle panel's form
   async function runMargins() {
-    const btn = $("[data-action=margins]");
-    btn.disabled = true;
-    setStatus("busy", "loop margins…");
-    try {
+    await busy("[data-action=margins]", "loop margins…", "#margins-error", async () => {
       const body = { point: point(), ...modelSel() };
       if (app.tuningDefaults) body.tuning = tuningValue();
       const j = await api("/api/margins", body);
       app.margins = j;
       showMargins(j);
-      showError("#margins-error", null);
-      setStatus("ok", "ready");
-    } catch (e) {
-      showError("#margins-error", e);
-      setStatus("ok", "ready");
-    } finally {
-      btn.disabled = false;
-    }
+    });
   }
 
   function showMargins(j) {
@@ -502,24 +499,14 @@
   // step panel
 
   async function runStep() {
-    const btn = $("[data-action=step]");
-    btn.disabled = true;
-    setStatus("busy", "running step…");
-    try {
+    await busy("[data-action=step]", "running step…", "#step-error", async () => {
       const body = { point: point(), input: $("select[name=step_input]").value, target: Number($("input[name=step_target]").value),
         horizon: Number($("input[name=step_horizon]").value), ...modelSel() };
       const j = await api("/api/step", body);
       app.step = j;
       drawStep(j);
-      showError("#step-error", null);
       $("[data-download=step]").disabled = false;
-      setStatus("ok", "ready");
-    } catch (e) {
-      showError("#step-error", e);
-      setStatus("ok", "ready");
-    } finally {
-      btn.disabled = false;
-    }
+    });
   }
 
   function drawStep(j) {
@@ -576,11 +563,8 @@
   // map panel
 
   async function runMap() {
-    const btn = $("[data-action=map]");
-    btn.disabled = true;
-    setStatus("busy", "computing map…");
-    const n = Math.round(Number($("input[name=map_n]").value));
-    try {
+    await busy("[data-action=map]", "computing map…", "#map-error", async () => {
+      const n = Math.round(Number($("input[name=map_n]").value));
       const body = {
         base: point(),
         x: { input: $("select[name=map_x]").value, lo: Number($("input[name=map_x_lo]").value), hi: Number($("input[name=map_x_hi]").value), n },
@@ -594,14 +578,8 @@
       drawMap(j);
       $("#map-info").textContent = `${j.dc_gain.length} points in ${((performance.now() - t0) / 1000).toFixed(2)} s; ` +
         `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.errors.length} without a gain`;
-      showError("#map-error", null);
       $("[data-download=map]").disabled = false;
-    } catch (e) {
-      showError("#map-error", e);
-    } finally {
-      btn.disabled = false;
-      setStatus("ok", "ready");
-    }
+    });
   }
 
   function drawMap(j) {
@@ -650,10 +628,7 @@
   let cycleImage = null;
 
   async function runCycle() {
-    const btn = $("[data-action=cycle]");
-    btn.disabled = true;
-    setStatus("busy", "simulating the cycle…");
-    try {
+    await busy("[data-action=cycle]", "simulating the cycle…", "#cycle-error", async () => {
       const t0 = performance.now();
       const cycle = $("select[name=cycle]").value;
       const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
@@ -675,14 +650,8 @@
       const sl = $("input[name=cycle_t]");
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
       scrub();
-      showError("#cycle-error", null);
       $("[data-download=cycle]").disabled = false;
-    } catch (e) {
-      showError("#cycle-error", e);
-    } finally {
-      btn.disabled = false;
-      setStatus("ok", "ready");
-    }
+    });
   }
 
   // ---------------------------------------------------------------------------------------------
