@@ -332,12 +332,18 @@ fn between(f0: f64, f1: f64, tau: f64, budget: &mut usize) -> Vec<f64> {
 /// `prev`'s (the first: in (-180, 180]).
 fn follow(prev: Option<&DMatrix<f64>>, g: &DMatrix<Complex<f64>>) -> DMatrix<f64> {
     DMatrix::from_fn(g.nrows(), g.ncols(), |o, i| {
-        let p = g[(o, i)].arg().to_degrees();
-        match prev {
-            None => p,
-            Some(q) => p + 360.0 * ((q[(o, i)] - p) / 360.0).round(),
-        }
+        follow_phase(prev.map(|q| q[(o, i)]), g[(o, i)])
     })
+}
+
+/// The phase of `g` \[deg\], moved by a multiple of 360 deg to lie within 180 deg of `prev`
+/// (without one: in (-180, 180]): a phase followed along increasing frequencies.
+pub fn follow_phase(prev: Option<f64>, g: Complex<f64>) -> f64 {
+    let p = g.arg().to_degrees();
+    match prev {
+        None => p,
+        Some(q) => p + 360.0 * ((q - p) / 360.0).round(),
+    }
 }
 
 #[cfg(test)]

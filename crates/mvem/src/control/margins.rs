@@ -32,6 +32,7 @@
 //! followed along a grid fine enough for the delays.
 
 use crate::analysis::discrete::DiscreteModel;
+use crate::analysis::frequency::{follow_phase, log_grid};
 use crate::analysis::zeros::eigenvalues;
 use nalgebra::{Complex, DMatrix};
 
@@ -61,8 +62,9 @@ pub struct PiLoop {
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoopMargins {
     /// The loop's command moves none of the loops' outputs at this point, or no loop command
-    /// moves its output (e.g. where no EGR flows): no feedback, nothing to analyse; the loop is left open in the other
-    /// loops' figures and the other fields say so (stable, no margins, |1/(1+L)| = 1).
+    /// moves its output (e.g. where no EGR flows): no feedback, nothing to analyse; the loop is
+    /// left open in the other loops' figures and the other fields say so (stable, no margins,
+    /// |1/(1+L)| = 1).
     pub inert: bool,
     /// Whether the closed loop (this loop, with the others open or closed as the field says) is
     /// stable at the nominal gains; the gain margins are `None` when it is not.
@@ -281,14 +283,13 @@ fn closed_loop_matrix(
 /// Largest |z| (and the frequency of that pole \[Hz\]) of the closed loop.
 fn max_pole(a: &DMatrix<f64>, ts: f64) -> Result<(f64, f64), MarginsError> {
     // the delay registers make the matrix defective (a nilpotent chain per delayed command),
-    // where the real Schur iteration to machine precision can stall: then a looser tolerance
-    // (the decision |z| < 1 needs far less than 1e-10)
+    // where the real Schur iteration to machine precision can stall on their exact zeros: then
+    // the same eigenvalues after an orthogonal similarity that fills them (a fixed pseudo-random
+    // Q from a QR factorization), then looser tolerances (the decision |z| < 1 needs far less
+    // than 1e-10)
     let ev = match eigenvalues(a) {
         Ok(ev) => ev,
         Err(first) => {
-            // the same eigenvalues after an orthogonal similarity that fills the exact zeros of
-            // the register chains (a fixed pseudo-random Q from a QR factorization), then looser
-            // tolerances
             let n = a.nrows();
             let mut seed = 0x9e37_79b9_7f4a_7c15u64;
             let r = DMatrix::from_fn(n, n, |_, _| {
@@ -410,9 +411,8 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
     // log-spaced up to just below the Nyquist frequency (z = -1 is a real point of L, reached
     // as the limit)
     let f_hi = nyquist * (1.0 - 1e-6);
-    let f_hz: Vec<f64> = (0..GRID_POINTS)
-        .map(|k| F_MIN_HZ * (f_hi / F_MIN_HZ).powf(k as f64 / (GRID_POINTS - 1) as f64))
-        .collect();
+    let f_hz = log_grid(F_MIN_HZ, f_hi, GRID_POINTS)
+        .map_err(|e| MarginsError::BadLoops(format!("sample time {ts} s: {e}")))?;
     // G(z) on the grid: C (zI - Phi)^-1 Gamma + D, the loops' outputs x inputs
     let n = dm.n_states();
     let phi = dm.phi.map(|v| Complex::new(v, 0.0));
@@ -552,19 +552,12 @@ fn margins_of(
     up: Option<(f64, f64)>,
     down: Option<(f64, f64)>,
 ) -> LoopMargins {
-    // phase followed along the grid
+    // phase [rad] followed along the grid (as the frequency responses' phases)
     let mut phase = Vec::with_capacity(l.len());
     let mut prev: Option<f64> = None;
-    for v in l {
-        let a = v.arg();
-        let p = match prev {
-            None => a,
-            Some(q) => {
-                q + (a - q + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI)
-                    - std::f64::consts::PI
-            }
-        };
-        phase.push(p);
+    for &v in l {
+        let p = follow_phase(prev, v);
+        phase.push(p.to_radians());
         prev = Some(p);
     }
     let mut pm: Option<(f64, f64)> = None;
