@@ -92,41 +92,9 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
         "  {:<17} {:<12} {:<31} {:<25} {:<13} peak |1/(1+L)|",
         "loop", "other loop", "gain margin", "phase margin", "delay margin"
     );
-    let g = |v: Option<f64>, f: &dyn Fn(f64) -> String| v.map_or("-".to_string(), f);
     for (k, l) in an.loops.iter().enumerate() {
         for (other, mm) in [("open", &an.alone[k]), ("closed", &an.others_closed[k])] {
-            let row = |mm: &LoopMargins| -> [String; 4] {
-                if mm.inert {
-                    return ["no effect here".into(), "-".into(), "-".into(), "1".into()];
-                }
-                if !mm.stable {
-                    return [
-                        "UNSTABLE".into(),
-                        "-".into(),
-                        "-".into(),
-                        format!("{:.3}", mm.peak_sensitivity),
-                    ];
-                }
-                [
-                    match (mm.gain_margin, mm.gain_margin_hz) {
-                        (Some(gm), Some(f)) => {
-                            format!("{gm:.3} ({:.1} dB) at {} Hz", 20.0 * gm.log10(), hz(f))
-                        }
-                        _ => "none up to 1e4".into(),
-                    },
-                    match (mm.phase_margin_deg, mm.gain_crossover_hz) {
-                        (Some(pm), Some(f)) => format!("{pm:.1} deg at {} Hz", hz(f)),
-                        _ => "no crossover".into(),
-                    },
-                    g(mm.delay_margin_s, &|s| format!("{s:.3} s")),
-                    format!(
-                        "{:.3} at {} Hz",
-                        mm.peak_sensitivity,
-                        hz(mm.peak_sensitivity_hz)
-                    ),
-                ]
-            };
-            let [gm, pm, dm, ms] = row(mm);
+            let [gm, pm, dm, ms] = cells(mm);
             println!(
                 "  {:<17} {:<12} {gm:<31} {pm:<25} {dm:<13} {ms}",
                 l.name, other
@@ -160,6 +128,38 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
             low.join(", ")
         );
     }
+}
+
+/// A table row's gain margin, phase margin, delay margin and peak sensitivity.
+fn cells(mm: &LoopMargins) -> [String; 4] {
+    if mm.inert {
+        return ["no effect here".into(), "-".into(), "-".into(), "1".into()];
+    }
+    if !mm.stable {
+        return [
+            "UNSTABLE".into(),
+            "-".into(),
+            "-".into(),
+            format!("{:.3}", mm.peak_sensitivity),
+        ];
+    }
+    [
+        match (mm.gain_margin, mm.gain_margin_hz) {
+            (Some(gm), Some(f)) => format!("{gm:.3} ({:.1} dB) at {} Hz", 20.0 * gm.log10(), hz(f)),
+            _ => "none up to 1e4".into(),
+        },
+        match (mm.phase_margin_deg, mm.gain_crossover_hz) {
+            (Some(pm), Some(f)) => format!("{pm:.1} deg at {} Hz", hz(f)),
+            _ => "no crossover".into(),
+        },
+        mm.delay_margin_s
+            .map_or("-".into(), |s| format!("{s:.3} s")),
+        format!(
+            "{:.3} at {} Hz",
+            mm.peak_sensitivity,
+            hz(mm.peak_sensitivity_hz)
+        ),
+    ]
 }
 
 /// A frequency with four significant digits.
