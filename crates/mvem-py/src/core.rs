@@ -893,14 +893,10 @@ pub fn loop_margins(
     let tuning = baseline_tuning(tuning)?;
     let m = model(params, variant)?;
     let drive = Drive::from_array(d);
-    let (n, an) = mvem::dispatch!(&m, m => {
-        fn states<const N: usize, M: Model<N>>(_: &M) -> usize {
-            N
-        }
-        (states(m), margins_at(m, &drive, &baseline_loops(&tuning), tuning.ts))
-    });
-    let (_, an) = an.map_err(CoreError::Runtime)?;
-    Ok(margins_report_json(&drive, n, &an).to_string())
+    let (_, an) =
+        mvem::dispatch!(&m, m => margins_at(m, &drive, &baseline_loops(&tuning), tuning.ts))
+            .map_err(CoreError::Runtime)?;
+    Ok(margins_report_json(&drive, m.order().states(), &an).to_string())
 }
 
 /// The drive cycle `cycle` with the baseline EGR/VGT and engine controllers (tuning: a JSON
