@@ -52,6 +52,8 @@ pub struct Series {
     pub dashed: bool,
     /// Markers at the points instead of a line.
     pub markers: bool,
+    /// Radius of the markers [px].
+    pub marker_radius: u32,
 }
 
 impl Series {
@@ -64,6 +66,7 @@ impl Series {
             color,
             dashed: false,
             markers: false,
+            marker_radius: 6,
         }
     }
 
@@ -81,6 +84,12 @@ impl Series {
             markers: true,
             ..Self::line(label, x, y, color)
         }
+    }
+
+    /// Smaller (or larger) markers: `r` pixels (for many points).
+    pub fn radius(mut self, r: u32) -> Self {
+        self.marker_radius = r;
+        self
     }
 
     /// A dashed horizontal line at `y` over `[x0, x1]` (e.g. a steady-state value).
@@ -551,7 +560,7 @@ fn draw_panel<DB: DrawingBackend>(
         if s.markers {
             let filled = style.filled();
             chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, 6, filled)))?
+                .draw_series(pts.iter().map(|&p| Circle::new(p, s.marker_radius, filled)))?
                 .label(s.label.as_str())
                 .legend(move |(x, y)| Circle::new((x + 12, y), 5, filled));
         } else if s.dashed {

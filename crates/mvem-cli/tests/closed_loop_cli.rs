@@ -427,3 +427,92 @@ fn margins_of_the_baseline_loops() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("bad.toml"), "{}", stderr(&o));
 }
+
+/// `--margins S`: the loops in feedback analysed every S seconds of the run (DIR/margins.csv,
+/// a summary in stats.json); each row's loop codes are the trajectory's at that time and its
+/// margins the library's for those loops at the row's commands, to the bit; refused with the
+/// open-loop schedule or a non-positive interval.
+#[test]
+fn margins_along_the_run() {
+    use mvem::control::along::loops_in_charge;
+    use mvem::control::baseline::BaselineTuning;
+    use mvem::control::margins::margins_at;
+    use mvem::control::InCharge;
+    use mvem::model::{Drive, Engine8};
+    let d = tempfile::tempdir().unwrap();
+    let args = [
+        "closed-loop",
+        "--out",
+        "cl",
+        "--duration",
+        "60",
+        "--margins",
+        "10",
+        "--json",
+    ];
+    let o = mvem(d.path(), &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let dir = d.path().join("cl");
+    assert_eq!(files(&dir), ["margins.csv", "stats.json", "trajectory.csv"]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let m = &json["margins"];
+    assert_eq!(m["points"], 6, "{m}");
+    let count = |k: &str| m[k].as_u64().unwrap();
+    assert_eq!(count("analysed") + count("no_loop") + count("refused"), 6);
+    assert!(count("analysed") >= 4, "{m}");
+    let (h, rows) = read_csv(&dir.join("margins.csv"));
+    let (th, traj) = read_csv(&dir.join("trajectory.csv"));
+    assert_eq!(rows.len(), 6);
+    let tuning = BaselineTuning::default();
+    let mut checked = 0;
+    for r in &rows {
+        let t = r[col(&h, "t")];
+        let k = (t / 0.01).round() as usize;
+        assert!((traj[k][col(&th, "t")] - t).abs() < 1e-9);
+        for c in ["egr_loop", "vgt_loop", "u_egr", "u_vgt", "u_delta", "n_e"] {
+            assert_eq!(
+                r[col(&h, c)].to_bits(),
+                traj[k][col(&th, c)].to_bits(),
+                "{c}"
+            );
+        }
+        let loops = loops_in_charge(
+            &tuning,
+            InCharge::from_code(r[col(&h, "egr_loop")]),
+            InCharge::from_code(r[col(&h, "vgt_loop")]),
+        );
+        let Some(egr) = loops.iter().position(|l| l.input == "u_egr") else {
+            continue;
+        };
+        let drive = Drive::new(
+            r[col(&h, "n_e")],
+            r[col(&h, "u_delta")],
+            r[col(&h, "u_egr")],
+            r[col(&h, "u_vgt")],
+        );
+        let (_, a) = margins_at(&Engine8::published(), &drive, &loops, tuning.ts).unwrap();
+        let gm = a.others_closed[egr].gain_margin.unwrap_or(f64::NAN);
+        assert_eq!(
+            r[col(&h, "egr_gain_margin")].to_bits(),
+            gm.to_bits(),
+            "t = {t}"
+        );
+        assert_eq!(r[col(&h, "max_pole")], a.max_pole_all);
+        checked += 1;
+    }
+    assert!(checked >= 2, "{checked}");
+
+    for (extra, want) in [
+        (&["--margins", "0"][..], "--margins 0"),
+        (
+            &["--margins", "5", "--controller", "open-loop"][..],
+            "open-loop",
+        ),
+    ] {
+        let mut a = vec!["closed-loop", "--out", "o2", "--duration", "10"];
+        a.extend(extra);
+        let err = usage_error(d.path(), &a);
+        assert!(err.contains(want), "{err}");
+    }
+    assert!(!d.path().join("o2").exists());
+}

@@ -376,7 +376,14 @@ fn a_normalized_cycle_file_is_driven_as_the_built_in_whtc() {
     let baseline = || Scheme::Baseline(BaselineTuning::default());
     let a = run_cycle(&m, CycleSource::Whtc, baseline(), Some(60.0)).unwrap();
     let b = run_cycle(&m, file, baseline(), Some(60.0)).unwrap();
-    assert_eq!(a.traj.columns, b.traj.columns);
+    // bit for bit (the first row's loop codes are NaN)
+    let bits = |t: &Trajectory| -> Vec<Vec<u64>> {
+        t.columns
+            .iter()
+            .map(|c| c.iter().map(|v| v.to_bits()).collect())
+            .collect()
+    };
+    assert!(bits(&a.traj) == bits(&b.traj), "the trajectories differ");
     assert_eq!(a.stats, b.stats);
 
     // a user's table: idle, a 20 s ramp to 55 % speed / 50 % torque, held
@@ -413,4 +420,83 @@ fn a_normalized_cycle_file_is_driven_as_the_built_in_whtc() {
     );
     // the idle start: speed n_idle (the bottom of the range)
     assert!((n_e[0] - speeds.n_idle).abs() < 1e-9);
+}
+
+/// The trajectory's `egr_loop` / `vgt_loop` columns say which loop gave each command (1 main,
+/// 2 limiter, 0 none in feedback): a command at its limit is no loop's, the lambda_O loop with
+/// its error at the cap is none; the first row (the starting commands) and the open-loop
+/// schedule have none (NaN). The loop margins along the run analyse exactly the loops in
+/// feedback at each sample (`mvem closed-loop --margins`).
+#[test]
+fn the_loop_columns_name_the_loop_in_feedback_and_the_margins_follow_them() {
+    use mvem::control::along::{along_trajectory, loops_in_charge, summarize, Outcome};
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme};
+    use mvem::control::InCharge;
+    let m = model();
+    let tuning = BaselineTuning::default();
+    let run = run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(tuning), Some(300.0)).unwrap();
+    let traj = &run.traj;
+    let g = |n: &str| traj.get(n).unwrap();
+    let (u_egr, u_vgt, egr, vgt) = (g("u_egr"), g("u_vgt"), g("egr_loop"), g("vgt_loop"));
+    let (lambda, lambda_ref) = (g("lambda_O"), g("lambda_O_ref"));
+    assert!(egr[0].is_nan() && vgt[0].is_nan());
+    let mut seen = [[0usize; 3]; 2];
+    for k in 1..traj.len() {
+        let (e, v) = (InCharge::from_code(egr[k]), InCharge::from_code(vgt[k]));
+        let (e, v) = (e.expect("a code"), v.expect("a code"));
+        if u_egr[k] == 0.0 || u_egr[k] == 100.0 || u_vgt[k] == 20.0 {
+            assert!(
+                (u_egr[k] != 0.0 && u_egr[k] != 100.0) || e == InCharge::None,
+                "row {k}: u_egr {} at a limit but {e:?}",
+                u_egr[k]
+            );
+            assert!(u_vgt[k] != 20.0 || v == InCharge::None, "row {k}: {v:?}");
+        }
+        let lambda_err = lambda[k] - lambda_ref[k];
+        match e {
+            InCharge::Main => assert!(lambda_err < tuning.lambda_error_cap, "row {k}"),
+            InCharge::None if u_egr[k] > 0.0 && u_egr[k] < 100.0 => {
+                assert!(lambda_err >= tuning.lambda_error_cap, "row {k}")
+            }
+            _ => {}
+        }
+        for (c, x) in [(0, e), (1, v)] {
+            seen[c][match x {
+                InCharge::None => 0,
+                InCharge::Main => 1,
+                InCharge::Limiter => 2,
+            }] += 1;
+        }
+    }
+    // every case occurs in the first 300 s of the WHTC
+    assert!(seen.iter().flatten().all(|&n| n > 0), "{seen:?}");
+
+    let points = along_trajectory(&m, traj, &tuning, 20.0).unwrap();
+    assert_eq!(points.len(), 15);
+    assert!((points[0].t - 0.01).abs() < 1e-9 && (points[1].t - 20.01).abs() < 1e-9);
+    for p in &points {
+        let loops = loops_in_charge(&tuning, p.egr, p.vgt);
+        match &p.outcome {
+            Outcome::NoLoop => assert!(loops.is_empty()),
+            Outcome::Analysed(a) => assert_eq!(a.loops, loops),
+            Outcome::Refused(r) => panic!("t = {}: {r}", p.t),
+        }
+    }
+    let s = summarize(&points);
+    assert_eq!(s.points, s.analysed + s.no_loop + s.refused);
+    assert!(s.analysed > 10, "{s:?}");
+
+    // the open-loop schedule: no loop
+    let sched = mvem::io::csv_inputs::load_inputs_csv(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../data/whtc_inputs_10hz.csv"
+    )))
+    .unwrap();
+    let open = run_cycle(&m, CycleSource::Whtc, Scheme::OpenLoop(sched), Some(5.0)).unwrap();
+    assert!(open
+        .traj
+        .get("egr_loop")
+        .unwrap()
+        .iter()
+        .all(|c| c.is_nan()));
 }

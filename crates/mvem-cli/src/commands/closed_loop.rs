@@ -6,6 +6,7 @@ use crate::outdir::{self, Files};
 use crate::plot::{Figure, Panel, Series};
 use anyhow::Result;
 use clap::ValueEnum;
+use mvem::control::along::{self, AlongPoint, AlongSummary, Outcome};
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleRun, CycleSource, Scheme};
 use mvem::control::{ControlError, Trajectory};
@@ -39,8 +40,17 @@ engine's mapping curve and reference speeds exactly as the built-in WHTC (speeds
 model's range). data/whtc_normalized.tsv is an example.
 
 Writes DIR/trajectory.csv (one row per 10 ms controller sample; the commands u_delta, u_egr,
-u_vgt are held until the next row), DIR/stats.json and with --plot DIR/closed_loop.svg/.png.
---json prints the statistics to stdout. Nothing is written unless the whole run succeeds.")]
+u_vgt are held until the next row; egr_loop / vgt_loop say which loop gave u_egr / u_vgt: 1 the
+main loop, 2 the limiter, 0 none in feedback, at a limit or at the lambda_O error cap),
+DIR/stats.json and with --plot DIR/closed_loop.svg/.png. --json prints the statistics to stdout.
+Nothing is written unless the whole run succeeds.
+
+--margins S (baseline controller): every S seconds of the run, the gain, phase and delay margins
+and the peak |1/(1+L)| of the air-path loops that were in feedback at that sample (as mvem
+margins, the other loop closed), around the steady state of the sample's commands: DIR/margins.csv
+(one row per analysed sample), a \"margins\" summary in stats.json (smallest margins per loop,
+the times where the loops together are unstable) and with --plot DIR/margins.svg/.png. The fuel
+path (torque PI, smoke limiter) and the selectors' switching are outside the linear analysis.")]
 pub struct Args {
     /// Drive cycle: `whtc`, a CSV file with t, n_e, M_ref, or a normalized cycle (time, speed %,
     /// torque %).
@@ -67,6 +77,10 @@ pub struct Args {
     /// their defaults), e.g. `lambda_limit = 1.1` or `torque = [0.03, 3.0]` (docs/control.md).
     #[arg(long, value_name = "FILE.toml")]
     pub tuning: Option<PathBuf>,
+    /// Loop margins of the air-path loops in feedback every S seconds of the run (baseline
+    /// controller; DIR/margins.csv).
+    #[arg(long, value_name = "S")]
+    pub margins: Option<f64>,
 }
 
 /// `--controller`.
@@ -255,6 +269,16 @@ pub fn run(a: &Args) -> Result<()> {
         (Some(p), ControllerArg::Baseline) => read_tuning(p)?,
         (None, _) => BaselineTuning::default(),
     };
+    if let Some(every) = a.margins {
+        if a.controller == ControllerArg::OpenLoop {
+            return Err(common::usage(
+                "--margins analyses the baseline controller's loops; --controller open-loop has none",
+            ));
+        }
+        if !(every.is_finite() && every > 0.0) {
+            return Err(common::usage(format!("--margins {every}: must be > 0 s")));
+        }
+    }
     let model = a.model.build()?;
     // DIR/trajectory.csv (every column, shortest round-trip numbers, `NaN` for a missing
     // set-point) is formatted and written on a second thread while the loop runs
@@ -282,8 +306,22 @@ pub fn run(a: &Args) -> Result<()> {
                 &mut |traj| send_rows(traj, &mut sent, &tx, false),
             )?;
             send_rows(&w.run.traj, &mut sent, &tx, true);
-            let json = stats_json(a, &w, &tuning);
+            let mut json = stats_json(a, &w, &tuning);
             let mut files = Files::default();
+            let margins = match a.margins {
+                Some(every) => {
+                    let points = along::along_trajectory(&model, &w.run.traj, &tuning, every)
+                        .map_err(anyhow::Error::msg)?;
+                    let summary = along::summarize(&points);
+                    json["margins"] = along::summary_json(every, &summary);
+                    files.add("margins.csv", along::points_csv(&points));
+                    if a.plot {
+                        files.figure("margins", &margins_figure(&points, &summary))?;
+                    }
+                    Some(summary)
+                }
+                None => None,
+            };
             files.add(
                 "stats.json",
                 serde_json::to_string_pretty(&json).expect("serializable") + "\n",
@@ -297,10 +335,10 @@ pub fn run(a: &Args) -> Result<()> {
                 );
                 files.figure("closed_loop", &figure(&w.run.traj, &title))?;
             }
-            Ok((w, json, files))
+            Ok((w, json, files, margins))
         },
     );
-    let (w, json, files) = match produced {
+    let (w, json, files, margins) = match produced {
         Ok(v) => v,
         Err(e) => {
             if created {
@@ -357,7 +395,106 @@ pub fn run(a: &Args) -> Result<()> {
             println!("regulation limits: FAIL: {}", r.violations.join("; "));
         }
         println!("{} samples in {:.2} s", r.traj.len(), w.wall_s);
+        if let Some(m) = &margins {
+            print_margins(m);
+        }
     }
     eprintln!("{}", outdir::wrote(&written));
     Ok(())
+}
+
+/// The margins summary's lines (`--margins`).
+fn print_margins(m: &AlongSummary) {
+    println!(
+        "loop margins at {} samples: {} analysed, {} without a loop in feedback, {} refused",
+        m.points, m.analysed, m.no_loop, m.refused
+    );
+    if m.unstable_t.is_empty() {
+        println!("  every analysed sample's loops stable together");
+    } else {
+        let shown: Vec<String> = m
+            .unstable_t
+            .iter()
+            .take(8)
+            .map(|t| format!("{t}"))
+            .collect();
+        println!(
+            "  loops UNSTABLE together at {} samples: t = {}{} s",
+            m.unstable_t.len(),
+            shown.join(", "),
+            if m.unstable_t.len() > 8 { ", ..." } else { "" }
+        );
+    }
+    let at = |v: Option<(f64, f64)>, unit: &str| {
+        v.map_or("-".to_string(), |(v, t)| {
+            format!("{v:.3}{unit} (t = {t} s)")
+        })
+    };
+    for l in &m.loops {
+        println!(
+            "  {:<26} {:>5} samples ({} unstable, {} without effect): gain margin min {}, phase \
+             margin min {}, peak |1/(1+L)| max {}",
+            l.name,
+            l.points,
+            l.unstable,
+            l.inert,
+            at(l.min_gain_margin, ""),
+            at(l.min_phase_margin_deg, " deg"),
+            at(l.max_peak_sensitivity, "")
+        );
+    }
+}
+
+/// `--margins --plot`: the gain and phase margins (the other loop closed) of each loop while it
+/// was in feedback, over time, and the rate of the closed loops' slowest mode.
+fn margins_figure(points: &[AlongPoint], s: &AlongSummary) -> Figure {
+    let mut panels = Vec::new();
+    let series = |name: &str, f: &dyn Fn(&mvem::control::margins::LoopMargins) -> Option<f64>| {
+        let (mut t, mut v) = (Vec::new(), Vec::new());
+        for p in points {
+            if let Outcome::Analysed(a) = &p.outcome {
+                if let Some(k) = a.loops.iter().position(|l| l.name == name) {
+                    if let Some(y) = f(&a.others_closed[k]) {
+                        t.push(p.t);
+                        v.push(y);
+                    }
+                }
+            }
+        }
+        (t, v)
+    };
+    let mut g = Panel::new("t [s]", "gain margin [dB]").title("gain margin (other loop closed)");
+    let mut ph =
+        Panel::new("t [s]", "phase margin [deg]").title("phase margin (other loop closed)");
+    for (c, l) in s.loops.iter().enumerate() {
+        let (t, v) = series(&l.name, &|m| m.gain_margin.map(|g| 20.0 * g.log10()));
+        g = g.with(Series::markers(l.name.clone(), &t, &v, c).radius(2));
+        let (t, v) = series(&l.name, &|m| m.phase_margin_deg);
+        ph = ph.with(Series::markers(l.name.clone(), &t, &v, c).radius(2));
+    }
+    panels.push(g);
+    panels.push(ph);
+    let (mut t, mut v) = (Vec::new(), Vec::new());
+    for p in points {
+        if let Outcome::Analysed(a) = &p.outcome {
+            t.push(p.t);
+            // the slowest mode's rate: ln |z| per sample time (> 0 grows)
+            v.push(a.max_pole_all.ln() / a.ts);
+        }
+    }
+    let mut poles = Panel::new("t [s]", "ln|z| / Ts [1/s]")
+        .title("slowest closed-loop mode, every loop in feedback closed (> 0: unstable)");
+    if let (Some(t0), Some(t1)) = (t.first().copied(), t.last().copied()) {
+        poles = poles
+            .with(Series::markers("ln|z| / Ts of the largest |z|", &t, &v, 0).radius(2))
+            .with(Series::hline("stability boundary", t0, t1, 0.0, 3));
+    }
+    panels.push(poles);
+    let mut fig = Figure::new(1);
+    fig.title = Some(
+        "loop margins along the run (frozen at the steady state of each sample's commands)".into(),
+    );
+    fig.panels = panels;
+    fig.panel_size = (1400, 300);
+    fig
 }

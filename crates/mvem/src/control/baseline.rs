@@ -36,7 +36,7 @@
 
 use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
-use super::{ControlError, Controller, Measurement, Output};
+use super::{ControlError, Controller, InCharge, Measurement, Output};
 use crate::model::meta::VarMeta;
 use crate::model::{AnyModel, Drive};
 use crate::numerics::Num;
@@ -566,6 +566,8 @@ impl Controller for Baseline {
             u_vgt,
             lambda_o_ref,
             x_egr_ref,
+            egr_loop: None,
+            vgt_loop: None,
         }
     }
 
@@ -596,12 +598,38 @@ impl Controller for Baseline {
         let cap = self.tuning.lambda_error_cap;
         let e_le = (s.lambda_o - lambda_s).min(cap);
         let e_lv = (s.lambda_o - (lambda_s - self.tuning.d_lambda)).min(cap);
-        let u_egr = (self.lambda_egr.output(e_le, dt))
-            .min(self.x_egr.output(e_xe, dt))
-            .clamp(0.0, 100.0);
-        let u_vgt = (self.x_vgt.output(e_xv, dt))
-            .min(self.lambda_vgt.output(e_lv, dt))
-            .clamp(20.0, vmax);
+        let (u_egr_l, u_egr_x) = (
+            self.lambda_egr.output(e_le, dt),
+            self.x_egr.output(e_xe, dt),
+        );
+        let u_egr = u_egr_l.min(u_egr_x).clamp(0.0, 100.0);
+        let (u_vgt_x, u_vgt_l) = (
+            self.x_vgt.output(e_xv, dt),
+            self.lambda_vgt.output(e_lv, dt),
+        );
+        let u_vgt = u_vgt_x.min(u_vgt_l).clamp(20.0, vmax);
+        // which loop is in feedback (a command at one of its limits, where only one side of
+        // the selector's output passes, and the error cap cut it)
+        let egr_loop = if u_egr <= 0.0 || u_egr >= 100.0 {
+            InCharge::None
+        } else if u_egr_l <= u_egr_x {
+            if e_le < cap {
+                InCharge::Main
+            } else {
+                InCharge::None
+            }
+        } else {
+            InCharge::Limiter
+        };
+        let vgt_loop = if u_vgt <= 20.0 || u_vgt >= vmax {
+            InCharge::None
+        } else if u_vgt_x <= u_vgt_l {
+            InCharge::Main
+        } else if e_lv < cap {
+            InCharge::Limiter
+        } else {
+            InCharge::None
+        };
         self.lambda_egr.commit(e_le, dt, u_egr);
         self.x_egr.commit(e_xe, dt, u_egr);
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
@@ -612,6 +640,8 @@ impl Controller for Baseline {
             u_vgt,
             lambda_o_ref: lambda_s,
             x_egr_ref: x_s,
+            egr_loop: Some(egr_loop),
+            vgt_loop: Some(vgt_loop),
         }
     }
 }
@@ -634,6 +664,8 @@ impl OpenLoop {
             u_vgt: d.u_vgt_pct,
             lambda_o_ref: f64::NAN,
             x_egr_ref: f64::NAN,
+            egr_loop: None,
+            vgt_loop: None,
         }
     }
 }

@@ -227,8 +227,15 @@ fn channels(dm: &SampledPlant, loops: &[PiLoop]) -> Result<Vec<(usize, usize)>, 
 }
 
 /// The closed-loop matrix of the sampled plant with the loops `active` closed, loop k's gains
-/// times `scale[k]` (state: the plant's, then the PI integral I_{k-1} of each active loop with
-/// ki != 0; a proportional-only loop has none, its constant integral being no mode of the loop).
+/// times `scale[k]` (state: the plant's, then one PI integral per controlled output among the
+/// active loops with ki != 0; a proportional-only loop has none, its constant integral being no
+/// mode of the loop).
+///
+/// Loops that integrate the same output (a limiter and a main loop of two commands on one
+/// measurement) have integrals I_m = (ki_m / ki_g) I_g + const of the group's first loop g
+/// (they integrate the same error), so the group has one integral: the combinations that stay
+/// constant (a pole at exactly z = 1 of the full realization, the set-points' conflict that the
+/// selectors resolve, not a mode the loops move) are left out.
 fn closed_loop_matrix(
     dm: &SampledPlant,
     loops: &[PiLoop],
@@ -237,20 +244,26 @@ fn closed_loop_matrix(
     scale: &[f64],
 ) -> DMatrix<f64> {
     let n = dm.n_states();
-    let with_integral: Vec<usize> = active
-        .iter()
-        .copied()
-        .filter(|&k| loops[k].ki != 0.0)
-        .collect();
-    let m = with_integral.len();
+    // the integral states: the first active loop with ki != 0 of each output
+    let mut owners: Vec<usize> = Vec::new();
+    for &k in active {
+        if loops[k].ki != 0.0 && !owners.iter().any(|&g| idx[g].1 == idx[k].1) {
+            owners.push(k);
+        }
+    }
+    let m = owners.len();
     let ts = dm.ts;
     let mut a = DMatrix::zeros(n + m, n + m);
     a.view_mut((0, 0), (n, n)).copy_from(&dm.phi);
     for &k in active {
         let (i, o) = idx[k];
         let (kp, ki) = (loops[k].kp * scale[k], loops[k].ki * scale[k]);
-        let q = with_integral.iter().position(|&j| j == k);
-        // u_k = I_{k-1} + (kp + ki Ts) C_o x_k,  I_k = I_{k-1} + ki Ts C_o x_k
+        // the group's integral and this loop's share of it
+        let q = (ki != 0.0)
+            .then(|| owners.iter().position(|&g| idx[g].1 == o))
+            .flatten();
+        let share = q.map_or(0.0, |q| ki / (loops[owners[q]].ki * scale[owners[q]]));
+        // u_k = share I_{g,k-1} + (kp + ki Ts) C_o x_k,  I_g,k = I_g,k-1 + ki_g Ts C_o x_k
         for r in 0..n {
             let g = dm.gamma[(r, i)];
             if g != 0.0 {
@@ -258,11 +271,11 @@ fn closed_loop_matrix(
                     a[(r, c)] += g * (kp + ki * ts) * dm.c[(o, c)];
                 }
                 if let Some(q) = q {
-                    a[(r, n + q)] += g;
+                    a[(r, n + q)] += g * share;
                 }
             }
         }
-        if let Some(q) = q {
+        if let Some(q) = q.filter(|&q| owners[q] == k) {
             for c in 0..n {
                 a[(n + q, c)] = ki * ts * dm.c[(o, c)];
             }
@@ -780,6 +793,45 @@ mod tests {
         assert!(
             (m.peak_sensitivity - 1.0 / (1.0 - 0.2 / 1.9)).abs() < 1e-6,
             "{m:?}"
+        );
+    }
+
+    /// Two PI loops on one output y of x+ = 0.9 x + 0.1 u1 + 0.05 u2 integrate the same error:
+    /// with one integral each the closed loop would have a pole at exactly 1 (a constant
+    /// combination of the integrals); with the group's one integral the pair is the single loop
+    /// u = 0.1 K1 + 0.05 K2 through a unit input, and its poles, gain margins and the factor
+    /// on one loop at the boundary are that loop's.
+    #[test]
+    fn loops_on_one_output_share_one_integral() {
+        let plant = SampledPlant {
+            gamma: DMatrix::from_row_slice(1, 2, &[0.1, 0.05]),
+            d: DMatrix::zeros(1, 2),
+            input_names: vec!["u1".into(), "u2".into()],
+            ..scalar(0.9, 0.1, 1.0, 0.0)
+        };
+        let pi = |input: &str, kp: f64, ki: f64| PiLoop {
+            name: input.into(),
+            input: input.into(),
+            output: "y".into(),
+            kp,
+            ki,
+        };
+        let (l1, l2) = (pi("u1", -2.0, -30.0), pi("u2", -3.0, -20.0));
+        let pair = loop_margins_of(&plant, &[l1.clone(), l2.clone()]).unwrap();
+        let single = |f1: f64| {
+            let kp = 0.1 * f1 * l1.kp + 0.05 * l2.kp;
+            let ki = 0.1 * f1 * l1.ki + 0.05 * l2.ki;
+            loop_margins_of(&scalar(0.9, 1.0, 1.0, 0.0), &[p_loop(kp, ki)]).unwrap()
+        };
+        let s = single(1.0);
+        assert!(pair.max_pole_all < 1.0, "{}", pair.max_pole_all);
+        assert!((pair.max_pole_all - s.max_pole_all).abs() < 1e-12);
+        // loop 1's gain margin with loop 2 closed: the single loop with f1 = gm is at the boundary
+        let gm = pair.others_closed[0].gain_margin.unwrap();
+        let r = |f: f64| single(f).max_pole_all;
+        assert!(
+            r(gm * (1.0 - 1e-6)) < 1.0 && r(gm * (1.0 + 1e-6)) >= 1.0,
+            "{gm}"
         );
     }
 

@@ -12,12 +12,14 @@
 //!   controller with a smoke limiter; the open-loop schedule as a "controller" for comparison.
 //! - [`cycle`]: the engine's mapping curve, the WHTC denormalization (UN GTR No. 4), demands.
 //! - [`stats`]: the regulation's cycle statistics and the air-path figures of merit.
-//! - [`margins`]: stability margins of discrete PI loops around the sampled linear model.
+//! - [`margins`]: stability margins of discrete PI loops around the sampled linear model;
+//!   [`along`]: those of the loops in feedback along a closed-loop run.
 //! - [`drive`]: a whole cycle run (mapping curve, demand, controller, loop, statistics), shared
 //!   by `mvem closed-loop` and the closed-loop mode of `mvem serve`.
 //!
 //! `docs/control.md` describes the design, the tuning and the results.
 
+pub mod along;
 pub mod baseline;
 pub mod cycle;
 pub mod drive;
@@ -68,6 +70,50 @@ pub struct Output {
     pub lambda_o_ref: f64,
     /// EGR fraction set-point x_egr,s [-] (NaN: none).
     pub x_egr_ref: f64,
+    /// Which feedback loop gave `u_egr` (`None`: no loop, e.g. an open-loop schedule or the
+    /// first commands before any measurement).
+    pub egr_loop: Option<InCharge>,
+    /// Which feedback loop gave `u_vgt` (`None` as for `egr_loop`).
+    pub vgt_loop: Option<InCharge>,
+}
+
+/// Which of a selector structure's loops is in feedback on a command at a sample: what a
+/// linear analysis of the loops that ran must close ([`margins::along_trajectory`]). For the
+/// baseline ([`baseline::Baseline`]): the main loops lambda_O -> u_egr and x_egr -> u_vgt, the
+/// limiters x_egr -> u_egr and lambda_O -> u_vgt.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InCharge {
+    /// The command's main loop won its selector, within the command's limits.
+    Main,
+    /// The command's limiter loop won its selector, within the command's limits.
+    Limiter,
+    /// No loop feeds the measurement back: the command sits at one of its limits (clamped, or
+    /// a loop's output exactly there: one-sided), or the loop that won sees a constant error
+    /// (the lambda_O error at its cap).
+    None,
+}
+
+impl InCharge {
+    /// The code of the trajectory columns `egr_loop` / `vgt_loop`: 1 main loop, 2 limiter, 0
+    /// no feedback; NaN (`None`): no loop.
+    pub fn code(v: Option<Self>) -> f64 {
+        match v {
+            Some(Self::Main) => 1.0,
+            Some(Self::Limiter) => 2.0,
+            Some(Self::None) => 0.0,
+            None => f64::NAN,
+        }
+    }
+
+    /// The inverse of [`InCharge::code`] (NaN or an unknown code: `None`).
+    pub fn from_code(c: f64) -> Option<Self> {
+        match c {
+            1.0 => Some(Self::Main),
+            2.0 => Some(Self::Limiter),
+            0.0 => Some(Self::None),
+            _ => None,
+        }
+    }
 }
 
 /// A discrete-time controller.
@@ -123,7 +169,7 @@ pub struct Trajectory {
 
 impl Trajectory {
     /// Column names (units: [`Trajectory::UNITS`]).
-    pub const NAMES: [&'static str; 17] = [
+    pub const NAMES: [&'static str; 19] = [
         "t",
         "n_e",
         "u_delta",
@@ -141,13 +187,17 @@ impl Trajectory {
         "W_c",
         "W_f",
         "motoring",
+        "egr_loop",
+        "vgt_loop",
     ];
 
     /// Unit of each column, in [`Trajectory::NAMES`] order (`motoring` is 1 on samples where
-    /// the engine is motored, else 0).
-    pub const UNITS: [&'static str; 17] = [
+    /// the engine is motored, else 0; `egr_loop` and `vgt_loop` say which loop gave the row's
+    /// u_egr and u_vgt, [`InCharge::code`]: 1 the main loop, 2 the limiter, 0 none in feedback,
+    /// NaN no loop).
+    pub const UNITS: [&'static str; 19] = [
         "s", "rpm", "mg/cycle", "%", "%", "Nm", "Nm", "-", "-", "-", "-", "Pa", "Pa", "rad/s",
-        "kg/s", "kg/s", "-",
+        "kg/s", "kg/s", "-", "-", "-",
     ];
 
     /// Unit of the column `name` (`""` for a name that is not a column).
@@ -273,6 +323,8 @@ pub fn run_with(
             s.w_c,
             s.w_f,
             if d.motoring { 1.0 } else { 0.0 },
+            InCharge::code(o.egr_loop),
+            InCharge::code(o.vgt_loop),
         ];
         for (c, v) in traj.columns.iter_mut().zip(row) {
             c.push(v);
@@ -314,7 +366,7 @@ mod tests {
             }
             assert_eq!(Trajectory::unit(n), u);
         }
-        assert_eq!(own, 4);
+        assert_eq!(own, 6);
         assert_eq!(Trajectory::unit("M_ref"), "Nm");
         assert_eq!(Trajectory::unit("nope"), "");
     }
