@@ -86,3 +86,38 @@ def test_a_normalized_cycle_file_equals_the_cli(mvem_cli, tmp_path):
 def test_bad_arguments_are_value_errors_naming_them(kwargs, msg):
     with pytest.raises(ValueError, match=msg):
         mvem.closed_loop(**kwargs)
+
+
+def test_margins_along_the_run_equal_the_cli(mvem_cli, tmp_path):
+    """margins=S: the loop margins of the loops in feedback every S seconds, the same analysis as
+    `mvem closed-loop --margins S` (summary equal to stats.json's, each sample's margins to the
+    CLI's margins.csv to the bit); the trajectory says which loop gave each command."""
+    r = mvem.closed_loop("whtc", duration=60.0, margins=10.0)
+    subprocess.run([mvem_cli, "closed-loop", "--duration", "60", "--margins", "10", "--out",
+                    str(tmp_path / "cl")], check=True, capture_output=True)
+    stats = json.loads((tmp_path / "cl" / "stats.json").read_text())
+    m = dict(r["margins"])
+    samples = m.pop("samples")
+    assert m == stats["margins"]
+    assert m["points"] == len(samples) == 6
+    import csv
+
+    with open(tmp_path / "cl" / "margins.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    checked = 0
+    for row, s in zip(rows, samples):
+        assert s["t"] == float(row["t"])
+        assert s["status"] == row["status"].split(":")[0]
+        if s["status"] != "analysed":
+            continue
+        for lp in s["loops"]:
+            prefix = "egr" if lp["input"] == "u_egr" else "vgt"
+            gm = lp["others_closed"]["gain_margin"]
+            want = row[f"{prefix}_gain_margin"]
+            assert (gm is None and want == "") or gm == float(want), (row["t"], lp["name"])
+            checked += 1
+    assert checked >= 4
+    codes = r["trajectory"]["egr_loop"]
+    assert np.isnan(codes[0]) and set(np.unique(codes[1:])) <= {0.0, 1.0, 2.0}
+    with pytest.raises(ValueError, match="margins"):
+        mvem.closed_loop("whtc", duration=5.0, margins=0.0)

@@ -909,11 +909,19 @@ pub fn closed_loop(
     params: Option<Params>,
     variant: Variant,
     duration: Option<f64>,
+    margins: Option<f64>,
 ) -> CoreResult<ClosedLoopRun> {
     use mvem::control::cycle::Demand;
     use mvem::control::drive::{run_cycle, CycleSource, Scheme};
     use mvem::control::{ControlError, Trajectory};
     let tuning = baseline_tuning(tuning)?;
+    if let Some(every) = margins {
+        if !(every.is_finite() && every > 0.0) {
+            return Err(CoreError::Value(format!(
+                "margins: {every} s between analysed samples must be > 0"
+            )));
+        }
+    }
     let m = model(params, variant)?;
     let source = match cycle {
         CycleArg::Whtc => CycleSource::Whtc,
@@ -941,7 +949,15 @@ pub fn closed_loop(
         }
         other => CoreError::Runtime(other.to_string()),
     })?;
-    let summary = mvem::analysis::json::cycle_run_json(&run, Some(&tuning));
+    let mut summary = mvem::analysis::json::cycle_run_json(&run, Some(&tuning));
+    if let Some(every) = margins {
+        use mvem::control::along;
+        let points = along::along_trajectory(&m, &run.traj, &tuning, every)
+            .map_err(|e| CoreError::Value(format!("margins: {e}")))?;
+        let mut v = along::summary_json(every, &along::summarize(&points));
+        v["samples"] = along::points_json(&points);
+        summary["margins"] = v;
+    }
     Ok(ClosedLoopRun {
         names: Trajectory::NAMES.iter().map(|s| s.to_string()).collect(),
         columns: run.traj.columns,
@@ -1240,6 +1256,7 @@ mod tests {
             None,
             Variant::default(),
             Some(10.0),
+            None,
         )
         .unwrap();
         assert_eq!(r.columns.len(), r.names.len());
@@ -1253,6 +1270,7 @@ mod tests {
             None,
             Variant::default(),
             Some(1.0),
+            None,
         ) {
             Err(CoreError::Value(m)) => m,
             other => panic!("{:?}", other.map(|r| r.summary)),

@@ -482,14 +482,20 @@ fn simulate_many<'py>(
 ///     lambda_limit, smoke_margin, torque=[kp, ki], x_egr_vgt, x_egr_egr, lambda_egr, lambda_vgt,
 ///     d_x, d_lambda, lambda_error_cap, u_vgt_full_load); the others keep their defaults.
 /// params, model: as in simulate. duration: run only the first seconds of the cycle.
+/// margins: every so many seconds of the run, the loop margins of the air-path loops in feedback
+///     at that sample (as `mvem closed-loop --margins S`; docs/control.md).
 ///
 /// Returns a dict: "trajectory" (dict of numpy arrays, one row per 10 ms controller sample: t,
-/// n_e, u_delta, u_egr, u_vgt, M_ref, M_e, lambda_O, lambda_O_ref, x_egr, x_egr_ref, ...),
+/// n_e, u_delta, u_egr, u_vgt, M_ref, M_e, lambda_O, lambda_O_ref, x_egr, x_egr_ref, ...,
+/// egr_loop, vgt_loop: which loop gave the command, 1 main, 2 limiter, 0 none, NaN no loop),
+/// with margins also "margins" (every_s, points, analysed, no_loop, refused, unstable_t,
+/// loops: the extremes per loop, samples: a list of dicts per analysed sample, as loop_margins
+/// gives them),
 /// "stats" (the regulation's cycle statistics), "violations" (list of str), "passes" (bool),
 /// "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s". ValueError for a bad
 /// cycle, tuning or parameters (naming the row or field), RuntimeError if the plant fails.
 #[pyfunction]
-#[pyo3(signature = (cycle=None, tuning=None, params=None, model=8, duration=None))]
+#[pyo3(signature = (cycle=None, tuning=None, params=None, model=8, duration=None, margins=None))]
 fn closed_loop<'py>(
     py: Python<'py>,
     cycle: Option<&Bound<'py, PyAny>>,
@@ -497,6 +503,7 @@ fn closed_loop<'py>(
     params: Option<&Bound<'py, PyAny>>,
     model: i64,
     duration: Option<f64>,
+    margins: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
     let np = py.import("numpy")?;
@@ -547,7 +554,7 @@ fn closed_loop<'py>(
     let tuning = tuning_json(py, tuning)?;
     let p = parse_params(py, params)?;
     let run = cancellable(py, move || {
-        core::closed_loop(cycle, tuning.as_deref(), p, variant, duration)
+        core::closed_loop(cycle, tuning.as_deref(), p, variant, duration, margins)
     })?
     .map_err(to_py_err)?;
     let out: Bound<'py, PyDict> = py

@@ -28,9 +28,11 @@ in parallel):
 - Plant(n_e, u_delta, u_egr, u_vgt, model=8, params=None): the model advanced sample by sample
   with held commands (plant.step(dt, u_egr=..., u_vgt=...) -> dict; plant.t, plant.state,
   plant.reset(...)); exact actuator delays across calls. For controllers written in Python.
-- closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None) -> dict: a drive
-  cycle (the WHTC, t/n_e/M_ref, or a cycle file's path: a demand or a normalized cycle) with the baseline EGR/VGT and engine controllers (tuning: a
-  dict of their gains and limits), as `mvem closed-loop`: trajectory, stats, violations
+- closed_loop(cycle=None, tuning=None, params=None, model=8, duration=None, margins=None) -> dict:
+  a drive cycle (the WHTC, t/n_e/M_ref, or a cycle file's path: a demand or a normalized cycle)
+  with the baseline EGR/VGT and engine controllers (tuning: a dict of their gains and limits), as
+  `mvem closed-loop`: trajectory, stats, violations; margins=S: the loop margins of the loops in
+  feedback every S seconds (as `mvem closed-loop --margins S`)
 - lab(out, params=None, model=8, **settings) -> dict: a virtual test-cell campaign written to a
   directory, as `mvem lab` (settings: its options in snake case, seed=1, noise="realistic", ...)
 - campaign(data) -> dict: what a campaign directory holds and which tuning steps it supports,

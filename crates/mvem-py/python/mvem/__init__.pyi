@@ -224,6 +224,7 @@ def closed_loop(
     params: Params = None,
     model: ModelOrder = 8,
     duration: Optional[float] = None,
+    margins: Optional[float] = None,
 ) -> Dict[str, Any]:
     """A drive cycle in closed loop with the baseline EGR/VGT and engine controllers.
 
@@ -231,7 +232,10 @@ def closed_loop(
     t [s], n_e [rpm], M_ref [Nm] (dict or 2-D array), or a cycle file's path (a demand CSV, or
     a normalized cycle: Time [s], Speed [%], Torque [%], "m" motoring, denormalized as the
     WHTC). tuning: BaselineTuning fields (others default). Keys: "trajectory" (dict of arrays, 10 ms rows), "stats", "violations",
-    "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s".
+    "passes", "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s"; the
+    trajectory's egr_loop / vgt_loop say which loop gave the command (1 main, 2 limiter, 0 none,
+    NaN no loop). margins=S: "margins" with the loop margins of the air-path loops in feedback
+    every S seconds (counts, unstable_t, per-loop extremes, "samples": one dict per sample).
     """
 
 def lab(

@@ -11,7 +11,7 @@
 //! trajectory's state and the steady state of its commands during transients.
 
 use super::baseline::BaselineTuning;
-use super::margins::{margins_at, LoopAnalysis, LoopMargins, PiLoop};
+use super::margins::{loop_margins_json, margins_at, LoopAnalysis, LoopMargins, PiLoop};
 use super::{InCharge, Trajectory};
 use crate::model::{AnyModel, Drive};
 use rayon::prelude::*;
@@ -356,4 +356,57 @@ pub fn summary_json(every_s: f64, s: &AlongSummary) -> serde_json::Value {
             "max_peak_sensitivity": at(l.max_peak_sensitivity),
         })).collect::<Vec<_>>(),
     })
+}
+
+/// The points as JSON: per sample {t, n_e, u_delta, u_egr, u_vgt, egr_loop, vgt_loop (codes,
+/// `null` for none), status ("analysed", "no loop", "refused"), reason (refused only),
+/// stable, max_pole, loops [{name, input, output, kp, ki, alone, others_closed}]} (analysed
+/// only; the margins objects of `mvem margins --json`).
+pub fn points_json(points: &[AlongPoint]) -> serde_json::Value {
+    let code = |v: Option<InCharge>| {
+        let c = InCharge::code(v);
+        if c.is_nan() {
+            serde_json::Value::Null
+        } else {
+            serde_json::json!(c)
+        }
+    };
+    serde_json::Value::Array(
+        points
+            .iter()
+            .map(|p| {
+                let d = &p.drive;
+                let mut v = serde_json::json!({
+                    "t": p.t, "n_e": d.n_e_rpm, "u_delta": d.u_delta_mg, "u_egr": d.u_egr_pct,
+                    "u_vgt": d.u_vgt_pct, "egr_loop": code(p.egr), "vgt_loop": code(p.vgt),
+                });
+                match &p.outcome {
+                    Outcome::NoLoop => v["status"] = "no loop".into(),
+                    Outcome::Refused(r) => {
+                        v["status"] = "refused".into();
+                        v["reason"] = r.as_str().into();
+                    }
+                    Outcome::Analysed(a) => {
+                        v["status"] = "analysed".into();
+                        v["stable"] = (a.max_pole_all < 1.0).into();
+                        v["max_pole"] = a.max_pole_all.into();
+                        v["loops"] = a
+                            .loops
+                            .iter()
+                            .enumerate()
+                            .map(|(k, l)| {
+                                serde_json::json!({
+                                    "name": l.name, "input": l.input, "output": l.output,
+                                    "kp": l.kp, "ki": l.ki,
+                                    "alone": loop_margins_json(&a.alone[k]),
+                                    "others_closed": loop_margins_json(&a.others_closed[k]),
+                                })
+                            })
+                            .collect();
+                    }
+                }
+                v
+            })
+            .collect(),
+    )
 }

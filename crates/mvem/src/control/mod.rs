@@ -78,7 +78,7 @@ pub struct Output {
 }
 
 /// Which of a selector structure's loops is in feedback on a command at a sample: what a
-/// linear analysis of the loops that ran must close ([`margins::along_trajectory`]). For the
+/// linear analysis of the loops that ran must close ([`along::along_trajectory`]). For the
 /// baseline ([`baseline::Baseline`]): the main loops lambda_O -> u_egr and x_egr -> u_vgt, the
 /// limiters x_egr -> u_egr and lambda_O -> u_vgt.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
