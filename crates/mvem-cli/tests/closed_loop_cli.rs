@@ -376,6 +376,7 @@ fn margins_of_the_baseline_loops() {
     assert_eq!(j["loops"], lib["loops"]);
     assert_eq!(j["max_pole_all"], lib["max_pole_all"]);
     assert_eq!(j["stable"], true);
+    assert_eq!(j["steady_state_warnings"], serde_json::json!([]));
     assert_eq!(j["model_states"], 8);
     assert_eq!(j["operating_point"]["u_vgt"], 60.0);
     let gm =

@@ -317,3 +317,25 @@ fn the_whtc_passes_a_point_where_the_vgt_loop_is_unstable() {
     let pair = nonlinear_swings(d, &loops, 1, 1.0);
     assert!(pair[9] > 10.0 * OFFSET, "{pair:?}");
 }
+
+/// A steady state that `steady` calls physically invalid (at idle with little fuel the
+/// compressor efficiency sits at the authors' guard eta_c >= 0.2, as at 44 % of the closed-loop
+/// WHTC's analysed samples) is analysed with its flags as warnings; a valid one has none.
+#[test]
+fn an_invalid_steady_state_is_analysed_with_a_warning() {
+    let (_, a) = analysis(Drive::new(500.0, 5.88, 49.46, 64.07));
+    assert!(
+        a.steady_state_warnings
+            .iter()
+            .any(|f| f == "saturation:eta_c>=0.2"),
+        "{:?}",
+        a.steady_state_warnings
+    );
+    assert!(a.max_pole_all < 1.0 && a.alone.iter().all(|m| m.gain_margin.is_some()));
+    let (_, a) = analysis(Drive::new(1500.0, 110.0, 50.0, 60.0));
+    assert!(
+        a.steady_state_warnings.is_empty(),
+        "{:?}",
+        a.steady_state_warnings
+    );
+}

@@ -406,8 +406,9 @@ pub fn run(a: &Args) -> Result<()> {
 /// The margins summary's lines (`--margins`).
 fn print_margins(m: &AlongSummary) {
     println!(
-        "loop margins at {} samples: {} analysed, {} without a loop in feedback, {} refused",
-        m.points, m.analysed, m.no_loop, m.refused
+        "loop margins at {} samples: {} analysed ({} at a physically invalid steady state), {} \
+         without a loop in feedback, {} refused",
+        m.points, m.analysed, m.invalid_steady, m.no_loop, m.refused
     );
     if m.unstable_t.is_empty() {
         println!("  every analysed sample's loops stable together");

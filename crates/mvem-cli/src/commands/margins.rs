@@ -26,7 +26,9 @@ the phase margin at the gain crossover, the delay margin, and the peak of |1/(1+
 limiters, selectors and saturations of the controller are not part of the linear analysis.
 
 With --json, stdout holds one JSON object: \"operating_point\", \"model_states\", \"ts\",
-\"stable\", \"max_pole_all\", \"loops\" [{name, input, output, kp, ki, alone, others_closed}],
+\"stable\", \"max_pole_all\", \"steady_state_warnings\" (the steady state's flags when it is not
+physically valid, as mvem steady; the margins are given all the same), \"loops\" [{name, input,
+output, kp, ki, alone, others_closed}],
 each margins object {inert, stable, gain_margin, gain_margin_db, gain_margin_hz, gain_reduction_margin,
 phase_margin_deg, gain_crossover_hz, delay_margin_s, peak_sensitivity, peak_sensitivity_hz}.")]
 pub struct Args {
@@ -100,6 +102,13 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
                 l.name, other
             );
         }
+    }
+    if !an.steady_state_warnings.is_empty() {
+        println!(
+            "\nwarning: the steady state of these inputs is not physically valid ({}): the \
+             margins are those of the linear model there",
+            an.steady_state_warnings.join(", ")
+        );
     }
     for (l, m) in an.loops.iter().zip(&an.alone) {
         if m.inert {

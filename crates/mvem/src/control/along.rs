@@ -183,6 +183,8 @@ pub struct AlongSummary {
     pub refused: usize,
     /// Times \[s\] of the analysed samples whose loops together are unstable.
     pub unstable_t: Vec<f64>,
+    /// Analysed samples whose steady state is not physically valid (`steady_state_warnings`).
+    pub invalid_steady: usize,
     /// Per loop name, in order of first appearance.
     pub loops: Vec<LoopExtremes>,
 }
@@ -195,6 +197,7 @@ pub fn summarize(points: &[AlongPoint]) -> AlongSummary {
         no_loop: 0,
         refused: 0,
         unstable_t: Vec::new(),
+        invalid_steady: 0,
         loops: Vec::new(),
     };
     let lower = |cur: &mut Option<(f64, f64)>, v: Option<f64>, t: f64| {
@@ -217,6 +220,9 @@ pub fn summarize(points: &[AlongPoint]) -> AlongSummary {
             Outcome::Analysed(a) => a,
         };
         s.analysed += 1;
+        if !a.steady_state_warnings.is_empty() {
+            s.invalid_steady += 1;
+        }
         if a.max_pole_all >= 1.0 {
             s.unstable_t.push(p.t);
         }
@@ -258,7 +264,7 @@ pub fn summarize(points: &[AlongPoint]) -> AlongSummary {
 }
 
 /// The CSV columns of [`points_csv`].
-pub const CSV_COLUMNS: [&str; 22] = [
+pub const CSV_COLUMNS: [&str; 23] = [
     "t",
     "n_e",
     "u_delta",
@@ -281,10 +287,12 @@ pub const CSV_COLUMNS: [&str; 22] = [
     "vgt_phase_margin_deg",
     "vgt_delay_margin_s",
     "vgt_peak_sensitivity",
+    "steady_valid",
 ];
 
 /// The points as CSV (header [`CSV_COLUMNS`]; the margins with the other loop closed; empty
-/// where a figure does not exist; `status` analysed / no loop / refused: REASON, quoted).
+/// where a figure does not exist; `status` analysed / no loop / refused: REASON, quoted;
+/// `steady_valid` 0 where the steady state of the commands is not physically valid).
 pub fn points_csv(points: &[AlongPoint]) -> String {
     let mut out = CSV_COLUMNS.join(",");
     out.push('\n');
@@ -316,6 +324,8 @@ pub fn points_csv(points: &[AlongPoint]) -> String {
                     cells.push(f(|m| m.delay_margin_s));
                     cells.push(f(|m| Some(m.peak_sensitivity)));
                 }
+                let valid = a.steady_state_warnings.is_empty();
+                cells.push(if valid { "1" } else { "0" }.into());
             }
             other => {
                 cells.push(match other {
@@ -331,7 +341,8 @@ pub fn points_csv(points: &[AlongPoint]) -> String {
     out
 }
 
-/// The summary as JSON (`stats.json`'s `"margins"`): `every_s`, the counts, `unstable_t`, and
+/// The summary as JSON (`stats.json`'s `"margins"`): `every_s`, the counts, `unstable_t`,
+/// `invalid_steady` (analysed samples at a physically invalid steady state), and
 /// per loop {name, points, unstable, inert, min_gain_margin {value, t}, min_phase_margin_deg,
 /// max_peak_sensitivity} (`null` where none).
 pub fn summary_json(every_s: f64, s: &AlongSummary) -> serde_json::Value {
@@ -346,6 +357,7 @@ pub fn summary_json(every_s: f64, s: &AlongSummary) -> serde_json::Value {
         "no_loop": s.no_loop,
         "refused": s.refused,
         "unstable_t": s.unstable_t,
+        "invalid_steady": s.invalid_steady,
         "loops": s.loops.iter().map(|l| serde_json::json!({
             "name": l.name,
             "points": l.points,
@@ -360,7 +372,7 @@ pub fn summary_json(every_s: f64, s: &AlongSummary) -> serde_json::Value {
 
 /// The points as JSON: per sample {t, n_e, u_delta, u_egr, u_vgt, egr_loop, vgt_loop (codes,
 /// `null` for none), status ("analysed", "no loop", "refused"), reason (refused only),
-/// stable, max_pole, loops [{name, input, output, kp, ki, alone, others_closed}]} (analysed
+/// stable, max_pole, steady_state_warnings, loops [{name, input, output, kp, ki, alone, others_closed}]} (analysed
 /// only; the margins objects of `mvem margins --json`).
 pub fn points_json(points: &[AlongPoint]) -> serde_json::Value {
     let code = |v: Option<InCharge>| {
@@ -390,6 +402,7 @@ pub fn points_json(points: &[AlongPoint]) -> serde_json::Value {
                         v["status"] = "analysed".into();
                         v["stable"] = (a.max_pole_all < 1.0).into();
                         v["max_pole"] = a.max_pole_all.into();
+                        v["steady_state_warnings"] = a.steady_state_warnings.clone().into();
                         v["loops"] = a
                             .loops
                             .iter()

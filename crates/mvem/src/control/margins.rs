@@ -107,6 +107,11 @@ pub struct LoopAnalysis {
     pub l_alone: Vec<Vec<Complex<f64>>>,
     /// Per loop, L with the other loops closed.
     pub l_others_closed: Vec<Vec<Complex<f64>>>,
+    /// Set by [`margins_at`]: the steady state's flags (those of `mvem steady`) when it is not
+    /// physically valid (a guard saturation of the authors' implementation, lambda_O < 1, a
+    /// state at an integrator limit, an unstable open-loop equilibrium), else empty. The
+    /// margins are those of the linear model at that point all the same.
+    pub steady_state_warnings: Vec<String>,
 }
 
 /// Why a loop analysis cannot be made.
@@ -554,6 +559,7 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
         f_hz,
         l_alone,
         l_others_closed: l_others,
+        steady_state_warnings: Vec::new(),
     })
 }
 
@@ -635,7 +641,8 @@ pub fn baseline_loops(t: &super::baseline::BaselineTuning) -> Vec<PiLoop> {
 
 /// The sampled model of `m` at its steady state for the constant inputs `d`, at the sample
 /// time `ts`, with the outputs the loops control (lambda_O, x_egr), and the margins of `loops`
-/// around it. A kink of the model at the point (a saturation or switch whose one-sided
+/// around it (with the steady state's flags in `steady_state_warnings` when it is not
+/// physically valid). A kink of the model at the point (a saturation or switch whose one-sided
 /// derivatives differ) is an error when it lies in the direction of a state or of a loop's
 /// command; one in the direction of an input no loop uses (n_e at the end of its range) is not.
 pub fn margins_at<const N: usize, M: crate::model::Model<N>>(
@@ -673,7 +680,10 @@ pub fn margins_at<const N: usize, M: crate::model::Model<N>>(
              derivative is one-sided there"
         ));
     }
-    let a = loop_margins(&dm, loops).map_err(|e| e.to_string())?;
+    let mut a = loop_margins(&dm, loops).map_err(|e| e.to_string())?;
+    if !ss.physically_valid() {
+        a.steady_state_warnings = ss.flags.clone();
+    }
     Ok((dm, a))
 }
 
@@ -711,13 +721,15 @@ pub fn loop_margins_json(m: &LoopMargins) -> serde_json::Value {
     })
 }
 
-/// The analysis as JSON: `"ts"`, `"stable"` (every loop closed), `"max_pole_all"`, and per
-/// loop `{"name", "input", "output", "kp", "ki", "alone", "others_closed"}`.
+/// The analysis as JSON: `"ts"`, `"stable"` (every loop closed), `"max_pole_all"`,
+/// `"steady_state_warnings"` (the flags of a physically invalid steady state, else empty) and
+/// per loop `{"name", "input", "output", "kp", "ki", "alone", "others_closed"}`.
 pub fn loop_analysis_json(a: &LoopAnalysis) -> serde_json::Value {
     serde_json::json!({
         "ts": a.ts,
         "stable": a.max_pole_all < 1.0,
         "max_pole_all": a.max_pole_all,
+        "steady_state_warnings": a.steady_state_warnings,
         "loops": a.loops.iter().enumerate().map(|(k, l)| serde_json::json!({
             "name": l.name,
             "input": l.input,
