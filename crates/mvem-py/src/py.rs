@@ -593,7 +593,8 @@ fn tuning_json(py: Python<'_>, tuning: Option<&Bound<'_, PyAny>>) -> PyResult<Op
 /// n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%], u_vgt [%]; tuning: a dict of
 /// BaselineTuning fields as in closed_loop; params, model as in simulate.
 /// Returns a dict: "operating_point", "model_states", "ts", "stable" (every loop closed),
-/// "max_pole_all", "steady_state_warnings" (flags of a physically invalid steady state), "loops": [{"name", "input", "output", "kp", "ki", "alone", "others_closed"}],
+/// "max_pole_all", "steady_state_warnings" (flags of a physically invalid steady state),
+/// "loops": [{"name", "input", "output", "kp", "ki", "alone", "others_closed"}],
 /// each margins dict {"inert", "stable", "gain_margin", "gain_margin_db", "gain_margin_hz",
 /// "gain_reduction_margin", "phase_margin_deg", "gain_crossover_hz", "delay_margin_s",
 /// "peak_sensitivity", "peak_sensitivity_hz"} (None where a figure does not exist). ValueError

@@ -449,7 +449,6 @@ fn print_margins(m: &AlongSummary) {
 /// `--margins --plot`: the gain and phase margins (the other loop closed) of each loop while it
 /// was in feedback, over time, and the rate of the closed loops' slowest mode.
 fn margins_figure(points: &[AlongPoint], s: &AlongSummary) -> Figure {
-    let mut panels = Vec::new();
     let series = |name: &str, f: &dyn Fn(&mvem::control::margins::LoopMargins) -> Option<f64>| {
         let (mut t, mut v) = (Vec::new(), Vec::new());
         for p in points {
@@ -473,8 +472,6 @@ fn margins_figure(points: &[AlongPoint], s: &AlongSummary) -> Figure {
         let (t, v) = series(&l.name, &|m| m.phase_margin_deg);
         ph = ph.with(Series::markers(l.name.clone(), &t, &v, c).radius(2));
     }
-    panels.push(g);
-    panels.push(ph);
     let (mut t, mut v) = (Vec::new(), Vec::new());
     for p in points {
         if let Outcome::Analysed(a) = &p.outcome {
@@ -490,12 +487,11 @@ fn margins_figure(points: &[AlongPoint], s: &AlongSummary) -> Figure {
             .with(Series::markers("ln|z| / Ts of the largest |z|", &t, &v, 0).radius(2))
             .with(Series::hline("stability boundary", t0, t1, 0.0, 3));
     }
-    panels.push(poles);
     let mut fig = Figure::new(1);
     fig.title = Some(
         "loop margins along the run (frozen at the steady state of each sample's commands)".into(),
     );
-    fig.panels = panels;
+    fig.panels = vec![g, ph, poles];
     fig.panel_size = (1400, 300);
     fig
 }

@@ -159,10 +159,11 @@ def loop_margins(
     """Stability margins of the baseline controller's air-path loops (lambda_O -> u_egr,
     x_egr -> u_vgt; discrete PIs every 10 ms around the sampled model, delays exact) at the
     steady state of the inputs, as `mvem margins --json`. Keys: "operating_point",
-    "model_states", "ts", "stable", "max_pole_all", "steady_state_warnings", "loops" [{"name", "input", "output", "kp",
-    "ki", "alone", "others_closed"}], each margins dict {"inert", "stable", "gain_margin",
-    "gain_margin_db", "gain_margin_hz", "gain_reduction_margin", "phase_margin_deg",
-    "gain_crossover_hz", "delay_margin_s", "peak_sensitivity", "peak_sensitivity_hz"}.
+    "model_states", "ts", "stable", "max_pole_all", "steady_state_warnings", "loops" [{"name",
+    "input", "output", "kp", "ki", "alone", "others_closed"}], each margins dict {"inert",
+    "stable", "gain_margin", "gain_margin_db", "gain_margin_hz", "gain_reduction_margin",
+    "phase_margin_deg", "gain_crossover_hz", "delay_margin_s", "peak_sensitivity",
+    "peak_sensitivity_hz"}.
     ValueError: bad inputs, tuning or parameters; RuntimeError: no steady state, or a kink the
     loops see.
     """

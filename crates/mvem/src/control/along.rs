@@ -11,7 +11,7 @@
 //! trajectory's state and the steady state of its commands during transients.
 
 use super::baseline::BaselineTuning;
-use super::margins::{loop_margins_json, margins_at, LoopAnalysis, LoopMargins, PiLoop};
+use super::margins::{loop_analysis_json, margins_at, LoopAnalysis, LoopMargins, PiLoop};
 use super::{InCharge, Trajectory};
 use crate::model::{AnyModel, Drive};
 use rayon::prelude::*;
@@ -200,9 +200,10 @@ pub fn summarize(points: &[AlongPoint]) -> AlongSummary {
         invalid_steady: 0,
         loops: Vec::new(),
     };
-    let lower = |cur: &mut Option<(f64, f64)>, v: Option<f64>, t: f64| {
+    // keep (v, t) in `cur` if v beats the value there (`lower`: smaller, else larger)
+    let keep = |cur: &mut Option<(f64, f64)>, v: Option<f64>, t: f64, lower: bool| {
         if let Some(v) = v {
-            if cur.is_none_or(|(c, _)| v < c) {
+            if cur.is_none_or(|(c, _)| if lower { v < c } else { v > c }) {
                 *cur = Some((v, t));
             }
         }
@@ -252,12 +253,14 @@ pub fn summarize(points: &[AlongPoint]) -> AlongSummary {
                 e.unstable += 1;
                 continue;
             }
-            lower(&mut e.min_gain_margin, m.gain_margin, p.t);
-            lower(&mut e.min_phase_margin_deg, m.phase_margin_deg, p.t);
-            // largest peak: the smallest negated
-            let mut neg = e.max_peak_sensitivity.map(|(v, t)| (-v, t));
-            lower(&mut neg, Some(-m.peak_sensitivity), p.t);
-            e.max_peak_sensitivity = neg.map(|(v, t)| (-v, t));
+            keep(&mut e.min_gain_margin, m.gain_margin, p.t, true);
+            keep(&mut e.min_phase_margin_deg, m.phase_margin_deg, p.t, true);
+            keep(
+                &mut e.max_peak_sensitivity,
+                Some(m.peak_sensitivity),
+                p.t,
+                false,
+            );
         }
     }
     s
@@ -291,12 +294,14 @@ pub const CSV_COLUMNS: [&str; 23] = [
 ];
 
 /// The points as CSV (header [`CSV_COLUMNS`]; the margins with the other loop closed; empty
-/// where a figure does not exist; `status` analysed / no loop / refused: REASON, quoted;
+/// where a figure does not exist; `status` analysed / no loop / refused: REASON (quoted by
+/// the CSV rules where it holds a comma or a quote);
 /// `steady_valid` 0 where the steady state of the commands is not physically valid).
 pub fn points_csv(points: &[AlongPoint]) -> String {
-    let mut out = CSV_COLUMNS.join(",");
-    out.push('\n');
+    let mut w = csv::Writer::from_writer(Vec::new());
     let num = |v: Option<f64>| v.map(|v| format!("{v}")).unwrap_or_default();
+    // (writing to memory cannot fail)
+    w.write_record(CSV_COLUMNS).expect("in memory");
     for p in points {
         let d = &p.drive;
         let mut cells = vec![
@@ -329,16 +334,15 @@ pub fn points_csv(points: &[AlongPoint]) -> String {
             }
             other => {
                 cells.push(match other {
-                    Outcome::Refused(r) => format!("\"refused: {}\"", r.replace('"', "'")),
+                    Outcome::Refused(r) => format!("refused: {r}"),
                     _ => "no loop".into(),
                 });
-                cells.extend(std::iter::repeat_n(String::new(), CSV_COLUMNS.len() - 8));
+                cells.resize(CSV_COLUMNS.len(), String::new());
             }
         }
-        out.push_str(&cells.join(","));
-        out.push('\n');
+        w.write_record(&cells).expect("in memory");
     }
-    out
+    String::from_utf8(w.into_inner().expect("in memory")).expect("UTF-8 text")
 }
 
 /// The summary as JSON (`stats.json`'s `"margins"`): `every_s`, the counts, `unstable_t`,
@@ -371,9 +375,10 @@ pub fn summary_json(every_s: f64, s: &AlongSummary) -> serde_json::Value {
 }
 
 /// The points as JSON: per sample {t, n_e, u_delta, u_egr, u_vgt, egr_loop, vgt_loop (codes,
-/// `null` for none), status ("analysed", "no loop", "refused"), reason (refused only),
-/// stable, max_pole, steady_state_warnings, loops [{name, input, output, kp, ki, alone, others_closed}]} (analysed
-/// only; the margins objects of `mvem margins --json`).
+/// `null` for none), status ("analysed", "no loop", "refused"), reason (refused only), and
+/// for an analysed sample the keys of `mvem margins --json` ([`loop_analysis_json`]: ts,
+/// stable, max_pole_all, steady_state_warnings, loops [{name, input, output, kp, ki, alone,
+/// others_closed}])}.
 pub fn points_json(points: &[AlongPoint]) -> serde_json::Value {
     let code = |v: Option<InCharge>| {
         let c = InCharge::code(v);
@@ -400,22 +405,12 @@ pub fn points_json(points: &[AlongPoint]) -> serde_json::Value {
                     }
                     Outcome::Analysed(a) => {
                         v["status"] = "analysed".into();
-                        v["stable"] = (a.max_pole_all < 1.0).into();
-                        v["max_pole"] = a.max_pole_all.into();
-                        v["steady_state_warnings"] = a.steady_state_warnings.clone().into();
-                        v["loops"] = a
-                            .loops
-                            .iter()
-                            .enumerate()
-                            .map(|(k, l)| {
-                                serde_json::json!({
-                                    "name": l.name, "input": l.input, "output": l.output,
-                                    "kp": l.kp, "ki": l.ki,
-                                    "alone": loop_margins_json(&a.alone[k]),
-                                    "others_closed": loop_margins_json(&a.others_closed[k]),
-                                })
-                            })
-                            .collect();
+                        // the analysis as `mvem margins --json` gives it
+                        if let (Some(v), serde_json::Value::Object(a)) =
+                            (v.as_object_mut(), loop_analysis_json(a))
+                        {
+                            v.extend(a);
+                        }
                     }
                 }
                 v
