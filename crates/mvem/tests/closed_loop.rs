@@ -485,6 +485,12 @@ fn the_loop_columns_name_the_loop_in_feedback_and_the_margins_follow_them() {
     let s = summarize(&points);
     assert_eq!(s.points, s.analysed + s.no_loop + s.refused);
     assert!(s.analysed > 10, "{s:?}");
+    // a cancelled caller (Python's Ctrl-C) gets an error, not a partial list
+    let token = mvem::numerics::cancel::CancelToken::new();
+    token.cancel();
+    let r =
+        mvem::numerics::cancel::with_token(&token, || along_trajectory(&m, traj, &tuning, 20.0));
+    assert_eq!(r, Err("cancelled".to_string()));
 
     // the open-loop schedule: no loop
     let sched = mvem::io::csv_inputs::load_inputs_csv(std::path::Path::new(concat!(

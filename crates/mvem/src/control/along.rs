@@ -14,6 +14,7 @@ use super::baseline::BaselineTuning;
 use super::margins::{loop_analysis_json, margins_at, LoopAnalysis, LoopMargins, PiLoop};
 use super::{InCharge, Trajectory};
 use crate::model::{AnyModel, Drive};
+use crate::numerics::cancel;
 use rayon::prelude::*;
 
 /// What the analysis found at one sample.
@@ -87,7 +88,8 @@ pub fn loops_in_charge(
 
 /// The margins at every `every_s` seconds of `traj` (from its second row: the first has the
 /// starting commands, given by no loop), with the loops in feedback at each sample, on all
-/// cores. Errors: `every_s` not a positive number, a trajectory without the loop columns.
+/// cores. Errors: `every_s` not a positive number, a trajectory without the loop columns,
+/// "cancelled" when the calling thread's token ([`crate::numerics::cancel`]) is cancelled.
 pub fn along_trajectory(
     model: &AnyModel,
     traj: &Trajectory,
@@ -119,9 +121,14 @@ pub fn along_trajectory(
         }
         picked
     };
-    let points = rows
+    // on rayon's workers with the caller's cancellation token: a cancelled run stops before
+    // its next sample (and inside the steady-state search of the current one)
+    let points: Vec<AlongPoint> = rows
         .par_iter()
-        .map(|&k| {
+        .map(cancel::carry(|&k: &usize| {
+            if cancel::requested() {
+                return None;
+            }
             let drive = Drive::new(n_e[k], u_delta[k], u_egr[k], u_vgt[k]);
             let (e, v) = (InCharge::from_code(egr[k]), InCharge::from_code(vgt[k]));
             let loops = loops_in_charge(tuning, e, v);
@@ -139,15 +146,17 @@ pub fn along_trajectory(
                     Err(e) => Outcome::Refused(e),
                 }
             };
-            AlongPoint {
+            Some(AlongPoint {
                 t: t[k],
                 drive,
                 egr: e,
                 vgt: v,
                 outcome,
-            }
-        })
-        .collect();
+            })
+        }))
+        .collect::<Option<_>>()
+        .filter(|_| !cancel::requested())
+        .ok_or_else(|| "cancelled".to_string())?;
     Ok(points)
 }
 
