@@ -134,12 +134,13 @@ def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path):
     assert_same(again, one)
 
 
-@pytest.mark.parametrize("call", ["simulate", "closed_loop"])
+@pytest.mark.parametrize("call", ["simulate", "closed_loop", "closed_loop_margins"])
 def test_ctrl_c_stops_a_long_single_run(call):
     """KeyboardInterrupt while one long run integrates (mvem.simulate of the WHTC at rtol 1e-10,
     about 20 times the default run's work; mvem.closed_loop of the whole WHTC): the integrator
     polls the cancellation before every step, so the call raises soon after the signal instead
-    of finishing the run; a later call gives the same result as before."""
+    of finishing the run; a later call gives the same result as before. The loop margins along
+    a closed-loop run (100 samples, most of the call's time) poll it before each sample."""
     import _thread
     import threading
     import time
@@ -150,9 +151,12 @@ def test_ctrl_c_stops_a_long_single_run(call):
     if call == "simulate":
         run = lambda: mvem.simulate(whtc, rtol=1e-10, atol=1e-10, dt=1.0)  # noqa: E731
         last = lambda r: r["p_im"][-1]  # noqa: E731
-    else:
+    elif call == "closed_loop":
         run = lambda: mvem.closed_loop("whtc")  # noqa: E731
         last = lambda r: r["trajectory"]["p_im"][-1]  # noqa: E731
+    else:
+        run = lambda: mvem.closed_loop("whtc", duration=200.0, margins=2.0)  # noqa: E731
+        last = lambda r: r["margins"]["samples"][-1]  # noqa: E731
     t0 = time.perf_counter()
     full = run()
     t_full = time.perf_counter() - t0
