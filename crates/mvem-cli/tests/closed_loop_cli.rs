@@ -368,7 +368,7 @@ fn margins_of_the_baseline_loops() {
     let (_, a) = margins_at(
         &Engine8::published(),
         &Drive::new(1500.0, 110.0, 50.0, 60.0),
-        &baseline_loops(&t),
+        &baseline_loops(&t, 60.0),
         t.ts,
     )
     .unwrap();
@@ -481,6 +481,7 @@ fn margins_along_the_run() {
             &tuning,
             InCharge::from_code(r[col(&h, "egr_loop")]),
             InCharge::from_code(r[col(&h, "vgt_loop")]),
+            r[col(&h, "u_vgt")],
         );
         let Some(egr) = loops.iter().position(|l| l.input == "u_egr") else {
             continue;

@@ -75,7 +75,11 @@ fn health_models_and_page() {
         serde_json::to_value(mvem::control::baseline::BaselineTuning::default()).unwrap()
     );
     let fields = tuning["fields"].as_array().unwrap();
-    assert_eq!(fields.len(), 11);
+    assert_eq!(
+        fields.len(),
+        mvem::control::baseline::BaselineTuning::FIELDS.len()
+    );
+    assert_eq!(fields.len(), 13);
     assert_eq!(fields[2]["name"], "torque");
     assert_eq!(fields[2]["unit"], "mg/Nm, mg/(Nm s)");
     assert!(fields.iter().all(|f| tuning["defaults"]
@@ -484,7 +488,13 @@ fn margins_equal_the_library() {
     );
     assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
     let t = BaselineTuning::default();
-    let (_, a) = margins_at(&Engine8::published(), &d, &baseline_loops(&t), t.ts).unwrap();
+    let (_, a) = margins_at(
+        &Engine8::published(),
+        &d,
+        &baseline_loops(&t, d.u_vgt_pct),
+        t.ts,
+    )
+    .unwrap();
     assert_eq!(r.json(), margins_report_json(&d, 8, &a));
     let doubled = post(
         "/api/margins",

@@ -47,11 +47,14 @@ pub struct AlongPoint {
 
 /// The baseline's loops in feedback for the given selector outcomes: lambda_O -> u_egr or the
 /// limiter x_egr -> u_egr (its error x_egr,s + d_x - x_egr is r - y: gains negated in the
-/// y - r convention of [`PiLoop`]); x_egr -> u_vgt or the limiter lambda_O -> u_vgt.
+/// y - r convention of [`PiLoop`]); x_egr -> u_vgt or the limiter lambda_O -> u_vgt, with
+/// the gains of the schedule at the VGT command `u_vgt` [%]
+/// ([`BaselineTuning::vgt_gain_factor`]).
 pub fn loops_in_charge(
     t: &BaselineTuning,
     egr: Option<InCharge>,
     vgt: Option<InCharge>,
+    u_vgt: f64,
 ) -> Vec<PiLoop> {
     let pi = |name: &str, input: &str, output: &str, (kp, ki): (f64, f64)| PiLoop {
         name: name.into(),
@@ -73,13 +76,19 @@ pub fn loops_in_charge(
         )),
         Some(InCharge::None) | None => {}
     }
+    let g = t.vgt_gain_factor(u_vgt);
     match vgt {
-        Some(InCharge::Main) => loops.push(pi("x_egr->u_vgt", "u_vgt", "x_egr", t.x_egr_vgt)),
+        Some(InCharge::Main) => loops.push(pi(
+            "x_egr->u_vgt",
+            "u_vgt",
+            "x_egr",
+            (g * t.x_egr_vgt.0, g * t.x_egr_vgt.1),
+        )),
         Some(InCharge::Limiter) => loops.push(pi(
             "lambda_O->u_vgt (limiter)",
             "u_vgt",
             "lambda_O",
-            t.lambda_vgt,
+            (g * t.lambda_vgt.0, g * t.lambda_vgt.1),
         )),
         Some(InCharge::None) | None => {}
     }
@@ -131,7 +140,7 @@ pub fn along_trajectory(
             }
             let drive = Drive::new(n_e[k], u_delta[k], u_egr[k], u_vgt[k]);
             let (e, v) = (InCharge::from_code(egr[k]), InCharge::from_code(vgt[k]));
-            let loops = loops_in_charge(tuning, e, v);
+            let loops = loops_in_charge(tuning, e, v, u_vgt[k]);
             let outcome = if loops.is_empty() {
                 Outcome::NoLoop
             } else {

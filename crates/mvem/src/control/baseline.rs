@@ -76,6 +76,15 @@ pub struct BaselineTuning {
     pub lambda_error_cap: f64,
     /// Most open VGT position at full load [%] (the mapping curve's), 100 % at no load.
     pub u_vgt_full_load: f64,
+    /// Gain factor of both VGT loops (x_egr -> u_vgt, lambda_O -> u_vgt) at the closed end of
+    /// the VGT (u_vgt = 20 %) [-]: the gains are scheduled on the previous VGT command, linearly
+    /// from this factor at 20 % to 1 at [`Self::vgt_gain_knee`] and above (1: no schedule). The
+    /// VGT's gain to x_egr and lambda_O grows as it closes (docs/control.md, "Gain scheduling
+    /// of the VGT loops").
+    pub vgt_gain_closed: f64,
+    /// VGT command from which the VGT loops have their full gains [%] (see
+    /// [`Self::vgt_gain_closed`]).
+    pub vgt_gain_knee: f64,
 }
 
 impl Default for BaselineTuning {
@@ -93,6 +102,8 @@ impl Default for BaselineTuning {
             d_lambda: 0.05,
             lambda_error_cap: 1.0,
             u_vgt_full_load: 35.0,
+            vgt_gain_closed: 1.0,
+            vgt_gain_knee: 40.0,
         }
     }
 }
@@ -105,7 +116,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 11] = [
+    pub const FIELDS: [VarMeta; 13] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -162,12 +173,23 @@ impl BaselineTuning {
             unit: "%",
             description: "most open VGT position at full load (100 % at no load)",
         },
+        VarMeta {
+            name: "vgt_gain_closed",
+            unit: "-",
+            description: "gain factor of both VGT loops at u_vgt = 20 % (scheduled on the VGT \
+                          command, linear up to the knee; 1: no schedule)",
+        },
+        VarMeta {
+            name: "vgt_gain_knee",
+            unit: "%",
+            description: "VGT command from which the VGT loops have their full gains",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 11] = [
+    pub const BOUNDS: [(&'static str, Bounds); 13] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -204,10 +226,24 @@ impl BaselineTuning {
             "u_vgt_full_load",
             Bounds::closed(20.0, 100.0, " % (the VGT's command range)"),
         ),
+        (
+            "vgt_gain_closed",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(0.0, 10.0, " (a factor on the VGT loops' gains)")
+            },
+        ),
+        (
+            "vgt_gain_knee",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(20.0, 100.0, " % (above the VGT's closed end, 20 %)")
+            },
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 11] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 13] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -220,13 +256,24 @@ impl BaselineTuning {
             ("d_lambda", [self.d_lambda, 0.0], 1),
             ("lambda_error_cap", [self.lambda_error_cap, 0.0], 1),
             ("u_vgt_full_load", [self.u_vgt_full_load, 0.0], 1),
+            ("vgt_gain_closed", [self.vgt_gain_closed, 0.0], 1),
+            ("vgt_gain_knee", [self.vgt_gain_knee, 0.0], 1),
         ]
+    }
+
+    /// The VGT loops' gain factor at the VGT command `u_vgt` [%]: [`Self::vgt_gain_closed`] at
+    /// 20 % and below, 1 at [`Self::vgt_gain_knee`] and above, linear between (exactly 1
+    /// everywhere when `vgt_gain_closed` is 1).
+    pub fn vgt_gain_factor(&self, u_vgt: f64) -> f64 {
+        let w = ((self.vgt_gain_knee - u_vgt) / (self.vgt_gain_knee - 20.0)).clamp(0.0, 1.0);
+        1.0 - (1.0 - self.vgt_gain_closed) * w
     }
 
     /// Check every field: finite and in its [`Self::BOUNDS`] (PI gains in [0,
     /// [`Self::GAIN_MAX`]], lambda_lim in [1, 5], the smoke margin in [0, 1), d_x in [0, 1],
     /// d_lambda in [0, 10], the lambda_O error cap in (0, 10], the full-load VGT limit in
-    /// [20, 100] %), the set-point floor lambda_lim (1 + 2 smoke margin) at most
+    /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %),
+    /// the set-point floor lambda_lim (1 + 2 smoke margin) at most
     /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field, its
     /// value and the constraint.
     pub fn validate(&self) -> Result<(), ControlError> {
@@ -499,6 +546,8 @@ pub struct Baseline {
     pub setpoint_override: (f64, f64),
     /// Hold the fuel at this value instead of following the torque demand (NaN: follow).
     pub fuel_override: f64,
+    /// The previous VGT command [%] (the gain schedule's variable).
+    u_vgt_prev: f64,
 }
 
 impl Baseline {
@@ -520,6 +569,7 @@ impl Baseline {
             maps,
             setpoint_override: (f64::NAN, f64::NAN),
             fuel_override: f64::NAN,
+            u_vgt_prev: 100.0,
         })
     }
 
@@ -559,6 +609,7 @@ impl Controller for Baseline {
         self.x_egr.reset(u_egr);
         self.lambda_egr.reset(u_egr);
         self.lambda_vgt.reset(u_vgt);
+        self.u_vgt_prev = u_vgt;
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -598,6 +649,10 @@ impl Controller for Baseline {
         let cap = self.tuning.lambda_error_cap;
         let e_le = (s.lambda_o - lambda_s).min(cap);
         let e_lv = (s.lambda_o - (lambda_s - self.tuning.d_lambda)).min(cap);
+        // the VGT loops' gains scheduled on the previous VGT command (1 without a schedule)
+        let g = self.tuning.vgt_gain_factor(self.u_vgt_prev);
+        self.x_vgt.set_scale(g);
+        self.lambda_vgt.set_scale(g);
         let (u_egr_l, u_egr_x) = (
             self.lambda_egr.output(e_le, dt),
             self.x_egr.output(e_xe, dt),
@@ -634,6 +689,7 @@ impl Controller for Baseline {
         self.x_egr.commit(e_xe, dt, u_egr);
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
         self.x_vgt.commit(e_xv, dt, u_vgt);
+        self.u_vgt_prev = u_vgt;
         Output {
             u_delta,
             u_egr,
@@ -758,6 +814,27 @@ mod tests {
                 },
                 "lambda_error_cap = inf",
             ),
+            (
+                BaselineTuning {
+                    vgt_gain_closed: 0.0,
+                    ..base
+                },
+                "vgt_gain_closed = 0",
+            ),
+            (
+                BaselineTuning {
+                    vgt_gain_knee: 20.0,
+                    ..base
+                },
+                "vgt_gain_knee = 20",
+            ),
+            (
+                BaselineTuning {
+                    vgt_gain_knee: f64::NAN,
+                    ..base
+                },
+                "vgt_gain_knee = NaN",
+            ),
         ] {
             let e = t.validate().expect_err(field).to_string();
             assert!(e.contains(field), "{e} (expected {field})");
@@ -780,8 +857,42 @@ mod tests {
                 x_egr_vgt: (0.0, 0.0),
                 ..base
             },
+            BaselineTuning {
+                vgt_gain_closed: 10.0,
+                vgt_gain_knee: 100.0,
+                ..base
+            },
+            BaselineTuning {
+                vgt_gain_closed: 1e-3,
+                vgt_gain_knee: 20.001,
+                ..base
+            },
         ] {
             t.validate().unwrap();
+        }
+    }
+
+    /// The schedule's factor: the closed-end factor at and below 20 %, 1 from the knee on,
+    /// linear between; exactly 1 everywhere without a schedule (the default).
+    #[test]
+    fn vgt_gain_factor_is_linear_between_the_closed_end_and_the_knee() {
+        let t = BaselineTuning {
+            vgt_gain_closed: 0.4,
+            vgt_gain_knee: 50.0,
+            ..BaselineTuning::default()
+        };
+        for (u, g) in [
+            (0.0, 0.4),
+            (20.0, 0.4),
+            (35.0, 0.7),
+            (50.0, 1.0),
+            (80.0, 1.0),
+        ] {
+            assert!((t.vgt_gain_factor(u) - g).abs() < 1e-12, "u_vgt {u}");
+        }
+        let d = BaselineTuning::default();
+        for u in [0.0, 20.0, 20.5, 33.3, 40.0, 100.0] {
+            assert_eq!(d.vgt_gain_factor(u), 1.0);
         }
     }
 

@@ -618,9 +618,11 @@ fn margins_of(
 }
 
 /// The baseline controller's two main air-path loops ([`super::baseline`]): lambda_O -> u_egr
-/// and x_egr -> u_vgt with their PI gains (the limiters, selectors and saturations are not
-/// part of the linear analysis).
-pub fn baseline_loops(t: &super::baseline::BaselineTuning) -> Vec<PiLoop> {
+/// and x_egr -> u_vgt with their PI gains, the VGT loop's at the gain schedule's factor for the
+/// VGT command `u_vgt` [%] of the operating point (the limiters, selectors and saturations are
+/// not part of the linear analysis).
+pub fn baseline_loops(t: &super::baseline::BaselineTuning, u_vgt: f64) -> Vec<PiLoop> {
+    let g = t.vgt_gain_factor(u_vgt);
     vec![
         PiLoop {
             name: "lambda_O->u_egr".into(),
@@ -633,8 +635,8 @@ pub fn baseline_loops(t: &super::baseline::BaselineTuning) -> Vec<PiLoop> {
             name: "x_egr->u_vgt".into(),
             input: "u_vgt".into(),
             output: "x_egr".into(),
-            kp: t.x_egr_vgt.0,
-            ki: t.x_egr_vgt.1,
+            kp: g * t.x_egr_vgt.0,
+            ki: g * t.x_egr_vgt.1,
         },
     ]
 }
