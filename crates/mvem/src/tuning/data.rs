@@ -81,7 +81,7 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
 }
 
 /// Every column a campaign file may have, with its mvem unit (`t` of the dynamic sets first).
-fn campaign_columns() -> impl Iterator<Item = Column> {
+pub(crate) fn campaign_columns() -> impl Iterator<Item = Column> {
     std::iter::once(col("t", "s", -1.0e6, 1.0e6))
         .chain(STATIONARY_COLUMNS)
         .chain(DYNAMIC_COLUMNS)

@@ -11,10 +11,19 @@
 //! `dynamic` when sampled at 10 Hz or faster, as the paper's sets B and C); no set gets the
 //! role `validation` (hold some back by hand). Files that are neither are skipped, with the
 //! columns they lack.
+//!
+//! Headers that are not mvem's names are matched when they differ only in case, spaces,
+//! underscores, hyphens and dots (`P_IM`, `p im`, `Time` for `t`) and may carry a unit in
+//! brackets or parentheses (`p_im [kPa]`, `T_em (degC)`): the draft's `[columns]` then maps the
+//! column to the header and `[units]` takes a unit it knows (an unknown one is a note, and the
+//! column's unit is guessed from its values as for a bare header). `[columns]` holds one header
+//! per column for all files, so a file that heads a column differently from a file drafted
+//! before it is skipped, naming both.
 
 use super::data::{
-    dynamic_required, read, units_of, Column, DataError, DataSetInfo, Manifest, Role, StepKind,
-    ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
+    campaign_columns, dynamic_required, read, units_of, Column, DataError, DataSetInfo, Manifest,
+    Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS,
+    STATIONARY_COLUMNS,
 };
 use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
 use crate::io::csv_columns::{header_names, read_columns};
@@ -64,20 +73,128 @@ fn guess_unit(c: &Column, values: &[f64]) -> Option<&'static str> {
         .map(|u| u.0)
 }
 
-/// The values of the columns `cols` of a file (those it has), by column.
-fn columns(text: &str, cols: &[Column]) -> Vec<(Column, Vec<f64>)> {
-    let header = header_names(text).unwrap_or_default();
+/// A header name without case, spaces, underscores, hyphens and dots.
+fn normalized(name: &str) -> String {
+    name.chars()
+        .filter(|c| !matches!(c, ' ' | '_' | '-' | '.'))
+        .flat_map(char::to_lowercase)
+        .collect()
+}
+
+/// How a file heads one of mvem's columns.
+#[derive(Debug, Clone, PartialEq)]
+struct Heading {
+    /// The header name in the file.
+    header: String,
+    /// The unit the header gives in brackets, where mvem knows it (and it is not mvem's).
+    unit: Option<&'static str>,
+}
+
+/// mvem's column a header names (see the module documentation), the unit in its brackets where
+/// known (None for mvem's own unit), and a note for a bracketed unit mvem does not know.
+fn match_header(h: &str) -> Option<(Column, Option<&'static str>, Option<String>)> {
+    let h = h.trim();
+    let (base, unit) = match h.find(['[', '(']) {
+        Some(k) if h.ends_with([']', ')']) => (&h[..k], Some(h[k + 1..h.len() - 1].trim())),
+        _ => (h, None),
+    };
+    let key = normalized(base);
+    let key = if key == "time" { "t".to_string() } else { key };
+    let c = campaign_columns().find(|c| normalized(c.name) == key)?;
+    let Some(u) = unit.filter(|u| !u.is_empty()) else {
+        return Some((c, None, None));
+    };
+    let known = units_of(c.unit);
+    let found = known
+        .iter()
+        .find(|k| k.0 == u)
+        .or_else(|| known.iter().find(|k| k.0.eq_ignore_ascii_case(u)));
+    match found {
+        Some(k) if k.0 == c.unit || (k.1 == 1.0 && k.2 == 0.0) => Some((c, None, None)),
+        Some(k) => Some((c, Some(k.0), None)),
+        None => Some((
+            c,
+            None,
+            Some(format!(
+                "{h}: unit `{u}` not known for {} (mvem's unit {}; known: {}), guessed from \
+                 the values",
+                c.name,
+                c.unit,
+                known.iter().map(|k| k.0).collect::<Vec<_>>().join(", ")
+            )),
+        )),
+    }
+}
+
+/// How a file with `header` heads mvem's columns: exact names first, then matched ones
+/// ([`match_header`]); notes for unknown units and for a column headed twice.
+fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec<String>) {
+    let mut map = BTreeMap::new();
+    let mut notes = Vec::new();
+    for h in header {
+        if let Some(c) = campaign_columns().find(|c| c.name == h) {
+            map.insert(
+                c.name,
+                Heading {
+                    header: h.clone(),
+                    unit: None,
+                },
+            );
+        }
+    }
+    for h in header {
+        if map.values().any(|g| &g.header == h) {
+            continue;
+        }
+        let Some((c, unit, note)) = match_header(h) else {
+            continue;
+        };
+        if let Some(g) = map.get(c.name) {
+            notes.push(format!(
+                "{f}: column `{h}` not used (`{}` already gives {})",
+                g.header, c.name
+            ));
+            continue;
+        }
+        notes.extend(note.map(|n| format!("{f}: {n}")));
+        map.insert(
+            c.name,
+            Heading {
+                header: h.clone(),
+                unit,
+            },
+        );
+    }
+    (map, notes)
+}
+
+/// (scale, offset) from `unit` to the mvem unit `base` (identity for an unknown unit).
+fn to_mvem(base: &str, unit: Option<&str>) -> (f64, f64) {
+    unit.and_then(|u| units_of(base).iter().find(|k| k.0 == u))
+        .map_or((1.0, 0.0), |k| (k.1, k.2))
+}
+
+/// The values of the columns `cols` of a file (those it heads), by column: in mvem's units
+/// where the header gives a unit, else as written.
+fn columns(
+    text: &str,
+    cols: &[Column],
+    heads: &BTreeMap<&'static str, Heading>,
+) -> Vec<(Column, Vec<f64>)> {
     let have: Vec<Column> = cols
         .iter()
-        .filter(|c| header.iter().any(|h| h == c.name))
+        .filter(|c| heads.contains_key(c.name))
         .copied()
         .collect();
-    let names: Vec<&str> = have.iter().map(|c| c.name).collect();
+    let names: Vec<&str> = have.iter().map(|c| heads[c.name].header.as_str()).collect();
     match read_columns(text, &names) {
         Ok(rows) => have
             .iter()
             .enumerate()
-            .map(|(k, c)| (*c, rows.iter().map(|r| r.1[k]).collect()))
+            .map(|(k, c)| {
+                let (a, b) = to_mvem(c.unit, heads[c.name].unit);
+                (*c, rows.iter().map(|r| a * r.1[k] + b).collect())
+            })
             .collect(),
         Err(_) => Vec::new(),
     }
@@ -107,10 +224,33 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             values.entry(c.name).or_insert((c, Vec::new())).1.extend(v);
         }
     };
+    // the header and unit of each column, from the first file drafted that heads it
+    let mut headed: BTreeMap<&'static str, (Heading, String)> = BTreeMap::new();
     for f in &files {
         let text = read(&dir.join(f))?;
         let header = header_names(&text).unwrap_or_default();
-        let has = |n: &str| header.iter().any(|h| h == n);
+        let (heads, head_notes) = headings(f, &header);
+        let clash = heads.iter().find_map(|(name, g)| {
+            headed
+                .get(name)
+                .filter(|(h, _)| h != g)
+                .map(|(h, other)| (name, g, h, other))
+        });
+        if let Some((name, g, h, other)) = clash {
+            notes.push(format!(
+                "{f}: skipped (heads {name} `{}`, {other} heads it `{}`: [columns] and [units] \
+                 hold one header and unit per column)",
+                g.header, h.header
+            ));
+            continue;
+        }
+        notes.extend(head_notes);
+        let accept = |headed: &mut BTreeMap<&'static str, (Heading, String)>| {
+            for (name, g) in &heads {
+                headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
+            }
+        };
+        let has = |n: &str| heads.contains_key(n);
         let lacks = |cols: &mut dyn Iterator<Item = &str>| -> Vec<String> {
             cols.filter(|n| !has(n)).map(str::to_string).collect()
         };
@@ -123,7 +263,8 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         if st_missing.is_empty() {
             if stationary.is_none() {
                 stationary = Some(f.clone());
-                keep(columns(&text, &STATIONARY_COLUMNS));
+                keep(columns(&text, &STATIONARY_COLUMNS, &heads));
+                accept(&mut headed);
             } else {
                 notes.push(format!("{f}: another stationary file, not used"));
             }
@@ -145,7 +286,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         );
         let act_missing = lacks(&mut ACTUATOR_COLUMNS.iter().copied());
         // t and every dynamic column the file has
-        let cols = columns(&text, &dynamic_required(StepKind::VgtEgr));
+        let cols = columns(&text, &dynamic_required(StepKind::VgtEgr), &heads);
         let get = |n: &str| cols.iter().find(|c| c.0.name == n).map(|c| &c.1);
         // the command steps, counted as `mvem campaign` counts them (tuning::summary)
         let steps = |names: &[&str]| -> usize {
@@ -203,6 +344,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             roles_text(&roles)
         ));
         keep(cols.into_iter().filter(|c| c.0.name != "t").collect());
+        accept(&mut headed);
         sets.push(DataSetInfo {
             name,
             roles,
@@ -234,8 +376,27 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         });
     };
     let mut units = BTreeMap::new();
+    let mut renamed = BTreeMap::new();
+    for (name, (g, _)) in &headed {
+        if g.header != *name {
+            notes.push(format!("{name}: headed `{}`", g.header));
+            renamed.insert(name.to_string(), g.header.clone());
+        }
+    }
     for (name, (c, v)) in &values {
-        if let Some(u) = guess_unit(c, v) {
+        if let Some(u) = headed.get(name).and_then(|(g, _)| g.unit) {
+            // the header's unit (the values are converted): they must lie in the range
+            let out = v.iter().find(|x| !(c.min..=c.max).contains(*x));
+            notes.push(match out {
+                None => format!("{name}: in {u} (its header says so)"),
+                Some(x) => format!(
+                    "{name}: in {u} (its header says so), but a value is {x} {} in mvem's unit, \
+                     outside {}..{}: check the unit",
+                    c.unit, c.min, c.max
+                ),
+            });
+            units.insert(name.to_string(), u.to_string());
+        } else if let Some(u) = guess_unit(c, v) {
             notes.push(format!(
                 "{name}: in {u}? (its values lie outside {}..{} {} but inside in {u})",
                 c.min, c.max, c.unit
@@ -259,7 +420,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                 "drafted by mvem campaign --init from {} CSV files",
                 files.len()
             ),
-            columns: BTreeMap::new(),
+            columns: renamed,
             units,
             datasets: sets,
         },
@@ -360,5 +521,141 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = draft_manifest(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
+    }
+
+    /// A test cell's own headers: other case, spaces, a unit in brackets (`p_im [kPa]`,
+    /// `T_em (degC)`, `Time [s]`, `u_egr [-]` as a fraction): the draft maps them in `[columns]`,
+    /// takes the bracketed units into `[units]`, and the campaign then loads with mvem's values;
+    /// a file heading a column differently from the others is skipped, naming both; an unknown
+    /// bracketed unit is a note.
+    #[test]
+    fn renamed_headers_with_units_are_drafted() {
+        let opts = LabOptions {
+            max_steps: Some(3),
+            sets: Some(vec!["B".into(), "I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        // (mvem name, the test cell's header, value in its unit from mvem's)
+        type Conv = fn(f64) -> f64;
+        let renames: [(&str, &str, Conv); 5] = [
+            ("p_im", "p_im [kPa]", |v| v / 1e3),
+            ("T_em", "T_em (degC)", |v| v - 273.15),
+            ("n_e", "N_E", |v| v),
+            ("t", "Time [s]", |v| v),
+            ("u_egr", "u egr [-]", |v| v / 100.0),
+        ];
+        let files: Vec<String> = std::iter::once(c.manifest.stationary.clone())
+            .chain(c.manifest.datasets.iter().map(|s| s.file.clone()))
+            .collect();
+        for f in &files {
+            let path = dir.path().join(f);
+            let text = std::fs::read_to_string(&path).unwrap();
+            let mut lines = text.lines();
+            let mut header: Vec<String> = lines
+                .next()
+                .unwrap()
+                .split(',')
+                .map(str::to_string)
+                .collect();
+            let mut convs = Vec::new();
+            for (name, new, conv) in renames {
+                if let Some(k) = header.iter().position(|h| h == name) {
+                    header[k] = new.to_string();
+                    convs.push((k, conv));
+                }
+            }
+            let mut out = vec![header.join(",")];
+            for l in lines {
+                let mut v: Vec<String> = l.split(',').map(str::to_string).collect();
+                for &(k, conv) in &convs {
+                    v[k] = format!("{:?}", conv(v[k].parse::<f64>().unwrap()));
+                }
+                out.push(v.join(","));
+            }
+            std::fs::write(&path, out.join("\n") + "\n").unwrap();
+        }
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        // another file that heads p_im in Pa under mvem's name: not in the one [columns] table
+        let b = std::fs::read_to_string(dir.path().join("B.csv")).unwrap();
+        std::fs::write(
+            dir.path().join("Z.csv"),
+            b.replacen("p_im [kPa]", "p_im", 1),
+        )
+        .unwrap();
+        // an unknown unit
+        std::fs::write(
+            dir.path().join("Y.csv"),
+            b.replacen("N_E", "N_E [furlong/s]", 1),
+        )
+        .unwrap();
+
+        let d = draft_manifest(dir.path()).unwrap();
+        let m = &d.manifest;
+        eprintln!("{}", d.toml().unwrap());
+        let cols: Vec<(&str, &str)> = m
+            .columns
+            .iter()
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(
+            cols,
+            [
+                ("T_em", "T_em (degC)"),
+                ("n_e", "N_E"),
+                ("p_im", "p_im [kPa]"),
+                ("t", "Time [s]"),
+                ("u_egr", "u egr [-]")
+            ]
+        );
+        let units: Vec<(&str, &str)> = m
+            .units
+            .iter()
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(units, [("T_em", "degC"), ("p_im", "kPa"), ("u_egr", "-")]);
+        let names: Vec<&str> = m.datasets.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["B", "I", "J"]);
+        assert!(
+            d.notes
+                .iter()
+                .any(|n| n.starts_with("Y.csv: skipped") && n.contains("`N_E [furlong/s]`")),
+            "{:?}",
+            d.notes
+        );
+        // the headers one by one
+        let m = |h: &str| match_header(h).map(|(c, u, note)| (c.name, u, note.is_some()));
+        assert_eq!(m("P_IM"), Some(("p_im", None, false)));
+        assert_eq!(m(" p_im [kPa] "), Some(("p_im", Some("kPa"), false)));
+        assert_eq!(m("p_im [KPA]"), Some(("p_im", Some("kPa"), false)));
+        assert_eq!(m("T_em (K)"), Some(("T_em", None, false)));
+        assert_eq!(m("time [ms]"), Some(("t", Some("ms"), false)));
+        assert_eq!(m("x egr [%]"), Some(("x_egr", Some("%"), false)));
+        assert_eq!(m("N_E [furlong/s]"), Some(("n_e", None, true)));
+        assert_eq!(m("p_im2"), None);
+        assert_eq!(m("[kPa]"), None);
+        assert!(
+            d.notes.iter().any(|n| n.starts_with("Z.csv: skipped")
+                && n.contains("`p_im`")
+                && n.contains("`p_im [kPa]`")),
+            "{:?}",
+            d.notes
+        );
+        std::fs::remove_file(dir.path().join("Y.csv")).unwrap();
+        std::fs::remove_file(dir.path().join("Z.csv")).unwrap();
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            assert!((a.p_im - b.p_im).abs() <= 1e-9 * b.p_im);
+            assert!((a.t_em - b.t_em).abs() <= 1e-9 * b.t_em);
+            assert!((a.u_egr - b.u_egr).abs() <= 1e-9 * b.u_egr.abs().max(1.0));
+            assert_eq!(a.n_e, b.n_e);
+        }
+        assert_eq!(back.dynamic.len(), c.dynamic.len());
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            assert_eq!(a.t, b.t);
+        }
     }
 }
