@@ -245,6 +245,76 @@ def _take_console_400(page):
     page.console_errors.remove(line)
 
 
+def test_closed_loop_cycle_loop_margins(page, server):
+    """Loop margins along the closed-loop WHTC, every 30 s (60 samples; at 690.01 s the loops in
+    feedback are unstable together: docs/control.md): the control shows in closed mode only, a
+    spacing the server refuses is its error naming "margins", and the run's summary, per-loop
+    table and figure show the numbers of POST /api/simulate's "margins" (control::along, as
+    mvem closed-loop --margins 30): the counts, the unstable times, each loop's smallest gain
+    margin, a dot per margin and a red band at each unstable sample (and none elsewhere); a run
+    without margins hides them."""
+    assert page.is_hidden("#cycle-margins-control")
+    page.select_option("select[name=cycle_mode]", "closed")
+    assert page.is_visible("#cycle-margins-control")
+    page.check("input[name=cycle_margins]")
+    # below the 10 ms controller sample: the server's 400, no run
+    page.fill("input[name=cycle_margins_every]", "0.001")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    assert "margins 0.001" in page.text_content("#cycle-error")
+    _take_console_400(page)
+    page.fill("input[name=cycle_margins_every]", "30")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle-margins][data-drawn]", timeout=60000)
+    assert page.is_hidden("#cycle-error")
+    body = {"cycle": "whtc", "mode": "closed", "dt": 10, "margins": 30, "model": 8,
+            "params": page.input_value("select[name=params]")}
+    m = _api(server, "/api/simulate", body)["margins"]
+    s = m["summary"]
+    assert s["points"] == 60 and len(m["samples"]) == 60
+    assert any(abs(t - 690.01) < 1e-9 for t in s["unstable_t"]), s["unstable_t"]
+    shown = page.eval_on_selector("#cycle-margins-summary", "e => ({...e.dataset})")
+    assert shown == {"points": "60", "analysed": str(s["analysed"]), "noLoop": str(s["no_loop"]),
+                     "refused": str(s["refused"]), "unstable": str(len(s["unstable_t"])),
+                     "stable": "false"}, shown
+    text = page.text_content("#cycle-margins-summary")
+    times = ", ".join(f"{t:.2f}" for t in s["unstable_t"])
+    assert f"loops UNSTABLE together at {len(s['unstable_t'])} samples: t = {times} s" in text, text
+    assert f"{s['analysed']} analysed" in text, text
+    rows = page.eval_on_selector_all(
+        "#cycle-margins-loops tbody tr", "rs => rs.map(r => [r.dataset.loop, r.dataset.minGainMargin])")
+    assert [r[0] for r in rows] == [lp["name"] for lp in s["loops"]]
+    for (name, gm), lp in zip(rows, s["loops"]):
+        assert float(gm) == lp["min_gain_margin"]["value"], name
+    # one dot per margin that exists (gain and phase, the other loop closed), one band per
+    # unstable sample
+    dots = sum((lp["others_closed"]["gain_margin"] is not None) + (lp["others_closed"]["phase_margin_deg"] is not None)
+               for p in m["samples"] for lp in p.get("loops", []))
+    canvas = "canvas[data-plot=cycle-margins]"
+    assert page.get_attribute(canvas, "data-dots") == str(dots)
+    assert page.get_attribute(canvas, "data-bands") == str(len(s["unstable_t"]))
+    # the band is red on the canvas at 690.01 s, and a stable sample's column is not
+    # (the figure shares the cycle plot's time axis)
+    red_share = """(c, t) => {
+        const X = Math.round(window.mvem.cyclePanels[0].px(t));
+        const d = c.getContext("2d").getImageData(X, 0, 1, c.height).data;
+        let red = 0;
+        for (let i = 0; i < d.length; i += 4) if (d[i] - d[i + 1] > 20 && d[i] - d[i + 2] > 20) red++;
+        return red / c.height;
+    }"""
+    stable_t = next(p["t"] for p in m["samples"]
+                    if p["t"] > 100 and all(abs(p["t"] - u) > 60 for u in s["unstable_t"]))
+    # (the bands cover the strips' plot areas, 77 % of the height, less the dots on them)
+    assert page.eval_on_selector(canvas, red_share, 690.01) > 0.5
+    assert page.eval_on_selector(canvas, red_share, stable_t) < 0.05, stable_t
+    page.locator("#cycle").screenshot(path=str(ART / "explorer_cycle_margins.png"))
+    # a run without them takes the margins away (no figure of another run left standing)
+    page.uncheck("input[name=cycle_margins]")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-margins", state="hidden", timeout=60000)
+    assert page.is_hidden("#cycle-error")
+
+
 def test_loop_margins(page, server):
     """The linear-model panel's loop margins: the table shows the numbers of POST /api/margins
     (as mvem margins) at the inputs' point, the drive-cycle panel's controller tuning reaches

@@ -223,7 +223,9 @@
   }
 
   // one panel: frame, ticks, title; returns the coordinate maps
-  // (opts.logX: the x values are log10 of the quantity; ticks at the decades, labelled 10^x)
+  // (opts.logX: the x values are log10 of the quantity; ticks at the decades, labelled 10^x;
+  // opts.yTicks: about so many y ticks, default 3; opts.xLabel: the x axis's name and unit, left
+  // of its first tick label)
   function panel(ctx, box, xr, yr, title, opts = {}) {
     const [x0, y0, w, h] = box;
     const L = 56, R = 8, T = 16, B = 18;
@@ -234,7 +236,7 @@
     ctx.strokeRect(x0 + L, y0 + T, w - L - R, h - T - B);
     ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
-    for (const v of ticks(yr[0], yr[1], 3)) {
+    for (const v of ticks(yr[0], yr[1], opts.yTicks || 3)) {
       ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
@@ -249,6 +251,7 @@
     } else {
       for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
     }
+    if (opts.xLabel) { ctx.textAlign = "right"; ctx.fillText(opts.xLabel, x0 + L - 8, y0 + h - B + 3); }
     ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.font = "12px system-ui, sans-serif";
     ctx.fillText(title, x0 + L + 4, y0 + 2);
     ctx.restore();
@@ -627,18 +630,31 @@
   const CYCLE_PANELS = [[["u_egr", "u_vgt"]], [["M_e"]], [["p_im", "p_em"]], [["W_c"]], [["x_egr"]], [["lambda_O"], 8]];
   let cycleImage = null;
 
+  // closed loop with "loop margins every" ticked: its seconds (the server checks the range and
+  // names "margins"); undefined otherwise
+  const marginsOn = () => $("select[name=cycle_mode]").value === "closed" && $("input[name=cycle_margins]").checked;
+  function marginsEvery() {
+    if (!marginsOn()) return undefined;
+    const s = $("input[name=cycle_margins_every]").value.trim();
+    const v = s === "" ? NaN : Number(s);
+    if (!Number.isFinite(v)) throw new Error(`loop margins every: "${s}" is not a number of seconds`);
+    return v;
+  }
+
   async function runCycle() {
-    await busy("[data-action=cycle]", "simulating the cycle…", "#cycle-error", async () => {
+    await busy("[data-action=cycle]", marginsOn() ? "simulating the cycle and its loop margins…" : "simulating the cycle…", "#cycle-error", async () => {
       const t0 = performance.now();
       const cycle = $("select[name=cycle]").value;
       const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
+      body.margins = marginsEvery();
       const j = await api("/api/simulate", body);
       app.cycle = j;
       showCycleStats(j);
       Object.assign(app.units, j.units || {});
       drawCycle(j);
+      showCycleMargins(j);
       let info = `${j.t.length} samples, ${j.stats.steps} solver steps, ${((performance.now() - t0) / 1000).toFixed(2)} s`;
       if (j.mode === "closed") {
         // the regulation's cycle validation of the run (mvem closed-loop's stats.json)
@@ -744,6 +760,7 @@
   function showCycleMode() {
     const closed = $("select[name=cycle_mode]").value === "closed";
     $("#tuning").hidden = !closed;
+    $("#cycle-margins-control").hidden = !closed;
     // what a file of the cycle menu must hold in this mode (the server names what is wrong)
     $("#cycle-format").textContent = closed
       ? "closed loop: the WHTC, or a file of a speed/torque demand with the columns t [s], n_e [rpm], M_ref [Nm], or a normalized cycle with the columns Time [s], Speed [%], Torque [%] (\"m\": motoring; as mvem closed-loop --cycle FILE)"
@@ -809,12 +826,126 @@
       const capped = cap !== undefined && hi > cap;
       if (capped) hi = cap;
       const title = names.map((n) => `${n} [${unit(n)}]`).join(", ") + (capped ? ` (axis cut at ${cap})` : "");
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), title);
+      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), title,
+        { xLabel: k === CYCLE_PANELS.length - 1 ? "t [s]" : undefined });
       ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
       return p;
     });
     cycleImage = ctx.getImageData(0, 0, c.width, c.height);
     c.dataset.drawn = String(j.t.length);
+  }
+
+  // ---------------------------------------------------------------------------------------------
+  // loop margins along a closed-loop run (POST /api/simulate "margins": the summary and the
+  // samples of mvem::control::along, as mvem closed-loop --margins S): per loop while it was in
+  // feedback, its gain margin [dB] and phase margin [deg] with the other loop closed, on the
+  // cycle plot's time axis (as mvem closed-loop --margins S --plot draws margins.svg); a red
+  // band at each sample whose loops are unstable together
+
+  // the loops' colours: not the red of the unstable bands
+  const LOOP_COLORS = [COLORS[0], COLORS[2], COLORS[3], COLORS[4], COLORS[5], COLORS[6]];
+  const UNSTABLE_FILL = "rgba(198,40,40,0.22)";
+  let marginsImage = null;
+  // a time of the run as the page shows it (the samples lie on the 10 ms controller grid)
+  const tText = (t) => String(Number(t.toFixed(3)));
+
+  function showCycleMargins(j) {
+    const m = j.margins;
+    $("#cycle-margins").hidden = !m;
+    marginsImage = null;
+    if (!m) return;
+    const s = m.summary;
+    const unstable = s.unstable_t;
+    const shown = unstable.slice(0, 20).map(tText).join(", ") + (unstable.length > 20 ? ", …" : "");
+    const el = $("#cycle-margins-summary");
+    el.textContent = `every ${s.every_s} s: ${s.points} samples, ${s.analysed} analysed (${s.invalid_steady} at a physically invalid steady state), ` +
+      `${s.no_loop} without a loop in feedback, ${s.refused} refused; ` +
+      (unstable.length ? `loops UNSTABLE together at ${unstable.length} samples: t = ${shown} s` : "every analysed sample's loops stable together");
+    el.title = unstable.map(tText).join(", ");
+    Object.assign(el.dataset, { points: s.points, analysed: s.analysed, noLoop: s.no_loop, refused: s.refused, unstable: unstable.length, stable: String(!unstable.length) });
+    // an extreme and its time: two cells
+    const at = (x, text) => x === null ? [cell("", "–"), cell("", "")] : [cell("", text(x.value)), cell("t", tText(x.t))];
+    $("#cycle-margins-loops tbody").replaceChildren(...s.loops.map((l, k) => {
+      const tr = document.createElement("tr");
+      tr.dataset.loop = l.name;
+      tr.dataset.minGainMargin = l.min_gain_margin === null ? "" : String(l.min_gain_margin.value);
+      const name = cell("", `● ${l.name.replace("->", " → ")}`);
+      name.style.color = LOOP_COLORS[k % LOOP_COLORS.length];
+      const unstable = cell(l.unstable ? "bad" : "", String(l.unstable));
+      tr.append(name, cell("", String(l.points)), unstable, cell("", String(l.inert)),
+        ...at(l.min_gain_margin, (v) => `${v.toPrecision(4)} (${(20 * Math.log10(v)).toFixed(2)} dB)`),
+        ...at(l.min_phase_margin_deg, (v) => v.toFixed(1)),
+        ...at(l.max_peak_sensitivity, (v) => v.toPrecision(4)));
+      return tr;
+    }));
+    drawCycleMargins(j);
+  }
+
+  function drawCycleMargins(j) {
+    const m = j.margins;
+    const c = $("[data-plot=cycle-margins]");
+    const ctx = clearCanvas(c);
+    const xr = [j.t[0], j.t[j.t.length - 1]];
+    const names = m.summary.loops.map((l) => l.name);
+    // per loop: [t, gain margin dB] and [t, phase margin deg], with the other loop closed
+    const pts = names.map(() => ({ gm: [[], []], pm: [[], []] }));
+    for (const p of m.samples) {
+      for (const l of p.loops || []) {
+        const q = pts[names.indexOf(l.name)];
+        if (!q) continue;
+        const oc = l.others_closed;
+        if (oc.gain_margin !== null) { q.gm[0].push(p.t); q.gm[1].push(20 * Math.log10(oc.gain_margin)); }
+        if (oc.phase_margin_deg !== null) { q.pm[0].push(p.t); q.pm[1].push(oc.phase_margin_deg); }
+      }
+    }
+    const strips = [["gm", "gain margin [dB], other loop closed (0 dB: the stability boundary)"], ["pm", "phase margin [deg], other loop closed"]];
+    const h = c.height / strips.length;
+    let dots = 0;
+    strips.forEach(([key, title], k) => {
+      const [lo, hi] = robustRange(pts.map((q) => q[key][1]), 0);
+      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
+        { yTicks: 5, xLabel: k === strips.length - 1 ? "t [s]" : undefined });
+      // the samples whose loops are unstable together: a band as wide as the spacing (at least
+      // 3 px), over the whole height of the strip
+      ctx.save(); ctx.beginPath(); ctx.rect(...p.clip); ctx.clip();
+      ctx.fillStyle = UNSTABLE_FILL;
+      for (const t of m.summary.unstable_t) {
+        const a = p.px(t - m.summary.every_s / 2), b = p.px(t + m.summary.every_s / 2);
+        const w = Math.max(3, b - a);
+        ctx.fillRect((a + b - w) / 2, p.clip[1], w, p.clip[3]);
+      }
+      ctx.restore();
+      line(ctx, p, xr, [0, 0], "#9aa3b2", 1, [4, 3]);
+      pts.forEach((q, i) => {
+        const [ts, ys] = q[key];
+        ctx.save(); ctx.beginPath(); ctx.rect(...p.clip); ctx.clip();
+        ctx.fillStyle = LOOP_COLORS[i % LOOP_COLORS.length];
+        for (let n = 0; n < ts.length; n++) {
+          ctx.beginPath(); ctx.arc(p.px(ts[n]), p.py(ys[n]), 2.5, 0, 2 * Math.PI); ctx.fill();
+        }
+        ctx.restore();
+        dots += ts.length;
+      });
+    });
+    // the legend: under the figure, in the loops' colours
+    const legend = $("#cycle-margins-legend");
+    legend.replaceChildren(...names.map((n, i) => {
+      const span = document.createElement("span");
+      span.className = "key";
+      span.style.color = LOOP_COLORS[i % LOOP_COLORS.length];
+      span.textContent = `● ${n.replace("->", " → ")}`;
+      return span;
+    }));
+    const band = document.createElement("span");
+    band.className = "key unstable";
+    band.textContent = "▮ loops in feedback unstable together";
+    const note = document.createElement("div");
+    note.textContent = "each sample analysed at the steady state of its commands (a frozen operating point), with the loops in feedback then; the fuel path is not in the analysis (docs/control.md)";
+    legend.append(band, note);
+    marginsImage = ctx.getImageData(0, 0, c.width, c.height);
+    c.dataset.dots = String(dots);
+    c.dataset.bands = String(m.summary.unstable_t.length);
+    c.dataset.drawn = String(m.samples.length);
   }
 
   function scrub() {
@@ -825,7 +956,15 @@
     const ctx = c.getContext("2d");
     if (cycleImage) ctx.putImageData(cycleImage, 0, 0);
     const X = app.cyclePanels[0].px(j.t[i]);
-    ctx.save(); ctx.strokeStyle = "rgba(198,40,40,0.8)"; ctx.beginPath(); ctx.moveTo(X, 0); ctx.lineTo(X, c.height); ctx.stroke(); ctx.restore();
+    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.height); cx.stroke(); cx.restore(); };
+    cursor(c, ctx);
+    // the margins figure shares the time axis
+    if (j.margins && marginsImage) {
+      const mc = $("[data-plot=cycle-margins]");
+      const mctx = mc.getContext("2d");
+      mctx.putImageData(marginsImage, 0, 0);
+      cursor(mc, mctx);
+    }
     $("#cycle-time").textContent = j.t[i].toFixed(1);
     const names = INPUTS.concat(Object.keys(j.series));
     $("#cycle-values").replaceChildren(...names.map((n) => {

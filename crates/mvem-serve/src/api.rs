@@ -11,6 +11,7 @@ use axum::routing::{get, post};
 use axum::{Json, Router};
 use mvem::analysis::discrete::{check_ts, TS_MAX, TS_MIN};
 use mvem::model::{AnyModel, Drive, Model, ModelOrder};
+use mvem::numerics::cancel::{self, CancelToken};
 use serde::de::DeserializeOwned;
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -76,6 +77,18 @@ struct Work {
     limits: Limits,
 }
 
+/// Cancels the computation's token when the request ends: answered (the computation is over),
+/// timed out or dropped (the client went away), so a computation that polls the token (the
+/// integrator before each step, the loop margins along a cycle before each sample:
+/// `mvem::numerics::cancel`) stops and frees its worker instead of running on unseen.
+struct CancelOnDrop(CancelToken);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.cancel();
+    }
+}
+
 /// Decrements the pending count when a request leaves the queue (also on cancellation).
 struct Pending<'a>(&'a AtomicUsize);
 
@@ -98,6 +111,8 @@ impl Work {
             )));
         }
         let _pending = Pending(&self.pending);
+        let token = CancelToken::new();
+        let _cancel = CancelOnDrop(token.clone());
         let limit = self.limits.request_timeout;
         let deadline = tokio::time::Instant::now() + limit;
         let permit = tokio::time::timeout_at(deadline, self.permits.clone().acquire_owned())
@@ -105,10 +120,10 @@ impl Work {
             .map_err(|_| ApiError::busy("server busy: waited too long for a worker"))?
             .map_err(|_| ApiError::busy("server shutting down"))?;
         // the permit moves into the computation: it is released only when the work ends, even
-        // if the request gave up waiting for it
+        // if the request gave up waiting for it (cancelled then: see `CancelOnDrop`)
         let task = tokio::task::spawn_blocking(move || {
             let _permit = permit;
-            f()
+            cancel::with_token(&token, f)
         });
         match tokio::time::timeout_at(deadline, task).await {
             Err(_) => Err(ApiError::busy(format!(
@@ -288,7 +303,20 @@ fn body<T: DeserializeOwned>(b: Result<Bytes, BytesRejection>) -> Result<T, ApiE
             ApiError::bad(format!("body: {e}"))
         }
     })?;
-    serde_json::from_slice(&b).map_err(|e| ApiError::bad(format!("body: {e}")))
+    // the error names the field it is at (`body: margins: invalid type: string "often",
+    // expected f64 ...`), nested ones by their path (`tuning.torque`)
+    let mut de = serde_json::Deserializer::from_slice(&b);
+    let v = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let path = e.path().to_string();
+        if path == "." {
+            ApiError::bad(format!("body: {}", e.inner()))
+        } else {
+            ApiError::bad(format!("body: {path}: {}", e.inner()))
+        }
+    })?;
+    // nothing but white space after the value
+    de.end().map_err(|e| ApiError::bad(format!("body: {e}")))?;
+    Ok(v)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -489,4 +517,46 @@ async fn map(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> Api
         .run(move || mvem::dispatch!(&m, m => compute::map(m, &r, &grid)))
         .await??;
     Ok(Json(v))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::{Duration, Instant};
+
+    /// A computation still running when its request times out sees its cancellation token (so
+    /// that it can stop and free its worker); one that ends in time is not cancelled.
+    #[test]
+    fn a_timed_out_computation_sees_its_token_cancelled() {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        let work = Work {
+            permits: Arc::new(Semaphore::new(1)),
+            pending: AtomicUsize::new(0),
+            limits: Limits {
+                request_timeout: Duration::from_millis(200),
+                ..Limits::default()
+            },
+        };
+        let (tx, rx) = std::sync::mpsc::channel();
+        let r = rt.block_on(work.run(move || {
+            let t = Instant::now();
+            while !cancel::requested() && t.elapsed() < Duration::from_secs(30) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            let _ = tx.send((cancel::requested(), t.elapsed()));
+        }));
+        assert_eq!(r.unwrap_err().status, StatusCode::SERVICE_UNAVAILABLE);
+        let (seen, after) = rx
+            .recv_timeout(Duration::from_secs(20))
+            .expect("the computation stops");
+        assert!(
+            seen,
+            "stopped after {after:?} without seeing the cancellation"
+        );
+        assert!(after < Duration::from_secs(10), "{after:?}");
+        assert!(!rt.block_on(work.run(cancel::requested)).unwrap());
+    }
 }

@@ -6,6 +6,7 @@ use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_json
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
+use mvem::control::along;
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleSource, Scheme};
 use mvem::control::{ControlError, Trajectory};
@@ -354,6 +355,11 @@ pub(crate) struct SimulateRequest {
     /// keep their defaults), as `mvem closed-loop --tuning`.
     #[serde(default)]
     pub tuning: Option<BaselineTuning>,
+    /// In `"closed"` mode, the loop margins of the air-path loops in feedback every `margins`
+    /// seconds of the run (`mvem closed-loop --margins S`, `mvem::control::along`): at least
+    /// the controller sample and at most [`MAX_MARGINS_SAMPLES`] samples over the cycle.
+    #[serde(default)]
+    pub margins: Option<f64>,
 }
 
 /// Series of the drive-cycle panel.
@@ -375,6 +381,12 @@ pub(crate) enum CycleInput {
 /// 8-state model at the 10 ms controller sample).
 pub const MAX_CLOSED_SPAN: f64 = 3600.0;
 
+/// Most samples of the loop margins along one closed-loop run (`"margins"`): each is a steady
+/// state and the loops' margins, about 40 ms of CPU for the 8-state model, so 1000 take some
+/// 20 s on 2 cores, inside the request time limit (the WHTC every 1.8 s or more; `mvem
+/// closed-loop --margins` has no such limit).
+pub const MAX_MARGINS_SAMPLES: f64 = 1000.0;
+
 impl SimulateRequest {
     /// What to run (in its mode), its name and the output interval (checks that need no model).
     pub(crate) fn schedule(
@@ -390,6 +402,11 @@ impl SimulateRequest {
             }
             t.validate().map_err(|e| input(format!("tuning: {e}")))?;
         }
+        if self.margins.is_some() && mode != CycleMode::Closed {
+            return Err(input(
+                "margins: analyses the baseline controllers' loops of mode \"closed\"",
+            ));
+        }
         if let (CycleMode::Closed, None, Some(csv)) = (mode, &self.cycle, &self.csv) {
             // a speed/torque demand or a normalized cycle, as `mvem closed-loop --cycle FILE`
             let source = parse_cycle_file(csv, std::path::Path::new("csv"))
@@ -404,6 +421,7 @@ impl SimulateRequest {
                 )));
             }
             let dt = self.output_interval(t0, t1)?;
+            self.check_margins(t0, t1)?;
             return Ok((CycleInput::Closed(source), "csv".to_string(), dt));
         }
         let (sched, name) = match (&self.cycle, &self.csv) {
@@ -445,7 +463,13 @@ impl SimulateRequest {
         let dt = self.output_interval(t0, t1)?;
         let what = match mode {
             CycleMode::Open => CycleInput::Open(sched),
-            CycleMode::Closed => CycleInput::Closed(CycleSource::Whtc),
+            CycleMode::Closed => {
+                let (t0, t1) = CycleSource::Whtc
+                    .span()
+                    .map_err(|e| Fail::Model(format!("the WHTC: {e}")))?;
+                self.check_margins(t0, t1)?;
+                CycleInput::Closed(CycleSource::Whtc)
+            }
         };
         Ok((what, name, dt))
     }
@@ -463,6 +487,35 @@ impl SimulateRequest {
             )));
         }
         Ok(dt)
+    }
+
+    /// `margins` (closed mode) for a demand from `t0` to `t1` \[s\], checked: a spacing \[s\] of
+    /// at least the controller sample that gives at most [`MAX_MARGINS_SAMPLES`] samples.
+    fn check_margins(&self, t0: f64, t1: f64) -> Result<(), Fail> {
+        let Some(every) = self.margins else {
+            return Ok(());
+        };
+        if !(every.is_finite() && every >= drive::SAMPLE_TIME) {
+            return Err(input(format!(
+                "margins {}: the seconds between analysed samples must be at least the \
+                 controller sample {} s",
+                Num(every),
+                drive::SAMPLE_TIME
+            )));
+        }
+        if (t1 - t0) / every > MAX_MARGINS_SAMPLES {
+            return Err(input(format!(
+                "margins {}: the {} s of the cycle every {} s are {} samples; the server \
+                 analyses at most {MAX_MARGINS_SAMPLES} (here margins >= {} s; mvem closed-loop \
+                 --margins has no limit)",
+                Num(every),
+                Num(t1 - t0),
+                Num(every),
+                ((t1 - t0) / every).floor(),
+                Num((t1 - t0) / MAX_MARGINS_SAMPLES)
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -549,8 +602,10 @@ pub(crate) const CLOSED_OUTPUTS: [&str; 9] = [
 /// The WHTC or a speed/torque demand with the baseline controllers (the core's
 /// [`drive::run_cycle`], as `mvem closed-loop --cycle whtc|FILE.csv`): the trajectory every `dt`
 /// (rounded to a whole number of 10 ms controller samples), the cycle statistics and the
-/// regulation check. A demand the engine cannot follow (speeds outside its range, torque above
-/// its full load) is the request's error.
+/// regulation check; with `margins` also the loop margins along the run (`"margins"`:
+/// [`along::summary_json`] and [`along::points_json`], as `mvem closed-loop --margins`). A
+/// demand the engine cannot follow (speeds outside its range, torque above its full load) is
+/// the request's error.
 fn closed_cycle(
     model: &AnyModel,
     r: &SimulateRequest,
@@ -607,7 +662,7 @@ fn closed_cycle(
         inputs.insert(n.to_string(), json!(col(n)));
         units.insert(n.to_string(), json!(Trajectory::unit(n)));
     }
-    Ok(json!({
+    let mut v = json!({
         "source": name,
         "mode": "closed",
         "t": col("t"),
@@ -620,7 +675,17 @@ fn closed_cycle(
         "violations": run.violations,
         "passes": run.violations.is_empty(),
         "controller_tuning": tuning,
-    }))
+    });
+    if let Some(every) = r.margins {
+        // on the worker's cancellation token (api::Work): stops when the request times out
+        let points = along::along_trajectory(model, &run.traj, &tuning, every)
+            .map_err(|e| Fail::Model(format!("loop margins: {e}")))?;
+        v["margins"] = json!({
+            "summary": along::summary_json(every, &along::summarize(&points)),
+            "samples": along::points_json(&points),
+        });
+    }
+    Ok(v)
 }
 
 /// One axis of `POST /api/map`.

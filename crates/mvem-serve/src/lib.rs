@@ -11,12 +11,14 @@
 //! | `GET /api/steady?n_e=&u_delta=&u_egr=&u_vgt=[&model=&params=]` | `mvem steady --json` |
 //! | `GET /api/linearize?...[&pade=&outputs=&ts=&bode=FMIN:FMAX:N]` | `mvem linearize --json` |
 //! | `POST /api/step` | step responses and their metrics (`mvem step --json` plus the series) |
-//! | `POST /api/simulate` | a drive cycle (the built-in WHTC or a CSV table), open loop |
+//! | `POST /api/simulate` | a drive cycle (the built-in WHTC or a CSV table), open loop or with the baseline controllers (`"mode": "closed"`, optionally with the loop margins along the run) |
 //! | `POST /api/map` | DC gain and its sign of one channel over two inputs (parallel) |
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise; request bodies are bounded
 //! ([`Limits::max_body`], 413 beyond), every computation runs on a bounded pool of blocking
-//! threads behind a queue of bounded length (503 with `Retry-After` when full) and a time limit;
+//! threads behind a queue of bounded length (503 with `Retry-After` when full) and a time limit
+//! (after which the computation's cancellation token is cancelled: the integrator and the loop
+//! margins along a cycle stop at their next check);
 //! bad input gives 400 with `{"error": "..."}` naming the parameter; the API reads no file (the
 //! parameter files are read once at start). Ctrl-C shuts the server down gracefully.
 //! The routes and bodies are documented in `docs/serve.md`.
@@ -32,7 +34,7 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
-pub use compute::{CycleMode, MAX_MAP_POINTS, MAX_MAP_SIDE};
+pub use compute::{CycleMode, MAX_MAP_POINTS, MAX_MAP_SIDE, MAX_MARGINS_SAMPLES};
 
 /// Bounds on what one request may ask.
 #[derive(Debug, Clone)]

@@ -276,6 +276,20 @@ fn bad_or_missing_parameters_give_400_naming_them() {
         "cycle",
         "unknown cycle",
     );
+    // a body's type error names the field by its path; trailing text is refused
+    assert_400_naming(
+        &post(
+            "/api/margins",
+            r#"{"point": {"n_e": "fast", "u_delta": 110, "u_egr": 50, "u_vgt": 60}}"#,
+        ),
+        "body: point.n_e: invalid type",
+        "a string for a number",
+    );
+    assert_400_naming(
+        &post("/api/simulate", r#"{"cycle": "whtc", "dt": 1} {"#),
+        "body: trailing characters",
+        "two values",
+    );
     assert_400_naming(
         &post("/api/simulate", r#"{"cycle": "whtc", "mode": "mpc"}"#),
         "mode",
@@ -517,6 +531,113 @@ fn margins_equal_the_library() {
     }
 }
 
+/// `"margins": S` in closed mode: the loop margins along the run are the library's
+/// (`control::along` on the core's run of the same cycle, as `mvem closed-loop --margins S`):
+/// summary and samples equal to the bit, here the WHTC every 30 s (60 samples, the one at
+/// 690.01 s unstable: docs/control.md); a demand's margins too. In open mode, below the
+/// controller sample and with too many samples, `margins` is a 400 naming it.
+#[test]
+fn closed_loop_mode_gives_the_loop_margins_along_the_run() {
+    use mvem::control::along;
+    let r = post(
+        "/api/simulate",
+        r#"{"cycle": "whtc", "mode": "closed", "dt": 10.0, "margins": 30}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let v = r.json();
+    let model = AnyModel::Eight(Engine8::published());
+    let tuning = BaselineTuning::default();
+    let run = drive::run_cycle(&model, CycleSource::Whtc, Scheme::Baseline(tuning), None).unwrap();
+    let points = along::along_trajectory(&model, &run.traj, &tuning, 30.0).unwrap();
+    let s = along::summarize(&points);
+    assert_eq!(v["margins"]["summary"], along::summary_json(30.0, &s));
+    assert_eq!(v["margins"]["samples"], along::points_json(&points));
+    // the numbers themselves, so that two empty answers could not agree: 0.01 s, 30.01 s, ...
+    // 1770.01 s
+    assert_eq!(s.points, 60);
+    assert_eq!(v["margins"]["summary"]["points"], 60);
+    assert_eq!(
+        v["margins"]["summary"]["analysed"].as_u64(),
+        Some(s.analysed as u64)
+    );
+    assert!(s.analysed >= 50, "{s:?}");
+    let unstable: Vec<f64> =
+        serde_json::from_value(v["margins"]["summary"]["unstable_t"].clone()).unwrap();
+    assert_eq!(unstable, s.unstable_t);
+    assert!(
+        unstable.iter().any(|t| (t - 690.01).abs() < 1e-9),
+        "{unstable:?}"
+    );
+    // one analysed sample's gain margin (the first loop, the other closed) to the bit
+    let (k, a) = points
+        .iter()
+        .enumerate()
+        .find_map(|(k, p)| match &p.outcome {
+            along::Outcome::Analysed(a) if a.others_closed[0].gain_margin.is_some() => Some((k, a)),
+            _ => None,
+        })
+        .expect("an analysed sample with a gain margin");
+    let sample = &v["margins"]["samples"][k];
+    assert_eq!(sample["t"].as_f64(), Some(points[k].t));
+    assert_eq!(
+        sample["loops"][0]["others_closed"]["gain_margin"].as_f64(),
+        a.others_closed[0].gain_margin
+    );
+    // without "margins", none
+    let plain = post(
+        "/api/simulate",
+        r#"{"cycle": "whtc", "mode": "closed", "dt": 100.0}"#,
+    );
+    assert!(plain.json().get("margins").is_none());
+    // a speed/torque demand every 0.5 s: 0.01, 0.51, ... 5.51 s
+    let csv = "t,n_e,M_ref\n0,1200,300\n2,1200,300\n2.5,1400,900\n6,1400,900\n";
+    let body = serde_json::json!({"csv": csv, "mode": "closed", "dt": 0.5, "margins": 0.5});
+    let r = post("/api/simulate", &body.to_string());
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let (_, run) = closed_csv(csv);
+    let points = along::along_trajectory(&model, &run.traj, &tuning, 0.5).unwrap();
+    assert_eq!(points.len(), 12);
+    assert_eq!(r.json()["margins"]["samples"], along::points_json(&points));
+    // 400s naming margins: open mode, below the controller sample, not a number, too many
+    // samples (the WHTC's 1800 s every 1 s; at most MAX_MARGINS_SAMPLES) and a demand's
+    for (body, want) in [
+        (
+            r#"{"cycle": "whtc", "margins": 10}"#.to_string(),
+            "margins: analyses the baseline controllers' loops of mode \"closed\"",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "margins": 0.001}"#.to_string(),
+            "margins 0.001: the seconds between analysed samples must be at least the controller sample 0.01 s",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "margins": 0}"#.to_string(),
+            "margins 0: ",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "margins": -5}"#.to_string(),
+            "margins -5: ",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "margins": "often"}"#.to_string(),
+            "body: margins: invalid type: string \"often\", expected f64",
+        ),
+        (
+            r#"{"cycle": "whtc", "mode": "closed", "margins": 1}"#.to_string(),
+            "margins 1: the 1800 s of the cycle every 1 s are 1800 samples; the server analyses at most 1000 (here margins >= 1.8 s",
+        ),
+        (
+            serde_json::json!({"csv": "t,n_e,M_ref\n0,1200,300\n20,1200,300\n", "mode": "closed", "margins": 0.01})
+                .to_string(),
+            "margins 0.01: the 20 s of the cycle every 0.01 s are 2000 samples",
+        ),
+    ] {
+        let r = post("/api/simulate", &body);
+        assert_400_naming(&r, "margins", &body);
+        let e = r.json()["error"].as_str().unwrap_or_default().to_string();
+        assert!(e.contains(want), "{body}: {e}");
+    }
+}
+
 /// An open-loop run of an uploaded file is the run of the same rows as a server cycle: the
 /// WHTC's text sent as `"csv"` answers the same series as `"cycle": "whtc"`, to the bit.
 #[test]
@@ -714,6 +835,41 @@ fn saturated_server_answers_503_with_retry_after() {
             .unwrap()
             .status,
         200
+    );
+    s.stop().unwrap();
+}
+
+/// A computation that outlives its request's time limit is cancelled (`api::Work`'s token) and
+/// frees its worker: the loop margins of the WHTC at the finest spacing the server takes
+/// (1000 samples, about 40 s of CPU: 20 s on 2 cores) under a 2 s limit answer 503, and the
+/// only worker is free again within a few seconds (a steady state gets it; its own 2 s limit
+/// makes each try that still waits a 503).
+#[test]
+fn a_computation_past_the_time_limit_is_cancelled_and_frees_its_worker() {
+    let mut c = Config::local(0);
+    c.cycles = vec![("whtc".into(), WHTC)];
+    c.limits.workers = 1;
+    c.limits.request_timeout = Duration::from_secs(2);
+    let s = mvem_serve::start(c).unwrap();
+    let t0 = std::time::Instant::now();
+    let r = client::post(
+        s.addr,
+        "/api/simulate",
+        br#"{"cycle": "whtc", "mode": "closed", "dt": 10.0, "margins": 1.8}"#,
+    )
+    .unwrap();
+    assert_eq!(r.status, 503, "{}", String::from_utf8_lossy(&r.body));
+    let e = r.json()["error"].as_str().unwrap_or_default().to_string();
+    assert!(e.contains("took longer than 2 s"), "{e}");
+    // the cancelled analysis's last samples may wait for rayon's workers, which the other tests
+    // of this file share: a few tries
+    let freed = (0..4).find_map(|_| {
+        let r = client::get(s.addr, &format!("/api/steady?{POINT}")).unwrap();
+        (r.status == 200).then(|| t0.elapsed())
+    });
+    assert!(
+        freed.is_some(),
+        "the worker still busy 10 s after the request's start"
     );
     s.stop().unwrap();
 }
