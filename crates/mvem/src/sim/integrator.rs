@@ -44,6 +44,10 @@ pub struct Integrator<'a, const N: usize, M: Dynamics<N>> {
     /// at every step).
     pub(super) lu: Option<Box<IterationMatrix<N>>>,
     pub(super) jac_age: usize,
+    /// A bound on the spectral radius of `jac` on the integrated states \[1/s\]: the largest
+    /// row sum of |J_ij| s_j / s_i with the state scales s (Gershgorin, in the scaled states).
+    /// ROS34PW2 picks its dense output by h times this ([`rosw::STIFF_DENSE`]).
+    pub(super) jac_rho: f64,
     /// RODAS4, exprb32 and ROS34PW2 with its non-autonomous term: step size proposed after the
     /// first accepted step of the last segment
     /// (0: none).
@@ -208,7 +212,8 @@ pub(super) struct Trial<const N: usize, Mem> {
     pub(super) err: f64,
     /// Local error estimate per state.
     pub(super) e: [f64; N],
-    /// The method's own dense output (else cubic Hermite from the end points and derivatives).
+    /// The method's own dense output (else cubic Hermite from the end points and derivatives;
+    /// ROS34PW2 gives its stages' continuous extension for steps long against the fast modes).
     pub(super) dense: Option<Interp<N>>,
     /// f(t_new, y1) and the model memory computed there, if the method has it.
     pub(super) f1: Option<([f64; N], Mem)>,
@@ -346,6 +351,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
             ft_slopes: [f64::NAN; 6],
             lu: None,
             jac_age: usize::MAX,
+            jac_rho: 0.0,
             h_first: 0.0,
             worst_rejected: None,
             last_failure: None,

@@ -15,7 +15,7 @@
 #![allow(clippy::excessive_precision)]
 
 use super::error::dump;
-use super::integrator::{Integrator, LagSegment, Trial};
+use super::integrator::{Integrator, Interp, LagSegment, Trial};
 use super::segment::SegmentInputs;
 use super::SimError;
 use crate::model::Dynamics;
@@ -53,6 +53,11 @@ pub(crate) const BH2: f64 = -0.096_042_292_212_423_178;
 pub(crate) const BH3: f64 = 0.5;
 pub(crate) const BH4: f64 = 0.217_933_260_754_229_5;
 
+/// ROS34PW2's dense output: the cubic Hermite interpolant while h times the bound on the
+/// Jacobian's spectral radius ([`Integrator::jac_rho`]) is at most this, else the stages'
+/// continuous extension ([`Transformed::d`]).
+pub(crate) const STIFF_DENSE: f64 = 50.0;
+
 /// Steps a finite-difference Jacobian is reused before it is recomputed.
 pub(crate) const JAC_MAX_AGE: usize = 12;
 /// A rejected step recomputes the Jacobian if it is at least this many steps old.
@@ -84,6 +89,9 @@ pub(crate) struct Transformed {
     pub(crate) c43: f64,
     pub(crate) m: [f64; 4],
     pub(crate) e: [f64; 4],
+    /// The continuous extension's coefficients on the u_i ([`Transformed::new`]):
+    /// `y(t + s h) = (1 - s) y + s (y_new + (1 - s) sum_i d_i u_i)`.
+    pub(crate) d: [f64; 4],
 }
 
 impl Transformed {
@@ -114,6 +122,22 @@ impl Transformed {
         let row = |v: [f64; 4]| -> [f64; 4] {
             std::array::from_fn(|j| (0..4).map(|k| v[k] * gi[k][j]).sum())
         };
+        // The continuous extension y(t + s h) = y + sum_i b_i(s) k_i with
+        // b(s) = s b + s (1 - s) p: second order for every s (W-conditions b(s).1 = s,
+        // b(s).alpha = s^2 / 2, b(s).g = 0, with alpha and g = Gamma 1 the row sums of A and
+        // Gamma; they hold at s = 1 and, as b satisfies them, give p.1 = 0, p.alpha = -1/2,
+        // p.g = 0), and stiffly linear: on y' = lambda y with h lambda -> -inf the stages tend to
+        // k = -B^-1 1 y (B = A + Gamma), and p.B^-1 1 = 0 makes y(t + s h) = (1 - s) y, the
+        // straight line to the L-stable step's 0. A cubic Hermite interpolant uses f at the
+        // end points instead, whose errors a stiff state multiplies by |lambda| h.
+        let alpha = [0.0, ALPHA2, ALPHA3, 1.0];
+        let g: [f64; 4] = std::array::from_fn(|i| gam[i].iter().sum());
+        let mut v = [0.0; 4];
+        for i in 0..4 {
+            let s: f64 = (0..i).map(|j| (a[i][j] + gam[i][j]) * v[j]).sum();
+            v[i] = (1.0 - s) / gam[i][i];
+        }
+        let p = solve4([[1.0; 4], alpha, g, v], [0.0, -0.5, 0.0, 0.0]);
         Self {
             a21: at(1, 0),
             a31: at(2, 0),
@@ -129,8 +153,34 @@ impl Transformed {
             c43: -gi[3][2],
             m: row([B1, B2, B3, B4]),
             e: row([B1 - BH1, B2 - BH2, B3 - BH3, B4 - BH4]),
+            d: row(p),
         }
     }
+}
+
+/// The solution x of `m x = r` (4 x 4, Gaussian elimination with partial pivoting; for the
+/// coefficients above, computed once).
+fn solve4(mut m: [[f64; 4]; 4], mut r: [f64; 4]) -> [f64; 4] {
+    for c in 0..4 {
+        let piv = (c..4)
+            .max_by(|&i, &j| m[i][c].abs().total_cmp(&m[j][c].abs()))
+            .unwrap_or(c);
+        m.swap(c, piv);
+        r.swap(c, piv);
+        for i in c + 1..4 {
+            let f = m[i][c] / m[c][c];
+            for j in c..4 {
+                m[i][j] -= f * m[c][j];
+            }
+            r[i] -= f * r[c];
+        }
+    }
+    let mut x = [0.0; 4];
+    for i in (0..4).rev() {
+        let s: f64 = (i + 1..4).map(|j| m[i][j] * x[j]).sum();
+        x[i] = (r[i] - s) / m[i][i];
+    }
+    x
 }
 
 /// [`Transformed`], computed once.
@@ -365,6 +415,16 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         let fresh = self.jac.is_none() || self.jac_age >= max_age || (!reduced && !self.jac_full);
         if fresh {
             let j = self.jacobian(inp, t, f0, &is_lag)?;
+            let sc = self.model.state_scales();
+            self.jac_rho = (0..N)
+                .filter(|&r| !is_lag[r])
+                .map(|r| {
+                    (0..N)
+                        .filter(|&c| !is_lag[c])
+                        .map(|c| j[r][c].abs() * sc[c] / sc[r])
+                        .sum::<f64>()
+                })
+                .fold(0.0, f64::max);
             self.jac = Some(j);
             self.jac_full = !reduced;
             self.jac_age = 0;
@@ -486,11 +546,24 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
         let [e1, e2, e3, e4] = c.e;
         let e: [f64; N] =
             std::array::from_fn(|i| e1 * u1[i] + e2 * u2[i] + e3 * u3[i] + e4 * u4[i]);
+        // cubic Hermite (from f at the end points) while the step is short against the fast
+        // modes; the stages' continuous extension when f's errors there would be amplified
+        let dense = if h * self.jac_rho <= STIFF_DENSE {
+            None
+        } else {
+            let [d1, d2, d3, d4] = c.d;
+            Some(Interp::Rodas {
+                y0: y,
+                y1,
+                c3: std::array::from_fn(|i| d1 * u1[i] + d2 * u2[i] + d3 * u3[i] + d4 * u4[i]),
+                c4: [0.0; N],
+            })
+        };
         Ok(Trial {
             y1,
             err: self.error_norm(&self.y, &y1, &e),
             e,
-            dense: None,
+            dense,
             f1: None,
         })
     }
@@ -546,6 +619,52 @@ mod tests {
             e_k.abs() > 1e-4,
             "the test must exercise the error estimate: {e_k}"
         );
+    }
+
+    /// The continuous extension ([`Transformed::d`]) in the k form, b(s) = s b + s (1 - s) p
+    /// with p = d Gamma: second-order W-conditions at every s, and on y' = lambda y with
+    /// h lambda = -1e9 (W exact) the straight line (1 - s) y0 from y0 to the step's ~0, where
+    /// the Hermite cubic is off by about 0.15 |h lambda| times the end points' error.
+    #[test]
+    fn continuous_extension_is_second_order_and_stiffly_linear() {
+        let c = Transformed::new();
+        let gam = [
+            [GAMMA, 0.0, 0.0, 0.0],
+            [G21, GAMMA, 0.0, 0.0],
+            [G31, G32, GAMMA, 0.0],
+            [G41, G42, G43, GAMMA],
+        ];
+        let p: [f64; 4] = std::array::from_fn(|j| (0..4).map(|k| c.d[k] * gam[k][j]).sum());
+        let b = [B1, B2, B3, B4];
+        let alpha = [0.0, ALPHA2, ALPHA3, 1.0];
+        let g: [f64; 4] = std::array::from_fn(|i| gam[i].iter().sum());
+        let dot = |x: [f64; 4], y: [f64; 4]| (0..4).map(|i| x[i] * y[i]).sum::<f64>();
+        for s in [0.1, 0.3, 0.5, 0.8, 1.0] {
+            let bs: [f64; 4] = std::array::from_fn(|i| s * b[i] + s * (1.0 - s) * p[i]);
+            assert!((dot(bs, [1.0; 4]) - s).abs() < 1e-13, "s = {s}");
+            assert!((dot(bs, alpha) - s * s / 2.0).abs() < 1e-13, "s = {s}");
+            assert!(dot(bs, g).abs() < 1e-13, "s = {s}");
+        }
+        // one step of the transformed form on y' = lambda y with W = lambda, very stiff
+        let (z, y0) = (-1e9_f64, 1.0_f64);
+        let d = 1.0 - GAMMA * z;
+        let u1 = GAMMA * z * y0 / d;
+        let u2 = GAMMA * (z * (y0 + c.a21 * u1) + c.c21 * u1) / d;
+        let u3 = GAMMA * (z * (y0 + c.a31 * u1 + c.a32 * u2) + c.c31 * u1 + c.c32 * u2) / d;
+        let u4 = GAMMA
+            * (z * (y0 + c.a41 * u1 + c.a42 * u2 + c.a43 * u3)
+                + c.c41 * u1
+                + c.c42 * u2
+                + c.c43 * u3)
+            / d;
+        let u = [u1, u2, u3, u4];
+        let y1 = y0 + dot(c.m, u);
+        let c3 = dot(c.d, u);
+        assert!(y1.abs() < 1e-8, "{y1}");
+        for s in [0.1, 0.5, 0.9] {
+            let ys = (1.0 - s) * y0 + s * (y1 + (1.0 - s) * c3);
+            assert!((ys - (1.0 - s) * y0).abs() < 1e-7, "s = {s}: {ys}");
+        }
     }
 
     /// The W-method order conditions (J arbitrary; Hairer & Wanner IV.7, "W-methods"): with

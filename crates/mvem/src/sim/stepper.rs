@@ -31,6 +31,7 @@ struct Carry<const N: usize> {
     jac: Option<[[f64; N]; N]>,
     jac_age: usize,
     jac_full: bool,
+    jac_rho: f64,
     lu: Option<Box<IterationMatrix<N>>>,
     lags: Vec<LinearLag>,
     lag_seg: Vec<LagSegment>,
@@ -120,6 +121,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             jac: None,
             jac_age: usize::MAX,
             jac_full: false,
+            jac_rho: 0.0,
             lu: None,
             lags: run.lags,
             lag_seg: run.lag_seg,
@@ -234,6 +236,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
             worst_rejected: None,
             last_failure: None,
             jac_full: c.jac_full,
+            jac_rho: c.jac_rho,
             lags: std::mem::take(&mut c.lags),
             lag_seg: std::mem::take(&mut c.lag_seg),
             stats: SimStats::default(),
@@ -245,6 +248,7 @@ impl<const N: usize, M: Model<N>> Plant<N, M> {
         c.jac = run.jac.take();
         c.jac_age = run.jac_age;
         c.jac_full = run.jac_full;
+        c.jac_rho = run.jac_rho;
         c.lu = run.lu.take();
         c.lags = std::mem::take(&mut run.lags);
         c.lag_seg = std::mem::take(&mut run.lag_seg);
