@@ -151,6 +151,30 @@ fn a_users_cycle_runs() {
     let (m, r) = (col(&h, "M_e"), col(&h, "M_ref"));
     let last = rows.last().unwrap();
     assert!((last[m] - last[r]).abs() < 0.01 * last[r], "{last:?}");
+    assert!(!stderr(&o).contains("--duration"), "{}", stderr(&o));
+    // a duration beyond the cycle runs all of it and says so
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "c.csv",
+            "--duration",
+            "100",
+            "--out",
+            "o2",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "warning: --duration 100 s is longer than the cycle c.csv: ran all of it (6 s)"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    let (_, rows2) = read_csv(&d.path().join("o2").join("trajectory.csv"));
+    assert_eq!(rows2.len(), rows.len());
 }
 
 /// A run that fails after the trajectory writer started (the paper's plain equations find no

@@ -663,7 +663,8 @@ fn open_loop_csv_equals_the_same_cycle_by_name() {
 }
 
 /// Inputs outside the parameter set's saturation ranges run clamped, and the answer says so
-/// (one warning per channel naming the first row's time outside and the extreme values), as
+/// (one warning per channel naming the time the input, linear between the rows, crosses the
+/// range and the extreme values), as
 /// `mvem simulate` warns on stderr.
 #[test]
 fn open_loop_csv_outside_the_input_ranges_warns() {
@@ -675,11 +676,13 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
     let w: Vec<String> = serde_json::from_value(r.json()["warnings"].clone()).unwrap();
     assert_eq!(w.len(), 2, "{w:?}");
     assert!(
-        w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 2 s (values from 2600 to 2600)"),
+        // 1200 rpm at 0 s, 2600 at 2 s: 2000 rpm at 8/7 s
+        w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 1.142857142857")
+            && w[0].contains("s (values from 2600 to 2600)"),
         "{w:?}"
     );
     assert!(
-        w[1].starts_with("u_delta_mg leaves [1, 250] first at t = 4 s (values from 300 to 300)"),
+        w[1].starts_with("u_delta_mg leaves [1, 250] first at t = 3.5 s (values from 300 to 300)"),
         "{w:?}"
     );
 }

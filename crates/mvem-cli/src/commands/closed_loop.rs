@@ -161,6 +161,15 @@ pub fn run_cycle(
         Err(e @ ControlError::Setup(_)) => return Err(e.into()),
         Err(e) => return Err(anyhow::Error::new(e).context("closed-loop simulation failed")),
     };
+    if let (Some(s), Some(t)) = (duration, run.traj.get("t")) {
+        let ran = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
+        if ran < s - 1e-6 {
+            eprintln!(
+                "warning: --duration {s} s is longer than the cycle {cycle}: ran all of it ({} s)",
+                mvem::numerics::Num(ran)
+            );
+        }
+    }
     Ok(Run {
         run,
         wall_s: start.elapsed().as_secs_f64(),

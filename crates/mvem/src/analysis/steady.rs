@@ -107,8 +107,9 @@ pub enum SimFromSteadyError {
 }
 
 /// Simulate `model` driven by `sched` from `t0` to `t_end`, starting at the steady state at
-/// the inputs at `t0` (right limit): [`steady_state`], then [`simulate`]. Options and the
-/// interval are checked first.
+/// the inputs just before `t0` (left limit: a step at `t0`, two rows with the time `t0`, is a
+/// step the run shows, as the delayed commands' history before `t0` holds the values before
+/// it): [`steady_state`], then [`simulate`]. Options and the interval are checked first.
 pub fn simulate_from_steady<const N: usize, M: Model<N>>(
     model: &M,
     sched: &InputSchedule,
@@ -172,8 +173,8 @@ pub fn simulate_from_steady_into<const N: usize, M: Model<N>>(
     )?)
 }
 
-/// The steady state at the inputs at `t0` (right limit), after checking the options and the
-/// interval.
+/// The steady state at the inputs just before `t0` (left limit), after checking the options
+/// and the interval.
 fn steady_start<const N: usize, M: Model<N>>(
     model: &M,
     sched: &InputSchedule,
@@ -184,7 +185,7 @@ fn steady_start<const N: usize, M: Model<N>>(
     check_interval(opts, t0, t_end)?;
     let mut h = 0;
     let d = Drive::from_array(std::array::from_fn(|c| {
-        sched.value_hint(c, t0, Side::Right, &mut h)
+        sched.value_hint(c, t0, Side::Left, &mut h)
     }));
     Ok(Start::State(steady_state(model, &d)?.x))
 }

@@ -310,7 +310,8 @@ pub fn input_ranges(s: &InputSaturation) -> [(&'static str, f64, f64); 4] {
 }
 
 /// For each channel whose values leave its saturation range (`ranges`, e.g. [`input_ranges`]),
-/// one warning naming the first time it happens and the extreme value.
+/// one warning naming the first time it happens (where the linear interpolation between the
+/// rows crosses the limit) and the extreme value.
 pub fn range_warnings(s: &InputSchedule, ranges: &[(&str, f64, f64); 4]) -> Vec<String> {
     range_warnings_of_rows(
         s.times().iter().copied().zip(s.rows().iter().copied()),
@@ -327,15 +328,24 @@ pub fn range_warnings_of_rows(
     let mut first: [Option<f64>; 4] = [None; 4];
     let mut vmin = [f64::INFINITY; 4];
     let mut vmax = [f64::NEG_INFINITY; 4];
+    let mut prev: Option<(f64, [f64; 4])> = None;
     for (t, r) in rows {
         for (c, (_, lo, hi)) in ranges.iter().enumerate() {
             let v = r[c];
             if v < *lo || v > *hi {
-                first[c].get_or_insert(t);
+                first[c].get_or_insert_with(|| match prev {
+                    // the input is linear between the rows: it crosses the limit in between
+                    Some((tp, rp)) if t > tp && (*lo..=*hi).contains(&rp[c]) => {
+                        let limit = if v > *hi { *hi } else { *lo };
+                        tp + (limit - rp[c]) / (v - rp[c]) * (t - tp)
+                    }
+                    _ => t,
+                });
                 vmin[c] = vmin[c].min(v);
                 vmax[c] = vmax[c].max(v);
             }
         }
+        prev = Some((t, r));
     }
     ranges
         .iter()
@@ -584,7 +594,12 @@ mod tests {
         .unwrap();
         let w = range_warnings(&s, &INPUT_RANGES);
         assert_eq!(w.len(), 2);
-        assert!(w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 2 s"));
+        // 1500 rpm at 1 s, 2500 rpm at 2 s: 2000 rpm at 1.5 s
+        assert!(
+            w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 1.5 s"),
+            "{}",
+            w[0]
+        );
         assert!(
             w[1].starts_with("u_vgt_pct leaves [20, 100] first at t = 0 s (values from 5 to 10)")
         );

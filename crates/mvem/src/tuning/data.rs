@@ -750,7 +750,23 @@ pub fn parse_manifest(text: &str, path: &Path) -> Result<Manifest, DataError> {
 /// Load a campaign directory: `manifest.toml`, the stationary CSV and every dynamic set.
 pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mpath = dir.join("manifest.toml");
-    let manifest = parse_manifest(&read(&mpath)?, &mpath)?;
+    let text = match read(&mpath) {
+        Err(DataError::Io { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound && dir.is_dir() =>
+        {
+            return Err(DataError::Format {
+                path: mpath,
+                message: format!(
+                    "no manifest in {}: `mvem campaign --data {} --init` drafts one from the \
+                     directory's CSV files (docs/tuning-data.md)",
+                    dir.display(),
+                    dir.display()
+                ),
+            });
+        }
+        r => r?,
+    };
+    let manifest = parse_manifest(&text, &mpath)?;
     let layout = Layout::of(&manifest);
     let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &layout)?;
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
@@ -809,6 +825,18 @@ mod tests {
     }
     const ROW: &str =
         "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+
+    #[test]
+    fn a_directory_without_manifest_points_to_the_draft() {
+        let d = tempfile::tempdir().unwrap();
+        let e = load_campaign(d.path()).unwrap_err().to_string();
+        assert!(e.contains("no manifest in") && e.contains("--init"), "{e}");
+        // a directory that does not exist is the plain I/O error
+        let e = load_campaign(&d.path().join("nope"))
+            .unwrap_err()
+            .to_string();
+        assert!(!e.contains("--init"), "{e}");
+    }
 
     #[test]
     fn columns_in_other_units_convert_on_load() {
