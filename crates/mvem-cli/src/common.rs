@@ -251,7 +251,7 @@ pub struct SolverArgs {
     /// 100 %) [default: equal to rtol, as the library's `SimOptions::default()` (1e-6, 1e-6)]
     #[arg(long, value_name = "A")]
     pub atol: Option<f64>,
-    /// Output interval [s] (the end time is always written) [default: 0.01; bench: 0.1]
+    /// Output interval [s] (the end time is always written) [default: 0.01; step, report: 0.005; bench: 0.1]
     #[arg(long, value_name = "S")]
     pub dt: Option<f64>,
     /// Integrate the actuator states numerically like the other states (default: in closed

@@ -61,7 +61,8 @@ Examples:
 The stepped input starts at --from (or at its operating-point option) and jumps to --to at
 --t-step; the other three inputs are held at their options. The run starts at the steady state
 before the step; initial and final values of the metrics are the steady states before and after
-the step. Metrics per output: DC gain (output unit per input unit) and its sign, the wrong-way
+the step. Metrics per output: DC gain (output unit per unit of the input change the model sees:
+a --to that the input saturation clamps counts up to the limit) and its sign, the wrong-way
 (non-minimum-phase) excursion and its time, overshoot [%], rise time 10-90 % and settling time
 (2 % band) [s]. With --json, stdout holds one JSON object with \"input\", \"from\", \"to\",
 \"t_step\", \"operating_point\" and \"outputs\" (an object keyed by output name).")]

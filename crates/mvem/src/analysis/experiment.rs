@@ -176,6 +176,11 @@ pub struct StepRun<const N: usize> {
     pub steady_after: SteadyState<N>,
     /// The simulation from t = 0 to `t_end`.
     pub sol: Solution,
+    /// The input change the model sees (unit of the input): `spec.du()` after the model's input
+    /// saturation (the authors' semantics clamp n_e and u_delta into the parameter set's
+    /// `input_saturation`, u_egr into [0, 100] %, u_vgt into [20, 100] %), which the DC gain
+    /// divides by.
+    pub du_effective: f64,
 }
 
 /// Value of a state or signal `name` at a steady state of a model with the states
@@ -220,7 +225,7 @@ impl<const N: usize> StepRun<N> {
             self.spec.t_step,
             y0,
             y1,
-            self.spec.du(),
+            self.du_effective,
         )?)
     }
 
@@ -270,12 +275,18 @@ pub fn run_step<const N: usize, M: Model<N>>(
         opts,
     )
     .map_err(StepRunError::Sim)?;
+    let sat = |d: &Drive| {
+        let (s, _) =
+            crate::model::saturate_inputs(d, m.options().semantics, &m.params().input_saturation);
+        s.to_array()[spec.input]
+    };
     Ok(StepRun {
         spec: *spec,
         state_names: m.state_names(),
         steady_before,
         steady_after,
         sol,
+        du_effective: sat(&after) - sat(&before),
     })
 }
 
@@ -354,6 +365,45 @@ impl VgtStep {
 mod tests {
     use super::*;
     use crate::model::Engine8;
+
+    /// A step whose target the model's input saturation clamps (n_e 1500 -> 2500 rpm, the
+    /// published set's range ending at 2000 rpm): the DC gain is per rpm the engine sees (500),
+    /// equal to that of the step 1500 -> 2000 rpm, not per rpm commanded (1000); with the
+    /// paper's semantics (no saturation) the commanded change.
+    #[test]
+    fn the_dc_gain_of_a_clamped_step_is_per_effective_input_change() {
+        let m = Engine8::published();
+        let spec = |to: f64| StepSpec {
+            before: Drive::new(1500.0, 110.0, 80.0, 75.0),
+            input: 0,
+            to,
+            t_step: 1.0,
+            t_end: 6.0,
+        };
+        let opts = SimOptions::default();
+        let clamped = run_step(&m, &spec(2500.0), &opts).unwrap();
+        let inside = run_step(&m, &spec(2000.0), &opts).unwrap();
+        assert_eq!(clamped.du_effective, 500.0);
+        let (a, b) = (
+            clamped.metrics("p_im").unwrap(),
+            inside.metrics("p_im").unwrap(),
+        );
+        assert_eq!(a.du, 500.0);
+        assert!(
+            (a.dc_gain - b.dc_gain).abs() < 1e-9 * b.dc_gain.abs(),
+            "{a:?} {b:?}"
+        );
+        let paper = Engine8::new(
+            crate::params::Params::published(),
+            crate::model::ModelOptions {
+                semantics: crate::components::Semantics::Paper,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let r = run_step(&paper, &spec(1600.0), &opts).unwrap();
+        assert_eq!(r.du_effective, 100.0);
+    }
 
     #[test]
     fn run_step_is_the_steady_start_simulation_and_its_metrics() {

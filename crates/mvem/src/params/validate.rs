@@ -127,12 +127,42 @@ impl Params {
         let cy = &self.cylinder;
         c.positive("cylinder.v_d", cy.v_d);
         c.positive("cylinder.n_cyl", cy.n_cyl);
+        if cy.n_cyl.is_finite() && cy.n_cyl > 0.0 && cy.n_cyl.fract() != 0.0 {
+            c.push(
+                "cylinder.n_cyl",
+                cy.n_cyl,
+                "a number of cylinders must be a whole number",
+            );
+        }
         if c.finite("cylinder.r_c", cy.r_c) && cy.r_c <= 1.0 {
             c.push("cylinder.r_c", cy.r_c, "compression ratio must be > 1");
         }
         c.positive("cylinder.q_hv", cy.q_hv);
         c.positive("cylinder.afs", cy.afs);
         c.array("cylinder.c_vol", &cy.c_vol);
+        // eq. (12) is linear in sqrt(p_im) and sqrt(n_e): its least value over the box of
+        // intake pressures 0.5-4 bar and the speed range lies at a corner
+        let n_range = self.input_saturation.n_e;
+        if cy.c_vol.iter().all(|v| v.is_finite())
+            && n_range.iter().all(|v| v.is_finite() && *v > 0.0)
+        {
+            let worst = [5e4, 4e5]
+                .iter()
+                .flat_map(|&p| n_range.iter().map(move |&n| (p, n)))
+                .map(|(p, n)| (crate::components::cylinder::eta_vol(cy, p, n), p, n))
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((eta, p, n)) = worst.filter(|w| w.0 <= 0.0) {
+                c.push(
+                    "cylinder.c_vol",
+                    eta,
+                    &format!(
+                        "the volumetric efficiency of eq. (12) must be > 0 for p_im 0.5-4 bar \
+                         and n_e in the input_saturation range; it is {eta} at p_im = {p} Pa, \
+                         n_e = {n} rpm"
+                    ),
+                );
+            }
+        }
         c.positive("cylinder.eta_sc", cy.eta_sc);
         c.closed_range("cylinder.x_cv", cy.x_cv, 0.0, 1.0);
         if c.finite("cylinder.gamma_c", cy.gamma_c) && cy.gamma_c <= 1.0 {
@@ -294,6 +324,30 @@ mod tests {
         );
         assert!(msg.contains("positive semidefinite"), "{msg}");
         assert!(msg.contains("turbo.j_t = NaN: must be finite"), "{msg}");
+    }
+
+    /// A fractional number of cylinders and a volumetric efficiency that is not positive in the
+    /// operating range (c_vol = [0, 0, -1]: NaN derivatives once simulated) are refused, naming
+    /// the field and where eq. (12) fails.
+    #[test]
+    fn cylinders_are_whole_and_the_volumetric_efficiency_positive() {
+        let mut p = Params::published();
+        p.cylinder.n_cyl = 6.5;
+        p.cylinder.c_vol = [0.0, 0.0, -1.0];
+        let msg = p.validate().unwrap_err().to_string();
+        assert!(
+            msg.contains("cylinder.n_cyl = 6.5: a number of cylinders"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("cylinder.c_vol = -1: the volumetric efficiency"),
+            "{msg}"
+        );
+        // positive at low pressure and speed, not at 4 bar and 2000 rpm
+        p.cylinder.n_cyl = 6.0;
+        p.cylinder.c_vol = [-0.002, -0.0034, 1.1497];
+        let msg = p.validate().unwrap_err().to_string();
+        assert!(msg.contains("at p_im = 400000 Pa, n_e = 2000 rpm"), "{msg}");
     }
 
     #[test]
