@@ -31,3 +31,15 @@ def read_csv(path):
     for j, n in enumerate(names):
         out.setdefault(n, data[:, j])
     return out
+
+
+@pytest.fixture
+def ctrl_c():
+    """SIGINT handled by Python (KeyboardInterrupt) for the test, whatever the runner inherited:
+    a runner started in the background of a non-interactive shell ignores SIGINT, and
+    _thread.interrupt_main() (the tests' Ctrl-C) then does nothing."""
+    import signal
+
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)

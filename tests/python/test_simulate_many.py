@@ -105,7 +105,7 @@ def test_start_states_one_for_all_or_one_per_run():
     assert_same(out[1], mvem.simulate(inputs[1]))
 
 
-def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path):
+def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path, ctrl_c):
     """KeyboardInterrupt (as Ctrl-C raises it) while an ensemble runs: the runs not started are
     cancelled, the call raises within about one run's time, and a later call is unaffected."""
     import _thread
@@ -135,7 +135,7 @@ def test_ctrl_c_stops_the_ensemble_and_the_next_call_runs(tmp_path):
 
 
 @pytest.mark.parametrize("call", ["simulate", "closed_loop", "closed_loop_margins"])
-def test_ctrl_c_stops_a_long_single_run(call):
+def test_ctrl_c_stops_a_long_single_run(call, ctrl_c):
     """KeyboardInterrupt while one long run integrates (mvem.simulate of the WHTC at rtol 1e-10,
     about 20 times the default run's work; mvem.closed_loop of the whole WHTC): the integrator
     polls the cancellation before every step, so the call raises soon after the signal instead

@@ -253,7 +253,7 @@ def test_the_tune_own_engine_example_recovers_the_virtual_engine(tmp_path):
             assert float(item.split()[1]) < 3.0, (item, p.stdout)
 
 
-def test_ctrl_c_stops_a_tuning_and_the_next_call_runs(campaign):
+def test_ctrl_c_stops_a_tuning_and_the_next_call_runs(campaign, ctrl_c):
     """KeyboardInterrupt (as Ctrl-C raises it) 1.5 s into a full tuning (steps 1-5, about 20 s
     on the 2-core CI machine): the tuning stops at its next residual evaluation and raises
     KeyboardInterrupt instead of running to its end; a later call is unaffected."""
