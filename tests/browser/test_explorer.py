@@ -512,7 +512,9 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     page.wait_for_function("document.querySelector('#cycle-info').textContent.includes('warning')",
                            timeout=60000)
     info = page.text_content("#cycle-info")
-    assert "n_e_rpm leaves [500, 2000] first at t = 2 s (values from 2600 to 2600)" in info, info
+    # 1500 rpm at 0 s, 2600 rpm at 2 s: the input crosses 2000 rpm at 10/11 s
+    assert "n_e_rpm leaves [500, 2000] first at t = 0.90909" in info, info
+    assert "s (values from 2600 to 2600)" in info, info
     page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)
 
 
