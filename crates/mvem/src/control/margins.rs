@@ -622,23 +622,8 @@ fn margins_of(
 /// VGT command `u_vgt` [%] of the operating point (the limiters, selectors and saturations are
 /// not part of the linear analysis).
 pub fn baseline_loops(t: &super::baseline::BaselineTuning, u_vgt: f64) -> Vec<PiLoop> {
-    let g = t.vgt_gain_factor(u_vgt);
-    vec![
-        PiLoop {
-            name: "lambda_O->u_egr".into(),
-            input: "u_egr".into(),
-            output: "lambda_O".into(),
-            kp: t.lambda_egr.0,
-            ki: t.lambda_egr.1,
-        },
-        PiLoop {
-            name: "x_egr->u_vgt".into(),
-            input: "u_vgt".into(),
-            output: "x_egr".into(),
-            kp: g * t.x_egr_vgt.0,
-            ki: g * t.x_egr_vgt.1,
-        },
-    ]
+    use super::InCharge::Main;
+    super::along::loops_in_charge(t, Some(Main), Some(Main), u_vgt)
 }
 
 /// The sampled model of `m` at its steady state for the constant inputs `d`, at the sample

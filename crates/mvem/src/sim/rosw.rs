@@ -158,29 +158,19 @@ impl Transformed {
     }
 }
 
-/// The solution x of `m x = r` (4 x 4, Gaussian elimination with partial pivoting; for the
-/// coefficients above, computed once).
+/// The solution x of `m x = r` (4 x 4, by [`linalg::lu_factor`] and [`linalg::lu_solve`]; for
+/// the coefficients above, computed once; the matrix is regular, `Transformed`'s unit test
+/// checks the conditions it solves).
 fn solve4(mut m: [[f64; 4]; 4], mut r: [f64; 4]) -> [f64; 4] {
-    for c in 0..4 {
-        let piv = (c..4)
-            .max_by(|&i, &j| m[i][c].abs().total_cmp(&m[j][c].abs()))
-            .unwrap_or(c);
-        m.swap(c, piv);
-        r.swap(c, piv);
-        for i in c + 1..4 {
-            let f = m[i][c] / m[c][c];
-            for j in c..4 {
-                m[i][j] -= f * m[c][j];
-            }
-            r[i] -= f * r[c];
-        }
-    }
-    let mut x = [0.0; 4];
-    for i in (0..4).rev() {
-        let s: f64 = (i + 1..4).map(|j| m[i][j] * x[j]).sum();
-        x[i] = (r[i] - s) / m[i][i];
-    }
-    x
+    let mut piv = [0; 4];
+    let regular = linalg::lu_factor::<4, 4>(&mut m, &mut piv);
+    debug_assert!(
+        regular,
+        "the continuous extension's conditions are independent"
+    );
+    let dinv: [f64; 4] = std::array::from_fn(|k| 1.0 / m[k][k]);
+    linalg::lu_solve::<4, 4>(&m, &piv, &dinv, &mut r);
+    r
 }
 
 /// [`Transformed`], computed once.

@@ -95,7 +95,7 @@ fn campaign_column(name: &str) -> Result<Column, String> {
 }
 
 /// The conversion (scale, offset) of `column` given in `unit`, or why there is none.
-fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String> {
+pub(crate) fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String> {
     let c = campaign_column(column)?;
     let units = units_of(c.unit);
     units

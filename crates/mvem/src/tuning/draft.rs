@@ -21,8 +21,8 @@
 //! before it is skipped, naming both.
 
 use super::data::{
-    campaign_columns, dynamic_required, read, units_of, Column, DataError, DataSetInfo, Manifest,
-    Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS,
+    campaign_columns, conversion, dynamic_required, read, units_of, Column, DataError, DataSetInfo,
+    Manifest, Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS,
     STATIONARY_COLUMNS,
 };
 use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
@@ -168,12 +168,6 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
     (map, notes)
 }
 
-/// (scale, offset) from `unit` to the mvem unit `base` (identity for an unknown unit).
-fn to_mvem(base: &str, unit: Option<&str>) -> (f64, f64) {
-    unit.and_then(|u| units_of(base).iter().find(|k| k.0 == u))
-        .map_or((1.0, 0.0), |k| (k.1, k.2))
-}
-
 /// The values of the columns `cols` of a file (those it heads), by column: in mvem's units
 /// where the header gives a unit, else as written.
 fn columns(
@@ -192,7 +186,12 @@ fn columns(
             .iter()
             .enumerate()
             .map(|(k, c)| {
-                let (a, b) = to_mvem(c.unit, heads[c.name].unit);
+                // a unit of the header is one of the column's (match_header): converted as
+                // the loader converts a [units] entry
+                let (a, b) = heads[c.name]
+                    .unit
+                    .and_then(|u| conversion(c.name, u).ok())
+                    .unwrap_or((1.0, 0.0));
                 (*c, rows.iter().map(|r| a * r.1[k] + b).collect())
             })
             .collect(),
