@@ -196,6 +196,54 @@ fn paper_semantics_far_off_fails_cleanly() {
     assert!(failed >= 1);
 }
 
+/// The paper's compressor efficiency takes (Pi_c - 1)^c_pi (eq. (64)): at idle (the WHTC's first
+/// point, 500 rpm and 1 mg) the settling run reaches p_im < p_amb, and the error names the
+/// signals that are not finite there (docs/authors-implementation.md, "Where the paper's plain
+/// equations have no operating point").
+#[test]
+fn paper_semantics_at_idle_names_the_nonfinite_signals() {
+    let opts = ModelOptions {
+        semantics: Semantics::Paper,
+        ..ModelOptions::default()
+    };
+    let m = Engine8::new(Params::published(), opts).unwrap();
+    let sched = InputSchedule::constant(Drive::new(500.0, 1.0, 50.0, 65.0));
+    let x0 = [
+        1.011113e5, 1.025627e5, 0.2313534, 0.2299631, 311.9571, 50.0, 50.0, 65.0,
+    ];
+    let e = simulate(
+        &m,
+        &sched,
+        0.0,
+        1.0,
+        Start::State(x0),
+        &SimOptions::default(),
+    )
+    .unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        matches!(&e, SimError::NonFinite { name, signals, .. }
+            if name == "omega_t" && signals == "; non-finite signals: T_c, eta_c, P_c"),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("non-finite signals: T_c, eta_c, P_c; state: [p_im="),
+        "{msg}"
+    );
+    // the authors' implementation limits Pi_c >= 1 there (item 24) and runs on
+    let m = Engine8::new(Params::published(), ModelOptions::default()).unwrap();
+    let sol = simulate(
+        &m,
+        &sched,
+        0.0,
+        1.0,
+        Start::State(x0),
+        &SimOptions::default(),
+    )
+    .unwrap();
+    assert!(sol.columns.iter().all(|c| c.iter().all(|v| v.is_finite())));
+}
+
 /// Absurd parameters that still validate (a 1000x too light turbo) either integrate to finite
 /// output or stop with a located error.
 #[test]

@@ -1,6 +1,6 @@
 //! Simulation errors: what failed, when, and the state at that time.
 
-use crate::model::Dynamics;
+use crate::model::{Dynamics, ModelInput, Signals};
 use std::fmt;
 
 /// A failed simulation: what, when, and the state at that time.
@@ -35,7 +35,7 @@ pub enum SimError {
         t_end: f64,
     },
     /// A derivative or the initial state is NaN or infinite.
-    #[error("non-finite {what} {name} = {value} at t = {} s; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
+    #[error("non-finite {what} {name} = {value} at t = {} s{signals}; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
     NonFinite {
         /// Time \[s\].
         t: f64,
@@ -47,6 +47,9 @@ pub enum SimError {
         value: f64,
         /// The state at that time, formatted.
         state: StateDump,
+        /// `"; non-finite signals: eta_c, T_c"`: the model's algebraic signals that are not
+        /// finite at that state and input (where the NaN starts), or empty.
+        signals: String,
         /// What probably went wrong.
         hint: &'static str,
     },
@@ -102,4 +105,26 @@ pub(super) fn dump<const N: usize, M: Dynamics<N>>(m: &M, y: &[f64; N]) -> State
             .zip(y.iter().copied())
             .collect(),
     )
+}
+
+/// `"; non-finite signals: a, b"` for the algebraic signals of `m` that are NaN or infinite at
+/// `y`, `u` (empty when all are finite): where a non-finite derivative comes from.
+pub(super) fn nonfinite_signals<const N: usize, M: Dynamics<N>>(
+    m: &M,
+    y: &[f64; N],
+    u: &ModelInput,
+    memory: M::Memory,
+) -> String {
+    let ev = m.eval(y, u, memory);
+    let bad: Vec<&str> = Signals::NAMES
+        .iter()
+        .zip(ev.signals.values())
+        .filter(|(_, v)| !v.is_finite())
+        .map(|(n, _)| *n)
+        .collect();
+    if bad.is_empty() {
+        String::new()
+    } else {
+        format!("; non-finite signals: {}", bad.join(", "))
+    }
 }
