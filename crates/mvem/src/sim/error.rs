@@ -35,7 +35,7 @@ pub enum SimError {
         t_end: f64,
     },
     /// A derivative or the initial state is NaN or infinite.
-    #[error("non-finite {what} {name} = {value} at t = {} s{signals}; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
+    #[error("non-finite {what} {name} = {value} at t = {} s; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
     NonFinite {
         /// Time \[s\].
         t: f64,
@@ -47,11 +47,10 @@ pub enum SimError {
         value: f64,
         /// The state at that time, formatted.
         state: StateDump,
-        /// `"; non-finite signals: eta_c, T_c"`: the model's algebraic signals that are not
-        /// finite at that state and input (where the NaN starts), or empty.
-        signals: String,
-        /// What probably went wrong.
-        hint: &'static str,
+        /// What probably went wrong; for a derivative, first the model's algebraic signals that
+        /// are not finite there (`"non-finite signals: T_c, eta_c, P_c; ..."`: where the NaN
+        /// starts).
+        hint: Box<str>,
     },
     /// The step size fell below the resolution of the time axis.
     #[error("step size {h:e} s too small at t = {} s; limiting state: {limiting}; state: {state}. Hint: the model may have left its valid region (equilibrium lost, inputs out of range), or the tolerance is too tight", crate::numerics::Num(*t))]
@@ -107,14 +106,15 @@ pub(super) fn dump<const N: usize, M: Dynamics<N>>(m: &M, y: &[f64; N]) -> State
     )
 }
 
-/// `"; non-finite signals: a, b"` for the algebraic signals of `m` that are NaN or infinite at
-/// `y`, `u` (empty when all are finite): where a non-finite derivative comes from.
-pub(super) fn nonfinite_signals<const N: usize, M: Dynamics<N>>(
+/// The hint of a non-finite derivative of `m` at `y`, `u`: `"non-finite signals: a, b; "` for
+/// the algebraic signals that are NaN or infinite there (where the NaN comes from), then the
+/// model's [`Dynamics::nonfinite_hint`].
+pub(super) fn nonfinite_hint<const N: usize, M: Dynamics<N>>(
     m: &M,
     y: &[f64; N],
     u: &ModelInput,
     memory: M::Memory,
-) -> String {
+) -> Box<str> {
     let ev = m.eval(y, u, memory);
     let bad: Vec<&str> = Signals::NAMES
         .iter()
@@ -123,8 +123,13 @@ pub(super) fn nonfinite_signals<const N: usize, M: Dynamics<N>>(
         .map(|(n, _)| *n)
         .collect();
     if bad.is_empty() {
-        String::new()
+        m.nonfinite_hint().into()
     } else {
-        format!("; non-finite signals: {}", bad.join(", "))
+        format!(
+            "non-finite signals: {}; {}",
+            bad.join(", "),
+            m.nonfinite_hint()
+        )
+        .into()
     }
 }

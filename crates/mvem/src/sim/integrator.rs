@@ -3,7 +3,7 @@
 //! [`super::dopri5`]).
 
 use super::dopri5::Dense;
-use super::error::{dump, nonfinite_signals};
+use super::error::{dump, nonfinite_hint};
 use super::input::InputSchedule;
 use super::options::{Method, SimOptions};
 use super::rosw::{self, IterationMatrix};
@@ -319,8 +319,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                     name: model.state_names()[i].to_string(),
                     value: *v,
                     state: dump(model, &y0),
-                    signals: String::new(),
-                    hint: "give a finite initial state",
+                    hint: "give a finite initial state".into(),
                 });
             }
         }
@@ -412,8 +411,7 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
                 name: self.model.state_names()[i].to_string(),
                 value: ev.dx[i],
                 state: dump(self.model, y),
-                signals: nonfinite_signals(self.model, y, u, self.memory),
-                hint: self.model.nonfinite_hint(),
+                hint: nonfinite_hint(self.model, y, u, self.memory),
             });
         }
         Ok(Rhs {

@@ -565,9 +565,9 @@ impl<const N: usize, M: Dynamics<N>> Integrator<'_, N, M> {
             name: format!("step h = {h:e}"),
             value: f64::NAN,
             state: dump(self.model, &self.y),
-            signals: String::new(),
             hint:
-                "the Jacobian is singular or non-finite; the model may have left its valid region",
+                "the Jacobian is singular or non-finite; the model may have left its valid region"
+                    .into(),
         }
     }
 }
