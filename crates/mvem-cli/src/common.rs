@@ -591,3 +591,16 @@ pub fn fmt_drive(d: &Drive) -> String {
         d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
     )
 }
+
+/// `--threads N` of the commands that take 0 for all cores: a whole number 0..=1024 (more
+/// threads than that only cost time: each one is an operating-system thread).
+pub fn threads_arg(s: &str) -> std::result::Result<usize, String> {
+    let n: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a whole number >= 0"))?;
+    if n > 1024 {
+        return Err(format!("{n} threads: at most 1024 (0: all cores)"));
+    }
+    Ok(n)
+}

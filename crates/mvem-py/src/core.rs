@@ -1236,13 +1236,19 @@ mod tests {
             pm.jacobian(&ss.x, u, &["W_x".to_string()], false),
             Err(CoreError::Value(m)) if m.contains("W_x")
         ));
-        // at the authors' u_egr saturation: refused when strict, listed otherwise
+        // the EGR valve shut (actuator states at 0: f_egr >= 0 switches in their directions):
+        // refused when strict, listed otherwise
         let at = [1500.0, 110.0, 0.0, 75.0];
+        let mut shut = ss.x;
+        shut[5] = 0.0;
+        shut[6] = 0.0;
         assert!(matches!(
-            pm.jacobian(&ss.x, at, &[], true),
+            pm.jacobian(&shut, at, &[], true),
             Err(CoreError::Runtime(_))
         ));
-        assert!(!pm.jacobian(&ss.x, at, &[], false).unwrap().kinks.is_empty());
+        assert!(!pm.jacobian(&shut, at, &[], false).unwrap().kinks.is_empty());
+        // the command alone at its saturation limit is differenced on the inner side
+        assert!(pm.jacobian(&ss.x, at, &[], true).unwrap().kinks.is_empty());
     }
 
     /// `mvem.closed_loop`: 10 s of the WHTC give 1001 samples of every trajectory column and
@@ -1428,10 +1434,27 @@ mod tests {
     #[test]
     fn step_response_metrics_are_those_of_the_samples() {
         let d = [1500.0, 110.0, 80.0, 75.0];
+        // the metrics come from samples METRICS_DT apart whatever dt: at that dt they are
+        // those of the samples returned, and a coarser dt gives the same metrics
         let args = SimArgs {
-            dt: 0.02,
+            dt: mvem::analysis::experiment::METRICS_DT,
             ..SimArgs::default()
         };
+        let coarse = step_response(
+            d,
+            "u_vgt",
+            65.0,
+            "W_c",
+            1.0,
+            4.0,
+            SimArgs {
+                dt: 0.02,
+                ..SimArgs::default()
+            },
+            None,
+            Variant::default(),
+        )
+        .unwrap();
         let r = step_response(
             d,
             "u_vgt",
@@ -1448,6 +1471,8 @@ mod tests {
         assert_eq!(r.metrics.du, -10.0);
         let again = step_metrics(&r.t, &r.y, 1.0, r.metrics.y0, r.metrics.y_final, -10.0).unwrap();
         assert_eq!(again, r.metrics);
+        assert_eq!(coarse.metrics, r.metrics);
+        assert_eq!(coarse.t.len(), 201);
         let with = |input: &str, output: &str| {
             step_response(
                 d,

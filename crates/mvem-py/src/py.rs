@@ -772,7 +772,8 @@ fn frequency_response<'py>(
 /// [1/s]); "dc_gain" (p x 4 array, output units per input unit; None if A is singular);
 /// "zeros" {"u_vgt->W_c": complex array [1/s], ...} of every SISO channel (None where a kink
 /// lies on the channel); "mimo_zeros" of (u_delta, u_egr, u_vgt) -> (M_e, x_egr, lambda_O)
-/// when those outputs are present; "kinks" (list of str); "delays" [s] of (u_egr, u_vgt); with
+/// when those outputs are present; "kinks" (list of str); "one_sided" (list of str: inputs at a
+/// saturation limit, differenced on the inner side); "delays" [s] of (u_egr, u_vgt); with
 /// ts also "discrete": {"ts", "Phi", "Gamma", "C", "D" (arrays: dx(k+1) = Phi dx(k) + Gamma
 /// du(k), dy(k) = C dx(k) + D du(k)), "state_names" (the model's states, then the delay
 /// registers "u_egr(k-1)", ...), "input_names", "output_names", "delay_samples" [(whole
@@ -837,6 +838,8 @@ fn linearize<'py>(
     }
     let kinks: Vec<String> = l.kinks.iter().map(|k| k.to_string()).collect();
     out.set_item("kinks", PyList::new(py, kinks)?)?;
+    let one_sided: Vec<String> = l.one_sided.iter().map(|k| k.to_string()).collect();
+    out.set_item("one_sided", PyList::new(py, one_sided)?)?;
     out.set_item("delays", l.delays.to_vec())?;
     if let Some(dm) = &r.discrete {
         let dd = PyDict::new(py);

@@ -198,9 +198,12 @@ pub fn run(a: &Args) -> Result<()> {
     }
     for k in v["kinks"].as_array().into_iter().flatten() {
         eprintln!(
-            "warning: {}; the derivative is one-sided there: channels through it have no zeros (see zero_errors)",
+            "warning: {}; the slopes on the two sides differ there, and the central difference is their average: channels through it have no zeros or DC gains (see zero_errors)",
             k.as_str().unwrap_or_default()
         );
+    }
+    for k in v["one_sided"].as_array().into_iter().flatten() {
+        eprintln!("note: {}", k.as_str().unwrap_or_default());
     }
     if a.json {
         println!("{}", serde_json::to_string_pretty(&v)?);

@@ -20,7 +20,7 @@ use std::path::PathBuf;
 Examples:
   mvem map --axis u_egr=0:100:41 --axis u_vgt=20:100:41 --n-e 1500 --u-delta 110 --out map.csv --plot map.png
   mvem map --axis n_e=800:2000:25 --axis u_delta=20:240:23 --u-egr 50 --u-vgt 50 --plot-outputs lambda_O,M_e --plot load.svg
-  mvem map --axis u_vgt=20.5:100:33 --axis u_egr=0:100:33 --n-e 1500 --u-delta 110 --channel u_vgt->W_c --channel u_egr->p_im --plot sign.png
+  mvem map --axis u_vgt=20.5:100:33 --axis u_egr=0:100:33 --n-e 1500 --u-delta 110 --channel 'u_vgt->W_c' --channel 'u_egr->p_im' --plot sign.png
   mvem map --axis n_e=1000,1500,2000 --axis u_delta=50,150 --axis u_egr=0,50 --axis u_vgt=40,80 --out grid4.csv
 
 Axes: NAME=LO:HI:N (N evenly spaced values) or NAME=V1,V2,... (increasing), NAME one of n_e
@@ -59,8 +59,8 @@ pub struct Args {
         default_value = "lambda_O,x_egr,p_im,W_c,M_e,eta_c"
     )]
     pub plot_outputs: Vec<String>,
-    /// Worker threads (0: all cores).
-    #[arg(long, value_name = "N", default_value = "0")]
+    /// Worker threads (0: all cores; at most 1024).
+    #[arg(long, value_name = "N", default_value = "0", value_parser = common::threads_arg)]
     pub threads: usize,
     #[command(flatten)]
     pub model: ModelArgs,

@@ -78,8 +78,8 @@ pub struct SignArgs {
     /// Grid points per axis (2-400).
     #[arg(long, value_name = "N", default_value = "41")]
     pub n: usize,
-    /// Worker threads (0: all cores).
-    #[arg(long, value_name = "N", default_value = "0")]
+    /// Worker threads (0: all cores; at most 1024).
+    #[arg(long, value_name = "N", default_value = "0", value_parser = common::threads_arg)]
     pub threads: usize,
     #[command(flatten)]
     pub model: ModelArgs,

@@ -290,7 +290,7 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
     use mvem::model::meta::{state_from_named, NamedStateError};
     let src = source.display();
     let named: Vec<(String, f64)> = values.iter().map(|(k, v)| (k.clone(), *v)).collect();
-    state_from_named(&m.state_names(), &named).map_err(|e| {
+    let x = state_from_named(&m.state_names(), &named).map_err(|e| {
         common::usage(match e {
             NamedStateError::Unknown { name, states } => {
                 format!("{src}: field {name}: unknown state (the states are {states})")
@@ -300,7 +300,20 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
                 format!("{src}: field {name}: {value} is not finite")
             }
         })
-    })
+    })?;
+    // the integrator limits (the authors' limited integrators, items 9-12 and 37) clip the start
+    for ((name, (lo, hi)), v) in m.state_names().iter().zip(m.state_bounds()).zip(x) {
+        if v < lo || v > hi {
+            eprintln!(
+                "warning: {src}: field {name}: {} is outside the integrator limits [{}, {}]: the simulation starts from {}",
+                Num(v),
+                Num(lo),
+                Num(hi),
+                Num(v.clamp(lo, hi))
+            );
+        }
+    }
+    Ok(x)
 }
 
 /// Simulate from `initial` (or the steady state at the first inputs) into `into` (a streaming

@@ -119,6 +119,11 @@ pub struct StepCase {
     pub metrics: Vec<(String, Result<StepMetrics, String>)>,
     /// Whether both steady states are physically valid (flags otherwise).
     pub flags: Vec<String>,
+    /// The step's size and the tolerances it was simulated at, when they were scaled down
+    /// from the given ones ([`experiment::step_tolerance`]).
+    pub scaled_tolerance: Option<(f64, f64, f64)>,
+    /// Whether the response stands out of the integration error ([`experiment::StepRun::resolved`]).
+    pub resolved: bool,
 }
 
 pub use mvem::analysis::experiment::steady_value;
@@ -149,6 +154,9 @@ pub fn run_step<const N: usize, M: Model<N>>(
         .map(|name| (name.clone(), run.metrics(name).map_err(|e| e.to_string())))
         .collect();
     let flags = run.flags();
+    let scaled_tolerance = (run.opts_used.rtol < opts.rtol || run.opts_used.atol < opts.atol)
+        .then_some((run.size, run.opts_used.rtol, run.opts_used.atol));
+    let resolved = run.resolved();
     Ok(StepCase {
         input,
         before,
@@ -157,12 +165,19 @@ pub fn run_step<const N: usize, M: Model<N>>(
         sol: run.sol,
         metrics,
         flags,
+        scaled_tolerance,
+        resolved,
     })
 }
 
 /// Run `mvem step`.
 pub fn run(a: &Args) -> Result<()> {
     let slot = a.input.slot();
+    for (what, v) in [("--from", a.from), ("--to", Some(a.to))] {
+        if let Some(v) = v.filter(|v| !v.is_finite()) {
+            return Err(common::usage(format!("{what} {v}: must be finite")));
+        }
+    }
     let given = a.point.given();
     let mut v = [0.0; 4];
     for k in 0..4 {
@@ -249,6 +264,14 @@ pub fn run(a: &Args) -> Result<()> {
     for f in &case.flags {
         eprintln!("warning: not physically valid: {f}");
     }
+    if let Some((size, rtol, atol)) = case.scaled_tolerance {
+        eprintln!(
+            "note: the step moves the air-path states by {size:.2e} of their magnitude: simulated at rtol {rtol:.1e}, atol {atol:.1e} (the tolerances scaled to the step's size; docs/analysis.md)"
+        );
+    }
+    if !case.resolved {
+        eprintln!("warning: {UNRESOLVED}");
+    }
     // render before writing anything
     let fig = match &a.plot {
         Some(p) => Some((p, plot::render(&figure(&case, None), plot::Format::of(p)?)?)),
@@ -270,6 +293,9 @@ pub fn run(a: &Args) -> Result<()> {
     Ok(())
 }
 
+/// The warning of a step that the integration cannot resolve.
+const UNRESOLVED: &str = "the step hardly moves the engine (the air-path states by less than 100 times the integration tolerance): the wrong-way, overshoot, rise and settling figures describe the integration error, not a response; the DC gains (from the steady states) hold";
+
 fn to_json(c: &StepCase) -> Value {
     let t_end = c.sol.t().last().copied().unwrap_or(c.t_step);
     let spec = StepSpec {
@@ -279,7 +305,15 @@ fn to_json(c: &StepCase) -> Value {
         t_step: c.t_step,
         t_end,
     };
-    step_json(&spec, &c.flags, &c.metrics)
+    let mut warnings = c.flags.clone();
+    if !c.resolved {
+        warnings.push(UNRESOLVED.to_string());
+    }
+    let mut v = step_json(&spec, &warnings, &c.metrics);
+    if let Some((size, rtol, atol)) = c.scaled_tolerance {
+        v["tolerance"] = serde_json::json!({"step_size": size, "rtol": rtol, "atol": atol});
+    }
+    v
 }
 
 fn fmt_opt(v: Option<f64>) -> String {

@@ -119,7 +119,8 @@ def linearize(
     "input_names" order (u_delta [mg], u_egr [%], u_vgt [%], n_e [rpm]); "state_names",
     "output_names"; "x0", "u0", "y0"; "eigenvalues" (complex array [1/s]); "dc_gain"
     (p x 4, output units per input unit, or None); "zeros" {"u_vgt->W_c": complex array or
-    None}; "mimo_zeros" (complex array or None); "kinks" (list of str); "delays" [s].
+    None}; "mimo_zeros" (complex array or None); "kinks" (list of str); "one_sided" (list of str);
+    "delays" [s].
     ts [s] (1e-3 to 100, with pade_order 0): also "discrete", the model sampled with a
     zero-order hold, delays exact: {"ts", "Phi", "Gamma", "C", "D", "state_names" (states, then
     the registers "u_egr(k-1)", ...), "input_names", "output_names", "delay_samples" [(whole,
@@ -194,7 +195,9 @@ def step_response(
     params: Params = None,
     model: ModelOrder = 8,
 ) -> Dict[str, Any]:
-    """Simulate a step of `input` to `to` at t_step [s]; StepMetrics of `output` plus "t", "y"."""
+    """Simulate a step of `input` to `to` at t_step [s]; StepMetrics of `output` plus "t", "y"
+    (sampled every dt; the metrics from samples at most 5 ms apart, at a tolerance scaled to
+    the step's size: docs/analysis.md)."""
 
 def published_params() -> Dict[str, Dict[str, Union[float, List[float], List[List[float]]]]]:
     """The published parameter set as a nested dict (SI units)."""

@@ -266,6 +266,14 @@ fn linear_json(
         "kinks".into(),
         json!(lin.kinks.iter().map(|k| k.to_string()).collect::<Vec<_>>()),
     );
+    o.insert(
+        "one_sided".into(),
+        json!(lin
+            .one_sided
+            .iter()
+            .map(|k| k.to_string())
+            .collect::<Vec<_>>()),
+    );
     Value::Object(o)
 }
 

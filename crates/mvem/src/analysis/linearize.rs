@@ -154,6 +154,40 @@ impl fmt::Display for Kink {
     }
 }
 
+/// An input direction whose operating point sits at a limit of the input's saturation (the
+/// authors' items 1-4: u_vgt at 20 %, n_e at the parameter set's top speed, ...): beyond the
+/// limit the input has no effect, so the central difference would average the inner slope with
+/// zero. The column is the one-sided derivative on the inner side instead (the linear model of
+/// the moves the input can make).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OneSided {
+    /// The input (`u_vgt`, or with Padé states `u_vgt(now)` / `u_vgt(delayed)`).
+    pub variable: String,
+    /// The input's value at the operating point (its unit).
+    pub value: f64,
+    /// The limit it sits at (its unit).
+    pub limit: f64,
+    /// +1: the derivative is taken upward (the point sits at the lower limit), -1 downward.
+    pub side: i8,
+}
+
+impl fmt::Display for OneSided {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (which, dir, beyond) = if self.side > 0 {
+            ("lower", "upward", "below")
+        } else {
+            ("upper", "downward", "above")
+        };
+        write!(
+            f,
+            "{} = {} sits at its {which} saturation limit {}: its column is the one-sided derivative {dir} (the input has no effect {beyond} the limit)",
+            self.variable,
+            crate::numerics::Num(self.value),
+            crate::numerics::Num(self.limit)
+        )
+    }
+}
+
 /// Why no linear model was returned.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LinearizeError {
@@ -229,6 +263,9 @@ pub struct LinearModel {
     pub output_scales: Vec<f64>,
     /// Kinks found in the difference stencils (empty for a smooth point).
     pub kinks: Vec<Kink>,
+    /// Input directions at a saturation limit, differenced on the inner side only
+    /// ([`OneSided`]; not kinks).
+    pub one_sided: Vec<OneSided>,
     /// Largest last Richardson correction, relative to the row's largest scaled entry (an
     /// upper estimate of the error of the previous extrapolation order; 0 with `richardson = 0`).
     pub correction: f64,
@@ -543,6 +580,19 @@ fn linearize_impl<const N: usize, M: Model<N>>(
         }
     };
     let mut kinks: Vec<Kink> = Vec::new();
+    let mut one_sided: Vec<OneSided> = Vec::new();
+    let sem = m.options().semantics;
+    let (egr_lim, vgt_lim) = crate::model::command_saturation(sem);
+    let sat = &m.params().input_saturation;
+    let input_limits = |k: usize| -> (f64, f64) {
+        match k {
+            _ if !sem.authors() => (f64::NEG_INFINITY, f64::INFINITY),
+            0 => (sat.u_delta[0], sat.u_delta[1]),
+            1 => egr_lim,
+            2 => vgt_lim,
+            _ => (sat.n_e[0], sat.n_e[1]),
+        }
+    };
     for c in 0..ndir {
         if switched[c] == 0 && !(0..nrow).any(|r| is_inconsistent(c, r, &incons)) {
             continue;
@@ -562,6 +612,36 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             }
         }
         if switched[c] != 0 || !bad.is_empty() {
+            // an input at a limit of its saturation: the inner side's derivative
+            if let Dir::Input { k, .. } = dirs[c] {
+                let (lo, hi) = input_limits(k);
+                let reach = h0[c] * f64::from(1u32 << (levels + 1));
+                let at = if (v0s[c] - lo).abs() <= reach {
+                    Some((lo, 1i8))
+                } else if (hi - v0s[c]).abs() <= reach {
+                    Some((hi, -1i8))
+                } else {
+                    None
+                };
+                if let Some((limit, side)) = at {
+                    // from the limit itself, so that the whole stencil lies inside
+                    let sw = differ.one_sided_column(&dirs[c], limit, h0[c], side, &mut work);
+                    evaluations += levels + 1;
+                    if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                        return Err(non_finite(c, r, work.d[r]));
+                    }
+                    if sw == 0 {
+                        store(c, &work, &mut jac, &mut incons, &mut corr);
+                        one_sided.push(OneSided {
+                            variable: dir_name(&dirs[c]),
+                            value: v0s[c],
+                            limit,
+                            side,
+                        });
+                        continue;
+                    }
+                }
+            }
             kinks.push(Kink {
                 variable: dir_name(&dirs[c]),
                 guards: Guard::ALL
@@ -700,6 +780,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
         input_scales: INPUT_SCALES.to_vec(),
         output_scales,
         kinks,
+        one_sided,
         correction,
         kink_score,
         pade_order: pade,
@@ -811,6 +892,62 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
             w.d[r] = if *dir == Dir::State(i) { 1.0 } else { 0.0 };
             w.corr[r] = 0.0;
             w.incons[r] = 0.0;
+        }
+        switched
+    }
+}
+
+impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
+    /// Richardson-extrapolated one-sided differences of every row in direction `dir` from the
+    /// value `v_from` (the saturation limit, where f equals `f0` since the point sits there),
+    /// steps `side * h, 2 h, ..., 2^L h`: `R_{k,j} = (2^j R_{k,j-1} - R_{k+1,j-1}) / (2^j - 1)`
+    /// (`O(h^(L+1))`), into `w.d`, `w.corr` (`w.incons` zero); returns the guard bits that
+    /// switch on that side.
+    fn one_sided_column(&self, dir: &Dir, v_from: f64, h: f64, side: i8, w: &mut Work) -> u32 {
+        let nrow = self.f0.len();
+        let levels = self.levels;
+        let mut switched = 0u32;
+        let (x0, u0) = perturbed(self.x, &self.u_base, dir, v_from);
+        let e0 = self.m.eval(&x0, &u0, self.mem);
+        let mut f_from = vec![0.0; nrow];
+        self.rows.fill(&e0.dx, &e0.signals, &mut f_from);
+        let g_from = e0.signals.guards;
+        for lev in 0..=levels {
+            let v = v_from + f64::from(side) * h * f64::from(1u32 << lev);
+            let (xx, uu) = perturbed(self.x, &self.u_base, dir, v);
+            let e = self.m.eval(&xx, &uu, self.mem);
+            self.rows.fill(&e.dx, &e.signals, &mut w.fp);
+            // a guard that switches between the limit and the inner side
+            switched |= e.signals.guards ^ g_from;
+            let inv = 1.0 / (v - v_from);
+            let dl = &mut w.dk[lev * nrow..(lev + 1) * nrow];
+            for r in 0..nrow {
+                dl[r] = (w.fp[r] - f_from[r]) * inv;
+            }
+        }
+        for r in 0..nrow {
+            let mut t = [0.0; 4];
+            for (lev, tv) in t.iter_mut().enumerate().take(levels + 1) {
+                *tv = w.dk[lev * nrow + r];
+            }
+            let mut last = 0.0;
+            for j in 1..=levels {
+                let wj = 1.0 / (f64::from(1u32 << j) - 1.0);
+                for k in 0..=(levels - j) {
+                    let delta = (t[k] - t[k + 1]) * wj;
+                    if k == 0 {
+                        last = delta;
+                    }
+                    t[k] += delta;
+                }
+            }
+            w.d[r] = t[0];
+            w.corr[r] = last.abs();
+            w.incons[r] = 0.0;
+        }
+        for &(r, i) in &self.state_rows {
+            w.d[r] = if *dir == Dir::State(i) { 1.0 } else { 0.0 };
+            w.corr[r] = 0.0;
         }
         switched
     }

@@ -105,7 +105,8 @@ pub enum StepError {
         /// Which quantity.
         what: &'static str,
     },
-    /// The final value equals the initial value or the input does not change: nothing to normalize by.
+    /// The final value equals the initial value (to [`StepMetrics::ZERO`] of its magnitude) or
+    /// the input does not change: nothing to normalize by.
     #[error("step metrics: zero {what}; the response has no direction")]
     Zero {
         /// "final change" or "input change".
@@ -119,6 +120,10 @@ impl StepMetrics {
     pub const THRESHOLD: f64 = 0.005;
     /// Settling band: 2 % of |final change|.
     pub const BAND: f64 = 0.02;
+    /// A final change up to this fraction of max(|y0|, |y_final|) is zero (rounding of the
+    /// steady states, e.g. a channel without gain where the EGR valve has no flow): no
+    /// direction, no metrics.
+    pub const ZERO: f64 = 1e-9;
     /// Wrong-way excursions up to this fraction of |final change| are rounding noise (not reported).
     pub const NOISE: f64 = 1e-9;
 
@@ -149,7 +154,7 @@ impl StepMetrics {
             return Err(StepError::NonFinite { what: "sample" });
         }
         let change = y_final - y0;
-        if change == 0.0 {
+        if change.abs() <= Self::ZERO * y0.abs().max(y_final.abs()) {
             return Err(StepError::Zero {
                 what: "final change",
             });
