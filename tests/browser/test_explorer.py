@@ -604,3 +604,48 @@ def test_linear_model_panel(page, server):
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "ts" in page.text_content("#lin-error") and "sample time" in page.text_content("#lin-error")
     _take_console_400(page)
+
+
+def _api_requests(page):
+    """The list of the API paths the page requests from now on (appended as they go out)."""
+    sent = []
+    page.on("request", lambda r: sent.append(r.url.split("/", 3)[3]) if "/api/" in r.url else None)
+    return sent
+
+
+def test_a_field_without_a_number_is_named_and_sends_nothing(page):
+    """A number field left blank, or holding what Chromium cannot read as a number ("1e400",
+    which it holds as ""), is named as not a number by every panel, and no request goes out
+    (it used to be sent as 0: Number("") is 0)."""
+    sent = _api_requests(page)
+    for entry in ("", "1e400"):
+        page.fill("input[name=n_e]", entry)
+        page.wait_for_function(
+            "document.querySelector('#steady-error').textContent.includes('n_e: not a number')")
+        for action, err in (("step", "#step-error"), ("linearize", "#lin-error"), ("map", "#map-error"),
+                            ("margins", "#margins-error")):
+            page.click(f"[data-action={action}]")
+            page.wait_for_function(
+                f"document.querySelector('{err}').textContent.includes('n_e: not a number')")
+            assert page.is_visible(err), action
+        page.select_option("select[name=model]", "12")  # a steady-state request without its n_e
+        page.select_option("select[name=model]", "8")
+        page.wait_for_timeout(100)
+        assert sent == [], sent
+    page.fill("input[name=n_e]", "1500")
+    for name, label in (("step_target", "step to"), ("step_horizon", "horizon")):
+        old = page.input_value(f"input[name={name}]")
+        page.fill(f"input[name={name}]", "")
+        page.click("[data-action=step]")
+        page.wait_for_function(
+            f"document.querySelector('#step-error').textContent.includes('{label}: not a number')")
+        page.fill(f"input[name={name}]", old)
+    for name, label in (("map_x_lo", "x from"), ("map_n", "points")):
+        old = page.input_value(f"input[name={name}]")
+        page.fill(f"input[name={name}]", "")
+        page.click("[data-action=map]")
+        page.wait_for_function(
+            f"document.querySelector('#map-error').textContent.includes('{label}: not a number')")
+        page.fill(f"input[name={name}]", old)
+    assert not any(p.startswith(("api/step", "api/map")) for p in sent), sent
+    page.wait_for_selector("#steady-error", state="hidden")

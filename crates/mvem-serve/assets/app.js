@@ -60,9 +60,42 @@
     if (e) { el.textContent = String(e.message || e); el.hidden = false; } else { el.hidden = true; el.textContent = ""; }
   }
 
+  // the number in the number field `name`, or an error naming the field (`label`): blank, or
+  // an entry the browser cannot read as a number (it holds "1e400" or "15abc" as ""), is not
+  // a 0 (Number("") is 0): no request goes out with it
+  function num(name, label = name) {
+    const el = $(`input[name=${name}]`);
+    const s = el.value.trim();
+    const v = s === "" ? NaN : Number(s);
+    if (!Number.isFinite(v)) {
+      const why = s !== "" ? `"${s}"` : el.validity.badInput ? "an entry the browser cannot read as one" : "empty";
+      const e = new Error(`${label}: not a number (${why})`);
+      e.kind = "input";
+      throw e;
+    }
+    return v;
+  }
+
+  // an optional number field: undefined when left empty (an entry that is not a number is
+  // an error naming it)
+  function optNum(name, label = name) {
+    const el = $(`input[name=${name}]`);
+    return el.value.trim() === "" && !el.validity.badInput ? undefined : num(name, label);
+  }
+
+  // the operating point of the four number fields (an error naming a field that holds no number)
   function point() {
     const p = {};
-    for (const n of INPUTS) p[n] = Number($(`input[name=${n}]`).value);
+    for (const n of INPUTS) p[n] = num(n);
+    return p;
+  }
+  // the same without the check (a field without a number is null): the key of a shown result
+  function pointKey() {
+    const p = {};
+    for (const n of INPUTS) {
+      const s = $(`input[name=${n}]`).value.trim();
+      p[n] = s === "" ? null : Number(s);
+    }
     return p;
   }
   const modelSel = () => ({ model: Number($("select[name=model]").value), params: $("select[name=params]").value || undefined });
@@ -99,9 +132,9 @@
     if (app.inflight) { app.again = true; return; }
     app.inflight = true;
     const seq = ++app.seq;
-    const q = new URLSearchParams({ ...point(), model: modelSel().model });
-    if (modelSel().params) q.set("params", modelSel().params);
     try {
+      const q = new URLSearchParams({ ...point(), model: modelSel().model });
+      if (modelSel().params) q.set("params", modelSel().params);
       const j = await api(`/api/steady?${q}`);
       showSteady(j, seq);
       showError("#steady-error", null);
@@ -160,9 +193,11 @@
       const num = $(`input[name=${n}]`);
       const sl = $(`input[data-slider=${n}]`);
       sl.addEventListener("input", () => { num.value = sl.value; scheduleSteady(); });
+      // (a field without a number is named by the steady state's error, no request made)
       num.addEventListener("input", () => {
         const v = Number(num.value);
-        if (num.value !== "" && Number.isFinite(v)) { sl.value = String(v); scheduleSteady(); }
+        if (num.value !== "" && Number.isFinite(v)) sl.value = String(v);
+        scheduleSteady();
       });
     }
     $("select[name=model]").addEventListener("change", scheduleSteady);
@@ -299,7 +334,7 @@
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
   // the point, model and parameter set a linearization was asked for, as a key and as text
-  const linearKey = () => JSON.stringify([point(), modelSel()]);
+  const linearKey = () => JSON.stringify([pointKey(), modelSel()]);
   function linearAt() {
     const p = point();
     return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states`;
@@ -335,8 +370,8 @@
     await busy("[data-action=linearize]", "linearizing…", "#lin-error", async () => {
       const q = new URLSearchParams({ ...point(), model: modelSel().model });
       if (modelSel().params) q.set("params", modelSel().params);
-      const ts = $("input[name=lin_ts]").value.trim();
-      if (ts !== "") q.set("ts", ts);
+      const ts = optNum("lin_ts", "sample time");
+      if (ts !== undefined) q.set("ts", String(ts));
       q.set("bode", bodeGrid());
       const key = linearKey();
       const at = linearAt();
@@ -354,11 +389,8 @@
   // (empty: 0.01 and 100 Hz), checked by the server (a bad range is its 400, naming `bode`)
   const BODE_POINTS = 200;
   function bodeGrid() {
-    const v = (name, dflt) => {
-      const s = $(`input[name=${name}]`).value.trim();
-      return s === "" ? dflt : s;
-    };
-    return `${v("bode_fmin", "0.01")}:${v("bode_fmax", "100")}:${BODE_POINTS}`;
+    const v = (name, label, dflt) => optNum(name, label) ?? dflt;
+    return `${v("bode_fmin", "Bode from", 0.01)}:${v("bode_fmax", "Bode to", 100)}:${BODE_POINTS}`;
   }
 
   // the channel menu of the Bode diagram (the previous choice kept when the new model has it)
@@ -503,8 +535,8 @@
 
   async function runStep() {
     await busy("[data-action=step]", "running step…", "#step-error", async () => {
-      const body = { point: point(), input: $("select[name=step_input]").value, target: Number($("input[name=step_target]").value),
-        horizon: Number($("input[name=step_horizon]").value), ...modelSel() };
+      const body = { point: point(), input: $("select[name=step_input]").value, target: num("step_target", "step to"),
+        horizon: num("step_horizon", "horizon"), ...modelSel() };
       const j = await api("/api/step", body);
       app.step = j;
       drawStep(j);
@@ -567,11 +599,11 @@
 
   async function runMap() {
     await busy("[data-action=map]", "computing map…", "#map-error", async () => {
-      const n = Math.round(Number($("input[name=map_n]").value));
+      const n = Math.round(num("map_n", "points"));
       const body = {
         base: point(),
-        x: { input: $("select[name=map_x]").value, lo: Number($("input[name=map_x_lo]").value), hi: Number($("input[name=map_x_hi]").value), n },
-        y: { input: $("select[name=map_y]").value, lo: Number($("input[name=map_y_lo]").value), hi: Number($("input[name=map_y_hi]").value), n },
+        x: { input: $("select[name=map_x]").value, lo: num("map_x_lo", "x from"), hi: num("map_x_hi", "x to"), n },
+        y: { input: $("select[name=map_y]").value, lo: num("map_y_lo", "y from"), hi: num("map_y_hi", "y to"), n },
         channel: { input: $("select[name=map_input]").value, output: $("select[name=map_output]").value },
         ...modelSel(),
       };
@@ -981,8 +1013,8 @@
     $("[data-download=steady]").addEventListener("click", () => {
       const j = app.steady;
       if (!j) return;
+      // (the inputs n_e ... u_vgt are signals of the answer: the values the model applied)
       const rows = [["name", "value", "unit"]];
-      for (const n of INPUTS) rows.push([n, point()[n], unit(n)]);
       for (const [k, v] of Object.entries(j)) if (typeof v === "number") rows.push([k, v, unit(k)]);
       rows.push(["physically_valid", j.physically_valid, ""], ["flags", (j.flags || []).join(";"), ""]);
       download("steady.csv", rows);
