@@ -649,3 +649,63 @@ def test_a_field_without_a_number_is_named_and_sends_nothing(page):
         page.fill(f"input[name={name}]", old)
     assert not any(p.startswith(("api/step", "api/map")) for p in sent), sent
     page.wait_for_selector("#steady-error", state="hidden")
+
+
+def test_a_failed_steady_state_says_what_failed(page):
+    """A steady state that fails is labelled by what failed (not always "no equilibrium"), the
+    values left in the table are marked as the last point's, and the header's status shows
+    the error until a steady state succeeds again; while two computations run, the end of one
+    does not make the status "ready"."""
+    def label():
+        return page.text_content("#validity")
+
+    page.fill("input[name=n_e]", "")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("not a number"), label()
+    assert page.get_attribute("#status", "data-status") == "error"
+    assert page.text_content("#status") == "steady state: not a number"
+    page.fill("input[name=n_e]", "1500")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    assert page.get_attribute("#validity", "data-valid") == "true"
+    assert page.text_content("#status") == "ready"
+    # the server gone (the request aborted: fetch's "Failed to fetch")
+    page.route("**/api/steady*", lambda r: r.abort())
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("server unreachable"), label()
+    assert "Failed to fetch" in page.text_content("#steady-error")
+    assert page.text_content("#status") == "steady state: server unreachable"
+    page.unroute("**/api/steady*")
+    # a 422 of the server: no equilibrium
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    page.route("**/api/steady*", lambda r: r.fulfill(status=422, content_type="application/json",
+                                                      body='{"error": "steady state: no equilibrium found"}'))
+    page.fill("input[name=u_vgt]", "74")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("no equilibrium"), label()
+    page.unroute("**/api/steady*")
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    # two computations: the cycle held back by the test while a step runs and ends
+    held = []
+    page.route("**/api/simulate", lambda r: held.append(r))
+    page.click("[data-action=cycle]")
+    page.wait_for_function("document.querySelector('#status').textContent.includes('simulating')")
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    page.wait_for_function("document.querySelector('[data-action=step]').disabled === false")
+    assert page.get_attribute("#status", "data-status") == "busy", page.text_content("#status")
+    assert "simulating" in page.text_content("#status")
+    for _ in range(100):
+        if held:
+            break
+        page.wait_for_timeout(50)
+    held[0].continue_()
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    page.wait_for_selector("#status[data-status=ok]")
+    page.unroute("**/api/simulate")
+    # Chromium's console lines of the failed requests the test provoked
+    page.wait_for_timeout(200)
+    page.console_errors[:] = [e for e in page.console_errors
+                              if "net::ERR_FAILED" not in e and "status of 422" not in e]

@@ -40,19 +40,57 @@
     return td;
   }
 
+  // the server's JSON answer; a failure is an Error with its `kind`: "network" (no answer:
+  // the server is gone), or "http" with the `status` of the answer
   async function api(path, body) {
     const opts = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
-    const r = await fetch(path, opts);
+    let r;
+    try {
+      r = await fetch(path, opts);
+    } catch (e) {
+      const err = new Error(`server unreachable (${e.message})`);
+      err.kind = "network";
+      throw err;
+    }
     let j = null;
     try { j = await r.json(); } catch (_) { j = null; }
-    if (!r.ok) throw new Error((j && j.error) || `HTTP ${r.status}`);
+    if (!r.ok) {
+      const err = new Error((j && j.error) || `HTTP ${r.status}`);
+      err.kind = "http";
+      err.status = r.status;
+      throw err;
+    }
     return j;
   }
 
+  // what went wrong, in a few words (the label of a failed steady state)
+  function errorKind(e) {
+    if (e.kind === "input") return "not a number";
+    if (e.kind === "network") return "server unreachable";
+    if (e.kind !== "http") return "error";
+    return { 400: "refused: bad input", 422: "no equilibrium", 503: "server busy" }[e.status] || `error (HTTP ${e.status})`;
+  }
+
+  // the header's status: busy while any computation runs (each button's job counted, so one
+  // that ends does not say "ready" while another still runs), else the standing error (the
+  // steady state's, or an unreachable server's), else ready
+  const jobs = new Map();
+  let jobSeq = 0;
+  app.statusError = null;
   function setStatus(s, text) {
     const el = $("#status");
     el.dataset.status = s;
     el.textContent = text || s;
+  }
+  function refreshStatus() {
+    if (jobs.size) {
+      const texts = [...jobs.values()];
+      setStatus("busy", texts[texts.length - 1] + (jobs.size > 1 ? ` (${jobs.size} computations)` : ""));
+    } else if (app.statusError) {
+      setStatus("error", app.statusError.text);
+    } else {
+      setStatus("ok", "ready");
+    }
   }
 
   function showError(id, e) {
@@ -138,10 +176,20 @@
       const j = await api(`/api/steady?${q}`);
       showSteady(j, seq);
       showError("#steady-error", null);
+      $("table.signals").dataset.stale = "false";
+      app.statusError = null;
+      refreshStatus();
     } catch (e) {
+      // the label says what failed; the values left in the table are marked as the last
+      // point's, and the header shows the error
       showError("#steady-error", e);
+      const kind = errorKind(e);
       $("#validity").dataset.valid = "";
-      $("#validity").textContent = "no equilibrium";
+      $("#validity").dataset.error = e.kind === "http" ? String(e.status) : (e.kind || "error");
+      $("#validity").textContent = app.steady ? `${kind} (the values below are of the last point computed)` : kind;
+      $("table.signals").dataset.stale = "true";
+      app.statusError = { source: "steady", text: `steady state: ${kind}` };
+      refreshStatus();
     } finally {
       app.inflight = false;
       if (app.again) { app.again = false; requestSteady(); }
@@ -158,6 +206,7 @@
       td.textContent = fmt(v);
     }
     const ok = j.physically_valid === true;
+    delete $("#validity").dataset.error;
     $("#validity").dataset.valid = String(ok);
     $("#validity").textContent = ok ? "✓ physically valid" : "✗ NOT physically valid";
     const flags = $("#flags");
@@ -354,15 +403,20 @@
   async function busy(button, text, errorId, work) {
     const btn = $(button);
     btn.disabled = true;
-    setStatus("busy", text);
+    const id = ++jobSeq;
+    jobs.set(id, text);
+    refreshStatus();
     try {
       await work();
       showError(errorId, null);
+      if (app.statusError && app.statusError.source === "network") app.statusError = null;
     } catch (e) {
       showError(errorId, e);
+      if (e.kind === "network") app.statusError = { source: "network", text: "server unreachable" };
     } finally {
       btn.disabled = false;
-      setStatus("ok", "ready");
+      jobs.delete(id);
+      refreshStatus();
     }
   }
 
@@ -1077,9 +1131,10 @@
       $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
       if (m.controller_tuning) buildTuning(m.controller_tuning);
       showCycleMode();
-      setStatus("ok", "ready");
+      refreshStatus();
     } catch (e) {
-      setStatus("error", `server: ${e.message}`);
+      app.statusError = { source: "network", text: `server: ${e.message}` };
+      refreshStatus();
     }
     buildSignalTable();
     requestSteady();
