@@ -709,3 +709,19 @@ def test_a_failed_steady_state_says_what_failed(page):
     page.wait_for_timeout(200)
     page.console_errors[:] = [e for e in page.console_errors
                               if "net::ERR_FAILED" not in e and "status of 422" not in e]
+
+
+def test_a_cycle_file_chosen_again_is_read_again(page, tmp_path):
+    """Choosing a file of the same name again after editing it runs the new content (the file
+    input is emptied after reading, so the second choice is a change)."""
+    mine = tmp_path / "mine.csv"
+    mine.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n4,1500,110,80,75\n")
+    page.set_input_files("input[name=cycle_file]", str(mine))
+    page.wait_for_selector("select[name=cycle] option[value=__file]", state="attached")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn='21']", timeout=60000)  # 0..4 s
+    mine.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n6,1500,110,80,75\n")
+    page.set_input_files("input[name=cycle_file]", str(mine))
+    page.wait_for_function("window.mvem.cycleFile.text.includes('\\n6,1500')")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn='31']", timeout=60000)  # 0..6 s

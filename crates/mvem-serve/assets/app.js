@@ -856,9 +856,15 @@
   // a user's cycle file: read once, then one more entry of the cycle menu
   const FILE_CYCLE = "__file";
   async function loadCycleFile() {
-    const f = $("input[name=cycle_file]").files[0];
+    const inp = $("input[name=cycle_file]");
+    const f = inp.files[0];
     if (!f) return;
-    app.cycleFile = { name: f.name, text: await f.text() };
+    try {
+      app.cycleFile = { name: f.name, text: await f.text() };
+    } finally {
+      // emptied: choosing the same file again (edited since) is a change that reads it again
+      inp.value = "";
+    }
     const sel = $("select[name=cycle]");
     let opt = sel.querySelector(`option[value="${FILE_CYCLE}"]`);
     if (!opt) { opt = new Option("", FILE_CYCLE); sel.append(opt); }
