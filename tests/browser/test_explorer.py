@@ -725,3 +725,27 @@ def test_a_cycle_file_chosen_again_is_read_again(page, tmp_path):
     page.wait_for_function("window.mvem.cycleFile.text.includes('\\n6,1500')")
     page.click("[data-action=cycle]")
     page.wait_for_selector("canvas[data-plot=cycle][data-drawn='31']", timeout=60000)  # 0..6 s
+
+
+def test_a_map_axis_spans_its_inputs_range(page):
+    """Choosing a map axis's input sets its range to that input's slider range (one slider
+    step inside the ends, as the defaults u_egr 0.5-99.5 %, u_vgt 20.5-99.5 %), the parameter
+    set's for n_e and u_delta; it used to keep the old range (n_e over 0.5-99.5 rpm)."""
+    def rng(a):
+        return [float(page.input_value(f"input[name=map_{a}_lo]")), float(page.input_value(f"input[name=map_{a}_hi]"))]
+
+    assert rng("x") == [0.5, 99.5] and rng("y") == [20.5, 99.5]
+    page.select_option("select[name=map_x]", "n_e")
+    assert rng("x") == [510, 1990]
+    page.select_option("select[name=map_y]", "u_delta")
+    assert rng("y") == [2, 249]
+    page.select_option("select[name=params]", "wide")
+    assert rng("x") == [610, 3190] and rng("y") == [3, 179]
+    page.select_option("select[name=map_y]", "u_egr")
+    assert rng("y") == [0.5, 99.5]
+    page.select_option("select[name=params]", "published")
+    assert rng("x") == [510, 1990] and rng("y") == [0.5, 99.5]
+    page.fill("input[name=map_n]", "3")
+    page.click("[data-action=map]")
+    page.wait_for_selector("canvas[data-plot=map][data-cells='9']", timeout=60000)
+    assert page.evaluate("window.mvem.map.x.values") == [510, 1250, 1990]

@@ -250,7 +250,24 @@
       });
     }
     $("select[name=model]").addEventListener("change", scheduleSteady);
-    $("select[name=params]").addEventListener("change", () => { applyInputRanges(); scheduleSteady(); });
+    $("select[name=params]").addEventListener("change", () => {
+      applyInputRanges();
+      // a map axis of n_e or u_delta follows the parameter set's range
+      for (const a of ["x", "y"]) if (["n_e", "u_delta"].includes($(`select[name=map_${a}]`).value)) applyMapRange(a);
+      scheduleSteady();
+    });
+    for (const a of ["x", "y"]) $(`select[name=map_${a}]`).addEventListener("change", () => applyMapRange(a));
+  }
+
+  // a map axis's range when its input is chosen: the input's slider range (the parameter
+  // set's for n_e and u_delta) one slider step inside its ends, as the defaults (u_egr
+  // 0.5-99.5 %, u_vgt 20.5-99.5 %: the saturation's kinks at the ends have no DC gain)
+  function applyMapRange(axis) {
+    const sl = $(`input[data-slider=${$(`select[name=map_${axis}]`).value}]`);
+    const step = Number(sl.step) || 0;
+    const round = (v) => String(Number(v.toPrecision(12)));
+    $(`input[name=map_${axis}_lo]`).value = round(Number(sl.min) + step);
+    $(`input[name=map_${axis}_hi]`).value = round(Number(sl.max) - step);
   }
 
   // the n_e and u_delta sliders span the selected parameter set's input saturation (/api/models
