@@ -749,3 +749,49 @@ def test_a_map_axis_spans_its_inputs_range(page):
     page.click("[data-action=map]")
     page.wait_for_selector("canvas[data-plot=map][data-cells='9']", timeout=60000)
     assert page.evaluate("window.mvem.map.x.values") == [510, 1250, 1990]
+
+
+def _canvas_sizes(page):
+    """Per drawn canvas: its bitmap's size and its shown size (inside the border) in CSS px."""
+    return page.eval_on_selector_all("canvas[data-drawn]", """cs => cs.map(c => ({
+        plot: c.dataset.plot, width: c.width, height: c.height,
+        shownW: c.clientWidth, shownH: c.clientHeight, dpr: window.devicePixelRatio}))""")
+
+
+@pytest.mark.parametrize("width,height,dpr", [(1024, 700, 1), (2560, 1440, 2)])
+def test_figures_are_drawn_at_their_shown_size(browser, server, width, height, dpr):
+    """A canvas's bitmap is its shown size times devicePixelRatio (it used to stay 900 px wide,
+    shrunk to 522 px with 6 px text at 1024 px, blurred at 2560 px on a 2x screen), and no table
+    makes the page scroll sideways (the channel table and the loop margins along the run
+    scroll inside their panels)."""
+    ctx = browser.new_context(viewport={"width": width, "height": height}, device_scale_factor=dpr)
+    page = ctx.new_page()
+    errors = []
+    page.on("console", lambda m: errors.append(m.text) if m.type in ("error", "warning") else None)
+    page.goto(server)
+    page.wait_for_selector("body[data-state=ready]", timeout=15000)
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn]", timeout=30000)
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.check("input[name=cycle_margins]")
+    page.fill("input[name=cycle_margins_every]", "60")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle-margins][data-drawn]", timeout=120000)
+    page.fill("input[name=cycle_t]", "4000")
+    page.dispatch_event("input[name=cycle_t]", "input")  # the cursor: no getImageData warning
+    sizes = _canvas_sizes(page)
+    assert {s["plot"] for s in sizes} == {"step", "bode", "cycle", "cycle-margins"}, sizes
+    for s in sizes:
+        assert s["dpr"] == dpr
+        assert s["width"] == round(s["shownW"] * dpr) and s["height"] == round(s["shownH"] * dpr), s
+    assert page.evaluate("document.documentElement.scrollWidth") <= width
+    page.screenshot(path=str(ART / f"explorer_{width}.png"), full_page=True)
+    # a narrower window: drawn again at the new size
+    page.set_viewport_size({"width": width - 200, "height": height})
+    page.wait_for_function("""() => [...document.querySelectorAll('canvas[data-drawn]')].every(c =>
+        c.width === Math.round(c.clientWidth * window.devicePixelRatio))""")
+    assert page.evaluate("document.documentElement.scrollWidth") <= width - 200
+    assert errors == [], errors
+    ctx.close()

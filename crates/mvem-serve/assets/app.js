@@ -386,9 +386,38 @@
     ctx.restore();
   }
 
+  // a canvas drawn at the size it is shown: the width of its panel and the height of its
+  // HTML attribute (fixed, so the 11-12 px text stays so at any width) in CSS pixels, its
+  // bitmap that times devicePixelRatio (sharp on a high-density screen, not scaled down on a
+  // narrow one); the drawing's size in CSS pixels is c.drawW x c.drawH. Returns the context,
+  // scaled to CSS pixels, cleared to white.
   function clearCanvas(c) {
+    if (!c.dataset.height) c.dataset.height = c.getAttribute("height");
+    c.style.height = `${c.dataset.height}px`;
+    // (inside the border)
+    const W = c.clientWidth || Number(c.getAttribute("width"));
+    const H = c.clientHeight || Number(c.dataset.height);
+    const dpr = window.devicePixelRatio || 1;
+    c.width = Math.round(W * dpr);
+    c.height = Math.round(H * dpr);
+    c.drawW = W; c.drawH = H;
     const ctx = c.getContext("2d");
-    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, c.width, c.height);
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, W, H);
+    return ctx;
+  }
+
+  // a copy of the canvas's bitmap, and the canvas restored from one (the time cursor moves
+  // over the drawn figure: drawImage, not getImageData, which would want willReadFrequently)
+  function snapshot(c) {
+    const s = document.createElement("canvas");
+    s.width = c.width; s.height = c.height;
+    s.getContext("2d").drawImage(c, 0, 0);
+    return s;
+  }
+  function restore(c, snap) {
+    const ctx = c.getContext("2d");
+    ctx.save(); ctx.setTransform(1, 0, 0, 1, 0, 0); ctx.drawImage(snap, 0, 0); ctx.restore();
     return ctx;
   }
 
@@ -496,12 +525,12 @@
     const lf = fr.f_hz.map((f) => Math.log10(f));
     const xr = [lf[0], lf[lf.length - 1]];
     const db = g.mag.map((m) => 20 * Math.log10(m));
-    const w = c.width / 2;
+    const w = c.drawW / 2;
     const units = `${unit(out)} per ${unit(inp)}`;
-    const pm = panel(ctx, [0, 0, w, c.height], xr, niceRange(Math.min(...db), Math.max(...db)),
+    const pm = panel(ctx, [0, 0, w, c.drawH], xr, niceRange(Math.min(...db), Math.max(...db)),
       `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true });
     line(ctx, pm, lf, db, COLORS[0], 2);
-    const pp = panel(ctx, [w, 0, w, c.height], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
+    const pp = panel(ctx, [w, 0, w, c.drawH], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
       "phase [deg]   f [Hz]", { logX: true });
     line(ctx, pp, lf, g.phase_deg, COLORS[1], 2);
     const [f0, f1] = [fr.f_hz[0], fr.f_hz[fr.f_hz.length - 1]];
@@ -621,7 +650,7 @@
     const names = Object.keys(j.series);
     const panels = [{ name: `${j.input} [${j.input_unit}]`, y: j.u, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
     const cols = 2, rows = Math.ceil(panels.length / cols);
-    const w = c.width / cols, h = c.height / rows;
+    const w = c.drawW / cols, h = c.drawH / rows;
     const xr = [j.t[0], j.t[j.t.length - 1]];
     let marks = { nmp: 0, overshoot: 0, dc: 0 };
     panels.forEach((pn, k) => {
@@ -693,7 +722,7 @@
     const ctx = clearCanvas(c);
     const xs = j.x.values, ys = j.y.values, nx = xs.length, ny = ys.length;
     const L = 60, R = 16, T = 28, B = 64;
-    const w = (c.width - L - R) / nx, h = (c.height - T - B) / ny;
+    const w = (c.drawW - L - R) / nx, h = (c.drawH - T - B) / ny;
     for (let i = 0; i < nx; i++) {
       for (let k = 0; k < ny; k++) {
         const idx = i * ny + k;
@@ -927,7 +956,7 @@
   function drawCycle(j) {
     const c = $("[data-plot=cycle]");
     const ctx = clearCanvas(c);
-    const h = c.height / CYCLE_PANELS.length;
+    const h = c.drawH / CYCLE_PANELS.length;
     const xr = [j.t[0], j.t[j.t.length - 1]];
     app.cyclePanels = CYCLE_PANELS.map(([names, cap], k) => {
       const ys = names.map((n) => j.series[n] ?? j.inputs[n]);
@@ -935,12 +964,12 @@
       const capped = cap !== undefined && hi > cap;
       if (capped) hi = cap;
       const title = names.map((n) => `${n} [${unit(n)}]`).join(", ") + (capped ? ` (axis cut at ${cap})` : "");
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), title,
+      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(lo, hi), title,
         { xLabel: k === CYCLE_PANELS.length - 1 ? "t [s]" : undefined });
       ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
       return p;
     });
-    cycleImage = ctx.getImageData(0, 0, c.width, c.height);
+    cycleImage = snapshot(c);
     c.dataset.drawn = String(j.t.length);
   }
 
@@ -1008,11 +1037,11 @@
       }
     }
     const strips = [["gm", "gain margin [dB], other loop closed (0 dB: the stability boundary)"], ["pm", "phase margin [deg], other loop closed"]];
-    const h = c.height / strips.length;
+    const h = c.drawH / strips.length;
     let dots = 0;
     strips.forEach(([key, title], k) => {
       const [lo, hi] = robustRange(pts.map((q) => q[key][1]), 0);
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
+      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
         { yTicks: 5, xLabel: k === strips.length - 1 ? "t [s]" : undefined });
       // the samples whose loops are unstable together: a band as wide as the spacing (at least
       // 3 px), over the whole height of the strip
@@ -1051,7 +1080,7 @@
     const note = document.createElement("div");
     note.textContent = "each sample analysed at the steady state of its commands (a frozen operating point), with the loops in feedback then; the fuel path is not in the analysis (docs/control.md)";
     legend.append(band, note);
-    marginsImage = ctx.getImageData(0, 0, c.width, c.height);
+    marginsImage = snapshot(c);
     c.dataset.dots = String(dots);
     c.dataset.bands = String(m.summary.unstable_t.length);
     c.dataset.drawn = String(m.samples.length);
@@ -1062,17 +1091,14 @@
     if (!j) return;
     const i = Number($("input[name=cycle_t]").value);
     const c = $("[data-plot=cycle]");
-    const ctx = c.getContext("2d");
-    if (cycleImage) ctx.putImageData(cycleImage, 0, 0);
+    const ctx = cycleImage ? restore(c, cycleImage) : c.getContext("2d");
     const X = app.cyclePanels[0].px(j.t[i]);
-    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.height); cx.stroke(); cx.restore(); };
+    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.drawH); cx.stroke(); cx.restore(); };
     cursor(c, ctx);
     // the margins figure shares the time axis
     if (j.margins && marginsImage) {
       const mc = $("[data-plot=cycle-margins]");
-      const mctx = mc.getContext("2d");
-      mctx.putImageData(marginsImage, 0, 0);
-      cursor(mc, mctx);
+      cursor(mc, restore(mc, marginsImage));
     }
     $("#cycle-time").textContent = j.t[i].toFixed(1);
     const names = INPUTS.concat(Object.keys(j.series));
@@ -1127,6 +1153,20 @@
     });
   }
 
+  // the figures drawn again at their new size when the window's size (or its pixel ratio:
+  // the zoom) changes
+  let resizeTimer = 0;
+  function redrawAll() {
+    if (app.step) drawStep(app.step);
+    if (app.linear) drawBode();
+    if (app.map) drawMap(app.map);
+    if (app.cycle) {
+      drawCycle(app.cycle);
+      if (app.cycle.margins && !$("#cycle-margins").hidden) drawCycleMargins(app.cycle);
+      scrub();
+    }
+  }
+
   // ---------------------------------------------------------------------------------------------
   // start
 
@@ -1143,6 +1183,7 @@
     $("[data-action=margins]").addEventListener("click", runMargins);
     $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
+    window.addEventListener("resize", () => { clearTimeout(resizeTimer); resizeTimer = setTimeout(redrawAll, 100); });
     $("#tuning-fields").addEventListener("input", markTuning);
     try {
       const m = await api("/api/models");
