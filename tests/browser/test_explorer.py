@@ -795,3 +795,23 @@ def test_figures_are_drawn_at_their_shown_size(browser, server, width, height, d
     assert page.evaluate("document.documentElement.scrollWidth") <= width - 200
     assert errors == [], errors
     ctx.close()
+
+
+def test_a_step_outside_the_input_range_is_shown_clamped(page):
+    """A step to u_vgt 5 % (below its range 20-100 %): the server's warning is shown, the
+    input trace is the applied (clamped) 20 %, the asked 5 % dashed; the warnings used to be
+    dropped (and the API gave none) and the trace showed 5 %."""
+    page.fill("input[name=step_target]", "5")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-warnings[data-count]", timeout=30000)
+    w = page.text_content("#step-warnings")
+    assert "u_vgt_pct = 5 is outside [20, 100]" in w and "clamps it to 20" in w, w
+    assert page.is_visible("#step-warnings")
+    assert page.evaluate("window.mvem.step.u_applied.at(-1)") == 20
+    assert page.evaluate("window.mvem.step.u.at(-1)") == 5
+    page.locator("#step").screenshot(path=str(ART / "explorer_step_clamped.png"))
+    page.fill("input[name=step_target]", "65")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-warnings[data-count='0']", state="attached", timeout=30000)
+    assert page.is_hidden("#step-warnings")
+

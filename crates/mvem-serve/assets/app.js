@@ -640,6 +640,10 @@
       const j = await api("/api/step", body);
       app.step = j;
       drawStep(j);
+      // the server's warnings: a steady state not physically valid, an input the model clamps
+      const w = j.warnings || [];
+      $("#step-warnings").textContent = w.length ? `warning: ${w.join("; ")}` : "";
+      $("#step-warnings").dataset.count = String(w.length);
       $("[data-download=step]").disabled = false;
     });
   }
@@ -648,7 +652,12 @@
     const c = $("[data-plot=step]");
     const ctx = clearCanvas(c);
     const names = Object.keys(j.series);
-    const panels = [{ name: `${j.input} [${j.input_unit}]`, y: j.u, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
+    // the stepped input as the model applies it (clamped into its range), and the value asked
+    // for dashed where it differs
+    const applied = j.u_applied || j.u;
+    const clamped = j.to_applied !== undefined && j.to_applied !== j.to;
+    const inputTitle = `${j.input} [${j.input_unit}]` + (clamped ? `   applied ${fmt(j.to_applied)} (dashed: ${fmt(j.to)} asked, clamped)` : "");
+    const panels = [{ name: inputTitle, y: applied, asked: clamped ? j.u : null, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
     const cols = 2, rows = Math.ceil(panels.length / cols);
     const w = c.drawW / cols, h = c.drawH / rows;
     const xr = [j.t[0], j.t[j.t.length - 1]];
@@ -656,6 +665,7 @@
     panels.forEach((pn, k) => {
       const box = [(k % cols) * w, Math.floor(k / cols) * h, w, h];
       let lo = Math.min(...pn.y), hi = Math.max(...pn.y);
+      if (pn.asked) { lo = Math.min(lo, ...pn.asked); hi = Math.max(hi, ...pn.asked); }
       const m = pn.m;
       if (m && !m.error) { lo = Math.min(lo, m.y0, m.y_final); hi = Math.max(hi, m.y0, m.y_final); }
       const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${unit(pn.name)}/${j.input_unit}` : "");
@@ -665,6 +675,7 @@
         line(ctx, p, xr, [m.y_final, m.y_final], "#2e7d32", 1, [6, 3]);
         marks.dc++;
       }
+      if (pn.asked) line(ctx, p, j.t, pn.asked, "#9aa3b2", 1, [4, 3]);
       line(ctx, p, j.t, pn.y, pn.input ? "#546e7a" : COLORS[k % COLORS.length]);
       if (m && !m.error) {
         if (m.wrong_way && m.non_minimum_phase) {
