@@ -815,3 +815,43 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     page.wait_for_selector("#step-warnings[data-count='0']", state="attached", timeout=30000)
     assert page.is_hidden("#step-warnings")
 
+
+
+def test_cycle_plot_shows_the_references_and_legends(page):
+    """The cycle figure: n_e and u_delta strips, and in closed loop the references M_ref,
+    x_egr_ref, lambda_O_ref (dashed) beside what follows them, each strip with a legend."""
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    assert page.get_attribute("canvas[data-plot=cycle]", "data-series").split(",") == [
+        "n_e", "u_delta", "u_egr", "u_vgt", "M_e", "p_im", "p_em", "W_c", "x_egr", "lambda_O"]
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.eval_on_selector("canvas[data-plot=cycle]", "c => { delete c.dataset.drawn; }")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    assert page.get_attribute("canvas[data-plot=cycle]", "data-series").split(",") == [
+        "n_e", "u_delta", "u_egr", "u_vgt", "M_e", "M_ref", "p_im", "p_em", "W_c",
+        "x_egr", "x_egr_ref", "lambda_O", "lambda_O_ref"]
+    page.locator("canvas[data-plot=cycle]").screenshot(path=str(ART / "explorer_cycle_refs.png"))
+
+
+def test_bode_of_a_zero_gain_channel_and_its_range(page):
+    """The Bode diagram of a channel without gain (u_egr 0 %: x_egr does not respond to u_vgt)
+    says so instead of an empty pane; frequencies beyond 1e-4..1e4 Hz are the server's 400
+    naming the range."""
+    page.fill("input[name=u_egr]", "0")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn]", timeout=30000)
+    page.select_option("select[name=bode_channel]", "u_vgt->x_egr")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_vgt->x_egr']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-zero-gain") == "all"
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode_zero_gain.png"))
+    page.select_option("select[name=bode_channel]", "u_vgt->W_c")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_vgt->W_c']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-zero-gain") == ""
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode_ticks.png"))
+    page.fill("input[name=bode_fmin]", "1e-300")
+    page.fill("input[name=bode_fmax]", "1e300")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert "must lie in [0.0001, 10000] Hz" in page.text_content("#lin-error")
+    _take_console_400(page)

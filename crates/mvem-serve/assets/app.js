@@ -306,6 +306,24 @@
     return out;
   }
 
+  // ticks of an angle [deg]: steps of 15, 30, 45, 90, 180 or 360 deg (multiples of 360 beyond)
+  function degTicks(lo, hi, n) {
+    const step0 = (hi - lo) / n;
+    if (step0 < 5) return ticks(lo, hi, n);
+    const step = [5, 10, 15, 30, 45, 90, 180, 360].find((s) => s >= step0) || 360 * Math.pow(2, Math.ceil(Math.log2(step0 / 360)));
+    const out = [];
+    for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(v);
+    return out;
+  }
+
+  // the unit of a gain: output unit per input unit ("1" for a dimensionless output, a
+  // compound input unit in parentheses: "kg/s/(mg/cycle)", "1/%")
+  function ratioUnit(out, inp) {
+    const o = !out || out === "-" ? "1" : out;
+    const i = !inp || inp === "-" ? "" : (inp.includes("/") ? `(${inp})` : inp);
+    return i ? `${o}/${i}` : o;
+  }
+
   function tickLabel(v) {
     const a = Math.abs(v);
     if (a !== 0 && (a < 1e-3 || a >= 1e7)) return v.toExponential(2);
@@ -337,7 +355,7 @@
     ctx.strokeRect(x0 + L, y0 + T, w - L - R, h - T - B);
     ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
-    for (const v of ticks(yr[0], yr[1], opts.yTicks || 3)) {
+    for (const v of (opts.yTickFn || ticks)(yr[0], yr[1], opts.yTicks || 3)) {
       ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
@@ -524,14 +542,28 @@
     const ctx = clearCanvas(c);
     const lf = fr.f_hz.map((f) => Math.log10(f));
     const xr = [lf[0], lf[lf.length - 1]];
+    // (a zero gain is -inf dB: the range of the finite values; none: a channel without gain)
     const db = g.mag.map((m) => 20 * Math.log10(m));
+    const fin = db.filter(Number.isFinite);
     const w = c.drawW / 2;
-    const units = `${unit(out)} per ${unit(inp)}`;
-    const pm = panel(ctx, [0, 0, w, c.drawH], xr, niceRange(Math.min(...db), Math.max(...db)),
-      `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true });
+    const units = ratioUnit(unit(out), unit(inp));
+    const pm = panel(ctx, [0, 0, w, c.drawH], xr, fin.length ? niceRange(Math.min(...fin), Math.max(...fin)) : [-1, 1],
+      `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true, yTicks: 5 });
+    // the 0 dB line (|G| = 1 in the channel's units)
+    if (fin.length && Math.min(...fin) <= 0 && Math.max(...fin) >= 0) line(ctx, pm, xr, [0, 0], "#5d6778", 1, [4, 3]);
     line(ctx, pm, lf, db, COLORS[0], 2);
-    const pp = panel(ctx, [w, 0, w, c.drawH], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
-      "phase [deg]   f [Hz]", { logX: true });
+    c.dataset.zeroGain = fin.length ? (fin.length < db.length ? "some" : "") : "all";
+    if (fin.length < db.length) {
+      ctx.save();
+      ctx.fillStyle = "#c62828"; ctx.font = "12px system-ui, sans-serif"; ctx.textAlign = "center"; ctx.textBaseline = "middle";
+      const [cx, cy, cw, chh] = pm.clip;
+      ctx.fillText(fin.length ? "|G| = 0 (−∞ dB) at some frequencies: gaps in the line" : "zero gain: |G| = 0 (−∞ dB) at every frequency",
+        cx + cw / 2, fin.length ? cy + 10 : cy + chh / 2);
+      ctx.restore();
+    }
+    const ph = g.phase_deg.filter(Number.isFinite);
+    const pp = panel(ctx, [w, 0, w, c.drawH], xr, ph.length ? niceRange(Math.min(...ph), Math.max(...ph)) : [-1, 1],
+      "phase [deg]   f [Hz]", { logX: true, yTicks: 6, yTickFn: degTicks });
     line(ctx, pp, lf, g.phase_deg, COLORS[1], 2);
     const [f0, f1] = [fr.f_hz[0], fr.f_hz[fr.f_hz.length - 1]];
     const hz = (f) => String(Number(f.toPrecision(6)));
@@ -656,7 +688,7 @@
     // for dashed where it differs
     const applied = j.u_applied || j.u;
     const clamped = j.to_applied !== undefined && j.to_applied !== j.to;
-    const inputTitle = `${j.input} [${j.input_unit}]` + (clamped ? `   applied ${fmt(j.to_applied)} (dashed: ${fmt(j.to)} asked, clamped)` : "");
+    const inputTitle = `${j.input} [${j.input_unit}]` + (clamped ? `   applied ${tickLabel(j.to_applied)} (dashed: ${tickLabel(j.to)} asked, clamped)` : "");
     const panels = [{ name: inputTitle, y: applied, asked: clamped ? j.u : null, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
     const cols = 2, rows = Math.ceil(panels.length / cols);
     const w = c.drawW / cols, h = c.drawH / rows;
@@ -668,7 +700,7 @@
       if (pn.asked) { lo = Math.min(lo, ...pn.asked); hi = Math.max(hi, ...pn.asked); }
       const m = pn.m;
       if (m && !m.error) { lo = Math.min(lo, m.y0, m.y_final); hi = Math.max(hi, m.y0, m.y_final); }
-      const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${unit(pn.name)}/${j.input_unit}` : "");
+      const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${ratioUnit(unit(pn.name), j.input_unit)}` : "");
       const p = panel(ctx, box, xr, niceRange(lo, hi), title);
       if (m && !m.error) {
         line(ctx, p, xr, [m.y0, m.y0], "#9aa3b2", 1, [3, 3]);
@@ -768,9 +800,38 @@
   // ---------------------------------------------------------------------------------------------
   // drive-cycle panel
 
-  // names per strip; an upper display limit where spikes would flatten the rest (lambda_O is
-  // 100+ while no fuel is injected)
-  const CYCLE_PANELS = [[["u_egr", "u_vgt"]], [["M_e"]], [["p_im", "p_em"]], [["W_c"]], [["x_egr"]], [["lambda_O"], 8]];
+  // the strips of the cycle figure: per strip its series and their colours (a reference
+  // dashed, in the colour of what it is the reference of; a series the run lacks, as the
+  // references in open loop, left out), and an upper display limit where spikes would flatten
+  // the rest (lambda_O is 100+ while no fuel is injected)
+  const REF = [5, 3];
+  const CYCLE_PANELS = [
+    { series: [["n_e", "#546e7a"]] },
+    { series: [["u_delta", "#6d4c41"]] },
+    { series: [["u_egr", "#2e7d32"], ["u_vgt", "#8e44ad"]] },
+    { series: [["M_e", COLORS[0]], ["M_ref", "#1d2330", REF]] },
+    { series: [["p_im", COLORS[0]], ["p_em", COLORS[1]]] },
+    { series: [["W_c", "#00897b"]] },
+    { series: [["x_egr", "#e67e22"], ["x_egr_ref", "#1d2330", REF]] },
+    { series: [["lambda_O", COLORS[0]], ["lambda_O_ref", "#1d2330", REF]], cap: 8 },
+  ];
+
+  // a strip's legend in place of its title: per series a line sample in its colour and dash,
+  // its name and unit
+  function legend(ctx, p, y, items, note) {
+    ctx.save();
+    ctx.font = "12px system-ui, sans-serif"; ctx.textBaseline = "top"; ctx.textAlign = "left";
+    let x = p.clip[0] + 4;
+    for (const [name, color, dash] of items) {
+      ctx.strokeStyle = color; ctx.lineWidth = 2; ctx.setLineDash(dash || []);
+      ctx.beginPath(); ctx.moveTo(x, y + 8); ctx.lineTo(x + 18, y + 8); ctx.stroke();
+      const text = `${name} [${unit(name)}]`;
+      ctx.fillStyle = "#1d2330"; ctx.fillText(text, x + 22, y + 2);
+      x += 22 + ctx.measureText(text).width + 14;
+    }
+    if (note) { ctx.fillStyle = "#5d6778"; ctx.fillText(note, x, y + 2); }
+    ctx.restore();
+  }
   let cycleImage = null;
 
   // closed loop with "loop margins every" ticked: its seconds (the server checks the range and
@@ -969,18 +1030,23 @@
     const ctx = clearCanvas(c);
     const h = c.drawH / CYCLE_PANELS.length;
     const xr = [j.t[0], j.t[j.t.length - 1]];
-    app.cyclePanels = CYCLE_PANELS.map(([names, cap], k) => {
-      const ys = names.map((n) => j.series[n] ?? j.inputs[n]);
+    const drawn = [];
+    app.cyclePanels = CYCLE_PANELS.map(({ series, cap }, k) => {
+      const items = series.filter(([n]) => (j.series[n] ?? j.inputs[n]) !== undefined);
+      const ys = items.map(([n]) => j.series[n] ?? j.inputs[n]);
       let [lo, hi] = robustRange(ys, 0.002);
       const capped = cap !== undefined && hi > cap;
       if (capped) hi = cap;
-      const title = names.map((n) => `${n} [${unit(n)}]`).join(", ") + (capped ? ` (axis cut at ${cap})` : "");
-      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(lo, hi), title,
+      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(lo, hi), "",
         { xLabel: k === CYCLE_PANELS.length - 1 ? "t [s]" : undefined });
-      ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
+      // (a reference dashed over what follows it)
+      items.forEach(([, color, dash], q) => line(ctx, p, j.t, ys[q], color, dash ? 1.2 : 1, dash || []));
+      legend(ctx, p, k * h, items, capped ? `(axis cut at ${cap})` : "");
+      drawn.push(...items.map(([n]) => n));
       return p;
     });
     cycleImage = snapshot(c);
+    c.dataset.series = drawn.join(",");
     c.dataset.drawn = String(j.t.length);
   }
 
