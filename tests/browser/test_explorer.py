@@ -584,8 +584,13 @@ def test_linear_model_panel(page, server):
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "bode" in page.text_content("#lin-error"), page.text_content("#lin-error")
     _take_console_400(page)
+    # the model left beside the error is marked as the one before it
+    assert page.get_attribute("#lin-at", "data-stale") == "true"
+    assert "the last Linearize failed" in page.text_content("#lin-at")
     page.fill("input[name=bode_fmin]", "0.01")
     page.fill("input[name=bode_fmax]", "100")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-at[data-stale=false]")
     # the point it was computed at; moving an input marks it as another point's
     at = page.text_content("#lin-at")
     assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at
@@ -816,7 +821,6 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     assert page.is_hidden("#step-warnings")
 
 
-
 def test_cycle_plot_shows_the_references_and_legends(page):
     """The cycle figure: n_e and u_delta strips, and in closed loop the references M_ref,
     x_egr_ref, lambda_O_ref (dashed) beside what follows them, each strip with a legend."""
@@ -855,3 +859,45 @@ def test_bode_of_a_zero_gain_channel_and_its_range(page):
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "must lie in [0.0001, 10000] Hz" in page.text_content("#lin-error")
     _take_console_400(page)
+
+
+def test_results_of_another_point_are_marked(page):
+    """Each result panel names what its result was computed at; moving an input marks the
+    step, margins and map results as another point's (the cycle's only when the model or the
+    parameter set changes), and a run that fails marks the result left beside its error."""
+    panels = ("#step-at", "#margins-at", "#map-at", "#cycle-at")
+
+    def stale():
+        return {p: page.get_attribute(p, "data-stale") for p in panels}
+
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    page.click("[data-action=margins]")
+    page.wait_for_selector("#margins-at[data-stale=false]", timeout=30000)
+    assert page.text_content("#margins-summary").endswith("controller tuning: the defaults")
+    page.fill("input[name=map_n]", "3")
+    page.click("[data-action=map]")
+    page.wait_for_selector("#map-at[data-stale=false]", timeout=60000)
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-at[data-stale=false]", timeout=120000)
+    assert page.text_content("#step-at") == (
+        "step of u_vgt from 75 to 65 at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states")
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("#step-at[data-stale=true]")
+    assert stale() == {"#step-at": "true", "#margins-at": "true", "#map-at": "true", "#cycle-at": "false"}
+    assert "the point has changed: Run step again" in page.text_content("#step-at")
+    page.select_option("select[name=model]", "12")
+    page.wait_for_selector("#cycle-at[data-stale=true]")
+    assert "the model has changed: Run cycle again" in page.text_content("#cycle-at")
+    page.select_option("select[name=model]", "8")
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("#step-at[data-stale=false]")
+    assert set(stale().values()) == {"false"}, stale()
+    # a failed run: the result before it is marked as such
+    page.fill("input[name=step_horizon]", "")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=true]")
+    assert "the last Run step failed" in page.text_content("#step-at")
+    page.fill("input[name=step_horizon]", "8")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)

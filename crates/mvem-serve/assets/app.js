@@ -163,7 +163,7 @@
   function scheduleSteady() {
     clearTimeout(debounce);
     debounce = setTimeout(requestSteady, 10);
-    markLinearStale();
+    markStale();
   }
 
   async function requestSteady() {
@@ -446,25 +446,43 @@
   // right half plane, as `mvem linearize` marks it
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
-  // the point, model and parameter set a linearization was asked for, as a key and as text
-  const linearKey = () => JSON.stringify([pointKey(), modelSel()]);
-  function linearAt() {
+  // the point, model and parameter set a result was asked for, as a key and as text
+  const pointStamp = () => JSON.stringify([pointKey(), modelSel()]);
+  const modelStamp = () => JSON.stringify(modelSel());
+  function pointText() {
     const p = point();
     return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states`;
   }
-  // a shown linear model of another point than the inputs' is marked (not recomputed: the
-  // sliders would ask for one per move)
-  function markLinearStale() {
-    const el = $("#lin-at");
-    if (!app.linearKey) return;
-    const stale = app.linearKey !== linearKey();
-    el.dataset.stale = String(stale);
-    el.textContent = stale ? `${app.linearAtText}; the point has changed: Linearize again` : app.linearAtText;
+  // each result panel's line naming what its result was computed at (the panel: its line, the
+  // key of what it depends on, what changed when that key changes, its button). A result of
+  // another point, model or parameter set than the inputs' is marked (not recomputed: the
+  // sliders would ask for one per move), and so is one whose next computation failed
+  const STAMPS = {
+    linear: ["#lin-at", pointStamp, "the point has changed", "Linearize"],
+    margins: ["#margins-at", pointStamp, "the point has changed", "Loop margins"],
+    step: ["#step-at", pointStamp, "the point has changed", "Run step"],
+    map: ["#map-at", pointStamp, "the point has changed", "Compute map"],
+    cycle: ["#cycle-at", modelStamp, "the model has changed", "Run cycle"],
+  };
+  const stamps = {};
+  function stamp(panel, key, text) {
+    stamps[panel] = { key, text, failed: false };
+    markStale();
+  }
+  function markStale() {
+    for (const [panel, st] of Object.entries(stamps)) {
+      const [sel, keyOf, changed, button] = STAMPS[panel];
+      const el = $(sel);
+      const moved = st.key !== keyOf();
+      el.dataset.stale = String(moved || st.failed);
+      el.textContent = st.failed ? `${st.text}; the last ${button} failed: this is the result before it`
+        : moved ? `${st.text}; ${changed}: ${button} again` : st.text;
+    }
   }
 
   // a button's computation: the button disabled and the status busy meanwhile; its panel's
   // error line cleared when it succeeds, showing the failure when it throws
-  async function busy(button, text, errorId, work) {
+  async function busy(button, text, errorId, work, panel) {
     const btn = $(button);
     btn.disabled = true;
     const id = ++jobSeq;
@@ -476,6 +494,8 @@
       if (app.statusError && app.statusError.source === "network") app.statusError = null;
     } catch (e) {
       showError(errorId, e);
+      // the result shown stays, marked as the one before
+      if (panel && stamps[panel]) { stamps[panel].failed = true; markStale(); }
       if (e.kind === "network") app.statusError = { source: "network", text: "server unreachable" };
     } finally {
       btn.disabled = false;
@@ -491,16 +511,14 @@
       const ts = optNum("lin_ts", "sample time");
       if (ts !== undefined) q.set("ts", String(ts));
       q.set("bode", bodeGrid());
-      const key = linearKey();
-      const at = linearAt();
+      const key = pointStamp();
+      const at = pointText();
       const j = await api(`/api/linearize?${q}`);
       app.linear = j;
-      app.linearKey = key;
-      app.linearAtText = at;
-      markLinearStale();
+      stamp("linear", key, at);
       showLinear(j);
       $("[data-download=linear]").disabled = false;
-    });
+    }, "linear");
   }
 
   // the frequency grid of the Bode diagram (Hz: from, to, points): the range of the two inputs
@@ -577,16 +595,26 @@
   async function runMargins() {
     await busy("[data-action=margins]", "loop margins…", "#margins-error", async () => {
       const body = { point: point(), ...modelSel() };
-      if (app.tuningDefaults) body.tuning = tuningValue();
+      const key = pointStamp();
+      const at = pointText();
+      // the tuning of the drive-cycle panel's form (shown in closed-loop mode): the summary
+      // says which entries differ from the defaults
+      let tuning = "";
+      if (app.tuningDefaults) {
+        body.tuning = tuningValue();
+        const changed = Object.keys(body.tuning).filter((k) => JSON.stringify(body.tuning[k]) !== JSON.stringify(app.tuningDefaults[k]));
+        tuning = changed.length ? `; controller tuning of the drive-cycle panel's form (closed loop): ${changed.join(", ")} changed` : "; controller tuning: the defaults";
+      }
       const j = await api("/api/margins", body);
       app.margins = j;
-      showMargins(j);
-    });
+      stamp("margins", key, at);
+      showMargins(j, tuning);
+    }, "margins");
   }
 
-  function showMargins(j) {
+  function showMargins(j, tuning = "") {
     const p = j.operating_point;
-    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}`;
+    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}${tuning}`;
     $("#margins-summary").dataset.stable = String(j.stable);
     const hz = (f) => `${Number(f.toPrecision(4))} Hz`;
     const rows = [];
@@ -637,7 +665,11 @@
       outs.forEach((out, o) => {
         const ch = `${inp}->${out}`;
         const g = j.dc_gain ? j.dc_gain[o][i] : null;
-        const td = cell("", fmt(g));
+        const td = cell("", "");
+        const gain = document.createElement("span");
+        gain.className = "g";
+        gain.textContent = fmt(g);
+        td.append(gain);
         td.dataset.channel = ch;
         td.dataset.dcGain = g === null ? "" : String(g);
         const zs = j.zeros[ch];
@@ -669,15 +701,18 @@
     await busy("[data-action=step]", "running step…", "#step-error", async () => {
       const body = { point: point(), input: $("select[name=step_input]").value, target: num("step_target", "step to"),
         horizon: num("step_horizon", "horizon"), ...modelSel() };
+      const key = pointStamp();
+      const at = pointText();
       const j = await api("/api/step", body);
       app.step = j;
+      stamp("step", key, `step of ${j.input} from ${tickLabel(j.from)} to ${tickLabel(j.to)} ${at}`);
       drawStep(j);
       // the server's warnings: a steady state not physically valid, an input the model clamps
       const w = j.warnings || [];
       $("#step-warnings").textContent = w.length ? `warning: ${w.join("; ")}` : "";
       $("#step-warnings").dataset.count = String(w.length);
       $("[data-download=step]").disabled = false;
-    });
+    }, "step");
   }
 
   function drawStep(j) {
@@ -751,13 +786,16 @@
         ...modelSel(),
       };
       const t0 = performance.now();
+      const key = pointStamp();
+      const at = pointText();
       const j = await api("/api/map", body);
       app.map = j;
+      stamp("map", key, `around the point ${at}`);
       drawMap(j);
       $("#map-info").textContent = `${j.dc_gain.length} points in ${((performance.now() - t0) / 1000).toFixed(2)} s; ` +
-        `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.errors.length} without a gain`;
+        `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.sign.filter((s) => s === 0).length} zero, ${j.errors.length} without a gain`;
       $("[data-download=map]").disabled = false;
-    });
+    }, "map");
   }
 
   function drawMap(j) {
@@ -770,7 +808,7 @@
       for (let k = 0; k < ny; k++) {
         const idx = i * ny + k;
         const s = j.sign[idx];
-        ctx.fillStyle = s === 1 ? "#5b8def" : s === -1 ? "#e4575f" : "#c9ced8";
+        ctx.fillStyle = s === 1 ? "#5b8def" : s === -1 ? "#e4575f" : s === 0 ? "#f2d675" : "#c9ced8";
         if (!j.physically_valid[idx] && s !== null) ctx.fillStyle = s === 1 ? "#b9cdf7" : "#f3b7ba";
         ctx.fillRect(L + i * w, T + (ny - 1 - k) * h, Math.ceil(w), Math.ceil(h));
       }
@@ -785,7 +823,7 @@
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
     for (const v of ticks(ys[0], ys[ny - 1], 5)) ctx.fillText(tickLabel(v), L - 4, T + (ny - 1 - (v - ys[0]) / (ys[ny - 1] - ys[0]) * (ny - 1)) * h + h / 2);
     ctx.save(); ctx.translate(14, T + ny * h / 2); ctx.rotate(-Math.PI / 2); ctx.textAlign = "center"; ctx.fillText(`${j.y.input} [${j.y.unit}]`, 0, 0); ctx.restore();
-    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
+    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#f2d675", "zero"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
     let x = L; ctx.textAlign = "left";
     legend.forEach(([col, lab], k) => {
       const y = T + ny * h + 36 + (k >= 3 ? 14 : 0);
@@ -853,8 +891,12 @@
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       body.margins = marginsEvery();
+      const key = modelStamp();
+      const source = cycle === FILE_CYCLE ? `file ${app.cycleFile.name}` : cycle === "whtc" ? "the WHTC" : cycle;
+      const at = `${source}, ${MODE_LABELS[body.mode] || body.mode}, ${body.model} states, parameters ${$("select[name=params]").value}`;
       const j = await api("/api/simulate", body);
       app.cycle = j;
+      stamp("cycle", key, at);
       showCycleStats(j);
       Object.assign(app.units, j.units || {});
       drawCycle(j);
@@ -871,7 +913,7 @@
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
       scrub();
       $("[data-download=cycle]").disabled = false;
-    });
+    }, "cycle");
   }
 
   // ---------------------------------------------------------------------------------------------
