@@ -584,8 +584,13 @@ def test_linear_model_panel(page, server):
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "bode" in page.text_content("#lin-error"), page.text_content("#lin-error")
     _take_console_400(page)
+    # the model left beside the error is marked as the one before it
+    assert page.get_attribute("#lin-at", "data-stale") == "true"
+    assert "the last Linearize failed" in page.text_content("#lin-at")
     page.fill("input[name=bode_fmin]", "0.01")
     page.fill("input[name=bode_fmax]", "100")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-at[data-stale=false]")
     # the point it was computed at; moving an input marks it as another point's
     at = page.text_content("#lin-at")
     assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at
@@ -604,3 +609,295 @@ def test_linear_model_panel(page, server):
     page.wait_for_selector("#lin-error:not([hidden])")
     assert "ts" in page.text_content("#lin-error") and "sample time" in page.text_content("#lin-error")
     _take_console_400(page)
+
+
+def _api_requests(page):
+    """The list of the API paths the page requests from now on (appended as they go out)."""
+    sent = []
+    page.on("request", lambda r: sent.append(r.url.split("/", 3)[3]) if "/api/" in r.url else None)
+    return sent
+
+
+def test_a_field_without_a_number_is_named_and_sends_nothing(page):
+    """A number field left blank, or holding what Chromium cannot read as a number ("1e400",
+    which it holds as ""), is named as not a number by every panel, and no request goes out
+    (it used to be sent as 0: Number("") is 0)."""
+    sent = _api_requests(page)
+    for entry in ("", "1e400"):
+        page.fill("input[name=n_e]", entry)
+        page.wait_for_function(
+            "document.querySelector('#steady-error').textContent.includes('n_e: not a number')")
+        for action, err in (("step", "#step-error"), ("linearize", "#lin-error"), ("map", "#map-error"),
+                            ("margins", "#margins-error")):
+            page.click(f"[data-action={action}]")
+            page.wait_for_function(
+                f"document.querySelector('{err}').textContent.includes('n_e: not a number')")
+            assert page.is_visible(err), action
+        page.select_option("select[name=model]", "12")  # a steady-state request without its n_e
+        page.select_option("select[name=model]", "8")
+        page.wait_for_timeout(100)
+        assert sent == [], sent
+    page.fill("input[name=n_e]", "1500")
+    for name, label in (("step_target", "step to"), ("step_horizon", "horizon")):
+        old = page.input_value(f"input[name={name}]")
+        page.fill(f"input[name={name}]", "")
+        page.click("[data-action=step]")
+        page.wait_for_function(
+            f"document.querySelector('#step-error').textContent.includes('{label}: not a number')")
+        page.fill(f"input[name={name}]", old)
+    for name, label in (("map_x_lo", "x from"), ("map_n", "points")):
+        old = page.input_value(f"input[name={name}]")
+        page.fill(f"input[name={name}]", "")
+        page.click("[data-action=map]")
+        page.wait_for_function(
+            f"document.querySelector('#map-error').textContent.includes('{label}: not a number')")
+        page.fill(f"input[name={name}]", old)
+    assert not any(p.startswith(("api/step", "api/map")) for p in sent), sent
+    page.wait_for_selector("#steady-error", state="hidden")
+
+
+def test_a_failed_steady_state_says_what_failed(page):
+    """A steady state that fails is labelled by what failed (not always "no equilibrium"), the
+    values left in the table are marked as the last point's, and the header's status shows
+    the error until a steady state succeeds again; while two computations run, the end of one
+    does not make the status "ready"."""
+    def label():
+        return page.text_content("#validity")
+
+    page.fill("input[name=n_e]", "")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("not a number"), label()
+    assert page.get_attribute("#status", "data-status") == "error"
+    assert page.text_content("#status") == "steady state: not a number"
+    page.fill("input[name=n_e]", "1500")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    assert page.get_attribute("#validity", "data-valid") == "true"
+    assert page.text_content("#status") == "ready"
+    # the server gone (the request aborted: fetch's "Failed to fetch")
+    page.route("**/api/steady*", lambda r: r.abort())
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("server unreachable"), label()
+    assert "Failed to fetch" in page.text_content("#steady-error")
+    assert page.text_content("#status") == "steady state: server unreachable"
+    page.unroute("**/api/steady*")
+    # a 422 of the server: no equilibrium
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    page.route("**/api/steady*", lambda r: r.fulfill(status=422, content_type="application/json",
+                                                      body='{"error": "steady state: no equilibrium found"}'))
+    page.fill("input[name=u_vgt]", "74")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert label().startswith("no equilibrium"), label()
+    page.unroute("**/api/steady*")
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("table.signals[data-stale=false]")
+    # two computations: the cycle held back by the test while a step runs and ends
+    held = []
+    page.route("**/api/simulate", lambda r: held.append(r))
+    page.click("[data-action=cycle]")
+    page.wait_for_function("document.querySelector('#status').textContent.includes('simulating')")
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    page.wait_for_function("document.querySelector('[data-action=step]').disabled === false")
+    assert page.get_attribute("#status", "data-status") == "busy", page.text_content("#status")
+    assert "simulating" in page.text_content("#status")
+    for _ in range(100):
+        if held:
+            break
+        page.wait_for_timeout(50)
+    held[0].continue_()
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    page.wait_for_selector("#status[data-status=ok]")
+    page.unroute("**/api/simulate")
+    # Chromium's console lines of the failed requests the test provoked
+    page.wait_for_timeout(200)
+    page.console_errors[:] = [e for e in page.console_errors
+                              if "net::ERR_FAILED" not in e and "status of 422" not in e]
+
+
+def test_a_cycle_file_chosen_again_is_read_again(page, tmp_path):
+    """Choosing a file of the same name again after editing it runs the new content (the file
+    input is emptied after reading, so the second choice is a change)."""
+    mine = tmp_path / "mine.csv"
+    mine.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n4,1500,110,80,75\n")
+    page.set_input_files("input[name=cycle_file]", str(mine))
+    page.wait_for_selector("select[name=cycle] option[value=__file]", state="attached")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn='21']", timeout=60000)  # 0..4 s
+    mine.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n6,1500,110,80,75\n")
+    page.set_input_files("input[name=cycle_file]", str(mine))
+    page.wait_for_function("window.mvem.cycleFile.text.includes('\\n6,1500')")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn='31']", timeout=60000)  # 0..6 s
+
+
+def test_a_map_axis_spans_its_inputs_range(page):
+    """Choosing a map axis's input sets its range to that input's slider range (one slider
+    step inside the ends, as the defaults u_egr 0.5-99.5 %, u_vgt 20.5-99.5 %), the parameter
+    set's for n_e and u_delta; it used to keep the old range (n_e over 0.5-99.5 rpm)."""
+    def rng(a):
+        return [float(page.input_value(f"input[name=map_{a}_lo]")), float(page.input_value(f"input[name=map_{a}_hi]"))]
+
+    assert rng("x") == [0.5, 99.5] and rng("y") == [20.5, 99.5]
+    page.select_option("select[name=map_x]", "n_e")
+    assert rng("x") == [510, 1990]
+    page.select_option("select[name=map_y]", "u_delta")
+    assert rng("y") == [2, 249]
+    page.select_option("select[name=params]", "wide")
+    assert rng("x") == [610, 3190] and rng("y") == [3, 179]
+    page.select_option("select[name=map_y]", "u_egr")
+    assert rng("y") == [0.5, 99.5]
+    page.select_option("select[name=params]", "published")
+    assert rng("x") == [510, 1990] and rng("y") == [0.5, 99.5]
+    page.fill("input[name=map_n]", "3")
+    page.click("[data-action=map]")
+    page.wait_for_selector("canvas[data-plot=map][data-cells='9']", timeout=60000)
+    assert page.evaluate("window.mvem.map.x.values") == [510, 1250, 1990]
+
+
+def _canvas_sizes(page):
+    """Per drawn canvas: its bitmap's size and its shown size (inside the border) in CSS px."""
+    return page.eval_on_selector_all("canvas[data-drawn]", """cs => cs.map(c => ({
+        plot: c.dataset.plot, width: c.width, height: c.height,
+        shownW: c.clientWidth, shownH: c.clientHeight, dpr: window.devicePixelRatio}))""")
+
+
+@pytest.mark.parametrize("width,height,dpr", [(1024, 700, 1), (2560, 1440, 2)])
+def test_figures_are_drawn_at_their_shown_size(browser, server, width, height, dpr):
+    """A canvas's bitmap is its shown size times devicePixelRatio (it used to stay 900 px wide,
+    shrunk to 522 px with 6 px text at 1024 px, blurred at 2560 px on a 2x screen), and no table
+    makes the page scroll sideways (the channel table and the loop margins along the run
+    scroll inside their panels)."""
+    ctx = browser.new_context(viewport={"width": width, "height": height}, device_scale_factor=dpr)
+    page = ctx.new_page()
+    errors = []
+    page.on("console", lambda m: errors.append(m.text) if m.type in ("error", "warning") else None)
+    page.goto(server)
+    page.wait_for_selector("body[data-state=ready]", timeout=15000)
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn]", timeout=30000)
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.check("input[name=cycle_margins]")
+    page.fill("input[name=cycle_margins_every]", "60")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle-margins][data-drawn]", timeout=120000)
+    page.fill("input[name=cycle_t]", "4000")
+    page.dispatch_event("input[name=cycle_t]", "input")  # the cursor: no getImageData warning
+    sizes = _canvas_sizes(page)
+    assert {s["plot"] for s in sizes} == {"step", "bode", "cycle", "cycle-margins"}, sizes
+    for s in sizes:
+        assert s["dpr"] == dpr
+        assert s["width"] == round(s["shownW"] * dpr) and s["height"] == round(s["shownH"] * dpr), s
+    assert page.evaluate("document.documentElement.scrollWidth") <= width
+    page.screenshot(path=str(ART / f"explorer_{width}.png"), full_page=True)
+    # a narrower window: drawn again at the new size
+    page.set_viewport_size({"width": width - 200, "height": height})
+    page.wait_for_function("""() => [...document.querySelectorAll('canvas[data-drawn]')].every(c =>
+        c.width === Math.round(c.clientWidth * window.devicePixelRatio))""")
+    assert page.evaluate("document.documentElement.scrollWidth") <= width - 200
+    assert errors == [], errors
+    ctx.close()
+
+
+def test_a_step_outside_the_input_range_is_shown_clamped(page):
+    """A step to u_vgt 5 % (below its range 20-100 %): the server's warning is shown, the
+    input trace is the applied (clamped) 20 %, the asked 5 % dashed; the warnings used to be
+    dropped (and the API gave none) and the trace showed 5 %."""
+    page.fill("input[name=step_target]", "5")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-warnings[data-count]", timeout=30000)
+    w = page.text_content("#step-warnings")
+    assert "u_vgt_pct = 5 is outside [20, 100]" in w and "clamps it to 20" in w, w
+    assert page.is_visible("#step-warnings")
+    assert page.evaluate("window.mvem.step.u_applied.at(-1)") == 20
+    assert page.evaluate("window.mvem.step.u.at(-1)") == 5
+    page.locator("#step").screenshot(path=str(ART / "explorer_step_clamped.png"))
+    page.fill("input[name=step_target]", "65")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-warnings[data-count='0']", state="attached", timeout=30000)
+    assert page.is_hidden("#step-warnings")
+
+
+def test_cycle_plot_shows_the_references_and_legends(page):
+    """The cycle figure: n_e and u_delta strips, and in closed loop the references M_ref,
+    x_egr_ref, lambda_O_ref (dashed) beside what follows them, each strip with a legend."""
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    assert page.get_attribute("canvas[data-plot=cycle]", "data-series").split(",") == [
+        "n_e", "u_delta", "u_egr", "u_vgt", "M_e", "p_im", "p_em", "W_c", "x_egr", "lambda_O"]
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.eval_on_selector("canvas[data-plot=cycle]", "c => { delete c.dataset.drawn; }")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    assert page.get_attribute("canvas[data-plot=cycle]", "data-series").split(",") == [
+        "n_e", "u_delta", "u_egr", "u_vgt", "M_e", "M_ref", "p_im", "p_em", "W_c",
+        "x_egr", "x_egr_ref", "lambda_O", "lambda_O_ref"]
+    page.locator("canvas[data-plot=cycle]").screenshot(path=str(ART / "explorer_cycle_refs.png"))
+
+
+def test_bode_of_a_zero_gain_channel_and_its_range(page):
+    """The Bode diagram of a channel without gain (u_egr 0 %: x_egr does not respond to u_vgt)
+    says so instead of an empty pane; frequencies beyond 1e-4..1e4 Hz are the server's 400
+    naming the range."""
+    page.fill("input[name=u_egr]", "0")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn]", timeout=30000)
+    page.select_option("select[name=bode_channel]", "u_vgt->x_egr")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_vgt->x_egr']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-zero-gain") == "all"
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode_zero_gain.png"))
+    page.select_option("select[name=bode_channel]", "u_vgt->W_c")
+    page.wait_for_selector("canvas[data-plot=bode][data-drawn='u_vgt->W_c']")
+    assert page.get_attribute("canvas[data-plot=bode]", "data-zero-gain") == ""
+    page.locator("canvas[data-plot=bode]").screenshot(path=str(ART / "explorer_bode_ticks.png"))
+    page.fill("input[name=bode_fmin]", "1e-300")
+    page.fill("input[name=bode_fmax]", "1e300")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert "must lie in [0.0001, 10000] Hz" in page.text_content("#lin-error")
+    _take_console_400(page)
+
+
+def test_results_of_another_point_are_marked(page):
+    """Each result panel names what its result was computed at; moving an input marks the
+    step, margins and map results as another point's (the cycle's only when the model or the
+    parameter set changes), and a run that fails marks the result left beside its error."""
+    panels = ("#step-at", "#margins-at", "#map-at", "#cycle-at")
+
+    def stale():
+        return {p: page.get_attribute(p, "data-stale") for p in panels}
+
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    page.click("[data-action=margins]")
+    page.wait_for_selector("#margins-at[data-stale=false]", timeout=30000)
+    assert page.text_content("#margins-summary").endswith("controller tuning: the defaults")
+    page.fill("input[name=map_n]", "3")
+    page.click("[data-action=map]")
+    page.wait_for_selector("#map-at[data-stale=false]", timeout=60000)
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-at[data-stale=false]", timeout=120000)
+    assert page.text_content("#step-at") == (
+        "step of u_vgt from 75 to 65 at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states")
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("#step-at[data-stale=true]")
+    assert stale() == {"#step-at": "true", "#margins-at": "true", "#map-at": "true", "#cycle-at": "false"}
+    assert "the point has changed: Run step again" in page.text_content("#step-at")
+    page.select_option("select[name=model]", "12")
+    page.wait_for_selector("#cycle-at[data-stale=true]")
+    assert "the model has changed: Run cycle again" in page.text_content("#cycle-at")
+    page.select_option("select[name=model]", "8")
+    page.fill("input[name=u_vgt]", "75")
+    page.wait_for_selector("#step-at[data-stale=false]")
+    assert set(stale().values()) == {"false"}, stale()
+    # a failed run: the result before it is marked as such
+    page.fill("input[name=step_horizon]", "")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=true]")
+    assert "the last Run step failed" in page.text_content("#step-at")
+    page.fill("input[name=step_horizon]", "8")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)

@@ -40,19 +40,57 @@
     return td;
   }
 
+  // the server's JSON answer; a failure is an Error with its `kind`: "network" (no answer:
+  // the server is gone), or "http" with the `status` of the answer
   async function api(path, body) {
     const opts = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) };
-    const r = await fetch(path, opts);
+    let r;
+    try {
+      r = await fetch(path, opts);
+    } catch (e) {
+      const err = new Error(`server unreachable (${e.message})`);
+      err.kind = "network";
+      throw err;
+    }
     let j = null;
     try { j = await r.json(); } catch (_) { j = null; }
-    if (!r.ok) throw new Error((j && j.error) || `HTTP ${r.status}`);
+    if (!r.ok) {
+      const err = new Error((j && j.error) || `HTTP ${r.status}`);
+      err.kind = "http";
+      err.status = r.status;
+      throw err;
+    }
     return j;
   }
 
+  // what went wrong, in a few words (the label of a failed steady state)
+  function errorKind(e) {
+    if (e.kind === "input") return "not a number";
+    if (e.kind === "network") return "server unreachable";
+    if (e.kind !== "http") return "error";
+    return { 400: "refused: bad input", 422: "no equilibrium", 503: "server busy" }[e.status] || `error (HTTP ${e.status})`;
+  }
+
+  // the header's status: busy while any computation runs (each button's job counted, so one
+  // that ends does not say "ready" while another still runs), else the standing error (the
+  // steady state's, or an unreachable server's), else ready
+  const jobs = new Map();
+  let jobSeq = 0;
+  app.statusError = null;
   function setStatus(s, text) {
     const el = $("#status");
     el.dataset.status = s;
     el.textContent = text || s;
+  }
+  function refreshStatus() {
+    if (jobs.size) {
+      const texts = [...jobs.values()];
+      setStatus("busy", texts[texts.length - 1] + (jobs.size > 1 ? ` (${jobs.size} computations)` : ""));
+    } else if (app.statusError) {
+      setStatus("error", app.statusError.text);
+    } else {
+      setStatus("ok", "ready");
+    }
   }
 
   function showError(id, e) {
@@ -60,9 +98,42 @@
     if (e) { el.textContent = String(e.message || e); el.hidden = false; } else { el.hidden = true; el.textContent = ""; }
   }
 
+  // the number in the number field `name`, or an error naming the field (`label`): blank, or
+  // an entry the browser cannot read as a number (it holds "1e400" or "15abc" as ""), is not
+  // a 0 (Number("") is 0): no request goes out with it
+  function num(name, label = name) {
+    const el = $(`input[name=${name}]`);
+    const s = el.value.trim();
+    const v = s === "" ? NaN : Number(s);
+    if (!Number.isFinite(v)) {
+      const why = s !== "" ? `"${s}"` : el.validity.badInput ? "an entry the browser cannot read as one" : "empty";
+      const e = new Error(`${label}: not a number (${why})`);
+      e.kind = "input";
+      throw e;
+    }
+    return v;
+  }
+
+  // an optional number field: undefined when left empty (an entry that is not a number is
+  // an error naming it)
+  function optNum(name, label = name) {
+    const el = $(`input[name=${name}]`);
+    return el.value.trim() === "" && !el.validity.badInput ? undefined : num(name, label);
+  }
+
+  // the operating point of the four number fields (an error naming a field that holds no number)
   function point() {
     const p = {};
-    for (const n of INPUTS) p[n] = Number($(`input[name=${n}]`).value);
+    for (const n of INPUTS) p[n] = num(n);
+    return p;
+  }
+  // the same without the check (a field without a number is null): the key of a shown result
+  function pointKey() {
+    const p = {};
+    for (const n of INPUTS) {
+      const s = $(`input[name=${n}]`).value.trim();
+      p[n] = s === "" ? null : Number(s);
+    }
     return p;
   }
   const modelSel = () => ({ model: Number($("select[name=model]").value), params: $("select[name=params]").value || undefined });
@@ -92,23 +163,33 @@
   function scheduleSteady() {
     clearTimeout(debounce);
     debounce = setTimeout(requestSteady, 10);
-    markLinearStale();
+    markStale();
   }
 
   async function requestSteady() {
     if (app.inflight) { app.again = true; return; }
     app.inflight = true;
     const seq = ++app.seq;
-    const q = new URLSearchParams({ ...point(), model: modelSel().model });
-    if (modelSel().params) q.set("params", modelSel().params);
     try {
+      const q = new URLSearchParams({ ...point(), model: modelSel().model });
+      if (modelSel().params) q.set("params", modelSel().params);
       const j = await api(`/api/steady?${q}`);
       showSteady(j, seq);
       showError("#steady-error", null);
+      $("table.signals").dataset.stale = "false";
+      app.statusError = null;
+      refreshStatus();
     } catch (e) {
+      // the label says what failed; the values left in the table are marked as the last
+      // point's, and the header shows the error
       showError("#steady-error", e);
+      const kind = errorKind(e);
       $("#validity").dataset.valid = "";
-      $("#validity").textContent = "no equilibrium";
+      $("#validity").dataset.error = e.kind === "http" ? String(e.status) : (e.kind || "error");
+      $("#validity").textContent = app.steady ? `${kind} (the values below are of the last point computed)` : kind;
+      $("table.signals").dataset.stale = "true";
+      app.statusError = { source: "steady", text: `steady state: ${kind}` };
+      refreshStatus();
     } finally {
       app.inflight = false;
       if (app.again) { app.again = false; requestSteady(); }
@@ -125,6 +206,7 @@
       td.textContent = fmt(v);
     }
     const ok = j.physically_valid === true;
+    delete $("#validity").dataset.error;
     $("#validity").dataset.valid = String(ok);
     $("#validity").textContent = ok ? "✓ physically valid" : "✗ NOT physically valid";
     const flags = $("#flags");
@@ -160,13 +242,32 @@
       const num = $(`input[name=${n}]`);
       const sl = $(`input[data-slider=${n}]`);
       sl.addEventListener("input", () => { num.value = sl.value; scheduleSteady(); });
+      // (a field without a number is named by the steady state's error, no request made)
       num.addEventListener("input", () => {
         const v = Number(num.value);
-        if (num.value !== "" && Number.isFinite(v)) { sl.value = String(v); scheduleSteady(); }
+        if (num.value !== "" && Number.isFinite(v)) sl.value = String(v);
+        scheduleSteady();
       });
     }
     $("select[name=model]").addEventListener("change", scheduleSteady);
-    $("select[name=params]").addEventListener("change", () => { applyInputRanges(); scheduleSteady(); });
+    $("select[name=params]").addEventListener("change", () => {
+      applyInputRanges();
+      // a map axis of n_e or u_delta follows the parameter set's range
+      for (const a of ["x", "y"]) if (["n_e", "u_delta"].includes($(`select[name=map_${a}]`).value)) applyMapRange(a);
+      scheduleSteady();
+    });
+    for (const a of ["x", "y"]) $(`select[name=map_${a}]`).addEventListener("change", () => applyMapRange(a));
+  }
+
+  // a map axis's range when its input is chosen: the input's slider range (the parameter
+  // set's for n_e and u_delta) one slider step inside its ends, as the defaults (u_egr
+  // 0.5-99.5 %, u_vgt 20.5-99.5 %: the saturation's kinks at the ends have no DC gain)
+  function applyMapRange(axis) {
+    const sl = $(`input[data-slider=${$(`select[name=map_${axis}]`).value}]`);
+    const step = Number(sl.step) || 0;
+    const round = (v) => String(Number(v.toPrecision(12)));
+    $(`input[name=map_${axis}_lo]`).value = round(Number(sl.min) + step);
+    $(`input[name=map_${axis}_hi]`).value = round(Number(sl.max) - step);
   }
 
   // the n_e and u_delta sliders span the selected parameter set's input saturation (/api/models
@@ -205,6 +306,24 @@
     return out;
   }
 
+  // ticks of an angle [deg]: steps of 15, 30, 45, 90, 180 or 360 deg (multiples of 360 beyond)
+  function degTicks(lo, hi, n) {
+    const step0 = (hi - lo) / n;
+    if (step0 < 5) return ticks(lo, hi, n);
+    const step = [5, 10, 15, 30, 45, 90, 180, 360].find((s) => s >= step0) || 360 * Math.pow(2, Math.ceil(Math.log2(step0 / 360)));
+    const out = [];
+    for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(v);
+    return out;
+  }
+
+  // the unit of a gain: output unit per input unit ("1" for a dimensionless output, a
+  // compound input unit in parentheses: "kg/s/(mg/cycle)", "1/%")
+  function ratioUnit(out, inp) {
+    const o = !out || out === "-" ? "1" : out;
+    const i = !inp || inp === "-" ? "" : (inp.includes("/") ? `(${inp})` : inp);
+    return i ? `${o}/${i}` : o;
+  }
+
   function tickLabel(v) {
     const a = Math.abs(v);
     if (a !== 0 && (a < 1e-3 || a >= 1e7)) return v.toExponential(2);
@@ -236,7 +355,7 @@
     ctx.strokeRect(x0 + L, y0 + T, w - L - R, h - T - B);
     ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
-    for (const v of ticks(yr[0], yr[1], opts.yTicks || 3)) {
+    for (const v of (opts.yTickFn || ticks)(yr[0], yr[1], opts.yTicks || 3)) {
       ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
@@ -285,9 +404,38 @@
     ctx.restore();
   }
 
+  // a canvas drawn at the size it is shown: the width of its panel and the height of its
+  // HTML attribute (fixed, so the 11-12 px text stays so at any width) in CSS pixels, its
+  // bitmap that times devicePixelRatio (sharp on a high-density screen, not scaled down on a
+  // narrow one); the drawing's size in CSS pixels is c.drawW x c.drawH. Returns the context,
+  // scaled to CSS pixels, cleared to white.
   function clearCanvas(c) {
+    if (!c.dataset.height) c.dataset.height = c.getAttribute("height");
+    c.style.height = `${c.dataset.height}px`;
+    // (inside the border)
+    const W = c.clientWidth || Number(c.getAttribute("width"));
+    const H = c.clientHeight || Number(c.dataset.height);
+    const dpr = window.devicePixelRatio || 1;
+    c.width = Math.round(W * dpr);
+    c.height = Math.round(H * dpr);
+    c.drawW = W; c.drawH = H;
     const ctx = c.getContext("2d");
-    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, c.width, c.height);
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    ctx.fillStyle = "#fff"; ctx.fillRect(0, 0, W, H);
+    return ctx;
+  }
+
+  // a copy of the canvas's bitmap, and the canvas restored from one (the time cursor moves
+  // over the drawn figure: drawImage, not getImageData, which would want willReadFrequently)
+  function snapshot(c) {
+    const s = document.createElement("canvas");
+    s.width = c.width; s.height = c.height;
+    s.getContext("2d").drawImage(c, 0, 0);
+    return s;
+  }
+  function restore(c, snap) {
+    const ctx = c.getContext("2d");
+    ctx.save(); ctx.setTransform(1, 0, 0, 1, 0, 0); ctx.drawImage(snap, 0, 0); ctx.restore();
     return ctx;
   }
 
@@ -298,36 +446,61 @@
   // right half plane, as `mvem linearize` marks it
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
-  // the point, model and parameter set a linearization was asked for, as a key and as text
-  const linearKey = () => JSON.stringify([point(), modelSel()]);
-  function linearAt() {
+  // the point, model and parameter set a result was asked for, as a key and as text
+  const pointStamp = () => JSON.stringify([pointKey(), modelSel()]);
+  const modelStamp = () => JSON.stringify(modelSel());
+  function pointText() {
     const p = point();
     return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states`;
   }
-  // a shown linear model of another point than the inputs' is marked (not recomputed: the
-  // sliders would ask for one per move)
-  function markLinearStale() {
-    const el = $("#lin-at");
-    if (!app.linearKey) return;
-    const stale = app.linearKey !== linearKey();
-    el.dataset.stale = String(stale);
-    el.textContent = stale ? `${app.linearAtText}; the point has changed: Linearize again` : app.linearAtText;
+  // each result panel's line naming what its result was computed at (the panel: its line, the
+  // key of what it depends on, what changed when that key changes, its button). A result of
+  // another point, model or parameter set than the inputs' is marked (not recomputed: the
+  // sliders would ask for one per move), and so is one whose next computation failed
+  const STAMPS = {
+    linear: ["#lin-at", pointStamp, "the point has changed", "Linearize"],
+    margins: ["#margins-at", pointStamp, "the point has changed", "Loop margins"],
+    step: ["#step-at", pointStamp, "the point has changed", "Run step"],
+    map: ["#map-at", pointStamp, "the point has changed", "Compute map"],
+    cycle: ["#cycle-at", modelStamp, "the model has changed", "Run cycle"],
+  };
+  const stamps = {};
+  function stamp(panel, key, text) {
+    stamps[panel] = { key, text, failed: false };
+    markStale();
+  }
+  function markStale() {
+    for (const [panel, st] of Object.entries(stamps)) {
+      const [sel, keyOf, changed, button] = STAMPS[panel];
+      const el = $(sel);
+      const moved = st.key !== keyOf();
+      el.dataset.stale = String(moved || st.failed);
+      el.textContent = st.failed ? `${st.text}; the last ${button} failed: this is the result before it`
+        : moved ? `${st.text}; ${changed}: ${button} again` : st.text;
+    }
   }
 
   // a button's computation: the button disabled and the status busy meanwhile; its panel's
   // error line cleared when it succeeds, showing the failure when it throws
-  async function busy(button, text, errorId, work) {
+  async function busy(button, text, errorId, work, panel) {
     const btn = $(button);
     btn.disabled = true;
-    setStatus("busy", text);
+    const id = ++jobSeq;
+    jobs.set(id, text);
+    refreshStatus();
     try {
       await work();
       showError(errorId, null);
+      if (app.statusError && app.statusError.source === "network") app.statusError = null;
     } catch (e) {
       showError(errorId, e);
+      // the result shown stays, marked as the one before
+      if (panel && stamps[panel]) { stamps[panel].failed = true; markStale(); }
+      if (e.kind === "network") app.statusError = { source: "network", text: "server unreachable" };
     } finally {
       btn.disabled = false;
-      setStatus("ok", "ready");
+      jobs.delete(id);
+      refreshStatus();
     }
   }
 
@@ -335,30 +508,25 @@
     await busy("[data-action=linearize]", "linearizing…", "#lin-error", async () => {
       const q = new URLSearchParams({ ...point(), model: modelSel().model });
       if (modelSel().params) q.set("params", modelSel().params);
-      const ts = $("input[name=lin_ts]").value.trim();
-      if (ts !== "") q.set("ts", ts);
+      const ts = optNum("lin_ts", "sample time");
+      if (ts !== undefined) q.set("ts", String(ts));
       q.set("bode", bodeGrid());
-      const key = linearKey();
-      const at = linearAt();
+      const key = pointStamp();
+      const at = pointText();
       const j = await api(`/api/linearize?${q}`);
       app.linear = j;
-      app.linearKey = key;
-      app.linearAtText = at;
-      markLinearStale();
+      stamp("linear", key, at);
       showLinear(j);
       $("[data-download=linear]").disabled = false;
-    });
+    }, "linear");
   }
 
   // the frequency grid of the Bode diagram (Hz: from, to, points): the range of the two inputs
   // (empty: 0.01 and 100 Hz), checked by the server (a bad range is its 400, naming `bode`)
   const BODE_POINTS = 200;
   function bodeGrid() {
-    const v = (name, dflt) => {
-      const s = $(`input[name=${name}]`).value.trim();
-      return s === "" ? dflt : s;
-    };
-    return `${v("bode_fmin", "0.01")}:${v("bode_fmax", "100")}:${BODE_POINTS}`;
+    const v = (name, label, dflt) => optNum(name, label) ?? dflt;
+    return `${v("bode_fmin", "Bode from", 0.01)}:${v("bode_fmax", "Bode to", 100)}:${BODE_POINTS}`;
   }
 
   // the channel menu of the Bode diagram (the previous choice kept when the new model has it)
@@ -392,14 +560,28 @@
     const ctx = clearCanvas(c);
     const lf = fr.f_hz.map((f) => Math.log10(f));
     const xr = [lf[0], lf[lf.length - 1]];
+    // (a zero gain is -inf dB: the range of the finite values; none: a channel without gain)
     const db = g.mag.map((m) => 20 * Math.log10(m));
-    const w = c.width / 2;
-    const units = `${unit(out)} per ${unit(inp)}`;
-    const pm = panel(ctx, [0, 0, w, c.height], xr, niceRange(Math.min(...db), Math.max(...db)),
-      `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true });
+    const fin = db.filter(Number.isFinite);
+    const w = c.drawW / 2;
+    const units = ratioUnit(unit(out), unit(inp));
+    const pm = panel(ctx, [0, 0, w, c.drawH], xr, fin.length ? niceRange(Math.min(...fin), Math.max(...fin)) : [-1, 1],
+      `|G| [dB re 1 ${units}]   f [Hz]`, { logX: true, yTicks: 5 });
+    // the 0 dB line (|G| = 1 in the channel's units)
+    if (fin.length && Math.min(...fin) <= 0 && Math.max(...fin) >= 0) line(ctx, pm, xr, [0, 0], "#5d6778", 1, [4, 3]);
     line(ctx, pm, lf, db, COLORS[0], 2);
-    const pp = panel(ctx, [w, 0, w, c.height], xr, niceRange(Math.min(...g.phase_deg), Math.max(...g.phase_deg)),
-      "phase [deg]   f [Hz]", { logX: true });
+    c.dataset.zeroGain = fin.length ? (fin.length < db.length ? "some" : "") : "all";
+    if (fin.length < db.length) {
+      ctx.save();
+      ctx.fillStyle = "#c62828"; ctx.font = "12px system-ui, sans-serif"; ctx.textAlign = "center"; ctx.textBaseline = "middle";
+      const [cx, cy, cw, chh] = pm.clip;
+      ctx.fillText(fin.length ? "|G| = 0 (−∞ dB) at some frequencies: gaps in the line" : "zero gain: |G| = 0 (−∞ dB) at every frequency",
+        cx + cw / 2, fin.length ? cy + 10 : cy + chh / 2);
+      ctx.restore();
+    }
+    const ph = g.phase_deg.filter(Number.isFinite);
+    const pp = panel(ctx, [w, 0, w, c.drawH], xr, ph.length ? niceRange(Math.min(...ph), Math.max(...ph)) : [-1, 1],
+      "phase [deg]   f [Hz]", { logX: true, yTicks: 6, yTickFn: degTicks });
     line(ctx, pp, lf, g.phase_deg, COLORS[1], 2);
     const [f0, f1] = [fr.f_hz[0], fr.f_hz[fr.f_hz.length - 1]];
     const hz = (f) => String(Number(f.toPrecision(6)));
@@ -413,16 +595,26 @@
   async function runMargins() {
     await busy("[data-action=margins]", "loop margins…", "#margins-error", async () => {
       const body = { point: point(), ...modelSel() };
-      if (app.tuningDefaults) body.tuning = tuningValue();
+      const key = pointStamp();
+      const at = pointText();
+      // the tuning of the drive-cycle panel's form (shown in closed-loop mode): the summary
+      // says which entries differ from the defaults
+      let tuning = "";
+      if (app.tuningDefaults) {
+        body.tuning = tuningValue();
+        const changed = Object.keys(body.tuning).filter((k) => JSON.stringify(body.tuning[k]) !== JSON.stringify(app.tuningDefaults[k]));
+        tuning = changed.length ? `; controller tuning of the drive-cycle panel's form (closed loop): ${changed.join(", ")} changed` : "; controller tuning: the defaults";
+      }
       const j = await api("/api/margins", body);
       app.margins = j;
-      showMargins(j);
-    });
+      stamp("margins", key, at);
+      showMargins(j, tuning);
+    }, "margins");
   }
 
-  function showMargins(j) {
+  function showMargins(j, tuning = "") {
     const p = j.operating_point;
-    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}`;
+    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}${tuning}`;
     $("#margins-summary").dataset.stable = String(j.stable);
     const hz = (f) => `${Number(f.toPrecision(4))} Hz`;
     const rows = [];
@@ -473,7 +665,11 @@
       outs.forEach((out, o) => {
         const ch = `${inp}->${out}`;
         const g = j.dc_gain ? j.dc_gain[o][i] : null;
-        const td = cell("", fmt(g));
+        const td = cell("", "");
+        const gain = document.createElement("span");
+        gain.className = "g";
+        gain.textContent = fmt(g);
+        td.append(gain);
         td.dataset.channel = ch;
         td.dataset.dcGain = g === null ? "" : String(g);
         const zs = j.zeros[ch];
@@ -503,36 +699,50 @@
 
   async function runStep() {
     await busy("[data-action=step]", "running step…", "#step-error", async () => {
-      const body = { point: point(), input: $("select[name=step_input]").value, target: Number($("input[name=step_target]").value),
-        horizon: Number($("input[name=step_horizon]").value), ...modelSel() };
+      const body = { point: point(), input: $("select[name=step_input]").value, target: num("step_target", "step to"),
+        horizon: num("step_horizon", "horizon"), ...modelSel() };
+      const key = pointStamp();
+      const at = pointText();
       const j = await api("/api/step", body);
       app.step = j;
+      stamp("step", key, `step of ${j.input} from ${tickLabel(j.from)} to ${tickLabel(j.to)} ${at}`);
       drawStep(j);
+      // the server's warnings: a steady state not physically valid, an input the model clamps
+      const w = j.warnings || [];
+      $("#step-warnings").textContent = w.length ? `warning: ${w.join("; ")}` : "";
+      $("#step-warnings").dataset.count = String(w.length);
       $("[data-download=step]").disabled = false;
-    });
+    }, "step");
   }
 
   function drawStep(j) {
     const c = $("[data-plot=step]");
     const ctx = clearCanvas(c);
     const names = Object.keys(j.series);
-    const panels = [{ name: `${j.input} [${j.input_unit}]`, y: j.u, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
+    // the stepped input as the model applies it (clamped into its range), and the value asked
+    // for dashed where it differs
+    const applied = j.u_applied || j.u;
+    const clamped = j.to_applied !== undefined && j.to_applied !== j.to;
+    const inputTitle = `${j.input} [${j.input_unit}]` + (clamped ? `   applied ${tickLabel(j.to_applied)} (dashed: ${tickLabel(j.to)} asked, clamped)` : "");
+    const panels = [{ name: inputTitle, y: applied, asked: clamped ? j.u : null, input: true }].concat(names.map((n) => ({ name: n, y: j.series[n], m: j.outputs[n] })));
     const cols = 2, rows = Math.ceil(panels.length / cols);
-    const w = c.width / cols, h = c.height / rows;
+    const w = c.drawW / cols, h = c.drawH / rows;
     const xr = [j.t[0], j.t[j.t.length - 1]];
     let marks = { nmp: 0, overshoot: 0, dc: 0 };
     panels.forEach((pn, k) => {
       const box = [(k % cols) * w, Math.floor(k / cols) * h, w, h];
       let lo = Math.min(...pn.y), hi = Math.max(...pn.y);
+      if (pn.asked) { lo = Math.min(lo, ...pn.asked); hi = Math.max(hi, ...pn.asked); }
       const m = pn.m;
       if (m && !m.error) { lo = Math.min(lo, m.y0, m.y_final); hi = Math.max(hi, m.y0, m.y_final); }
-      const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${unit(pn.name)}/${j.input_unit}` : "");
+      const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${ratioUnit(unit(pn.name), j.input_unit)}` : "");
       const p = panel(ctx, box, xr, niceRange(lo, hi), title);
       if (m && !m.error) {
         line(ctx, p, xr, [m.y0, m.y0], "#9aa3b2", 1, [3, 3]);
         line(ctx, p, xr, [m.y_final, m.y_final], "#2e7d32", 1, [6, 3]);
         marks.dc++;
       }
+      if (pn.asked) line(ctx, p, j.t, pn.asked, "#9aa3b2", 1, [4, 3]);
       line(ctx, p, j.t, pn.y, pn.input ? "#546e7a" : COLORS[k % COLORS.length]);
       if (m && !m.error) {
         if (m.wrong_way && m.non_minimum_phase) {
@@ -567,22 +777,25 @@
 
   async function runMap() {
     await busy("[data-action=map]", "computing map…", "#map-error", async () => {
-      const n = Math.round(Number($("input[name=map_n]").value));
+      const n = Math.round(num("map_n", "points"));
       const body = {
         base: point(),
-        x: { input: $("select[name=map_x]").value, lo: Number($("input[name=map_x_lo]").value), hi: Number($("input[name=map_x_hi]").value), n },
-        y: { input: $("select[name=map_y]").value, lo: Number($("input[name=map_y_lo]").value), hi: Number($("input[name=map_y_hi]").value), n },
+        x: { input: $("select[name=map_x]").value, lo: num("map_x_lo", "x from"), hi: num("map_x_hi", "x to"), n },
+        y: { input: $("select[name=map_y]").value, lo: num("map_y_lo", "y from"), hi: num("map_y_hi", "y to"), n },
         channel: { input: $("select[name=map_input]").value, output: $("select[name=map_output]").value },
         ...modelSel(),
       };
       const t0 = performance.now();
+      const key = pointStamp();
+      const at = pointText();
       const j = await api("/api/map", body);
       app.map = j;
+      stamp("map", key, `around the point ${at}`);
       drawMap(j);
       $("#map-info").textContent = `${j.dc_gain.length} points in ${((performance.now() - t0) / 1000).toFixed(2)} s; ` +
-        `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.errors.length} without a gain`;
+        `${j.sign.filter((s) => s === 1).length} positive, ${j.sign.filter((s) => s === -1).length} negative, ${j.sign.filter((s) => s === 0).length} zero, ${j.errors.length} without a gain`;
       $("[data-download=map]").disabled = false;
-    });
+    }, "map");
   }
 
   function drawMap(j) {
@@ -590,12 +803,12 @@
     const ctx = clearCanvas(c);
     const xs = j.x.values, ys = j.y.values, nx = xs.length, ny = ys.length;
     const L = 60, R = 16, T = 28, B = 64;
-    const w = (c.width - L - R) / nx, h = (c.height - T - B) / ny;
+    const w = (c.drawW - L - R) / nx, h = (c.drawH - T - B) / ny;
     for (let i = 0; i < nx; i++) {
       for (let k = 0; k < ny; k++) {
         const idx = i * ny + k;
         const s = j.sign[idx];
-        ctx.fillStyle = s === 1 ? "#5b8def" : s === -1 ? "#e4575f" : "#c9ced8";
+        ctx.fillStyle = s === 1 ? "#5b8def" : s === -1 ? "#e4575f" : s === 0 ? "#f2d675" : "#c9ced8";
         if (!j.physically_valid[idx] && s !== null) ctx.fillStyle = s === 1 ? "#b9cdf7" : "#f3b7ba";
         ctx.fillRect(L + i * w, T + (ny - 1 - k) * h, Math.ceil(w), Math.ceil(h));
       }
@@ -610,7 +823,7 @@
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
     for (const v of ticks(ys[0], ys[ny - 1], 5)) ctx.fillText(tickLabel(v), L - 4, T + (ny - 1 - (v - ys[0]) / (ys[ny - 1] - ys[0]) * (ny - 1)) * h + h / 2);
     ctx.save(); ctx.translate(14, T + ny * h / 2); ctx.rotate(-Math.PI / 2); ctx.textAlign = "center"; ctx.fillText(`${j.y.input} [${j.y.unit}]`, 0, 0); ctx.restore();
-    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
+    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#f2d675", "zero"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
     let x = L; ctx.textAlign = "left";
     legend.forEach(([col, lab], k) => {
       const y = T + ny * h + 36 + (k >= 3 ? 14 : 0);
@@ -625,9 +838,38 @@
   // ---------------------------------------------------------------------------------------------
   // drive-cycle panel
 
-  // names per strip; an upper display limit where spikes would flatten the rest (lambda_O is
-  // 100+ while no fuel is injected)
-  const CYCLE_PANELS = [[["u_egr", "u_vgt"]], [["M_e"]], [["p_im", "p_em"]], [["W_c"]], [["x_egr"]], [["lambda_O"], 8]];
+  // the strips of the cycle figure: per strip its series and their colours (a reference
+  // dashed, in the colour of what it is the reference of; a series the run lacks, as the
+  // references in open loop, left out), and an upper display limit where spikes would flatten
+  // the rest (lambda_O is 100+ while no fuel is injected)
+  const REF = [5, 3];
+  const CYCLE_PANELS = [
+    { series: [["n_e", "#546e7a"]] },
+    { series: [["u_delta", "#6d4c41"]] },
+    { series: [["u_egr", "#2e7d32"], ["u_vgt", "#8e44ad"]] },
+    { series: [["M_e", COLORS[0]], ["M_ref", "#1d2330", REF]] },
+    { series: [["p_im", COLORS[0]], ["p_em", COLORS[1]]] },
+    { series: [["W_c", "#00897b"]] },
+    { series: [["x_egr", "#e67e22"], ["x_egr_ref", "#1d2330", REF]] },
+    { series: [["lambda_O", COLORS[0]], ["lambda_O_ref", "#1d2330", REF]], cap: 8 },
+  ];
+
+  // a strip's legend in place of its title: per series a line sample in its colour and dash,
+  // its name and unit
+  function legend(ctx, p, y, items, note) {
+    ctx.save();
+    ctx.font = "12px system-ui, sans-serif"; ctx.textBaseline = "top"; ctx.textAlign = "left";
+    let x = p.clip[0] + 4;
+    for (const [name, color, dash] of items) {
+      ctx.strokeStyle = color; ctx.lineWidth = 2; ctx.setLineDash(dash || []);
+      ctx.beginPath(); ctx.moveTo(x, y + 8); ctx.lineTo(x + 18, y + 8); ctx.stroke();
+      const text = `${name} [${unit(name)}]`;
+      ctx.fillStyle = "#1d2330"; ctx.fillText(text, x + 22, y + 2);
+      x += 22 + ctx.measureText(text).width + 14;
+    }
+    if (note) { ctx.fillStyle = "#5d6778"; ctx.fillText(note, x, y + 2); }
+    ctx.restore();
+  }
   let cycleImage = null;
 
   // closed loop with "loop margins every" ticked: its seconds (the server checks the range and
@@ -649,8 +891,12 @@
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       body.margins = marginsEvery();
+      const key = modelStamp();
+      const source = cycle === FILE_CYCLE ? `file ${app.cycleFile.name}` : cycle === "whtc" ? "the WHTC" : cycle;
+      const at = `${source}, ${MODE_LABELS[body.mode] || body.mode}, ${body.model} states, parameters ${$("select[name=params]").value}`;
       const j = await api("/api/simulate", body);
       app.cycle = j;
+      stamp("cycle", key, at);
       showCycleStats(j);
       Object.assign(app.units, j.units || {});
       drawCycle(j);
@@ -667,7 +913,7 @@
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
       scrub();
       $("[data-download=cycle]").disabled = false;
-    });
+    }, "cycle");
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -770,9 +1016,15 @@
   // a user's cycle file: read once, then one more entry of the cycle menu
   const FILE_CYCLE = "__file";
   async function loadCycleFile() {
-    const f = $("input[name=cycle_file]").files[0];
+    const inp = $("input[name=cycle_file]");
+    const f = inp.files[0];
     if (!f) return;
-    app.cycleFile = { name: f.name, text: await f.text() };
+    try {
+      app.cycleFile = { name: f.name, text: await f.text() };
+    } finally {
+      // emptied: choosing the same file again (edited since) is a change that reads it again
+      inp.value = "";
+    }
     const sel = $("select[name=cycle]");
     let opt = sel.querySelector(`option[value="${FILE_CYCLE}"]`);
     if (!opt) { opt = new Option("", FILE_CYCLE); sel.append(opt); }
@@ -818,20 +1070,25 @@
   function drawCycle(j) {
     const c = $("[data-plot=cycle]");
     const ctx = clearCanvas(c);
-    const h = c.height / CYCLE_PANELS.length;
+    const h = c.drawH / CYCLE_PANELS.length;
     const xr = [j.t[0], j.t[j.t.length - 1]];
-    app.cyclePanels = CYCLE_PANELS.map(([names, cap], k) => {
-      const ys = names.map((n) => j.series[n] ?? j.inputs[n]);
+    const drawn = [];
+    app.cyclePanels = CYCLE_PANELS.map(({ series, cap }, k) => {
+      const items = series.filter(([n]) => (j.series[n] ?? j.inputs[n]) !== undefined);
+      const ys = items.map(([n]) => j.series[n] ?? j.inputs[n]);
       let [lo, hi] = robustRange(ys, 0.002);
       const capped = cap !== undefined && hi > cap;
       if (capped) hi = cap;
-      const title = names.map((n) => `${n} [${unit(n)}]`).join(", ") + (capped ? ` (axis cut at ${cap})` : "");
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(lo, hi), title,
+      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(lo, hi), "",
         { xLabel: k === CYCLE_PANELS.length - 1 ? "t [s]" : undefined });
-      ys.forEach((y, q) => line(ctx, p, j.t, y, COLORS[(k * 2 + q) % COLORS.length], 1));
+      // (a reference dashed over what follows it)
+      items.forEach(([, color, dash], q) => line(ctx, p, j.t, ys[q], color, dash ? 1.2 : 1, dash || []));
+      legend(ctx, p, k * h, items, capped ? `(axis cut at ${cap})` : "");
+      drawn.push(...items.map(([n]) => n));
       return p;
     });
-    cycleImage = ctx.getImageData(0, 0, c.width, c.height);
+    cycleImage = snapshot(c);
+    c.dataset.series = drawn.join(",");
     c.dataset.drawn = String(j.t.length);
   }
 
@@ -899,11 +1156,11 @@
       }
     }
     const strips = [["gm", "gain margin [dB], other loop closed (0 dB: the stability boundary)"], ["pm", "phase margin [deg], other loop closed"]];
-    const h = c.height / strips.length;
+    const h = c.drawH / strips.length;
     let dots = 0;
     strips.forEach(([key, title], k) => {
       const [lo, hi] = robustRange(pts.map((q) => q[key][1]), 0);
-      const p = panel(ctx, [0, k * h, c.width, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
+      const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
         { yTicks: 5, xLabel: k === strips.length - 1 ? "t [s]" : undefined });
       // the samples whose loops are unstable together: a band as wide as the spacing (at least
       // 3 px), over the whole height of the strip
@@ -942,7 +1199,7 @@
     const note = document.createElement("div");
     note.textContent = "each sample analysed at the steady state of its commands (a frozen operating point), with the loops in feedback then; the fuel path is not in the analysis (docs/control.md)";
     legend.append(band, note);
-    marginsImage = ctx.getImageData(0, 0, c.width, c.height);
+    marginsImage = snapshot(c);
     c.dataset.dots = String(dots);
     c.dataset.bands = String(m.summary.unstable_t.length);
     c.dataset.drawn = String(m.samples.length);
@@ -953,17 +1210,14 @@
     if (!j) return;
     const i = Number($("input[name=cycle_t]").value);
     const c = $("[data-plot=cycle]");
-    const ctx = c.getContext("2d");
-    if (cycleImage) ctx.putImageData(cycleImage, 0, 0);
+    const ctx = cycleImage ? restore(c, cycleImage) : c.getContext("2d");
     const X = app.cyclePanels[0].px(j.t[i]);
-    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.height); cx.stroke(); cx.restore(); };
+    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.drawH); cx.stroke(); cx.restore(); };
     cursor(c, ctx);
     // the margins figure shares the time axis
     if (j.margins && marginsImage) {
       const mc = $("[data-plot=cycle-margins]");
-      const mctx = mc.getContext("2d");
-      mctx.putImageData(marginsImage, 0, 0);
-      cursor(mc, mctx);
+      cursor(mc, restore(mc, marginsImage));
     }
     $("#cycle-time").textContent = j.t[i].toFixed(1);
     const names = INPUTS.concat(Object.keys(j.series));
@@ -981,8 +1235,8 @@
     $("[data-download=steady]").addEventListener("click", () => {
       const j = app.steady;
       if (!j) return;
+      // (the inputs n_e ... u_vgt are signals of the answer: the values the model applied)
       const rows = [["name", "value", "unit"]];
-      for (const n of INPUTS) rows.push([n, point()[n], unit(n)]);
       for (const [k, v] of Object.entries(j)) if (typeof v === "number") rows.push([k, v, unit(k)]);
       rows.push(["physically_valid", j.physically_valid, ""], ["flags", (j.flags || []).join(";"), ""]);
       download("steady.csv", rows);
@@ -1018,6 +1272,20 @@
     });
   }
 
+  // the figures drawn again at their new size when the window's size (or its pixel ratio:
+  // the zoom) changes
+  let resizeTimer = 0;
+  function redrawAll() {
+    if (app.step) drawStep(app.step);
+    if (app.linear) drawBode();
+    if (app.map) drawMap(app.map);
+    if (app.cycle) {
+      drawCycle(app.cycle);
+      if (app.cycle.margins && !$("#cycle-margins").hidden) drawCycleMargins(app.cycle);
+      scrub();
+    }
+  }
+
   // ---------------------------------------------------------------------------------------------
   // start
 
@@ -1034,6 +1302,7 @@
     $("[data-action=margins]").addEventListener("click", runMargins);
     $("input[name=cycle_file]").addEventListener("change", () => loadCycleFile().catch((e) => showError("#cycle-error", e)));
     $("[data-action=tuning-defaults]").addEventListener("click", resetTuning);
+    window.addEventListener("resize", () => { clearTimeout(resizeTimer); resizeTimer = setTimeout(redrawAll, 100); });
     $("#tuning-fields").addEventListener("input", markTuning);
     try {
       const m = await api("/api/models");
@@ -1045,9 +1314,10 @@
       $("select[name=cycle_mode]").replaceChildren(...m.modes.map((md) => new Option(MODE_LABELS[md] || md, md)));
       if (m.controller_tuning) buildTuning(m.controller_tuning);
       showCycleMode();
-      setStatus("ok", "ready");
+      refreshStatus();
     } catch (e) {
-      setStatus("error", `server: ${e.message}`);
+      app.statusError = { source: "network", text: `server: ${e.message}` };
+      refreshStatus();
     }
     buildSignalTable();
     requestSteady();

@@ -170,6 +170,7 @@ pub(crate) fn router(models: Arc<Models>, limits: Limits) -> Router {
         .route("/api/simulate", post(simulate))
         .route("/api/map", post(map))
         .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
         .layer(DefaultBodyLimit::max(max_body))
         .with_state(app)
 }
@@ -206,6 +207,22 @@ async fn app_css() -> Response {
 
 async fn not_found() -> ApiError {
     ApiError::new(StatusCode::NOT_FOUND, "no such route; see docs/serve.md")
+}
+
+/// A route asked with another method (GET of a POST route ...): 405 with a JSON body, as every
+/// answer of the server (axum's own has none).
+async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    let allowed = match uri.path() {
+        "/api/step" | "/api/margins" | "/api/simulate" | "/api/map" => "POST",
+        _ => "GET",
+    };
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!(
+            "{method} {}: not allowed; the route takes {allowed} (docs/serve.md)",
+            uri.path()
+        ),
+    )
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -293,12 +310,17 @@ impl App {
     }
 }
 
-/// A JSON body, or 413 past the size limit / 400 naming what is wrong.
-fn body<T: DeserializeOwned>(b: Result<Bytes, BytesRejection>) -> Result<T, ApiError> {
+/// A JSON body, or 413 past the size limit `max` \[bytes\] / 400 naming what is wrong.
+fn body<T: DeserializeOwned>(b: Result<Bytes, BytesRejection>, max: usize) -> Result<T, ApiError> {
     let b = b.map_err(|e| {
         let status = e.status();
         if status == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::new(status, "body: too large")
+            let limit = if max % (1 << 20) == 0 {
+                format!("{} MiB", max >> 20)
+            } else {
+                format!("{max} bytes")
+            };
+            ApiError::new(status, format!("body: too large (the limit is {limit})"))
         } else {
             ApiError::bad(format!("body: {e}"))
         }
@@ -421,15 +443,21 @@ async fn linearize(
             _ => return Err(ApiError::bad(format!("pade {s:?}: one of 0, 1, 2, 3"))),
         },
     };
-    let outputs: Vec<String> = p
-        .take("outputs")
-        .map(|s| {
-            s.split(',')
-                .map(|x| x.trim().to_string())
-                .filter(|x| !x.is_empty())
-                .collect()
-        })
-        .unwrap_or_default();
+    // each name once (the first), at most as many as a simulation's series
+    let mut outputs: Vec<String> = Vec::new();
+    for x in p.take("outputs").unwrap_or_default().split(',') {
+        let x = x.trim();
+        if !x.is_empty() && !outputs.iter().any(|o| o == x) {
+            outputs.push(x.to_string());
+        }
+    }
+    if outputs.len() > compute::MAX_OUTPUTS {
+        return Err(ApiError::bad(format!(
+            "outputs: {} names, at most {}",
+            outputs.len(),
+            compute::MAX_OUTPUTS
+        )));
+    }
     // the model sampled at ts [s] with the delays exact (`mvem linearize --ts`)
     let ts = match p.take("ts") {
         None => None,
@@ -469,15 +497,26 @@ async fn linearize(
 
 /// Most frequencies of one `bode` request (a figure needs a few hundred).
 const MAX_BODE_POINTS: usize = 2000;
+/// The frequency range of a `bode` request \[Hz\]: eight decades around the engine's dynamics
+/// (its poles lie between some 0.01 and 100 Hz); beyond them a figure is unreadable.
+const BODE_RANGE_HZ: (f64, f64) = (1e-4, 1e4);
 
-/// The frequencies of `bode=FMIN:FMAX:N` (Hz, log-spaced).
+/// The frequencies of `bode=FMIN:FMAX:N` (Hz, log-spaced) inside [`BODE_RANGE_HZ`].
 fn bode_grid(spec: &str) -> Result<Vec<f64>, ApiError> {
-    mvem::analysis::frequency::parse_grid(spec, MAX_BODE_POINTS)
-        .map_err(|e| ApiError::bad(format!("bode {spec:?}: {e}")))
+    let f = mvem::analysis::frequency::parse_grid(spec, MAX_BODE_POINTS)
+        .map_err(|e| ApiError::bad(format!("bode {spec:?}: {e}")))?;
+    let (lo, hi) = BODE_RANGE_HZ;
+    if f.iter().any(|&v| !(lo..=hi).contains(&v)) {
+        return Err(ApiError::bad(format!(
+            "bode {spec:?}: the frequencies must lie in [{lo}, {hi}] Hz (mvem linearize --bode \
+             has no such limit)"
+        )));
+    }
+    Ok(f)
 }
 
 async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
-    let r: StepRequest = body(b)?;
+    let r: StepRequest = body(b, app.work.limits.max_body)?;
     let slot = r.check()?;
     let m = app.model(order_n(r.model)?, r.params.as_deref())?;
     let v = app
@@ -488,7 +527,7 @@ async fn step(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> Ap
 }
 
 async fn margins(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
-    let r: MarginsRequest = body(b)?;
+    let r: MarginsRequest = body(b, app.work.limits.max_body)?;
     let m = app.model(order_n(r.model)?, r.params.as_deref())?;
     let v = app
         .work
@@ -498,7 +537,7 @@ async fn margins(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) ->
 }
 
 async fn simulate(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
-    let r: SimulateRequest = body(b)?;
+    let r: SimulateRequest = body(b, app.work.limits.max_body)?;
     let m = app.model(order_n(r.model)?, r.params.as_deref())?;
     let (what, name, dt) = r.schedule(&app.models.cycles)?;
     let v = app
@@ -509,7 +548,7 @@ async fn simulate(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -
 }
 
 async fn map(State(app): State<Shared>, b: Result<Bytes, BytesRejection>) -> ApiResult {
-    let r: MapRequest = body(b)?;
+    let r: MapRequest = body(b, app.work.limits.max_body)?;
     let grid = r.grid()?;
     let m = app.model(order_n(r.model)?, r.params.as_deref())?;
     let v = app

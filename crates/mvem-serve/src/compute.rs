@@ -12,7 +12,7 @@ use mvem::control::drive::{self, CycleSource, Scheme};
 use mvem::control::{ControlError, Trajectory};
 use mvem::io::csv_demand::parse_cycle_file;
 use mvem::io::csv_inputs::{input_ranges, range_warnings};
-use mvem::model::{AnyModel, Drive, Model, Signals};
+use mvem::model::{saturate_inputs, AnyModel, Drive, Model, Signals};
 use mvem::numerics::Num;
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
@@ -40,8 +40,8 @@ pub const MAX_MAP_POINTS: usize = 41 * 41;
 const MAX_HORIZON: f64 = 60.0;
 /// Most output samples of one simulated series.
 const MAX_SAMPLES: f64 = 50_000.0;
-/// Most output series of one simulation.
-const MAX_OUTPUTS: usize = 32;
+/// Most output series of one simulation (and outputs of one linearization).
+pub(crate) const MAX_OUTPUTS: usize = 32;
 /// Output interval of a step response [s] (the CLI's `mvem step` default).
 const STEP_DT: f64 = 0.005;
 
@@ -231,16 +231,20 @@ impl StepRequest {
                 self.target, self.input
             )));
         }
-        if !(self.t_step >= 0.0 && self.t_step < self.horizon) {
-            return Err(input(format!(
-                "t_step {}: must be >= 0 and before the horizon {} s",
-                self.t_step, self.horizon
-            )));
-        }
         if !(self.horizon > 0.0 && self.horizon <= MAX_HORIZON) {
             return Err(input(format!(
                 "horizon {}: must lie in (0, {MAX_HORIZON}] s",
                 self.horizon
+            )));
+        }
+        if self.t_step.is_nan() || self.t_step < 0.0 {
+            return Err(input(format!("t_step {}: must be >= 0 s", self.t_step)));
+        }
+        // (named by the horizon: the page sets it, the step time is the default 1 s)
+        if self.t_step >= self.horizon {
+            return Err(input(format!(
+                "horizon {}: must be after the step at t_step = {} s",
+                self.horizon, self.t_step
             )));
         }
         Ok(slot)
@@ -283,16 +287,60 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
         metrics.push((n.clone(), run.metrics(n).map_err(|e| e.to_string())));
         series.insert(n.clone(), json!(run.sol.get(n).unwrap_or_default()));
     }
-    let from = spec.from();
-    let u: Vec<f64> = run
+    // the inputs as the model applies them: the authors' saturation clamps a value outside
+    // its range (n_e and u_delta: the parameter set's input_saturation), which `mvem step`
+    // warns about on stderr; here a warning each (the point before the step, the stepped
+    // input after it)
+    let sem = m.options().semantics;
+    let limits = &m.params().input_saturation;
+    let (applied_before, _) = saturate_inputs(&spec.before, sem, limits);
+    let (applied_after, _) = saturate_inputs(&spec.after(), sem, limits);
+    let mut warnings = run.flags();
+    if sem.authors() {
+        let ranges = input_ranges(limits);
+        let before = spec.before.to_array();
+        let clamped = applied_before.to_array();
+        for (k, (name, lo, hi)) in ranges.iter().enumerate() {
+            if before[k] != clamped[k] {
+                warnings.push(format!(
+                    "{name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it to {}",
+                    Num(before[k]),
+                    Num(clamped[k])
+                ));
+            }
+        }
+        let (name, lo, hi) = ranges[slot];
+        let to = applied_after.to_array()[slot];
+        if to != r.target {
+            warnings.push(format!(
+                "the step to {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it to {} \
+                 (the DC gains are per the change asked for, {}, not the one applied, {})",
+                Num(r.target),
+                Num(to),
+                Num(r.target - spec.from()),
+                Num(to - applied_before.to_array()[slot])
+            ));
+        }
+    }
+    let (from, to) = (spec.from(), r.target);
+    let (from_applied, to_applied) = (
+        applied_before.to_array()[slot],
+        applied_after.to_array()[slot],
+    );
+    let at = |t: f64, a: f64, b: f64| if t < r.t_step { a } else { b };
+    let u: Vec<f64> = run.sol.t().iter().map(|&t| at(t, from, to)).collect();
+    let u_applied: Vec<f64> = run
         .sol
         .t()
         .iter()
-        .map(|&t| if t < r.t_step { from } else { r.target })
+        .map(|&t| at(t, from_applied, to_applied))
         .collect();
-    let mut v = step_json(&spec, &run.flags(), &metrics);
+    let mut v = step_json(&spec, &warnings, &metrics);
     v["t"] = json!(run.sol.t());
     v["u"] = json!(u);
+    v["u_applied"] = json!(u_applied);
+    v["from_applied"] = json!(from_applied);
+    v["to_applied"] = json!(to_applied);
     v["series"] = Value::Object(series);
     Ok(v)
 }
@@ -394,6 +442,9 @@ impl SimulateRequest {
         cycles: &[(String, Arc<InputSchedule>)],
     ) -> Result<(CycleInput, String, f64), Fail> {
         let mode = CycleMode::parse(self.mode.as_deref())?;
+        if let Some(csv) = &self.csv {
+            check_text(csv)?;
+        }
         if let Some(t) = &self.tuning {
             if mode != CycleMode::Closed {
                 return Err(input(
@@ -438,13 +489,12 @@ impl SimulateRequest {
                     )))
                 }
             },
-            (None, Some(csv)) => (
-                Arc::new(
-                    mvem::io::csv_inputs::parse_inputs_csv(csv, std::path::Path::new("csv"))
-                        .map_err(|e| input(e.to_string()))?,
-                ),
-                "csv".to_string(),
-            ),
+            (None, Some(csv)) => {
+                let s = mvem::io::csv_inputs::parse_inputs_csv(csv, std::path::Path::new("csv"))
+                    .map_err(|e| input(e.to_string()))?;
+                check_changes(&s)?;
+                (Arc::new(s), "csv".to_string())
+            }
             (Some(_), Some(_)) => return Err(input("cycle and csv: give one of them")),
             (None, None) => return Err(input("cycle or csv: one is required")),
         };
@@ -517,6 +567,47 @@ impl SimulateRequest {
         }
         Ok(())
     }
+}
+
+/// A `"csv"` that is text: no control characters but tab, CR and LF, no U+FFFD (what a browser
+/// reads of bytes that are not UTF-8). A binary file is named so, without echoing its bytes in
+/// the error of a header it does not have.
+fn check_text(csv: &str) -> Result<(), Fail> {
+    let bad = |c: char| (c.is_control() && !matches!(c, '\t' | '\r' | '\n')) || c == '\u{FFFD}';
+    if let Some((k, line)) = csv.lines().enumerate().find(|(_, l)| l.contains(bad)) {
+        let col = line.chars().position(bad).unwrap_or(0) + 1;
+        return Err(input(format!(
+            "csv, line {}, character {col}: not a text table (a control character or bytes \
+             that are not UTF-8: is it a binary file?)",
+            k + 1
+        )));
+    }
+    Ok(())
+}
+
+/// Inputs whose change between two rows is finite (the schedule interpolates linearly; values
+/// such as 1e308 and -1e308 would overflow to a NaN input in the middle of the run).
+fn check_changes(s: &InputSchedule) -> Result<(), Fail> {
+    let (t, rows) = (s.times(), s.rows());
+    for k in 1..rows.len() {
+        for (c, name) in ["n_e_rpm", "u_delta_mg", "u_egr_pct", "u_vgt_pct"]
+            .iter()
+            .enumerate()
+        {
+            let (a, b) = (rows[k - 1][c], rows[k][c]);
+            if !(b - a).is_finite() {
+                return Err(input(format!(
+                    "csv, column {name}: from {} at t = {} s to {} at t = {} s, a change too large \
+                     to interpolate",
+                    Num(a),
+                    Num(t[k - 1]),
+                    Num(b),
+                    Num(t[k])
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `POST /api/simulate`.

@@ -927,3 +927,136 @@ proptest! {
         prop_assert!(r.json()["error"].is_string() || r.status == 200);
     }
 }
+
+/// A step to a command outside its range: the warning `mvem step` prints on stderr (the
+/// authors' saturation clamps it), and the input as applied beside the one asked for.
+#[test]
+fn a_step_outside_the_input_range_warns_and_gives_the_applied_input() {
+    let r = post(
+        "/api/step",
+        r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 5, "horizon": 3}"#,
+    );
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let j = r.json();
+    let w: Vec<&str> = j["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(
+        w.iter()
+            .any(|m| m.contains("u_vgt_pct = 5 is outside [20, 100]")
+                && m.contains("clamps it to 20")),
+        "{w:?}"
+    );
+    assert_eq!(j["to"], 5.0);
+    assert_eq!(j["to_applied"], 20.0);
+    assert_eq!(j["from_applied"], 75.0);
+    let (u, ua) = (
+        j["u"].as_array().unwrap(),
+        j["u_applied"].as_array().unwrap(),
+    );
+    assert_eq!(u.len(), ua.len());
+    assert_eq!(u.last().unwrap(), 5.0);
+    assert_eq!(ua.last().unwrap(), 20.0);
+    assert_eq!(ua[0], 75.0);
+    // the point before the step outside its range too (n_e above the published 2000 rpm)
+    let r = post(
+        "/api/step",
+        r#"{"point": {"n_e": 2500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65, "horizon": 3}"#,
+    );
+    let j = r.json();
+    assert!(
+        j["warnings"].as_array().unwrap().iter().any(|m| m
+            .as_str()
+            .unwrap()
+            .contains("n_e_rpm = 2500 is outside [500, 2000]")),
+        "{j}"
+    );
+    // inside the ranges: no warning, the applied input the asked one
+    let j = post(
+        "/api/step",
+        r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65, "horizon": 3}"#,
+    )
+    .json();
+    assert_eq!(j["warnings"], serde_json::json!([]));
+    assert_eq!(j["u"], j["u_applied"]);
+}
+
+/// The QA findings on the API's edges: each a 400 (405, 413) that names the problem in JSON.
+#[test]
+fn edge_requests_are_named_in_json() {
+    // a horizon before the default step time names the horizon (the page has no t_step)
+    assert_400_naming(
+        &post(
+            "/api/step",
+            r#"{"point": {"n_e": 1500, "u_delta": 110, "u_egr": 80, "u_vgt": 75}, "input": "u_vgt", "target": 65, "horizon": 0.5}"#,
+        ),
+        "horizon 0.5: must be after the step at t_step = 1 s",
+        "horizon before the step",
+    );
+    // Bode frequencies over eight decades at most: 1e-4 to 1e4 Hz
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&bode=1e-300:1e300:200")),
+        "bode \"1e-300:1e300:200\": the frequencies must lie in [0.0001, 10000] Hz",
+        "extreme Bode range",
+    );
+    assert_eq!(
+        get(&format!("/api/linearize?{POINT}&bode=0.0001:10000:50")).status,
+        200
+    );
+    // outputs of a linearization: each once, at most 32
+    let j = get(&format!("/api/linearize?{POINT}&outputs=W_c,p_im,W_c")).json();
+    assert_eq!(j["output_names"], serde_json::json!(["W_c", "p_im"]));
+    let many = (0..40)
+        .map(|k| format!("x{k}"))
+        .collect::<Vec<_>>()
+        .join(",");
+    assert_400_naming(
+        &get(&format!("/api/linearize?{POINT}&outputs={many}")),
+        "outputs: 40 names, at most 32",
+        "40 outputs",
+    );
+    // another method: 405 with a JSON error
+    for (method, path) in [
+        ("GET", "/api/step"),
+        ("POST", "/api/steady"),
+        ("PUT", "/api/map"),
+    ] {
+        let r =
+            client::request(server(), method, path, Some(b"{}"), Duration::from_secs(10)).unwrap();
+        assert_eq!(r.status, 405, "{method} {path}");
+        let e = r.json()["error"].as_str().unwrap_or_default().to_string();
+        assert!(e.contains("not allowed"), "{method} {path}: {e:?}");
+    }
+    // a binary file: named so, its bytes not echoed
+    let r = post(
+        "/api/simulate",
+        &serde_json::json!({"csv": "time_s,n_e\u{0}\u{1}\u{FFFD}\u{FFFD} x\n0,1\n"}).to_string(),
+    );
+    assert_400_naming(&r, "csv, line 1, character 11: not a text table", "binary");
+    let e = r.json()["error"].as_str().unwrap().to_string();
+    assert!(!e.contains('\u{0}') && !e.contains('\u{FFFD}'), "{e:?}");
+    // inputs whose change overflows: the column named, not a 422 of a NaN input
+    assert_400_naming(
+        &post(
+            "/api/simulate",
+            r#"{"csv": "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,-1e308\n5,1500,110,80,1e308\n"}"#,
+        ),
+        "csv, column u_vgt_pct: from -1e308 at t = 0 s to 1e308 at t = 5 s",
+        "overflowing change",
+    );
+    // 413 names the limit
+    let big = format!(r#"{{"csv": "{}"}}"#, "x".repeat(5 << 20));
+    let r = post("/api/simulate", &big);
+    assert_eq!(r.status, 413);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .unwrap()
+            .contains("too large (the limit is 4 MiB)"),
+        "{:?}",
+        r.json()
+    );
+}
