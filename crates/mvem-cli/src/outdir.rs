@@ -39,19 +39,50 @@ impl Files {
         Ok(())
     }
 
-    /// Create `dir` if missing and write every file atomically; returns the paths written.
+    /// Create `dir` if missing and write every file atomically; returns the paths written. On a
+    /// failure the files this call already wrote are removed again (none of the set is left).
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
         std::fs::create_dir_all(dir)
             .map_err(|e| common::usage(format!("--out {}: {e}", dir.display())))?;
         let mut written = Vec::with_capacity(self.0.len());
         for (name, bytes) in &self.0 {
             let p = dir.join(name);
-            mvem::io::output::write_atomic(&p, bytes)
-                .with_context(|| format!("cannot write {}", p.display()))?;
+            if let Err(e) = mvem::io::output::write_atomic(&p, bytes)
+                .with_context(|| format!("cannot write {}", p.display()))
+            {
+                remove_all(&written);
+                return Err(e);
+            }
             written.push(p);
         }
         Ok(written)
     }
+
+    /// Whether the set holds a file `name`.
+    pub fn has(&self, name: &str) -> bool {
+        self.0.iter().any(|(n, _)| n == name)
+    }
+}
+
+/// Remove `paths` (best effort: a run that failed cleans up what it wrote).
+pub fn remove_all(paths: &[PathBuf]) {
+    for p in paths {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
+/// Remove the files among `ours` (names a command writes in its `--out` directory) that a
+/// previous run left in `dir` and this run did not write (`files`), so that the directory holds
+/// one run's results; returns their names.
+pub fn remove_stale(dir: &Path, ours: &[&str], files: &Files) -> Vec<String> {
+    let mut removed = Vec::new();
+    for name in ours {
+        let p = dir.join(name);
+        if !files.has(name) && p.is_file() && std::fs::remove_file(&p).is_ok() {
+            removed.push(name.to_string());
+        }
+    }
+    removed
 }
 
 /// "Wrote a, b, c" for the end of a command's output.

@@ -545,6 +545,10 @@ fn draw_panel<DB: DrawingBackend>(
                 segs.into_iter()
                     .map(|(a, b)| PathElement::new(vec![a, b], style)),
             )?;
+            if s.label.is_empty() {
+                // no legend entry for an unlabelled series
+                continue;
+            }
             anno.label(s.label.as_str());
             if s.dashed {
                 anno.legend(move |(x, y)| {
@@ -559,10 +563,12 @@ fn draw_panel<DB: DrawingBackend>(
         }
         if s.markers {
             let filled = style.filled();
-            chart
-                .draw_series(pts.iter().map(|&p| Circle::new(p, s.marker_radius, filled)))?
-                .label(s.label.as_str())
-                .legend(move |(x, y)| Circle::new((x + 12, y), 5, filled));
+            let anno =
+                chart.draw_series(pts.iter().map(|&p| Circle::new(p, s.marker_radius, filled)))?;
+            if !s.label.is_empty() {
+                anno.label(s.label.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 12, y), 5, filled));
+            }
         } else if s.dashed {
             chart
                 .draw_series(DashedLineSeries::new(pts, 8, 5, style))?

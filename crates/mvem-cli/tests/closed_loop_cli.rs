@@ -168,7 +168,8 @@ fn a_users_cycle_runs() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stderr(&o).contains(
-            "warning: --duration 100 s is longer than the cycle c.csv: ran all of it (6 s)"
+            "warning: --cycle c.csv: --duration 100 s is longer than the cycle (6 s from 0 s to \
+             6 s): ran all of it"
         ),
         "{}",
         stderr(&o)
@@ -177,41 +178,219 @@ fn a_users_cycle_runs() {
     assert_eq!(rows2.len(), rows.len());
 }
 
-/// A run that fails after the trajectory writer started (the paper's plain equations find no
-/// idle equilibrium for the mapping curve: exit 1, a message naming the operating point) leaves
-/// nothing: no directory it created, and no file or temporary file in one that existed.
+/// A run that fails after the trajectory was written (a late write: stats.json cannot be
+/// written because a directory of that name is in the way) leaves none of its files: not
+/// trajectory.csv, not a temporary file. `--semantics paper` is refused before anything runs
+/// (exit 2, the reason: the paper's equations have no idle equilibrium), writing nothing.
 #[test]
 fn runtime_failure_writes_nothing() {
     let d = tempfile::tempdir().unwrap();
-    let args = |out: &'static str| {
-        [
-            "closed-loop",
-            "--cycle",
-            "whtc",
-            "--semantics",
-            "paper",
-            "--duration",
-            "60",
-            "--out",
-            out,
-        ]
-    };
-    let o = mvem(d.path(), &args("new"));
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    std::fs::create_dir_all(d.path().join("old").join("stats.json")).unwrap();
+    let o = mvem(
+        d.path(),
+        &["closed-loop", "--duration", "1", "--plot", "--out", "old"],
+    );
+    // (an output path that cannot be written is the user's: exit 2)
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("mapping curve") && stderr(&o).contains("n_e=500 rpm"),
+        stderr(&o).contains("cannot write old/stats.json"),
         "{}",
         stderr(&o)
     );
-    assert!(!d.path().join("new").exists(), "created directory removed");
-
-    std::fs::create_dir(d.path().join("old")).unwrap();
-    let o = mvem(d.path(), &args("old"));
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(
-        files(&d.path().join("old")).is_empty(),
-        "no file or temporary file left"
+    assert_eq!(
+        files(&d.path().join("old")),
+        ["stats.json"],
+        "no file of the run or temporary file left"
     );
+
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--semantics", "paper", "--out", "new"],
+    );
+    assert!(
+        err.contains("--semantics paper: the closed loop needs the authors' semantics")
+            && err.contains("eq. (64)")
+            && !err.contains("max_steps"),
+        "{err}"
+    );
+    assert!(!d.path().join("new").exists());
+}
+
+/// The QA's inputs: a demand header with units (brackets or a units row, converted), `Time`;
+/// durations off the 10 ms grid or shorter than two samples; a demand below the motoring
+/// torque; the full-load limit named; a PI gain of three numbers; `--margins` off the grid;
+/// infinite intervals; `--cycle WHTC`; a rerun into the same directory.
+#[test]
+fn cycle_and_option_edge_cases_are_named() {
+    let d = tempfile::tempdir().unwrap();
+    let w = |name: &str, text: &str| std::fs::write(d.path().join(name), text).unwrap();
+    w("plain.csv", "t,n_e,M_ref\n0,1000,200\n5,1200,500\n");
+    w(
+        "brackets.csv",
+        "t [s],n_e [rpm],M_ref [Nm]\n0,1000,200\n5,1200,500\n",
+    );
+    w(
+        "units.csv",
+        "Time,n_e,M_ref\ns,krpm,kNm\n0,1,0.2\n5,1.2,0.5\n",
+    );
+    let traj = |out: &str, cycle: &str| {
+        let o = mvem(d.path(), &["closed-loop", "--cycle", cycle, "--out", out]);
+        assert!(o.status.success(), "{cycle}: {}", stderr(&o));
+        read_csv(&d.path().join(out).join("trajectory.csv")).1
+    };
+    let want = traj("p", "plain.csv");
+    assert_eq!(want.len(), 501);
+    for (out, cycle) in [("b", "brackets.csv"), ("u", "units.csv")] {
+        let got = traj(out, cycle);
+        assert_eq!(got.len(), want.len(), "{cycle}");
+        for (a, b) in got.iter().zip(&want) {
+            for (x, y) in a.iter().zip(b) {
+                assert!(x == y || (x.is_nan() && y.is_nan()) || (x - y).abs() <= 1e-9 * y.abs());
+            }
+        }
+    }
+    w("pct.csv", "t,n_e [%],M_ref\n0,50,200\n5,60,500\n");
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "pct.csv", "--out", "x"],
+    );
+    assert!(
+        err.contains("column n_e: unit '%' in the header is not a unit of n_e"),
+        "{err}"
+    );
+
+    // durations: off the grid (rounded down, said), shorter than two samples (refused)
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "plain.csv",
+            "--duration",
+            "2.005",
+            "--out",
+            "d",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--duration 2.005 s is not a multiple of the 0.01 s sample time: ran the samples up to 2 s"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        !stderr(&o).contains("longer than the cycle"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(
+        read_csv(&d.path().join("d").join("trajectory.csv")).1.len(),
+        201
+    );
+    for (dur, want) in [
+        (
+            "0.005",
+            "--duration 0.005 s: shorter than two controller samples",
+        ),
+        (
+            "inf",
+            "--duration inf: must be a finite number of seconds > 0",
+        ),
+        (
+            "-1",
+            "--duration -1: must be a finite number of seconds > 0",
+        ),
+    ] {
+        let arg = format!("--duration={dur}");
+        let err = usage_error(d.path(), &["closed-loop", &arg, "--out", "x"]);
+        assert!(err.contains(want), "{err}");
+    }
+    let err = usage_error(d.path(), &["closed-loop", "--margins", "inf", "--out", "x"]);
+    assert!(
+        err.contains("--margins inf: must be a finite number"),
+        "{err}"
+    );
+    let err = usage_error(d.path(), &["closed-loop", "--cycle", "WHTC", "--out", "x"]);
+    assert!(err.contains("`--cycle whtc`, lower case"), "{err}");
+
+    // below the motoring torque: a warning with the row, time and values
+    w(
+        "brake.csv",
+        "t,n_e,M_ref\n0,1200,300\n5,1200,300\n6,1200,-2000\n8,1200,-2000\n",
+    );
+    let o = mvem(
+        d.path(),
+        &["closed-loop", "--cycle", "brake.csv", "--out", "m"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "2 row(s) of the demand ask for less torque than the engine's motoring torque"
+        ) && stderr(&o).contains("row 3 (t = 6 s): -2000 Nm at 1200 rpm"),
+        "{}",
+        stderr(&o)
+    );
+    // above full load at 1200 rpm: the fuel cap, not the smoke limit
+    w("heavy.csv", "t,n_e,M_ref\n0,1200,500\n5,1200,5000\n");
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--cycle", "heavy.csv", "--out", "x"],
+    );
+    assert!(
+        err.contains("fuel-limited at the top of the u_delta range, 250 mg"),
+        "{err}"
+    );
+
+    w("three.toml", "x_egr_vgt = [150, 800, 3]\n");
+    let err = usage_error(
+        d.path(),
+        &["closed-loop", "--tuning", "three.toml", "--out", "x"],
+    );
+    assert!(
+        err.contains("invalid length 3") && err.contains("[kp, ki]"),
+        "{err}"
+    );
+    assert!(!d.path().join("x").exists());
+
+    // --margins off the grid: rounded to it, said; a rerun without --margins removes the
+    // previous run's margins.csv
+    let o = mvem(
+        d.path(),
+        &[
+            "closed-loop",
+            "--cycle",
+            "plain.csv",
+            "--margins",
+            "0.015",
+            "--out",
+            "g",
+            "--json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "--margins 0.015: not a multiple of the 0.01 s sample time; analyses every 0.02 s"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    let (h, rows) = read_csv(&d.path().join("g").join("margins.csv"));
+    let t = col(&h, "t");
+    for r in rows.windows(2) {
+        assert!((r[1][t] - r[0][t] - 0.02).abs() < 1e-9, "{r:?}");
+    }
+    let o = mvem(
+        d.path(),
+        &["closed-loop", "--cycle", "plain.csv", "--out", "g"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("Removed margins.csv of a previous run"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(files(&d.path().join("g")), ["stats.json", "trajectory.csv"]);
 }
 
 /// A user's cycle is checked against the parameter set's speed range ([input_saturation] n_e):

@@ -765,6 +765,7 @@ fn closed_cycle(
         "cycle_stats": run.stats,
         "violations": run.violations,
         "passes": run.violations.is_empty(),
+        "warnings": run.warnings,
         "controller_tuning": tuning,
     });
     if let Some(every) = r.margins {

@@ -377,3 +377,33 @@ fn an_invalid_steady_state_is_analysed_with_a_warning() {
         a.steady_state_warnings
     );
 }
+
+/// Along the WHTC the EGR valve is often shut (u_egr = 0, no EGR loop in feedback) while the VGT
+/// loop is: the model's kink there (the EGR valve's opening function at f_egr >= 0, in the
+/// direction of the EGR actuator states) is in states no loop excites, so the VGT loop is
+/// analysed (it was refused); with the EGR loop in feedback the kink is the loop's and refused.
+#[test]
+fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
+    use mvem::control::along::loops_in_charge;
+    use mvem::control::InCharge;
+    let t = BaselineTuning::default();
+    // a sample of a closed-loop run (t = 7.51 s of a full-load acceleration)
+    let d = Drive::new(
+        605.4854419750001,
+        148.0691213759977,
+        0.0,
+        22.335667468086168,
+    );
+    let m = Engine8::published();
+    let vgt_only = loops_in_charge(&t, Some(InCharge::None), Some(InCharge::Main), d.u_vgt_pct);
+    let (_, a) = margins_at(&m, &d, &vgt_only, t.ts).unwrap();
+    assert_eq!(a.loops.len(), 1);
+    assert!(
+        a.max_pole_all.is_finite() && a.max_pole_all > 0.0,
+        "{}",
+        a.max_pole_all
+    );
+    let both = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), d.u_vgt_pct);
+    let e = margins_at(&m, &d, &both, t.ts).unwrap_err();
+    assert!(e.contains("kink") && e.contains("u_egr"), "{e}");
+}

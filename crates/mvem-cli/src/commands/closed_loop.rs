@@ -29,23 +29,33 @@ Examples:
 --cycle whtc: the WHTC (UN GTR No. 4) denormalized with this engine's mapping curve (full-load
 torque at lambda_O >= 1.2, motoring torque for the \"m\" points), speeds 0 s..1800 s.
 --cycle FILE.csv: a header with the columns t [s], n_e [rpm], M_ref [Nm] (any order, more
-columns ignored), time strictly increasing, n_e in the model's speed range (the parameter set's
-[input_saturation] n_e, default 500-2000 rpm), M_ref at most the full-load
-torque; linear between rows.
+columns ignored, case ignored, `Time` for t; a unit in brackets after a name, `n_e [rpm]`, or a
+units row under the header, converted where it is another unit of the quantity: ms, krpm,
+rad/s, kNm), time strictly increasing, n_e in the model's speed range (the parameter set's
+[input_saturation] n_e, default 500-2000 rpm), M_ref at most the full-load torque (a torque
+below the motoring torque is run at the minimum fuel, with a warning); linear between rows.
+The run samples every 10 ms from the cycle's first time: a cycle end or a --duration off that
+grid runs the samples up to it (a warning says so); a --duration under 0.01 s is refused.
+Needs the authors' semantics (--semantics paper has no idle equilibrium).
 --cycle FILE (normalized): a cycle as UN GTR No. 4 publishes them (the WHTC, the WHSC's ramped
 modes, your own), told apart by its header: a time [s], a speed [%] and a torque [%] column
 (e.g. `Time Speed Torque`, an optional units row `s % %`; tab, semicolon, comma or space
 separated), speed 0-120 %, torque 0-100 % or \"m\" for motoring; denormalized with this
 engine's mapping curve and reference speeds exactly as the built-in WHTC (speeds clamped into the
-model's range). data/whtc_normalized.tsv is an example.
+model's range, with a warning). data/whtc_normalized.tsv is an example (it starts at t = 1 s; the
+built-in WHTC repeats its first row at 0 s).
 
 Writes DIR/trajectory.csv (one row per 10 ms controller sample; the commands u_delta, u_egr,
 u_vgt are held until the next row; egr_loop / vgt_loop say which loop gave u_egr / u_vgt: 1 the
 main loop, 2 the limiter, 0 none in feedback, at a limit or at the lambda_O error cap),
 DIR/stats.json and with --plot DIR/closed_loop.svg/.png. --json prints the statistics to stdout.
-Nothing is written unless the whole run succeeds.
+Nothing is written unless the whole run succeeds (a failed write removes this run's files
+again); the files of a previous run in DIR that this one does not write (figures, margins.csv)
+are removed. Statistics that do not apply (the torque regression of a constant demand, the
+BSFC of an idle cycle) are null with the reason (\"not_applicable\"), not a failure.
 
---margins S (baseline controller): every S seconds of the run, the gain, phase and delay margins
+--margins S (baseline controller): every S seconds of the run (S rounded to a multiple of the
+10 ms sample time, with a warning), the gain, phase and delay margins
 and the peak |1/(1+L)| of the air-path loops that were in feedback at that sample (as mvem
 margins, the other loop closed), around the steady state of the sample's commands: DIR/margins.csv
 (one row per analysed sample), a \"margins\" summary in stats.json (smallest margins per loop,
@@ -104,8 +114,17 @@ pub struct Run {
 /// Read a user's cycle file: a demand (columns t, n_e, M_ref) or a normalized cycle
 /// ([`mvem::io::csv_demand::parse_cycle_file`]).
 fn read_cycle_file(path: &Path) -> Result<CycleSource> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| common::usage(format!("--cycle {}: {e}", path.display())))?;
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        let hint = if path
+            .to_str()
+            .is_some_and(|p| p.eq_ignore_ascii_case("whtc"))
+        {
+            " (the built-in WHTC is `--cycle whtc`, lower case)"
+        } else {
+            ""
+        };
+        common::usage(format!("--cycle {}: {e}{hint}", path.display()))
+    })?;
     mvem::io::csv_demand::parse_cycle_file(&text, path).map_err(|e| common::usage(e.to_string()))
 }
 
@@ -139,9 +158,8 @@ pub fn run_cycle(
         ));
     }
     if let Some(s) = duration {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(common::usage(format!("--duration {s}: must be > 0")));
-        }
+        drive::check_duration(s, drive::SAMPLE_TIME)
+            .map_err(|e| common::usage(format!("--duration {e}")))?;
     }
     let source = if whtc {
         CycleSource::Whtc
@@ -161,14 +179,12 @@ pub fn run_cycle(
         Err(e @ ControlError::Setup(_)) => return Err(e.into()),
         Err(e) => return Err(anyhow::Error::new(e).context("closed-loop simulation failed")),
     };
-    if let (Some(s), Some(t)) = (duration, run.traj.get("t")) {
-        let ran = t.last().copied().unwrap_or(0.0) - t.first().copied().unwrap_or(0.0);
-        if ran < s - 1e-6 {
-            eprintln!(
-                "warning: --duration {s} s is longer than the cycle {cycle}: ran all of it ({} s)",
-                mvem::numerics::Num(ran)
-            );
-        }
+    for w in &run.warnings {
+        // the core's "duration" is this command's --duration
+        let w = w
+            .strip_prefix("duration ")
+            .map_or(w.clone(), |r| format!("--duration {r}"));
+        eprintln!("warning: --cycle {cycle}: {w}");
     }
     Ok(Run {
         run,
@@ -215,10 +231,11 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
             .title("torque tracking")
             .with(Series::line("M_ref", &t, &dec("M_ref"), 1))
             .with(Series::line("M_e", &t, &dec("M_e"), 0)),
+        // two legend entries (the limit named in the title): the legend fits above the data
         Panel::new("t [s]", "lambda_O [-]")
-            .title("oxygen/fuel ratio")
+            .title("oxygen/fuel ratio (clipped at 5; dashed: the limit 1.2)")
             .with(Series::line(
-                "lambda_O,s (clipped at 5)",
+                "lambda_O,s",
                 &t,
                 &dec("lambda_O_ref")
                     .iter()
@@ -227,7 +244,7 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
                 1,
             ))
             .with(Series::line(
-                "lambda_O (clipped at 5)",
+                "lambda_O",
                 &t,
                 &dec("lambda_O")
                     .iter()
@@ -235,7 +252,7 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
                     .collect::<Vec<_>>(),
                 0,
             ))
-            .with(Series::hline("limit 1.2", t[0], *t.last().unwrap(), 1.2, 3)),
+            .with(Series::hline("", t[0], *t.last().unwrap(), 1.2, 3)),
         Panel::new("t [s]", "x_egr [-]")
             .title("EGR fraction")
             .with(Series::line("x_egr,s", &t, &dec("x_egr_ref"), 1))
@@ -249,7 +266,7 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
             .title("pumping pressure difference")
             .with(Series::line("p_em - p_im", &t, &pe, 0)),
     ];
-    fig.panel_size = (1400, 300);
+    fig.panel_size = (1400, 320);
     fig
 }
 
@@ -285,9 +302,31 @@ pub fn run(a: &Args) -> Result<()> {
             ));
         }
         if !(every.is_finite() && every > 0.0) {
-            return Err(common::usage(format!("--margins {every}: must be > 0 s")));
+            return Err(common::usage(format!(
+                "--margins {every}: must be a finite number of seconds > 0"
+            )));
         }
     }
+    if a.model.semantics == common::SemanticsArg::Paper {
+        return Err(common::usage(format!(
+            "--semantics paper: {}; use --semantics authors (the default)",
+            drive::PAPER_SEMANTICS_REFUSED
+        )));
+    }
+    // the analysed samples lie on the 10 ms grid: a spacing off it would alternate between
+    // its neighbours
+    let margins_every = a.margins.map(|every| {
+        let ts = drive::SAMPLE_TIME;
+        let on_grid = ((every / ts).round() * ts).max(ts);
+        if (on_grid - every).abs() > 1e-9 * every.max(1.0) {
+            eprintln!(
+                "warning: --margins {every}: not a multiple of the {ts} s sample time; analyses \
+                 every {} s",
+                mvem::numerics::Num(on_grid)
+            );
+        }
+        on_grid
+    });
     let model = a.model.build()?;
     // DIR/trajectory.csv (every column, shortest round-trip numbers, `NaN` for a missing
     // set-point) is formatted and written on a second thread while the loop runs
@@ -317,7 +356,7 @@ pub fn run(a: &Args) -> Result<()> {
             send_rows(&w.run.traj, &mut sent, &tx, true);
             let mut json = stats_json(a, &w, &tuning);
             let mut files = Files::default();
-            let margins = match a.margins {
+            let margins = match margins_every {
                 Some(every) => {
                     let points = along::along_trajectory(&model, &w.run.traj, &tuning, every)
                         .map_err(anyhow::Error::msg)?;
@@ -362,9 +401,22 @@ pub fn run(a: &Args) -> Result<()> {
         }
     };
     let r = &w.run;
-    // trajectory.csv first: the other files are written once everything is computed
-    let mut written = vec![path];
-    written.extend(files.write(&a.out)?);
+    // trajectory.csv first: the other files are written once everything is computed; if one
+    // of them fails, none of this run's files is left (trajectory.csv removed again)
+    let mut written = vec![path.clone()];
+    match files.write(&a.out) {
+        Ok(w) => written.extend(w),
+        Err(e) => {
+            outdir::remove_all(&written);
+            if created {
+                let _ = std::fs::remove_dir(&a.out);
+            }
+            return Err(e);
+        }
+    }
+    // a previous run's figures or margins that this run does not write would sit beside its
+    // results as if they were its own
+    let stale = outdir::remove_stale(&a.out, &OUR_FILES, &files);
     if a.json {
         println!(
             "{}",
@@ -372,32 +424,55 @@ pub fn run(a: &Args) -> Result<()> {
         );
     } else {
         let s = &r.stats;
+        match &s.torque.not_applicable {
+            None => println!(
+                "torque regression: slope {:.3}, intercept {:.1} Nm, R^2 {:.3}, SEE {:.1} Nm ({:.1} % of {:.0} Nm)",
+                s.torque.slope,
+                s.torque.intercept,
+                s.torque.r2,
+                s.torque.see,
+                100.0 * s.torque.see / s.m_max,
+                s.m_max
+            ),
+            Some(why) => println!(
+                "torque regression: not applicable ({} samples with positive reference torque; {why})",
+                s.torque.samples
+            ),
+        }
+        let or_na = |v: f64, f: &dyn Fn(f64) -> String| {
+            if v.is_finite() {
+                f(v)
+            } else {
+                "n/a".to_string()
+            }
+        };
         println!(
-            "torque regression: slope {:.3}, intercept {:.1} Nm, R^2 {:.3}, SEE {:.1} Nm ({:.1} % of {:.0} Nm)",
-            s.torque.slope,
-            s.torque.intercept,
-            s.torque.r2,
-            s.torque.see,
-            100.0 * s.torque.see / s.m_max,
-            s.m_max
-        );
-        println!(
-            "positive work {:.3} kWh (reference {:.3} kWh, {:+.2} %); fuel {:.3} kg, BSFC {:.1} g/kWh",
+            "positive work {:.3} kWh (reference {:.3} kWh, {}); fuel {:.3} kg, BSFC {}",
             s.work_act_kwh,
             s.work_ref_kwh,
-            100.0 * s.work_error,
+            or_na(s.work_error, &|v| format!("{:+.2} %", 100.0 * v)),
             s.fuel_kg,
-            s.bsfc_g_kwh
+            or_na(s.bsfc_g_kwh, &|v| format!("{v:.1} g/kWh"))
         );
-        println!(
-            "lambda_O min {:.3} (t = {:.2} s), below {} in {:.2} % of fired samples; x_egr RMS error {:.4}; mean p_em - p_im {:.0} Pa",
-            s.lambda_o_min,
-            s.lambda_o_min_t,
-            s.lambda_limit,
-            100.0 * s.lambda_below_limit_share,
-            s.x_egr_rms_error,
-            s.pmep_mean_pa
-        );
+        for why in &s.not_applicable {
+            println!("  not applicable: {why}");
+        }
+        if s.fired == 0 {
+            println!(
+                "lambda_O: no fired sample; mean p_em - p_im {:.0} Pa",
+                s.pmep_mean_pa
+            );
+        } else {
+            println!(
+                "lambda_O min {:.3} (t = {:.2} s), below {} in {:.2} % of fired samples; x_egr RMS error {}; mean p_em - p_im {:.0} Pa",
+                s.lambda_o_min,
+                s.lambda_o_min_t,
+                s.lambda_limit,
+                100.0 * s.lambda_below_limit_share,
+                or_na(s.x_egr_rms_error, &|v| format!("{v:.4}")),
+                s.pmep_mean_pa
+            );
+        }
         if r.violations.is_empty() {
             println!("regulation limits: pass");
         } else {
@@ -409,7 +484,30 @@ pub fn run(a: &Args) -> Result<()> {
         }
     }
     eprintln!("{}", outdir::wrote(&written));
+    if !stale.is_empty() {
+        eprintln!(
+            "Removed {} of a previous run in {} (not written by this one)",
+            stale.join(", "),
+            a.out.display()
+        );
+    }
     Ok(())
+}
+
+/// The files `mvem closed-loop` may write in its directory besides trajectory.csv and
+/// stats.json (which every run writes).
+const OUR_FILES: [&str; 5] = [
+    "closed_loop.svg",
+    "closed_loop.png",
+    "margins.csv",
+    "margins.svg",
+    "margins.png",
+];
+
+/// A sample time for the output: rounded to 1e-9 s (`t0 + k T_s` prints as 12.03, not
+/// 12.030000000000001).
+fn time(t: f64) -> mvem::numerics::Num {
+    mvem::numerics::Num((t * 1e9).round() / 1e9)
 }
 
 /// The margins summary's lines (`--margins`).
@@ -426,7 +524,7 @@ fn print_margins(m: &AlongSummary) {
             .unstable_t
             .iter()
             .take(8)
-            .map(|t| format!("{t}"))
+            .map(|t| format!("{}", time(*t)))
             .collect();
         println!(
             "  loops UNSTABLE together at {} samples: t = {}{} s",
@@ -437,7 +535,7 @@ fn print_margins(m: &AlongSummary) {
     }
     let at = |v: Option<(f64, f64)>, unit: &str| {
         v.map_or("-".to_string(), |(v, t)| {
-            format!("{v:.3}{unit} (t = {t} s)")
+            format!("{v:.3}{unit} (t = {} s)", time(t))
         })
     };
     for l in &m.loops {
@@ -473,13 +571,14 @@ fn margins_figure(points: &[AlongPoint], s: &AlongSummary) -> Figure {
         (t, v)
     };
     let mut g = Panel::new("t [s]", "gain margin [dB]").title("gain margin (other loop closed)");
-    let mut ph =
-        Panel::new("t [s]", "phase margin [deg]").title("phase margin (other loop closed)");
+    // the loops' colours are the gain margin panel's: one legend, over that panel's top
+    let mut ph = Panel::new("t [s]", "phase margin [deg]")
+        .title("phase margin (other loop closed; colours as above)");
     for (c, l) in s.loops.iter().enumerate() {
         let (t, v) = series(&l.name, &|m| m.gain_margin.map(|g| 20.0 * g.log10()));
         g = g.with(Series::markers(l.name.clone(), &t, &v, c).radius(2));
         let (t, v) = series(&l.name, &|m| m.phase_margin_deg);
-        ph = ph.with(Series::markers(l.name.clone(), &t, &v, c).radius(2));
+        ph = ph.with(Series::markers("", &t, &v, c).radius(2));
     }
     let (mut t, mut v) = (Vec::new(), Vec::new());
     for p in points {

@@ -350,6 +350,7 @@ pub fn cycle_run_json(
         "stats": run.stats,
         "violations": run.violations,
         "passes": run.violations.is_empty(),
+        "warnings": run.warnings,
         "solver": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
     })
 }

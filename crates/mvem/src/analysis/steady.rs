@@ -334,6 +334,21 @@ pub fn steady_state_with<const N: usize, M: Model<N>>(
                 Err(SimError::Cancelled { .. }) => {
                     return Err(SteadyError::Cancelled { drive: *d });
                 }
+                // the settling run's own step budget, which no caller sets: no hint to raise it
+                Err(SimError::TooManySteps {
+                    max_steps,
+                    t,
+                    state,
+                    ..
+                }) => {
+                    reason = format!(
+                        "the settling run did not settle within its {max_steps} steps (stopped at \
+                         t = {} s; state: {state}): the model is too stiff here or has no \
+                         equilibrium at these inputs",
+                        crate::numerics::Num(t)
+                    );
+                    break;
+                }
                 Err(e) => {
                     reason = format!("settling simulation failed: {e}");
                     break;

@@ -58,16 +58,21 @@ pub struct BaselineTuning {
     /// Margin of the smoke limiter over lambda_lim [-] (relative).
     pub smoke_margin: f64,
     /// Torque PI (kp [mg/Nm], ki [mg/(Nm s)]).
+    #[serde(deserialize_with = "pi_pair")]
     pub torque: (f64, f64),
     /// x_egr PI on the VGT (kp [%], ki [%/s] per unit x_egr).
+    #[serde(deserialize_with = "pi_pair")]
     pub x_egr_vgt: (f64, f64),
     /// x_egr PI on the EGR valve (limiter; kp [%], ki [%/s] per unit x_egr).
+    #[serde(deserialize_with = "pi_pair")]
     pub x_egr_egr: (f64, f64),
     /// Band d_x of the EGR valve's x_egr limiter above the set-point [-].
     pub d_x: f64,
     /// lambda_O PI on the EGR valve (kp [%], ki [%/s] per unit lambda_O).
+    #[serde(deserialize_with = "pi_pair")]
     pub lambda_egr: (f64, f64),
     /// lambda_O PI on the VGT (kp [%], ki [%/s] per unit lambda_O).
+    #[serde(deserialize_with = "pi_pair")]
     pub lambda_vgt: (f64, f64),
     /// Offset d_lambda of the VGT's lambda_O loop below the set-point [-].
     pub d_lambda: f64,
@@ -85,6 +90,20 @@ pub struct BaselineTuning {
     /// VGT command from which the VGT loops have their full gains [%] (see
     /// [`Self::vgt_gain_closed`]).
     pub vgt_gain_knee: f64,
+}
+
+/// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
+/// serde's tuple would silently drop the rest).
+fn pi_pair<'de, D: serde::Deserializer<'de>>(d: D) -> Result<(f64, f64), D::Error> {
+    use serde::de::Error;
+    let v = <Vec<f64> as serde::Deserialize>::deserialize(d)?;
+    match v[..] {
+        [kp, ki] => Ok((kp, ki)),
+        _ => Err(D::Error::invalid_length(
+            v.len(),
+            &"a PI gain pair [kp, ki] of two numbers",
+        )),
+    }
 }
 
 impl Default for BaselineTuning {
@@ -870,6 +889,25 @@ mod tests {
         ] {
             t.validate().unwrap();
         }
+    }
+
+    /// A PI gain is a pair: three numbers (or one) in a tuning file are refused, naming the
+    /// length (serde's tuple took the first two and dropped the rest).
+    #[test]
+    fn a_pi_gain_must_be_a_pair() {
+        let t: BaselineTuning = toml::from_str("torque = [0.03, 3.0]").unwrap();
+        assert_eq!(t.torque, (0.03, 3.0));
+        for text in ["x_egr_vgt = [150, 800, 3]", "lambda_egr = [40]"] {
+            let e = toml::from_str::<BaselineTuning>(text)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("invalid length") && e.contains("[kp, ki]"),
+                "{text}: {e}"
+            );
+        }
+        let j: BaselineTuning = serde_json::from_str(r#"{"lambda_vgt": [1, 2]}"#).unwrap();
+        assert_eq!(j.lambda_vgt, (1.0, 2.0));
     }
 
     /// The schedule's factor: the closed-end factor at and below 20 %, 1 from the knee on,

@@ -172,6 +172,24 @@ impl MappingCurve {
         interp(&self.n_e, &self.u_full, n)
     }
 
+    /// What limits the full-load torque at `n`, in words: the fuel cap (the top of the
+    /// `u_delta` range) where the full-load fuel reaches it, else the smoke limit lambda_O.
+    pub fn limit_at(&self, n: f64) -> String {
+        let u_max = self.u_delta_range.1;
+        if self.u_full_at(n) >= u_max * (1.0 - 1e-6) {
+            format!(
+                "fuel-limited at the top of the u_delta range, {} mg/cycle",
+                Num(u_max)
+            )
+        } else {
+            format!(
+                "smoke-limited at lambda_O = {}, {:.1} mg/cycle",
+                Num(self.opts.lambda_min),
+                self.u_full_at(n)
+            )
+        }
+    }
+
     /// Motoring torque at `n` \[Nm\].
     pub fn m_motor_at(&self, n: f64) -> f64 {
         interp(&self.n_e, &self.m_motor, n)
@@ -283,11 +301,17 @@ impl Demand {
         motoring: Vec<bool>,
     ) -> Result<Self, ControlError> {
         let bad = |s: String| Err(ControlError::Demand(s));
-        if t.len() < 2
-            || n_e.len() != t.len()
-            || m_ref.len() != t.len()
-            || motoring.len() != t.len()
-        {
+        if n_e.len() != t.len() || m_ref.len() != t.len() || motoring.len() != t.len() {
+            return bad(format!(
+                "the columns have different lengths: t {}, n_e {}, M_ref {}, motoring {} (one \
+                 value per row in each)",
+                t.len(),
+                n_e.len(),
+                m_ref.len(),
+                motoring.len()
+            ));
+        }
+        if t.len() < 2 {
             return bad("needs at least two rows of (t, n_e, M_ref)".into());
         }
         for i in 0..t.len() {
@@ -358,17 +382,38 @@ impl Demand {
             let m_max = curve.m_max_at(self.n_e[i]);
             if self.m_ref[i] > m_max * (1.0 + tol) {
                 return Err(ControlError::Demand(format!(
-                    "row {} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm (smoke-limited at lambda_O = {}); the engine cannot follow this demand",
+                    "row {} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm ({}); the engine cannot follow this demand",
                     i + 1,
                     Num(self.t[i]),
                     Num((self.m_ref[i] * 10.0).round() / 10.0),
                     self.n_e[i],
                     m_max,
-                    curve.opts.lambda_min
+                    curve.limit_at(self.n_e[i])
                 )));
             }
         }
         Ok(())
+    }
+
+    /// The note on fired rows whose torque is below the motoring torque (the engine at its
+    /// minimum fuel cannot brake harder; the controller gives the minimum fuel there): how
+    /// many, and the first's row, time, speed, torque and motoring torque. `None`: none.
+    pub fn below_motoring(&self, curve: &MappingCurve) -> Option<String> {
+        let below: Vec<usize> = (0..self.t.len())
+            .filter(|&i| !self.motoring[i] && self.m_ref[i] < curve.m_motor_at(self.n_e[i]))
+            .collect();
+        let &i = below.first()?;
+        Some(format!(
+            "{} row(s) of the demand ask for less torque than the engine's motoring torque (at \
+             the minimum fuel; the engine gives that instead), the first row {} (t = {} s): {} Nm \
+             at {:.0} rpm, motoring torque {:.1} Nm",
+            below.len(),
+            i + 1,
+            Num(self.t[i]),
+            Num(self.m_ref[i]),
+            self.n_e[i],
+            curve.m_motor_at(self.n_e[i])
+        ))
     }
 }
 

@@ -11,6 +11,7 @@ use super::cycle::{
 use super::stats::CycleStats;
 use super::{ControlError, Controller, Trajectory};
 use crate::model::AnyModel;
+use crate::numerics::Num;
 use crate::sim::{InputSchedule, SimStats};
 
 /// Controller sample time of a cycle run \[s\].
@@ -59,6 +60,86 @@ pub enum Scheme {
     OpenLoop(InputSchedule),
 }
 
+/// Why a cycle run needs the authors' semantics ([`run_cycle`] refuses the paper's).
+pub const PAPER_SEMANTICS_REFUSED: &str = "the closed loop needs the authors' semantics: the \
+     paper's plain equations have no equilibrium at idle and low load (the compressor \
+     efficiency's (Pi_c - 1)^c_pi of eq. (64) is undefined for Pi_c < 1), where the mapping \
+     curve's motoring points and every cycle's idle lie (docs/authors-implementation.md, \
+     \"Where the paper's plain equations have no operating point\")";
+
+/// Check a run's duration `s` \[s\] against the controller's sample time `ts`: a finite number
+/// of at least one sample time (a run has at least two samples, its start and one more).
+pub fn check_duration(s: f64, ts: f64) -> Result<(), String> {
+    if !(s.is_finite() && s > 0.0) {
+        return Err(format!("{s}: must be a finite number of seconds > 0"));
+    }
+    if s < ts * (1.0 - 1e-9) {
+        return Err(format!(
+            "{} s: shorter than two controller samples (a run has at least its start and one \
+             more sample, {} s later)",
+            Num(s),
+            Num(ts)
+        ));
+    }
+    Ok(())
+}
+
+/// The end of a run of `demand` over its whole span, or its first `duration` seconds, on the
+/// sample grid of `ts` from its start; notes for `warnings` where the duration or the cycle's
+/// end is not on the grid (the samples up to it run, the rest does not) or the duration is
+/// longer than the cycle.
+fn planned_end(
+    demand: &Demand,
+    duration: Option<f64>,
+    ts: f64,
+    warnings: &mut Vec<String>,
+) -> Result<f64, ControlError> {
+    let (t0, t1) = demand.span();
+    let grid = |span: f64| (span / ts + 1e-9).floor() * ts;
+    let off = |span: f64| span - grid(span) > 1e-9 * span.max(1.0);
+    if let Some(s) = duration {
+        check_duration(s, ts).map_err(|e| ControlError::Demand(format!("duration {e}")))?;
+        if s <= t1 - t0 + 1e-9 * (t1 - t0).max(1.0) {
+            if off(s) {
+                warnings.push(format!(
+                    "duration {} s is not a multiple of the {} s sample time: ran the samples \
+                     up to {} s after the start",
+                    Num(s),
+                    Num(ts),
+                    Num(grid(s))
+                ));
+            }
+            return Ok(t0 + grid(s));
+        }
+        warnings.push(format!(
+            "duration {} s is longer than the cycle ({} s from {} s to {} s): ran all of it",
+            Num(s),
+            Num(t1 - t0),
+            Num(t0),
+            Num(t1)
+        ));
+    }
+    if t1 - t0 < ts * (1.0 - 1e-9) {
+        return Err(ControlError::Demand(format!(
+            "the cycle spans {} s, shorter than two controller samples ({} s apart)",
+            Num(t1 - t0),
+            Num(ts)
+        )));
+    }
+    if off(t1 - t0) {
+        warnings.push(format!(
+            "the cycle ends at {} s, off the {} s sample grid from its start at {} s: ran the \
+             samples up to {} s, the last {} s of the cycle not",
+            Num(t1),
+            Num(ts),
+            Num(t0),
+            Num(t0 + grid(t1 - t0)),
+            Num(((t1 - t0 - grid(t1 - t0)) * 1e9).round() / 1e9)
+        ));
+    }
+    Ok(t1)
+}
+
 /// A finished cycle run.
 #[derive(Debug, Clone)]
 pub struct CycleRun {
@@ -72,6 +153,10 @@ pub struct CycleRun {
     pub speeds: ReferenceSpeeds,
     /// Solver statistics of the plant.
     pub solver: SimStats,
+    /// What the run did that its input did not say (each a sentence): the duration or the
+    /// cycle's end rounded to the sample grid, a duration longer than the cycle, normalized
+    /// speeds clamped into the engine's range, a demand below the motoring torque.
+    pub warnings: Vec<String>,
 }
 
 /// The normalized WHTC table with the first sample repeated at t = 0 (as
@@ -135,10 +220,13 @@ pub fn run_cycle_with(
     on_row: &mut dyn FnMut(&Trajectory),
 ) -> Result<CycleRun, ControlError> {
     if let Some(s) = duration {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(ControlError::Demand(format!("duration {s} s: must be > 0")));
-        }
+        check_duration(s, SAMPLE_TIME)
+            .map_err(|e| ControlError::Demand(format!("duration {e}")))?;
     }
+    if !crate::dispatch!(model, m => crate::model::Model::options(m).semantics.authors()) {
+        return Err(ControlError::Setup(PAPER_SEMANTICS_REFUSED.into()));
+    }
+    let mut warnings = Vec::new();
     let curve = MappingCurve::compute(model, MappingOptions::default()).map_err(|e| {
         ControlError::Setup(format!("cannot compute the engine's mapping curve: {e}"))
     })?;
@@ -153,20 +241,21 @@ pub fn run_cycle_with(
             ))
         }
         (CycleSource::Normalized(table), Scheme::Baseline(_)) => {
+            warnings.extend(clamped_speeds(table, &curve, &speeds));
             whtc_demand(table, &curve, &speeds)?
         }
         (CycleSource::Demand(d), Scheme::Baseline(_)) => {
             d.check_speeds(curve.n_e_range())?;
             d.check_feasible(&curve, FEASIBLE_TOL)?;
+            warnings.extend(d.below_motoring(&curve));
             d.clone()
         }
     };
-    let demand = match duration {
-        None => demand,
-        Some(s) => {
-            let (t0, t1) = demand.span();
-            truncate(&demand, (t0 + s).min(t1))?
-        }
+    let t_end = planned_end(&demand, duration, SAMPLE_TIME, &mut warnings)?;
+    let demand = if t_end < demand.span().1 {
+        truncate(&demand, t_end)?
+    } else {
+        demand
     };
     let mut ctrl: Box<dyn Controller> = match scheme {
         Scheme::Baseline(tuning) => {
@@ -194,5 +283,31 @@ pub fn run_cycle_with(
         violations,
         speeds,
         solver,
+        warnings,
     })
+}
+
+/// The note on a normalized cycle's speeds that denormalize outside the engine's speed range and
+/// are clamped into it (the count and the first: its time, its speed in % and in rpm).
+fn clamped_speeds(
+    table: &[NormalizedRow],
+    curve: &MappingCurve,
+    speeds: &ReferenceSpeeds,
+) -> Option<String> {
+    let (lo, hi) = curve.n_e_range();
+    let out: Vec<&NormalizedRow> = table
+        .iter()
+        .filter(|r| !(lo..=hi).contains(&speeds.denormalize(r.1)))
+        .collect();
+    let first = out.first()?;
+    Some(format!(
+        "{} row(s) of the normalized cycle denormalize outside the engine's speed range [{}, \
+         {}] rpm and are clamped into it, the first at t = {} s: {} % -> {:.0} rpm",
+        out.len(),
+        Num(lo),
+        Num(hi),
+        Num(first.0),
+        Num(first.1),
+        speeds.denormalize(first.1)
+    ))
 }

@@ -656,8 +656,16 @@ pub fn margins_at<const N: usize, M: crate::model::Model<N>>(
         ..LinearizeOptions::default()
     };
     let dm = discretize(m, &ss.x, d, &opts, ts).map_err(|e| e.to_string())?;
+    // the actuator states of a command no loop moves (u_egr1, u_egr2 of u_egr; u_vgt_act of
+    // u_vgt, eqs. (40), (57)) are driven by that held command alone: no loop excites them, so
+    // a kink in their direction (the EGR valve closed, f_egr >= 0) leaves the loops' transfer
+    // functions and the closed loop's poles exact (the actuator block is autonomous)
     let unused = |v: &str| {
-        let input = v.split('(').next().unwrap_or(v);
+        let input = match v.split('(').next().unwrap_or(v) {
+            "u_egr1" | "u_egr2" => "u_egr",
+            "u_vgt_act" => "u_vgt",
+            other => other,
+        };
         ["n_e", "u_delta", "u_egr", "u_vgt"].contains(&input)
             && !loops.iter().any(|l| l.input == input)
     };

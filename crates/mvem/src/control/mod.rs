@@ -268,6 +268,14 @@ pub fn run_with(
         )));
     }
     let n = ((t1 - t0) / ts + 1e-9).floor() as usize;
+    if n == 0 {
+        return Err(ControlError::Demand(format!(
+            "the demand spans {} s from {} s, shorter than two controller samples ({} s apart)",
+            Num(t1 - t0),
+            Num(t0),
+            Num(ts)
+        )));
+    }
     let d0 = demand.at(t0);
     let out0 = ctrl.start(t0, d0.n_e, d0.m_ref, d0.motoring);
     check_output(&out0, t0)?;

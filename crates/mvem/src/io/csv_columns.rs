@@ -148,16 +148,29 @@ pub fn header_names(text: &str) -> Result<Vec<String>, ColumnsError> {
 /// The values of the columns `names` (in that order) of every data row of `text`, each row with
 /// its 1-based line in the file.
 pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>, ColumnsError> {
+    let column_of = |h: &str| names.iter().position(|c| *c == h);
+    read_columns_matched(text, names, &column_of, false).map(|(_, rows)| rows)
+}
+
+/// [`read_columns`] with the header's names matched by `column_of` (a header name -> the index
+/// in `names` of the column it is, or `None`; the first header name matching a column is
+/// taken) and, with `units_row`, the first record taken as a units row when its first field
+/// matched is not a number: returned with the rows, its fields in `names`' order.
+pub fn read_columns_matched(
+    text: &str,
+    names: &[&str],
+    column_of: &dyn Fn(&str) -> Option<usize>,
+    units_row: bool,
+) -> Result<UnitsAndRows, ColumnsError> {
     let (dialect, mut rdr) = reader(text);
     let header = rdr
         .headers()
         .map_err(|e| ColumnsError::Header(e.to_string()))?
         .clone();
-    let col = |want: &str| header.iter().position(|h| h == want);
-    let missing: Vec<String> = names
-        .iter()
-        .filter(|c| col(c).is_none())
-        .map(|c| c.to_string())
+    let col = |want: usize| header.iter().position(|h| column_of(h) == Some(want));
+    let missing: Vec<String> = (0..names.len())
+        .filter(|&c| col(c).is_none())
+        .map(|c| names[c].to_string())
         .collect();
     if !missing.is_empty() {
         return Err(ColumnsError::Missing {
@@ -165,13 +178,27 @@ pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>
             found: header.iter().map(str::to_string).collect(),
         });
     }
-    let idx: Vec<usize> = names.iter().map(|c| col(c).unwrap_or_default()).collect();
+    let idx: Vec<usize> = (0..names.len())
+        .map(|c| col(c).unwrap_or_default())
+        .collect();
     let mut rows = Vec::new();
+    let mut units = None;
     for rec in rdr.records() {
         let rec = rec.map_err(|e| ColumnsError::Record {
             line: e.position().map(|p| file_line(text, p, Some(b'#'))),
             message: e.to_string(),
         })?;
+        if units_row && rows.is_empty() && units.is_none() {
+            let first = rec.get(idx[0]).unwrap_or("");
+            if dialect.number(first).is_none() {
+                units = Some(
+                    idx.iter()
+                        .map(|&i| rec.get(i).unwrap_or("").to_string())
+                        .collect(),
+                );
+                continue;
+            }
+        }
         let line = rec.position().map_or(0, |p| file_line(text, p, Some(b'#')));
         let mut row = Vec::with_capacity(names.len());
         for (column, &i) in idx.iter().enumerate() {
@@ -188,8 +215,12 @@ pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>
         }
         rows.push((line, row));
     }
-    Ok(rows)
+    Ok((units, rows))
 }
+
+/// A units row (its fields in the asked columns' order), if any, and the data rows each with its
+/// 1-based line ([`read_columns_matched`]).
+pub type UnitsAndRows = (Option<Vec<String>>, Vec<(usize, Vec<f64>)>);
 
 #[cfg(test)]
 mod tests {

@@ -10,60 +10,171 @@
 //!   denormalized with the engine's mapping curve as the built-in WHTC is
 //!   ([`crate::control::cycle::parse_normalized_table`]).
 
-use super::csv_columns::{read_columns, ColumnsError};
+use super::csv_columns::{header_names, read_columns_matched, ColumnsError};
 use super::{format_err as err, IoError};
-use crate::control::cycle::{header_fields, is_normalized_header, parse_normalized_table};
+use crate::control::cycle::{
+    bare_name, header_fields, is_normalized_header, parse_normalized_table,
+};
 use crate::control::drive::CycleSource;
 use crate::control::Demand;
+use crate::tuning::data::units_of;
 use std::path::Path;
 
 /// The columns a demand CSV needs, in [`parse_demand_csv`]'s order.
 pub const DEMAND_COLUMNS: [&str; 3] = ["t", "n_e", "M_ref"];
 
-/// Read a demand cycle from CSV text (`path` only names it in messages). Every problem is named:
-/// a missing column (with the columns found), a field that is not a number (its line and
-/// column), and what [`Demand::new`] refuses (too few rows, times not increasing, non-finite
-/// values: the row counted after the header). The speeds are checked against an engine's range
-/// when the cycle runs ([`Demand::check_speeds`]).
+/// The unit each of [`DEMAND_COLUMNS`] is in (a column given in another unit of the same
+/// quantity is converted, [`crate::tuning::data`]'s table).
+const DEMAND_UNITS: [&str; 3] = ["s", "r/min", "Nm"];
+
+/// Which of [`DEMAND_COLUMNS`] a header name is, as the normalized cycles' parser reads names
+/// (case ignored, a unit in brackets after the name apart): `t` or a name starting with `time`,
+/// `n_e`, `M_ref`.
+pub fn demand_column(header: &str) -> Option<usize> {
+    let n = bare_name(header);
+    if n == "t" || n.starts_with("time") {
+        Some(0)
+    } else if n == "n_e" {
+        Some(1)
+    } else if n == "m_ref" {
+        Some(2)
+    } else {
+        None
+    }
+}
+
+/// The unit in brackets after a header name (`n_e [rpm]`, `n_e (rpm)`), if any.
+fn bracket_unit(header: &str) -> Option<&str> {
+    let open = header.find(['[', '('])?;
+    let rest = &header[open + 1..];
+    let close = rest.find([']', ')']).unwrap_or(rest.len());
+    Some(rest[..close].trim()).filter(|u| !u.is_empty())
+}
+
+/// Read a demand cycle from CSV text (`path` only names it in messages): the columns `t` [s],
+/// `n_e` [rpm], `M_ref` [Nm] in any order, other columns ignored, the names read as the
+/// normalized cycles' ([`demand_column`]: `Time` for `t`, case ignored), each with an optional
+/// unit in brackets (`n_e [rpm]`) or an optional units row under the header (`s,rpm,Nm`); a
+/// column in another unit of its quantity is converted (`ms`, `krpm`, `rad/s`, `kNm`), an
+/// unknown unit refused. Every problem is named: a missing or doubled column (with the columns
+/// found), a unit, a field that is not a number (its line and column), and what [`Demand::new`]
+/// refuses (too few rows, times not increasing, non-finite values: the row counted after the
+/// header and the units row). The speeds are checked against an engine's range when the cycle
+/// runs ([`Demand::check_speeds`]).
 pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
-    let rows = read_columns(text, &DEMAND_COLUMNS).map_err(|e| match e {
-        ColumnsError::Header(m) => err(path, Some(1), None, format!("cannot read the header: {m}")),
-        ColumnsError::Missing { missing, found } => err(
-            path,
-            Some(1),
-            None,
-            format!(
-                "missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm], or for a normalized \
-                 cycle time [s], speed [%], torque [%]; found: {})",
-                missing.join(", "),
-                found.join(", ")
-            ),
-        ),
-        ColumnsError::Record { line, message } => err(path, line, None, message),
-        ColumnsError::NotANumber {
-            line,
-            column,
-            field,
-        } => err(
-            path,
-            Some(line),
-            Some(DEMAND_COLUMNS[column]),
-            format!("'{field}' is not a number"),
-        ),
+    let header = header_names(text).map_err(|e| {
+        let m = match e {
+            ColumnsError::Header(m) => m,
+            other => format!("{other:?}"),
+        };
+        err(path, Some(1), None, format!("cannot read the header: {m}"))
     })?;
+    for c in 0..DEMAND_COLUMNS.len() {
+        let named: Vec<&String> = header
+            .iter()
+            .filter(|h| demand_column(h) == Some(c))
+            .collect();
+        if named.len() > 1 {
+            return Err(err(
+                path,
+                Some(1),
+                None,
+                format!(
+                    "the columns {} all name {} (give it once)",
+                    named
+                        .iter()
+                        .map(|h| format!("'{h}'"))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    DEMAND_COLUMNS[c]
+                ),
+            ));
+        }
+    }
+    let (units_row, rows) = read_columns_matched(text, &DEMAND_COLUMNS, &demand_column, true)
+        .map_err(|e| match e {
+            ColumnsError::Header(m) => {
+                err(path, Some(1), None, format!("cannot read the header: {m}"))
+            }
+            ColumnsError::Missing { missing, found } => err(
+                path,
+                Some(1),
+                None,
+                format!(
+                    "missing column(s) {} (needed: t [s], n_e [rpm], M_ref [Nm], or for a \
+                     normalized cycle time [s], speed [%], torque [%]; found: {})",
+                    missing.join(", "),
+                    found.join(", ")
+                ),
+            ),
+            ColumnsError::Record { line, message } => err(path, line, None, message),
+            ColumnsError::NotANumber {
+                line,
+                column,
+                field,
+            } => err(
+                path,
+                Some(line),
+                Some(DEMAND_COLUMNS[column]),
+                format!("'{field}' is not a number"),
+            ),
+        })?;
+    // each column's conversion to its unit: from the header's brackets, else the units row
+    let mut scale = [(1.0, 0.0); 3];
+    for (c, conv) in scale.iter_mut().enumerate() {
+        let name = header
+            .iter()
+            .find(|h| demand_column(h) == Some(c))
+            .map_or("", String::as_str);
+        let (unit, place) = match (bracket_unit(name), &units_row) {
+            (Some(u), _) => (u.to_string(), "the header"),
+            (None, Some(r)) => (r[c].trim().to_string(), "the units row"),
+            (None, None) => continue,
+        };
+        if unit.is_empty() {
+            continue;
+        }
+        let known = units_of(DEMAND_UNITS[c]);
+        match known.iter().find(|k| k.0 == unit) {
+            Some(&(_, s, o)) => *conv = (s, o),
+            None => {
+                let hint = if unit == "%" {
+                    " (a normalized cycle has the columns time [s], speed [%], torque [%])"
+                } else {
+                    ""
+                };
+                return Err(err(
+                    path,
+                    None,
+                    Some(DEMAND_COLUMNS[c]),
+                    format!(
+                        "unit '{unit}' in {place} is not a unit of {} (one of {}){hint}",
+                        DEMAND_COLUMNS[c],
+                        known.iter().map(|k| k.0).collect::<Vec<_>>().join(", ")
+                    ),
+                ));
+            }
+        }
+    }
     let (mut t, mut n, mut m) = (vec![], vec![], vec![]);
+    let conv = |c: usize, v: f64| scale[c].0 * v + scale[c].1;
     for (_, v) in rows {
-        t.push(v[0]);
-        n.push(v[1]);
-        m.push(v[2]);
+        t.push(conv(0, v[0]));
+        n.push(conv(1, v[1]));
+        m.push(conv(2, v[2]));
     }
     let k = t.len();
+    let after = if units_row.is_some() {
+        "the header and the units row"
+    } else {
+        "the header"
+    };
     Demand::new(t, n, m, vec![false; k]).map_err(|e| {
         err(
             path,
             None,
             None,
-            format!("{e} (rows counted after the header)"),
+            format!("{e} (rows counted after {after})"),
         )
     })
 }
@@ -74,7 +185,8 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
 /// is named with its line.
 pub fn parse_cycle_file(text: &str, path: &Path) -> Result<CycleSource, IoError> {
     let fields = header_fields(text);
-    let demand = DEMAND_COLUMNS.iter().all(|c| fields.contains(c));
+    let demand =
+        (0..DEMAND_COLUMNS.len()).all(|c| fields.iter().any(|f| demand_column(f) == Some(c)));
     if !demand && is_normalized_header(&fields) {
         return parse_normalized_table(text)
             .map(CycleSource::Normalized)
@@ -119,6 +231,50 @@ mod tests {
         assert!(e.contains("c.csv: "), "{e}");
         let e = parse("t,n_e,M_ref\n0,1000,100\n1,1000\n").unwrap_err();
         assert!(e.contains("line 3"), "{e}");
+    }
+
+    /// A demand's header is read as the normalized cycles' are: units in brackets or in a units
+    /// row (converted: ms, krpm, kNm), `Time` for `t`, case ignored; an unknown unit, a column
+    /// named twice and columns of different lengths are named.
+    #[test]
+    fn a_demand_header_may_carry_units_and_other_spellings() {
+        let want = parse("t,n_e,M_ref\n0,1000,200\n5,1200,500\n").unwrap();
+        let close = |d: &Demand| {
+            [0.0, 1.0, 2.5, 5.0].iter().all(|&t| {
+                let (a, b) = (d.at(t), want.at(t));
+                (a.n_e - b.n_e).abs() < 1e-9 && (a.m_ref - b.m_ref).abs() < 1e-9
+            }) && d.span() == want.span()
+        };
+        for text in [
+            "t [s],n_e [rpm],M_ref [Nm]\n0,1000,200\n5,1200,500\n",
+            "t,n_e,M_ref\ns,rpm,Nm\n0,1000,200\n5,1200,500\n",
+            "Time,n_e,M_ref\n0,1000,200\n5,1200,500\n",
+            "T,N_E,m_ref\n0,1000,200\n5,1200,500\n",
+            "time [ms],n_e (krpm),M_ref [kNm]\n0,1,0.2\n5000,1.2,0.5\n",
+            "t;n_e;M_ref\ns;rpm;Nm\n0;1000;200\n5;1200;500\n",
+        ] {
+            assert!(close(&parse(text).unwrap()), "{text}");
+            assert!(matches!(cycle(text), Ok(CycleSource::Demand(_))), "{text}");
+        }
+        let e = parse("t,n_e [%],M_ref\n0,50,200\n5,60,500\n").unwrap_err();
+        assert!(
+            e.contains("column n_e: unit '%' in the header is not a unit of n_e (one of r/min")
+                && e.contains("a normalized cycle"),
+            "{e}"
+        );
+        let e = parse("t,n_e,M_ref\ns,rpm,lbft\n0,1000,200\n5,1200,500\n").unwrap_err();
+        assert!(
+            e.contains("unit 'lbft' in the units row is not a unit of M_ref"),
+            "{e}"
+        );
+        let e = parse("t,time,n_e,M_ref\n0,0,1000,200\n5,5,1200,500\n").unwrap_err();
+        assert!(e.contains("the columns 't', 'time' all name t"), "{e}");
+        let e = parse("t,n_e,M_ref\ns,rpm,Nm\n0,1000,200\n").unwrap_err();
+        assert!(e.contains("after the header and the units row"), "{e}");
+        let e = Demand::new(vec![0.0, 1.0], vec![1000.0], vec![1.0, 2.0], vec![false; 2])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("different lengths: t 2, n_e 1, M_ref 2"), "{e}");
     }
 
     fn cycle(text: &str) -> Result<CycleSource, String> {

@@ -65,7 +65,7 @@ pub enum SimError {
         state: StateDump,
     },
     /// More steps than allowed.
-    #[error("more than {max_steps} steps before t = {} s; state: {state}. Hint: raise SimOptions::max_steps for long or fast-varying inputs, loosen a very tight tolerance, or check the inputs (equilibrium lost, inputs far out of range make the model stiff)", crate::numerics::Num(*t))]
+    #[error("more than {max_steps} steps before t = {} s; state: {state}. Hint: the model may have left its valid region (equilibrium lost; inputs far out of range make the model stiff), or the tolerance is very tight; a library caller with long or fast-varying inputs may allow more steps (SimOptions::max_steps)", crate::numerics::Num(*t))]
     TooManySteps {
         /// Limit.
         max_steps: usize,
