@@ -315,10 +315,13 @@ def test_step_response_equals_cli_demo(mvem_cli, tmp_path):
     r = mvem.step_response(*POINT, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0)
     assert np.array_equal(r["t"], cli["t"])
     assert np.max(np.abs(r["y"] - cli["W_c"]) / np.abs(cli["W_c"])) <= 1e-12
-    # the metrics of the CLI's samples with the steady states as end points
+    # the metrics are those of samples 5 ms apart (whatever dt) with the steady states as end
+    # points
     y0 = mvem.steady(*POINT)["W_c"]
     y1 = mvem.steady(1500, 110, 80, 65)["W_c"]
-    m = mvem.step_metrics(cli["t"], cli["W_c"], 1.0, y0, y1, -10.0)
+    fine = mvem.step_response(*POINT, input="u_vgt", to=65.0, output="W_c", t_step=1.0,
+                              t_end=8.0, dt=0.005)
+    m = mvem.step_metrics(fine["t"], fine["y"], 1.0, y0, y1, -10.0)
     for k in ["y0", "y_final", "change", "dc_gain", "overshoot_pct", "rise_time",
               "settling_time"]:
         assert r[k] == pytest.approx(m[k], rel=1e-12, abs=1e-15), k

@@ -91,7 +91,7 @@ pub fn regression(x: &[f64], y: &[f64]) -> Regression {
     }
 }
 
-/// Smallest positive work of a cycle for its work error and BSFC [kWh]: below it (an idle or
+/// Smallest positive work of a cycle for its work error and BSFC \[kWh\]: below it (an idle or
 /// motored cycle) the ratios divide by numerical noise and are not applicable.
 pub const MIN_WORK_KWH: f64 = 1e-3;
 
