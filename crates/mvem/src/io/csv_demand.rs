@@ -51,8 +51,8 @@ fn bracket_unit(header: &str) -> Option<&str> {
     Some(rest[..close].trim()).filter(|u| !u.is_empty())
 }
 
-/// Read a demand cycle from CSV text (`path` only names it in messages): the columns `t` [s],
-/// `n_e` [rpm], `M_ref` [Nm] in any order, other columns ignored, the names read as the
+/// Read a demand cycle from CSV text (`path` only names it in messages): the columns `t` \[s\],
+/// `n_e` \[rpm\], `M_ref` \[Nm\] in any order, other columns ignored, the names read as the
 /// normalized cycles' ([`demand_column`]: `Time` for `t`, case ignored), each with an optional
 /// unit in brackets (`n_e [rpm]`) or an optional units row under the header (`s,rpm,Nm`); a
 /// column in another unit of its quantity is converted (`ms`, `krpm`, `rad/s`, `kNm`), an
