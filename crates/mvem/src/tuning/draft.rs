@@ -403,6 +403,14 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             units.insert(name.to_string(), u.to_string());
         }
     }
+    // a unit a header gives for a column whose values are not checked against a range above:
+    // the time (`t [ms]`, `Time [ms]`), which the sample rates were computed in
+    for (name, (g, _)) in &headed {
+        if let (Some(u), false) = (g.unit, units.contains_key(*name)) {
+            notes.push(format!("{name}: in {u} (its header says so)"));
+            units.insert(name.to_string(), u.to_string());
+        }
+    }
     if !sets.iter().any(|s| s.roles.contains(&Role::Validation)) {
         notes.push(
             "no set has the role \"validation\": give it to sets you hold back from the tuning"
@@ -520,6 +528,75 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = draft_manifest(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
+    }
+
+    /// (mvem's name, the test cell's header, value in its unit from mvem's)
+    type Rename<'a> = (&'a str, &'a str, fn(f64) -> f64);
+
+    /// Rewrite the columns of a CSV file: each (mvem's name, new header, conversion of the
+    /// values) present in its header.
+    fn rewrite(path: &Path, renames: &[Rename]) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let mut header: Vec<String> = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect();
+        let mut convs = Vec::new();
+        for &(name, new, conv) in renames {
+            if let Some(k) = header.iter().position(|h| h == name) {
+                header[k] = new.to_string();
+                convs.push((k, conv));
+            }
+        }
+        let mut out = vec![header.join(",")];
+        for l in lines {
+            let mut v: Vec<String> = l.split(',').map(str::to_string).collect();
+            for &(k, conv) in &convs {
+                v[k] = format!("{:?}", conv(v[k].parse::<f64>().unwrap()));
+            }
+            out.push(v.join(","));
+        }
+        std::fs::write(path, out.join("\n") + "\n").unwrap();
+    }
+
+    /// QA finding: a time column headed `t [ms]` or `Time [ms]` was mapped to `t`, its sample
+    /// rates computed in seconds, but `[units]` got no `t = "ms"`: the loader then read the
+    /// times as seconds (a 100 Hz set as 0.1 Hz) and the tuning went on with volumes 1000
+    /// times too large. The header's time unit is drafted and the campaign loads as it was.
+    #[test]
+    fn a_time_unit_in_the_header_is_drafted() {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        for header in ["t [ms]", "Time [ms]"] {
+            let dir = tempfile::tempdir().unwrap();
+            save_campaign(dir.path(), &c).unwrap();
+            for s in &c.manifest.datasets {
+                rewrite(&dir.path().join(&s.file), &[("t", header, |v| 1e3 * v)]);
+            }
+            std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+            let d = draft_manifest(dir.path()).unwrap();
+            let m = &d.manifest;
+            assert_eq!(m.units.get("t").map(String::as_str), Some("ms"), "{header}");
+            assert!(d.notes.iter().any(|n| n == "t: in ms (its header says so)"));
+            for (s, orig) in m.datasets.iter().zip(&c.manifest.datasets) {
+                assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+            }
+            std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+            let back = load_campaign(dir.path()).unwrap();
+            for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+                for (x, y) in a.t.iter().zip(&b.t) {
+                    assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+                }
+            }
+        }
     }
 
     /// A test cell's own headers: other case, spaces, a unit in brackets (`p_im [kPa]`,
