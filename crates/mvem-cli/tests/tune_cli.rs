@@ -675,3 +675,68 @@ fn supported(v: &serde_json::Value) -> Vec<bool> {
         .map(|s| s["supported"].as_bool().unwrap())
         .collect()
 }
+
+/// QA findings: `mvem validate` ran engine speeds beyond `[input_saturation]` and turbo speeds
+/// above `[integrator_limits]` clamped without a word (tune warned of the first only), and
+/// `--roles validation` on a campaign without such a set printed the stationary table alone.
+#[test]
+fn validate_warns_of_clamped_inputs_and_of_roles_without_sets() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let wide = [
+        ("n_e = [500.0, 2000.0]", "n_e = [500.0, 2600.0]"),
+        ("u_delta = [1.0, 250.0]", "u_delta = [1.0, 280.0]"),
+    ];
+    write_published_with(d, "wide.toml", &wide);
+    write_published_with(d, "pub.toml", &[]);
+    let slow = [
+        wide[0],
+        wide[1],
+        ("n_t = [100.0, 200000.0]", "n_t = [100.0, 50000.0]"),
+    ];
+    write_published_with(d, "slow.toml", &slow);
+    stationary_campaign(
+        d,
+        &[
+            "--params",
+            "wide.toml",
+            "--speeds",
+            "1000:2500",
+            "--full-load",
+            "260",
+        ],
+    );
+    let validate = |params: &str| {
+        let o = mvem(
+            d,
+            &[
+                "validate",
+                "--data",
+                "c",
+                "--params",
+                params,
+                "--roles",
+                "validation",
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let err = validate("pub.toml");
+    assert!(
+        err.contains("warning: no data set has the role validation: only the stationary points"),
+        "{err}"
+    );
+    assert!(
+        err.contains("lie outside the model's input saturation (n_e 500-2000 rpm"),
+        "{err}"
+    );
+    assert!(!err.contains("integrator"), "{err}");
+    let err = validate("wide.toml");
+    assert!(!err.contains("input saturation"), "{err}");
+    let err = validate("slow.toml");
+    assert!(
+        err.contains("measure turbo speeds above the model's limit n_t = 50000 rpm"),
+        "{err}"
+    );
+}

@@ -22,8 +22,9 @@ use super::complete::{
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
 use super::constants::{
-    ambient_from_stationary, implausible_constants, widen_input_saturation, AmbientFromData,
-    AmbientSource, InputRangeSource, InputRangesWidened,
+    ambient_from_stationary, implausible_constants, widen_input_saturation,
+    widen_integrator_limits, AmbientFromData, AmbientSource, InputRangeSource, InputRangesWidened,
+    TurboLimitWidened,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
@@ -192,6 +193,9 @@ pub struct TuneReport {
     /// The base parameter set's input ranges widened to the campaign before step 1 (option
     /// `input_ranges`; `None` when the campaign lies inside them).
     pub input_saturation: Option<InputRangesWidened>,
+    /// The base parameter set's turbo-speed integrator limit widened to the campaign's turbo
+    /// speeds before step 1 (option `input_ranges`; `None` when the campaign lies below it).
+    pub integrator_limits: Option<TurboLimitWidened>,
     /// Step 1 submodel fits.
     pub step1: Option<Step1Report>,
     /// Settled ends of command steps in the compressor-flow fit of step 1 besides the
@@ -384,9 +388,14 @@ pub fn tune(
     rep.ambient = ambient_from_stationary(&mut p, &c.stationary, opts.ambient);
     // the model's input ranges contain the campaign (another engine's speeds run unclamped)
     rep.input_saturation = widen_input_saturation(&mut p, c, opts.input_ranges);
-    // inputs the model would run clamped (the parameter set's input saturation)
+    // and its turbo-speed limit contains the campaign's turbo speeds (a small turbocharger)
+    rep.integrator_limits = widen_integrator_limits(&mut p, c, opts.input_ranges);
+    // inputs the model would run clamped (the parameter set's input saturation), turbo speeds
+    // it cannot reach (its integrator limit)
     rep.caveats
         .extend(super::constants::inputs_outside_saturation(&p, c));
+    rep.caveats
+        .extend(super::constants::turbo_speeds_above_limit(&p, c));
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
