@@ -410,6 +410,20 @@ pub fn tune(
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
         p = q;
         rep.step1_settled_flow_points = flow_extra.len();
+        let bounds = super::steps::at_bounds(&r);
+        if !bounds.is_empty() {
+            let list: Vec<String> = bounds
+                .iter()
+                .map(|(n, v, b)| format!("{n} = {v:.4e} (bound {b:e})"))
+                .collect();
+            rep.caveats.push(format!(
+                "step 1 ended with {} on or beyond the edge of its search box (step 5's box, \
+                 complete::STATIC_PARAMS, sized for the published engine): there the search \
+                 stopped, the data's optimum may lie beyond, and step 5 starts from the box's \
+                 edge",
+                list.join(", ")
+            ));
+        }
         let (e, k) = step1_estimates(&p, &c.stationary, &flow_extra, &r);
         est.extend(e);
         cov.set_block(&k);

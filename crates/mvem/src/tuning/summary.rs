@@ -8,6 +8,7 @@
 
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::pipeline::step_title;
+use super::steps::STEP1_MIN_POINTS;
 use serde::Serialize;
 
 /// A campaign's summary ([`summarize`]).
@@ -260,8 +261,17 @@ pub fn summarize(c: &Campaign) -> CampaignSummary {
         StepSupport {
             step: 1,
             title: step_title(1),
-            supported: !st.is_empty(),
-            uses: format!("{} stationary points", st.len()),
+            supported: st.len() >= STEP1_MIN_POINTS,
+            uses: if st.len() >= STEP1_MIN_POINTS {
+                format!("{} stationary points", st.len())
+            } else {
+                format!(
+                    "{} stationary points, at least {STEP1_MIN_POINTS} needed (the compressor \
+                     efficiency's 7 parameters, eqs (58)-(65); the torque, EGR and turbine fits \
+                     need 4-6)",
+                    st.len()
+                )
+            },
         },
         // the pipeline takes the first actuator set
         support(
@@ -435,6 +445,18 @@ mod tests {
         assert_eq!(ok, [true, false, true, false, true]);
         assert!(s2.text().contains("NO  step 2"), "{}", s2.text());
         assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        // QA finding: 3 or 5 stationary points were "yes step 1", which then failed
+        let mut few = c.clone();
+        few.stationary.truncate(STEP1_MIN_POINTS - 1);
+        let s3 = summarize(&few);
+        assert!(!s3.steps[0].supported);
+        assert!(
+            s3.steps[0]
+                .uses
+                .starts_with("6 stationary points, at least 7 needed"),
+            "{}",
+            s3.steps[0].uses
+        );
     }
 
     /// QA findings: times logged in ms read as seconds (a 100 Hz set measured at 0.1 Hz) and a
