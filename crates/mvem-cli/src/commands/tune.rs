@@ -27,8 +27,9 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 (sets with role static + stationary points). Parameters of steps not run come from --params
 (default: the published set, which also supplies the constants that are never tuned:
 displacement, cylinders, compression ratio, heating value, wheel radii, maximum EGR and VGT
-areas, gas properties; for another engine give its own). No step starts from a value of
---params. The ambient p_amb, T_amb and T_im are the means of the stationary points where
+areas, gas properties; for another engine give its own). Steps 1-4 start from generic
+values, never from --params; step 5 (--init step1) starts from step 1's static parameters,
+or from those of --params when step 1 is not run (--init naive: eq. (78)). The ambient p_amb, T_amb and T_im are the means of the stationary points where
 they contradict --params (--ambient auto|data|params). The model's input ranges
 ([input_saturation], default the authors' 500-2000 rpm and 1-250 mg) are widened to contain
 the campaign's speeds and largest fuel, and the turbo-speed limit of the omega_t integrator
@@ -88,7 +89,8 @@ pub struct Args {
     /// `params` keeps them (points outside run clamped, a caveat says so).
     #[arg(long, value_enum, default_value = "campaign")]
     pub input_ranges: InputRangesArg,
-    /// Start of step 5: the step-1 values or eq. (78) from the bounds.
+    /// Start of step 5: the step-1 values (those of --params when step 1 is not run) or eq.
+    /// (78) from the bounds.
     #[arg(long, value_enum, default_value = "step1")]
     pub init: InitArg,
     /// Rows of cost (77): both, only the complete model (dynamic), only the submodels (static).

@@ -13,8 +13,11 @@
 //! by (77), N = 8, z_8 = W_ic, beta = 2.58 (when step 5 is selected).
 //!
 //! `base` supplies the constants that are not tuned (gas properties, geometry, A_egrmax, ...)
-//! and the values of the parameters of the steps that are not run. No step starts from a value
-//! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
+//! and the values of the parameters of the steps that are not run. Steps 1-4 start from generic
+//! values, never from `base`; step 5 ([`Init::Step1`], the default) starts from the static
+//! parameters as they are when it begins: step 1's, or, when step 1 is not run, `base`'s
+//! ([`Init::Naive`]: eq. (78) from the bounds, whatever ran). A failing step stops the pipeline
+//! with a [`PipelineError`] naming it.
 
 use super::complete::{
     dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
