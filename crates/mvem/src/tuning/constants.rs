@@ -308,7 +308,9 @@ pub fn implausible_constants(
                 "the stationary points imply a mean volumetric efficiency of {e:.2} (eq. (11): \
                  W_ei 120 R_a T_im / (p_im n_e V_d) with W_ei = W_c / (1 - x_egr)), outside the \
                  {:.1}-{:.1} of four-stroke diesel engines: is V_d = {:.2} dm^3 this engine's \
-                 displacement? Give the engine's constants with --params FILE",
+                 displacement (give the engine's constants with --params FILE), and is W_c in \
+                 kg/s (a unit guessed by `mvem campaign --init` from the values' range, g/s \
+                 for kg/h say, shows here: check the manifest's [units])?",
                 ETA_VOL_RANGE.0,
                 ETA_VOL_RANGE.1,
                 c.v_d * 1e3

@@ -55,23 +55,28 @@ impl ManifestDraft {
     }
 }
 
-/// The unit (other than mvem's) in which every value of `c` lies in its plausible range, if
-/// the values are not all in range in mvem's unit.
-fn guess_unit(c: &Column, values: &[f64]) -> Option<&'static str> {
+/// The units (other than mvem's, in [`units_of`] order) in which every value of `c` lies in
+/// its plausible range, if the values are not all in range in mvem's unit: the first is the
+/// guess, the others fit the ranges as well (W_c of 90 logged in kg/h is in range in g/s too).
+fn guess_units(c: &Column, values: &[f64]) -> Vec<&'static str> {
     let in_range = |s: f64, o: f64| {
         values
             .iter()
             .all(|v| (c.min..=c.max).contains(&(s * v + o)))
     };
     if values.is_empty() || in_range(1.0, 0.0) {
-        return None;
+        return Vec::new();
     }
     units_of(c.unit)
         .iter()
         .skip(1)
-        .find(|&&(_, s, o)| in_range(s, o))
+        .filter(|&&(_, s, o)| in_range(s, o))
         .map(|u| u.0)
+        .collect()
 }
+
+/// Commands and positions in % that a test cell may log as fractions 0..1 (`[units]` `-`).
+const PERCENT_COLUMNS: [&str; 4] = ["u_egr", "u_vgt", "u_egr_pos", "u_vgt_pos"];
 
 /// A header name without case, spaces, underscores, hyphens and dots.
 fn normalized(name: &str) -> String {
@@ -395,12 +400,38 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                 ),
             });
             units.insert(name.to_string(), u.to_string());
-        } else if let Some(u) = guess_unit(c, v) {
+        } else if let Some((&u, others)) = guess_units(c, v).split_first() {
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(*x), b.max(*x))
+                });
             notes.push(format!(
-                "{name}: in {u}? (its values lie outside {}..{} {} but inside in {u})",
-                c.min, c.max, c.unit
+                "{name}: in {u}? (its values, {lo}..{hi}, lie outside {}..{} {} but inside in \
+                 {u}{})",
+                c.min,
+                c.max,
+                c.unit,
+                if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; also inside in {}: the first unit that fits is the guess, check the \
+                         test cell's",
+                        others.join(", ")
+                    )
+                }
             ));
             units.insert(name.to_string(), u.to_string());
+        } else if PERCENT_COLUMNS.contains(name)
+            && v.iter().all(|x| (0.0..=1.0).contains(x))
+            && v.iter().any(|x| *x > 0.0)
+        {
+            // in range as % too, so no unit is guessed: a fraction 0..1 would be read as 0-1 %
+            notes.push(format!(
+                "{name}: every value lies in 0..1: if the test cell logs it as a fraction, not \
+                 in %, set [units] {name} = \"-\" (read as it is, 1 means 1 %)"
+            ));
         }
     }
     // a unit a header gives for a column whose values are not checked against a range above:
@@ -597,6 +628,41 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// QA findings: W_c logged in kg/h without a unit was guessed as g/s (the first unit in
+    /// which it is in range) without saying that kg/h fits as well, and commands logged as
+    /// fractions 0..1 were taken for 0-1 % without a word. Both are notes now.
+    #[test]
+    fn ambiguous_guesses_are_named() {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        let files = std::iter::once(&c.manifest.stationary)
+            .chain(c.manifest.datasets.iter().map(|s| &s.file));
+        for f in files {
+            rewrite(
+                &dir.path().join(f),
+                &[
+                    ("W_c", "W_c", |v| 3600.0 * v),
+                    ("u_vgt", "u_vgt", |v| v / 100.0),
+                ],
+            );
+        }
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let note = |start: &str| d.notes.iter().find(|n| n.starts_with(start)).cloned();
+        let w_c = note("W_c: in g/s?").unwrap_or_else(|| panic!("{:?}", d.notes));
+        assert!(w_c.contains("also inside in kg/h"), "{w_c}");
+        let u = note("u_vgt: every value lies in 0..1").unwrap_or_else(|| panic!("{:?}", d.notes));
+        assert!(u.contains("[units] u_vgt = \"-\""), "{u}");
+        assert!(note("u_egr: every value").is_none(), "{:?}", d.notes);
     }
 
     /// A test cell's own headers: other case, spaces, a unit in brackets (`p_im [kPa]`,
