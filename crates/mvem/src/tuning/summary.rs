@@ -87,8 +87,8 @@ fn sig(v: f64) -> f64 {
 /// from the manifest's by more than [`RATE_TOLERANCE`] (a factor of about 1000 means times
 /// logged in ms and read as s: `t = "ms"` in `[units]`), and holes in the sampling (a step
 /// longer than [`GAP_FACTOR`] median steps: the longest and how many). The tuning and
-/// validation interpolate over a hole and hold the commands across it, so a set with one is
-/// used as if the test cell had logged the hold. Empty when every set is regular.
+/// validation simulate across a hole with the commands held at their last sample (zero-order
+/// hold), so a command change inside it is missed. Empty when every set is regular.
 pub fn sampling_warnings(c: &Campaign) -> Vec<String> {
     let mut out = Vec::new();
     for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
@@ -132,8 +132,8 @@ pub fn sampling_warnings(c: &Campaign) -> Vec<String> {
         {
             out.push(format!(
                 "set {} ({}): irregular sampling: {} hole(s) longer than {GAP_FACTOR} median \
-                 steps ({} s), the longest {} s from t = {} s to {} s; the tuning interpolates \
-                 the outputs and holds the commands across it",
+                 steps ({} s), the longest {} s from t = {} s to {} s; tune and validate \
+                 simulate across it with the commands held at their last sample",
                 info.name,
                 info.file,
                 gaps.len(),
