@@ -566,6 +566,32 @@ fn params_show_and_check() {
     std::fs::write(d.path().join("p.toml"), stdout(&o)).unwrap();
     let o = mvem(d.path(), &["params", "check", "p.toml"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // the published set is clean: no plausibility warning
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+    // QA findings: litres typed as m^3 are valid but warned (exit code 0); a nan names itself
+    let p = std::fs::read_to_string(d.path().join("p.toml")).unwrap();
+    assert!(p.contains("v_d = 0.01274\n"));
+    std::fs::write(
+        d.path().join("l.toml"),
+        p.replace("v_d = 0.01274\n", "v_d = 5.0\n"),
+    )
+    .unwrap();
+    let o = mvem(d.path(), &["params", "check", "l.toml"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning: l.toml: cylinder.v_d = 5 m^3 (5000 dm^3) is outside"),
+        "{}",
+        stderr(&o)
+    );
+    let h = p.lines().find(|l| l.starts_with("h_tot = ")).unwrap();
+    std::fs::write(d.path().join("n.toml"), p.replace(h, "h_tot = nan")).unwrap();
+    let o = mvem(d.path(), &["params", "check", "n.toml"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("exhaust_pipe.h_tot = nan: not a finite number"),
+        "{}",
+        stderr(&o)
+    );
     let o = mvem(
         d.path(),
         &["params", "show", "--params", "p.toml", "--format", "json"],

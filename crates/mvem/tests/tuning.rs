@@ -348,3 +348,56 @@ fn eta_c_fit_reaches_the_optimum_on_a_2_litre_engine() {
         assert!(e_fit <= 1.02 * e_true, "seed {seed}: {e_fit} vs {e_true}");
     }
 }
+
+/// QA finding: `mvem lab` on a 5-litre engine with a small turbocharger (`tests/data/
+/// engine_5l.toml`, speeds 1000-2600 rpm, 130 mg at full load) wrote a stationary point with
+/// p_em = 1.15 MPa, which its own loader refused (outside the plausible 0.05-1 MPa). The lab
+/// redraws such points, so what it writes loads.
+#[test]
+fn the_lab_writes_only_what_its_loader_accepts() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/engine_5l.toml");
+    let truth = mvem::io::params::load_params(&path).unwrap();
+    let opts = LabOptions {
+        seed: 1,
+        n_stationary: 82,
+        dynamic: false,
+        envelope: lab::Envelope {
+            n_lo_rpm: 1000.0,
+            n_hi_rpm: 2600.0,
+            full_load_mg: 130.0,
+        },
+        ..LabOptions::default()
+    };
+    let (c, _) = lab::campaign(&truth, &opts).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    data::save_campaign(dir.path(), &c).unwrap();
+    let back = data::load_campaign(dir.path()).unwrap();
+    assert_eq!(back.stationary.len(), 82);
+    let max_p_em = back.stationary.iter().map(|s| s.p_em).fold(0.0, f64::max);
+    assert!(max_p_em <= 1e6, "{max_p_em}");
+}
+
+/// QA finding: with 8 stationary points (`tests/data/stationary_8_points.csv`, of the 5-litre
+/// engine of `tests/data/engine_5l.toml`) the EGR fit put c_egr1 at +2.8e-5, and the tuned
+/// file was refused ("c_egr1 must be < 0"). Step 1 keeps c_egr1 at most `C_EGR1_MAX` (the
+/// constrained least-squares optimum), the result is a valid parameter set, and the bound is
+/// reported.
+#[test]
+fn step1_keeps_c_egr1_negative_on_few_points() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let base = mvem::io::params::load_params(&dir.join("engine_5l.toml")).unwrap();
+    let pts = data::load_stationary_csv(
+        &dir.join("stationary_8_points.csv"),
+        &data::Layout::default(),
+    )
+    .unwrap();
+    assert_eq!(pts.len(), 8);
+    let (p, r) = step1(&base, &pts, &Step1Start::default()).unwrap();
+    assert_eq!(p.egr_valve.c_egr[0], mvem::tuning::steps::C_EGR1_MAX);
+    assert!(p.validate().is_ok(), "{:?}", p.validate());
+    let at = mvem::tuning::steps::at_bounds(&r);
+    assert!(at.iter().any(|(n, _, _)| n == "c_egr1"), "{at:?}");
+    // a fit all the same (22 % mean error of eq. (4) on 8 points, 4 of them with the valve open)
+    let egr = r.fits.iter().find(|f| f.submodel == "W_egr").unwrap();
+    assert!(egr.mean_abs_rel_err < 0.3, "{egr:?}");
+}

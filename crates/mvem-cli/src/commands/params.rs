@@ -45,7 +45,11 @@ Examples:
     #[command(after_help = "\
 Examples:
   mvem params check my_params.toml
-  mvem params check data/wahlstrom_eriksson_2011_parameters.json")]
+  mvem params check data/wahlstrom_eriksson_2011_parameters.json
+
+A valid file may still get warnings on stderr (exit code 0) for implausible values: a
+displacement v_d outside 0.1-50 dm^3 (it is in m^3), gamma or R inconsistent with c_p and c_V,
+a c_mlin that is not c_m at w_tlin.")]
     Check {
         /// The parameter file (TOML, nested JSON or the authors' flat JSON).
         #[arg(value_name = "FILE")]
@@ -79,6 +83,12 @@ pub fn run(a: &Args) -> Result<()> {
         Cmd::Check { file } => {
             let problems = check_file(file);
             if problems.is_empty() {
+                // valid: what is implausible all the same (warnings, exit code 0)
+                if let Ok(p) = mvem::io::params::load_params(file) {
+                    for w in p.plausibility_warnings() {
+                        eprintln!("warning: {}: {w}", file.display());
+                    }
+                }
                 println!("{}: valid parameter set", file.display());
                 Ok(())
             } else {
@@ -102,6 +112,8 @@ pub fn check_file(path: &Path) -> Vec<String> {
         Err(e) => return vec![format!("cannot read: {e}")],
     };
     let mut problems = Vec::new();
+    // TOML's nan and inf become JSON null below: their fields, to say so
+    let mut non_finite = Vec::new();
     let nested = if text.trim_start().starts_with('{') {
         let v: Value = match serde_json::from_str(&text) {
             Ok(v) => v,
@@ -116,10 +128,13 @@ pub fn check_file(path: &Path) -> Vec<String> {
         }
     } else {
         match toml::from_str::<toml::Value>(&text) {
-            Ok(t) => match serde_json::to_value(t) {
-                Ok(v) => v,
-                Err(e) => return vec![e.to_string()],
-            },
+            Ok(t) => {
+                non_finite_floats(&t, "", &mut non_finite);
+                match serde_json::to_value(t) {
+                    Ok(v) => v,
+                    Err(e) => return vec![e.to_string()],
+                }
+            }
             Err(e) => {
                 let line = e
                     .span()
@@ -133,6 +148,15 @@ pub fn check_file(path: &Path) -> Vec<String> {
         return vec!["internal error: cannot serialize the published set".into()];
     };
     let patched = structure(&nested, &reference, &mut problems);
+    // "expected a number, found null" for a nan in the file: say what the file has
+    for (path, text) in &non_finite {
+        let key = path.split('[').next().unwrap_or(path);
+        for p in problems.iter_mut() {
+            if p.starts_with(&format!("{key}: expected ")) {
+                *p = format!("{path} = {text}: not a finite number (parameters must be finite)");
+            }
+        }
+    }
     match serde_json::from_value::<Params>(patched) {
         Ok(p) => {
             if let Err(issues) = p.validate() {
@@ -142,6 +166,40 @@ pub fn check_file(path: &Path) -> Vec<String> {
         Err(e) => problems.push(e.to_string()),
     }
     problems
+}
+
+/// The paths (`section.key`, `section.key[i]`) and text of the non-finite floats (`nan`,
+/// `inf`, `-inf`) of a TOML value.
+fn non_finite_floats(v: &toml::Value, path: &str, out: &mut Vec<(String, String)>) {
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => out.push((
+            path.to_string(),
+            // as TOML writes them
+            if f.is_nan() {
+                "nan".into()
+            } else if *f > 0.0 {
+                "inf".into()
+            } else {
+                "-inf".into()
+            },
+        )),
+        toml::Value::Table(t) => {
+            for (k, x) in t {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                non_finite_floats(x, &p, out);
+            }
+        }
+        toml::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                non_finite_floats(x, &format!("{path}[{i}]"), out);
+            }
+        }
+        _ => {}
+    }
 }
 
 /// The authors' flat keys mapped to sections; unknown keys reported.

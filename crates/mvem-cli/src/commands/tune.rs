@@ -27,11 +27,14 @@ role dynamic, VGT/EGR), 4 tau_Me (fuel set with role dynamic), 5 static paramete
 (sets with role static + stationary points). Parameters of steps not run come from --params
 (default: the published set, which also supplies the constants that are never tuned:
 displacement, cylinders, compression ratio, heating value, wheel radii, maximum EGR and VGT
-areas, gas properties; for another engine give its own). No step starts from a value of
---params. The ambient p_amb, T_amb and T_im are the means of the stationary points where
+areas, gas properties; for another engine give its own). Steps 1-4 start from generic
+values, never from --params; step 5 (--init step1) starts from step 1's static parameters,
+or from those of --params when step 1 is not run (--init naive: eq. (78)). The ambient p_amb, T_amb and T_im are the means of the stationary points where
 they contradict --params (--ambient auto|data|params). The model's input ranges
 ([input_saturation], default the authors' 500-2000 rpm and 1-250 mg) are widened to contain
-the campaign's speeds and largest fuel (--input-ranges campaign|params). Constants that the campaign contradicts (the volumetric
+the campaign's speeds and largest fuel, and the turbo-speed limit of the omega_t integrator
+([integrator_limits] n_t, default 200000 rpm) to 1.1 times the highest measured turbo speed
+where the campaign exceeds it (--input-ranges campaign|params). Constants that the campaign contradicts (the volumetric
 efficiency the measured flows imply, the indicated efficiency step 1 fits to the torque, or a
 virtual campaign's true_params.toml) are reported as caveats. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is written to the [test_cell] section of the output file, which `mvem
@@ -81,11 +84,13 @@ pub struct Args {
     /// The model's input ranges ([input_saturation]: the speed and fuel ranges it clamps n_e
     /// and u_delta into, by default the authors' engine's 500-2000 rpm and 1-250 mg):
     /// `campaign` widens --params' ranges to contain the campaign's engine speeds and largest
-    /// fuel (said on stderr, written to --out); `params` keeps them (points outside run
-    /// clamped, a caveat says so).
+    /// fuel (said on stderr, written to --out), and the turbo-speed limit [integrator_limits]
+    /// n_t to 1.1 times the highest measured turbo speed where the campaign exceeds it;
+    /// `params` keeps them (points outside run clamped, a caveat says so).
     #[arg(long, value_enum, default_value = "campaign")]
     pub input_ranges: InputRangesArg,
-    /// Start of step 5: the step-1 values or eq. (78) from the bounds.
+    /// Start of step 5: the step-1 values (those of --params when step 1 is not run) or eq.
+    /// (78) from the bounds.
     #[arg(long, value_enum, default_value = "step1")]
     pub init: InitArg,
     /// Rows of cost (77): both, only the complete model (dynamic), only the submodels (static).
@@ -393,6 +398,9 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
         let _ = writeln!(s, "{}{}.\n", d[..1].to_uppercase(), &d[1..]);
     }
     if let Some(w) = &rep.input_saturation {
+        let _ = writeln!(s, "**Note:** {}.\n", w.describe());
+    }
+    if let Some(w) = &rep.integrator_limits {
         let _ = writeln!(s, "**Note:** {}.\n", w.describe());
     }
     if !rep.failed_sets.is_empty() {

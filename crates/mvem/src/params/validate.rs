@@ -296,9 +296,101 @@ impl Params {
     }
 }
 
+impl Params {
+    /// Values that are valid ([`Params::validate`]) but implausible, one warning each naming
+    /// the field: a displacement outside 0.1-50 dm^3 (`v_d` is in m^3: litres typed as m^3 give
+    /// 1000 times the engine), ratios of specific heats and gas constants that contradict the
+    /// specific heats (gamma = c_p / c_V and R = c_p - c_V to 1 %, as the published set holds
+    /// exactly), and a c_mlin that is not c_m of eq. (51) at w_tlin (to 1 %: the authors' linear
+    /// branch, item 33, then jumps there). The published set has none.
+    pub fn plausibility_warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let v_d = self.cylinder.v_d;
+        if v_d.is_finite() && v_d > 0.0 && !(1e-4..=0.05).contains(&v_d) {
+            out.push(format!(
+                "cylinder.v_d = {v_d} m^3 ({} dm^3) is outside the 0.1-50 dm^3 of vehicle and \
+                 industrial engines: v_d is the total displacement in m^3 (a 5-litre engine is \
+                 0.005)",
+                v_d * 1e3
+            ));
+        }
+        let g = &self.gas;
+        let rel = |a: f64, b: f64| ((a - b) / b).abs();
+        for (gamma, name, cp, cv, cps, cvs) in [
+            (g.gamma_a, "gas.gamma_a", g.c_pa, g.c_va, "c_pa", "c_va"),
+            (g.gamma_e, "gas.gamma_e", g.c_pe, g.c_ve, "c_pe", "c_ve"),
+        ] {
+            if cv > 0.0 && rel(gamma, cp / cv) > 0.01 {
+                out.push(format!(
+                    "{name} = {gamma} differs from {cps} / {cvs} = {cp} / {cv} = {:.6} by more \
+                     than 1 % (the model uses both)",
+                    cp / cv
+                ));
+            }
+        }
+        for (r, name, cp, cv, cps, cvs) in [
+            (g.r_a, "gas.r_a", g.c_pa, g.c_va, "c_pa", "c_va"),
+            (g.r_e, "gas.r_e", g.c_pe, g.c_ve, "c_pe", "c_ve"),
+        ] {
+            if r > 0.0 && rel(cp - cv, r) > 0.01 {
+                out.push(format!(
+                    "{name} = {r} differs from {cps} - {cvs} = {} J/(kg K) by more than 1 % (an \
+                     ideal gas has R = c_p - c_V)",
+                    cp - cv
+                ));
+            }
+        }
+        let t = &self.turbine;
+        let at = t.c_m[0] * crate::components::pow_ln(t.w_tlin - t.c_m[1], t.c_m[2]);
+        if at.is_finite() && t.c_mlin.is_finite() && t.w_tlin > t.c_m[1] && rel(t.c_mlin, at) > 0.01
+        {
+            out.push(format!(
+                "turbine.c_mlin = {} is not c_m of eq. (51) at w_tlin = {} rad/s, c_m1 (w_tlin - \
+                 c_m2)^c_m3 = {at:.6}: the authors' linear branch below w_tlin (item 33) jumps \
+                 there; set c_mlin = {at}",
+                t.c_mlin, t.w_tlin
+            ));
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// QA findings: `params check` accepted v_d = 5.0 m^3 (litres typed as m^3), a gamma_a
+    /// inconsistent with c_pa / c_va and a c_mlin that does not match c_m at w_tlin, without a
+    /// word. They are warnings (valid, but implausible); the published set has none.
+    #[test]
+    fn implausible_values_are_warned_and_the_published_set_is_clean() {
+        let p = Params::published();
+        assert_eq!(p.plausibility_warnings(), Vec::<String>::new());
+        let mut q = p.clone();
+        q.cylinder.v_d = 5.0;
+        q.gas.gamma_a = 1.2;
+        q.gas.r_e = 300.0;
+        q.turbine.c_mlin *= 1.5;
+        assert!(q.validate().is_ok());
+        let w = q.plausibility_warnings();
+        assert_eq!(w.len(), 4, "{w:?}");
+        assert!(
+            w[0].starts_with("cylinder.v_d = 5 m^3 (5000 dm^3)"),
+            "{}",
+            w[0]
+        );
+        assert!(
+            w[1].starts_with("gas.gamma_a = 1.2 differs from c_pa / c_va"),
+            "{}",
+            w[1]
+        );
+        assert!(
+            w[2].starts_with("gas.r_e = 300 differs from c_pe - c_ve = 286"),
+            "{}",
+            w[2]
+        );
+        assert!(w[3].starts_with("turbine.c_mlin = "), "{}", w[3]);
+    }
 
     #[test]
     fn published_set_is_valid() {

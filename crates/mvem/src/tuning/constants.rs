@@ -308,7 +308,9 @@ pub fn implausible_constants(
                 "the stationary points imply a mean volumetric efficiency of {e:.2} (eq. (11): \
                  W_ei 120 R_a T_im / (p_im n_e V_d) with W_ei = W_c / (1 - x_egr)), outside the \
                  {:.1}-{:.1} of four-stroke diesel engines: is V_d = {:.2} dm^3 this engine's \
-                 displacement? Give the engine's constants with --params FILE",
+                 displacement (give the engine's constants with --params FILE), and is W_c in \
+                 kg/s (a unit guessed by `mvem campaign --init` from the values' range, g/s \
+                 for kg/h say, shows here: check the manifest's [units])?",
                 ETA_VOL_RANGE.0,
                 ETA_VOL_RANGE.1,
                 c.v_d * 1e3
@@ -459,6 +461,119 @@ pub fn widen_input_saturation(
         u_delta_file: before.1,
         u_delta: s.u_delta,
     })
+}
+
+/// Headroom of a widened turbo-speed integrator limit over the campaign's highest measured turbo
+/// speed ([`widen_integrator_limits`]): the limit stops the omega_t integrator (the authors'
+/// item 37), so a limit at the measured maximum would clamp a model that overshoots it by its
+/// noise; 10 % is twenty times the lab's 0.5 % speed noise.
+pub const N_T_HEADROOM: f64 = 1.1;
+
+/// The campaign's highest measured turbo speed \[rpm\] and where it was measured (the
+/// stationary points or a data set's name); None without any.
+fn campaign_turbo_max(c: &super::data::Campaign) -> Option<(f64, String)> {
+    let mut best: Option<(f64, String)> = None;
+    let mut take = |v: f64, at: &str| {
+        if v.is_finite() && best.as_ref().is_none_or(|b| v > b.0) {
+            best = Some((v, at.to_string()));
+        }
+    };
+    for x in &c.stationary {
+        take(x.n_t, "the stationary points");
+    }
+    for d in &c.dynamic {
+        for &v in d.get("n_t").unwrap_or(&[]) {
+            take(v, &format!("set {}", d.name));
+        }
+    }
+    best
+}
+
+/// The turbo-speed integrator limit a tuning widened ([`widen_integrator_limits`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TurboLimitWidened {
+    /// The parameter file's range `[integrator_limits] n_t` \[rpm\].
+    pub n_t_file: [f64; 2],
+    /// The range used and written \[rpm\].
+    pub n_t: [f64; 2],
+    /// The campaign's highest measured turbo speed \[rpm\].
+    pub measured_max: f64,
+    /// Where it was measured (the stationary points or `set NAME`).
+    pub at: String,
+}
+
+impl TurboLimitWidened {
+    /// One line for the report and the command line.
+    pub fn describe(&self) -> String {
+        format!(
+            "integrator_limits.n_t widened to the campaign: {}-{} rpm (file {}-{}): {} measure \
+             turbo speeds up to {:.0} rpm, above the file's limit, where the model's omega_t \
+             integrator would stop (the authors' item 37, 200 000 rpm for their engine); the \
+             new limit is {N_T_HEADROOM} times the highest measured speed, and the tuned file \
+             carries it",
+            self.n_t[0],
+            self.n_t[1],
+            self.n_t_file[0],
+            self.n_t_file[1],
+            self.at,
+            self.measured_max
+        )
+    }
+}
+
+/// With [`InputRangeSource::Campaign`], widen `p`'s `[integrator_limits] n_t` to
+/// [`N_T_HEADROOM`] times the campaign's highest measured turbo speed (rounded up to 1000 rpm)
+/// where that speed lies above the limit, and say so; `None` when the campaign lies below it
+/// (or with [`InputRangeSource::Params`]: [`turbo_speeds_above_limit`] then says the model runs
+/// them clamped). Small turbochargers run beyond the authors' 200 000 rpm.
+pub fn widen_integrator_limits(
+    p: &mut Params,
+    c: &super::data::Campaign,
+    source: InputRangeSource,
+) -> Option<TurboLimitWidened> {
+    if source == InputRangeSource::Params {
+        return None;
+    }
+    let (max, at) = campaign_turbo_max(c)?;
+    let l = &mut p.integrator_limits;
+    if max <= l.n_t[1] {
+        return None;
+    }
+    let file = l.n_t;
+    l.n_t[1] = (N_T_HEADROOM * max / 1000.0).ceil() * 1000.0;
+    Some(TurboLimitWidened {
+        n_t_file: file,
+        n_t: l.n_t,
+        measured_max: max,
+        at,
+    })
+}
+
+/// A warning when the campaign's turbo speeds exceed the model's turbo-speed integrator limit
+/// (`[integrator_limits] n_t` of `p`, the authors' item 37): the model's omega_t stops at the
+/// limit, so it cannot reach those operating points. `None` when all lie below.
+pub fn turbo_speeds_above_limit(p: &Params, c: &super::data::Campaign) -> Option<String> {
+    let lim = p.integrator_limits.n_t[1];
+    let (max, at) = campaign_turbo_max(c)?;
+    if max <= lim {
+        return None;
+    }
+    let points = c.stationary.iter().filter(|x| x.n_t > lim).count();
+    let (mut samples, mut total) = (0usize, 0usize);
+    for d in &c.dynamic {
+        if let Some(n) = d.get("n_t") {
+            total += n.len();
+            samples += n.iter().filter(|v| **v > lim).count();
+        }
+    }
+    Some(format!(
+        "{points} of the {} stationary points and {samples} of the {total} dynamic samples \
+         measure turbo speeds above the model's limit n_t = {lim} rpm (integrator_limits of the \
+         parameter file; the highest, {max:.0} rpm, in {at}), where the model's omega_t \
+         integrator stops (the authors' item 37): set this turbocharger's range in \
+         [integrator_limits] of the parameter file",
+        c.stationary.len()
+    ))
 }
 
 /// The published engine's constants in one line (for the note that they are used).
@@ -623,6 +738,56 @@ mod tests {
         let mut again = w.clone();
         assert!(widen_input_saturation(&mut again, &c, InputRangeSource::Campaign).is_none());
         assert_eq!(again, w);
+    }
+
+    /// QA finding: a small turbocharger's campaign measured turbo speeds above the parameter
+    /// file's integrator limit (the authors' 200 000 rpm), and tune and validate ran the model
+    /// clamped without a word. The limit is widened like the input ranges (or a warning names
+    /// the measured maximum, where and the limit).
+    #[test]
+    fn turbo_speeds_above_the_integrator_limit_widen_it_or_are_named() {
+        let p = Params::published();
+        let mut c = crate::tuning::lab::campaign(
+            &p,
+            &LabOptions {
+                noise: Noise::NONE,
+                n_stationary: 13,
+                sets: Some(vec!["I".into()]),
+                max_steps: Some(1),
+                ..LabOptions::default()
+            },
+        )
+        .unwrap()
+        .0;
+        assert!(turbo_speeds_above_limit(&p, &c).is_none());
+        let mut w = p.clone();
+        assert!(widen_integrator_limits(&mut w, &c, InputRangeSource::Campaign).is_none());
+        c.stationary[4].n_t = 230_000.0;
+        let k = c.dynamic[0]
+            .columns
+            .iter()
+            .position(|x| x.0 == "n_t")
+            .unwrap();
+        c.dynamic[0].columns[k].1[3] = 240_400.0;
+        let msg = turbo_speeds_above_limit(&p, &c).expect("above");
+        assert!(
+            msg.starts_with("1 of the 13 stationary points and 1 of the")
+                && msg.contains("limit n_t = 200000 rpm")
+                && msg.contains("the highest, 240400 rpm, in set I"),
+            "{msg}"
+        );
+        assert!(widen_integrator_limits(&mut w, &c, InputRangeSource::Params).is_none());
+        assert_eq!(w, p);
+        let r = widen_integrator_limits(&mut w, &c, InputRangeSource::Campaign).expect("widened");
+        assert_eq!(w.integrator_limits.n_t, [100.0, 265_000.0]);
+        assert_eq!(r.n_t_file, [100.0, 200_000.0]);
+        assert!(
+            r.describe().contains("100-265000 rpm (file 100-200000)"),
+            "{}",
+            r.describe()
+        );
+        assert!(turbo_speeds_above_limit(&w, &c).is_none());
+        assert!(w.validate().is_ok());
     }
 
     #[test]

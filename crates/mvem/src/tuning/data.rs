@@ -464,6 +464,28 @@ fn parse_columns(
         .collect::<Result<_, _>>()?;
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
     let headers: Vec<&str> = names.iter().map(|n| layout.header(n)).collect();
+    // a column headed twice: the reader would take the first silently
+    if let Ok(found) = header_names(text) {
+        for (n, h) in names.iter().zip(&headers) {
+            let at: Vec<String> = (found.iter().enumerate())
+                .filter(|(_, f)| f == h)
+                .map(|(k, _)| (k + 1).to_string())
+                .collect();
+            if at.len() > 1 {
+                return Err(fmt(format!(
+                    "the header (line 1) has column `{h}`{} {} times (columns {}): remove or \
+                     rename all but one",
+                    if h != n {
+                        format!(" (mvem's `{n}`)")
+                    } else {
+                        String::new()
+                    },
+                    at.len(),
+                    at.join(", ")
+                )));
+            }
+        }
+    }
     let read = read_columns(text, &headers).map_err(|e| match e {
         ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
         ColumnsError::Missing { missing, .. } => DataError::MissingColumn {
@@ -1046,6 +1068,32 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("W_c"), "{e}");
+    }
+
+    /// QA finding: a header with two `p_im` columns was read silently (the first one).
+    #[test]
+    fn a_column_headed_twice_is_refused() {
+        let text = format!("{},p_im\n{ROW},1e5\n", header());
+        let e = parse_stationary_csv(&text, Path::new("s.csv"), &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("s.csv: the header (line 1) has column `p_im` 2 times (columns 7, 18)"),
+            "{e}"
+        );
+        // a column no step reads may repeat
+        let text = format!("{},note,note\n{ROW},1,2\n", header());
+        assert!(parse_stationary_csv(&text, Path::new("s.csv"), &Layout::default()).is_ok());
+        let e = parse_dynamic_csv(
+            "t,u_egr,u_vgt,u_egr_pos,u_vgt_pos,t\n0,0,50,0,50,0\n",
+            Path::new("J.csv"),
+            "J",
+            StepKind::Actuator,
+            &Layout::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("column `t` 2 times (columns 1, 6)"), "{e}");
     }
 
     #[test]

@@ -55,23 +55,28 @@ impl ManifestDraft {
     }
 }
 
-/// The unit (other than mvem's) in which every value of `c` lies in its plausible range, if
-/// the values are not all in range in mvem's unit.
-fn guess_unit(c: &Column, values: &[f64]) -> Option<&'static str> {
+/// The units (other than mvem's, in [`units_of`] order) in which every value of `c` lies in
+/// its plausible range, if the values are not all in range in mvem's unit: the first is the
+/// guess, the others fit the ranges as well (W_c of 90 logged in kg/h is in range in g/s too).
+fn guess_units(c: &Column, values: &[f64]) -> Vec<&'static str> {
     let in_range = |s: f64, o: f64| {
         values
             .iter()
             .all(|v| (c.min..=c.max).contains(&(s * v + o)))
     };
     if values.is_empty() || in_range(1.0, 0.0) {
-        return None;
+        return Vec::new();
     }
     units_of(c.unit)
         .iter()
         .skip(1)
-        .find(|&&(_, s, o)| in_range(s, o))
+        .filter(|&&(_, s, o)| in_range(s, o))
         .map(|u| u.0)
+        .collect()
 }
+
+/// Commands and positions in % that a test cell may log as fractions 0..1 (`[units]` `-`).
+const PERCENT_COLUMNS: [&str; 4] = ["u_egr", "u_vgt", "u_egr_pos", "u_vgt_pos"];
 
 /// A header name without case, spaces, underscores, hyphens and dots.
 fn normalized(name: &str) -> String {
@@ -395,11 +400,45 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                 ),
             });
             units.insert(name.to_string(), u.to_string());
-        } else if let Some(u) = guess_unit(c, v) {
+        } else if let Some((&u, others)) = guess_units(c, v).split_first() {
+            let (lo, hi) = v
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                    (a.min(*x), b.max(*x))
+                });
             notes.push(format!(
-                "{name}: in {u}? (its values lie outside {}..{} {} but inside in {u})",
-                c.min, c.max, c.unit
+                "{name}: in {u}? (its values, {lo}..{hi}, lie outside {}..{} {} but inside in \
+                 {u}{})",
+                c.min,
+                c.max,
+                c.unit,
+                if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(
+                        "; also inside in {}: the first unit that fits is the guess, check the \
+                         test cell's",
+                        others.join(", ")
+                    )
+                }
             ));
+            units.insert(name.to_string(), u.to_string());
+        } else if PERCENT_COLUMNS.contains(name)
+            && v.iter().all(|x| (0.0..=1.0).contains(x))
+            && v.iter().any(|x| *x > 0.0)
+        {
+            // in range as % too, so no unit is guessed: a fraction 0..1 would be read as 0-1 %
+            notes.push(format!(
+                "{name}: every value lies in 0..1: if the test cell logs it as a fraction, not \
+                 in %, set [units] {name} = \"-\" (read as it is, 1 means 1 %)"
+            ));
+        }
+    }
+    // a unit a header gives for a column whose values are not checked against a range above:
+    // the time (`t [ms]`, `Time [ms]`), which the sample rates were computed in
+    for (name, (g, _)) in &headed {
+        if let (Some(u), false) = (g.unit, units.contains_key(*name)) {
+            notes.push(format!("{name}: in {u} (its header says so)"));
             units.insert(name.to_string(), u.to_string());
         }
     }
@@ -520,6 +559,110 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = draft_manifest(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
+    }
+
+    /// (mvem's name, the test cell's header, value in its unit from mvem's)
+    type Rename<'a> = (&'a str, &'a str, fn(f64) -> f64);
+
+    /// Rewrite the columns of a CSV file: each (mvem's name, new header, conversion of the
+    /// values) present in its header.
+    fn rewrite(path: &Path, renames: &[Rename]) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let mut header: Vec<String> = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect();
+        let mut convs = Vec::new();
+        for &(name, new, conv) in renames {
+            if let Some(k) = header.iter().position(|h| h == name) {
+                header[k] = new.to_string();
+                convs.push((k, conv));
+            }
+        }
+        let mut out = vec![header.join(",")];
+        for l in lines {
+            let mut v: Vec<String> = l.split(',').map(str::to_string).collect();
+            for &(k, conv) in &convs {
+                v[k] = format!("{:?}", conv(v[k].parse::<f64>().unwrap()));
+            }
+            out.push(v.join(","));
+        }
+        std::fs::write(path, out.join("\n") + "\n").unwrap();
+    }
+
+    /// QA finding: a time column headed `t [ms]` or `Time [ms]` was mapped to `t`, its sample
+    /// rates computed in seconds, but `[units]` got no `t = "ms"`: the loader then read the
+    /// times as seconds (a 100 Hz set as 0.1 Hz) and the tuning went on with volumes 1000
+    /// times too large. The header's time unit is drafted and the campaign loads as it was.
+    #[test]
+    fn a_time_unit_in_the_header_is_drafted() {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        for header in ["t [ms]", "Time [ms]"] {
+            let dir = tempfile::tempdir().unwrap();
+            save_campaign(dir.path(), &c).unwrap();
+            for s in &c.manifest.datasets {
+                rewrite(&dir.path().join(&s.file), &[("t", header, |v| 1e3 * v)]);
+            }
+            std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+            let d = draft_manifest(dir.path()).unwrap();
+            let m = &d.manifest;
+            assert_eq!(m.units.get("t").map(String::as_str), Some("ms"), "{header}");
+            assert!(d.notes.iter().any(|n| n == "t: in ms (its header says so)"));
+            for (s, orig) in m.datasets.iter().zip(&c.manifest.datasets) {
+                assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+            }
+            std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+            let back = load_campaign(dir.path()).unwrap();
+            for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+                for (x, y) in a.t.iter().zip(&b.t) {
+                    assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+                }
+            }
+        }
+    }
+
+    /// QA findings: W_c logged in kg/h without a unit was guessed as g/s (the first unit in
+    /// which it is in range) without saying that kg/h fits as well, and commands logged as
+    /// fractions 0..1 were taken for 0-1 % without a word. Both are notes now.
+    #[test]
+    fn ambiguous_guesses_are_named() {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        let files = std::iter::once(&c.manifest.stationary)
+            .chain(c.manifest.datasets.iter().map(|s| &s.file));
+        for f in files {
+            rewrite(
+                &dir.path().join(f),
+                &[
+                    ("W_c", "W_c", |v| 3600.0 * v),
+                    ("u_vgt", "u_vgt", |v| v / 100.0),
+                ],
+            );
+        }
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let note = |start: &str| d.notes.iter().find(|n| n.starts_with(start)).cloned();
+        let w_c = note("W_c: in g/s?").unwrap_or_else(|| panic!("{:?}", d.notes));
+        assert!(w_c.contains("also inside in kg/h"), "{w_c}");
+        let u = note("u_vgt: every value lies in 0..1").unwrap_or_else(|| panic!("{:?}", d.notes));
+        assert!(u.contains("[units] u_vgt = \"-\""), "{u}");
+        assert!(note("u_egr: every value").is_none(), "{:?}", d.notes);
     }
 
     /// A test cell's own headers: other case, spaces, a unit in brackets (`p_im [kPa]`,

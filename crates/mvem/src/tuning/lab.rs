@@ -6,8 +6,10 @@
 //!   load) plus points drawn uniformly over 800-2000 r/min, 15-100 % load, EGR 0-80 %,
 //!   VGT 20-100 %. Each is the equilibrium of the model of [`LabOptions::model`] (default 8 states)
 //!   ([`crate::analysis::steady::steady_state`]); a point that fails or is not physically valid
-//!   (guard saturation, lambda_O < 1, unstable) is redrawn with new actuator positions (and,
-//!   for random points, a new speed and load).
+//!   (guard saturation, lambda_O < 1, unstable) or whose measurement the campaign's loader could
+//!   refuse (a value within five noise standard deviations of the edge of its plausible range,
+//!   [`super::data::STATIONARY_COLUMNS`]: p_em above 1 MPa on a small engine at full load) is
+//!   redrawn with new actuator positions (and, for random points, a new speed and load).
 //!   Load L % means u_delta = L/100 * [`U_DELTA_MAX`]. These speeds and the fuel are the
 //!   published engine's; [`LabOptions::envelope`] maps them onto another engine's ESC speeds
 //!   and full-load fuel ([`Envelope`]). The EGR position is kept below the
@@ -41,7 +43,8 @@
 //!   VGT. The paper does not give the hold times or the step levels: these are our choice.
 //!   Each set is simulated with the 8-state model from the steady state of its first commands
 //!   on a 100 Hz grid (500 Hz with sensor lags) and sampled at its rate; a set whose
-//!   simulation fails is redrawn.
+//!   simulation fails, or whose measured values leave the loader's plausible ranges
+//!   ([`super::data::DYNAMIC_COLUMNS`]), is redrawn.
 //! - **Dynamometer**: the measured torque is M_dynamo of eq. (76), M_e through a first-order
 //!   lag with [`LabOptions::tau_me_s`] (default 1 s, the torque-sensor time constant of Table 6).
 //! - **Sensor time constants** (optional, [`LabOptions::sensor_lags`]): first-order lags with
@@ -379,7 +382,11 @@ pub fn stationary(
             let u_vgt = rng.gen_range(20.0..100.0);
             let e = &opts.envelope;
             let d = Drive::new(e.speed(n_e), e.fuel(load), u_egr, u_vgt);
-            if let Some(pt) = crate::dispatch!(&m, m => stationary_truth(m, p, &d)) {
+            // an equilibrium whose measurement the loader would refuse (p_em above 1 MPa on a
+            // small engine at full load) is redrawn like an invalid one
+            if let Some(pt) = crate::dispatch!(&m, m => stationary_truth(m, p, &d))
+                .filter(|pt| outside_loader_range(pt, opts.noise).is_none())
+            {
                 found = Some(pt);
                 break;
             }
@@ -862,11 +869,51 @@ pub fn step_set(
         ("u_vgt".to_string(), command(3)),
         ("u_delta".to_string(), command(1)),
     ];
+    // what the campaign's own loader would refuse (a transient beyond a plausible range, e.g.
+    // p_em above 1 MPa on a small engine): the set is redrawn
+    for (c, v) in &columns {
+        let col = super::data::DYNAMIC_COLUMNS.iter().find(|k| k.name == c);
+        if let Some((k, x)) = col.and_then(|k| {
+            v.iter()
+                .find(|x| !(k.min..=k.max).contains(*x))
+                .map(|x| (k, x))
+        }) {
+            return Err(LabError::Params(format!(
+                "set {name}: {} = {x} {} outside the loader's plausible range [{}, {}]",
+                k.name, k.unit, k.min, k.max
+            )));
+        }
+    }
     Ok(DynamicData {
         name: name.to_string(),
         t: ts,
         columns,
     })
+}
+
+/// Measured quantities of a stationary point that get noise ([`noisy_point`]); the others are
+/// the test cell's exact inputs and conditions. x_egr is clamped to [0, 1] after its noise.
+const NOISY_COLUMNS: [&str; 10] = [
+    "M_e", "n_t", "p_c", "p_em", "p_im", "T_c", "T_em", "T_im", "T_t", "W_c",
+];
+
+/// The first column of a noise-free stationary point whose value, five standard deviations of
+/// `noise` from it, leaves the loader's plausible range ([`super::data::STATIONARY_COLUMNS`]),
+/// with its value: the campaign's own loader could refuse the measured point.
+fn outside_loader_range(pt: &StationaryPoint, noise: Noise) -> Option<(&'static str, f64)> {
+    super::data::STATIONARY_COLUMNS
+        .iter()
+        .zip(pt.values())
+        .find(|(c, v)| {
+            let sd = match (NOISY_COLUMNS.contains(&c.name), c.unit) {
+                (false, _) => 0.0,
+                (true, "K") => noise.temp_k,
+                (true, _) => noise.rel * v.abs(),
+            };
+            // T_t is optional and NaN-free here; a NaN is outside
+            !(v - 5.0 * sd >= c.min && v + 5.0 * sd <= c.max)
+        })
+        .map(|(c, v)| (c.name, v))
 }
 
 #[cfg(test)]

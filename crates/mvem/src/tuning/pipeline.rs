@@ -13,8 +13,11 @@
 //! by (77), N = 8, z_8 = W_ic, beta = 2.58 (when step 5 is selected).
 //!
 //! `base` supplies the constants that are not tuned (gas properties, geometry, A_egrmax, ...)
-//! and the values of the parameters of the steps that are not run. No step starts from a value
-//! in `base`. A failing step stops the pipeline with a [`PipelineError`] naming it.
+//! and the values of the parameters of the steps that are not run. Steps 1-4 start from generic
+//! values, never from `base`; step 5 ([`Init::Step1`], the default) starts from the static
+//! parameters as they are when it begins: step 1's, or, when step 1 is not run, `base`'s
+//! ([`Init::Naive`]: eq. (78) from the bounds, whatever ran). A failing step stops the pipeline
+//! with a [`PipelineError`] naming it.
 
 use super::complete::{
     dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
@@ -22,8 +25,9 @@ use super::complete::{
     DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
 };
 use super::constants::{
-    ambient_from_stationary, implausible_constants, widen_input_saturation, AmbientFromData,
-    AmbientSource, InputRangeSource, InputRangesWidened,
+    ambient_from_stationary, implausible_constants, widen_input_saturation,
+    widen_integrator_limits, AmbientFromData, AmbientSource, InputRangeSource, InputRangesWidened,
+    TurboLimitWidened,
 };
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
@@ -192,6 +196,9 @@ pub struct TuneReport {
     /// The base parameter set's input ranges widened to the campaign before step 1 (option
     /// `input_ranges`; `None` when the campaign lies inside them).
     pub input_saturation: Option<InputRangesWidened>,
+    /// The base parameter set's turbo-speed integrator limit widened to the campaign's turbo
+    /// speeds before step 1 (option `input_ranges`; `None` when the campaign lies below it).
+    pub integrator_limits: Option<TurboLimitWidened>,
     /// Step 1 submodel fits.
     pub step1: Option<Step1Report>,
     /// Settled ends of command steps in the compressor-flow fit of step 1 besides the
@@ -384,9 +391,14 @@ pub fn tune(
     rep.ambient = ambient_from_stationary(&mut p, &c.stationary, opts.ambient);
     // the model's input ranges contain the campaign (another engine's speeds run unclamped)
     rep.input_saturation = widen_input_saturation(&mut p, c, opts.input_ranges);
-    // inputs the model would run clamped (the parameter set's input saturation)
+    // and its turbo-speed limit contains the campaign's turbo speeds (a small turbocharger)
+    rep.integrator_limits = widen_integrator_limits(&mut p, c, opts.input_ranges);
+    // inputs the model would run clamped (the parameter set's input saturation), turbo speeds
+    // it cannot reach (its integrator limit)
     rep.caveats
         .extend(super::constants::inputs_outside_saturation(&p, c));
+    rep.caveats
+        .extend(super::constants::turbo_speeds_above_limit(&p, c));
     // estimates by tuning name; a later step overwrites an earlier one
     let mut est: Vec<(String, ParamEstimate)> = Vec::new();
     // covariance of every estimate so far (blocks of the steps), carried into the later steps
@@ -401,6 +413,20 @@ pub fn tune(
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
         p = q;
         rep.step1_settled_flow_points = flow_extra.len();
+        let bounds = super::steps::at_bounds(&r);
+        if !bounds.is_empty() {
+            let list: Vec<String> = bounds
+                .iter()
+                .map(|(n, v, b)| format!("{n} = {v:.4e} (bound {b:e})"))
+                .collect();
+            rep.caveats.push(format!(
+                "step 1 ended with {} on or beyond the edge of its search box (step 5's box, \
+                 complete::STATIC_PARAMS, sized for the published engine): there the search \
+                 stopped, the data's optimum may lie beyond, and step 5 starts from the box's \
+                 edge",
+                list.join(", ")
+            ));
+        }
         let (e, k) = step1_estimates(&p, &c.stationary, &flow_extra, &r);
         est.extend(e);
         cov.set_block(&k);

@@ -315,7 +315,10 @@ pub fn tune_campaign(
         .pipeline_options(model, base_cell)
         .map_err(RequestError::Setting)?;
     let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
-    let mut messages = Vec::new();
+    let mut messages: Vec<String> = super::summary::sampling_warnings(&campaign)
+        .into_iter()
+        .map(|w| format!("warning: {w}"))
+        .collect();
     if !constants_given {
         messages.push(format!(
             "note: the engine's constants are the published engine's ({}): for another engine \
@@ -382,6 +385,9 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
         out.push(format!("note: {}", amb.describe()));
     }
     if let Some(w) = &rep.input_saturation {
+        out.push(format!("warning: {}", w.describe()));
+    }
+    if let Some(w) = &rep.integrator_limits {
         out.push(format!("warning: {}", w.describe()));
     }
     for (step, conv) in [
@@ -534,6 +540,56 @@ pub fn validate_campaign(
         },
     };
     let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
+    messages.extend(
+        super::summary::sampling_warnings(&campaign)
+            .into_iter()
+            .map(|w| format!("warning: {w}")),
+    );
+    // the sets validated: those with one of the roles asked for
+    let chosen = |r: &[Role]| {
+        roles
+            .as_ref()
+            .is_none_or(|want| r.iter().any(|x| want.contains(x)))
+    };
+    let selected = Campaign {
+        dynamic: campaign
+            .manifest
+            .datasets
+            .iter()
+            .zip(&campaign.dynamic)
+            .filter(|(i, _)| chosen(&i.roles))
+            .map(|(_, d)| d.clone())
+            .collect(),
+        ..campaign.clone()
+    };
+    if let (Some(want), true) = (&roles, selected.dynamic.is_empty()) {
+        let sets: Vec<String> = campaign
+            .manifest
+            .datasets
+            .iter()
+            .map(|i| format!("{} ({})", i.name, super::summary::roles_text(&i.roles)))
+            .collect();
+        messages.push(format!(
+            "warning: no data set has the role {}: only the stationary points are validated \
+             (the campaign's sets: {})",
+            super::summary::roles_text(want),
+            if sets.is_empty() {
+                "none".to_string()
+            } else {
+                sets.join(", ")
+            }
+        ));
+    }
+    // what the model runs clamped: the validation compares a model of other operating points
+    for w in [
+        super::constants::inputs_outside_saturation(p, &selected),
+        super::constants::turbo_speeds_above_limit(p, &selected),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        messages.push(format!("warning: {w}"));
+    }
     let report =
         validate_campaign_with(model, &campaign, p, tau_me, &sensor_lags, roles.as_deref())
             .map_err(RequestError::Validate)?;

@@ -8,6 +8,7 @@
 
 use super::data::{Campaign, DynamicData, Role, StepKind};
 use super::pipeline::step_title;
+use super::steps::STEP1_MIN_POINTS;
 use serde::Serialize;
 
 /// A campaign's summary ([`summarize`]).
@@ -33,6 +34,8 @@ pub struct CampaignSummary {
     pub datasets: Vec<SetSummary>,
     /// Steps 1-5: which sets each would use, or what is missing.
     pub steps: Vec<StepSupport>,
+    /// What the user should check before tuning, one line each ([`sampling_warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// One dynamic set.
@@ -61,6 +64,88 @@ pub struct SetSummary {
 
 /// Smallest command change counted as a step (% for u_egr and u_vgt, mg for u_delta).
 pub const STEP_THRESHOLD: f64 = 0.1;
+
+/// Relative difference between a set's declared sample rate (the manifest's `sample_rate_hz`)
+/// and its measured one (1 / the median time step) beyond which [`sampling_warnings`] reports
+/// it.
+pub const RATE_TOLERANCE: f64 = 0.02;
+
+/// A time step longer than this many median steps is a hole in the sampling
+/// ([`sampling_warnings`]).
+pub const GAP_FACTOR: f64 = 10.0;
+
+/// `v` to 4 significant digits (for messages).
+fn sig(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    let scale = 10f64.powi(3 - v.abs().log10().floor() as i32);
+    (v * scale).round() / scale
+}
+
+/// Warnings on the dynamic sets' time bases, one line each: a measured sample rate that differs
+/// from the manifest's by more than [`RATE_TOLERANCE`] (a factor of about 1000 means times
+/// logged in ms and read as s: `t = "ms"` in `[units]`), and holes in the sampling (a step
+/// longer than [`GAP_FACTOR`] median steps: the longest and how many). The tuning and
+/// validation simulate across a hole with the commands held at their last sample (zero-order
+/// hold), so a command change inside it is missed. Empty when every set is regular.
+pub fn sampling_warnings(c: &Campaign) -> Vec<String> {
+    let mut out = Vec::new();
+    for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+        let dt = median_step(&d.t);
+        if dt <= 0.0 {
+            continue;
+        }
+        let measured = 1.0 / dt;
+        let ratio = info.sample_rate_hz / measured;
+        if (ratio - 1.0).abs() > RATE_TOLERANCE {
+            let ms = (ratio / 1000.0 - 1.0).abs() < 0.05;
+            out.push(format!(
+                "set {} ({}): the manifest's sample_rate_hz = {} but its times are sampled at {} Hz \
+                 (median step {} s), {}{}",
+                info.name,
+                info.file,
+                info.sample_rate_hz,
+                sig(measured),
+                sig(dt),
+                if ratio > 1.0 {
+                    format!("{} times slower", sig(ratio))
+                } else {
+                    format!("{} times faster", sig(1.0 / ratio))
+                },
+                if ms {
+                    ": times logged in ms are read as seconds unless the manifest's [units] \
+                     says t = \"ms\" (docs/tuning-data.md)"
+                } else {
+                    ": check the manifest's rate and the time column's unit"
+                }
+            ));
+        }
+        let gaps: Vec<(f64, f64)> =
+            d.t.windows(2)
+                .filter(|w| w[1] - w[0] > GAP_FACTOR * dt)
+                .map(|w| (w[0], w[1]))
+                .collect();
+        if let Some(&(a, b)) = gaps
+            .iter()
+            .max_by(|x, y| (x.1 - x.0).total_cmp(&(y.1 - y.0)))
+        {
+            out.push(format!(
+                "set {} ({}): irregular sampling: {} hole(s) longer than {GAP_FACTOR} median \
+                 steps ({} s), the longest {} s from t = {} s to {} s; tune and validate \
+                 simulate across it with the commands held at their last sample",
+                info.name,
+                info.file,
+                gaps.len(),
+                sig(dt),
+                sig(b - a),
+                sig(a),
+                sig(b)
+            ));
+        }
+    }
+    out
+}
 
 /// Whether the campaign supports a tuning step, with the sets it would use.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -176,8 +261,17 @@ pub fn summarize(c: &Campaign) -> CampaignSummary {
         StepSupport {
             step: 1,
             title: step_title(1),
-            supported: !st.is_empty(),
-            uses: format!("{} stationary points", st.len()),
+            supported: st.len() >= STEP1_MIN_POINTS,
+            uses: if st.len() >= STEP1_MIN_POINTS {
+                format!("{} stationary points", st.len())
+            } else {
+                format!(
+                    "{} stationary points, at least {STEP1_MIN_POINTS} needed (the compressor \
+                     efficiency's 7 parameters, eqs (58)-(65); the torque, EGR and turbine fits \
+                     need 4-6)",
+                    st.len()
+                )
+            },
         },
         // the pipeline takes the first actuator set
         support(
@@ -218,6 +312,7 @@ pub fn summarize(c: &Campaign) -> CampaignSummary {
         units: m.units.clone(),
         datasets,
         steps,
+        warnings: sampling_warnings(c),
     }
 }
 
@@ -287,6 +382,12 @@ impl CampaignSummary {
                 st.uses
             ));
         }
+        for w in &self.warnings {
+            s.push_str(&format!("\nwarning: {w}"));
+        }
+        if !self.warnings.is_empty() {
+            s.push('\n');
+        }
         s
     }
 }
@@ -343,5 +444,58 @@ mod tests {
         let ok: Vec<bool> = s2.steps.iter().map(|x| x.supported).collect();
         assert_eq!(ok, [true, false, true, false, true]);
         assert!(s2.text().contains("NO  step 2"), "{}", s2.text());
+        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        // QA finding: 3 or 5 stationary points were "yes step 1", which then failed
+        let mut few = c.clone();
+        few.stationary.truncate(STEP1_MIN_POINTS - 1);
+        let s3 = summarize(&few);
+        assert!(!s3.steps[0].supported);
+        assert!(
+            s3.steps[0]
+                .uses
+                .starts_with("6 stationary points, at least 7 needed"),
+            "{}",
+            s3.steps[0].uses
+        );
+    }
+
+    /// QA findings: times logged in ms read as seconds (a 100 Hz set measured at 0.1 Hz) and a
+    /// 5 s hole in a set went unreported; both are warnings naming the set, its file and what
+    /// was measured.
+    #[test]
+    fn a_rate_unlike_the_manifest_and_holes_in_the_sampling_are_warned() {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        let (mut c, _) = campaign(&Params::published(), &opts).unwrap();
+        assert!(sampling_warnings(&c).is_empty());
+        let k = |c: &Campaign, n: &str| c.manifest.datasets.iter().position(|d| d.name == n);
+        let (i, j) = (k(&c, "I").unwrap(), k(&c, "J").unwrap());
+        for t in &mut c.dynamic[j].t {
+            *t *= 1e3;
+        }
+        let n = c.dynamic[i].t.len();
+        for t in &mut c.dynamic[i].t[n / 2..] {
+            *t += 5.0;
+        }
+        let w = sampling_warnings(&c);
+        assert_eq!(w.len(), 2, "{w:?}");
+        let rate = w.iter().find(|m| m.starts_with("set J (J.csv)")).unwrap();
+        assert!(
+            rate.contains("sample_rate_hz = 100 but its times are sampled at 0.1 Hz")
+                && rate.contains("1000 times slower")
+                && rate.contains("t = \"ms\""),
+            "{rate}"
+        );
+        let gap = w.iter().find(|m| m.starts_with("set I (I.csv)")).unwrap();
+        assert!(
+            gap.contains("irregular sampling: 1 hole(s)") && gap.contains("the longest 5.1 s"),
+            "{gap}"
+        );
+        let text = summarize(&c).text();
+        assert!(text.contains("\nwarning: set J (J.csv)"), "{text}");
     }
 }

@@ -123,7 +123,7 @@ pub fn fit_eta_c(
     pts: &[StationaryPoint],
     start: [f64; 3],
 ) -> Result<FitReport, StepError> {
-    need("eta_c", pts.len(), 7)?;
+    need("eta_c", pts.len(), super::STEP1_MIN_POINTS)?;
     let d = derive(p, pts)?;
     let ga = p.gas.gamma_a;
     let mut y = Vec::with_capacity(pts.len());

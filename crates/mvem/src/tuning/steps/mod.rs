@@ -38,7 +38,7 @@ pub use compressor::{
     fit_eta_c, fit_w_c, flow_points_with, project_q_c, w_c_flow_series, FlowPoint,
 };
 pub use cylinder::{fit_t_em, fit_torque, fit_w_ei};
-pub use egr::fit_egr;
+pub use egr::{fit_egr, C_EGR1_MAX};
 pub use turbine::{bsr_series, fit_eta_tm, fit_w_t};
 
 use super::data::StationaryPoint;
@@ -149,6 +149,37 @@ pub struct Step1Report {
     pub fits: Vec<FitReport>,
 }
 
+/// Step 1's parameters on or beyond an edge of step 5's box for them
+/// ([`crate::tuning::complete::STATIC_PARAMS`]; where step 1 bounds a search, Pi_egropt,
+/// W_copt, pi_copt, c_pi, and c_egr1 <= [`C_EGR1_MAX`], its bounds are those boxes): (name,
+/// value, the bound). A value there is where a search stopped, not an optimum the data show,
+/// and the boxes are the published engine's scale (pi_copt at most 5, W_copt at most 2 kg/s).
+/// Within 1e-6 of the box's width counts as on it; physical limits (x_cv in [0, 1], peak
+/// efficiencies at most 1, lower bounds 0) are not reported.
+pub fn at_bounds(r: &Step1Report) -> Vec<(String, f64, f64)> {
+    let mut out = Vec::new();
+    for (name, v) in r.fits.iter().flat_map(|f| &f.params) {
+        let Some(b) = crate::tuning::complete::STATIC_PARAMS
+            .iter()
+            .find(|b| b.name == name)
+        else {
+            continue;
+        };
+        // physical limits, where a value is no sign of a search stopped short: a fraction
+        // (x_cv in [0, 1]), a peak efficiency at most 1, a quantity that cannot be negative
+        // (lower bounds 0); and c_m2's upper bound, 0.999 w_tlin of the engine
+        // (`complete::static_bounds`), not the box's
+        let physical_hi = matches!(name.as_str(), "x_cv" | "eta_tmmax" | "eta_cmax" | "c_m2");
+        let tol = 1e-6 * (b.hi - b.lo);
+        if *v <= b.lo + tol && b.lo != 0.0 {
+            out.push((name.clone(), *v, b.lo));
+        } else if *v >= b.hi - tol && !physical_hi {
+            out.push((name.clone(), *v, b.hi));
+        }
+    }
+    out
+}
+
 /// Relative errors of eq. (4): mean and max of |meas - mod| / mean(meas).
 pub fn rel_errors(meas: &[f64], model: &[f64]) -> (f64, f64) {
     let n = meas.len().max(1) as f64;
@@ -255,6 +286,10 @@ pub(crate) fn derive(p: &Params, pts: &[StationaryPoint]) -> Result<Vec<Derived>
         })
         .collect()
 }
+
+/// Stationary points step 1 needs: the most of its submodels fitted to them alone (eta_c's 7
+/// parameters, [`fit_eta_c`]; W_c's 8 may include the settled ends of command steps).
+pub const STEP1_MIN_POINTS: usize = 7;
 
 pub(crate) fn need(submodel: &'static str, n: usize, needed: usize) -> Result<(), StepError> {
     if n < needed {
