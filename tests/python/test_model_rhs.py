@@ -199,19 +199,19 @@ def test_module_functions_and_parameters():
 
 
 def test_a_kink_is_listed_or_refused():
-    """The EGR valve shut (actuator states at 0 %: the authors' f_egr >= 0 switches in their
-    directions): listed, or an error when strict. The command alone at its saturation limit
-    (u_egr = 0 %) is differenced on the inner side, not a kink."""
+    """omega_t on the c_m kink (max(omega_t, c_m2), the authors' item 33): listed, or an error
+    when strict. An input (or the shut EGR valve's actuator states) at its saturation limit is
+    differenced on the side with fewer saturations active, not a kink."""
     m = mvem.Model()
     x0, _ = steady_state(m)
     u = [1500.0, 110.0, 0.0, 75.0]
     assert m.jacobian(x0, u, strict=True)["kinks"] == []
-    shut = np.array(x0, dtype=float)
-    shut[5] = shut[6] = 0.0
-    j = m.jacobian(shut, u)
-    assert any("u_egr1" in k for k in j["kinks"])
+    on_kink = np.array(x0, dtype=float)
+    on_kink[4] = mvem.published_params()["turbine"]["c_m"][1]
+    j = m.jacobian(on_kink, POINT)
+    assert any("omega_t" in k for k in j["kinks"])
     with pytest.raises(RuntimeError, match="kink"):
-        m.jacobian(shut, u, strict=True)
+        m.jacobian(on_kink, POINT, strict=True)
 
 
 def test_out_of_range_inputs_warn_with_the_point():

@@ -583,6 +583,26 @@ fn params_show_and_check() {
         "{}",
         stderr(&o)
     );
+    // the [test_cell] section `mvem tune` writes is checked by its own loader, not refused
+    std::fs::write(
+        d.path().join("tc.toml"),
+        format!("{p}\n[test_cell]\ntau_me = 1.0\n"),
+    )
+    .unwrap();
+    let o = mvem(d.path(), &["params", "check", "tc.toml"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    std::fs::write(
+        d.path().join("tcb.toml"),
+        format!("{p}\n[test_cell]\ntau_me = -1.0\n"),
+    )
+    .unwrap();
+    let o = mvem(d.path(), &["params", "check", "tcb.toml"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("test_cell.tau_me = -1"),
+        "{}",
+        stderr(&o)
+    );
     let h = p.lines().find(|l| l.starts_with("h_tot = ")).unwrap();
     std::fs::write(d.path().join("n.toml"), p.replace(h, "h_tot = nan")).unwrap();
     let o = mvem(d.path(), &["params", "check", "n.toml"]);

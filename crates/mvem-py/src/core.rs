@@ -1236,17 +1236,20 @@ mod tests {
             pm.jacobian(&ss.x, u, &["W_x".to_string()], false),
             Err(CoreError::Value(m)) if m.contains("W_x")
         ));
-        // the EGR valve shut (actuator states at 0: f_egr >= 0 switches in their directions):
-        // refused when strict, listed otherwise
-        let at = [1500.0, 110.0, 0.0, 75.0];
-        let mut shut = ss.x;
-        shut[5] = 0.0;
-        shut[6] = 0.0;
+        // omega_t on the c_m kink (max(omega_t, c_m2), item 33; no guard bit): refused when
+        // strict, listed otherwise
+        let mut on_kink = ss.x;
+        on_kink[4] = Params::published().turbine.c_m[1];
         assert!(matches!(
-            pm.jacobian(&shut, at, &[], true),
+            pm.jacobian(&on_kink, u, &[], true),
             Err(CoreError::Runtime(_))
         ));
-        assert!(!pm.jacobian(&shut, at, &[], false).unwrap().kinks.is_empty());
+        assert!(!pm
+            .jacobian(&on_kink, u, &[], false)
+            .unwrap()
+            .kinks
+            .is_empty());
+        let at = [1500.0, 110.0, 0.0, 75.0];
         // the command alone at its saturation limit is differenced on the inner side
         assert!(pm.jacobian(&ss.x, at, &[], true).unwrap().kinks.is_empty());
     }

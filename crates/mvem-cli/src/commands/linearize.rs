@@ -198,7 +198,7 @@ pub fn run(a: &Args) -> Result<()> {
     }
     for k in v["kinks"].as_array().into_iter().flatten() {
         eprintln!(
-            "warning: {}; the slopes on the two sides differ there, and the central difference is their average: channels through it have no zeros or DC gains (see zero_errors)",
+            "warning: {}; the slopes on the two sides differ there, and the central difference is their average: channels through it have no zeros (see zero_errors), and their DC gains are those of the averaged slopes",
             k.as_str().unwrap_or_default()
         );
     }

@@ -112,6 +112,10 @@ pub fn check_file(path: &Path) -> Vec<String> {
         Err(e) => return vec![format!("cannot read: {e}")],
     };
     let mut problems = Vec::new();
+    // the [test_cell] section, by its own loader
+    if let Err(e) = mvem::io::test_cell::parse_test_cell(&text, path) {
+        problems.push(e.to_string());
+    }
     // TOML's nan and inf become JSON null below: their fields, to say so
     let mut non_finite = Vec::new();
     let nested = if text.trim_start().starts_with('{') {
@@ -237,7 +241,12 @@ fn structure(given: &Value, reference: &Value, problems: &mut Vec<String>) -> Va
         return reference.clone();
     };
     let mut out = Map::new();
-    for k in g.keys().filter(|k| !r.contains_key(*k)) {
+    // the test cell's section (tau_Me, written by `mvem tune`) is not a model parameter; its
+    // own loader checks it (`mvem::io::test_cell`)
+    for k in g
+        .keys()
+        .filter(|k| !r.contains_key(*k) && k.as_str() != mvem::io::test_cell::SECTION)
+    {
         problems.push(format!("unknown section `{k}`"));
     }
     for (sec, rsec) in r {

@@ -124,6 +124,8 @@ pub struct StepCase {
     pub scaled_tolerance: Option<(f64, f64, f64)>,
     /// Whether the response stands out of the integration error ([`experiment::StepRun::resolved`]).
     pub resolved: bool,
+    /// Spacing of the samples the metrics were taken from [s].
+    pub metrics_dt: f64,
 }
 
 pub use mvem::analysis::experiment::steady_value;
@@ -157,6 +159,7 @@ pub fn run_step<const N: usize, M: Model<N>>(
     let scaled_tolerance = (run.opts_used.rtol < opts.rtol || run.opts_used.atol < opts.atol)
         .then_some((run.size, run.opts_used.rtol, run.opts_used.atol));
     let resolved = run.resolved();
+    let metrics_dt = run.metrics_dt();
     Ok(StepCase {
         input,
         before,
@@ -167,6 +170,7 @@ pub fn run_step<const N: usize, M: Model<N>>(
         flags,
         scaled_tolerance,
         resolved,
+        metrics_dt,
     })
 }
 
@@ -272,6 +276,14 @@ pub fn run(a: &Args) -> Result<()> {
     if !case.resolved {
         eprintln!("warning: {UNRESOLVED}");
     }
+    if case.metrics_dt > experiment::METRICS_DT * (1.0 + 1e-9) {
+        eprintln!(
+            "warning: the metrics are taken from samples {} s apart (the horizon --t-end {} s in at most {} samples); features shorter than that (the W_c dip after a VGT step lasts about 0.1 s) are missed: shorten --t-end for finer metrics",
+            mvem::numerics::Num(case.metrics_dt),
+            a.t_end,
+            experiment::METRICS_MAX_SAMPLES
+        );
+    }
     // render before writing anything
     let fig = match &a.plot {
         Some(p) => Some((p, plot::render(&figure(&case, None), plot::Format::of(p)?)?)),
@@ -294,7 +306,7 @@ pub fn run(a: &Args) -> Result<()> {
 }
 
 /// The warning of a step that the integration cannot resolve.
-const UNRESOLVED: &str = "the step hardly moves the engine (the air-path states by less than 100 times the integration tolerance): the wrong-way, overshoot, rise and settling figures describe the integration error, not a response; the DC gains (from the steady states) hold";
+const UNRESOLVED: &str = "the step hardly moves the engine (the air-path states by less than 100 times the integration tolerance, or by less than 2e-6 of their magnitude): the wrong-way, overshoot, rise and settling figures describe the integration error, not a response; the DC gains (from the steady states) hold";
 
 fn to_json(c: &StepCase) -> Value {
     let t_end = c.sol.t().last().copied().unwrap_or(c.t_step);

@@ -155,10 +155,12 @@ impl fmt::Display for Kink {
 }
 
 /// An input direction whose operating point sits at a limit of the input's saturation (the
-/// authors' items 1-4: u_vgt at 20 %, n_e at the parameter set's top speed, ...): beyond the
-/// limit the input has no effect, so the central difference would average the inner slope with
-/// zero. The column is the one-sided derivative on the inner side instead (the linear model of
-/// the moves the input can make).
+/// authors' items 1-4: u_vgt at 20 %, n_e at the parameter set's top speed, ...), or an
+/// actuator state at the limit of its command's range (the EGR valve shut, u_egr1 = u_egr2 =
+/// 0, where f_egr >= 0 switches): the central difference would average the slopes of the two
+/// sides. The column is the one-sided derivative on the side where fewer saturations are active
+/// instead (the inner side of an input's range; the open valve's branch), which is what a point
+/// just inside the range linearizes to.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OneSided {
     /// The input (`u_vgt`, or with Padé states `u_vgt(now)` / `u_vgt(delayed)`).
@@ -167,20 +169,16 @@ pub struct OneSided {
     pub value: f64,
     /// The limit it sits at (its unit).
     pub limit: f64,
-    /// +1: the derivative is taken upward (the point sits at the lower limit), -1 downward.
+    /// +1: the derivative is taken upward, -1 downward.
     pub side: i8,
 }
 
 impl fmt::Display for OneSided {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (which, dir, beyond) = if self.side > 0 {
-            ("lower", "upward", "below")
-        } else {
-            ("upper", "downward", "above")
-        };
+        let dir = if self.side > 0 { "upward" } else { "downward" };
         write!(
             f,
-            "{} = {} sits at its {which} saturation limit {}: its column is the one-sided derivative {dir} (the input has no effect {beyond} the limit)",
+            "{} = {} sits at a limit ({}) of its range: its column is the one-sided derivative {dir}, on the side where fewer saturations are active",
             self.variable,
             crate::numerics::Num(self.value),
             crate::numerics::Num(self.limit)
@@ -584,6 +582,15 @@ fn linearize_impl<const N: usize, M: Model<N>>(
     let sem = m.options().semantics;
     let (egr_lim, vgt_lim) = crate::model::command_saturation(sem);
     let sat = &m.params().input_saturation;
+    let actuators: Vec<usize> = m.actuator_state_values(d).iter().map(|(i, _)| *i).collect();
+    let (egr_lim_sem, vgt_lim_sem) = if sem.authors() {
+        (egr_lim, vgt_lim)
+    } else {
+        (
+            (f64::NEG_INFINITY, f64::INFINITY),
+            (f64::NEG_INFINITY, f64::INFINITY),
+        )
+    };
     let input_limits = |k: usize| -> (f64, f64) {
         match k {
             _ if !sem.authors() => (f64::NEG_INFINITY, f64::INFINITY),
@@ -612,31 +619,59 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             }
         }
         if switched[c] != 0 || !bad.is_empty() {
-            // an input at a limit of its saturation: the inner side's derivative
-            if let Dir::Input { k, .. } = dirs[c] {
-                let (lo, hi) = input_limits(k);
+            // an input at a limit of its saturation, or an actuator state at the limit of its
+            // command's range (the EGR valve shut: u_egr1 = u_egr2 = 0): the derivative on the
+            // side where fewer saturations are active (the inner side of the input's range; for
+            // the actuator states the open valve's branch, which a point just inside the
+            // command's range linearizes)
+            let limits = match dirs[c] {
+                Dir::Input { k, .. } => Some(input_limits(k)),
+                Dir::State(i) if actuators.contains(&i) => Some(if names[i].starts_with("u_egr") {
+                    egr_lim_sem
+                } else {
+                    vgt_lim_sem
+                }),
+                Dir::State(_) => None,
+            };
+            if let Some((lo, hi)) = limits {
                 let reach = h0[c] * f64::from(1u32 << (levels + 1));
                 let at = if (v0s[c] - lo).abs() <= reach {
-                    Some((lo, 1i8))
+                    Some(lo)
                 } else if (hi - v0s[c]).abs() <= reach {
-                    Some((hi, -1i8))
+                    Some(hi)
                 } else {
                     None
                 };
-                if let Some((limit, side)) = at {
-                    // from the limit itself, so that the whole stencil lies inside
-                    let sw = differ.one_sided_column(&dirs[c], limit, h0[c], side, &mut work);
-                    evaluations += levels + 1;
-                    if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
-                        return Err(non_finite(c, r, work.d[r]));
+                if let Some(limit) = at {
+                    // from the limit itself, each side's stencil on one side of it
+                    let mut sides = Vec::with_capacity(2);
+                    for side in [1i8, -1] {
+                        let (sw, g) =
+                            differ.one_sided_column(&dirs[c], limit, h0[c], side, &mut work);
+                        evaluations += levels + 2;
+                        if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                            return Err(non_finite(c, r, work.d[r]));
+                        }
+                        if sw == 0 {
+                            sides.push((side, g, work.d.clone(), work.corr.clone()));
+                        }
                     }
-                    if sw == 0 {
-                        store(c, &work, &mut jac, &mut incons, &mut corr);
+                    let pick = match sides.as_slice() {
+                        [one] => Some(one),
+                        // both smooth: the one whose active guards are a strict subset
+                        [a, b] if a.1 & b.1 == a.1 && a.1 != b.1 => Some(a),
+                        [a, b] if a.1 & b.1 == b.1 && a.1 != b.1 => Some(b),
+                        _ => None,
+                    };
+                    if let Some((side, _, d, cr)) = pick {
+                        jac.column_mut(c).copy_from_slice(d);
+                        corr.column_mut(c).copy_from_slice(cr);
+                        incons.column_mut(c).fill(0.0);
                         one_sided.push(OneSided {
                             variable: dir_name(&dirs[c]),
                             value: v0s[c],
                             limit,
-                            side,
+                            side: *side,
                         });
                         continue;
                     }
@@ -902,8 +937,16 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
     /// value `v_from` (the saturation limit, where f equals `f0` since the point sits there),
     /// steps `side * h, 2 h, ..., 2^L h`: `R_{k,j} = (2^j R_{k,j-1} - R_{k+1,j-1}) / (2^j - 1)`
     /// (`O(h^(L+1))`), into `w.d`, `w.corr` (`w.incons` zero); returns the guard bits that
-    /// switch on that side.
-    fn one_sided_column(&self, dir: &Dir, v_from: f64, h: f64, side: i8, w: &mut Work) -> u32 {
+    /// switch within the stencil on that side (the limit itself excluded) and the guards
+    /// active there.
+    fn one_sided_column(
+        &self,
+        dir: &Dir,
+        v_from: f64,
+        h: f64,
+        side: i8,
+        w: &mut Work,
+    ) -> (u32, u32) {
         let nrow = self.f0.len();
         let levels = self.levels;
         let mut switched = 0u32;
@@ -911,14 +954,15 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
         let e0 = self.m.eval(&x0, &u0, self.mem);
         let mut f_from = vec![0.0; nrow];
         self.rows.fill(&e0.dx, &e0.signals, &mut f_from);
-        let g_from = e0.signals.guards;
+        let mut g_side = None;
         for lev in 0..=levels {
             let v = v_from + f64::from(side) * h * f64::from(1u32 << lev);
             let (xx, uu) = perturbed(self.x, &self.u_base, dir, v);
             let e = self.m.eval(&xx, &uu, self.mem);
             self.rows.fill(&e.dx, &e.signals, &mut w.fp);
-            // a guard that switches between the limit and the inner side
-            switched |= e.signals.guards ^ g_from;
+            // a guard that switches between the stencil points of this side
+            let g = *g_side.get_or_insert(e.signals.guards);
+            switched |= e.signals.guards ^ g;
             let inv = 1.0 / (v - v_from);
             let dl = &mut w.dk[lev * nrow..(lev + 1) * nrow];
             for r in 0..nrow {
@@ -949,7 +993,7 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
             w.d[r] = if *dir == Dir::State(i) { 1.0 } else { 0.0 };
             w.corr[r] = 0.0;
         }
-        switched
+        (switched, g_side.unwrap_or(0))
     }
 }
 
