@@ -163,9 +163,10 @@ impl fmt::Display for Kink {
 /// just inside the range linearizes to.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OneSided {
-    /// The input (`u_vgt`, or with Padé states `u_vgt(now)` / `u_vgt(delayed)`).
+    /// The input (`u_vgt`, or with Padé states `u_vgt(now)` / `u_vgt(delayed)`) or actuator
+    /// state (`u_egr1`).
     pub variable: String,
-    /// The input's value at the operating point (its unit).
+    /// Its value at the operating point (its unit).
     pub value: f64,
     /// The limit it sits at (its unit).
     pub limit: f64,
@@ -261,7 +262,7 @@ pub struct LinearModel {
     pub output_scales: Vec<f64>,
     /// Kinks found in the difference stencils (empty for a smooth point).
     pub kinks: Vec<Kink>,
-    /// Input directions at a saturation limit, differenced on the inner side only
+    /// Input and actuator-state directions at a saturation limit, differenced on one side
     /// ([`OneSided`]; not kinks).
     pub one_sided: Vec<OneSided>,
     /// Largest last Richardson correction, relative to the row's largest scaled entry (an
@@ -579,27 +580,19 @@ fn linearize_impl<const N: usize, M: Model<N>>(
     };
     let mut kinks: Vec<Kink> = Vec::new();
     let mut one_sided: Vec<OneSided> = Vec::new();
+    // the saturation ranges the model applies (none under the paper's semantics), in the
+    // linear model's input order (u_delta, u_egr, u_vgt, n_e)
     let sem = m.options().semantics;
     let (egr_lim, vgt_lim) = crate::model::command_saturation(sem);
-    let sat = &m.params().input_saturation;
-    let actuators: Vec<usize> = m.actuator_state_values(d).iter().map(|(i, _)| *i).collect();
-    let (egr_lim_sem, vgt_lim_sem) = if sem.authors() {
-        (egr_lim, vgt_lim)
-    } else {
-        (
-            (f64::NEG_INFINITY, f64::INFINITY),
-            (f64::NEG_INFINITY, f64::INFINITY),
-        )
-    };
+    let ranges = crate::io::csv_inputs::input_ranges(&m.params().input_saturation);
     let input_limits = |k: usize| -> (f64, f64) {
-        match k {
-            _ if !sem.authors() => (f64::NEG_INFINITY, f64::INFINITY),
-            0 => (sat.u_delta[0], sat.u_delta[1]),
-            1 => egr_lim,
-            2 => vgt_lim,
-            _ => (sat.n_e[0], sat.n_e[1]),
+        if !sem.authors() {
+            return (f64::NEG_INFINITY, f64::INFINITY);
         }
+        let (_, lo, hi) = ranges[[1, 2, 3, 0][k]];
+        (lo, hi)
     };
+    let actuators: Vec<usize> = m.actuator_state_values(d).iter().map(|(i, _)| *i).collect();
     for c in 0..ndir {
         if switched[c] == 0 && !(0..nrow).any(|r| is_inconsistent(c, r, &incons)) {
             continue;
@@ -627,9 +620,9 @@ fn linearize_impl<const N: usize, M: Model<N>>(
             let limits = match dirs[c] {
                 Dir::Input { k, .. } => Some(input_limits(k)),
                 Dir::State(i) if actuators.contains(&i) => Some(if names[i].starts_with("u_egr") {
-                    egr_lim_sem
+                    egr_lim
                 } else {
-                    vgt_lim_sem
+                    vgt_lim
                 }),
                 Dir::State(_) => None,
             };
@@ -852,6 +845,32 @@ impl Work {
     }
 }
 
+/// Weights 1 / (4^j - 1) of the Richardson table of central differences (errors in h^2, h^4, ...).
+const INV_W_CENTRAL: [f64; 4] = [0.0, 1.0 / 3.0, 1.0 / 15.0, 1.0 / 63.0];
+/// Weights 1 / (2^j - 1) of the Richardson table of one-sided differences (errors in h, h^2, ...).
+const INV_W_ONE_SIDED: [f64; 4] = [0.0, 1.0, 1.0 / 3.0, 1.0 / 7.0];
+
+/// The Richardson-extrapolated value of row `r` from its differences at steps h, 2h, ..., 2^L h
+/// (`dk[lev * nrow + r]`): `R_{k,j} = R_{k,j-1} + (R_{k,j-1} - R_{k+1,j-1}) inv_w[j]`; returns
+/// `R_{0,L}` and |the last correction|.
+fn richardson(dk: &[f64], nrow: usize, r: usize, levels: usize, inv_w: &[f64; 4]) -> (f64, f64) {
+    let mut t = [0.0; 4];
+    for (lev, tv) in t.iter_mut().enumerate().take(levels + 1) {
+        *tv = dk[lev * nrow + r];
+    }
+    let mut last = 0.0;
+    for j in 1..=levels {
+        for k in 0..=(levels - j) {
+            let delta = (t[k] - t[k + 1]) * inv_w[j];
+            if k == 0 {
+                last = delta;
+            }
+            t[k] += delta;
+        }
+    }
+    (t[0], last.abs())
+}
+
 /// Everything one difference column needs.
 struct Differ<'a, const N: usize, M: Model<N>> {
     m: &'a M,
@@ -871,8 +890,6 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
     /// `v0`) with base step `h`, into `w.d`, `w.corr`, `w.incons`; returns the guard bits that
     /// switch inside the stencil.
     fn column(&self, dir: &Dir, v0: f64, h: f64, w: &mut Work) -> u32 {
-        // R_{k,j} = R_{k,j-1} + (R_{k,j-1} - R_{k+1,j-1}) / (4^j - 1)
-        const INV_W: [f64; 4] = [0.0, 1.0 / 3.0, 1.0 / 15.0, 1.0 / 63.0];
         let nrow = self.f0.len();
         let levels = self.levels;
         let mut switched = 0u32;
@@ -898,22 +915,7 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
             }
         }
         for r in 0..nrow {
-            let mut t = [0.0; 4];
-            for (lev, tv) in t.iter_mut().enumerate().take(levels + 1) {
-                *tv = w.dk[lev * nrow + r];
-            }
-            let mut last = 0.0;
-            for j in 1..=levels {
-                for k in 0..=(levels - j) {
-                    let delta = (t[k] - t[k + 1]) * INV_W[j];
-                    if k == 0 {
-                        last = delta;
-                    }
-                    t[k] += delta;
-                }
-            }
-            w.d[r] = t[0];
-            w.corr[r] = last.abs();
+            (w.d[r], w.corr[r]) = richardson(&w.dk, nrow, r, levels, &INV_W_CENTRAL);
             // smooth: S(2h) - 2 S(h) = O(h^3) and D(h) - D(2h) = O(h^2) (weighted 1/100)
             w.incons[r] = if levels >= 1 {
                 let t1 = (w.sk[nrow + r] - 2.0 * w.sk[r]).abs();
@@ -930,13 +932,11 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
         }
         switched
     }
-}
 
-impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
     /// Richardson-extrapolated one-sided differences of every row in direction `dir` from the
-    /// value `v_from` (the saturation limit, where f equals `f0` since the point sits there),
-    /// steps `side * h, 2 h, ..., 2^L h`: `R_{k,j} = (2^j R_{k,j-1} - R_{k+1,j-1}) / (2^j - 1)`
-    /// (`O(h^(L+1))`), into `w.d`, `w.corr` (`w.incons` zero); returns the guard bits that
+    /// value `v_from` (the saturation limit; evaluated there, as the point may sit only near
+    /// it), steps `side * h, 2 h, ..., 2^L h`: `R_{k,j} = (2^j R_{k,j-1} - R_{k+1,j-1}) /
+    /// (2^j - 1)` (`O(h^(L+1))`), into `w.d`, `w.corr` (`w.incons` zero); returns the guard bits that
     /// switch within the stencil on that side (the limit itself excluded) and the guards
     /// active there.
     fn one_sided_column(
@@ -970,23 +970,7 @@ impl<const N: usize, M: Model<N>> Differ<'_, N, M> {
             }
         }
         for r in 0..nrow {
-            let mut t = [0.0; 4];
-            for (lev, tv) in t.iter_mut().enumerate().take(levels + 1) {
-                *tv = w.dk[lev * nrow + r];
-            }
-            let mut last = 0.0;
-            for j in 1..=levels {
-                let wj = 1.0 / (f64::from(1u32 << j) - 1.0);
-                for k in 0..=(levels - j) {
-                    let delta = (t[k] - t[k + 1]) * wj;
-                    if k == 0 {
-                        last = delta;
-                    }
-                    t[k] += delta;
-                }
-            }
-            w.d[r] = t[0];
-            w.corr[r] = last.abs();
+            (w.d[r], w.corr[r]) = richardson(&w.dk, nrow, r, levels, &INV_W_ONE_SIDED);
             w.incons[r] = 0.0;
         }
         for &(r, i) in &self.state_rows {

@@ -248,19 +248,20 @@ impl CycleStats {
     pub fn violations(&self, lambda_floor: f64) -> Vec<String> {
         let mut v = Vec::new();
         let tq = &self.torque;
-        if !tq.applicable() {
-            // no regression criterion
-        } else if !(0.83..=1.03).contains(&tq.slope) {
-            v.push(format!("torque slope {:.3} outside [0.83, 1.03]", tq.slope));
-        }
-        if tq.applicable() && (tq.r2 < 0.88 || tq.r2.is_nan()) {
-            v.push(format!("torque R^2 {:.3} < 0.88", tq.r2));
-        }
-        if tq.applicable() && (tq.see > 0.13 * self.m_max || tq.see.is_nan()) {
-            v.push(format!(
-                "torque SEE {:.1} Nm > 13 % of {:.0} Nm",
-                tq.see, self.m_max
-            ));
+        // a regression that is not applicable has no criterion
+        if tq.applicable() {
+            if !(0.83..=1.03).contains(&tq.slope) {
+                v.push(format!("torque slope {:.3} outside [0.83, 1.03]", tq.slope));
+            }
+            if tq.r2 < 0.88 || tq.r2.is_nan() {
+                v.push(format!("torque R^2 {:.3} < 0.88", tq.r2));
+            }
+            if tq.see > 0.13 * self.m_max || tq.see.is_nan() {
+                v.push(format!(
+                    "torque SEE {:.1} Nm > 13 % of {:.0} Nm",
+                    tq.see, self.m_max
+                ));
+            }
         }
         let work_applicable = self.work_ref_kwh >= MIN_WORK_KWH;
         if work_applicable && (self.work_error.abs() > 0.05 || self.work_error.is_nan()) {

@@ -692,11 +692,10 @@ mod tests {
         assert!(implausible_constants(&q, &s, false).is_empty());
     }
 
-    #[test]
-    fn inputs_beyond_the_saturation_are_named() {
-        let p = Params::published();
-        let mut c = crate::tuning::lab::campaign(
-            &p,
+    /// A noise-free campaign of the 13 ESC points and set I (one step).
+    fn small_campaign(p: &Params) -> crate::tuning::data::Campaign {
+        crate::tuning::lab::campaign(
+            p,
             &LabOptions {
                 noise: Noise::NONE,
                 n_stationary: 13,
@@ -706,7 +705,13 @@ mod tests {
             },
         )
         .unwrap()
-        .0;
+        .0
+    }
+
+    #[test]
+    fn inputs_beyond_the_saturation_are_named() {
+        let p = Params::published();
+        let mut c = small_campaign(&p);
         assert!(inputs_outside_saturation(&p, &c).is_none());
         c.stationary[2].n_e = 2500.0;
         let msg = inputs_outside_saturation(&p, &c).expect("one point outside");
@@ -747,18 +752,7 @@ mod tests {
     #[test]
     fn turbo_speeds_above_the_integrator_limit_widen_it_or_are_named() {
         let p = Params::published();
-        let mut c = crate::tuning::lab::campaign(
-            &p,
-            &LabOptions {
-                noise: Noise::NONE,
-                n_stationary: 13,
-                sets: Some(vec!["I".into()]),
-                max_steps: Some(1),
-                ..LabOptions::default()
-            },
-        )
-        .unwrap()
-        .0;
+        let mut c = small_campaign(&p);
         assert!(turbo_speeds_above_limit(&p, &c).is_none());
         let mut w = p.clone();
         assert!(widen_integrator_limits(&mut w, &c, InputRangeSource::Campaign).is_none());

@@ -680,9 +680,7 @@ mod tests {
         let (c, _) = campaign(&Params::published(), &opts).unwrap();
         let dir = tempfile::tempdir().unwrap();
         save_campaign(dir.path(), &c).unwrap();
-        // (mvem name, the test cell's header, value in its unit from mvem's)
-        type Conv = fn(f64) -> f64;
-        let renames: [(&str, &str, Conv); 5] = [
+        let renames: [Rename; 5] = [
             ("p_im", "p_im [kPa]", |v| v / 1e3),
             ("T_em", "T_em (degC)", |v| v - 273.15),
             ("n_e", "N_E", |v| v),
@@ -693,31 +691,7 @@ mod tests {
             .chain(c.manifest.datasets.iter().map(|s| s.file.clone()))
             .collect();
         for f in &files {
-            let path = dir.path().join(f);
-            let text = std::fs::read_to_string(&path).unwrap();
-            let mut lines = text.lines();
-            let mut header: Vec<String> = lines
-                .next()
-                .unwrap()
-                .split(',')
-                .map(str::to_string)
-                .collect();
-            let mut convs = Vec::new();
-            for (name, new, conv) in renames {
-                if let Some(k) = header.iter().position(|h| h == name) {
-                    header[k] = new.to_string();
-                    convs.push((k, conv));
-                }
-            }
-            let mut out = vec![header.join(",")];
-            for l in lines {
-                let mut v: Vec<String> = l.split(',').map(str::to_string).collect();
-                for &(k, conv) in &convs {
-                    v[k] = format!("{:?}", conv(v[k].parse::<f64>().unwrap()));
-                }
-                out.push(v.join(","));
-            }
-            std::fs::write(&path, out.join("\n") + "\n").unwrap();
+            rewrite(&dir.path().join(f), &renames);
         }
         std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
         // another file that heads p_im in Pa under mvem's name: not in the one [columns] table
