@@ -526,6 +526,45 @@ fn step_json_metrics_match_the_library() {
 }
 
 #[test]
+fn step_json_of_an_output_without_change_has_its_values_and_gain() {
+    // EGR valve shut: W_egr is 0 before and after a VGT step; its metrics have no direction,
+    // but the JSON still gives the steady values and the gain 0
+    let d = tempfile::tempdir().unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "step",
+            "--input",
+            "u_vgt",
+            "--from",
+            "75",
+            "--to",
+            "65",
+            "--n-e",
+            "1500",
+            "--u-delta",
+            "110",
+            "--u-egr",
+            "0",
+            "--outputs",
+            "W_egr,W_c",
+            "--json",
+        ],
+    );
+    let v = json_of(&o);
+    let w = &v["outputs"]["W_egr"];
+    assert!(
+        w["error"].as_str().unwrap().contains("zero final change"),
+        "{w}"
+    );
+    assert_eq!(w["y0"], 0.0);
+    assert_eq!(w["y_final"], 0.0);
+    assert_eq!(w["dc_gain"], 0.0);
+    assert!(w["dc_gain"].as_f64().unwrap().is_sign_positive());
+    assert!(v["outputs"]["W_c"]["error"].is_null());
+}
+
+#[test]
 fn step_in_any_input() {
     let d = tempfile::tempdir().unwrap();
     // EGR step at a point with EGR flow: non-minimum phase in p_im (implementation notes, item 40)

@@ -341,6 +341,17 @@
     return [at(q), at(1 - q)];
   }
 
+  // a panel's title on one line, never cut at the canvas's edge: from `start` (over the plot) at
+  // 12, 11 or 10 px, whichever fits before `right`; else at 10 px from `left` (over the y tick
+  // labels, whose top label starts below a 10 px title), condensed to the width if need be
+  function fitTitle(ctx, title, left, start, right, y) {
+    for (const size of [12, 11, 10]) {
+      ctx.font = `${size}px system-ui, sans-serif`;
+      if (ctx.measureText(title).width <= right - start) { ctx.fillText(title, start, y); return; }
+    }
+    ctx.fillText(title, left, y, right - left);
+  }
+
   // one panel: frame, ticks, title; returns the coordinate maps
   // (opts.logX: the x values are log10 of the quantity; ticks at the decades, labelled 10^x;
   // opts.yTicks: about so many y ticks, default 3; opts.xLabel: the x axis's name and unit, left
@@ -371,8 +382,8 @@
       for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
     }
     if (opts.xLabel) { ctx.textAlign = "right"; ctx.fillText(opts.xLabel, x0 + L - 8, y0 + h - B + 3); }
-    ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.font = "12px system-ui, sans-serif";
-    ctx.fillText(title, x0 + L + 4, y0 + 2);
+    ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top";
+    fitTitle(ctx, title, x0 + 4, x0 + L + 4, x0 + w - R, y0 + 2);
     ctx.restore();
     return { px, py, clip: [x0 + L, y0 + T, w - L - R, h - T - B] };
   }

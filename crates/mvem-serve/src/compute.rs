@@ -284,7 +284,7 @@ pub(crate) fn step<const N: usize, M: Model<N>>(
     let mut series = Map::new();
     let mut metrics = Vec::with_capacity(outputs.len());
     for n in &outputs {
-        metrics.push((n.clone(), run.metrics(n).map_err(|e| e.to_string())));
+        metrics.push((n.clone(), run.metrics(n)));
         series.insert(n.clone(), json!(run.sol.get(n).unwrap_or_default()));
     }
     // the inputs as the model applies them: the authors' saturation clamps a value outside
@@ -906,7 +906,7 @@ pub(crate) fn map<const N: usize, M: Model<N>>(
         "x": {"input": grid.axes[0].input, "values": grid.axes[0].values, "unit": unit(&grid.axes[0].input)},
         "y": {"input": grid.axes[1].input, "values": grid.axes[1].values, "unit": unit(&grid.axes[1].input)},
         "channel": {"input": r.channel.input, "output": r.channel.output,
-                    "unit": format!("{} per {}", unit(&r.channel.output), unit(&r.channel.input))},
+                    "unit": mvem::model::meta::gain_unit(unit(&r.channel.output), unit(&r.channel.input))},
         "base": drive_json(&grid.base),
         "order": "row-major, y fastest: index i * y.n + j is (x.values[i], y.values[j])",
         "dc_gain": gain,

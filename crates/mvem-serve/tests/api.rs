@@ -360,6 +360,8 @@ fn step_map_and_cycle_answer() {
     let v = r.json();
     let sign = v["sign"].as_array().unwrap();
     assert_eq!(sign.len(), 30);
+    // the gain's unit as the page and the CLI's map write it
+    assert_eq!(v["channel"]["unit"], "kg/s/%");
     // the sign reversal of u_vgt -> W_c: both signs occur over the map (section 8 of the paper)
     assert!(
         sign.iter().any(|s| s == 1) && sign.iter().any(|s| s == -1),

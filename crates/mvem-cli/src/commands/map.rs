@@ -476,10 +476,12 @@ pub fn channel_panel<const N: usize>(
         axis_label(&g.axes[0].input),
         axis_label(&g.axes[1].input),
     );
-    let (ux, uy) = (common::unit(&o), common::unit(&i));
     p.heat = Some(Heat {
         field: field(r, gains.clone()),
-        label: format!("dc gain [{ux}/{uy}]"),
+        label: format!(
+            "dc gain [{}]",
+            mvem::model::meta::gain_unit(common::unit(&o), common::unit(&i))
+        ),
         scheme: Scheme::Diverging,
         nan_label: "no equilibrium / kink".into(),
     });

@@ -6,7 +6,7 @@ use crate::common::{self, ModelArgs, SolverArgs};
 use crate::plot::{self, Figure, Panel, Series};
 use anyhow::{Context, Result};
 use clap::ValueEnum;
-use mvem::analysis::experiment::{self, StepSpec};
+use mvem::analysis::experiment::{self, OutputError, StepSpec};
 use mvem::analysis::json::step_json;
 use mvem::analysis::linearize::DEFAULT_OUTPUTS;
 use mvem::analysis::step::StepMetrics;
@@ -116,7 +116,7 @@ pub struct StepCase {
     /// The simulation.
     pub sol: Solution,
     /// Per output: name and metrics, or why there are none (e.g. no change).
-    pub metrics: Vec<(String, Result<StepMetrics, String>)>,
+    pub metrics: Vec<(String, Result<StepMetrics, OutputError>)>,
     /// Whether both steady states are physically valid (flags otherwise).
     pub flags: Vec<String>,
     /// The step's size and the tolerances it was simulated at, when they were scaled down
@@ -153,7 +153,7 @@ pub fn run_step<const N: usize, M: Model<N>>(
     let run = experiment::run_step(m, &spec, opts)?;
     let metrics = outputs
         .iter()
-        .map(|name| (name.clone(), run.metrics(name).map_err(|e| e.to_string())))
+        .map(|name| (name.clone(), run.metrics(name)))
         .collect();
     let flags = run.flags();
     let scaled_tolerance = (run.opts_used.rtol < opts.rtol || run.opts_used.atol < opts.atol)

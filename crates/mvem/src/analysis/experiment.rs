@@ -608,7 +608,7 @@ mod tests {
             assert!(
                 matches!(
                     run.metrics(o),
-                    Err(OutputError::Metrics(StepError::Zero { .. }))
+                    Err(OutputError::Metrics(StepError::NoChange { .. }))
                 ),
                 "{o}: {:?}",
                 run.metrics(o)

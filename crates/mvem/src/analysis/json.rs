@@ -3,10 +3,10 @@
 //! the last bit. `serde_json` writes every `f64` in its shortest round-trip form.
 
 use crate::analysis::discrete::DiscreteModel;
-use crate::analysis::experiment::StepSpec;
+use crate::analysis::experiment::{OutputError, StepSpec};
 use crate::analysis::linearize::LinearModel;
 use crate::analysis::steady::SteadyState;
-use crate::analysis::step::{Excursion, StepMetrics};
+use crate::analysis::step::{Excursion, StepError, StepMetrics};
 use crate::analysis::zeros::{
     dc_gain_matrix, eigenvalues, mimo_zeros, poles, siso, Complex, ZeroOptions, MIMO_INPUTS,
     MIMO_OUTPUTS,
@@ -294,13 +294,22 @@ fn excursion(e: Option<Excursion>) -> Value {
 pub fn step_json(
     spec: &StepSpec,
     warnings: &[String],
-    metrics: &[(String, Result<StepMetrics, String>)],
+    metrics: &[(String, Result<StepMetrics, OutputError>)],
 ) -> Value {
     let mut outs = Map::new();
     for (n, r) in metrics {
         let mut v = match r {
             Ok(m) => step_metrics_json(m),
-            Err(e) => json!({"error": e}),
+            // no direction, but the steady values and the gain (0, or the rounding of the
+            // steady states) are known
+            Err(OutputError::Metrics(e @ StepError::NoChange { y0, y_final, .. })) => json!({
+                "error": e.to_string(),
+                "y0": y0,
+                "y_final": y_final,
+                "change": y_final - y0,
+                "dc_gain": e.dc_gain(),
+            }),
+            Err(e) => json!({"error": e.to_string()}),
         };
         v["unit"] = json!(unit(n));
         outs.insert(n.clone(), v);

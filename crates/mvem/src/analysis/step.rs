@@ -105,13 +105,42 @@ pub enum StepError {
         /// Which quantity.
         what: &'static str,
     },
-    /// The final value equals the initial value (to [`StepMetrics::ZERO`] of its magnitude) or
-    /// the input does not change: nothing to normalize by.
+    /// The input does not change: nothing to normalize by.
     #[error("step metrics: zero {what}; the response has no direction")]
     Zero {
-        /// "final change" or "input change".
+        /// "input change".
         what: &'static str,
     },
+    /// The final value equals the initial value to [`StepMetrics::ZERO`] of its magnitude (e.g.
+    /// W_egr where the EGR valve has no flow): the response has no direction, so no excursion,
+    /// overshoot, rise or settling; the DC gain is `change / du` (0 or rounding of the steady
+    /// states).
+    #[error(
+        "step metrics: zero final change ({} -> {}, DC gain {}); the response has no direction",
+        crate::numerics::Num(*y0),
+        crate::numerics::Num(*y_final),
+        crate::numerics::Num(self.dc_gain())
+    )]
+    NoChange {
+        /// Steady value before the step.
+        y0: f64,
+        /// Steady value after the step.
+        y_final: f64,
+        /// Input change (effective) the gain is per.
+        du: f64,
+    },
+}
+
+impl StepError {
+    /// The DC gain of a [`StepError::NoChange`] response, `(y_final - y0) / du` (NaN for the
+    /// other errors).
+    pub fn dc_gain(&self) -> f64 {
+        match self {
+            // (+ 0.0: a zero change gives 0, not -0, for a negative du)
+            Self::NoChange { y0, y_final, du } => (y_final - y0) / du + 0.0,
+            _ => f64::NAN,
+        }
+    }
 }
 
 impl StepMetrics {
@@ -154,15 +183,13 @@ impl StepMetrics {
             return Err(StepError::NonFinite { what: "sample" });
         }
         let change = y_final - y0;
-        if change.abs() <= Self::ZERO * y0.abs().max(y_final.abs()) {
-            return Err(StepError::Zero {
-                what: "final change",
-            });
-        }
         if du == 0.0 {
             return Err(StepError::Zero {
                 what: "input change",
             });
+        }
+        if change.abs() <= Self::ZERO * y0.abs().max(y_final.abs()) {
+            return Err(StepError::NoChange { y0, y_final, du });
         }
         let first = t.partition_point(|&ti| ti < t_step);
         let (t, y) = (&t[first..], &y[first..]);
@@ -289,6 +316,35 @@ mod tests {
         assert!((m.rise_time.unwrap() - rise).abs() < 1e-6, "{m:?}");
         let settle = tau * 50f64.ln();
         assert!((m.settling_time.unwrap() - settle).abs() < 1e-6, "{m:?}");
+    }
+
+    #[test]
+    fn a_response_without_change_keeps_its_values_and_zero_gain() {
+        // a channel without flow (W_egr with the valve shut): y stays 0 through a step of -10
+        let (t, y) = sample(|_| 0.0, 1.0, 5.0, 0.01);
+        let e = StepMetrics::compute(&t, &y, 1.0, 0.0, 0.0, -10.0).unwrap_err();
+        assert_eq!(
+            e,
+            StepError::NoChange {
+                y0: 0.0,
+                y_final: 0.0,
+                du: -10.0
+            }
+        );
+        // 0, not -0 (which JSON and the CLI would print as -0)
+        assert!(e.dc_gain() == 0.0 && e.dc_gain().is_sign_positive());
+        assert!(
+            e.to_string()
+                .contains("zero final change (0 -> 0, DC gain 0)"),
+            "{e}"
+        );
+        // rounding of the steady states (1e-12 of the value) has a gain, but no direction
+        let e = StepMetrics::compute(&t, &y, 1.0, 2.0, 2.0 + 2e-12, 0.5).unwrap_err();
+        assert!((e.dc_gain() / 4e-12 - 1.0).abs() < 1e-3, "{e}");
+        assert!(e.to_string().contains("DC gain 4.000"), "{e}");
+        // no input change: no gain either
+        let e = StepMetrics::compute(&t, &y, 1.0, 0.0, 1.0, 0.0).unwrap_err();
+        assert!(matches!(e, StepError::Zero { .. }) && e.dc_gain().is_nan());
     }
 
     #[test]

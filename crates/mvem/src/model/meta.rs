@@ -115,6 +115,22 @@ pub fn unit(name: &str) -> &'static str {
     variable(name).map_or("", |v| v.unit)
 }
 
+/// The unit of a gain `output -> input` from the two variables' units: `out/in`, `1` for a
+/// dimensionless output, the input's unit in parentheses when it holds a `/` (`kg/s/%`,
+/// `Pa/(mg/cycle)`, `1/%`, `kg/s`). The explorer's page forms the same text.
+pub fn gain_unit(out_unit: &str, in_unit: &str) -> String {
+    let o = if out_unit.is_empty() || out_unit == "-" {
+        "1"
+    } else {
+        out_unit
+    };
+    match in_unit {
+        "" | "-" => o.to_string(),
+        i if i.contains('/') => format!("{o}/({i})"),
+        i => format!("{o}/{i}"),
+    }
+}
+
 /// The signal `name` (not a state).
 pub fn signal(name: &str) -> Option<&'static VarMeta> {
     Signals::META.iter().find(|v| v.name == name)
@@ -185,6 +201,14 @@ pub fn state_from_named<const N: usize>(
 mod tests {
     use super::*;
     use crate::model::{Drive, STATE_NAMES_10, STATE_NAMES_12, STATE_NAMES_8};
+
+    #[test]
+    fn gain_units_read_as_output_per_input() {
+        assert_eq!(gain_unit(unit("W_c"), unit("u_vgt")), "kg/s/%");
+        assert_eq!(gain_unit(unit("p_im"), unit("u_delta")), "Pa/(mg/cycle)");
+        assert_eq!(gain_unit(unit("x_egr"), unit("u_egr")), "1/%");
+        assert_eq!(gain_unit(unit("W_c"), "-"), "kg/s");
+    }
 
     #[test]
     fn every_variable_of_every_variant_has_a_unit_and_description() {
