@@ -624,8 +624,8 @@
   }
 
   function showMargins(j, tuning = "") {
-    const p = j.operating_point;
-    $("#margins-summary").textContent = `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${j.model_states} states: every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}${tuning}`;
+    // (the point, model and parameter set are on the #margins-at line above)
+    $("#margins-summary").textContent = `every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}${tuning}`;
     $("#margins-summary").dataset.stable = String(j.stable);
     const hz = (f) => `${Number(f.toPrecision(4))} Hz`;
     const rows = [];
