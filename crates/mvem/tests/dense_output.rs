@@ -78,3 +78,32 @@ fn a_slow_egr_sweep_is_accurate_between_the_step_ends() {
     );
     assert!(worst < 1e-4, "{worst:e}");
 }
+
+/// An output sample at a jump of a command is the value after the jump, whatever the output
+/// grid: u_vgt's jump at t = 1 s is a stop time only after the VGT actuator's delay, so the
+/// sample at 1 s lies inside a segment, where the command was read from whichever schedule
+/// piece the lookup cache held (75 % with samples every 5 ms, the piece before, 65 % with one
+/// every second). The states do not see the undelayed command, so only its column moved.
+#[test]
+fn a_sample_at_a_command_jump_is_its_right_limit_on_every_grid() {
+    let m = Engine8::published();
+    let before = Drive::new(1500.0, 110.0, 80.0, 75.0);
+    let sched = InputSchedule::steps(before, &[(1.0, 3, 65.0)]).unwrap();
+    let x0 = steady_state(&m, &before).unwrap().x;
+    let mut w_c = Vec::new();
+    for dt_out in [0.005, 0.01, 0.1, 0.25, 1.0] {
+        let o = SimOptions {
+            dt_out,
+            ..SimOptions::default()
+        };
+        let sol = simulate(&m, &sched, 0.0, 3.0, Start::State(x0), &o).unwrap();
+        let i = sol.t().iter().position(|&t| t == 1.0).unwrap();
+        assert_eq!(sol.get("u_vgt").unwrap()[i], 65.0, "dt_out {dt_out}");
+        assert_eq!(sol.get("u_vgt").unwrap()[i - 1], 75.0, "dt_out {dt_out}");
+        w_c.push(sol.get("W_c").unwrap()[i]);
+    }
+    // the states at the jump (continuous) agree on every grid
+    for w in &w_c {
+        assert!((w - w_c[0]).abs() <= 1e-12 * w_c[0], "{w_c:?}");
+    }
+}

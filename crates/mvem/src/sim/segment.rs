@@ -211,12 +211,17 @@ impl<'a> SegmentInputs<'a> {
         if let Some(line) = self.linear[k] {
             return (tq, line);
         }
+        // a cached piece serves the times inside it and its start, not its end: at a
+        // breakpoint the search's `Side::Right` decides (the piece that starts there), so the
+        // value at a jump is the right limit whichever piece the cache held (it was the left
+        // one after a lookup just before, e.g. output samples every 5 ms up to a jump of an
+        // input that is a stop time only after its delay)
         let p0 = &self.pieces[k][0];
-        if p0.0 <= tq && tq <= p0.1 {
+        if p0.0 <= tq && tq < p0.1 {
             return (tq, (p0.2, p0.3, p0.4));
         }
         let p1 = &self.pieces[k][1];
-        let pc = if p1.0 <= tq && tq <= p1.1 {
+        let pc = if p1.0 <= tq && tq < p1.1 {
             *p1
         } else {
             self.sched
