@@ -153,6 +153,40 @@ fn simulate_csv_with_png_plot_and_initial_state() {
         stderr(&o)
     );
     assert!(!d.path().join("o2.csv").exists());
+
+    // a state outside the integrator limits is clipped with a warning naming it (the message
+    // Python's x0 warns with too: mvem::model::start_clip_warnings)
+    let mut high = state.clone();
+    high.insert("p_im".into(), serde_json::json!(1e8));
+    std::fs::write(
+        d.path().join("high.json"),
+        serde_json::to_string(&high).unwrap(),
+    )
+    .unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "simulate",
+            "--inputs",
+            "in.csv",
+            "--out",
+            "o3.csv",
+            "--initial-state",
+            "high.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let warning = stderr(&o)
+        .lines()
+        .find(|l| l.contains("integrator limits"))
+        .map(str::to_string);
+    assert!(
+        warning.as_deref().is_some_and(|w| w.starts_with(
+            "warning: high.json: field p_im: 100000000 is outside the integrator limits ["
+        ) && w.contains("]: the simulation starts from ")),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// Run `mvem` with `args` twice in `dir`, streaming (`--out streamed.csv`) and writing after a
