@@ -1450,12 +1450,24 @@ mod tests {
             e.message
         );
         assert_eq!(f.time(), 1e17);
+        // a step to beyond mvem::sim::MAX_TIME (1e9 s) is refused before any integration
+        // (QA: an absurd horizon ran for minutes in the library), the instance unchanged
         let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
         f.setup_experiment(None, 0.0, None).unwrap();
         f.enter_initialization().unwrap();
         f.exit_initialization().unwrap();
-        let r = f.do_step(0.0, 1e308);
-        assert!(r.is_ok(), "{:?}", r.err().map(|e| e.message));
+        let e = f.do_step(0.0, 1e308).unwrap_err();
+        assert!(
+            e.message.contains("end time 1e308 s is beyond the 1e9 s"),
+            "{}",
+            e.message
+        );
+        assert_eq!(f.time(), 0.0);
+        f.do_step(0.0, 1.0).unwrap();
+        let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+        f.setup_experiment(None, 1e308, None).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
         let e = f.do_step(1e308, f64::MAX).unwrap_err(); // past the largest finite time
         assert!(
             e.message.contains("does not advance the time"),
