@@ -83,6 +83,12 @@ def test_model_description_structure(fmu):
     assert [d.variable.name for d in md.derivatives] == [
         "der(p_im)", "der(p_em)", "der(X_Oim)", "der(X_Oem)", "der(omega_t)",
         "der(u_egr1)", "der(u_egr2)", "der(u_vgt_act)"]
+    # the derivatives carry their state's unit per second (QA: they had none)
+    units = {u.name: u for u in md.unitDefinitions}
+    for x, dx in [("p_im", "Pa/s"), ("X_Oim", "1/s"), ("omega_t", "rad/s2"),
+                  ("u_vgt_act", "%/s")]:
+        assert names[f"der({x})"].unit == dx, x
+        assert units[dx].baseUnit.s == units[names[x].unit].baseUnit.s - 1, x
     tau = names["vgt_actuator.tau_dvgt"]
     assert tau.causality == "parameter" and tau.variability == "tunable"
     assert "[s]" in tau.description

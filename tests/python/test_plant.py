@@ -103,3 +103,36 @@ def test_out_of_range_commands_are_clamped_with_a_warning():
     }
     with pytest.warns(UserWarning, match=r"simulate: u_delta_mg leaves \[1, 250\] first at t = 0\.73684\d* s \(values from 300 to 300\)"):
         mvem.simulate(rows, dt=0.5)
+
+
+def test_a_plant_shared_by_threads_serializes_its_steps():
+    """QA: a Plant stepped from several threads raised RuntimeError "Already borrowed" (the
+    GIL is released while it integrates). Its calls are serialized: every step of every
+    thread runs, each returns the outputs of its own step, and the plant ends where one
+    thread doing all the steps ends (the commands alternate identically in both)."""
+    import threading
+
+    shared = mvem.Plant(1500.0, 110.0, 80.0, 75.0)
+    errors, outs = [], []
+
+    def run():
+        try:
+            for _ in range(40):
+                out = shared.step(0.01, u_vgt=70.0)
+                outs.append(out["W_c"])
+                _ = shared.state, shared.t, shared.commands, shared.delayed_commands
+        except Exception as e:  # noqa: BLE001 - collected and asserted below
+            errors.append(e)
+
+    threads = [threading.Thread(target=run) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    assert len(outs) == 160
+    assert shared.t == pytest.approx(1.6, abs=1e-9)
+    alone = mvem.Plant(1500.0, 110.0, 80.0, 75.0)
+    for _ in range(160):
+        alone.step(0.01, u_vgt=70.0)
+    np.testing.assert_allclose(shared.state, alone.state, rtol=1e-12)

@@ -509,3 +509,68 @@ def test_frequency_response_with_exact_delays(mvem_cli):
     for bad, msg in [([1.0, 0.5], "strictly increasing"), ([float("nan")], "f_hz"), ([], "points")]:
         with pytest.raises(ValueError, match=msg):
             mvem.frequency_response(1500, 110, 80, 75, bad)
+
+
+def test_x0_outside_the_integrator_limits_warns_naming_state_value_and_limit():
+    """QA: x0 outside the integrator limits was clipped silently; simulate warns as the CLI's
+    `simulate --initial-state` does (one UserWarning per state) and starts from the limit."""
+    m = mvem.Model()
+    s = mvem.steady(*POINT)
+    x0 = {n: s[n] for n in m.state_names}
+    x0["p_im"] = 1e8
+    with pytest.warns(UserWarning) as rec:
+        r = mvem.simulate(STEP, x0=x0)
+    msgs = [str(w.message) for w in rec if "x0" in str(w.message)]
+    assert len(msgs) == 1
+    assert msgs[0].startswith("simulate: x0: p_im: 100000000 is outside the integrator limits [")
+    hi = float(msgs[0].split(", ")[1].split("]")[0])
+    assert r["p_im"][0] == hi and msgs[0].endswith(f"the simulation starts from {msgs[0].split()[-1]}")
+    # inside the limits: no warning
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mvem.simulate(STEP, x0={n: s[n] for n in m.state_names})
+
+
+@pytest.mark.parametrize("call,msg", [
+    (lambda: mvem.simulate(STEP, time_parallel=-1), "time_parallel = -1: expected an integer in [1, 256]"),
+    (lambda: mvem.simulate(STEP, time_parallel=2**70), "time_parallel = 1180591620717411303424"),
+    (lambda: mvem.linearize(*POINT, pade_order=-1), "pade_order = -1: expected an integer in [0, 3]"),
+    (lambda: mvem.simulate_many([STEP], threads=-1), "threads = -1: expected an integer in [1, 1024]"),
+    (lambda: mvem.steady(*POINT, model=-2**70), "model = -1180591620717411303424: expected 8, 10 or 12"),
+    (lambda: mvem.Plant(*POINT, model=2**64), "model = 18446744073709551616"),
+    (lambda: mvem.Model(model=-1), "model = -1"),
+])
+def test_integer_arguments_out_of_range_raise_value_error(call, msg):
+    """QA: negative (or huge) ints gave OverflowError; every integer argument raises ValueError
+    naming the argument, the value and the allowed values."""
+    with pytest.raises(ValueError) as e:
+        call()
+    assert str(e.value).startswith(msg), str(e.value)
+    assert not isinstance(e.value, OverflowError)
+
+
+def test_indexed_parameters_are_one_based_everywhere():
+    """parameters() names elements 1-based (cylinder.c_vol[1] is c_vol1, as the FMU and
+    `mvem params show`); params overrides take those names, refuse index 0 saying which element
+    is meant, and validation messages name elements the same way."""
+    names = {p["path"]: p for p in mvem.parameters()}
+    assert names["cylinder.c_vol[1]"]["symbol"] == "c_vol1"
+    c_vol = mvem.published_params()["cylinder"]["c_vol"]
+    a = mvem.steady(*POINT, params={"cylinder.c_vol[3]": c_vol[2] * 1.01})
+    b = mvem.steady(*POINT, params={"cylinder": {"c_vol": [c_vol[0], c_vol[1], c_vol[2] * 1.01]}})
+    assert a["W_c"] == b["W_c"] != mvem.steady(*POINT)["W_c"]
+    with pytest.raises(ValueError, match=r"cylinder.c_vol\[0\]`: indices are 1-based.*"
+                                         r"cylinder.c_vol\[1\] \(c_vol1\)"):
+        mvem.steady(*POINT, params={"cylinder.c_vol[0]": 1.0})
+    with pytest.raises(ValueError, match=r"egr_valve.c_egr\[1\] = 1: c_egr1 must be < 0"):
+        mvem.steady(*POINT, params={"egr_valve.c_egr[1]": 1.0})
+
+
+def test_an_absurd_horizon_is_refused_at_once():
+    """QA: t_end = 1e300 s with a coarse output grid ran for minutes before failing."""
+    import time
+    t = time.perf_counter()
+    with pytest.raises(ValueError, match=r"^end time 1e300 s is beyond the 1e9 s"):
+        mvem.simulate(STEP, t_end=1e300, dt=1e299)
+    assert time.perf_counter() - t < 2.0

@@ -171,3 +171,43 @@ def test_ctrl_c_stops_a_long_single_run(call, ctrl_c):
     # the signal at 10 % of the run; without the integrator's check the call ran to its end
     assert elapsed < 0.6 * t_full, (elapsed, t_full)
     assert last(run()) == last(full)
+
+
+def test_on_error_return_gives_bad_parameters_and_start_states_their_slot():
+    """QA: on_error="return" raised for an invalid parameter value of one run. Each run whose
+    parameters, inputs or x0 cannot be used comes back as its ValueError ("run i: ..."), the
+    others are run; with "raise" the first such run is raised before any run starts."""
+    m = mvem.Model()
+    s = mvem.steady(1500.0, 110.0, 80.0, 75.0)
+    x_ss = [s[n] for n in m.state_names]
+    inputs = [vgt_step(65.0), vgt_step(60.0), {"time_s": [0.0, 1.0]}, vgt_step(55.0),
+              vgt_step(50.0)]
+    params = [None, {"cylinder.n_cyl": 6.5}, None, {"cylinder.c_vol[0]": 1.0}, None]
+    x0 = [None, None, None, None, x_ss[:7]]
+    out = mvem.simulate_many(inputs, params=params, x0=x0, on_error="return", threads=2)
+    assert len(out) == 5
+    assert_same(out[0], mvem.simulate(inputs[0]))
+    assert isinstance(out[1], ValueError)
+    assert str(out[1]).startswith("run 1: invalid parameters: 1 invalid parameter(s):")
+    assert "cylinder.n_cyl = 6.5: a number of cylinders must be a whole number" in str(out[1])
+    assert isinstance(out[2], ValueError) and str(out[2]).startswith(
+        "run 2: inputs: missing column `n_e_rpm`")
+    assert isinstance(out[3], ValueError) and str(out[3]).startswith(
+        "run 3: parameter `cylinder.c_vol[0]`: indices are 1-based")
+    assert isinstance(out[4], ValueError) and "run 4: x0: expected 8 values" in str(out[4])
+    with pytest.raises(ValueError, match=r"^run 1: invalid parameters"):
+        mvem.simulate_many(inputs, params=params, x0=x0)
+    # a parameter set shared by every run is the call's error, whatever on_error
+    with pytest.raises(ValueError, match=r"^invalid parameters"):
+        mvem.simulate_many(inputs[:1], params={"cylinder.n_cyl": 6.5}, on_error="return")
+
+
+def test_start_states_outside_the_limits_warn_per_run():
+    m = mvem.Model()
+    s = mvem.steady(1500.0, 110.0, 80.0, 75.0)
+    x = {n: s[n] for n in m.state_names}
+    x["omega_t"] = 1e9
+    with pytest.warns(UserWarning, match=r"^simulate_many run 1: x0: omega_t: 1000000000 is "
+                                         r"outside the integrator limits \[10.47"):
+        out = mvem.simulate_many([vgt_step(65.0)] * 2, x0=[None, x])
+    assert out[1]["omega_t"][0] == pytest.approx(20943.951023931953, rel=1e-12)

@@ -56,6 +56,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
                     SimError::BadOption { .. }
                         | SimError::BadCommand { .. }
                         | SimError::BadInterval { .. }
+                        | SimError::BadHorizon { .. }
                 )
             )
             || matches!(
@@ -418,7 +419,8 @@ pub fn check_output_path(path: &Path, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Refuse an output grid with more than [`mvem::sim::MAX_ROWS`] rows before simulating.
+/// Refuse an output grid with more than [`mvem::sim::MAX_ROWS`] rows, or a time beyond
+/// [`mvem::sim::MAX_TIME`] ([`mvem::sim::check_horizon`]), before simulating.
 pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
     use mvem::sim::MAX_ROWS;
     let n = (t_end - t0) / dt + 1.0;
@@ -431,7 +433,7 @@ pub fn check_samples(t0: f64, t_end: f64, dt: f64) -> Result<()> {
             num(t_end)
         )));
     }
-    Ok(())
+    mvem::sim::check_horizon(t0, t_end, dt).map_err(|e| usage(e.to_string()))
 }
 
 /// Unit of a state, signal or input column, for tables and axis labels (the core's metadata,

@@ -153,6 +153,40 @@ fn simulate_csv_with_png_plot_and_initial_state() {
         stderr(&o)
     );
     assert!(!d.path().join("o2.csv").exists());
+
+    // a state outside the integrator limits is clipped with a warning naming it (the message
+    // Python's x0 warns with too: mvem::model::start_clip_warnings)
+    let mut high = state.clone();
+    high.insert("p_im".into(), serde_json::json!(1e8));
+    std::fs::write(
+        d.path().join("high.json"),
+        serde_json::to_string(&high).unwrap(),
+    )
+    .unwrap();
+    let o = mvem(
+        d.path(),
+        &[
+            "simulate",
+            "--inputs",
+            "in.csv",
+            "--out",
+            "o3.csv",
+            "--initial-state",
+            "high.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let warning = stderr(&o)
+        .lines()
+        .find(|l| l.contains("integrator limits"))
+        .map(str::to_string);
+    assert!(
+        warning.as_deref().is_some_and(|w| w.starts_with(
+            "warning: high.json: field p_im: 100000000 is outside the integrator limits ["
+        ) && w.contains("]: the simulation starts from ")),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// Run `mvem` with `args` twice in `dir`, streaming (`--out streamed.csv`) and writing after a
@@ -426,7 +460,7 @@ fn bad_inputs_exit_2_with_location_and_no_output() {
         );
     }
 
-    let opt_cases: [(&str, &[&str], &str); 6] = [
+    let opt_cases: [(&str, &[&str], &str); 7] = [
         (
             "rtol 0",
             &["--scenario", "vgt-step-nmp", "--rtol", "0"],
@@ -451,6 +485,19 @@ fn bad_inputs_exit_2_with_location_and_no_output() {
             "end before start",
             &["--scenario", "vgt-step-nmp", "--t-end", "-3"],
             "end time -3 s must be after the first input time 0 s",
+        ),
+        (
+            // QA: ran for minutes before failing; refused at once (the library's MAX_TIME)
+            "absurd horizon",
+            &[
+                "--scenario",
+                "vgt-step-nmp",
+                "--t-end",
+                "1e300",
+                "--dt",
+                "1e299",
+            ],
+            "error: end time 1e300 s is beyond the 1e9 s (about 31.7 years)",
         ),
         (
             "bad figure type",
@@ -609,6 +656,20 @@ fn params_show_and_check() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("exhaust_pipe.h_tot = nan: not a finite number"),
+        "{}",
+        stderr(&o)
+    );
+    // elements are named 1-based, as `params show` (c_vol1..3) and the registry name them
+    let c = p.lines().find(|l| l.starts_with("c_vol = ")).unwrap();
+    std::fs::write(
+        d.path().join("v.toml"),
+        p.replace(c, "c_vol = [nan, -0.0034, 1.15]"),
+    )
+    .unwrap();
+    let o = mvem(d.path(), &["params", "check", "v.toml"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cylinder.c_vol[1] = nan: not a finite number"),
         "{}",
         stderr(&o)
     );

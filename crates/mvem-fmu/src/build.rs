@@ -29,6 +29,12 @@ const UNITS: &[(&str, f64, [i32; 5])] = &[
     ("J/(kg.K)", 1.0, [0, 2, -2, -1, 0]),
     ("J/kg", 1.0, [0, 2, -2, 0, 0]),
     ("W/(m2.K)", 1.0, [1, 0, -3, -1, 0]),
+    // the states' time derivatives ([`der_unit`])
+    ("Pa/s", 1.0, [1, -1, -3, 0, 0]),
+    ("K/s", 1.0, [0, 0, -1, 1, 0]),
+    ("1/s", 1.0, [0, 0, -1, 0, 0]),
+    ("rad/s2", 1.0, [0, 0, -2, 0, 1]),
+    ("%/s", 0.01, [0, 0, -1, 0, 0]),
 ];
 
 /// The FMI unit of a unit of the core's metadata (`None` for the few without a definition
@@ -45,6 +51,17 @@ fn fmi_unit(unit: &str) -> Option<&'static str> {
         u => u,
     };
     UNITS.iter().map(|(n, ..)| *n).find(|n| *n == u)
+}
+
+/// The FMI unit of the time derivative of a quantity in the FMI unit `unit` (`Pa` -> `Pa/s`,
+/// `1` -> `1/s`, `rad/s` -> `rad/s2`), declared in [`UNITS`]; `None` if it is not.
+fn der_unit(unit: &str) -> Option<&'static str> {
+    let d = match unit {
+        "1" => "1/s".to_string(),
+        u if u.ends_with("/s") => format!("{u}2"),
+        u => format!("{u}/s"),
+    };
+    UNITS.iter().map(|(n, ..)| *n).find(|n| *n == d)
 }
 
 /// A description with the unit appended, e.g. `Turbocharger inertia J_t (eq. (42)) [kg m^2]`.
@@ -106,15 +123,22 @@ fn rows(cfg: &FmuConfig) -> Vec<Row> {
         });
     }
     for (i, name) in layout.states.iter().enumerate() {
+        // the state's unit per second (QA: the derivatives had no unit)
+        let unit = meta::state(name)
+            .and_then(|v| fmi_unit(v.unit))
+            .and_then(der_unit);
         rows.push(Row {
             vr: vars::VR_DER + i as u32,
             name: format!("der({name})"),
-            description: format!("Time derivative of {name} [per second]"),
+            description: format!(
+                "Time derivative of {name} [{}]",
+                unit.unwrap_or("per second")
+            ),
             causality: "local",
             variability: "continuous",
             initial: Some("calculated"),
             start: None,
-            unit: None,
+            unit,
             derivative_of: Some(i),
         });
     }
@@ -378,6 +402,52 @@ mod tests {
         // every parameter has a description
         assert!(!x.contains(r#"description="" causality="parameter""#));
         assert!(x.contains("<ModelExchange "));
+    }
+
+    /// QA: the der(x) variables had no unit. Each has its state's unit per second, declared in
+    /// the UnitDefinitions with the state unit's base units and factor, the second's exponent
+    /// one lower; for every variant.
+    #[test]
+    fn derivatives_have_the_state_unit_per_second() {
+        use mvem::model::ModelOrder;
+        let def = |u: &str| UNITS.iter().find(|d| d.0 == u).map(|d| (d.1, d.2));
+        for order in [ModelOrder::Eight, ModelOrder::Ten, ModelOrder::Twelve] {
+            let cfg = FmuConfig {
+                order,
+                ..FmuConfig::default()
+            };
+            let rows = rows(&cfg);
+            let n = cfg.layout().n_states() as u32;
+            let states: Vec<&Row> = rows
+                .iter()
+                .filter(|r| (vars::VR_STATE..vars::VR_STATE + n).contains(&r.vr))
+                .collect();
+            let ders: Vec<&Row> = rows.iter().filter(|r| r.derivative_of.is_some()).collect();
+            assert_eq!(ders.len(), cfg.layout().n_states());
+            assert_eq!(states.len(), ders.len());
+            for (d, x) in ders.iter().zip(&states) {
+                assert_eq!(d.name, format!("der({})", x.name));
+                let (xu, du) = (
+                    x.unit.unwrap(),
+                    d.unit.unwrap_or_else(|| panic!("{}", d.name)),
+                );
+                let ((fx, ex), (fd, ed)) = (def(xu).unwrap(), def(du).unwrap());
+                assert_eq!(fd, fx, "{du} vs {xu}");
+                let mut want = ex;
+                want[2] -= 1;
+                assert_eq!(ed, want, "{du} vs {xu}");
+                assert!(
+                    d.description.ends_with(&format!("[{du}]")),
+                    "{}",
+                    d.description
+                );
+            }
+            let x = model_description(&cfg);
+            assert!(x.contains(r#"name="der(p_im)""#));
+            assert!(x.contains(r#"<Unit name="Pa/s"><BaseUnit kg="1" m="-1" s="-3"/></Unit>"#));
+            assert!(x.contains(r#"<Unit name="%/s"><BaseUnit s="-1" factor="1e-2"/></Unit>"#));
+            assert!(!x.contains("[per second]"));
+        }
     }
 
     #[test]

@@ -1281,6 +1281,100 @@ mod tests {
         assert!(!cfg.model_exchange());
     }
 
+    /// x_egr of a one-iteration Co-Simulation of a fuel step 110 -> 150 mg at 0.5 s in 0.01 s
+    /// communication steps with FMU tolerance `tol`, relative to the library's one-iteration
+    /// simulation at rtol `lib_rtol`: the largest relative difference over (0.5, 2] s.
+    fn one_iteration_fuel_step_difference(tol: f64, lib_rtol: f64) -> f64 {
+        let cfg = FmuConfig {
+            cylinder_temp: CylinderTemp::OneIteration,
+            ..FmuConfig::default()
+        };
+        let mut f = Instance::new(Interface::CoSimulation, &cfg);
+        f.setup_experiment(Some(tol), 0.0, Some(2.0)).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
+        let m = Engine8::new(
+            Params::published(),
+            ModelOptions {
+                cylinder_temp: CylinderTemp::OneIteration,
+                ..ModelOptions::default()
+            },
+        )
+        .unwrap();
+        let sched = InputSchedule::steps(Drive::new(1500.0, 110.0, 80.0, 75.0), &[(0.5, 1, 150.0)])
+            .unwrap();
+        let opts = SimOptions {
+            rtol: lib_rtol,
+            atol: lib_rtol,
+            ..SimOptions::default()
+        };
+        let sol = simulate_from_steady(&m, &sched, 0.0, 2.0, &opts).unwrap();
+        let lib = sol.get("x_egr").unwrap();
+        let mut worst: f64 = 0.0;
+        for k in 0..200 {
+            if k == 50 {
+                f.set_real(&[VR_INPUT + 1], &[150.0]).unwrap();
+            }
+            f.do_step(k as f64 * 0.01, 0.01).unwrap();
+            let mut x_egr = [0.0];
+            f.get_real(&[vr_signal("x_egr")], &mut x_egr).unwrap();
+            if k >= 50 {
+                worst = worst.max((x_egr[0] / lib[k + 1] - 1.0).abs());
+            }
+        }
+        worst
+    }
+
+    /// QA: after a fuel step the one-iteration Co-Simulation's x_egr was 4.9e-4 off the
+    /// library's, where the docs said about 1e-5. The iterate is carried between fmi2DoStep
+    /// calls as the library carries it between steps: at tolerance 1e-9 both agree to 2e-5
+    /// (measured 3.7e-6; with the carry removed, each communication step starting from the
+    /// converged fixed point, 1.05e-4: the test fails). At the default 1e-6 the one-iteration
+    /// solution itself depends on the step sizes (the iterate lags one iteration per accepted
+    /// step, and the fuel step moves its fixed point): 1.09e-3 here, about as much as the
+    /// library at rtol 1e-6 differs from itself at 1e-9 (1.2e-3; docs/fmu-python.md).
+    #[test]
+    fn one_iteration_co_simulation_follows_a_fuel_step() {
+        let tight = one_iteration_fuel_step_difference(1e-9, 1e-9);
+        assert!(tight < 2e-5, "{tight:e}");
+        let default = one_iteration_fuel_step_difference(1e-6, 1e-9);
+        assert!(default < 3e-3, "{default:e}");
+        eprintln!("one-iteration fuel step x_egr: {tight:e} (1e-9), {default:e} (1e-6)");
+    }
+
+    /// QA: the FMU accepted non-integer counts. n_cyl = 6.5 and n_pipe = 1.5 are refused at
+    /// fmi2ExitInitializationMode, and during a run at fmi2SetReal (the previous value kept),
+    /// with a message naming the parameter (logged by the C ABI).
+    #[test]
+    fn non_integer_counts_are_refused() {
+        for (name, v, what) in [
+            ("cylinder.n_cyl", 6.5, "cylinders"),
+            ("exhaust_pipe.n_pipe", 1.5, "pipes"),
+        ] {
+            let vr = VR_PARAM
+                + vars::param_table()
+                    .iter()
+                    .position(|p| p.path == name)
+                    .unwrap() as u32;
+            let msg = format!("{name} = {v}: a number of {what} must be a whole number");
+            let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+            f.setup_experiment(None, 0.0, None).unwrap();
+            f.enter_initialization().unwrap();
+            f.set_real(&[vr], &[v]).unwrap();
+            let e = f.exit_initialization().unwrap_err();
+            assert!(e.message.contains(&msg), "{}", e.message);
+            let mut g = started(Interface::CoSimulation);
+            let mut old = [0.0];
+            g.get_real(&[vr], &mut old).unwrap();
+            let e = g.set_real(&[vr], &[v]).unwrap_err();
+            assert!(e.message.contains(&msg), "{}", e.message);
+            let mut now = [0.0];
+            g.get_real(&[vr], &mut now).unwrap();
+            assert_eq!(now, old);
+            g.do_step(0.0, 0.1).unwrap();
+        }
+    }
+
     #[test]
     fn delayed_jump_is_announced_as_time_event() {
         let mut f = started(Interface::ModelExchange);
@@ -1356,12 +1450,24 @@ mod tests {
             e.message
         );
         assert_eq!(f.time(), 1e17);
+        // a step to beyond mvem::sim::MAX_TIME (1e9 s) is refused before any integration
+        // (QA: an absurd horizon ran for minutes in the library), the instance unchanged
         let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
         f.setup_experiment(None, 0.0, None).unwrap();
         f.enter_initialization().unwrap();
         f.exit_initialization().unwrap();
-        let r = f.do_step(0.0, 1e308);
-        assert!(r.is_ok(), "{:?}", r.err().map(|e| e.message));
+        let e = f.do_step(0.0, 1e308).unwrap_err();
+        assert!(
+            e.message.contains("end time 1e308 s is beyond the 1e9 s"),
+            "{}",
+            e.message
+        );
+        assert_eq!(f.time(), 0.0);
+        f.do_step(0.0, 1.0).unwrap();
+        let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+        f.setup_experiment(None, 1e308, None).unwrap();
+        f.enter_initialization().unwrap();
+        f.exit_initialization().unwrap();
         let e = f.do_step(1e308, f64::MAX).unwrap_err(); // past the largest finite time
         assert!(
             e.message.contains("does not advance the time"),

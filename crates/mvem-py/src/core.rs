@@ -68,7 +68,16 @@ pub fn parameters() -> Vec<(String, &'static str, &'static str, String, f64)> {
         .collect()
 }
 
-fn merge(base: &mut Value, over: &Value, path: &str) -> CoreResult<()> {
+/// Merge the overrides `over` into the parameter document `base` (at `path`). A key with an
+/// index (`c_vol[1]`, `q_c[1][2]`: one element, named as the registry names it) is not merged
+/// but collected in `elements` with its full path, to be set on the parsed set
+/// ([`set_element`]).
+fn merge(
+    base: &mut Value,
+    over: &Value,
+    path: &str,
+    elements: &mut Vec<(String, Value)>,
+) -> CoreResult<()> {
     match (base, over) {
         (Value::Object(b), Value::Object(o)) => {
             for (k, v) in o {
@@ -81,16 +90,25 @@ fn merge(base: &mut Value, over: &Value, path: &str) -> CoreResult<()> {
                 if let Some((head, rest)) = k.split_once('.') {
                     let mut nested = serde_json::Map::new();
                     nested.insert(rest.to_string(), v.clone());
+                    let head_path = if path.is_empty() {
+                        head.to_string()
+                    } else {
+                        format!("{path}.{head}")
+                    };
                     let slot = b
                         .get_mut(head)
                         .ok_or_else(|| CoreError::Value(format!("unknown parameter `{p}`")))?;
-                    merge(slot, &Value::Object(nested), head)?;
+                    merge(slot, &Value::Object(nested), &head_path, elements)?;
+                    continue;
+                }
+                if k.contains('[') {
+                    elements.push((p, v.clone()));
                     continue;
                 }
                 let slot = b
                     .get_mut(k)
                     .ok_or_else(|| CoreError::Value(format!("unknown parameter `{p}`")))?;
-                merge(slot, v, &p)?;
+                merge(slot, v, &p, elements)?;
             }
             Ok(())
         }
@@ -108,8 +126,50 @@ fn merge(base: &mut Value, over: &Value, path: &str) -> CoreResult<()> {
     }
 }
 
-/// Parameters: the published set with the overrides of `json` (nested `{group: {field: v}}` or
-/// dotted `{"group.field": v}`), validated.
+/// Set the element `path` (`cylinder.c_vol[1]`: a path of the parameter registry, indices
+/// 1-based as in [`parameters`], the FMU and `mvem params show`'s c_vol1) of `p` to `v`. An
+/// index 0 or past the end is refused with the field's element names.
+fn set_element(p: &mut Params, path: &str, v: &Value) -> CoreResult<()> {
+    let x = v.as_f64().ok_or_else(|| {
+        CoreError::Value(format!("parameter `{path}`: expected a number, got {v}"))
+    })?;
+    let reg = Params::registry();
+    if let Some(slot) = reg
+        .iter()
+        .find(|i| i.path == path)
+        .and_then(|i| p.value_mut(i))
+    {
+        *slot = x;
+        return Ok(());
+    }
+    let field = path.split('[').next().unwrap_or(path);
+    let of_field: Vec<&mvem::params::ParamInfo> = reg
+        .iter()
+        .filter(|i| field.split_once('.') == Some((i.group, i.field)))
+        .collect();
+    let (Some(first), Some(last)) = (of_field.first(), of_field.last()) else {
+        return Err(CoreError::Value(format!("unknown parameter `{path}`")));
+    };
+    let zero = path.contains("[0]");
+    Err(CoreError::Value(format!(
+        "parameter `{path}`: {}; `{field}` has the elements {}{}",
+        if zero {
+            "indices are 1-based, as parameters(), the FMU and `mvem params show` name them"
+        } else {
+            "no such element"
+        },
+        first.path,
+        if of_field.len() > 1 {
+            format!(" ({}) to {} ({})", first.symbol, last.path, last.symbol)
+        } else {
+            String::new()
+        }
+    )))
+}
+
+/// Parameters: the published set with the overrides of `json` (nested `{group: {field: v}}`,
+/// dotted `{"group.field": v}`, or one element by its registry path `{"cylinder.c_vol[1]": v}`,
+/// 1-based), validated.
 pub fn params_from_overrides(json: &str) -> CoreResult<Params> {
     let over: Value = serde_json::from_str(json)
         .map_err(|e| CoreError::Value(format!("params: not a JSON-like mapping: {e}")))?;
@@ -119,9 +179,13 @@ pub fn params_from_overrides(json: &str) -> CoreResult<Params> {
         ));
     }
     let mut doc = serde_json::to_value(Params::published()).expect("parameters serialize");
-    merge(&mut doc, &over, "")?;
-    let p: Params =
+    let mut elements = Vec::new();
+    merge(&mut doc, &over, "", &mut elements)?;
+    let mut p: Params =
         serde_json::from_value(doc).map_err(|e| CoreError::Value(format!("params: {e}")))?;
+    for (path, v) in &elements {
+        set_element(&mut p, path, v)?;
+    }
     p.validate()
         .map_err(|e| CoreError::Value(format!("invalid parameters: {e}")))?;
     Ok(p)
@@ -260,7 +324,8 @@ pub enum StartState {
 
 /// [`simulate_rows`] from the state `x0` at the first input time (None: the steady state of the
 /// first inputs). The command history before the first row is that row (the delayed commands
-/// start there). The state must be finite; the integrator clips it into the authors' limits.
+/// start there). The state must be finite; the integrator clips it into the authors' limits
+/// (a caller warns of that with [`start_state_warnings`]).
 pub fn simulate_rows_from(
     rows: &[[f64; 5]],
     args: SimArgs,
@@ -282,6 +347,21 @@ pub fn simulate_rows_from(
         }
     })?;
     Ok((sol.names, sol.columns))
+}
+
+/// The warnings of a start state `x0` (checked as [`simulate_rows_from`] checks it) for the
+/// model of `params` and `variant`: one per state outside the integrator limits, which clip it
+/// ([`mvem::model::start_clip_warnings`], as `mvem simulate --initial-state` warns).
+pub fn start_state_warnings(
+    params: Option<&Params>,
+    variant: Variant,
+    x0: &StartState,
+) -> CoreResult<Vec<String>> {
+    let m = model(params.cloned(), variant)?;
+    mvem::dispatch!(&m, m => {
+        let x = start_state(m, x0)?;
+        Ok(mvem::model::start_clip_warnings(&m.state_names(), &m.state_bounds(), &x))
+    })
 }
 
 /// The state array of `x0` for model `m`: every state, finite, no unknown names
@@ -381,19 +461,29 @@ pub type Columns = (Vec<String>, Vec<Vec<f64>>);
 /// has the input rows `runs[i].0` and the parameters `runs[i].1`; its result or its error
 /// (prefixed "run i: ") is in slot `i`. The outer error is a bad option (threads, tolerances).
 pub fn simulate_many_rows(
-    runs: Vec<(Vec<[f64; 5]>, Option<Params>)>,
+    runs: Vec<Run>,
     args: SimArgs,
     variant: Variant,
     threads: Option<usize>,
 ) -> CoreResult<Vec<CoreResult<Columns>>> {
-    simulate_many_rows_from(runs, &[], args, variant, threads)
+    simulate_many_rows_from(
+        runs.into_iter().map(Ok).collect(),
+        &[],
+        args,
+        variant,
+        threads,
+    )
 }
+
+/// One run of [`simulate_many_rows`]: its input rows and parameters (`None`: published).
+pub type Run = (Vec<[f64; 5]>, Option<Params>);
 
 /// [`simulate_many_rows`] with start states: run `i` starts from `starts[i]` where that is
 /// given (`starts` may be shorter than `runs`, even empty), else from the steady state of its
-/// first inputs. A bad start state is that run's error.
+/// first inputs. A bad start state is that run's error, and so is a run given as an error (its
+/// inputs or parameters could not be read): not run, the others are.
 pub fn simulate_many_rows_from(
-    runs: Vec<(Vec<[f64; 5]>, Option<Params>)>,
+    runs: Vec<CoreResult<Run>>,
     starts: &[Option<StartState>],
     args: SimArgs,
     variant: Variant,
@@ -413,15 +503,18 @@ pub fn simulate_many_rows_from(
     let mut out: Vec<Option<CoreResult<Columns>>> = Vec::with_capacity(runs.len());
     let mut cases = Vec::new();
     let mut index = Vec::new();
-    for (i, (rows, p)) in runs.into_iter().enumerate() {
+    for (i, run) in runs.into_iter().enumerate() {
         let start = starts.get(i).and_then(Option::as_ref);
-        let checked = case(&rows, &args, p, variant).and_then(|mut c| {
-            if let Some(s) = start {
-                c.start =
-                    Some(mvem::dispatch!(&c.model, m => start_state(m, s).map(|x| x.to_vec()))?);
-            }
-            Ok(c)
-        });
+        let checked = run
+            .and_then(|(rows, p)| case(&rows, &args, p, variant))
+            .and_then(|mut c| {
+                if let Some(s) = start {
+                    c.start = Some(
+                        mvem::dispatch!(&c.model, m => start_state(m, s).map(|x| x.to_vec()))?,
+                    );
+                }
+                Ok(c)
+            });
         match checked {
             Ok(c) => {
                 cases.push(c);
@@ -448,9 +541,10 @@ pub fn simulate_many_rows_from(
 
 fn sim_error(e: SimError) -> CoreError {
     match e {
-        SimError::BadOption { .. } | SimError::BadCommand { .. } | SimError::BadInterval { .. } => {
-            CoreError::Value(e.to_string())
-        }
+        SimError::BadOption { .. }
+        | SimError::BadCommand { .. }
+        | SimError::BadInterval { .. }
+        | SimError::BadHorizon { .. } => CoreError::Value(e.to_string()),
         other => CoreError::Runtime(other.to_string()),
     }
 }
@@ -789,9 +883,9 @@ impl CorePlant {
             .step(dt, Drive::from_array(d))
             .map(|_| ())
             .map_err(|e| match e {
-                SimError::BadOption { .. } | SimError::BadCommand { .. } => {
-                    CoreError::Value(e.to_string())
-                }
+                SimError::BadOption { .. }
+                | SimError::BadCommand { .. }
+                | SimError::BadHorizon { .. } => CoreError::Value(e.to_string()),
                 other => CoreError::Runtime(other.to_string()),
             })
     }
@@ -1294,6 +1388,59 @@ mod tests {
             m_ref: vec![100.0, 100.0],
         };
         assert!(value_err(None, fast).contains("2500 rpm"));
+    }
+
+    /// QA: parameters() and the FMU name elements 1-based (`cylinder.c_vol[1]` is c_vol1) but
+    /// overrides refused those names. An element is set by its registry path; index 0 is
+    /// refused saying the indices are 1-based, an index past the end naming the elements, and
+    /// a validation message names the element 1-based.
+    #[test]
+    fn overrides_set_elements_by_their_one_based_paths() {
+        let published = Params::published();
+        let p = params_from_overrides(
+            r#"{"cylinder.c_vol[3]": 1.2, "compressor": {"q_c[1][2]": 0.5, "q_c[2][1]": 0.5}}"#,
+        )
+        .unwrap();
+        let mut c_vol = published.cylinder.c_vol;
+        c_vol[2] = 1.2;
+        assert_eq!(p.cylinder.c_vol, c_vol);
+        assert_eq!(p.compressor.q_c[0][1], 0.5);
+        assert_eq!(p.compressor.q_c[1][0], 0.5);
+        assert_eq!(p.compressor.q_c[0][0], published.compressor.q_c[0][0]);
+        // every path parameters() lists is accepted and sets that scalar
+        for (path, ..) in parameters().iter().filter(|r| r.0.contains('[')) {
+            let info = mvem::params::ParamInfo::find(path).unwrap();
+            let v = published.value(info);
+            let q = params_from_overrides(&format!(r#"{{"{path}": {v:e}}}"#)).unwrap();
+            assert_eq!(q, published, "{path}");
+        }
+        let e = params_from_overrides(r#"{"cylinder.c_vol[0]": 1.2}"#)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "parameter `cylinder.c_vol[0]`: indices are 1-based, as parameters(), the FMU and \
+             `mvem params show` name them; `cylinder.c_vol` has the elements cylinder.c_vol[1] \
+             (c_vol1) to cylinder.c_vol[3] (c_vol3)"
+        );
+        let e = params_from_overrides(r#"{"cylinder": {"c_vol[4]": 1.2}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("parameter `cylinder.c_vol[4]`: no such element"),
+            "{e}"
+        );
+        let e = params_from_overrides(r#"{"cylinder.c_vo[1]": 1.2}"#)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "unknown parameter `cylinder.c_vo[1]`");
+        let e = params_from_overrides(r#"{"egr_valve.c_egr[1]": 1.0}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("egr_valve.c_egr[1] = 1: c_egr1 must be < 0"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -6,14 +6,77 @@ use mvem::io::csv_inputs::{input_ranges, range_warnings_of_rows};
 use mvem::numerics::Num;
 use mvem::params::Params;
 use mvem::sim::input::INPUT_COLUMNS;
-use pyo3::exceptions::{PyRuntimeError, PyUserWarning, PyValueError};
+use mvem::sim::MAX_TIME_CHUNKS;
+use pyo3::exceptions::{PyOverflowError, PyRuntimeError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyByteArray, PyBytes, PyDict, PyList, PyString, PyTuple};
+use std::sync::{Mutex, PoisonError};
 
 fn to_py_err(e: CoreError) -> PyErr {
     match e {
         CoreError::Value(m) => PyValueError::new_err(m),
         CoreError::Runtime(m) => PyRuntimeError::new_err(m),
+    }
+}
+
+/// An integer argument as Python gave it: its value if it fits an i64, else its text. pyo3's
+/// conversion to an unsigned or i64 parameter raised OverflowError for `time_parallel=-1` or
+/// `model=2**70` (QA); [`IntArg::within`] raises ValueError naming the argument and the range.
+/// Anything that is not an integer (`__index__`) is a TypeError naming the argument, as before.
+enum IntArg {
+    /// A value that fits an i64.
+    Int(i64),
+    /// A larger integer, as Python prints it.
+    Big(String),
+}
+
+impl<'py> FromPyObject<'py> for IntArg {
+    fn extract_bound(ob: &Bound<'py, PyAny>) -> PyResult<Self> {
+        match ob.extract::<i64>() {
+            Ok(v) => Ok(Self::Int(v)),
+            Err(e) if e.is_instance_of::<PyOverflowError>(ob.py()) => {
+                Ok(Self::Big(ob.str()?.to_string()))
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+impl std::fmt::Display for IntArg {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Int(v) => write!(f, "{v}"),
+            Self::Big(t) => f.write_str(t),
+        }
+    }
+}
+
+impl IntArg {
+    /// The value if it lies in `lo..=hi`, else a ValueError naming `name`, the value and the
+    /// range.
+    fn within(&self, name: &str, lo: i64, hi: i64) -> PyResult<i64> {
+        match self {
+            Self::Int(v) if (lo..=hi).contains(v) => Ok(*v),
+            _ => Err(PyValueError::new_err(format!(
+                "{name} = {self}: expected an integer in [{lo}, {hi}]"
+            ))),
+        }
+    }
+
+    /// [`IntArg::within`] as a usize (`lo` >= 0).
+    fn count(&self, name: &str, lo: usize, hi: usize) -> PyResult<usize> {
+        let v = self.within(name, lo as i64, hi as i64)?;
+        Ok(usize::try_from(v).expect("within a non-negative range"))
+    }
+}
+
+/// The model variant of the arguments `model` (8, 10, 12) and `cylinder_temp`.
+fn variant_of(model: &IntArg, cylinder_temp: &str) -> PyResult<Variant> {
+    match model {
+        IntArg::Int(m) => Variant::parse(*m, cylinder_temp).map_err(to_py_err),
+        IntArg::Big(_) => Err(PyValueError::new_err(format!(
+            "model = {model}: expected 8, 10 or 12"
+        ))),
     }
 }
 
@@ -209,13 +272,14 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// cylinder_temp: "converged" (default) or "one-iteration" (the authors' Simulink Memory blocks).
 /// numeric_actuators: integrate the actuator states numerically like the other states (default
 ///     False: in closed form on each segment between input breakpoints, docs/integrator.md).
-/// time_parallel: integrate in this many time chunks at once, one thread each (default 1: the
+/// time_parallel: integrate in this many time chunks at once (1 to 256), one thread each (default 1: the
 ///     sequential run, reproducible bits); the result agrees with the sequential run to far
 ///     below the tolerance (each chunk's start is checked; docs/integrator.md).
 /// x0: start state (a dict of every state name -> value, or an array in state order; default
 ///     None: the steady state of the first input row). The commands before the first row are
-///     that row's (so are the delayed commands at the start). Clipped into the authors'
-///     integrator limits like any state.
+///     that row's (so are the delayed commands at the start). A value outside the authors'
+///     integrator limits is clipped into them, with a UserWarning naming the state, the value,
+///     the limits and the value used (as `mvem simulate --initial-state` warns).
 ///
 /// Returns a dict of numpy arrays: "t" [s], the states (8 states: p_im [Pa], p_em [Pa], X_Oim,
 /// X_Oem [-], omega_t [rad/s], u_egr1, u_egr2, u_vgt_act [%]; 10 states add T_im, T_em [K];
@@ -223,7 +287,7 @@ fn input_rows(py: Python<'_>, inputs: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 5
 /// a state is the state). Raises ValueError for bad inputs/options/parameters, RuntimeError if
 /// the solver fails.
 #[pyfunction]
-#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged", numeric_actuators=false, time_parallel=1, x0=None))]
+#[pyo3(signature = (inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=IntArg::Int(8), cylinder_temp="converged", numeric_actuators=false, time_parallel=IntArg::Int(1), x0=None), text_signature = r#"(inputs, t_end=None, dt=0.01, rtol=1e-6, atol=None, params=None, model=8, cylinder_temp="converged", numeric_actuators=False, time_parallel=1, x0=None)"#)]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
@@ -233,13 +297,14 @@ fn simulate<'py>(
     rtol: f64,
     atol: Option<f64>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     cylinder_temp: &str,
     numeric_actuators: bool,
-    time_parallel: usize,
+    time_parallel: IntArg,
     x0: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
+    let variant = variant_of(&model, cylinder_temp)?;
+    let time_parallel = time_parallel.count("time_parallel", 1, MAX_TIME_CHUNKS)?;
     let rows = input_rows(py, inputs)?;
     let p = parse_params(py, params)?;
     warn_rows_out_of_range(py, "simulate", &rows, p.as_ref())?;
@@ -247,7 +312,13 @@ fn simulate<'py>(
         time_parallel,
         ..sim_args(t_end, dt, rtol, atol, numeric_actuators)
     };
-    let start = x0.map(|x| start_state(py, x)).transpose()?;
+    let start = x0
+        .filter(|x| !x.is_none())
+        .map(|x| start_state(py, x))
+        .transpose()?;
+    if let Some(x) = &start {
+        warn_start_clipped(py, "simulate", p.as_ref(), variant, x)?;
+    }
     let cols = cancellable(py, move || {
         core::simulate_rows_from(&rows, args, p, variant, start.as_ref())
     })?
@@ -257,13 +328,15 @@ fn simulate<'py>(
 
 /// `x0` of simulate_many for `runs` runs: none, one start state for all (a dict or a 1-D
 /// array), or one per run (a list of None / dict / array, or a 2-D array with a row per run).
+/// The outer error is an `x0` that fits no run (a bad shared state, a list of the wrong length);
+/// a bad per-run entry is that run's error (its message without the "run i: " prefix).
 fn start_states(
     py: Python<'_>,
     x0: Option<&Bound<'_, PyAny>>,
     runs: usize,
-) -> PyResult<Vec<Option<core::StartState>>> {
+) -> PyResult<Vec<PyResult<Option<core::StartState>>>> {
     let Some(x0) = x0.filter(|x| !x.is_none()) else {
-        return Ok(Vec::new());
+        return Ok((0..runs).map(|_| Ok(None)).collect());
     };
     let per_run: Option<Vec<Bound<'_, PyAny>>> =
         if x0.is_instance_of::<PyList>() || x0.is_instance_of::<PyTuple>() {
@@ -284,25 +357,42 @@ fn start_states(
                 .flatten()
         };
     match per_run {
-        None => Ok(vec![Some(start_state(py, x0)?); runs]),
+        None => {
+            let x = start_state(py, x0)?;
+            Ok((0..runs).map(|_| Ok(Some(x.clone()))).collect())
+        }
         Some(items) if items.len() != runs => Err(PyValueError::new_err(format!(
             "x0: {} start states for {runs} inputs (give one per run, or one for all)",
             items.len()
         ))),
-        Some(items) => items
+        Some(items) => Ok(items
             .iter()
-            .enumerate()
-            .map(|(i, x)| {
+            .map(|x| {
                 if x.is_none() {
                     Ok(None)
                 } else {
-                    start_state(py, x)
-                        .map(Some)
-                        .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))
+                    start_state(py, x).map(Some)
                 }
             })
-            .collect(),
+            .collect()),
     }
+}
+
+/// The start state `x0` outside the integrator limits of the model of `p`, `variant` (which
+/// clip it): one `UserWarning` per state, naming it, its value, the limits and the value the
+/// run starts from, as `mvem simulate --initial-state` warns on stderr. A bad `x0` (a missing
+/// or unknown state) is the ValueError.
+fn warn_start_clipped(
+    py: Python<'_>,
+    what: &str,
+    p: Option<&Params>,
+    variant: Variant,
+    x0: &core::StartState,
+) -> PyResult<()> {
+    for w in core::start_state_warnings(p, variant, x0).map_err(to_py_err)? {
+        user_warning(py, format!("{what}: x0: {w}"))?;
+    }
+    Ok(())
 }
 
 /// `x0` of simulate: a dict of state name -> value, or an array of the states in order.
@@ -363,35 +453,39 @@ fn columns_dict(py: Python<'_>, (names, cols): core::Columns) -> PyResult<Bound<
 ///     entry (None, dict or path) per run (parameter variations: repeat the inputs).
 /// threads: worker threads (None: one per core). The GIL is released while the runs execute;
 ///     Ctrl-C (KeyboardInterrupt) stops the ensemble once the runs in progress end.
-/// on_error: "raise" (default): after all runs, raise the first failed run's error (ValueError
-///     or RuntimeError, "run i: ..."); "return": a failed run's slot holds its exception object
-///     instead of a dict, the other runs are returned as usual.
+/// on_error: "raise" (default): raise the first failed run's error (ValueError or
+///     RuntimeError, "run i: ..."; a run whose inputs, parameters or x0 are invalid is raised
+///     before any run starts, a solver failure after all runs); "return": a failed run's slot
+///     holds its exception object instead of a dict (also for invalid inputs, parameters or x0
+///     of that run), the other runs are run and returned as usual. Arguments shared by every
+///     run (options, one params or x0 for all, lists of the wrong length) raise either way.
 /// t_end, dt, rtol, atol, model, cylinder_temp, numeric_actuators: as in simulate, for every run.
 /// x0: None (each run from the steady state at its first row), one start state for every run
 ///     (a dict or a 1-D array, as in simulate), or one per run (a list of None, dicts or arrays,
-///     or a 2-D array with a row per run): scenarios from one estimated state, say.
+///     or a 2-D array with a row per run): scenarios from one estimated state, say. States
+///     outside the integrator limits are clipped with a UserWarning, as in simulate.
 ///
 /// Returns a list of dicts of numpy arrays, in the order of the inputs; each equals
 /// simulate(inputs[i], ..., x0=x0[i]) of the same arguments.
 #[pyfunction]
-#[pyo3(signature = (inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=8, cylinder_temp="converged", numeric_actuators=false, x0=None))]
+#[pyo3(signature = (inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=IntArg::Int(8), cylinder_temp="converged", numeric_actuators=false, x0=None), text_signature = r#"(inputs, params=None, threads=None, on_error="raise", t_end=None, dt=0.01, rtol=1e-6, atol=None, model=8, cylinder_temp="converged", numeric_actuators=False, x0=None)"#)]
 #[allow(clippy::too_many_arguments)]
 fn simulate_many<'py>(
     py: Python<'py>,
     inputs: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyAny>>,
-    threads: Option<i64>,
+    threads: Option<IntArg>,
     on_error: &str,
     t_end: Option<f64>,
     dt: f64,
     rtol: f64,
     atol: Option<f64>,
-    model: i64,
+    model: IntArg,
     cylinder_temp: &str,
     numeric_actuators: bool,
     x0: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyList>> {
-    let variant = Variant::parse(model, cylinder_temp).map_err(to_py_err)?;
+    let variant = variant_of(&model, cylinder_temp)?;
     let raise = match on_error {
         "raise" => true,
         "return" => false,
@@ -401,15 +495,9 @@ fn simulate_many<'py>(
             )))
         }
     };
-    let threads = match threads {
-        None => None,
-        Some(n) if n >= 1 => Some(n as usize),
-        Some(n) => {
-            return Err(PyValueError::new_err(format!(
-                "threads = {n}: give at least 1 (or None: one per core)"
-            )))
-        }
-    };
+    let threads = threads
+        .map(|n| n.count("threads", 1, MAX_THREADS))
+        .transpose()?;
     if inputs.is_instance_of::<PyDict>() || inputs.is_instance_of::<PyString>() {
         return Err(PyValueError::new_err(
             "inputs: expected a list of inputs (one dict or 2-D array per run)",
@@ -419,42 +507,62 @@ fn simulate_many<'py>(
         .try_iter()
         .map_err(|_| PyValueError::new_err("inputs: expected a list of inputs (one per run)"))?
         .collect::<PyResult<_>>()?;
-    let mut rows = Vec::with_capacity(items.len());
-    for (i, item) in items.iter().enumerate() {
-        let r = input_rows(py, item)
-            .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?;
-        rows.push(r);
-    }
-    let per_run: Vec<Option<Params>> = match params {
+    let n = items.len();
+    // per run: its inputs, its parameters, its start state; the first problem is its error
+    let per_run_params: Vec<PyResult<Option<Params>>> = match params {
         Some(list) if list.is_instance_of::<PyList>() || list.is_instance_of::<PyTuple>() => {
             let list: Vec<Bound<'py, PyAny>> = list.try_iter()?.collect::<PyResult<_>>()?;
-            if list.len() != rows.len() {
+            if list.len() != n {
                 return Err(PyValueError::new_err(format!(
-                    "params: a list of {} entries for {} inputs (give one per run, or one for all)",
-                    list.len(),
-                    rows.len()
+                    "params: a list of {} entries for {n} inputs (give one per run, or one for all)",
+                    list.len()
                 )));
             }
-            let mut v = Vec::with_capacity(list.len());
-            for (i, p) in list.iter().enumerate() {
-                v.push(
-                    parse_params(py, Some(p))
-                        .map_err(|e| PyValueError::new_err(format!("run {i}: {}", e.value(py))))?,
-                );
-            }
-            v
+            list.iter().map(|p| parse_params(py, Some(p))).collect()
         }
-        p => vec![parse_params(py, p)?; rows.len()],
+        p => {
+            let shared = parse_params(py, p)?;
+            (0..n).map(|_| Ok(shared.clone())).collect()
+        }
     };
-    for (i, (r, p)) in rows.iter().zip(&per_run).enumerate() {
-        warn_rows_out_of_range(py, &format!("simulate_many run {i}"), r, p.as_ref())?;
+    let starts = start_states(py, x0, n)?;
+    let mut runs: Vec<core::CoreResult<core::Run>> = Vec::with_capacity(n);
+    let mut run_starts = Vec::with_capacity(n);
+    for (i, ((item, p), x)) in items.iter().zip(per_run_params).zip(starts).enumerate() {
+        let what = format!("simulate_many run {i}");
+        let run = (|| {
+            let rows = input_rows(py, item)?;
+            let p = p?;
+            let x = x?;
+            warn_rows_out_of_range(py, &what, &rows, p.as_ref())?;
+            if let Some(x) = &x {
+                warn_start_clipped(py, &what, p.as_ref(), variant, x)?;
+            }
+            Ok::<_, PyErr>(((rows, p), x))
+        })();
+        match run {
+            Ok((r, x)) => {
+                runs.push(Ok(r));
+                run_starts.push(x);
+            }
+            // a warning turned into an error (warnings.simplefilter("error")) is raised as is
+            Err(e) if raise || !e.is_instance_of::<PyValueError>(py) => {
+                return Err(if e.is_instance_of::<PyValueError>(py) {
+                    PyValueError::new_err(format!("run {i}: {}", e.value(py)))
+                } else {
+                    e
+                });
+            }
+            Err(e) => {
+                runs.push(Err(core::CoreError::Value(e.value(py).to_string())));
+                run_starts.push(None);
+            }
+        }
     }
-    let starts = start_states(py, x0, rows.len())?;
     let args = sim_args(t_end, dt, rtol, atol, numeric_actuators);
-    let runs: Vec<_> = rows.into_iter().zip(per_run).collect();
     let token = mvem::numerics::cancel::CancelToken::new();
     let results = interruptible(py, &token, None, move || {
-        core::simulate_many_rows_from(runs, &starts, args, variant, threads)
+        core::simulate_many_rows_from(runs, &run_starts, args, variant, threads)
     })?
     .map_err(to_py_err)?;
     let out = PyList::empty(py);
@@ -467,6 +575,9 @@ fn simulate_many<'py>(
     }
     Ok(out)
 }
+
+/// Most worker threads `simulate_many` accepts.
+const MAX_THREADS: usize = 1024;
 
 /// A drive cycle in closed loop: the baseline EGR/VGT and engine controllers around the model,
 /// as `mvem closed-loop` runs it (docs/control.md).
@@ -496,17 +607,17 @@ fn simulate_many<'py>(
 /// "reference_speeds_rpm", "solver", "controller_tuning", "sample_time_s". ValueError for a bad
 /// cycle, tuning or parameters (naming the row or field), RuntimeError if the plant fails.
 #[pyfunction]
-#[pyo3(signature = (cycle=None, tuning=None, params=None, model=8, duration=None, margins=None))]
+#[pyo3(signature = (cycle=None, tuning=None, params=None, model=IntArg::Int(8), duration=None, margins=None), text_signature = r#"(cycle=None, tuning=None, params=None, model=8, duration=None, margins=None)"#)]
 fn closed_loop<'py>(
     py: Python<'py>,
     cycle: Option<&Bound<'py, PyAny>>,
     tuning: Option<&Bound<'py, PyAny>>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     duration: Option<f64>,
     margins: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let np = py.import("numpy")?;
     let cycle = if cycle.is_none_or(|c| c.is_none()) {
         core::CycleArg::Whtc
@@ -602,7 +713,7 @@ fn tuning_json(py: Python<'_>, tuning: Option<&Bound<'_, PyAny>>) -> PyResult<Op
 /// for non-finite inputs, a bad tuning or parameters; RuntimeError if there is no equilibrium
 /// or the point sits at a kink the loops see.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, tuning=None, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, tuning=None, params=None, model=IntArg::Int(8)), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, tuning=None, params=None, model=8)"#)]
 #[allow(clippy::too_many_arguments)]
 fn loop_margins<'py>(
     py: Python<'py>,
@@ -612,9 +723,9 @@ fn loop_margins<'py>(
     u_vgt: f64,
     tuning: Option<&Bound<'py, PyAny>>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let tuning = tuning_json(py, tuning)?;
     let p = params_at_point(py, params, "loop_margins", [n_e, u_delta, u_egr, u_vgt])?;
     let text = py
@@ -636,7 +747,7 @@ fn loop_margins<'py>(
 /// active guard saturations). Raises ValueError for non-finite inputs or bad parameters,
 /// RuntimeError if no equilibrium is found.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, params=None, model=IntArg::Int(8)), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, params=None, model=8)"#)]
 fn steady<'py>(
     py: Python<'py>,
     n_e: f64,
@@ -644,9 +755,9 @@ fn steady<'py>(
     u_egr: f64,
     u_vgt: f64,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let p = params_at_point(py, params, "steady", [n_e, u_delta, u_egr, u_vgt])?;
     let s = py
         .allow_threads(move || core::steady([n_e, u_delta, u_egr, u_vgt], p, variant))
@@ -696,7 +807,7 @@ fn complex_array<'py>(np: &Bound<'py, PyModule>, z: &[(f64, f64)]) -> PyResult<B
 /// abs(G) and phase_deg are the Bode diagram; at f = 0 the gains are the DC gains. Raises ValueError for bad arguments,
 /// RuntimeError when there is no steady state (or a kink with strict).
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, strict=true, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, strict=true, params=None, model=IntArg::Int(8)), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, f_hz, outputs=None, strict=True, params=None, model=8)"#)]
 #[allow(clippy::too_many_arguments)]
 fn frequency_response<'py>(
     py: Python<'py>,
@@ -708,9 +819,9 @@ fn frequency_response<'py>(
     outputs: Option<Vec<String>>,
     strict: bool,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let np = py.import("numpy")?;
     let f = float_list(&np, f_hz, "f_hz")?;
     let p = params_at_point(
@@ -780,7 +891,7 @@ fn frequency_response<'py>(
 /// samples, remainder [s]) of u_egr, u_vgt]}.
 /// Raises ValueError for bad arguments, RuntimeError when there is no steady state or a kink.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=0, params=None, model=8, ts=None))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, outputs=None, strict=true, pade_order=IntArg::Int(0), params=None, model=IntArg::Int(8), ts=None), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, outputs=None, strict=True, pade_order=0, params=None, model=8, ts=None)"#)]
 #[allow(clippy::too_many_arguments)]
 fn linearize<'py>(
     py: Python<'py>,
@@ -790,12 +901,13 @@ fn linearize<'py>(
     u_vgt: f64,
     outputs: Option<Vec<String>>,
     strict: bool,
-    pade_order: usize,
+    pade_order: IntArg,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     ts: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
+    let pade_order = pade_order.count("pade_order", 0, 3)?;
     let p = params_at_point(py, params, "linearize", [n_e, u_delta, u_egr, u_vgt])?;
     let args = LinArgs {
         outputs,
@@ -926,7 +1038,7 @@ fn step_metrics<'py>(
 /// Returns step_metrics' dict plus "t" and "y" (numpy arrays). ValueError for bad arguments,
 /// RuntimeError when a steady state or the simulation fails.
 #[pyfunction]
-#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=None, params=None, model=8))]
+#[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=None, params=None, model=IntArg::Int(8)), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, input="u_vgt", to=65.0, output="W_c", t_step=1.0, t_end=8.0, dt=0.01, rtol=1e-6, atol=None, params=None, model=8)"#)]
 #[allow(clippy::too_many_arguments)]
 fn step_response<'py>(
     py: Python<'py>,
@@ -943,9 +1055,9 @@ fn step_response<'py>(
     rtol: f64,
     atol: Option<f64>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let p = params_at_point(py, params, "step_response", [n_e, u_delta, u_egr, u_vgt])?;
     let args = SimArgs {
         t_end: None,
@@ -1032,12 +1144,24 @@ fn parameters(py: Python<'_>) -> PyResult<Bound<'_, PyList>> {
 /// the integrator's warm state carry over between calls; the GIL is released while integrating.
 /// t [s] and state (numpy array) are attributes; reset(...) starts again at t = 0.
 /// ValueError for bad arguments, RuntimeError if the solver fails.
-#[pyclass(name = "Plant", module = "mvem")]
+///
+/// Threads: a Plant may be shared between Python threads; an internal lock serializes its
+/// calls (one step integrates at a time, a second thread's call waits for it, and each step's
+/// returned outputs are those of that step). It is one plant with one time: for runs in
+/// parallel give each thread its own Plant.
+#[pyclass(name = "Plant", module = "mvem", frozen)]
 struct Plant {
-    inner: core::CorePlant,
-    cmd: [f64; 4],
+    /// The plant and the commands held in its last step, behind the lock that makes a shared
+    /// Plant safe: before it, a second thread's call while one integrated (GIL released) raised
+    /// "Already borrowed" (QA).
+    inner: Mutex<PlantState>,
     /// The parameter set's input saturation ranges (for the range warnings).
     ranges: [(&'static str, f64, f64); 4],
+}
+
+struct PlantState {
+    plant: core::CorePlant,
+    cmd: [f64; 4],
 }
 
 fn merge_cmd(
@@ -1055,35 +1179,69 @@ fn merge_cmd(
     ]
 }
 
+impl Plant {
+    /// Run `f` on the plant under its lock, with the GIL released: a thread waiting for the
+    /// lock never holds the GIL, so the thread holding the lock can finish (and the other
+    /// Python threads run meanwhile).
+    fn locked<T: Send>(&self, py: Python<'_>, f: impl FnOnce(&mut PlantState) -> T + Send) -> T {
+        py.allow_threads(|| {
+            // only a panic poisons the lock (pyo3 raises it as PanicException); the plant is
+            // then used as the panic left it, as without the lock
+            let mut g = self.inner.lock().unwrap_or_else(PoisonError::into_inner);
+            f(&mut g)
+        })
+    }
+
+    /// The outputs (names and values) of a plant.
+    fn outputs_of(s: &PlantState) -> (Vec<String>, Vec<f64>) {
+        (s.plant.names().to_vec(), s.plant.outputs())
+    }
+}
+
+/// The outputs as a dict of floats.
+fn outputs_dict(
+    py: Python<'_>,
+    (names, values): (Vec<String>, Vec<f64>),
+) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for (n, v) in names.iter().zip(values) {
+        d.set_item(n, v)?;
+    }
+    Ok(d)
+}
+
 #[pymethods]
 impl Plant {
     #[new]
-    #[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, model=8, params=None))]
+    #[pyo3(signature = (n_e, u_delta, u_egr, u_vgt, model=IntArg::Int(8), params=None), text_signature = r#"(n_e, u_delta, u_egr, u_vgt, model=8, params=None)"#)]
     fn new(
         py: Python<'_>,
         n_e: f64,
         u_delta: f64,
         u_egr: f64,
         u_vgt: f64,
-        model: i64,
+        model: IntArg,
         params: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+        let variant = variant_of(&model, "converged")?;
         let p = parse_params(py, params)?;
         let cmd = [n_e, u_delta, u_egr, u_vgt];
         let ranges = ranges_of(p.as_ref());
         warn_out_of_range(py, "Plant", cmd, &ranges)?;
-        let inner = py
+        let plant = py
             .allow_threads(move || core::CorePlant::new(cmd, p, variant))
             .map_err(to_py_err)?;
-        Ok(Self { inner, cmd, ranges })
+        Ok(Self {
+            inner: Mutex::new(PlantState { plant, cmd }),
+            ranges,
+        })
     }
 
     /// Hold the commands for dt [s] (0 < dt <= 1e6); returns the outputs at the end (dict of
     /// floats).
     #[pyo3(signature = (dt, n_e=None, u_delta=None, u_egr=None, u_vgt=None))]
     fn step<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         dt: f64,
         n_e: Option<f64>,
@@ -1091,68 +1249,76 @@ impl Plant {
         u_egr: Option<f64>,
         u_vgt: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
-        if cmd != self.cmd {
+        let (cmd, changed) = self.locked(py, |s| {
+            let cmd = merge_cmd(s.cmd, n_e, u_delta, u_egr, u_vgt);
+            (cmd, cmd != s.cmd)
+        });
+        if changed {
             warn_out_of_range(py, "Plant.step", cmd, &self.ranges)?;
         }
-        let inner = &mut self.inner;
-        py.allow_threads(|| inner.step(dt, cmd))
+        let out = self
+            .locked(py, |s| {
+                s.plant.step(dt, cmd)?;
+                s.cmd = cmd;
+                Ok(Self::outputs_of(s))
+            })
             .map_err(to_py_err)?;
-        self.cmd = cmd;
-        self.outputs(py)
+        outputs_dict(py, out)
     }
 
     /// The outputs at the current time (dict of floats).
     fn outputs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        for (n, v) in self.inner.names().iter().zip(self.inner.outputs()) {
-            d.set_item(n, v)?;
-        }
-        Ok(d)
+        let out = self.locked(py, |s| Self::outputs_of(s));
+        outputs_dict(py, out)
     }
 
     /// Start again at t = 0 in the steady state of the commands (left out: the last ones).
     #[pyo3(signature = (n_e=None, u_delta=None, u_egr=None, u_vgt=None))]
     fn reset(
-        &mut self,
+        &self,
         py: Python<'_>,
         n_e: Option<f64>,
         u_delta: Option<f64>,
         u_egr: Option<f64>,
         u_vgt: Option<f64>,
     ) -> PyResult<()> {
-        let cmd = merge_cmd(self.cmd, n_e, u_delta, u_egr, u_vgt);
+        let cmd = self.locked(py, |s| merge_cmd(s.cmd, n_e, u_delta, u_egr, u_vgt));
         warn_out_of_range(py, "Plant.reset", cmd, &self.ranges)?;
-        let inner = &mut self.inner;
-        py.allow_threads(|| inner.reset(cmd)).map_err(to_py_err)?;
-        self.cmd = cmd;
-        Ok(())
+        self.locked(py, |s| {
+            s.plant.reset(cmd)?;
+            s.cmd = cmd;
+            Ok(())
+        })
+        .map_err(to_py_err)
     }
 
     /// Time [s].
     #[getter]
-    fn t(&self) -> f64 {
-        self.inner.t()
+    fn t(&self, py: Python<'_>) -> f64 {
+        self.locked(py, |s| s.plant.t())
     }
 
     /// State vector (numpy array, in state_names order).
     #[getter]
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.import("numpy")?
-            .call_method1("array", (self.inner.state(),))
+        let x = self.locked(py, |s| s.plant.state());
+        py.import("numpy")?.call_method1("array", (x,))
     }
 
     /// State names.
     #[getter]
-    fn state_names(&self) -> Vec<String> {
-        let n = self.inner.state().len();
-        self.inner.names()[..n].to_vec()
+    fn state_names(&self, py: Python<'_>) -> Vec<String> {
+        self.locked(py, |s| {
+            let n = s.plant.state().len();
+            s.plant.names()[..n].to_vec()
+        })
     }
 
     /// The commands held in the last step: (n_e, u_delta, u_egr, u_vgt).
     #[getter]
-    fn commands(&self) -> (f64, f64, f64, f64) {
-        (self.cmd[0], self.cmd[1], self.cmd[2], self.cmd[3])
+    fn commands(&self, py: Python<'_>) -> (f64, f64, f64, f64) {
+        let c = self.locked(py, |s| s.cmd);
+        (c[0], c[1], c[2], c[3])
     }
 
     /// The delayed commands (u_egr(t - tau_degr), u_vgt(t - tau_dvgt)) [%] the actuators see
@@ -1161,8 +1327,8 @@ impl Plant {
     /// Model.jacobian at that point linearizes along the run (e.g. for an extended Kalman
     /// filter).
     #[getter]
-    fn delayed_commands(&self) -> (f64, f64) {
-        let [e, v] = self.inner.delayed_commands();
+    fn delayed_commands(&self, py: Python<'_>) -> (f64, f64) {
+        let [e, v] = self.locked(py, |s| s.plant.delayed_commands());
         (e, v)
     }
 }
@@ -1331,9 +1497,9 @@ impl PyModel {
 #[pymethods]
 impl PyModel {
     #[new]
-    #[pyo3(signature = (model=8, params=None))]
-    fn new(py: Python<'_>, model: i64, params: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
-        let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    #[pyo3(signature = (model=IntArg::Int(8), params=None), text_signature = r#"(model=8, params=None)"#)]
+    fn new(py: Python<'_>, model: IntArg, params: Option<&Bound<'_, PyAny>>) -> PyResult<Self> {
+        let variant = variant_of(&model, "converged")?;
         let p = parse_params(py, params)?;
         let ranges = ranges_of(p.as_ref());
         let inner = core::PointModel::new(p, variant.order).map_err(to_py_err)?;
@@ -1488,16 +1654,16 @@ impl PyModel {
 /// least-squares searches (at most every 0.2 s); an exception it raises stops the tuning (as
 /// Ctrl-C does) and is raised. The result does not depend on it.
 #[pyfunction]
-#[pyo3(signature = (data, params=None, model=8, *, progress=None, **settings))]
+#[pyo3(signature = (data, params=None, model=IntArg::Int(8), *, progress=None, **settings), text_signature = r#"(data, params=None, model=8, *, progress=None, **settings)"#)]
 fn tune<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     progress: Option<&Bound<'py, PyAny>>,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let data = std::path::PathBuf::from(fspath(py, data, "data")?);
     // a parameter file's [test_cell] section (tau_Me, sensor lags) comes along
     let base = match parse_params(py, params)? {
@@ -1594,19 +1760,19 @@ fn campaign<'py>(
 /// figures). ValueError for a bad setting, parameter set or campaign file, RuntimeError when a
 /// simulation fails (naming the set). Runs without the GIL.
 #[pyfunction]
-#[pyo3(signature = (data, params=None, model=8, tau_me=None, sensor_lags=None, roles=None, traces=false))]
+#[pyo3(signature = (data, params=None, model=IntArg::Int(8), tau_me=None, sensor_lags=None, roles=None, traces=false), text_signature = r#"(data, params=None, model=8, tau_me=None, sensor_lags=None, roles=None, traces=False)"#)]
 #[allow(clippy::too_many_arguments)]
 fn validate<'py>(
     py: Python<'py>,
     data: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     tau_me: Option<f64>,
     sensor_lags: Option<String>,
     roles: Option<String>,
     traces: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let data = std::path::PathBuf::from(fspath(py, data, "data")?);
     let p = parse_params(py, params)?.unwrap_or_else(Params::published);
     let cell = test_cell_of(py, params)?;
@@ -1693,15 +1859,15 @@ fn test_cell_of(
 /// full_load=220.0); an unknown name is a ValueError. Returns a dict: "dir", "stationary"
 /// (number of points), "datasets" (names), "samples" (dynamic samples). Runs without the GIL.
 #[pyfunction]
-#[pyo3(signature = (out, params=None, model=8, **settings))]
+#[pyo3(signature = (out, params=None, model=IntArg::Int(8), **settings), text_signature = r#"(out, params=None, model=8, **settings)"#)]
 fn lab<'py>(
     py: Python<'py>,
     out: &Bound<'py, PyAny>,
     params: Option<&Bound<'py, PyAny>>,
-    model: i64,
+    model: IntArg,
     settings: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let variant = Variant::parse(model, "converged").map_err(to_py_err)?;
+    let variant = variant_of(&model, "converged")?;
     let dir = fspath(py, out, "out")?;
     let p = parse_params(py, params)?;
     let settings = settings_json(py, settings, "lab settings")?;

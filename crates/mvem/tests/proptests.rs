@@ -181,8 +181,9 @@ fn perturb(p: &Params, factors: &[f64]) -> Params {
     // keep the structural constraints of `validate`: positive semidefinite q_c, efficiencies <= 1
     // (q_c must stay positive semidefinite: kept as published)
     q.compressor.q_c = p.compressor.q_c;
-    // a whole number of cylinders
+    // whole numbers of cylinders and exhaust pipes
     q.cylinder.n_cyl = p.cylinder.n_cyl;
+    q.exhaust_pipe.n_pipe = p.exhaust_pipe.n_pipe;
     q.compressor.eta_cmax = q.compressor.eta_cmax.min(1.0);
     q.turbine.eta_tmmax = q.turbine.eta_tmmax.min(1.0);
     q.cylinder.eta_igch = q.cylinder.eta_igch.min(1.0);

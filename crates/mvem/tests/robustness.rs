@@ -101,6 +101,69 @@ fn too_many_steps_is_located() {
 }
 
 /// Absurd tolerances are rejected before integration, naming the option.
+/// QA: a horizon of 1e300 s (with an output interval that keeps the grid small) ran for
+/// minutes before failing. Times beyond MAX_TIME and output grids beyond MAX_ROWS are refused
+/// before any step, naming the value, through every entry: the simulation, a restartable
+/// integrator (the FMU's fmi2DoStep) and the plant stepper.
+#[test]
+fn absurd_horizons_are_refused_up_front() {
+    use mvem::model::Dynamics;
+    use mvem::sim::{stepper::Plant, Integrator, Solution, MAX_TIME};
+    let m = Engine8::published();
+    let d = Drive::new(1500.0, 110.0, 80.0, 30.0);
+    let sched = InputSchedule::constant(d);
+    let coarse = SimOptions {
+        dt_out: 1e299,
+        ..SimOptions::default()
+    };
+    let start = std::time::Instant::now();
+    let e = sim_err(simulate_from_steady(&m, &sched, 0.0, 1e300, &coarse).unwrap_err());
+    assert!(matches!(e, SimError::BadHorizon { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .starts_with("end time 1e300 s is beyond the 1e9 s"),
+        "{e}"
+    );
+    let e = sim_err(simulate_from_steady(&m, &sched, -2e9, 1.0, &coarse).unwrap_err());
+    assert!(
+        e.to_string()
+            .starts_with("start time -2000000000 s is beyond"),
+        "{e}"
+    );
+    // within MAX_TIME but 1e10 output samples
+    let e =
+        sim_err(simulate_from_steady(&m, &sched, 0.0, 1e8, &SimOptions::default()).unwrap_err());
+    assert!(
+        e.to_string()
+            .starts_with("output interval 0.01 s: 1.000e10 output samples from 0 s to 100000000 s"),
+        "{e}"
+    );
+    // the restartable integrator (the FMU's fmi2DoStep)
+    let x = mvem::analysis::steady::steady_state(&m, &d).unwrap().x;
+    let mut run = Integrator::new(&m, &sched, 0.0, x, &coarse).unwrap();
+    let mut sol = Solution::new(&m.state_names());
+    let e = run.advance(2.0 * MAX_TIME, &mut sol, false).unwrap_err();
+    assert!(matches!(e, SimError::BadHorizon { .. }), "{e}");
+    // the plant stepper: steps of at most 1e6 s, up to MAX_TIME
+    let mut p = Plant::from_state(m.clone(), d, MAX_TIME - 1.0, x, &SimOptions::default()).unwrap();
+    let e = p.step(2.0, d).unwrap_err();
+    assert!(matches!(e, SimError::BadHorizon { .. }), "{e}");
+    assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());
+    // a long horizon within the limits runs (a few steps at steady state)
+    let sol = simulate_from_steady(
+        &m,
+        &sched,
+        0.0,
+        1e9,
+        &SimOptions {
+            dt_out: 1e8,
+            ..coarse
+        },
+    )
+    .unwrap();
+    assert_eq!(sol.t().len(), 11);
+}
+
 #[test]
 fn absurd_options_are_rejected() {
     let m = Engine8::published();

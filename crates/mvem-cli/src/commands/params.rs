@@ -199,7 +199,8 @@ fn non_finite_floats(v: &toml::Value, path: &str, out: &mut Vec<(String, String)
         }
         toml::Value::Array(a) => {
             for (i, x) in a.iter().enumerate() {
-                non_finite_floats(x, &format!("{path}[{i}]"), out);
+                // 1-based, as the parameter registry and `params show` (c_vol1) name them
+                non_finite_floats(x, &format!("{path}[{}]", i + 1), out);
             }
         }
         _ => {}

@@ -302,16 +302,8 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
         })
     })?;
     // the integrator limits (the authors' limited integrators, items 9-12 and 37) clip the start
-    for ((name, (lo, hi)), v) in m.state_names().iter().zip(m.state_bounds()).zip(x) {
-        if v < lo || v > hi {
-            eprintln!(
-                "warning: {src}: field {name}: {} is outside the integrator limits [{}, {}]: the simulation starts from {}",
-                Num(v),
-                Num(lo),
-                Num(hi),
-                Num(v.clamp(lo, hi))
-            );
-        }
+    for w in mvem::model::start_clip_warnings(&m.state_names(), &m.state_bounds(), &x) {
+        eprintln!("warning: {src}: field {w}");
     }
     Ok(x)
 }

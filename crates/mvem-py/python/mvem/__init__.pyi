@@ -9,8 +9,9 @@ import numpy.typing as npt
 __version__: str
 INPUT_COLUMNS: Tuple[str, str, str, str, str]
 
-#: None (published set), overrides {"group": {"field": value}} / {"group.field": value},
-#: or a path to a TOML/JSON parameter file.
+#: None (published set), overrides {"group": {"field": value}} / {"group.field": value}, one
+#: element by its 1-based path as parameters() lists it {"cylinder.c_vol[1]": value} (c_vol1;
+#: index 0 is refused), or a path to a TOML/JSON parameter file.
 Params = Union[None, Mapping[str, Any], str, "os.PathLike[str]"]
 #: Number of states: 8 (the paper's model), 10 or 12 (section 9 extensions).
 ModelOrder = Literal[8, 10, 12]
@@ -36,8 +37,12 @@ def simulate(
     u_vgt_pct [%] (dict of 1-D arrays, or a 2-D array with 5 columns); linear interpolation,
     two rows with the same time make a step. t_end [s], dt [s]: end time and output interval.
     numeric_actuators: integrate the actuator states numerically too (default: closed form).
-    time_parallel: time chunks integrated at once, one thread each (default 1: sequential).
-    x0: start state (dict of every state name -> value, or an array in state order).
+    time_parallel: time chunks integrated at once (1 to 256), one thread each (default 1:
+    sequential). x0: start state (dict of every state name -> value, or an array in state
+    order); a value outside the integrator limits is clipped into them with a UserWarning
+    naming the state, the value and the limits (as `mvem simulate --initial-state` warns).
+    Integer arguments out of range (time_parallel=-1, model=2**70) raise ValueError naming
+    the argument and the range. Times beyond 1e9 s are refused (ValueError).
     Returns "t" [s], the states (Pa, K, -, rad/s, %) and every signal as numpy arrays.
     ValueError: bad inputs/options/params; RuntimeError: solver failure. Ctrl-C
     (KeyboardInterrupt) stops the run within one integrator step.
@@ -61,8 +66,11 @@ def simulate_many(
     Ctrl-C (KeyboardInterrupt) stops the ensemble, the runs in progress within one step.
 
     Run i simulates inputs[i] (as simulate) with params (one for all runs, or a list with one
-    entry per run). on_error="raise": after all runs, raise the first failure ("run i: ...");
-    "return": a failed run's slot holds its ValueError/RuntimeError. Results in input order,
+    entry per run). on_error="raise": raise the first failure ("run i: ...": invalid inputs,
+    params or x0 of a run before any run starts, a solver failure after all runs); "return": a
+    failed run's slot holds its ValueError/RuntimeError, also for a run with invalid inputs,
+    params or x0, and the others run. Shared arguments (options, one params or x0 for all,
+    lists of the wrong length) raise either way. threads: 1 to 1024. Results in input order,
     each equal to simulate(inputs[i], ...) with the same arguments. x0: None (steady starts),
     one start state for all runs (dict or 1-D array), or one per run (a list of None / dict /
     array, or a 2-D array with a row per run).
@@ -211,7 +219,7 @@ def variables() -> Dict[str, Variable]:
     """Names, units and descriptions of every input, state and signal (the core's metadata)."""
 
 class Parameter(TypedDict):
-    path: str  # "cylinder.c_vol[1]" (1-based), accepted by `params` overrides as "group.field"
+    path: str  # "cylinder.c_vol[1]" (1-based, = c_vol1), accepted as is by `params` overrides
     symbol: str  # the paper's symbol, e.g. "c_vol1"
     unit: str
     description: str
@@ -384,7 +392,9 @@ class Plant:
 
     Starts at t = 0 in the steady state of (n_e [rpm], u_delta [mg/cycle/cylinder], u_egr [%],
     u_vgt [%]). State, cylinder-temperature memory, exact actuator delays and the integrator's
-    warm state carry over between calls; the GIL is released while integrating.
+    warm state carry over between calls; the GIL is released while integrating. A Plant may be
+    shared between threads: an internal lock serializes its calls (one step at a time, each
+    returning its own outputs); for parallel runs give each thread its own Plant.
     """
 
     def __init__(

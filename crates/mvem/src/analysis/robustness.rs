@@ -357,6 +357,7 @@ pub fn error_class(e: &SimError) -> String {
         SimError::BadOption { field, .. } => format!("BadOption({field})"),
         SimError::BadCommand { name, .. } => format!("BadCommand({name})"),
         SimError::BadInterval { .. } => "BadInterval".into(),
+        SimError::BadHorizon { .. } => "BadHorizon".into(),
         SimError::NonFinite { what, name, .. } => format!("NonFinite({what} {name})"),
         SimError::StepSizeTooSmall { .. } => "StepSizeTooSmall".into(),
         SimError::TooManySteps { .. } => "TooManySteps".into(),

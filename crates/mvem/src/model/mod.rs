@@ -581,6 +581,31 @@ pub fn clip_state<const N: usize>(x: &[f64; N], bounds: &[(f64, f64); N]) -> [f6
     })
 }
 
+/// The states of a start state `x` outside the integrator limits `bounds` (which clip it, see
+/// [`clip_state`]), one message each naming the state, its value, the limits and the value the
+/// simulation starts from: `p_im: 1e8 is outside the integrator limits [500, 1e7]: the
+/// simulation starts from 1e7` (the CLI's `simulate --initial-state` and Python's `x0` warn
+/// with them).
+pub fn start_clip_warnings(names: &[&str], bounds: &[(f64, f64)], x: &[f64]) -> Vec<String> {
+    use crate::numerics::Num;
+    names
+        .iter()
+        .zip(bounds)
+        .zip(x)
+        .filter(|((_, (lo, hi)), v)| *v < lo || *v > hi)
+        .map(|((name, (lo, hi)), v)| {
+            format!(
+                "{name}: {} is outside the integrator limits [{}, {}]: the simulation starts \
+                 from {}",
+                Num(*v),
+                Num(*lo),
+                Num(*hi),
+                Num(v.clamp(*lo, *hi))
+            )
+        })
+        .collect()
+}
+
 /// Limited-integrator emulation: zero each derivative that points outward at or beyond its bound.
 /// Returns whether any state is at a limit.
 #[inline]

@@ -6,7 +6,9 @@ use std::fmt;
 /// One problem found in a parameter set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamIssue {
-    /// Dotted field path as in the TOML file, e.g. `intake_manifold.v_im`.
+    /// Dotted field path as in the TOML file, e.g. `intake_manifold.v_im`; an element of a
+    /// vector or matrix with 1-based indices, as the parameter registry names it
+    /// (`cylinder.c_vol[1]` is c_vol1, `compressor.q_c[1][2]`).
     pub field: String,
     /// The offending value (NaN where the problem concerns several values).
     pub value: f64,
@@ -79,7 +81,18 @@ impl Checker {
     }
     fn array(&mut self, field: &str, v: &[f64]) {
         for (i, x) in v.iter().enumerate() {
-            self.finite(&format!("{field}[{i}]"), *x);
+            self.finite(&format!("{field}[{}]", i + 1), *x);
+        }
+    }
+    /// A positive whole number (a count: cylinders, pipes).
+    fn count(&mut self, field: &str, v: f64, what: &str) {
+        self.positive(field, v);
+        if v.is_finite() && v > 0.0 && v.fract() != 0.0 {
+            self.push(
+                field,
+                v,
+                &format!("a number of {what} must be a whole number"),
+            );
         }
     }
 }
@@ -126,14 +139,7 @@ impl Params {
 
         let cy = &self.cylinder;
         c.positive("cylinder.v_d", cy.v_d);
-        c.positive("cylinder.n_cyl", cy.n_cyl);
-        if cy.n_cyl.is_finite() && cy.n_cyl > 0.0 && cy.n_cyl.fract() != 0.0 {
-            c.push(
-                "cylinder.n_cyl",
-                cy.n_cyl,
-                "a number of cylinders must be a whole number",
-            );
-        }
+        c.count("cylinder.n_cyl", cy.n_cyl, "cylinders");
         if c.finite("cylinder.r_c", cy.r_c) && cy.r_c <= 1.0 {
             c.push("cylinder.r_c", cy.r_c, "compression ratio must be > 1");
         }
@@ -176,7 +182,7 @@ impl Params {
         c.nonneg("exhaust_pipe.h_tot", ep.h_tot);
         c.positive("exhaust_pipe.d_pipe", ep.d_pipe);
         c.positive("exhaust_pipe.l_pipe", ep.l_pipe);
-        c.positive("exhaust_pipe.n_pipe", ep.n_pipe);
+        c.count("exhaust_pipe.n_pipe", ep.n_pipe, "pipes");
 
         let e = &self.egr_valve;
         c.positive("egr_valve.a_egrmax", e.a_egrmax);
@@ -184,7 +190,7 @@ impl Params {
         c.array("egr_valve.c_egr", &e.c_egr);
         if e.c_egr[0].is_finite() && e.c_egr[0] >= 0.0 {
             c.push(
-                "egr_valve.c_egr[0]",
+                "egr_valve.c_egr[1]",
                 e.c_egr[0],
                 "c_egr1 must be < 0 (eq. (38) has its maximum at -c_egr2/(2 c_egr1))",
             );
@@ -209,14 +215,14 @@ impl Params {
         c.open_range("turbine.eta_tmmax", t.eta_tmmax, 0.0, 1.0 + 1e-12);
         c.positive("turbine.bsr_opt", t.bsr_opt);
         c.array("turbine.c_m", &t.c_m);
-        c.nonneg("turbine.c_m[2]", t.c_m[2]);
+        c.nonneg("turbine.c_m[3]", t.c_m[2]);
         c.finite("turbine.w_tlin", t.w_tlin);
         c.finite("turbine.c_mlin", t.c_mlin);
         if t.w_tlin.is_finite() && t.c_m[1].is_finite() && t.w_tlin <= t.c_m[1] {
             c.push(
                 "turbine.w_tlin",
                 t.w_tlin,
-                "must be > c_m[1] (c_m2) for the linear c_m branch",
+                "must be > c_m[2] (c_m2) for the linear c_m branch",
             );
         }
 
@@ -237,13 +243,13 @@ impl Params {
         let q_ok = [q[0][0], q[0][1], q[1][0], q[1][1]]
             .iter()
             .enumerate()
-            .all(|(i, v)| c.finite(&format!("compressor.q_c[{}][{}]", i / 2, i % 2), *v));
+            .all(|(i, v)| c.finite(&format!("compressor.q_c[{}][{}]", i / 2 + 1, i % 2 + 1), *v));
         if q_ok {
             if (q[0][1] - q[1][0]).abs() > 1e-12 * (q[0][1].abs() + q[1][0].abs() + 1e-300) {
                 c.push(
-                    "compressor.q_c[1][0]",
+                    "compressor.q_c[2][1]",
                     q[1][0],
-                    &format!("Q_c must be symmetric (q_c[0][1] = {})", q[0][1]),
+                    &format!("Q_c must be symmetric (q_c[1][2] = {})", q[0][1]),
                 );
             }
             let det = q[0][0] * q[1][1] - q[0][1] * q[0][1];
@@ -271,13 +277,13 @@ impl Params {
         c.nonneg("intercooler.k_ic", self.intercooler.k_ic);
 
         let s = &self.input_saturation;
-        c.positive("input_saturation.n_e[0]", s.n_e[0]);
-        c.positive("input_saturation.u_delta[0]", s.u_delta[0]);
-        c.positive("integrator_limits.n_t[0]", self.integrator_limits.n_t[0]);
+        c.positive("input_saturation.n_e[1]", s.n_e[0]);
+        c.positive("input_saturation.u_delta[1]", s.u_delta[0]);
+        c.positive("integrator_limits.n_t[1]", self.integrator_limits.n_t[0]);
         for (n, r) in [
-            ("input_saturation.n_e[1]", s.n_e),
-            ("input_saturation.u_delta[1]", s.u_delta),
-            ("integrator_limits.n_t[1]", self.integrator_limits.n_t),
+            ("input_saturation.n_e[2]", s.n_e),
+            ("input_saturation.u_delta[2]", s.u_delta),
+            ("integrator_limits.n_t[2]", self.integrator_limits.n_t),
         ] {
             if c.finite(n, r[1]) && r[0].is_finite() && r[1] <= r[0] {
                 c.push(
@@ -442,6 +448,57 @@ mod tests {
         assert!(msg.contains("at p_im = 400000 Pa, n_e = 2000 rpm"), "{msg}");
     }
 
+    /// QA: validation messages named vector and matrix elements 0-based (`egr_valve.c_egr[0]`)
+    /// while the parameter registry, `mvem params show` (c_egr1), the FMU's variables and
+    /// Python's parameters() are 1-based: every element a message names is a registry path.
+    #[test]
+    fn element_names_are_the_registrys_one_based_paths() {
+        let mut p = Params::published();
+        p.egr_valve.c_egr[0] = 1.0;
+        p.cylinder.c_fric[2] = f64::NAN;
+        p.turbine.c_m[2] = -1.0;
+        p.compressor.q_c[1][0] = f64::INFINITY;
+        p.input_saturation.n_e[0] = -1.0;
+        let e = p.validate().unwrap_err();
+        let fields: Vec<&str> = e.0.iter().map(|i| i.field.as_str()).collect();
+        assert_eq!(
+            fields,
+            [
+                "cylinder.c_fric[3]",
+                "egr_valve.c_egr[1]",
+                "turbine.c_m[3]",
+                "compressor.q_c[2][1]",
+                "input_saturation.n_e[1]"
+            ]
+        );
+        for f in fields {
+            assert!(
+                crate::params::ParamInfo::find(f).is_some_and(|i| i.path == f),
+                "{f} is not a registry path"
+            );
+        }
+        let mut q = Params::published();
+        q.compressor.q_c[1][0] *= 2.0;
+        let msg = q.validate().unwrap_err().to_string();
+        assert!(msg.contains("compressor.q_c[2][1] = "), "{msg}");
+        assert!(msg.contains("Q_c must be symmetric (q_c[1][2] = "), "{msg}");
+    }
+
+    /// The number of exhaust pipes is a count like the cylinders' (QA: the FMU accepted
+    /// n_pipe = 1.5).
+    #[test]
+    fn the_number_of_pipes_is_whole() {
+        let mut p = Params::published();
+        p.exhaust_pipe.n_pipe = 1.5;
+        let msg = p.validate().unwrap_err().to_string();
+        assert!(
+            msg.contains("exhaust_pipe.n_pipe = 1.5: a number of pipes must be a whole number"),
+            "{msg}"
+        );
+        p.exhaust_pipe.n_pipe = 3.0;
+        assert!(p.validate().is_ok());
+    }
+
     #[test]
     fn an_input_saturation_range_must_be_a_range() {
         let mut p = Params::published();
@@ -449,10 +506,10 @@ mod tests {
         p.input_saturation.u_delta[0] = 0.0;
         p.integrator_limits.n_t = [100.0, 100.0];
         let e = p.validate().unwrap_err().to_string();
-        assert!(e.contains("integrator_limits.n_t[1] = 100"), "{e}");
-        assert!(e.contains("input_saturation.n_e[1] = 500"), "{e}");
+        assert!(e.contains("integrator_limits.n_t[2] = 100"), "{e}");
+        assert!(e.contains("input_saturation.n_e[2] = 500"), "{e}");
         assert!(
-            e.contains("input_saturation.u_delta[0] = 0: must be > 0"),
+            e.contains("input_saturation.u_delta[1] = 0: must be > 0"),
             "{e}"
         );
     }

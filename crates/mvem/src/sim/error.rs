@@ -34,6 +34,17 @@ pub enum SimError {
         /// End.
         t_end: f64,
     },
+    /// The interval or its output grid is beyond what the simulator handles: a time beyond
+    /// [`super::MAX_TIME`] in magnitude, or more than [`super::MAX_ROWS`] output samples.
+    #[error("{message}")]
+    BadHorizon {
+        /// Start \[s\].
+        t0: f64,
+        /// End \[s\].
+        t_end: f64,
+        /// What is too large, naming the values and the limit.
+        message: String,
+    },
     /// A derivative or the initial state is NaN or infinite.
     #[error("non-finite {what} {name} = {value} at t = {} s; state: {state}. Hint: {hint}", crate::numerics::Num(*t))]
     NonFinite {

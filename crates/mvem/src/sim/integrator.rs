@@ -437,13 +437,15 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
     }
 
     /// Integrate to `t_end`, writing output samples at the output grid (and at `t_end` if
-    /// `final_sample`).
+    /// `final_sample`). A `t_end` beyond [`super::MAX_TIME`], or more than [`super::MAX_ROWS`]
+    /// output samples to it, is refused before any step ([`super::check_horizon`]).
     pub fn advance(
         &mut self,
         t_end: f64,
         sol: &mut Solution,
         final_sample: bool,
     ) -> Result<(), SimError> {
+        super::check_horizon(self.t, t_end, self.opts.dt_out)?;
         let skip = self.skip_lag_stops();
         let stops = if self.opts.stop_at_breakpoints {
             stop_times_except(self.model, self.sched, self.t, t_end, skip)

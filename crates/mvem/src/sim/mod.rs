@@ -152,12 +152,57 @@ pub fn simulate_into_with_guess<const N: usize, M: Dynamics<N>>(
     Ok(sol)
 }
 
+/// The largest time magnitude a simulation accepts \[s\] (about 31.7 years): at 1e9 s doubles
+/// are 1.2e-7 s apart, far below the actuator delays and the integrator's smallest steps; far
+/// beyond it the time axis no longer resolves them, and a horizon of 1e300 s ran for minutes
+/// before failing (QA). [`check_interval`] and [`Integrator::advance`] refuse later times.
+pub const MAX_TIME: f64 = 1e9;
+
 /// Check the options and the interval `[t0, t_end]` of a simulation (before any other work, so
-/// that a caller computing a start state first reports bad options first).
+/// that a caller computing a start state first reports bad options first): both times finite
+/// and within [`MAX_TIME`], `t_end` after `t0`, and at most [`MAX_ROWS`] output samples every
+/// `opts.dt_out` ([`check_horizon`]).
 pub fn check_interval(opts: &SimOptions, t0: f64, t_end: f64) -> Result<(), SimError> {
     opts.validate()?;
     if !(t0.is_finite() && t_end.is_finite() && t_end > t0) {
         return Err(SimError::BadInterval { t0, t_end });
+    }
+    check_horizon(t0, t_end, opts.dt_out)
+}
+
+/// Refuse an interval `[t0, t_end]` (finite, ordered) with a time beyond [`MAX_TIME`] in
+/// magnitude, or with more than [`MAX_ROWS`] output samples every `dt_out` seconds, naming the
+/// values and the limit.
+pub fn check_horizon(t0: f64, t_end: f64, dt_out: f64) -> Result<(), SimError> {
+    let num = crate::numerics::Num;
+    if let Some((name, t)) = [("start time", t0), ("end time", t_end)]
+        .into_iter()
+        .find(|(_, t)| t.abs() > MAX_TIME)
+    {
+        return Err(SimError::BadHorizon {
+            t0,
+            t_end,
+            message: format!(
+                "{name} {} s is beyond the {MAX_TIME:e} s (about 31.7 years) a simulation \
+                 accepts (times must resolve the actuator delays and the integrator's steps)",
+                num(t)
+            ),
+        });
+    }
+    let samples = (t_end - t0) / dt_out;
+    if samples > MAX_ROWS {
+        return Err(SimError::BadHorizon {
+            t0,
+            t_end,
+            message: format!(
+                "output interval {} s: {samples:.3e} output samples from {} s to {} s, more \
+                 than the {MAX_ROWS:e} a simulation may produce; use a larger output interval \
+                 or a shorter horizon",
+                num(dt_out),
+                num(t0),
+                num(t_end)
+            ),
+        });
     }
     Ok(())
 }
