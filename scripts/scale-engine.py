@@ -1,5 +1,8 @@
 """Scale the published parameter set physically to another engine of the family.
 
+Usage: python3 scripts/scale-engine.py SRC.toml DST.toml S N_CYL [U_DELTA_MAX_MG]
+(e.g. crates/mvem/data/published.toml engine_32l.toml 2.5 16; docs/tuning.md, session 32).
+
 s: flow scale (displacement, manifold volumes, EGR/VGT areas, compressor/turbine flow at the same
 pressure ratios), n_cyl: cylinders. The turbocharger is scaled geometrically: radii x sqrt(s) (flow
 at the same tip speed ~ R^2), omega_t / sqrt(s) (same tip speed), inertia x sqrt(s)^5; the
