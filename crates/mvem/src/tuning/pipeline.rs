@@ -422,7 +422,7 @@ pub fn tune(
                 .collect();
             rep.caveats.push(format!(
                 "step 1 ended with {} on or beyond the edge of its search box (step 5's box, \
-                 complete::STATIC_PARAMS, widened to the campaign's measured flows and pressure \
+                 complete::STATIC_PARAMS, scaled to the campaign's measured flows and pressure \
                  ratios by tuning::scale): there the search stopped, the data's optimum may lie \
                  beyond, and step 5 starts from the box's edge",
                 list.join(", ")
