@@ -462,8 +462,8 @@ fn tune_checks_the_engine_constants_and_takes_the_ambient_from_the_data() {
     let tuned = std::fs::read_to_string(d.join("t.toml")).unwrap();
     assert!(tuned.contains(&format!("p_amb = {p_amb:?}")), "{p_amb}");
     // with the engine's constants: nothing to say about them; step 1's compressor-efficiency
-    // peak ends on its box's W_copt = 2 kg/s (the box is the published engine's scale, and
-    // this engine's larger flow puts the peak beyond it), which is said
+    // peak ends on its box's W_copt = 2 kg/s (this campaign's largest W_c lies below 0.8 kg/s,
+    // where the box is the published one, tuning::scale), which is said
     let (err, json) = tune(&["--params", "other.toml"], "r2");
     assert!(!err.contains("constants"), "{err}");
     let caveats = json["caveats"].as_array().unwrap();

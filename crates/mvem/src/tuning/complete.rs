@@ -31,6 +31,7 @@ use super::lsq::{
     least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, Termination,
     XScale,
 };
+use super::scale::CampaignScale;
 use super::sensors::{SensorLags, LAG_NAMES, MAX_LAG_S};
 use super::steps::{self, project_q_c, FitReport, StepError};
 use super::uncertainty::{
@@ -971,11 +972,16 @@ pub fn static_params(order: ModelOrder) -> Vec<StaticParam> {
     v
 }
 
-/// theta of eq. (77) with the bounds that depend on the engine's fixed constants: c_m2 below
-/// 0.999 w_tlin (the authors' linear c_m branch starts at w_tlin > c_m2, item 33; the same bound
-/// as step 1), all others as in [`STATIC_PARAMS`].
-pub fn static_bounds(base: &Params, order: ModelOrder) -> Vec<StaticParam> {
-    let mut v = static_params(order);
+/// theta of eq. (77) with the bounds that depend on the engine: c_m2 below 0.999 w_tlin of its
+/// fixed constants (the authors' linear c_m branch starts at w_tlin > c_m2, item 33; the same
+/// bound as step 1), the boxes of the scale-dependent parameters widened to the campaign's
+/// measured `scale` ([`CampaignScale::apply`]; the published engine's campaigns keep
+/// [`STATIC_PARAMS`]), all others as in [`STATIC_PARAMS`].
+pub fn static_bounds(base: &Params, order: ModelOrder, scale: &CampaignScale) -> Vec<StaticParam> {
+    let mut v: Vec<StaticParam> = static_params(order)
+        .into_iter()
+        .map(|s| scale.apply(s))
+        .collect();
     for s in v.iter_mut() {
         if s.name == "c_m2" {
             s.hi = 0.999 * base.turbine.w_tlin;
@@ -1556,10 +1562,17 @@ impl Step5Report {
     }
 }
 
-/// The box step 5 searches from `theta0` on `base` ([`static_bounds`] widened to contain the
-/// start, [`bounds_containing`]), in the order of its parameters.
-pub fn step5_bounds(base: &Params, theta0: &[f64], opts: &Step5Options) -> Vec<StaticParam> {
-    bounds_containing(static_bounds(base, opts.model), theta0)
+/// The box step 5 searches from `theta0` on `base` and the stationary points `stat`
+/// ([`static_bounds`] at their [`CampaignScale`], widened to contain the start,
+/// [`bounds_containing`]), in the order of its parameters.
+pub fn step5_bounds(
+    base: &Params,
+    stat: &[StationaryPoint],
+    theta0: &[f64],
+    opts: &Step5Options,
+) -> Vec<StaticParam> {
+    let scale = CampaignScale::of(base, stat);
+    bounds_containing(static_bounds(base, opts.model, &scale), theta0)
 }
 
 /// Step 5: minimize (77) over the static parameters from `theta0` (the step-1 values, or eq.
@@ -1587,7 +1600,7 @@ pub fn step5(
             "no residuals (no data sets and no stationary row)",
         ));
     }
-    let list = step5_bounds(base, theta0, opts);
+    let list = step5_bounds(base, stat, theta0, opts);
     let lo: Vec<f64> = list.iter().map(|s| s.lo).collect();
     let hi: Vec<f64> = list.iter().map(|s| s.hi).collect();
     let th0: Vec<f64> = theta0

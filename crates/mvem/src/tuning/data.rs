@@ -794,12 +794,95 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        dynamic.push(parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind, &layout)?);
+        let set = parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind, &layout)?;
+        if !layout.units.contains_key("t") {
+            check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout)?;
+        }
+        dynamic.push(set);
     }
     Ok(Campaign {
         manifest,
         stationary,
         dynamic,
+    })
+}
+
+/// A dynamic set's median time step \[s\] from which times without a declared unit are taken
+/// for ms ([`times_look_like_ms`]): the paper's dynamic sets are sampled at 1-100 Hz (Table 1)
+/// and its slowest time constant, tau_Me, is about 1 s, so no dynamic set is sampled every 5 s
+/// or slower, while a time logged in ms at 1-100 Hz steps by 10-1000.
+pub const MS_MEDIAN_STEP: f64 = 5.0;
+
+/// A dynamic set's time span \[s\] beyond which times without a declared unit are taken for ms
+/// ([`times_look_like_ms`]): a day of test cell in one set, where in ms it is 86 s (a set logged
+/// in ms at 1 kHz steps by 1 and escapes [`MS_MEDIAN_STEP`]).
+pub const MS_SPAN: f64 = 86_400.0;
+
+/// Why the times `t` of a dynamic set, read in seconds, only make sense in ms, with the
+/// (0-based) row where it shows: a median step of at least [`MS_MEDIAN_STEP`], a span longer
+/// than [`MS_SPAN`], or a `sample_rate_hz` (`rate_hz`) 1000 times (within 5 %) the rate the
+/// times give in seconds. None when they make sense in seconds.
+pub fn times_look_like_ms(t: &[f64], rate_hz: Option<f64>) -> Option<(usize, String)> {
+    let dt = super::summary::median_step(t);
+    if dt.is_nan() || dt <= 0.0 {
+        return None;
+    }
+    if dt >= MS_MEDIAN_STEP {
+        let row = t.windows(2).position(|w| w[1] - w[0] >= MS_MEDIAN_STEP)? + 1;
+        return Some((
+            row,
+            format!(
+                "its median time step is {dt} s ({} Hz): no dynamic set is sampled that slowly \
+                 (the paper's: 1-100 Hz); read in ms it is {} Hz",
+                1.0 / dt,
+                1000.0 / dt
+            ),
+        ));
+    }
+    if let Some(row) = t.iter().position(|x| x - t[0] > MS_SPAN) {
+        let span = t[t.len() - 1] - t[0];
+        return Some((
+            row,
+            format!(
+                "its times span {} h: no dynamic set lasts a day; read in ms it lasts {} s",
+                span / 3600.0,
+                span / 1000.0
+            ),
+        ));
+    }
+    let r = rate_hz.filter(|r| (r * dt / 1000.0 - 1.0).abs() < 0.05)?;
+    Some((
+        1,
+        format!(
+            "the manifest's sample_rate_hz = {r} is 1000 times the rate its times give in s \
+             ({} Hz, median step {dt})",
+            1.0 / dt
+        ),
+    ))
+}
+
+/// Refuse a dynamic set whose time column has no declared unit and whose times only make
+/// sense in ms ([`times_look_like_ms`]; a declared unit, `t = "s"` or `"ms"`, is taken as it
+/// is): read as seconds they would stretch every response a thousandfold (QA: step 3 then
+/// fitted V_im = 78 dm^3).
+fn check_time_unit(
+    t: &[f64],
+    rate_hz: Option<f64>,
+    path: &Path,
+    layout: &Layout,
+) -> Result<(), DataError> {
+    let Some((row, why)) = times_look_like_ms(t, rate_hz) else {
+        return Ok(());
+    };
+    Err(DataError::Value {
+        path: path.to_path_buf(),
+        line: row + 2,
+        column: layout.names.get("t").cloned().unwrap_or_else(|| "t".into()),
+        message: format!(
+            "the time has no unit and reads as seconds, but {why}: logged in ms? Declare the \
+             unit: `t = \"ms\"` in the manifest's [units] (`mvem campaign --init` drafts it \
+             from a header `t [ms]`), or `t = \"s\"` if these are seconds (docs/tuning-data.md)"
+        ),
     })
 }
 

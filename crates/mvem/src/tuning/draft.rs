@@ -21,9 +21,9 @@
 //! before it is skipped, naming both.
 
 use super::data::{
-    campaign_columns, conversion, dynamic_required, read, units_of, Column, DataError, DataSetInfo,
-    Manifest, Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS,
-    STATIONARY_COLUMNS,
+    campaign_columns, conversion, dynamic_required, read, times_look_like_ms, units_of, Column,
+    DataError, DataSetInfo, Manifest, Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS,
+    OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
 };
 use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
 use crate::io::csv_columns::{header_names, read_columns};
@@ -228,6 +228,8 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             values.entry(c.name).or_insert((c, Vec::new())).1.extend(v);
         }
     };
+    // the dynamic files whose bare times look like ms (with why) and those that do not
+    let (mut ms_times, mut s_times) = (Vec::new(), Vec::new());
     // the header and unit of each column, from the first file drafted that heads it
     let mut headed: BTreeMap<&'static str, (Heading, String)> = BTreeMap::new();
     for f in &files {
@@ -290,7 +292,21 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         );
         let act_missing = lacks(&mut ACTUATOR_COLUMNS.iter().copied());
         // t and every dynamic column the file has
-        let cols = columns(&text, &dynamic_required(StepKind::VgtEgr), &heads);
+        let mut cols = columns(&text, &dynamic_required(StepKind::VgtEgr), &heads);
+        // a bare time column whose times only make sense in ms (the loader's check,
+        // data::times_look_like_ms): guessed in ms, as a bare column's unit is guessed from its
+        // values, and the rate computed in seconds
+        if heads.get("t").is_some_and(|g| g.unit.is_none()) {
+            if let Some(t) = cols.iter_mut().find(|c| c.0.name == "t") {
+                match times_look_like_ms(&t.1, None) {
+                    Some((_, why)) => {
+                        t.1.iter_mut().for_each(|x| *x *= 1e-3);
+                        ms_times.push(format!("{f}: {why}"));
+                    }
+                    None => s_times.push(f.clone()),
+                }
+            }
+        }
         let get = |n: &str| cols.iter().find(|c| c.0.name == n).map(|c| &c.1);
         // the command steps, counted as `mvem campaign` counts them (tuning::summary)
         let steps = |names: &[&str]| -> usize {
@@ -442,6 +458,22 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             units.insert(name.to_string(), u.to_string());
         }
     }
+    if !ms_times.is_empty() && !units.contains_key("t") {
+        notes.push(format!(
+            "t: in ms? ({}){}",
+            ms_times.join("; "),
+            if s_times.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "; but the times of {} look like seconds and [units] holds one unit for \
+                     all files: check",
+                    s_times.join(", ")
+                )
+            }
+        ));
+        units.insert("t".to_string(), "ms".to_string());
+    }
     if !sets.iter().any(|s| s.roles.contains(&Role::Validation)) {
         notes.push(
             "no set has the role \"validation\": give it to sets you hold back from the tuning"
@@ -561,6 +593,17 @@ mod tests {
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
     }
 
+    /// A small campaign of the published engine: 13 stationary points, sets I and J of 2 steps.
+    fn small_ij_campaign() -> crate::tuning::data::Campaign {
+        let opts = LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into(), "J".into()]),
+            ..LabOptions::default()
+        };
+        campaign(&Params::published(), &opts).unwrap().0
+    }
+
     /// (mvem's name, the test cell's header, value in its unit from mvem's)
     type Rename<'a> = (&'a str, &'a str, fn(f64) -> f64);
 
@@ -599,13 +642,7 @@ mod tests {
     /// times too large. The header's time unit is drafted and the campaign loads as it was.
     #[test]
     fn a_time_unit_in_the_header_is_drafted() {
-        let opts = LabOptions {
-            max_steps: Some(2),
-            n_stationary: 13,
-            sets: Some(vec!["I".into(), "J".into()]),
-            ..LabOptions::default()
-        };
-        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let c = small_ij_campaign();
         for header in ["t [ms]", "Time [ms]"] {
             let dir = tempfile::tempdir().unwrap();
             save_campaign(dir.path(), &c).unwrap();
@@ -630,18 +667,76 @@ mod tests {
         }
     }
 
+    /// QA finding: a campaign whose times are in ms with no unit anywhere (a bare `t` header,
+    /// no `[units]`) loaded, and tune read ms as s. The loader refuses it, naming the file, the
+    /// line and the column and how to declare the unit; the draft guesses `t = "ms"` (noted),
+    /// and a declared unit is taken as it is. The check looks at the median step (100 Hz and
+    /// 10 Hz sets in ms: 10 and 100), the span (a 1 kHz log in ms) and the manifest's rate.
+    #[test]
+    fn times_in_ms_without_a_unit_are_refused() {
+        let c = small_ij_campaign();
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        // the lab's own campaign (seconds) loads
+        load_campaign(dir.path()).unwrap();
+        let manifest = std::fs::read_to_string(dir.path().join("manifest.toml")).unwrap();
+        for s in &c.manifest.datasets {
+            rewrite(&dir.path().join(&s.file), &[("t", "t", |v| 1e3 * v)]);
+        }
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("I.csv: line 3, column `t`: the time has no unit")
+                && e.contains("median time step is 100 s")
+                && e.contains("`t = \"ms\"` in the manifest's [units]")
+                && e.contains("t [ms]"),
+            "{e}"
+        );
+        // declared: in ms it is the campaign as it was; in s it is taken as said
+        let with_units = |u: &str| {
+            let m = format!("{manifest}\n[units]\nt = \"{u}\"\n");
+            std::fs::write(dir.path().join("manifest.toml"), m).unwrap();
+            load_campaign(dir.path())
+        };
+        let back = with_units("ms").unwrap();
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            for (x, y) in a.t.iter().zip(&b.t) {
+                assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+            }
+        }
+        assert!(with_units("s").is_ok());
+        // the draft guesses ms and computes the rates in seconds
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        assert_eq!(d.manifest.units.get("t").map(String::as_str), Some("ms"));
+        assert!(
+            d.notes
+                .iter()
+                .any(|n| n.starts_with("t: in ms? (I.csv: its median")),
+            "{:?}",
+            d.notes
+        );
+        for (s, orig) in d.manifest.datasets.iter().zip(&c.manifest.datasets) {
+            assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+        }
+        // a 1 kHz log in ms steps by 1 but spans more than a day; a manifest rate 1000 times
+        // the times' own
+        let t: Vec<f64> = (0..100_000).map(f64::from).collect();
+        assert!(times_look_like_ms(&t, None)
+            .unwrap()
+            .1
+            .contains("no dynamic set lasts a day"));
+        let t: Vec<f64> = (0..100).map(f64::from).collect();
+        assert!(times_look_like_ms(&t, None).is_none());
+        assert!(times_look_like_ms(&t, Some(1000.0)).is_some());
+        assert!(times_look_like_ms(&t, Some(1.0)).is_none());
+    }
+
     /// QA findings: W_c logged in kg/h without a unit was guessed as g/s (the first unit in
     /// which it is in range) without saying that kg/h fits as well, and commands logged as
     /// fractions 0..1 were taken for 0-1 % without a word. Both are notes now.
     #[test]
     fn ambiguous_guesses_are_named() {
-        let opts = LabOptions {
-            max_steps: Some(2),
-            n_stationary: 13,
-            sets: Some(vec!["I".into(), "J".into()]),
-            ..LabOptions::default()
-        };
-        let (c, _) = campaign(&Params::published(), &opts).unwrap();
+        let c = small_ij_campaign();
         let dir = tempfile::tempdir().unwrap();
         save_campaign(dir.path(), &c).unwrap();
         let files = std::iter::once(&c.manifest.stationary)

@@ -19,6 +19,8 @@
 //! - [`pipeline`]: steps 1-5 chained, from data only (and the 12-state steps).
 //! - [`request`]: one tuning run on a campaign directory as the front ends ask for it (settings
 //!   by the command line's names, constants checked, warnings and notes).
+//! - [`scale`]: the engine's scale measured at the stationary points, which the boxes of the
+//!   scale-dependent parameters of steps 1 and 5 follow.
 //! - [`settled`]: settled operating points at the ends of the dynamic sets' command steps
 //!   (compressor flow points for step 1).
 //! - [`sensors`]: first-order lags of the test cell's sensors (Table 6), known or fitted.
@@ -35,6 +37,7 @@ pub mod draft;
 pub mod lab;
 pub mod pipeline;
 pub mod request;
+pub mod scale;
 pub mod sensors;
 pub mod settled;
 pub mod steps;

@@ -22,7 +22,7 @@
 use super::complete::{
     dynamic_residuals, fit_dynamic, naive_theta, sets_with_role, static_params, static_theta,
     step3, step4, step5, step5_bounds, theta_of, torque_residuals, CompleteReport, Cost77,
-    DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels,
+    DynamicFit, Step3Start, Step5Options, Step5Report, StepLevels, PUBLISHED_V_D,
 };
 use super::constants::{
     ambient_from_stationary, implausible_constants, widen_input_saturation,
@@ -413,7 +413,8 @@ pub fn tune(
             step1_with(&p, &c.stationary, &flow_extra, &Step1Start::default()).map_err(at(1))?;
         p = q;
         rep.step1_settled_flow_points = flow_extra.len();
-        let bounds = super::steps::at_bounds(&r);
+        let bounds =
+            super::steps::at_bounds(&r, &super::scale::CampaignScale::of(&p, &c.stationary));
         if !bounds.is_empty() {
             let list: Vec<String> = bounds
                 .iter()
@@ -421,9 +422,9 @@ pub fn tune(
                 .collect();
             rep.caveats.push(format!(
                 "step 1 ended with {} on or beyond the edge of its search box (step 5's box, \
-                 complete::STATIC_PARAMS, sized for the published engine): there the search \
-                 stopped, the data's optimum may lie beyond, and step 5 starts from the box's \
-                 edge",
+                 complete::STATIC_PARAMS, scaled to the campaign's measured flows and pressure \
+                 ratios by tuning::scale): there the search stopped, the data's optimum may lie \
+                 beyond, and step 5 starts from the box's edge",
                 list.join(", ")
             ));
         }
@@ -1231,13 +1232,13 @@ fn run_step5(
                 .filter(|n| !at_first.contains(n))
                 .collect();
             if lost.is_empty() {
-                th0 = theta_of(&step5_bounds(p, &th0, &opts.step5), &q1);
+                th0 = theta_of(&step5_bounds(p, &c.stationary, &th0, &opts.step5), &q1);
             }
             first = Some((osc, r1, lost));
         }
     }
     // the box step 5 searches, for the variance bound of add_fixed
-    let boxes: Vec<(f64, f64)> = step5_bounds(p, &th0, &opts.step5)
+    let boxes: Vec<(f64, f64)> = step5_bounds(p, &c.stationary, &th0, &opts.step5)
         .iter()
         .map(|b| (b.lo, b.hi))
         .collect();
@@ -1263,7 +1264,7 @@ fn run_step5(
     };
     let mut keep: Option<Vec<bool>> = (!osc_end.is_empty()).then(|| cost.rows_without(&osc_end));
     if let Some(k) = &keep {
-        let scales: Vec<f64> = step5_bounds(p, &th0, &opts.step5)
+        let scales: Vec<f64> = step5_bounds(p, &c.stationary, &th0, &opts.step5)
             .iter()
             .map(|b| b.scale)
             .collect();
@@ -1631,8 +1632,11 @@ fn tune_twelve(
             return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
         }
         let s3 = &opts.step3;
+        // V_ic's start and bounds are given for the published engine: scaled by the
+        // displacement as step 3's volumes are (Step3Start::scaled_to; the identity there)
+        let v_ic = V_IC_START.map(|v| v * (p.cylinder.v_d / PUBLISHED_V_D));
         let th0 = [
-            V_IC_START[0],
+            v_ic[0],
             p.intake_manifold.v_im,
             p.exhaust_manifold.v_em,
             p.turbo.j_t,
@@ -1640,16 +1644,16 @@ fn tune_twelve(
         let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
         let th0: Vec<f64> = th0
             .iter()
-            .zip([V_IC_START[1], s3.lo[0], s3.lo[1], s3.lo[2]])
-            .zip([V_IC_START[2], s3.hi[0], s3.hi[1], s3.hi[2]])
+            .zip([v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]])
+            .zip([v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]])
             .map(|((v, lo), hi)| clip(*v, lo, hi))
             .collect();
         let f = DynamicFit {
             order: ModelOrder::Twelve,
             names: &["v_ic", "v_im", "v_em", "j_t"],
             theta0: &th0,
-            lo: &[V_IC_START[1], s3.lo[0], s3.lo[1], s3.lo[2]],
-            hi: &[V_IC_START[2], s3.hi[0], s3.hi[1], s3.hi[2]],
+            lo: &[v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]],
+            hi: &[v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]],
             scale: &[0.01, 0.02, 0.02, 1e-4],
             amp_floor: s3.amp_floor,
             window: s3.window,

@@ -22,8 +22,9 @@ use crate::params::Params;
 /// beta of the third step (section 9.2.1).
 pub const BETA_12: f64 = 2.58;
 
-/// Start and bounds of V_ic [m^3] in the second step: start 10 dm^3 (not the default 18 dm^3),
-/// bounds 1-200 dm^3.
+/// Start and bounds of V_ic [m^3] in the second step for the published engine: start 10 dm^3
+/// (not the default 18 dm^3), bounds 1-200 dm^3; the pipeline scales them to another engine by
+/// its displacement, V_d / [`super::complete::PUBLISHED_V_D`], as step 3's volumes.
 pub const V_IC_START: [f64; 3] = [0.01, 0.001, 0.2];
 
 /// Measured W_ic (= W_c at a stationary point) and eq. (86) at the measured p_c, p_im and

@@ -8,6 +8,7 @@ use crate::components::compressor;
 use crate::params::{Compressor, Gas, Params};
 use crate::tuning::data::StationaryPoint;
 use crate::tuning::lsq::Bounds;
+use crate::tuning::scale::CampaignScale;
 use crate::tuning::varpro::Varpro;
 use nalgebra::DMatrix;
 
@@ -115,6 +116,22 @@ pub fn project_q_c(q: [[f64; 2]; 2]) -> [[f64; 2]; 2] {
     [[a1, a3], [a3, a2]]
 }
 
+/// The box of step 1's (W_copt, pi_copt, c_pi): step 5's boxes of the three at the campaign's
+/// `scale` (lower, upper).
+fn eta_c_box(scale: &CampaignScale) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    for (k, name) in ["w_copt", "pi_copt", "c_pi"].iter().enumerate() {
+        let b = crate::tuning::complete::STATIC_PARAMS
+            .iter()
+            .find(|b| b.name == *name)
+            .map(|b| scale.apply(*b))
+            .expect("W_copt, pi_copt, c_pi are static parameters");
+        (lo[k], hi[k]) = (b.lo, b.hi);
+    }
+    (lo, hi)
+}
+
 /// Compressor efficiency, eqs (58)-(65): eta_c,meas = T_amb (Pi_c^(1-1/gamma_a) - 1) /
 /// (T_c - T_amb) (eq. (58)); W_copt, pi_copt, c_pi nonlinear, eta_cmax, a1, a2, a3 linear;
 /// then the PSD projection of Q_c.
@@ -150,11 +167,15 @@ pub fn fit_eta_c(
             }
         })
     };
+    // the box of (W_copt, pi_copt, c_pi): step 5's (complete::STATIC_PARAMS), W_copt's and
+    // pi_copt's widened to the campaign's flows and pressure ratios (scale::CampaignScale; the
+    // published engine's [0, 2] kg/s and [0, 5] on its campaigns)
+    let (lo, hi) = eta_c_box(&CampaignScale::of(p, pts));
     // the fit from one start of (W_copt, pi_copt, c_pi), Q_c projected on the PSD cone as the
     // model uses it, and the squared error of the model's eta_c it gives
     let fit_from = |start: &[f64]| -> Result<(Params, usize, f64), StepError> {
         let fit = Varpro::new(&y, phi)
-            .bounds(Bounds::new(vec![0.0, 0.0, 0.05], vec![2.0, 5.0, 3.0]))
+            .bounds(Bounds::new(lo.to_vec(), hi.to_vec()))
             .options(lsq_opts())
             .fit(start)
             .map_err(|e| solver_err("eta_c")(e.to_string()))?;
@@ -198,9 +219,10 @@ pub fn fit_eta_c(
     let w_c = sorted(pts.iter().map(|s| s.w_c).collect());
     let pr = sorted(d.iter().map(|d| (d.pi_c - 1.0).max(0.0).sqrt()).collect());
     for q in [0.25, 0.5, 0.75] {
+        // inside the box by 0.5 % of W_copt's and pi_copt's upper bounds (1.99 kg/s, 4.99)
         let s0 = [
-            quantile(&w_c, q).clamp(1e-3, 1.99),
-            quantile(&pr, q).clamp(1e-3, 4.99),
+            quantile(&w_c, q).clamp(1e-3, 0.995 * hi[0]),
+            quantile(&pr, q).clamp(1e-3, 0.998 * hi[1]),
             0.5,
         ];
         if !s0.iter().all(|v| v.is_finite()) {

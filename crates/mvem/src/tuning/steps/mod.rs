@@ -43,6 +43,7 @@ pub use turbine::{bsr_series, fit_eta_tm, fit_w_t};
 
 use super::data::StationaryPoint;
 use super::lsq::{least_squares, Bounds, LsqOptions, LsqResult};
+use super::scale::CampaignScale;
 use crate::components::{compressor as comp, cylinder as cyl, turbine as turb, Semantics};
 use crate::params::Params;
 use nalgebra::{DMatrix, DVector};
@@ -150,18 +151,19 @@ pub struct Step1Report {
 }
 
 /// Step 1's parameters on or beyond an edge of step 5's box for them
-/// ([`crate::tuning::complete::STATIC_PARAMS`]; where step 1 bounds a search, Pi_egropt,
-/// W_copt, pi_copt, c_pi, and c_egr1 <= [`C_EGR1_MAX`], its bounds are those boxes): (name,
-/// value, the bound). A value there is where a search stopped, not an optimum the data show,
-/// and the boxes are the published engine's scale (pi_copt at most 5, W_copt at most 2 kg/s).
-/// Within 1e-6 of the box's width counts as on it; physical limits (x_cv in [0, 1], peak
-/// efficiencies at most 1, lower bounds 0) are not reported.
-pub fn at_bounds(r: &Step1Report) -> Vec<(String, f64, f64)> {
+/// ([`crate::tuning::complete::STATIC_PARAMS`] at the campaign's `scale`,
+/// [`CampaignScale::apply`]; where step 1 bounds a search, Pi_egropt, W_copt, pi_copt, c_pi,
+/// and c_egr1 <= [`C_EGR1_MAX`], its bounds are those boxes): (name, value, the bound). A value
+/// there is where a search stopped, not an optimum the data show. Within 1e-6 of the box's
+/// width counts as on it; physical limits (x_cv in [0, 1], peak efficiencies at most 1, lower
+/// bounds 0) are not reported.
+pub fn at_bounds(r: &Step1Report, scale: &CampaignScale) -> Vec<(String, f64, f64)> {
     let mut out = Vec::new();
     for (name, v) in r.fits.iter().flat_map(|f| &f.params) {
         let Some(b) = crate::tuning::complete::STATIC_PARAMS
             .iter()
             .find(|b| b.name == name)
+            .map(|b| scale.apply(*b))
         else {
             continue;
         };
