@@ -40,7 +40,8 @@ Needs the authors' semantics (--semantics paper has no idle equilibrium).
 --cycle FILE (normalized): a cycle as UN GTR No. 4 publishes them (the WHTC, the WHSC's ramped
 modes, your own), told apart by its header: a time [s], a speed [%] and a torque [%] column
 (e.g. `Time Speed Torque`, an optional units row `s % %`; tab, semicolon, comma or space
-separated), speed 0-120 %, torque 0-100 % or \"m\" for motoring; denormalized with this
+separated; fields may be quoted except between spaces; every row has the header's fields, an
+extra one is refused), speed 0-120 %, torque 0-100 % or \"m\" for motoring; denormalized with this
 engine's mapping curve and reference speeds exactly as the built-in WHTC (speeds clamped into the
 model's range, with a warning). data/whtc_normalized.tsv is an example (it starts at t = 1 s; the
 built-in WHTC repeats its first row at 0 s).

@@ -18,7 +18,7 @@
 use super::ControlError;
 use crate::analysis::steady::{steady_state, steady_state_with, SteadyOptions};
 use crate::dispatch;
-use crate::io::csv_columns::{header_line, Dialect};
+use crate::io::csv_columns::{file_line, header_line, Dialect};
 use crate::model::{AnyModel, Drive, Signals};
 use crate::numerics::Num;
 
@@ -456,13 +456,19 @@ pub type NormalizedRow = (f64, f64, Option<f64>);
 pub const MAX_SPEED_PCT: f64 = 120.0;
 
 /// How a cycle table separates its fields, from its header: the CSV dialect ([`Dialect::of`]:
-/// `;` or tab with decimal commas allowed, else `,`), or runs of blanks when the header has no
-/// comma either (as `Time Speed Torque`; decimal commas allowed). `#` starts a comment line.
+/// `;` or tab with decimal commas allowed, else `,`), whose fields may be quoted (`"1,5"`, read
+/// by the csv crate), or runs of blanks when the header has no comma either (as
+/// `Time Speed Torque`; decimal commas allowed; no quoting: a quote is refused). `#` starts a
+/// comment line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TableFields {
     dialect: Dialect,
     blanks: bool,
 }
+
+/// A table's rows that are neither blank nor comments, each with its 1-based line in the text and
+/// its fields (trimmed, unquoted).
+pub type TableRows = Vec<(usize, Vec<String>)>;
 
 impl TableFields {
     /// The separation of `text`'s fields, read off its header.
@@ -478,15 +484,50 @@ impl TableFields {
         }
     }
 
-    /// The fields of one line, each trimmed.
-    pub fn split<'a>(&self, line: &'a str) -> Vec<&'a str> {
+    /// Every row of `text` that is neither blank nor a comment, split into its fields. A
+    /// delimited table is read by the csv crate (quoted fields unquoted, a quoted field may hold
+    /// the separator); in a blank-separated one a field with a quote is refused, naming its line.
+    pub fn rows(&self, text: &str) -> Result<TableRows, String> {
+        let mut out = Vec::new();
         if self.blanks {
-            line.split_whitespace().collect()
-        } else {
-            line.split(char::from(self.dialect.delimiter))
-                .map(str::trim)
-                .collect()
+            for (i, line) in text.lines().enumerate() {
+                let f: Vec<String> = line.split_whitespace().map(str::to_string).collect();
+                if f.first().is_none_or(|x| x.starts_with('#')) {
+                    continue;
+                }
+                if let Some(q) = f.iter().find(|x| x.contains('"')) {
+                    return Err(format!(
+                        "line {}: field {q} is quoted, but the fields are separated by blanks, \
+                         where quotes are not read (separate them by tabs, semicolons or commas \
+                         to quote a field)",
+                        i + 1
+                    ));
+                }
+                out.push((i + 1, f));
+            }
+            return Ok(out);
         }
+        let mut rdr = csv::ReaderBuilder::new()
+            .delimiter(self.dialect.delimiter)
+            .has_headers(false)
+            .flexible(true)
+            .trim(csv::Trim::All)
+            .comment(Some(b'#'))
+            .from_reader(text.as_bytes());
+        for rec in rdr.records() {
+            let rec = rec.map_err(|e| {
+                let line = e.position().map(|p| file_line(text, p, Some(b'#')));
+                format!("line {}: {e}", line.map_or("?".into(), |l| l.to_string()))
+            })?;
+            let f: Vec<String> = rec.iter().map(str::to_string).collect();
+            // a line of blanks, or a comment indented by blanks
+            if f.iter().all(String::is_empty) || f[0].starts_with('#') {
+                continue;
+            }
+            let line = rec.position().map_or(0, |p| file_line(text, p, Some(b'#')));
+            out.push((line, f));
+        }
+        Ok(out)
     }
 
     /// A field as a number ([`Dialect::number`]).
@@ -495,10 +536,17 @@ impl TableFields {
     }
 }
 
-/// The header fields of a cycle table (its first line that is neither blank nor a `#` comment),
-/// split as its rows are ([`TableFields`]).
-pub fn header_fields(text: &str) -> Vec<&str> {
-    TableFields::of(text).split(header_line(text, Some(b'#')))
+/// The header fields of a cycle table (its first row that is neither blank nor a `#` comment),
+/// split as its rows are ([`TableFields::rows`]; empty if the text has no row or cannot be
+/// split).
+pub fn header_fields(text: &str) -> Vec<String> {
+    let fields = TableFields::of(text);
+    let first = header_line(text, Some(b'#'));
+    fields
+        .rows(first)
+        .ok()
+        .and_then(|r| r.into_iter().next())
+        .map_or_else(Vec::new, |(_, f)| f)
 }
 
 /// A header name without its unit in brackets, lower case ("Speed [%]" -> "speed").
@@ -513,7 +561,7 @@ pub fn bare_name(field: &str) -> String {
 
 /// Whether a header row names the columns of a normalized cycle (a "speed" and a "torque"
 /// column, as `data/whtc_normalized.tsv`: `Time Speed Torque`).
-pub fn is_normalized_header(fields: &[&str]) -> bool {
+pub fn is_normalized_header(fields: &[String]) -> bool {
     let names: Vec<String> = fields.iter().map(|f| bare_name(f)).collect();
     names.iter().any(|n| n.contains("speed")) && names.iter().any(|n| n.contains("torque"))
 }
@@ -525,31 +573,43 @@ pub fn is_normalized_header(fields: &[&str]) -> bool {
 /// columns in that order), an optional units row
 /// (the speed's and torque's units must be %), then one row per time: time \[s\], speed [%] in
 /// [0, [`MAX_SPEED_PCT`]], torque [%] in [0, 100] or "m" for motoring. Fields are separated by
-/// tabs, semicolons, commas or blanks, as the header is ([`TableFields`]); `#` starts a comment
-/// line. Errors name the line (1-based); times must increase.
+/// tabs, semicolons, commas or blanks, as the header is ([`TableFields`]), and may be quoted
+/// except between blanks; every row has the header's number of fields (three without a header):
+/// an extra field is refused, not ignored. `#` starts a comment line. Errors name the line
+/// (1-based); times must increase.
 pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> {
     let fields = TableFields::of(text);
     let mut out: Vec<NormalizedRow> = Vec::new();
     let mut cols = [0usize, 1, 2];
-    let mut header_seen = false;
+    // the header's line and number of fields (without a header: 3 fields)
+    let mut header: Option<(usize, usize)> = None;
     let mut units_checked = false;
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
+    for (line, f) in fields.rows(text)? {
+        // every row has the header's fields: an extra one is refused, not ignored
+        if let Some((h_line, width)) = header.filter(|h| h.1 != f.len()) {
+            let more = match f.get(width..) {
+                Some(extra) if extra.iter().all(String::is_empty) => {
+                    " (a separator at the end of the line?)".to_string()
+                }
+                Some(extra) => format!(": extra {}", extra.join(", ")),
+                None => String::new(),
+            };
+            return Err(format!(
+                "line {line}: expected {width} fields as the header on line {h_line} names, \
+                 found {}{more}",
+                f.len()
+            ));
         }
-        let f = fields.split(line);
-        let numeric = fields.number(f[0]).is_some();
+        let numeric = fields.number(&f[0]).is_some();
         if !numeric && out.is_empty() {
-            if !header_seen {
-                header_seen = true;
+            if header.is_none() {
+                header = Some((line, f.len()));
                 let names: Vec<String> = f.iter().map(|x| bare_name(x)).collect();
                 let find = |pred: &dyn Fn(&str) -> bool, what: &str| {
                     names.iter().position(|n| pred(n)).ok_or_else(|| {
                         format!(
-                            "line {}: no {what} column in the header ({}); a normalized cycle \
-                             has time [s], speed [%] and torque [%] columns",
-                            i + 1,
+                            "line {line}: no {what} column in the header ({}); a normalized \
+                             cycle has time [s], speed [%] and torque [%] columns",
                             f.join(", ")
                         )
                     })
@@ -562,30 +622,27 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
             } else if !units_checked {
                 units_checked = true;
                 for (k, what) in [(1, "speed"), (2, "torque")] {
-                    let unit = f.get(cols[k]).copied().unwrap_or("");
+                    let unit = f.get(cols[k]).map_or("", String::as_str);
                     if !unit.is_empty() && unit != "%" {
                         return Err(format!(
                             "line {}: the {what} column's unit is '{unit}', not %: this reads \
                              normalized cycles only (for speeds in rpm and torques in Nm give \
                              the columns t, n_e, M_ref)",
-                            i + 1
+                            line
                         ));
                     }
                 }
             } else {
                 return Err(format!(
                     "line {}: '{}' is not a number (a third row of names?)",
-                    i + 1,
-                    f[0]
+                    line, f[0]
                 ));
             }
             continue;
         }
-        let need = cols.iter().max().copied().unwrap_or(2) + 1;
-        if f.len() < need {
+        if header.is_none() && f.len() != 3 {
             return Err(format!(
-                "line {}: expected {need} fields (time, speed, torque), found {}",
-                i + 1,
+                "line {line}: expected 3 fields (time, speed, torque; no header), found {}",
                 f.len()
             ));
         }
@@ -593,18 +650,18 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
             fields
                 .number(s)
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("line {}: {what} '{s}' is not a number", i + 1))
+                .ok_or_else(|| format!("line {}: {what} '{s}' is not a number", line))
         };
-        let t = num(f[cols[0]], "time")?;
-        let n = num(f[cols[1]], "speed")?;
+        let t = num(&f[cols[0]], "time")?;
+        let n = num(&f[cols[1]], "speed")?;
         if !(0.0..=MAX_SPEED_PCT).contains(&n) {
             return Err(format!(
                 "line {}: speed {n} % is outside [0, {MAX_SPEED_PCT}] % (normalized speeds are \
                  percent; for speeds in rpm give the columns t, n_e, M_ref)",
-                i + 1
+                line
             ));
         }
-        let tq = f[cols[2]];
+        let tq = f[cols[2]].as_str();
         let m = if tq.eq_ignore_ascii_case("m") {
             None
         } else {
@@ -612,7 +669,7 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
             if !(0.0..=100.0).contains(&v) {
                 return Err(format!(
                     "line {}: torque {v} % is outside [0, 100] % (motoring: \"m\")",
-                    i + 1
+                    line
                 ));
             }
             Some(v)
@@ -622,7 +679,7 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
                 return Err(format!(
                     "line {}: time {t} s is not after the previous row's {t_prev} s (time must \
                      increase)",
-                    i + 1
+                    line
                 ));
             }
         }

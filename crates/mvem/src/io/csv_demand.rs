@@ -369,4 +369,72 @@ mod tests {
         );
         bad("speed torque\n0 0\n1 1\n", "line 1: no time column");
     }
+
+    /// A row with more fields than the header names is refused naming its line and the extra
+    /// fields (they were ignored: `1,50,20,7` read as 1 s, 50 %, 20 %), in every separation and
+    /// for the units row; a trailing separator is named as such; a header with a trailing
+    /// separator (a spreadsheet's export) and rows with the same are read.
+    #[test]
+    fn a_normalized_cycle_refuses_extra_fields() {
+        let bad = |text: &str, want: &str| {
+            let e = cycle(text).unwrap_err();
+            assert!(e.contains(want), "{want:?} not in {e:?}");
+        };
+        bad(
+            "Time,Speed,Torque\n0,0,0\n1,50,20,7\n",
+            "line 3: expected 3 fields as the header on line 1 names, found 4: extra 7",
+        );
+        bad(
+            "# a comment\nTime;Speed;Torque\n0;0;0\n\n1;50;20;7;x\n",
+            "line 5: expected 3 fields as the header on line 2 names, found 5: extra 7, x",
+        );
+        bad(
+            "Time\tSpeed\tTorque\ns\t%\t%\tkg\n0\t0\t0\n",
+            "line 2: expected 3 fields as the header on line 1 names, found 4: extra kg",
+        );
+        bad(
+            "time speed torque\n0 0 0\n1 50 20 7\n",
+            "line 3: expected 3 fields as the header on line 1 names, found 4: extra 7",
+        );
+        bad(
+            "Time;Speed;Torque\n0;0;0\n1;50;20;\n",
+            "line 3: expected 3 fields as the header on line 1 names, found 4 (a separator at \
+             the end of the line?)",
+        );
+        assert_eq!(
+            rows("Time;Speed;Torque;\n0;0;0;\n1;50,5;m;\n"),
+            vec![(0.0, 0.0, Some(0.0)), (1.0, 50.5, None)]
+        );
+    }
+
+    /// Quoted fields of a delimited table are unquoted (the csv crate): quoted names, a quoted
+    /// "m", a quoted number holding the separator; `"Time","Speed","Torque"` was not even taken
+    /// for a normalized cycle's header (its time column was not found). Between blanks a quote
+    /// is refused, naming the line.
+    #[test]
+    fn a_normalized_cycle_reads_quoted_fields() {
+        let want = vec![
+            (0.0, 0.0, Some(0.0)),
+            (1.5, 50.0, None),
+            (3.0, 60.5, Some(20.0)),
+        ];
+        assert_eq!(
+            rows("\"Time [s]\",\"Speed [%]\",\"Torque [%]\"\n0,0,0\n\"1.5\",50,\"m\"\n3,60.5,20\n"),
+            want
+        );
+        assert_eq!(
+            rows("\"Time\";\"Speed\";\"Torque\"\n0;0;0\n1,5;50;\"m\"\n3;\"60,5\";20\n"),
+            want
+        );
+        // a quoted comma in a comma-separated row is one field
+        assert_eq!(
+            rows("Speed,Torque,Time,Note\n0,0,0,\"idle, warm\"\n50,m,1.5,\"a, b\"\n60.5,20,3,x\n"),
+            want
+        );
+        let e = cycle("time speed torque\n0 0 0\n1 \"50\" 20\n").unwrap_err();
+        assert!(
+            e.contains("line 3: field \"50\" is quoted, but the fields are separated by blanks"),
+            "{e}"
+        );
+    }
 }
