@@ -111,6 +111,9 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// The series' x are log10 of the quantity: the ticks show 10^x (a frequency axis).
     pub log_x: bool,
+    /// The legend in one row above the axes, right-aligned, instead of in a corner over them
+    /// (a dense trace that fills every corner: the axes then fit the data).
+    pub legend_above: bool,
 }
 
 impl Panel {
@@ -122,7 +125,14 @@ impl Panel {
             y_label: y_label.into(),
             series: Vec::new(),
             log_x: false,
+            legend_above: false,
         }
+    }
+
+    /// Put the legend in a row above the axes (see [`Panel::legend_above`]).
+    pub fn legend_above(mut self) -> Self {
+        self.legend_above = true;
+        self
     }
 
     /// The x values are log10 of the quantity; ticks are labelled with 10^x.
@@ -477,11 +487,14 @@ fn draw_panel<DB: DrawingBackend>(
     as_pieces: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let (x0, x1) = range(panel.series.iter().flat_map(|s| s.x.iter().copied()), 0.0);
-    // extra head- and foot-room for the legend
-    let (y0, mut y1) = range(panel.series.iter().flat_map(|s| s.y.iter().copied()), 0.12);
+    let labelled = panel.series.iter().any(|s| !s.label.is_empty());
+    let above = panel.legend_above && labelled;
+    // extra head- and foot-room for a legend over the axes
+    let pad = if above { 0.04 } else { 0.12 };
+    let (y0, mut y1) = range(panel.series.iter().flat_map(|s| s.y.iter().copied()), pad);
     let plot_height_px = area.dim_in_pixel().1 as f64 - 110.0;
     let mut corner = SeriesLabelPosition::UpperRight;
-    if panel.series.iter().any(|s| !s.label.is_empty()) {
+    if labelled && !above {
         let (pos, covered, wy) = legend_corner(panel, (x0, x1), (y0, y1), plot_height_px);
         corner = pos;
         let keep = 1.0 - wy - 0.03;
@@ -497,6 +510,7 @@ fn draw_panel<DB: DrawingBackend>(
     }
     let mut b = ChartBuilder::on(area);
     b.margin(8)
+        .margin_top(if above { 8 + LEGEND_ROW } else { 8 })
         .margin_right(18)
         .x_label_area_size(48)
         .y_label_area_size(86);
@@ -583,7 +597,9 @@ fn draw_panel<DB: DrawingBackend>(
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
         }
     }
-    if panel.series.iter().any(|s| !s.label.is_empty()) {
+    if above {
+        legend_row(area, &chart.plotting_area().get_pixel_range(), panel)?;
+    } else if labelled {
         chart
             .configure_series_labels()
             .position(corner)
@@ -592,6 +608,52 @@ fn draw_panel<DB: DrawingBackend>(
             .border_style(RGBColor(160, 160, 160))
             .margin(8)
             .draw()?;
+    }
+    Ok(())
+}
+
+/// Height of the legend row above the axes of a [`Panel::legend_above`] panel [px].
+const LEGEND_ROW: u32 = 24;
+
+/// The legend of `panel` in one row just above its axes, right-aligned with them (`plot`: the
+/// axes' pixel ranges in the backend's coordinates): per labelled series a 24 px sample of its
+/// line (dashed, or a marker) and its label.
+fn legend_row<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    plot: &(std::ops::Range<i32>, std::ops::Range<i32>),
+    panel: &Panel,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let (bx, by) = area.get_base_pixel();
+    let font: TextStyle = (FAMILY, 16).into_font().into();
+    let y = plot.1.start - by - LEGEND_ROW as i32 / 2 - 2;
+    let mut x = plot.0.end - bx;
+    for s in panel.series.iter().rev().filter(|s| !s.label.is_empty()) {
+        let (w, h) = area.estimate_text_size(&s.label, &font)?;
+        x -= w as i32;
+        area.draw(&Text::new(
+            s.label.as_str(),
+            (x, y - h as i32 / 2),
+            font.clone(),
+        ))?;
+        x -= 32;
+        let style = ShapeStyle {
+            color: PALETTE[s.color % PALETTE.len()].to_rgba(),
+            filled: s.markers,
+            stroke_width: 2,
+        };
+        if s.markers {
+            area.draw(&Circle::new((x + 12, y), 5, style))?;
+        } else if s.dashed {
+            area.draw(&DashedPathElement::new(
+                vec![(x, y), (x + 24, y)],
+                6,
+                4,
+                style,
+            ))?;
+        } else {
+            area.draw(&PathElement::new(vec![(x, y), (x + 24, y)], style))?;
+        }
+        x -= 20;
     }
     Ok(())
 }

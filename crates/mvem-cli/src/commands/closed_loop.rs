@@ -227,13 +227,16 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
         .collect();
     let mut fig = Figure::new(1);
     fig.title = Some(title.to_string());
+    // a drive cycle's dense traces fill every corner of a panel: the legends go in a row above
+    // the axes, which then fit the data
     fig.panels = vec![
         Panel::new("t [s]", "torque [Nm]")
+            .legend_above()
             .title("torque tracking")
             .with(Series::line("M_ref", &t, &dec("M_ref"), 1))
             .with(Series::line("M_e", &t, &dec("M_e"), 0)),
-        // two legend entries (the limit named in the title): the legend fits above the data
         Panel::new("t [s]", "lambda_O [-]")
+            .legend_above()
             .title("oxygen/fuel ratio (clipped at 5; dashed: the limit 1.2)")
             .with(Series::line(
                 "lambda_O,s",
@@ -255,15 +258,18 @@ fn figure(traj: &Trajectory, title: &str) -> Figure {
             ))
             .with(Series::hline("", t[0], *t.last().unwrap(), 1.2, 3)),
         Panel::new("t [s]", "x_egr [-]")
+            .legend_above()
             .title("EGR fraction")
             .with(Series::line("x_egr,s", &t, &dec("x_egr_ref"), 1))
             .with(Series::line("x_egr", &t, &dec("x_egr"), 0)),
         Panel::new("t [s]", "command")
+            .legend_above()
             .title("actuator commands")
             .with(Series::line("u_egr [%]", &t, &dec("u_egr"), 0))
             .with(Series::line("u_vgt [%]", &t, &dec("u_vgt"), 1))
             .with(Series::line("u_delta [mg]", &t, &dec("u_delta"), 2)),
         Panel::new("t [s]", "p_em - p_im [bar]")
+            .legend_above()
             .title("pumping pressure difference")
             .with(Series::line("p_em - p_im", &t, &pe, 0)),
     ];
