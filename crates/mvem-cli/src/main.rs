@@ -108,6 +108,59 @@ fn reset_sigpipe() {
     }
 }
 
+/// The cancellation token that SIGTERM and SIGINT cancel ([`on_termination`]), and the signal
+/// that did (0: none).
+static TERMINATION: std::sync::OnceLock<mvem::numerics::cancel::CancelToken> =
+    std::sync::OnceLock::new();
+static TERMINATED_BY: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+
+/// The handler of SIGTERM and SIGINT while a writer of large files runs: it only cancels the
+/// token (an atomic store) and records the signal, both async-signal-safe, and restores the
+/// default action, so that a second signal ends the process at once.
+#[cfg(unix)]
+extern "C" fn on_termination(sig: libc::c_int) {
+    TERMINATED_BY.store(sig, std::sync::atomic::Ordering::SeqCst);
+    if let Some(t) = TERMINATION.get() {
+        t.cancel();
+    }
+    // SAFETY: signal() is async-signal-safe; SIG_DFL is a valid action.
+    unsafe {
+        libc::signal(sig, libc::SIG_DFL);
+    }
+}
+
+/// Run `f` (a command that streams its output through a temporary file, `mvem closed-loop`,
+/// `mvem simulate`) so that SIGTERM or SIGINT (Ctrl-C) stops it through its error path, which
+/// removes the temporary file (`.NAME.tmp-PID`, left behind by a killed run before): the signal
+/// cancels the core's cancellation token (`mvem::numerics::cancel`, polled by the integrator
+/// before every step and by the margins analysis), the command fails and cleans up, and the
+/// process then ends by the same signal (exit status 128 + its number for the shell). Not used
+/// for commands that do not poll the token (`mvem serve` keeps the default actions).
+fn with_termination_cleanup(f: impl FnOnce() -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let token = TERMINATION.get_or_init(mvem::numerics::cancel::CancelToken::new);
+    #[cfg(unix)]
+    // SAFETY: the handler only performs async-signal-safe operations (atomic stores, signal()).
+    unsafe {
+        let h = on_termination as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        libc::signal(libc::SIGTERM, h);
+        libc::signal(libc::SIGINT, h);
+    }
+    let r = mvem::numerics::cancel::with_token(token, f);
+    let sig = TERMINATED_BY.load(std::sync::atomic::Ordering::SeqCst);
+    #[cfg(unix)]
+    if sig != 0 {
+        if let Err(e) = &r {
+            eprintln!("error: {}", common::error_message(e));
+        }
+        // SAFETY: the handler restored the default action, which ends the process.
+        unsafe {
+            libc::raise(sig);
+        }
+    }
+    let _ = sig;
+    r
+}
+
 fn main() -> ExitCode {
     reset_sigpipe();
     let cli = match Cli::try_parse() {
@@ -123,7 +176,7 @@ fn main() -> ExitCode {
         }
     };
     let result = match &cli.cmd {
-        Command::Simulate(a) => commands::simulate::run(a),
+        Command::Simulate(a) => with_termination_cleanup(|| commands::simulate::run(a)),
         Command::Steady(a) => commands::steady::run(a),
         Command::Margins(a) => commands::margins::run(a),
         Command::Linearize(a) => commands::linearize::run(a),
@@ -143,7 +196,7 @@ fn main() -> ExitCode {
         Command::TeStudy(a) => commands::te_study::run(a),
         Command::Robustness(a) => commands::robustness::run(a),
         Command::Serve(a) => commands::serve::run(a),
-        Command::ClosedLoop(a) => commands::closed_loop::run(a),
+        Command::ClosedLoop(a) => with_termination_cleanup(|| commands::closed_loop::run(a)),
     };
     match result {
         Ok(()) => ExitCode::from(common::EXIT_OK),

@@ -721,3 +721,44 @@ fn margins_along_the_run() {
     }
     assert!(!d.path().join("o2").exists());
 }
+
+/// SIGTERM during `mvem closed-loop` (the loop running, its trajectory streaming into
+/// `.trajectory.csv.tmp-PID`): the run stops through its error path, which removes the temporary
+/// file and the output directory it created, and the process ends by SIGTERM. Before, the
+/// default action killed it at once and the temporary file stayed until a later run's
+/// housekeeping removed it (10 minutes after it was last written). A second run gets SIGINT
+/// (Ctrl-C) the same way.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_termination_signal_leaves_no_temporary_file() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::time::{Duration, Instant};
+    for sig in [libc::SIGTERM, libc::SIGINT] {
+        let d = tempfile::tempdir().unwrap();
+        let out = d.path().join("cl");
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_mvem"))
+            .args(["closed-loop", "--cycle", "whtc", "--plot", "--out", "cl"])
+            .current_dir(d.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let tmp = out.join(format!(".trajectory.csv.tmp-{}", child.id()));
+        let start = Instant::now();
+        while !tmp.exists() {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "the run ended before its temporary file was seen"
+            );
+            assert!(start.elapsed() < Duration::from_secs(60), "no {tmp:?}");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        // SAFETY: kill() on the child's PID, which has not been waited for (still ours)
+        assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, sig) }, 0);
+        let o = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.signal(), Some(sig), "{:?}: {err}", o.status);
+        assert!(err.contains("cancelled"), "{err}");
+        assert!(!out.exists(), "left: {:?}", files(&out));
+    }
+}

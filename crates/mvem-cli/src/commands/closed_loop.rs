@@ -390,6 +390,11 @@ pub fn run(a: &Args) -> Result<()> {
                 );
                 files.figure("closed_loop", &figure(&w.run.traj, &title))?;
             }
+            // a termination signal after the loop (mvem's handler cancels the token): fail
+            // here, so that the temporary trajectory file is removed, not renamed
+            if mvem::numerics::cancel::requested() {
+                anyhow::bail!("cancelled (a termination signal) before the files were written");
+            }
             Ok((w, json, files, margins))
         },
     );
