@@ -567,6 +567,17 @@ def test_indexed_parameters_are_one_based_everywhere():
         mvem.steady(*POINT, params={"egr_valve.c_egr[1]": 1.0})
 
 
+def test_a_non_finite_parameter_value_is_named():
+    """NaN or infinity in a params mapping is refused naming the parameter (JSON has no such
+    numbers: it was "not a JSON-like mapping: expected value at line 1 column 23")."""
+    with pytest.raises(ValueError, match=r"^params: `cylinder.c_vol\[1\]` = NaN is not a finite number"):
+        mvem.steady(*POINT, params={"cylinder.c_vol[1]": float("nan")})
+    with pytest.raises(ValueError, match=r"^params: `gas.r_a` = inf is not a finite number"):
+        mvem.steady(*POINT, params={"gas": {"r_a": float("inf")}})
+    with pytest.raises(ValueError, match=r"^params: `compressor.q_c\[2\]\[1\]` = -inf"):
+        mvem.steady(*POINT, params={"compressor": {"q_c": [[1.0, 0.0], (float("-inf"), 1.0)]}})
+
+
 def test_an_absurd_horizon_is_refused_at_once():
     """QA: t_end = 1e300 s with a coarse output grid ran for minutes before failing."""
     import time

@@ -80,12 +80,51 @@ fn variant_of(model: &IntArg, cylinder_temp: &str) -> PyResult<Variant> {
     }
 }
 
+/// The first float of a (nested) params mapping or list that is NaN or infinite: its path
+/// (`group.field`, `[i]` 1-based for list elements, as the parameter names) and value.
+fn non_finite_entry(obj: &Bound<'_, PyAny>, prefix: &str) -> PyResult<Option<(String, f64)>> {
+    let join = |k: &str| {
+        if prefix.is_empty() {
+            k.to_string()
+        } else {
+            format!("{prefix}.{k}")
+        }
+    };
+    if let Ok(d) = obj.downcast::<PyDict>() {
+        for (k, v) in d.iter() {
+            let key = k.str()?.to_string();
+            if let Some(hit) = non_finite_entry(&v, &join(&key))? {
+                return Ok(Some(hit));
+            }
+        }
+    } else if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        for (i, v) in obj.try_iter()?.enumerate() {
+            let v = v?;
+            if let Some(hit) = non_finite_entry(&v, &format!("{prefix}[{}]", i + 1))? {
+                return Ok(Some(hit));
+            }
+        }
+    } else if let Ok(x) = obj.downcast::<pyo3::types::PyFloat>() {
+        let v = x.value();
+        if !v.is_finite() {
+            return Ok(Some((prefix.to_string(), v)));
+        }
+    }
+    Ok(None)
+}
+
 fn parse_params(py: Python<'_>, params: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Params>> {
     let Some(obj) = params else { return Ok(None) };
     if obj.is_none() {
         return Ok(None);
     }
     if obj.is_instance_of::<PyDict>() {
+        // JSON has no NaN or infinity (json.dumps writes tokens serde refuses without a name)
+        if let Some((path, v)) = non_finite_entry(obj, "")? {
+            return Err(PyValueError::new_err(format!(
+                "params: `{path}` = {v} is not a finite number"
+            )));
+        }
         let json: String = py
             .import("json")?
             .call_method1("dumps", (obj,))
