@@ -641,19 +641,13 @@ def test_a_field_without_a_number_is_named_and_sends_nothing(page):
         page.wait_for_timeout(100)
         assert sent == [], sent
     page.fill("input[name=n_e]", "1500")
-    for name, label in (("step_target", "step to"), ("step_horizon", "horizon")):
+    for panel, name, label in (("step", "step_target", "step to"), ("step", "step_horizon", "horizon"),
+                               ("map", "map_x_lo", "x from"), ("map", "map_n", "points")):
         old = page.input_value(f"input[name={name}]")
         page.fill(f"input[name={name}]", "")
-        page.click("[data-action=step]")
+        page.click(f"[data-action={panel}]")
         page.wait_for_function(
-            f"document.querySelector('#step-error').textContent.includes('{label}: not a number')")
-        page.fill(f"input[name={name}]", old)
-    for name, label in (("map_x_lo", "x from"), ("map_n", "points")):
-        old = page.input_value(f"input[name={name}]")
-        page.fill(f"input[name={name}]", "")
-        page.click("[data-action=map]")
-        page.wait_for_function(
-            f"document.querySelector('#map-error').textContent.includes('{label}: not a number')")
+            f"document.querySelector('#{panel}-error').textContent.includes('{label}: not a number')")
         page.fill(f"input[name={name}]", old)
     assert not any(p.startswith(("api/step", "api/map")) for p in sent), sent
     page.wait_for_selector("#steady-error", state="hidden")
