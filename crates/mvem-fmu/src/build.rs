@@ -50,7 +50,12 @@ fn fmi_unit(unit: &str) -> Option<&'static str> {
         "W/(m^2 K)" => "W/(m2.K)",
         u => u,
     };
-    UNITS.iter().map(|(n, ..)| *n).find(|n| *n == u)
+    declared(u)
+}
+
+/// `unit` as declared in [`UNITS`] (`None` if it is not).
+fn declared(unit: &str) -> Option<&'static str> {
+    UNITS.iter().map(|(n, ..)| *n).find(|n| *n == unit)
 }
 
 /// The FMI unit of the time derivative of a quantity in the FMI unit `unit` (`Pa` -> `Pa/s`,
@@ -61,7 +66,7 @@ fn der_unit(unit: &str) -> Option<&'static str> {
         u if u.ends_with("/s") => format!("{u}2"),
         u => format!("{u}/s"),
     };
-    UNITS.iter().map(|(n, ..)| *n).find(|n| *n == d)
+    declared(&d)
 }
 
 /// A description with the unit appended, e.g. `Turbocharger inertia J_t (eq. (42)) [kg m^2]`.
