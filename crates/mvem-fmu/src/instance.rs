@@ -242,6 +242,18 @@ impl Instance {
                 Num(t_start)
             )));
         }
+        // the simulator's time axis ends at mvem::sim::MAX_TIME: refuse such an experiment here,
+        // not at every later fmi2DoStep
+        for (name, t) in [("startTime", Some(t_start)), ("stopTime", t_stop)] {
+            if let Some(t) = t.filter(|t| t.abs() > mvem::sim::MAX_TIME) {
+                return Err(FmuError::error(format!(
+                    "fmi2SetupExperiment: {name} = {} s is beyond the {:e} s (about 31.7 years) \
+                     a simulation accepts",
+                    Num(t),
+                    mvem::sim::MAX_TIME
+                )));
+            }
+        }
         if let Some(tol) = tolerance {
             if !(1e-13..1.0).contains(&tol) {
                 return Err(FmuError::error(format!(
@@ -1440,16 +1452,16 @@ mod tests {
 
         // without a stop time any length is allowed, but the time must advance
         let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
-        f.setup_experiment(None, 1e17, None).unwrap();
+        f.setup_experiment(None, 1e9, None).unwrap();
         f.enter_initialization().unwrap();
         f.exit_initialization().unwrap();
-        let e = f.do_step(1e17, 1.0).unwrap_err(); // 1e17 + 1 == 1e17
+        let e = f.do_step(1e9, 1e-8).unwrap_err(); // 1e9 + 1e-8 == 1e9
         assert!(
             e.message.contains("does not advance the time"),
             "{}",
             e.message
         );
-        assert_eq!(f.time(), 1e17);
+        assert_eq!(f.time(), 1e9);
         // a step to beyond mvem::sim::MAX_TIME (1e9 s) is refused before any integration
         // (QA: an absurd horizon ran for minutes in the library), the instance unchanged
         let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
@@ -1464,17 +1476,20 @@ mod tests {
         );
         assert_eq!(f.time(), 0.0);
         f.do_step(0.0, 1.0).unwrap();
-        let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
-        f.setup_experiment(None, 1e308, None).unwrap();
-        f.enter_initialization().unwrap();
-        f.exit_initialization().unwrap();
-        let e = f.do_step(1e308, f64::MAX).unwrap_err(); // past the largest finite time
-        assert!(
-            e.message.contains("does not advance the time"),
-            "{}",
-            e.message
-        );
-        assert!(e.message.contains("at t = 1e308"), "{}", e.message);
+        // an experiment starting or stopping beyond MAX_TIME is refused when it is set up
+        for (start, stop, name) in [
+            (1e17, None, "startTime = 1e17 s"),
+            (-2e9, None, "startTime = -2000000000 s"),
+            (0.0, Some(1e308), "stopTime = 1e308 s"),
+        ] {
+            let mut f = Instance::new(Interface::CoSimulation, &FmuConfig::default());
+            let e = f.setup_experiment(None, start, stop).unwrap_err();
+            assert!(
+                e.message.contains(name) && e.message.contains("beyond the 1e9 s"),
+                "{}",
+                e.message
+            );
+        }
 
         // Model Exchange: fmi2SetTime may go past the stop time (an importer's integrator
         // evaluates there and interpolates back)
