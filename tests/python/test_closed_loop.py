@@ -46,24 +46,28 @@ def test_a_demand_with_a_tuning_dict():
     np.testing.assert_array_equal(again["trajectory"]["lambda_O"], tuned["trajectory"]["lambda_O"])
 
 
-def test_the_vgt_gain_schedule_from_a_dict_equals_the_cli(mvem_cli, tmp_path):
+def test_the_gain_schedules_from_a_dict_equal_the_cli(mvem_cli, tmp_path):
     """The VGT loops' gain schedule (vgt_gain_closed, vgt_gain_knee) from a dict is the CLI's
     `--tuning` file to the bit over the WHTC's first 120 s, and it changes the VGT command
-    (the default run differs where the VGT is below the knee)."""
-    tuning = {"vgt_gain_closed": 0.5, "vgt_gain_knee": 40.0}
+    against the default schedule (0.5 at 20 %, knee 40 %: the runs differ once the VGT is below
+    the larger knee); the EGR-valve loops' schedule (egr_gain_closed, egr_gain_knee) is echoed."""
+    tuning = {"vgt_gain_closed": 0.7, "vgt_gain_knee": 50.0, "egr_gain_knee": 12.0}
     r = mvem.closed_loop("whtc", duration=120.0, tuning=tuning)
     f = tmp_path / "sched.toml"
-    f.write_text("vgt_gain_closed = 0.5\nvgt_gain_knee = 40\n")
+    f.write_text("vgt_gain_closed = 0.7\nvgt_gain_knee = 50\negr_gain_knee = 12\n")
     subprocess.run([mvem_cli, "closed-loop", "--cycle", "whtc", "--duration", "120", "--tuning",
                     str(f), "--out", str(tmp_path / "cl")], check=True, capture_output=True)
     cli = read_csv(tmp_path / "cl" / "trajectory.csv")
     for name, col in r["trajectory"].items():
         np.testing.assert_array_equal(col, cli[name], err_msg=name)
-    assert r["controller_tuning"]["vgt_gain_closed"] == 0.5
+    assert r["controller_tuning"]["vgt_gain_closed"] == 0.7
+    assert r["controller_tuning"]["egr_gain_closed"] == 0.5
+    assert r["controller_tuning"]["egr_gain_knee"] == 12.0
     plain = mvem.closed_loop("whtc", duration=120.0)
+    assert plain["controller_tuning"]["vgt_gain_closed"] == 0.5
     u0, u1 = plain["trajectory"]["u_vgt"], r["trajectory"]["u_vgt"]
     assert np.max(np.abs(u1 - u0)) > 1.0
-    assert np.min(u0[np.abs(u1 - u0) > 1e-9]) < 40.0
+    assert np.min(u0[np.abs(u1 - u0) > 1e-9]) < 50.0
 
 
 def test_a_normalized_cycle_file_equals_the_cli(mvem_cli, tmp_path):

@@ -406,7 +406,7 @@ fn a_cycle_follows_the_parameter_sets_speed_range() {
     );
     std::fs::write(
         d.path().join("fast.csv"),
-        "t,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n8,2300,300\n",
+        "t,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n15,2300,300\n",
     )
     .unwrap();
     let err = usage_error(
@@ -434,7 +434,9 @@ fn a_cycle_follows_the_parameter_sets_speed_range() {
     let (n, m, r) = (col(&h, "n_e"), col(&h, "M_e"), col(&h, "M_ref"));
     let last = rows.last().unwrap();
     assert_eq!(last[n], 2300.0);
-    assert!((last[m] - last[r]).abs() < 0.01 * last[r], "{last:?}");
+    // 12 s after the speed step the torque is tracked (0.01 % in this run; 1.3 % after 5 s,
+    // while the air path still opens the VGT and the EGR valve)
+    assert!((last[m] - last[r]).abs() < 0.002 * last[r], "{last:?}");
     let o = mvem(
         d.path(),
         &[
@@ -568,13 +570,8 @@ fn margins_of_the_baseline_loops() {
     assert!(o.status.success(), "{}", stderr(&o));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let t = BaselineTuning::default();
-    let (_, a) = margins_at(
-        &Engine8::published(),
-        &Drive::new(1500.0, 110.0, 50.0, 60.0),
-        &baseline_loops(&t, 60.0),
-        t.ts,
-    )
-    .unwrap();
+    let op = Drive::new(1500.0, 110.0, 50.0, 60.0);
+    let (_, a) = margins_at(&Engine8::published(), &op, &baseline_loops(&t, &op), t.ts).unwrap();
     let lib = loop_analysis_json(&a);
     assert_eq!(j["loops"], lib["loops"]);
     assert_eq!(j["max_pole_all"], lib["max_pole_all"]);
@@ -680,21 +677,21 @@ fn margins_along_the_run() {
                 "{c}"
             );
         }
-        let loops = loops_in_charge(
-            &tuning,
-            InCharge::from_code(r[col(&h, "egr_loop")]),
-            InCharge::from_code(r[col(&h, "vgt_loop")]),
-            r[col(&h, "u_vgt")],
-        );
-        let Some(egr) = loops.iter().position(|l| l.input == "u_egr") else {
-            continue;
-        };
         let drive = Drive::new(
             r[col(&h, "n_e")],
             r[col(&h, "u_delta")],
             r[col(&h, "u_egr")],
             r[col(&h, "u_vgt")],
         );
+        let loops = loops_in_charge(
+            &tuning,
+            InCharge::from_code(r[col(&h, "egr_loop")]),
+            InCharge::from_code(r[col(&h, "vgt_loop")]),
+            &drive,
+        );
+        let Some(egr) = loops.iter().position(|l| l.input == "u_egr") else {
+            continue;
+        };
         let (_, a) = margins_at(&Engine8::published(), &drive, &loops, tuning.ts).unwrap();
         let gm = a.others_closed[egr].gain_margin.unwrap_or(f64::NAN);
         assert_eq!(

@@ -988,7 +988,7 @@ pub fn loop_margins(
     let m = model(params, variant)?;
     let drive = Drive::from_array(d);
     let (_, an) =
-        mvem::dispatch!(&m, m => margins_at(m, &drive, &baseline_loops(&tuning, drive.u_vgt_pct), tuning.ts))
+        mvem::dispatch!(&m, m => margins_at(m, &drive, &baseline_loops(&tuning, &drive), tuning.ts))
             .map_err(CoreError::Runtime)?;
     Ok(margins_report_json(&drive, m.order().states(), &an).to_string())
 }

@@ -39,7 +39,7 @@ fn analysis(d: Drive) -> (Vec<PiLoop>, LoopAnalysis) {
 
 fn analysis_of<const N: usize, M: Model<N>>(m: &M, d: Drive) -> (Vec<PiLoop>, LoopAnalysis) {
     let t = BaselineTuning::default();
-    let loops = baseline_loops(&t, d.u_vgt_pct);
+    let loops = baseline_loops(&t, &d);
     let (_, a) = margins_at(m, &d, &loops, t.ts).unwrap();
     (loops, a)
 }
@@ -110,7 +110,7 @@ fn nonlinear_amplitudes_of<const N: usize, M: Model<N>>(
     others: bool,
 ) -> Vec<f64> {
     let t = BaselineTuning::default();
-    let loops = baseline_loops(&t, d.u_vgt_pct);
+    let loops = baseline_loops(&t, &d);
     let mut p = plant_from_steady(m, d, 0.0, &plant_options()).unwrap();
     let s0 = *p.signals();
     let y0 = [s0.lambda_o, s0.x_egr];
@@ -280,12 +280,7 @@ fn loops_on_one_output_keep_their_margins_in_the_nonlinear_loop() {
     use mvem::control::InCharge;
     let t = BaselineTuning::default();
     let d = Drive::new(873.2, 94.2, 17.64, 27.57);
-    let loops = loops_in_charge(
-        &t,
-        Some(InCharge::Limiter),
-        Some(InCharge::Main),
-        d.u_vgt_pct,
-    );
+    let loops = loops_in_charge(&t, Some(InCharge::Limiter), Some(InCharge::Main), &d);
     assert_eq!(loops[0].output, loops[1].output);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     assert!(a.max_pole_all < 1.0, "{}", a.max_pole_all);
@@ -302,7 +297,8 @@ fn loops_on_one_output_keep_their_margins_in_the_nonlinear_loop() {
     }
 }
 
-/// A point the closed-loop WHTC passes with both main loops in feedback (t = 690 s: 907 rpm,
+/// A point the closed-loop WHTC passes (with the tuning without gain schedules,
+/// `BaselineTuning::unscheduled`) with both main loops in feedback (t = 690 s: 907 rpm,
 /// 94.6 mg, EGR 25.3 %, VGT 22.3 %, the VGT nearly at its 20 % limit) where the analysis finds
 /// the x_egr -> u_vgt loop unstable by itself (the gain from the VGT to x_egr grows as the VGT
 /// closes) and the lambda_O loop stable alone: the nonlinear x_egr loop's swing grows from the
@@ -311,9 +307,9 @@ fn loops_on_one_output_keep_their_margins_in_the_nonlinear_loop() {
 fn the_whtc_passes_a_point_where_the_vgt_loop_is_unstable() {
     use mvem::control::along::loops_in_charge;
     use mvem::control::InCharge;
-    let t = BaselineTuning::default();
+    let t = BaselineTuning::unscheduled();
     let d = Drive::new(907.28, 94.58, 25.31, 22.31);
-    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), d.u_vgt_pct);
+    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     assert!(a.alone[0].stable && !a.alone[1].stable, "{:?}", a.alone);
     assert!(a.max_pole_all > 1.005, "{}", a.max_pole_all);
@@ -334,12 +330,12 @@ fn the_vgt_gain_schedule_stabilizes_that_point() {
     let t = BaselineTuning {
         vgt_gain_closed: 0.5,
         vgt_gain_knee: 40.0,
-        ..BaselineTuning::default()
+        ..BaselineTuning::unscheduled()
     };
     let d = Drive::new(907.28, 94.58, 25.31, 22.31);
     let g = t.vgt_gain_factor(d.u_vgt_pct);
     assert!((g - (0.5 + 0.5 * 2.31 / 20.0)).abs() < 1e-12, "{g}");
-    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), d.u_vgt_pct);
+    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
     assert_eq!(loops[1].kp, g * t.x_egr_vgt.0);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     eprintln!("alone {:?}\nothers closed {:?}", a.alone, a.others_closed);
@@ -396,7 +392,7 @@ fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
         22.335667468086168,
     );
     let m = Engine8::published();
-    let vgt_only = loops_in_charge(&t, Some(InCharge::None), Some(InCharge::Main), d.u_vgt_pct);
+    let vgt_only = loops_in_charge(&t, Some(InCharge::None), Some(InCharge::Main), &d);
     let (_, a) = margins_at(&m, &d, &vgt_only, t.ts).unwrap();
     assert_eq!(a.loops.len(), 1);
     assert!(
@@ -406,7 +402,7 @@ fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
     );
     // with the EGR loop in feedback too: the shut valve's actuator states are differenced on
     // the open valve's side (docs/analysis.md, one_sided), so both loops are analysed
-    let both = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), d.u_vgt_pct);
+    let both = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
     let (dm, b) = margins_at(&m, &d, &both, t.ts).unwrap();
     assert_eq!(b.loops.len(), 2);
     assert!(dm.continuous.kinks.is_empty());

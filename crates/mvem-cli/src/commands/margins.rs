@@ -63,7 +63,7 @@ fn report<const N: usize, M: Model<N>>(
     tuning: &BaselineTuning,
     json: bool,
 ) -> Result<()> {
-    let (_, an) = margins_at(m, d, &baseline_loops(tuning, d.u_vgt_pct), tuning.ts)
+    let (_, an) = margins_at(m, d, &baseline_loops(tuning, d), tuning.ts)
         .map_err(anyhow::Error::msg)
         .context("loop margins")?;
     if json {

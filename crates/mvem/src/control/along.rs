@@ -47,14 +47,15 @@ pub struct AlongPoint {
 
 /// The baseline's loops in feedback for the given selector outcomes: lambda_O -> u_egr or the
 /// limiter x_egr -> u_egr (its error x_egr,s + d_x - x_egr is r - y: gains negated in the
-/// y - r convention of [`PiLoop`]); x_egr -> u_vgt or the limiter lambda_O -> u_vgt, with
-/// the gains of the schedule at the VGT command `u_vgt` [%]
-/// ([`BaselineTuning::vgt_gain_factor`]).
+/// y - r convention of [`PiLoop`]); x_egr -> u_vgt or the limiter lambda_O -> u_vgt; each
+/// with the gains of its schedule at the operating point's commands `d` (the EGR-valve loops'
+/// at `d.u_egr_pct`, [`BaselineTuning::egr_gain_factor`]; the VGT loops' at `d.u_vgt_pct`,
+/// [`BaselineTuning::vgt_gain_factor`]).
 pub fn loops_in_charge(
     t: &BaselineTuning,
     egr: Option<InCharge>,
     vgt: Option<InCharge>,
-    u_vgt: f64,
+    d: &Drive,
 ) -> Vec<PiLoop> {
     let pi = |name: &str, input: &str, output: &str, (kp, ki): (f64, f64)| PiLoop {
         name: name.into(),
@@ -64,19 +65,23 @@ pub fn loops_in_charge(
         ki,
     };
     let mut loops = Vec::with_capacity(2);
+    let g = t.egr_gain_factor(d.u_egr_pct);
     match egr {
-        Some(InCharge::Main) => {
-            loops.push(pi("lambda_O->u_egr", "u_egr", "lambda_O", t.lambda_egr))
-        }
+        Some(InCharge::Main) => loops.push(pi(
+            "lambda_O->u_egr",
+            "u_egr",
+            "lambda_O",
+            (g * t.lambda_egr.0, g * t.lambda_egr.1),
+        )),
         Some(InCharge::Limiter) => loops.push(pi(
             "x_egr->u_egr (limiter)",
             "u_egr",
             "x_egr",
-            (-t.x_egr_egr.0, -t.x_egr_egr.1),
+            (-g * t.x_egr_egr.0, -g * t.x_egr_egr.1),
         )),
         Some(InCharge::None) | None => {}
     }
-    let g = t.vgt_gain_factor(u_vgt);
+    let g = t.vgt_gain_factor(d.u_vgt_pct);
     match vgt {
         Some(InCharge::Main) => loops.push(pi(
             "x_egr->u_vgt",
@@ -140,7 +145,7 @@ pub fn along_trajectory(
             }
             let drive = Drive::new(n_e[k], u_delta[k], u_egr[k], u_vgt[k]);
             let (e, v) = (InCharge::from_code(egr[k]), InCharge::from_code(vgt[k]));
-            let loops = loops_in_charge(tuning, e, v, u_vgt[k]);
+            let loops = loops_in_charge(tuning, e, v, &drive);
             let outcome = if loops.is_empty() {
                 Outcome::NoLoop
             } else {

@@ -90,6 +90,15 @@ pub struct BaselineTuning {
     /// VGT command from which the VGT loops have their full gains [%] (see
     /// [`Self::vgt_gain_closed`]).
     pub vgt_gain_knee: f64,
+    /// Gain factor of both EGR-valve loops (lambda_O -> u_egr, x_egr -> u_egr) at the closed
+    /// valve (u_egr = 0 %) [-]: the gains are scheduled on the previous EGR command, linearly
+    /// from this factor at 0 % to 1 at [`Self::egr_gain_knee`] and above (1: no schedule). The
+    /// valve's gain to the EGR flow, and with it to x_egr and lambda_O, is largest near its
+    /// closed end (docs/control.md, "Gain scheduling of the EGR-valve loops").
+    pub egr_gain_closed: f64,
+    /// EGR command from which the EGR-valve loops have their full gains [%] (see
+    /// [`Self::egr_gain_closed`]).
+    pub egr_gain_knee: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -121,13 +130,25 @@ impl Default for BaselineTuning {
             d_lambda: 0.05,
             lambda_error_cap: 1.0,
             u_vgt_full_load: 35.0,
-            vgt_gain_closed: 1.0,
+            vgt_gain_closed: 0.5,
             vgt_gain_knee: 40.0,
+            egr_gain_closed: 0.5,
+            egr_gain_knee: 10.0,
         }
     }
 }
 
 impl BaselineTuning {
+    /// The default tuning without gain schedules (`vgt_gain_closed = egr_gain_closed = 1`):
+    /// the default until session 37, with which the figures measured then are reproduced.
+    pub fn unscheduled() -> Self {
+        Self {
+            vgt_gain_closed: 1.0,
+            egr_gain_closed: 1.0,
+            ..Self::default()
+        }
+    }
+
     /// Largest PI gain accepted (kp or ki, in the gain's unit): a million times the defaults'
     /// order keeps every product of a gain and an error finite.
     pub const GAIN_MAX: f64 = 1e6;
@@ -135,7 +156,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 13] = [
+    pub const FIELDS: [VarMeta; 15] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -203,12 +224,23 @@ impl BaselineTuning {
             unit: "%",
             description: "VGT command from which the VGT loops have their full gains",
         },
+        VarMeta {
+            name: "egr_gain_closed",
+            unit: "-",
+            description: "gain factor of both EGR-valve loops at u_egr = 0 % (scheduled on the \
+                          EGR command, linear up to the knee; 1: no schedule)",
+        },
+        VarMeta {
+            name: "egr_gain_knee",
+            unit: "%",
+            description: "EGR command from which the EGR-valve loops have their full gains",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 13] = [
+    pub const BOUNDS: [(&'static str, Bounds); 15] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -259,10 +291,24 @@ impl BaselineTuning {
                 ..Bounds::closed(20.0, 100.0, " % (above the VGT's closed end, 20 %)")
             },
         ),
+        (
+            "egr_gain_closed",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(0.0, 10.0, " (a factor on the EGR-valve loops' gains)")
+            },
+        ),
+        (
+            "egr_gain_knee",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(0.0, 100.0, " % (above the closed valve, 0 %)")
+            },
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 13] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 15] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -277,6 +323,8 @@ impl BaselineTuning {
             ("u_vgt_full_load", [self.u_vgt_full_load, 0.0], 1),
             ("vgt_gain_closed", [self.vgt_gain_closed, 0.0], 1),
             ("vgt_gain_knee", [self.vgt_gain_knee, 0.0], 1),
+            ("egr_gain_closed", [self.egr_gain_closed, 0.0], 1),
+            ("egr_gain_knee", [self.egr_gain_knee, 0.0], 1),
         ]
     }
 
@@ -284,14 +332,21 @@ impl BaselineTuning {
     /// 20 % and below, 1 at [`Self::vgt_gain_knee`] and above, linear between (exactly 1
     /// everywhere when `vgt_gain_closed` is 1).
     pub fn vgt_gain_factor(&self, u_vgt: f64) -> f64 {
-        let w = ((self.vgt_gain_knee - u_vgt) / (self.vgt_gain_knee - 20.0)).clamp(0.0, 1.0);
-        1.0 - (1.0 - self.vgt_gain_closed) * w
+        scheduled_factor(u_vgt, 20.0, self.vgt_gain_knee, self.vgt_gain_closed)
+    }
+
+    /// The EGR-valve loops' gain factor at the EGR command `u_egr` [%]:
+    /// [`Self::egr_gain_closed`] at 0 % and below, 1 at [`Self::egr_gain_knee`] and above,
+    /// linear between (exactly 1 everywhere when `egr_gain_closed` is 1).
+    pub fn egr_gain_factor(&self, u_egr: f64) -> f64 {
+        scheduled_factor(u_egr, 0.0, self.egr_gain_knee, self.egr_gain_closed)
     }
 
     /// Check every field: finite and in its [`Self::BOUNDS`] (PI gains in [0,
     /// [`Self::GAIN_MAX`]], lambda_lim in [1, 5], the smoke margin in [0, 1), d_x in [0, 1],
     /// d_lambda in [0, 10], the lambda_O error cap in (0, 10], the full-load VGT limit in
-    /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %),
+    /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %; the
+    /// EGR-valve loops' factor in (0, 10], their knee in (0, 100] %),
     /// the set-point floor lambda_lim (1 + 2 smoke margin) at most
     /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field, its
     /// value and the constraint.
@@ -331,6 +386,13 @@ impl BaselineTuning {
         }
         Ok(())
     }
+}
+
+/// A gain factor scheduled on a command `u` [%]: `at_closed` at the closed end `closed` and
+/// below, 1 at `knee` and above, linear between.
+fn scheduled_factor(u: f64, closed: f64, knee: f64, at_closed: f64) -> f64 {
+    let w = ((knee - u) / (knee - closed)).clamp(0.0, 1.0);
+    1.0 - (1.0 - at_closed) * w
 }
 
 /// The interval a tuning value must lie in: from `lo` to `hi`, each end included unless marked
@@ -565,8 +627,10 @@ pub struct Baseline {
     pub setpoint_override: (f64, f64),
     /// Hold the fuel at this value instead of following the torque demand (NaN: follow).
     pub fuel_override: f64,
-    /// The previous VGT command [%] (the gain schedule's variable).
+    /// The previous VGT command [%] (the VGT loops' gain schedule's variable).
     u_vgt_prev: f64,
+    /// The previous EGR command [%] (the EGR-valve loops' gain schedule's variable).
+    u_egr_prev: f64,
 }
 
 impl Baseline {
@@ -589,6 +653,7 @@ impl Baseline {
             setpoint_override: (f64::NAN, f64::NAN),
             fuel_override: f64::NAN,
             u_vgt_prev: 100.0,
+            u_egr_prev: 100.0,
         })
     }
 
@@ -629,6 +694,7 @@ impl Controller for Baseline {
         self.lambda_egr.reset(u_egr);
         self.lambda_vgt.reset(u_vgt);
         self.u_vgt_prev = u_vgt;
+        self.u_egr_prev = u_egr;
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -668,10 +734,13 @@ impl Controller for Baseline {
         let cap = self.tuning.lambda_error_cap;
         let e_le = (s.lambda_o - lambda_s).min(cap);
         let e_lv = (s.lambda_o - (lambda_s - self.tuning.d_lambda)).min(cap);
-        // the VGT loops' gains scheduled on the previous VGT command (1 without a schedule)
+        // the gains scheduled on the previous commands (1 without a schedule)
         let g = self.tuning.vgt_gain_factor(self.u_vgt_prev);
         self.x_vgt.set_scale(g);
         self.lambda_vgt.set_scale(g);
+        let g = self.tuning.egr_gain_factor(self.u_egr_prev);
+        self.lambda_egr.set_scale(g);
+        self.x_egr.set_scale(g);
         let (u_egr_l, u_egr_x) = (
             self.lambda_egr.output(e_le, dt),
             self.x_egr.output(e_xe, dt),
@@ -709,6 +778,7 @@ impl Controller for Baseline {
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
         self.x_vgt.commit(e_xv, dt, u_vgt);
         self.u_vgt_prev = u_vgt;
+        self.u_egr_prev = u_egr;
         Output {
             u_delta,
             u_egr,
@@ -854,6 +924,27 @@ mod tests {
                 },
                 "vgt_gain_knee = NaN",
             ),
+            (
+                BaselineTuning {
+                    egr_gain_closed: 0.0,
+                    ..base
+                },
+                "egr_gain_closed = 0",
+            ),
+            (
+                BaselineTuning {
+                    egr_gain_knee: 0.0,
+                    ..base
+                },
+                "egr_gain_knee = 0",
+            ),
+            (
+                BaselineTuning {
+                    egr_gain_knee: 100.5,
+                    ..base
+                },
+                "egr_gain_knee = 100.5",
+            ),
         ] {
             let e = t.validate().expect_err(field).to_string();
             assert!(e.contains(field), "{e} (expected {field})");
@@ -910,13 +1001,16 @@ mod tests {
         assert_eq!(j.lambda_vgt, (1.0, 2.0));
     }
 
-    /// The schedule's factor: the closed-end factor at and below 20 %, 1 from the knee on,
-    /// linear between; exactly 1 everywhere without a schedule (the default).
+    /// The schedules' factors: the closed-end factor at and below the closed end (VGT 20 %, EGR
+    /// valve 0 %), 1 from the knee on, linear between; exactly 1 everywhere with a closed-end
+    /// factor of 1 (no schedule). The defaults: 0.5 at the closed ends, knees 40 % and 10 %.
     #[test]
-    fn vgt_gain_factor_is_linear_between_the_closed_end_and_the_knee() {
+    fn gain_factors_are_linear_between_the_closed_end_and_the_knee() {
         let t = BaselineTuning {
             vgt_gain_closed: 0.4,
             vgt_gain_knee: 50.0,
+            egr_gain_closed: 0.2,
+            egr_gain_knee: 20.0,
             ..BaselineTuning::default()
         };
         for (u, g) in [
@@ -928,9 +1022,31 @@ mod tests {
         ] {
             assert!((t.vgt_gain_factor(u) - g).abs() < 1e-12, "u_vgt {u}");
         }
+        for (u, g) in [
+            (-1.0, 0.2),
+            (0.0, 0.2),
+            (5.0, 0.4),
+            (15.0, 0.8),
+            (20.0, 1.0),
+            (90.0, 1.0),
+        ] {
+            assert!((t.egr_gain_factor(u) - g).abs() < 1e-12, "u_egr {u}");
+        }
         let d = BaselineTuning::default();
-        for u in [0.0, 20.0, 20.5, 33.3, 40.0, 100.0] {
-            assert_eq!(d.vgt_gain_factor(u), 1.0);
+        for (u, g) in [(20.0, 0.5), (30.0, 0.75), (40.0, 1.0), (100.0, 1.0)] {
+            assert!((d.vgt_gain_factor(u) - g).abs() < 1e-12, "u_vgt {u}");
+        }
+        for (u, g) in [(0.0, 0.5), (5.0, 0.75), (10.0, 1.0), (100.0, 1.0)] {
+            assert!((d.egr_gain_factor(u) - g).abs() < 1e-12, "u_egr {u}");
+        }
+        let none = BaselineTuning {
+            vgt_gain_closed: 1.0,
+            egr_gain_closed: 1.0,
+            ..d
+        };
+        for u in [0.0, 5.0, 20.0, 20.5, 33.3, 40.0, 100.0] {
+            assert_eq!(none.vgt_gain_factor(u), 1.0);
+            assert_eq!(none.egr_gain_factor(u), 1.0);
         }
     }
 

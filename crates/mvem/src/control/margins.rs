@@ -618,12 +618,12 @@ fn margins_of(
 }
 
 /// The baseline controller's two main air-path loops ([`super::baseline`]): lambda_O -> u_egr
-/// and x_egr -> u_vgt with their PI gains, the VGT loop's at the gain schedule's factor for the
-/// VGT command `u_vgt` [%] of the operating point (the limiters, selectors and saturations are
-/// not part of the linear analysis).
-pub fn baseline_loops(t: &super::baseline::BaselineTuning, u_vgt: f64) -> Vec<PiLoop> {
+/// and x_egr -> u_vgt with their PI gains, each at its gain schedule's factor for the operating
+/// point's commands `d` (the limiters, selectors and saturations are not part of the linear
+/// analysis).
+pub fn baseline_loops(t: &super::baseline::BaselineTuning, d: &crate::model::Drive) -> Vec<PiLoop> {
     use super::InCharge::Main;
-    super::along::loops_in_charge(t, Some(Main), Some(Main), u_vgt)
+    super::along::loops_in_charge(t, Some(Main), Some(Main), d)
 }
 
 /// The sampled model of `m` at its steady state for the constant inputs `d`, at the sample
