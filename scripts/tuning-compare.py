@@ -17,6 +17,8 @@ import tomllib
 
 
 def lookup(tree, path):
+    """The value at a report key ("turbo.j_t", "cylinder.c_vol[1]", "compressor.q_c[1][2]":
+    the parameter registry's names, elements counted from 1) in a parsed parameter file."""
     node = tree
     for part in path.split("."):
         m = re.fullmatch(r"(\w+)((?:\[\d+\])*)", part)
@@ -24,9 +26,9 @@ def lookup(tree, path):
             return None
         node = node.get(m.group(1)) if isinstance(node, dict) else None
         for idx in re.findall(r"\[(\d+)\]", m.group(2)):
-            if not isinstance(node, list):
+            if not isinstance(node, list) or not 1 <= int(idx) <= len(node):
                 return None
-            node = node[int(idx)]
+            node = node[int(idx) - 1]
         if node is None:
             return None
     return node

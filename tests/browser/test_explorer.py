@@ -350,8 +350,8 @@ def test_loop_margins(page, server):
     page.select_option("select[name=cycle_mode]", "closed")
     page.click("#tuning summary")
     kp, ki = api["loops"][1]["kp"], api["loops"][1]["ki"]
-    page.fill("input[data-tuning='x_egr_vgt[0]']", str(2 * kp))
-    page.fill("input[data-tuning='x_egr_vgt[1]']", str(2 * ki))
+    page.fill("input[data-tuning='x_egr_vgt[1]']", str(2 * kp))
+    page.fill("input[data-tuning='x_egr_vgt[2]']", str(2 * ki))
     doubled = shown()
     gm = api["loops"][1]["alone"]["gain_margin"]
     assert float(doubled[("x_egr->u_vgt", "open")]) == pytest.approx(gm / 2, rel=1e-8)
@@ -380,17 +380,17 @@ def test_closed_loop_controller_tuning(page, server):
     for k, v in defaults.items():
         if k == "ts":
             continue
-        expect += [(f"{k}[0]", v[0]), (f"{k}[1]", v[1])] if isinstance(v, list) else [(k, v)]
+        expect += [(f"{k}[1]", v[0]), (f"{k}[2]", v[1])] if isinstance(v, list) else [(k, v)]
     assert sorted(map(tuple, shown_values)) == sorted(expect)
     assert page.text_content("#tuning-changed") == "the defaults"
     # not a number: named, and no request is made
-    page.fill("input[data-tuning='torque[0]']", "")
+    page.fill("input[data-tuning='torque[1]']", "")
     page.click("[data-action=cycle]")
     page.wait_for_selector("#cycle-error:not([hidden])")
-    assert "torque[0]" in page.text_content("#cycle-error")
+    assert "torque[1]" in page.text_content("#cycle-error")
     assert page.is_hidden("#cycle-stats")
     page.click("[data-action=tuning-defaults]")
-    assert page.input_value("input[data-tuning='torque[0]']") == str(defaults["torque"][0])
+    assert page.input_value("input[data-tuning='torque[1]']") == str(defaults["torque"][0])
     # each field shows its accepted interval (BaselineTuning::BOUNDS through /api/models); a value
     # outside is marked by the browser and refused by the server naming the interval
     fields = {f["name"]: f for f in _api(server, "/api/models")["controller_tuning"]["fields"]}
@@ -421,7 +421,7 @@ def test_closed_loop_controller_tuning(page, server):
     page.click("[data-action=tuning-defaults]")
     assert page.eval_on_selector_all("input[data-tuning]", "es => es.every(e => e.checkValidity())")
     # two changed entries reach the server
-    page.fill("input[data-tuning='torque[0]']", "0.01")
+    page.fill("input[data-tuning='torque[1]']", "0.01")
     page.fill("input[data-tuning=lambda_limit]", "1.25")
     assert page.text_content("#tuning-changed") == "2 changed from the defaults"
     page.click("[data-action=cycle]")

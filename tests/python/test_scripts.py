@@ -56,3 +56,23 @@ def test_tuning_builds_ignores_flagged_parameters_and_warns_on_forward_differenc
     assert out.returncode == 0, out.stdout + out.stderr
     assert "(flagged)" in out.stdout
     assert "was not made with --fixed-jacobian sigma-points" in out.stdout
+
+
+def test_tuning_compare_reads_report_keys_1_based():
+    """scripts/tuning-compare.py (and tuning-spread.py, which imports it) looks a report key up in
+    the true parameter file as the report names it: elements counted from 1 (the registry's
+    names), "cylinder.c_fric[1]" the first number of c_fric; an index 0 names nothing."""
+    import importlib
+    import tomllib
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        lookup = importlib.import_module("tuning-compare").lookup
+    finally:
+        sys.path.pop(0)
+    truth = tomllib.loads((ROOT / "crates" / "mvem" / "data" / "published.toml").read_text())
+    assert lookup(truth, "cylinder.c_fric[1]") == truth["cylinder"]["c_fric"][0]
+    assert lookup(truth, "cylinder.c_fric[3]") == truth["cylinder"]["c_fric"][2]
+    assert lookup(truth, "compressor.q_c[1][2]") == truth["compressor"]["q_c"][0][1]
+    assert lookup(truth, "turbo.j_t") == truth["turbo"]["j_t"]
+    assert lookup(truth, "cylinder.c_fric[0]") is None
+    assert lookup(truth, "cylinder.c_fric[4]") is None

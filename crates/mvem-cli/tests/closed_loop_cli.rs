@@ -500,7 +500,7 @@ fn a_tuning_file_sets_the_baseline_controllers() {
             "lambda_limit = 0.9\n",
             "lambda_limit = 0.9: must be in [1, 5]",
         ),
-        ("gain.toml", "torque = [-0.02, 2.0]\n", "torque[0] = -0.02"),
+        ("gain.toml", "torque = [-0.02, 2.0]\n", "torque[1] = -0.02"),
         (
             "typo.toml",
             "lamda_limit = 1.1\n",

@@ -750,3 +750,56 @@ fn validate_warns_of_clamped_inputs_and_of_roles_without_sets() {
         "{err}"
     );
 }
+
+/// A name copied from `mvem tune`'s report names the element the user means: the keys of
+/// tune_report.json "parameters" and the rows of tune_report.md count vector and matrix
+/// elements from 1, as the parameter registry, `mvem params check` and Python's `params=` do, so
+/// "cylinder.c_fric[1]" is the first number of `c_fric` in the written file's [cylinder] section,
+/// and the truth the .md table compares it with is c_fric1's. Before, the report counted from 0
+/// ("cylinder.c_fric[0]" for c_fric1) and its paths named other elements where pasted.
+#[test]
+fn tune_report_names_elements_as_the_parameter_file_counts_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    stationary_campaign(d, &[]);
+    let (_, json) = tune_step1(d, &[], "rep");
+    let file: toml::Value =
+        toml::from_str(&std::fs::read_to_string(d.join("t.toml")).unwrap()).unwrap();
+    // the value at a report key in the parsed file, indices 1-based
+    let at = |key: &str| -> Option<f64> {
+        let (section, rest) = key.split_once('.')?;
+        let mut parts = rest.split('[');
+        let mut v = file.get(section)?.get(parts.next()?)?;
+        for i in parts {
+            let i: usize = i.trim_end_matches(']').parse().ok()?;
+            v = v.as_array()?.get(i.checked_sub(1)?)?;
+        }
+        v.as_float()
+    };
+    let params = json["parameters"].as_object().unwrap();
+    let mut elements = 0;
+    for (key, e) in params {
+        assert_eq!(at(key), e["value"].as_f64(), "{key}");
+        let info = mvem::params::ParamInfo::find(key).unwrap();
+        assert_eq!(&info.path, key);
+        elements += usize::from(key.contains('['));
+    }
+    assert!(elements >= 20, "{elements}");
+    assert!(
+        params.contains_key("cylinder.c_fric[1]") && !params.contains_key("cylinder.c_fric[0]")
+    );
+    let c_fric = file["cylinder"]["c_fric"].as_array().unwrap();
+    assert_eq!(
+        params["cylinder.c_fric[1]"]["value"].as_f64(),
+        c_fric[0].as_float()
+    );
+    // the .md table: the same name, against the truth of that element
+    let md = std::fs::read_to_string(d.join("rep").join("tune_report.md")).unwrap();
+    let row = md
+        .lines()
+        .find(|l| l.starts_with("| cylinder.c_fric[1] |"))
+        .unwrap_or_else(|| panic!("{md}"));
+    let truth = mvem::params::Params::published().cylinder.c_fric[0];
+    assert!(row.contains(&format!("| {truth:.6e} |")), "{row}");
+    assert!(md.contains("Elements are counted from 1"), "{md}");
+}

@@ -100,7 +100,7 @@ fn non_finite_entry(obj: &Bound<'_, PyAny>, prefix: &str) -> PyResult<Option<(St
     } else if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
         for (i, v) in obj.try_iter()?.enumerate() {
             let v = v?;
-            if let Some(hit) = non_finite_entry(&v, &format!("{prefix}[{}]", i + 1))? {
+            if let Some(hit) = non_finite_entry(&v, &mvem::params::element_name(prefix, &[i]))? {
                 return Ok(Some(hit));
             }
         }
@@ -1684,7 +1684,8 @@ impl PyModel {
 /// settled_flow_points, step3_window (None: infinite), step3_tail_weight, step_levels,
 /// sensor_lags); an unknown name is a ValueError. Returns a dict: "params" (the tuned set as a
 /// nested dict, usable as params=), "test_cell" (tau_me and sensor time constants), "toml" (the
-/// parameter file mvem tune writes), "report" (tune_report.json as a dict), "messages" (the
+/// parameter file mvem tune writes), "report" (tune_report.json as a dict; its "parameters"
+/// keyed by the paths of parameters(), elements 1-based, each usable as a params= key), "messages" (the
 /// warnings and notes mvem tune prints; each "warning: ..." is also issued as a UserWarning).
 /// ValueError for a bad setting, parameter set or campaign file (naming it), RuntimeError when a
 /// step fails (naming it). Runs without the GIL; Ctrl-C (KeyboardInterrupt) stops the tuning

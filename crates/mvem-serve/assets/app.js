@@ -930,14 +930,14 @@
   // ---------------------------------------------------------------------------------------------
   // controller tuning of the closed-loop mode (fields, units and defaults from /api/models)
 
-  const TUNING_KEY = /^(\w+)\[(\d)\]$/; // "torque[1]": ki of the torque PI
+  const TUNING_KEY = /^(\w+)\[(\d)\]$/; // "torque[2]": ki of the torque PI (1-based, as the server's messages)
 
   function buildTuning(t) {
     app.tuningDefaults = t.defaults;
     app.tuningBounds = {};
     $("#tuning-fields").replaceChildren(...t.fields.map((f) => {
       const d = t.defaults[f.name];
-      const keys = Array.isArray(d) ? [[`${f.name}[0]`, "kp"], [`${f.name}[1]`, "ki"]] : [[f.name, ""]];
+      const keys = Array.isArray(d) ? [[`${f.name}[1]`, "kp"], [`${f.name}[2]`, "ki"]] : [[f.name, ""]];
       const inputs = document.createElement("td");
       inputs.className = "i";
       for (const [key, lab] of keys) {
@@ -963,7 +963,7 @@
 
   function tuningDefault(key) {
     const m = TUNING_KEY.exec(key);
-    return m ? app.tuningDefaults[m[1]][Number(m[2])] : app.tuningDefaults[key];
+    return m ? app.tuningDefaults[m[1]][Number(m[2]) - 1] : app.tuningDefaults[key];
   }
 
   function resetTuning() {
@@ -1005,7 +1005,7 @@
       const m = TUNING_KEY.exec(key);
       if (m) {
         if (!t[m[1]]) t[m[1]] = [...app.tuningDefaults[m[1]]];
-        t[m[1]][Number(m[2])] = v;
+        t[m[1]][Number(m[2]) - 1] = v;
       } else {
         t[key] = v;
       }

@@ -481,7 +481,7 @@ fn closed_loop_mode_takes_the_controllers_tuning() {
         ),
         (
             r#"{"cycle": "whtc", "mode": "closed", "tuning": {"torque": [1e308, 2]}}"#,
-            "torque[0] = 1e308: must be in [0, 1e6]",
+            "torque[1] = 1e308: must be in [0, 1e6]",
         ),
     ] {
         let r = post("/api/simulate", body);

@@ -519,3 +519,86 @@ fn q_c_boxes_follow_a_smaller_engines_flow() {
     assert!(s2.apply(*c_f1).hi > c_f1.hi);
     assert_eq!(scale.apply(*c_f1), *c_f1);
 }
+
+/// The names of the tuned parameters in `text` (a reason, a caveat): the words that look like a
+/// parameter path with an element index ("egr_valve.c_egr[1]").
+fn element_names_in(text: &str) -> Vec<&str> {
+    text.split(|c: char| !(c.is_ascii_alphanumeric() || "_.[]".contains(c)))
+        .map(|w| w.trim_end_matches('.'))
+        .filter(|w| w.contains('.') && w.ends_with(']'))
+        .collect()
+}
+
+/// A name taken from a tuning report is accepted verbatim where parameters are named: every key
+/// of the report's "parameters" (step 1 on a small virtual campaign: the vectors c_vol, c_fric,
+/// c_egr, c_m, c_wpsi, c_wphi and the matrix q_c) is a path of the parameter registry, 1-based as
+/// the FMU, `mvem params check` and Python's `params=` count, and reads back the tuned value
+/// with [`Params::get`] (Python's overrides resolve the same registry paths). Before, the report
+/// named c_fric1 "cylinder.c_fric[0]", which `Params::get` does not know, and c_fric2
+/// "cylinder.c_fric[1]", which it reads as c_fric1.
+#[test]
+fn report_names_are_registry_names_that_read_back_the_tuned_values() {
+    use mvem::params::ParamInfo;
+    use mvem::tuning::pipeline::{self, PipelineOptions};
+    let truth = Params::published();
+    let lab_opts = LabOptions {
+        n_stationary: 30,
+        dynamic: false,
+        ..LabOptions::default()
+    };
+    let (c, _) = lab::campaign(&truth, &lab_opts).unwrap();
+    let opts = PipelineOptions {
+        steps: [true, false, false, false, false],
+        ..PipelineOptions::default()
+    };
+    let (tuned, rep) = pipeline::tune(&c, &truth, &opts).unwrap();
+    let mut elements = Vec::new();
+    for (key, e) in &rep.parameters {
+        let info = ParamInfo::find(key).unwrap_or_else(|| panic!("{key}: not a parameter name"));
+        assert_eq!(&info.path, key, "the report's key is the registry's path");
+        assert_eq!(
+            tuned.get(key),
+            Some(e.value),
+            "{key} reads back the tuned value"
+        );
+        if key.contains('[') {
+            elements.push(key.as_str());
+        }
+        // the parameters a reason names are registry names too
+        for name in element_names_in(&e.reason) {
+            let found = ParamInfo::find(name).map(|i| i.path.as_str());
+            assert_eq!(
+                found,
+                Some(name),
+                "{key}: reason names {name}: {}",
+                e.reason
+            );
+        }
+    }
+    for text in &rep.caveats {
+        for name in element_names_in(text) {
+            let found = ParamInfo::find(name).map(|i| i.path.as_str());
+            assert_eq!(found, Some(name), "caveat names {name}: {text}");
+        }
+    }
+    // every element of the step-1 vectors and of Q_c (a3 once: the symmetric entry)
+    assert!(elements.len() >= 20, "{elements:?}");
+    // 1-based: the first friction coefficient is [1], the third [3], there is no [0]
+    assert_eq!(
+        rep.parameters["cylinder.c_fric[1]"].value,
+        tuned.cylinder.c_fric[0]
+    );
+    assert_eq!(
+        rep.parameters["cylinder.c_fric[3]"].value,
+        tuned.cylinder.c_fric[2]
+    );
+    assert!(!rep.parameters.contains_key("cylinder.c_fric[0]"));
+    assert_eq!(
+        rep.parameters["compressor.q_c[1][2]"].value,
+        tuned.compressor.q_c[0][1]
+    );
+    assert_eq!(
+        ParamInfo::find("cylinder.c_fric[1]").unwrap().symbol,
+        "c_fric1"
+    );
+}

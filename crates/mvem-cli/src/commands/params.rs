@@ -200,7 +200,7 @@ fn non_finite_floats(v: &toml::Value, path: &str, out: &mut Vec<(String, String)
         toml::Value::Array(a) => {
             for (i, x) in a.iter().enumerate() {
                 // 1-based, as the parameter registry and `params show` (c_vol1) name them
-                non_finite_floats(x, &format!("{path}[{}]", i + 1), out);
+                non_finite_floats(x, &mvem::params::element_name(path, &[i]), out);
             }
         }
         _ => {}

@@ -39,9 +39,10 @@ efficiency the measured flows imply, the indicated efficiency step 1 fits to the
 virtual campaign's true_params.toml) are reported as caveats. The tuned dynamometer time constant tau_Me is not a
 model parameter: it is written to the [test_cell] section of the output file, which `mvem
 validate` reads (--tau-me overrides). DIR/tune_report.json \"parameters\": per parameter file
-path the value, standard error, identifiability and correlations (docs/tuning.md); array
-indices in these paths count from 0, as positions in the file's arrays (\"cylinder.c_vol[0]\"
-is c_vol1; the FMU's and the parameter registry's names count from 1). \"combinations\": what the
+path the value, standard error, identifiability and correlations (docs/tuning.md); the paths
+are the parameter registry's names, elements counted from 1 as in `mvem params check`, the
+FMU and Python's params= (\"cylinder.c_vol[1]\" is c_vol1, the first number of c_vol in the
+[cylinder] section; \"compressor.q_c[1][2]\" is a3). \"combinations\": what the
 campaign determines where single parameters are flagged (eta_tm at the measured blade speed
 ratio, eta_c at a measured compressor operating point). \"caveats\": what the standard
 errors do not cover (V_im, V_em, J_t fitted on static maps that are flagged not identifiable
@@ -610,8 +611,9 @@ fn parameter_table(
         s,
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
-         error <= 25 % and no correlation > 0.99 (docs/tuning.md). Paths index arrays from 0 \
-         (cylinder.c_vol[0] is c_vol1).\n\n| parameter | step | value | \
+         error <= 25 % and no correlation > 0.99 (docs/tuning.md). Elements are counted from 1, \
+         as the parameter registry, the FMU and Python's params= name them (cylinder.c_vol[1] \
+         is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \
          std. error | why / correlated with |\n|---|---|---|---|---|---|---|---|---|---|"
     );
@@ -619,7 +621,7 @@ fn parameter_table(
         let t = if let Some(name) = path.strip_prefix("test_cell.") {
             cell_truth.get(name)
         } else {
-            truth.and_then(|q| lookup(q, path))
+            truth.and_then(|q| q.get(path))
         };
         let (tt, dev, z) = match t {
             Some(t) => (
@@ -677,21 +679,6 @@ fn parameter_table(
         }
         s.push('\n');
     }
-}
-
-/// Value at a parameter-file path ("cylinder.c_vol[1]", "compressor.q_c[0][1]").
-fn lookup(p: &Params, path: &str) -> Option<f64> {
-    let mut v = serde_json::to_value(p).ok()?;
-    for part in path.split('.') {
-        let (key, idx) = part.split_once('[').map_or((part, ""), |(k, r)| (k, r));
-        v = v.get(key)?.clone();
-        for i in idx.split('[').filter(|x| !x.is_empty()) {
-            v = v
-                .get(i.trim_end_matches(']').parse::<usize>().ok()?)?
-                .clone();
-        }
-    }
-    v.as_f64()
 }
 
 #[cfg(test)]

@@ -302,7 +302,9 @@ def tune(
     as `mvem tune` runs them: the same parameters and report from the same campaign and
     settings. params: the engine's constants and the parameters of the steps not run (a path
     also supplies its [test_cell] section). Keys: "params" (nested dict, usable as params=),
-    "test_cell", "toml" (the parameter file), "report" (tune_report.json), "messages"
+    "test_cell", "toml" (the parameter file), "report" (tune_report.json; its "parameters"
+    keyed by the paths of parameters(), elements 1-based: "cylinder.c_fric[1]" is c_fric1, a
+    valid params= key as it stands), "messages"
     (warnings and notes; each warning also a UserWarning). ValueError for a bad setting,
     parameter set or campaign file; RuntimeError when a step fails. Ctrl-C stops it within
     one round of simulations (KeyboardInterrupt). progress: called with {"stage",

@@ -348,7 +348,8 @@ impl BaselineTuning {
     /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %; the
     /// EGR-valve loops' factor in (0, 10], their knee in (0, 100] %),
     /// the set-point floor lambda_lim (1 + 2 smoke margin) at most
-    /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field, its
+    /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field (an
+    /// element of a pair 1-based: `torque[1]` is the torque PI's kp, `torque[2]` its ki), its
     /// value and the constraint.
     pub fn validate(&self) -> Result<(), ControlError> {
         let bad = |field: &str, v: f64, constraint: String| {
@@ -364,8 +365,10 @@ impl BaselineTuning {
             debug_assert_eq!(name, bname);
             for (k, &v) in vals[..n].iter().enumerate() {
                 if !b.contains(v) {
+                    // a pair [kp, ki] (or [at 20 %, at 100 %]) named 1-based, as every element
+                    // name the user sees ([`crate::params::element_name`]): torque[1] is kp
                     let field = if n == 2 {
-                        format!("{name}[{k}]")
+                        crate::params::element_name(name, &[k])
                     } else {
                         name.to_string()
                     };
@@ -865,21 +868,21 @@ mod tests {
                     torque: (1e308, 2.0),
                     ..base
                 },
-                "torque[0] = 1e308",
+                "torque[1] = 1e308",
             ),
             (
                 BaselineTuning {
                     torque: (0.02, -1.0),
                     ..base
                 },
-                "torque[1] = -1",
+                "torque[2] = -1",
             ),
             (
                 BaselineTuning {
                     lambda_vgt: (20.0, f64::NAN),
                     ..base
                 },
-                "lambda_vgt[1] = NaN",
+                "lambda_vgt[2] = NaN",
             ),
             (BaselineTuning { d_x: 2.0, ..base }, "d_x = 2"),
             (

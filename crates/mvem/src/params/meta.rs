@@ -11,6 +11,22 @@
 use super::Params;
 use std::sync::OnceLock;
 
+/// The name of one element of a vector or matrix: `base` (`cylinder.c_vol`, or a field of
+/// another file such as the controller tuning's `torque`) with the element's 0-based
+/// `position` (one index for a vector, row and column for a matrix) written 1-based, as
+/// Modelica, the FMU and the parameter registry count: `cylinder.c_vol[1]` is c_vol1,
+/// `compressor.q_c[1][2]` is a3. Every user-visible text that names an element (the registry's
+/// paths, validation messages, the tuning reports, controller-tuning errors) names it here, so
+/// a name copied from any of them is accepted where parameters are named
+/// ([`ParamInfo::find`], Python's `params=`).
+pub fn element_name(base: &str, position: &[usize]) -> String {
+    let mut name = base.to_string();
+    for i in position {
+        name.push_str(&format!("[{}]", i + 1));
+    }
+    name
+}
+
 /// A field of a parameter group: a scalar, a vector or a matrix of scalars.
 pub trait Scalars {
     /// Shape: `[]` for a scalar, `[n]` for a vector, `[rows, columns]` for a matrix.
@@ -214,12 +230,12 @@ impl Params {
             for g in &Params::GROUPS {
                 for f in g.fields {
                     for (k, (symbol, unit)) in f.elements.iter().enumerate() {
-                        let mut path = format!("{}.{}", g.key, f.name);
-                        match f.shape {
-                            [_] => path.push_str(&format!("[{}]", k + 1)),
-                            [_, m] => path.push_str(&format!("[{}][{}]", k / m + 1, k % m + 1)),
-                            _ => {}
-                        }
+                        let field = format!("{}.{}", g.key, f.name);
+                        let path = match f.shape {
+                            [_] => element_name(&field, &[k]),
+                            [_, m] => element_name(&field, &[k / m, k % m]),
+                            _ => field,
+                        };
                         out.push(ParamInfo {
                             path,
                             group: g.key,
@@ -320,5 +336,20 @@ mod tests {
         assert_eq!(p.exhaust_manifold.v_em, 0.03);
         let info = ParamInfo::find("c_m2").unwrap();
         assert_eq!((info.path.as_str(), info.unit), ("turbine.c_m[2]", "rad/s"));
+    }
+
+    #[test]
+    fn element_names_count_from_1() {
+        assert_eq!(element_name("cylinder.c_fric", &[0]), "cylinder.c_fric[1]");
+        assert_eq!(
+            element_name("compressor.q_c", &[0, 1]),
+            "compressor.q_c[1][2]"
+        );
+        assert_eq!(element_name("torque", &[1]), "torque[2]");
+        assert_eq!(element_name("turbo.j_t", &[]), "turbo.j_t");
+        // the registry's paths are these names: the first friction coefficient is [1]
+        let info = ParamInfo::find("c_fric1").unwrap();
+        assert_eq!(info.path, element_name("cylinder.c_fric", &[info.index]));
+        assert_eq!(info.path, "cylinder.c_fric[1]");
     }
 }

@@ -10,7 +10,7 @@
 mod meta;
 mod validate;
 
-pub use meta::{FieldMeta, GroupMeta, ParamInfo, Scalars};
+pub use meta::{element_name, FieldMeta, GroupMeta, ParamInfo, Scalars};
 pub use validate::{ParamIssue, ParamIssues};
 
 use serde::{Deserialize, Serialize};

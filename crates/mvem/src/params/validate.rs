@@ -81,7 +81,7 @@ impl Checker {
     }
     fn array(&mut self, field: &str, v: &[f64]) {
         for (i, x) in v.iter().enumerate() {
-            self.finite(&format!("{field}[{}]", i + 1), *x);
+            self.finite(&super::element_name(field, &[i]), *x);
         }
     }
     /// A positive whole number (a count: cylinders, pipes).
@@ -243,7 +243,7 @@ impl Params {
         let q_ok = [q[0][0], q[0][1], q[1][0], q[1][1]]
             .iter()
             .enumerate()
-            .all(|(i, v)| c.finite(&format!("compressor.q_c[{}][{}]", i / 2 + 1, i % 2 + 1), *v));
+            .all(|(i, v)| c.finite(&super::element_name("compressor.q_c", &[i / 2, i % 2]), *v));
         if q_ok {
             if (q[0][1] - q[1][0]).abs() > 1e-12 * (q[0][1].abs() + q[1][0].abs() + 1e-300) {
                 c.push(

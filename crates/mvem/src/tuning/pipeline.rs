@@ -236,9 +236,11 @@ pub struct TuneReport {
     pub fixed_jacobian: FixedJacobian,
     /// The 12-state steps of section 9.2.1 (option `model` = 12).
     pub twelve: Option<TwelveReport>,
-    /// How well each tuned parameter is known, keyed by its path in the parameter file
-    /// ("exhaust_manifold.v_em", `"cylinder.c_vol[0]"`; tau_Me: "test_cell.tau_me"), from the
-    /// last step that tuned it ([`super::uncertainty`]).
+    /// How well each tuned parameter is known, keyed by its name in the parameter registry
+    /// ("exhaust_manifold.v_em", elements 1-based: `"cylinder.c_vol[1]"` is c_vol1,
+    /// `"compressor.q_c[1][2]"` is a3, as [`crate::params::Params::get`], the FMU and Python's
+    /// `params=` name them; tau_Me: "test_cell.tau_me"), from the last step that tuned it
+    /// ([`super::uncertainty`]).
     pub parameters: BTreeMap<String, ParamEstimate>,
     /// Functions of parameters that the campaign determines although the parameters are not
     /// identifiable one by one (eta_tm at the measured blade speed ratio,
@@ -567,7 +569,7 @@ pub fn tune(
         let key = if name == "tau_me" || SensorLags::index(&name).is_some() {
             Some(format!("test_cell.{name}"))
         } else {
-            toml_path(&p, &name)
+            toml_path(&name).map(str::to_string)
         };
         if let Some(k) = key {
             // the reported value is the final one (ties such as Q_c symmetry applied)
@@ -862,18 +864,18 @@ fn compressor_efficiency_on_the_measured_range(
     })
 }
 
-/// The parameters of the compressor-efficiency ellipse (eqs (62)-(65)), by TOML path.
+/// The parameters of the compressor-efficiency ellipse (eqs (62)-(65)), by registry path.
 const EFFICIENCY_ELLIPSE: [&str; 7] = [
     "compressor.eta_cmax",
     "compressor.w_copt",
     "compressor.pi_copt",
     "compressor.c_pi",
-    "compressor.q_c[0][0]",
-    "compressor.q_c[0][1]",
     "compressor.q_c[1][1]",
+    "compressor.q_c[1][2]",
+    "compressor.q_c[2][2]",
 ];
 
-/// The parameters of the compressor-flow model (eqs (68)-(70)), by TOML path. In the complete
+/// The parameters of the compressor-flow model (eqs (68)-(70)), by registry path. In the complete
 /// model the compressor acts only through W_c and its power P_c = W_c c_pa (T_c - T_amb) with
 /// T_c - T_amb = T_amb (Pi_c^(1 - 1/gamma_a) - 1) / eta_c (eqs (58), (61)), so the complete-model
 /// row of cost (77) trades an error of the efficiency model
@@ -883,12 +885,12 @@ const EFFICIENCY_ELLIPSE: [&str; 7] = [
 const FLOW_MAP: [&str; 8] = [
     "compressor.c_psi2",
     "compressor.c_phi2",
-    "compressor.c_wpsi[0]",
     "compressor.c_wpsi[1]",
     "compressor.c_wpsi[2]",
-    "compressor.c_wphi[0]",
+    "compressor.c_wpsi[3]",
     "compressor.c_wphi[1]",
     "compressor.c_wphi[2]",
+    "compressor.c_wphi[3]",
 ];
 
 /// Flag the compressor-flow coefficients ([`FLOW_MAP`]) as not identifiable one by one, always.
@@ -968,9 +970,9 @@ fn flag_keys_with<'k>(
 const EFFICIENCY_ELLIPSE_SHAPE: [&str; 5] = [
     "compressor.w_copt",
     "compressor.pi_copt",
-    "compressor.q_c[0][0]",
-    "compressor.q_c[0][1]",
     "compressor.q_c[1][1]",
+    "compressor.q_c[1][2]",
+    "compressor.q_c[2][2]",
 ];
 
 /// Flag the position and shape of the compressor-efficiency ellipse
@@ -995,7 +997,7 @@ fn flag_efficiency_ellipse_shape(parameters: &mut BTreeMap<String, ParamEstimate
 }
 
 /// The shape coefficients of one submodel's map (polynomials and offsets, not physical
-/// quantities), by TOML path: the turbine-efficiency map (eq. (53)-(54) c_m), the turbine flow
+/// quantities), by registry path: the turbine-efficiency map (eq. (53)-(54) c_m), the turbine flow
 /// (c_f1, c_f2), friction (c_fric), volumetric efficiency (c_vol) and the EGR-valve flow
 /// (c_egr, and pi_egropt: W_egr is the product of the area map f_egr(u_egr) of eq. (38) and
 /// the flow function Psi_egr(Pi_egr) of eq. (34), which pi_egropt shapes, so over the measured
@@ -1004,22 +1006,22 @@ fn flag_efficiency_ellipse_shape(parameters: &mut BTreeMap<String, ParamEstimate
 /// The compressor-flow map ([`FLOW_MAP`]) is not among them: its coefficients are
 /// always flagged ([`flag_flow_map_coefficients`]).
 const MAP_COEFFICIENTS: [&[&str]; 5] = [
-    &["turbine.c_m[0]", "turbine.c_m[1]", "turbine.c_m[2]"],
+    &["turbine.c_m[1]", "turbine.c_m[2]", "turbine.c_m[3]"],
     &["turbine.c_f1", "turbine.c_f2"],
     &[
-        "cylinder.c_fric[0]",
         "cylinder.c_fric[1]",
         "cylinder.c_fric[2]",
+        "cylinder.c_fric[3]",
     ],
     &[
-        "cylinder.c_vol[0]",
         "cylinder.c_vol[1]",
         "cylinder.c_vol[2]",
+        "cylinder.c_vol[3]",
     ],
     &[
-        "egr_valve.c_egr[0]",
         "egr_valve.c_egr[1]",
         "egr_valve.c_egr[2]",
+        "egr_valve.c_egr[3]",
         "egr_valve.pi_egropt",
     ],
 ];
@@ -1701,6 +1703,7 @@ fn tune_twelve(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::element_name;
     use crate::tuning::data::StationaryPoint;
 
     #[test]
@@ -2019,19 +2022,19 @@ mod tests {
         // 2 of 3 turbine-efficiency coefficients flagged; 1 of 2 turbine-flow ones; 1 of 3
         // c_vol; the only tuned c_egr coefficient; no friction coefficient
         for (k, identifiable) in [
-            ("turbine.c_m[0]", false),
             ("turbine.c_m[1]", false),
-            ("turbine.c_m[2]", true),
+            ("turbine.c_m[2]", false),
+            ("turbine.c_m[3]", true),
             ("turbine.c_f1", false),
             ("turbine.c_f2", true),
-            ("cylinder.c_vol[0]", true),
             ("cylinder.c_vol[1]", true),
-            ("cylinder.c_vol[2]", false),
-            ("egr_valve.c_egr[0]", false),
+            ("cylinder.c_vol[2]", true),
+            ("cylinder.c_vol[3]", false),
+            ("egr_valve.c_egr[1]", false),
             ("egr_valve.pi_egropt", true),
-            ("cylinder.c_fric[0]", true),
             ("cylinder.c_fric[1]", true),
             ("cylinder.c_fric[2]", true),
+            ("cylinder.c_fric[3]", true),
             ("intake_manifold.v_im", false),
             ("turbo.j_t", true),
         ] {
@@ -2039,11 +2042,11 @@ mod tests {
         }
         flag_maps_known_only_as_a_whole(&mut m);
         // a flagged coefficient of a map: the rest is flagged, with the reason
-        let r = &m["turbine.c_m[2]"].reason;
-        assert!(!m["turbine.c_m[2]"].identifiable);
+        let r = &m["turbine.c_m[3]"].reason;
+        assert!(!m["turbine.c_m[3]"].identifiable);
         assert!(r.starts_with("2 of the 3 coefficients"), "{r}");
         assert!(
-            r.contains("turbine.c_m[0], turbine.c_m[1]") && r.ends_with("(rel. std. error 1 %)"),
+            r.contains("turbine.c_m[1], turbine.c_m[2]") && r.ends_with("(rel. std. error 1 %)"),
             "{r}"
         );
         assert!(!m["turbine.c_f2"].identifiable);
@@ -2051,20 +2054,38 @@ mod tests {
             .reason
             .starts_with("1 of the 2 coefficients"));
         // 1 of 3 c_vol flagged: the others are flagged too (any flagged coefficient)
-        assert!(!m["cylinder.c_vol[0]"].identifiable && !m["cylinder.c_vol[1]"].identifiable);
-        assert!(m["cylinder.c_vol[0]"]
+        assert!(!m["cylinder.c_vol[1]"].identifiable && !m["cylinder.c_vol[2]"].identifiable);
+        assert!(m["cylinder.c_vol[1]"]
             .reason
             .starts_with("1 of the 3 coefficients"));
         // a map with every coefficient identifiable stays so
-        assert!((0..3).all(|i| m[&format!("cylinder.c_fric[{i}]")].identifiable));
+        assert!((0..3).all(|i| m[&element_name("cylinder.c_fric", &[i])].identifiable));
         // the EGR-valve flow: a flagged area coefficient flags pi_egropt (their product is
         // what the data fix); other parameters untouched
-        assert!(!m.contains_key("egr_valve.c_egr[1]"));
+        assert!(!m.contains_key("egr_valve.c_egr[2]"));
         assert!(!m["egr_valve.pi_egropt"].identifiable);
         assert!(m["egr_valve.pi_egropt"].reason.starts_with(
-            "1 of the 2 coefficients of its map are not identifiable (egr_valve.c_egr[0])"
+            "1 of the 2 coefficients of its map are not identifiable (egr_valve.c_egr[1])"
         ));
         assert!(m["turbo.j_t"].identifiable && !m["intake_manifold.v_im"].identifiable);
+    }
+
+    /// The keys the flags look up are the report's keys: registry paths, elements 1-based (a
+    /// list still in the old 0-based names, "cylinder.c_vol[0]", would flag nothing).
+    #[test]
+    fn the_flagged_key_lists_are_registry_paths() {
+        let lists = [
+            &EFFICIENCY_ELLIPSE[..],
+            &FLOW_MAP[..],
+            &VGT_AREA_MAP[..],
+            &EFFICIENCY_ELLIPSE_SHAPE[..],
+        ];
+        for key in lists.into_iter().chain(MAP_COEFFICIENTS).flatten() {
+            let info = crate::params::ParamInfo::find(key);
+            assert_eq!(info.map(|i| i.path.as_str()), Some(*key), "{key}");
+        }
+        assert_eq!(MAP_COEFFICIENTS[2][0], "cylinder.c_fric[1]");
+        assert_eq!(EFFICIENCY_ELLIPSE[5], toml_path("a3").unwrap());
     }
 
     #[test]

@@ -56,7 +56,7 @@
 //! the step-1 values of the static parameters; the dynamics steps 3-4 repeated after step 5
 //! replace steps 3-4).
 
-use super::complete::{param_mut, param_value, set_named, FAILED_RESIDUAL, STATIC_PARAMS};
+use super::complete::{param_value, set_named, FAILED_RESIDUAL, STATIC_PARAMS};
 use super::data::{DynamicData, StationaryPoint};
 use super::lsq::{param_stats, FiniteDiff, ParamStats};
 use super::steps::{
@@ -127,7 +127,7 @@ pub struct Combination {
 }
 
 /// Linearized standard error of a scalar function `f` of the parameters `names` (of
-/// [`param_mut`]) at `p`: `sqrt(g^T C g)` with `g` by central differences (steps
+/// [`param_mut`](super::complete::param_mut)) at `p`: `sqrt(g^T C g)` with `g` by central differences (steps
 /// `1e-6 max(|value|, typical magnitude)`, ties of [`set_named`] applied) and `C` their block of
 /// `cov`; names absent from `cov` or `p` contribute nothing. Infinite when an entry of the
 /// block is not finite.
@@ -354,7 +354,7 @@ pub struct Linearization {
     pub covariance: DMatrix<f64>,
 }
 
-/// Covariance of named parameters (the names of [`param_mut`]), in their units.
+/// Covariance of named parameters (the names of [`param_mut`](super::complete::param_mut)), in their units.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct NamedCov {
     /// Parameter names (order of the rows and columns of `cov`).
@@ -518,7 +518,7 @@ pub fn joint_covariance(blocks: &[&Conditional], ext: &NamedCov) -> Option<Named
 }
 
 /// Forward-difference Jacobian (m x k, [`fd_jacobian`]) of `res` at `p` with respect to the
-/// parameters `names` ([`param_mut`] names, ties of [`set_named`] applied); steps
+/// parameters `names` ([`param_mut`](super::complete::param_mut) names, ties of [`set_named`] applied); steps
 /// `FD_STEP max(|value|, typical magnitude)`. Columns of parameters `p` does not have are zero.
 pub fn fd_jacobian_named(
     res: impl Fn(&Params) -> Vec<f64> + Sync,
@@ -876,33 +876,13 @@ pub fn step2_estimates(p: &Params, j: &DynamicData) -> (Vec<(String, ParamEstima
     (out, all)
 }
 
-/// The TOML path of a tunable parameter in a parameter file ("exhaust_manifold.v_em",
-/// `"cylinder.c_vol[0]"`, `"compressor.q_c[0][1]"`), found by marking the field that
-/// [`param_mut`] names in a copy of `p` and locating the mark in its serialized form.
-pub fn toml_path(p: &Params, name: &str) -> Option<String> {
-    const MARK: f64 = -1.234_567_890_123e300;
-    let mut q = p.clone();
-    *param_mut(&mut q, name)? = MARK;
-    let v = serde_json::to_value(&q).ok()?;
-    fn find(v: &serde_json::Value, path: String) -> Option<String> {
-        match v {
-            serde_json::Value::Object(o) => o.iter().find_map(|(k, x)| {
-                let p = if path.is_empty() {
-                    k.clone()
-                } else {
-                    format!("{path}.{k}")
-                };
-                find(x, p)
-            }),
-            serde_json::Value::Array(a) => a
-                .iter()
-                .enumerate()
-                .find_map(|(i, x)| find(x, format!("{path}[{i}]"))),
-            serde_json::Value::Number(n) => (n.as_f64() == Some(MARK)).then_some(path),
-            _ => None,
-        }
-    }
-    find(&v, String::new())
+/// The path of a tunable parameter in the parameter registry, which names the tuning report's
+/// parameters ("exhaust_manifold.v_em"; elements 1-based, [`crate::params::element_name`]:
+/// `"cylinder.c_vol[1]"` is c_vol1, `"compressor.q_c[1][2]"` is a3), from its path or its
+/// symbol ([`crate::params::ParamInfo::find`], which [`param_mut`](super::complete::param_mut) resolves too). The name is
+/// accepted as it is by [`Params::get`], Python's `params=` and `mvem.parameters()`.
+pub fn toml_path(name: &str) -> Option<&'static str> {
+    crate::params::ParamInfo::find(name).map(|i| i.path.as_str())
 }
 
 #[cfg(test)]
@@ -1022,21 +1002,21 @@ mod tests {
 
     #[test]
     fn toml_paths_of_parameters() {
+        assert_eq!(toml_path("v_em"), Some("exhaust_manifold.v_em"));
+        // elements 1-based, as the registry, the FMU and Python's params= name them
+        assert_eq!(toml_path("c_vol2"), Some("cylinder.c_vol[2]"));
+        assert_eq!(toml_path("c_fric1"), Some("cylinder.c_fric[1]"));
+        assert_eq!(toml_path("a3"), Some("compressor.q_c[1][2]"));
+        assert_eq!(toml_path("tau_vgt"), Some("vgt_actuator.tau_vgt"));
+        assert_eq!(toml_path("nonsense"), None);
+        // every name the tuning steps tune resolves to a path that names the same scalar
         let p = Params::published();
-        assert_eq!(
-            toml_path(&p, "v_em").as_deref(),
-            Some("exhaust_manifold.v_em")
-        );
-        assert_eq!(
-            toml_path(&p, "c_vol2").as_deref(),
-            Some("cylinder.c_vol[1]")
-        );
-        assert_eq!(toml_path(&p, "a3").as_deref(), Some("compressor.q_c[0][1]"));
-        assert_eq!(
-            toml_path(&p, "tau_vgt").as_deref(),
-            Some("vgt_actuator.tau_vgt")
-        );
-        assert_eq!(toml_path(&p, "nonsense"), None);
+        for name in [
+            "c_vol1", "c_vol3", "a1", "a2", "a3", "c_m1", "c_wphi3", "c_egr2",
+        ] {
+            let path = toml_path(name).unwrap();
+            assert_eq!(p.get(path), param_value(&p, name), "{name} {path}");
+        }
     }
 
     #[test]
