@@ -918,7 +918,9 @@
     await busy("[data-action=cycle]", marginsOn() ? "simulating the cycle and its loop margins…" : "simulating the cycle…", "#cycle-error", async () => {
       const t0 = performance.now();
       const cycle = $("select[name=cycle]").value;
-      const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
+      // (fit_dt: a cycle of several hours is sampled coarser than 0.2 s, with a note, instead
+      // of refused for a dt the page has no field for)
+      const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, fit_dt: true, ...modelSel() };
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       body.margins = marginsEvery();
