@@ -898,3 +898,53 @@ def test_results_of_another_point_are_marked(page):
     page.fill("input[name=step_horizon]", "8")
     page.click("[data-action=step]")
     page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+
+
+# records every canvas text drawn beyond its canvas's bitmap (x only: the labels are laid out
+# in rows inside the figure; rotated text is left out)
+_CLIP_RECORDER = r"""
+(() => {
+  const P = CanvasRenderingContext2D.prototype, orig = P.fillText;
+  window.__cut = [];
+  P.fillText = function (text, x, y, maxW) {
+    let w = this.measureText(String(text)).width;
+    if (maxW !== undefined && w > maxW) w = maxW;
+    const a = this.textAlign;
+    const left = a === "right" || a === "end" ? x - w : a === "center" ? x - w / 2 : x;
+    const m = this.getTransform();
+    const X0 = m.a * left + m.e, X1 = m.a * (left + w) + m.e;
+    if (m.b === 0 && (X0 < -0.5 || X1 > this.canvas.width + 0.5))
+      window.__cut.push({plot: this.canvas.dataset.plot, text: String(text), from: X0, to: X1, width: this.canvas.width});
+    return orig.call(this, text, x, y, maxW);
+  };
+})();
+"""
+
+
+def test_no_figure_text_is_cut_at_the_canvas_edge(browser, server, tmp_path):
+    """At 1024 x 768 no label of a figure runs past its canvas: the last time tick of a cycle
+    that ends on a tick ("300" at 300 s was centred on the plot's right edge and cut to "30")
+    and the map's legend (its last item, "no gain (kink / no equilibrium)", ran past the edge:
+    the items now wrap onto as many rows as the width needs)."""
+    ctx = browser.new_context(viewport={"width": 1024, "height": 768})
+    ctx.add_init_script(_CLIP_RECORDER)
+    page = ctx.new_page()
+    page.goto(server)
+    page.wait_for_selector("body[data-state=ready]", timeout=15000)
+    page.fill("input[name=map_n]", "3")
+    page.click("[data-action=map]")
+    page.wait_for_selector("canvas[data-plot=map][data-cells='9']", timeout=60000)
+    f = tmp_path / "ramp300.csv"
+    f.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n"
+                 "0,800,20,40,60\n100,1600,150,30,50\n300,1200,80,40,60\n")
+    page.set_input_files("input[name=cycle_file]", str(f))
+    page.wait_for_function("document.querySelector('select[name=cycle]').value !== 'whtc'")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=60000)
+    assert page.evaluate("window.mvem.cycle.t.at(-1)") == 300
+    page.locator("#map").screenshot(path=str(ART / "explorer_map_legend_1024.png"))
+    page.locator("canvas[data-plot=cycle]").screenshot(path=str(ART / "explorer_cycle_ticks_1024.png"))
+    cut = page.evaluate("window.__cut")
+    assert cut == [], cut
+    assert int(page.get_attribute("canvas[data-plot=map]", "data-legend-rows")) >= 3
+    ctx.close()

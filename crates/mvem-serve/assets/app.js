@@ -370,16 +370,20 @@
       ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
-    ctx.textAlign = "center"; ctx.textBaseline = "top";
+    ctx.textBaseline = "top";
+    // an x tick label centred under its tick, or ending at the canvas's right edge where
+    // centred it would be cut there (the last tick of a cycle at its end, "300" at 300 s)
+    const xTick = (text, X) => {
+      ctx.textAlign = X + ctx.measureText(text).width / 2 > x0 + w ? "right" : "center";
+      ctx.fillText(text, ctx.textAlign === "right" ? Math.min(X, x0 + w) : X, y0 + h - B + 3);
+    };
     if (opts.logX) {
       for (let v = Math.ceil(xr[0]); v <= xr[1] + 1e-9; v++) {
-        // (the label at the right edge ends there instead of being cut)
-        ctx.textAlign = px(v) > x0 + w - R - 12 ? "right" : "center";
-        ctx.fillText(tickLabel(Number(Math.pow(10, v).toPrecision(6))), px(v), y0 + h - B + 3);
+        xTick(tickLabel(Number(Math.pow(10, v).toPrecision(6))), px(v));
         ctx.save(); ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(px(v), y0 + T); ctx.lineTo(px(v), y0 + h - B); ctx.stroke(); ctx.restore();
       }
     } else {
-      for (const v of ticks(xr[0], xr[1], 6)) ctx.fillText(tickLabel(v), px(v), y0 + h - B + 3);
+      for (const v of ticks(xr[0], xr[1], 6)) xTick(tickLabel(v), px(v));
     }
     if (opts.xLabel) { ctx.textAlign = "right"; ctx.fillText(opts.xLabel, x0 + L - 8, y0 + h - B + 3); }
     ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top";
@@ -813,7 +817,21 @@
     const c = $("[data-plot=map]");
     const ctx = clearCanvas(c);
     const xs = j.x.values, ys = j.y.values, nx = xs.length, ny = ys.length;
-    const L = 60, R = 16, T = 28, B = 64;
+    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#f2d675", "zero"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
+    // the legend's items in rows that fit the canvas's width (at 1024 px the last item of the
+    // second row ran past the edge, "no gain (kink"); the cells leave room for its rows
+    ctx.font = "11px system-ui, sans-serif";
+    const L = 60, R = 16, T = 28;
+    const rows = [[]];
+    let rowW = 0;
+    legend.forEach(([col, lab], k) => {
+      const itemW = 14 + ctx.measureText(lab).width;
+      // (the signs on the first row, the not physically valid ones from the second on)
+      if (rows.at(-1).length && (k === 3 || rowW + 16 + itemW > c.drawW - 8 - L)) { rows.push([]); rowW = 0; }
+      rowW += (rows.at(-1).length ? 16 : 0) + itemW;
+      rows.at(-1).push([col, lab]);
+    });
+    const B = 40 + 14 * rows.length;
     const w = (c.drawW - L - R) / nx, h = (c.drawH - T - B) / ny;
     for (let i = 0; i < nx; i++) {
       for (let k = 0; k < ny; k++) {
@@ -834,16 +852,18 @@
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
     for (const v of ticks(ys[0], ys[ny - 1], 5)) ctx.fillText(tickLabel(v), L - 4, T + (ny - 1 - (v - ys[0]) / (ys[ny - 1] - ys[0]) * (ny - 1)) * h + h / 2);
     ctx.save(); ctx.translate(14, T + ny * h / 2); ctx.rotate(-Math.PI / 2); ctx.textAlign = "center"; ctx.fillText(`${j.y.input} [${j.y.unit}]`, 0, 0); ctx.restore();
-    const legend = [["#5b8def", "positive"], ["#e4575f", "negative"], ["#f2d675", "zero"], ["#b9cdf7", "positive, not physically valid"], ["#f3b7ba", "negative, not physically valid"], ["#c9ced8", "no gain (kink / no equilibrium)"]];
-    let x = L; ctx.textAlign = "left";
-    legend.forEach(([col, lab], k) => {
-      const y = T + ny * h + 36 + (k >= 3 ? 14 : 0);
-      if (k === 3) x = L;
-      ctx.fillStyle = col; ctx.fillRect(x, y, 10, 10);
-      ctx.fillStyle = "#5d6778"; ctx.textBaseline = "top"; ctx.fillText(lab, x + 14, y);
-      x += ctx.measureText(lab).width + 30;
+    ctx.textAlign = "left"; ctx.textBaseline = "top";
+    rows.forEach((row, r) => {
+      let x = L;
+      const y = T + ny * h + 36 + 14 * r;
+      for (const [col, lab] of row) {
+        ctx.fillStyle = col; ctx.fillRect(x, y, 10, 10);
+        ctx.fillStyle = "#5d6778"; ctx.fillText(lab, x + 14, y);
+        x += ctx.measureText(lab).width + 30;
+      }
     });
     c.dataset.cells = String(nx * ny);
+    c.dataset.legendRows = String(rows.length);
   }
 
   // ---------------------------------------------------------------------------------------------
@@ -898,7 +918,9 @@
     await busy("[data-action=cycle]", marginsOn() ? "simulating the cycle and its loop margins…" : "simulating the cycle…", "#cycle-error", async () => {
       const t0 = performance.now();
       const cycle = $("select[name=cycle]").value;
-      const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, ...modelSel() };
+      // (fit_dt: a cycle of several hours is sampled coarser than 0.2 s, with a note, instead
+      // of refused for a dt the page has no field for)
+      const body = { mode: $("select[name=cycle_mode]").value, dt: 0.2, fit_dt: true, ...modelSel() };
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       body.margins = marginsEvery();

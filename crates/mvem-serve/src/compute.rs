@@ -386,6 +386,12 @@ pub(crate) struct SimulateRequest {
     /// Output interval [s] (default 0.1).
     #[serde(default)]
     pub dt: Option<f64>,
+    /// `dt` is the finest output interval wanted: a cycle that would give more than
+    /// [`MAX_SAMPLES`] samples at it is sampled at the smallest multiple of 10 ms that gives at
+    /// most that many, with a warning (default false: such a `dt` is a 400). The explorer sets
+    /// it, so that a cycle of several hours runs there at its 0.2 s.
+    #[serde(default)]
+    pub fit_dt: bool,
     /// Series to return (default: W_c, p_im, p_em, x_egr, lambda_O, M_e, n_t, T_em).
     #[serde(default)]
     pub outputs: Vec<String>,
@@ -527,7 +533,10 @@ impl SimulateRequest {
     /// `dt` (default 0.1 s), checked: positive, and at most [`MAX_SAMPLES`] samples from `t0`
     /// to `t1`.
     fn output_interval(&self, t0: f64, t1: f64) -> Result<f64, Fail> {
-        let dt = self.dt.unwrap_or(0.1);
+        let mut dt = self.dt.unwrap_or(0.1);
+        if self.fit_dt && dt.is_finite() && dt > 0.0 && (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
+            dt = fitted_interval(t1 - t0);
+        }
         if !(dt.is_finite() && dt > 0.0) || (t1 - t0) / dt + 1.0 > MAX_SAMPLES {
             return Err(input(format!(
                 "dt {}: must be > 0 and give at most {MAX_SAMPLES} samples from {} to {} s",
@@ -610,6 +619,17 @@ fn check_changes(s: &InputSchedule) -> Result<(), Fail> {
     Ok(())
 }
 
+/// The smallest multiple of 10 ms that samples `span` \[s\] in at most [`MAX_SAMPLES`]
+/// samples (`"fit_dt"`).
+fn fitted_interval(span: f64) -> f64 {
+    let mut k = (span / (MAX_SAMPLES - 1.0) / 0.01).ceil();
+    // (the rounding of k * 0.01)
+    while span / (k * 0.01) + 1.0 > MAX_SAMPLES {
+        k += 1.0;
+    }
+    k * 0.01
+}
+
 /// `POST /api/simulate`.
 pub(crate) fn simulate_cycle(
     model: &AnyModel,
@@ -618,12 +638,25 @@ pub(crate) fn simulate_cycle(
     name: &str,
     dt: f64,
 ) -> Result<Value, Fail> {
-    match what {
+    let mut v = match what {
         CycleInput::Open(sched) => {
             mvem::dispatch!(model, m => open_cycle(m, r, sched, name, dt))
         }
         CycleInput::Closed(source) => closed_cycle(model, r, source.clone(), name, dt),
+    }?;
+    let asked = r.dt.unwrap_or(0.1);
+    if dt != asked {
+        // `"fit_dt"` widened the interval
+        let note = format!(
+            "sampled every {} s: dt {} s would give more than {MAX_SAMPLES} samples",
+            Num(dt),
+            Num(asked)
+        );
+        if let Some(Value::Array(w)) = v.get_mut("warnings") {
+            w.push(json!(note));
+        }
     }
+    Ok(v)
 }
 
 /// The open-loop cycle from the steady state at its first inputs.

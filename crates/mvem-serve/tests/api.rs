@@ -682,6 +682,48 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
     );
 }
 
+/// A cycle longer than 50 000 samples at the asked `dt` (3 h at 0.2 s: 54 001) is a 400 naming
+/// `dt`; with `"fit_dt": true` (what the explorer sends, whose `dt` the user cannot set) it runs
+/// at the smallest multiple of 10 ms that fits (0.22 s: 49 092 samples) and says so. Before,
+/// the explorer could not run such a file at all and showed "dt 0.2: must be > 0 and give at
+/// most 50000 samples", a dt the page has no field for.
+#[test]
+fn a_long_cycle_is_sampled_coarser_with_fit_dt() {
+    let csv = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n\
+               0,1200,100,50,50\n5400,1600,150,40,60\n10800,1000,60,50,50\n";
+    let r = post(
+        "/api/simulate",
+        &serde_json::json!({"csv": csv, "dt": 0.2}).to_string(),
+    );
+    assert_400_naming(
+        &r,
+        "dt 0.2: must be > 0 and give at most 50000 samples from 0 to 10800 s",
+        "a 3 h cycle at 0.2 s",
+    );
+    let body = serde_json::json!({"csv": csv, "dt": 0.2, "fit_dt": true, "outputs": ["p_im"]});
+    let r = post("/api/simulate", &body.to_string());
+    assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
+    let j = r.json();
+    let t: Vec<f64> = serde_json::from_value(j["t"].clone()).unwrap();
+    assert_eq!(t.len(), 49_092);
+    assert!(
+        (t[1] - 0.22).abs() < 1e-12 && t[t.len() - 1] <= 10800.0,
+        "{:?}",
+        &t[..2]
+    );
+    assert_eq!(
+        j["warnings"],
+        serde_json::json!(["sampled every 0.22 s: dt 0.2 s would give more than 50000 samples"])
+    );
+    // a cycle that fits is sampled at dt, without a note
+    let short =
+        "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1200,100,50,50\n10,1200,100,50,50\n";
+    let body = serde_json::json!({"csv": short, "dt": 0.2, "fit_dt": true, "outputs": ["p_im"]});
+    let j = post("/api/simulate", &body.to_string()).json();
+    assert_eq!(j["t"].as_array().unwrap().len(), 51);
+    assert_eq!(j["warnings"], serde_json::json!([]));
+}
+
 /// The API's closed-loop run of the cycle file `csv` (every 0.5 s) and the core's run of the
 /// same text (`parse_cycle_file`, `run_cycle` with the default tuning, as `mvem closed-loop`).
 fn closed_csv(csv: &str) -> (serde_json::Value, drive::CycleRun) {

@@ -1004,6 +1004,24 @@ pub fn directional_derivative<const N: usize, M: Model<N>>(
     v_u: &[f64; 6],
     rel_step: f64,
 ) -> Result<(Vec<f64>, Vec<f64>), LinearizeError> {
+    sided_derivative(m, x, u, memory, v_x, v_u, rel_step, false)
+}
+
+/// [`directional_derivative`], or with `one_sided` the derivative on the side of the direction
+/// only (forward differences at steps `e` and `2e`, Richardson-extrapolated, `O(e^2)`): at a
+/// saturation limit, the slope on the side the direction points to (for a delayed copy of an
+/// input that [`linearize`] differenced on one side, [`OneSided`]).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn sided_derivative<const N: usize, M: Model<N>>(
+    m: &M,
+    x: &[f64; N],
+    u: &ModelInput,
+    memory: M::Memory,
+    v_x: &[f64; N],
+    v_u: &[f64; 6],
+    rel_step: f64,
+    one_sided: bool,
+) -> Result<(Vec<f64>, Vec<f64>), LinearizeError> {
     if let Some(v) = v_x.iter().chain(v_u).find(|v| !v.is_finite()) {
         return Err(LinearizeError::NonFinite {
             what: "direction".into(),
@@ -1035,14 +1053,25 @@ pub fn directional_derivative<const N: usize, M: Model<N>>(
         let ev = m.eval(&xx, &uu, memory);
         ev.dx.into_iter().chain(ev.signals.values()).collect()
     };
-    let (p1, m1, p2, m2) = (at(1.0), at(-1.0), at(2.0), at(-2.0));
-    let d: Vec<f64> = (0..N + n_sig)
-        .map(|r| {
-            let d1 = (p1[r] - m1[r]) / (2.0 * e);
-            let d2 = (p2[r] - m2[r]) / (4.0 * e);
-            (4.0 * d1 - d2) / 3.0
-        })
-        .collect();
+    let d: Vec<f64> = if one_sided {
+        let (p0, p1, p2) = (at(0.0), at(1.0), at(2.0));
+        (0..N + n_sig)
+            .map(|r| {
+                let d1 = (p1[r] - p0[r]) / e;
+                let d2 = (p2[r] - p0[r]) / (2.0 * e);
+                2.0 * d1 - d2
+            })
+            .collect()
+    } else {
+        let (p1, m1, p2, m2) = (at(1.0), at(-1.0), at(2.0), at(-2.0));
+        (0..N + n_sig)
+            .map(|r| {
+                let d1 = (p1[r] - m1[r]) / (2.0 * e);
+                let d2 = (p2[r] - m2[r]) / (4.0 * e);
+                (4.0 * d1 - d2) / 3.0
+            })
+            .collect()
+    };
     if let Some(r) = d.iter().position(|v| !v.is_finite()) {
         let names = m.state_names();
         let what = if r < N {
@@ -1060,7 +1089,7 @@ pub fn directional_derivative<const N: usize, M: Model<N>>(
 
 /// Largest power of two not above `h` (h > 0).
 #[inline]
-fn pow2_step(h: f64) -> f64 {
+pub(crate) fn pow2_step(h: f64) -> f64 {
     2f64.powi(h.log2().floor() as i32)
 }
 
