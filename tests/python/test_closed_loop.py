@@ -61,7 +61,7 @@ def test_the_gain_schedules_from_a_dict_equal_the_cli(mvem_cli, tmp_path):
     for name, col in r["trajectory"].items():
         np.testing.assert_array_equal(col, cli[name], err_msg=name)
     assert r["controller_tuning"]["vgt_gain_closed"] == 0.7
-    assert r["controller_tuning"]["egr_gain_closed"] == 0.5
+    assert r["controller_tuning"]["egr_gain_closed"] == 1.0
     assert r["controller_tuning"]["egr_gain_knee"] == 12.0
     plain = mvem.closed_loop("whtc", duration=120.0)
     assert plain["controller_tuning"]["vgt_gain_closed"] == 0.5
