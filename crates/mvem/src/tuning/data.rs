@@ -548,6 +548,13 @@ fn parse_columns(
             renamed: layout.label(names[column]).1,
             message: if field.is_empty() {
                 "missing value".into()
+            } else if line == 2 {
+                // test-cell exports often put the units in a row under the header
+                format!(
+                    "`{field}` is not a number (a row of units under the header? Remove it or \
+                     start it with `#`, and declare the units in the manifest's [units], \
+                     docs/tuning-data.md)"
+                )
             } else {
                 format!("`{field}` is not a number")
             },
@@ -1179,9 +1186,22 @@ mod tests {
              converts, docs/tuning-data.md)"
         );
         assert_eq!(
-            e(format!("{own}\n{}\n", ROW.replace(",0.3,", ",n/a,"))),
-            "s.csv: line 2, column `Air mass flow` (mvem's `W_c`): `n/a` is not a number"
+            e(format!("{own}\n{row}\n{}\n", ROW.replace(",0.3,", ",n/a,"))),
+            "s.csv: line 3, column `Air mass flow` (mvem's `W_c`): `n/a` is not a number"
         );
+        // a row of units under the header, as test-cell exports write it
+        let units_row = own
+            .split(',')
+            .map(|h| if h == "Air mass flow" { "kg/h" } else { "-" })
+            .collect::<Vec<_>>()
+            .join(",");
+        assert_eq!(
+            e(format!("{own}\n{units_row}\n{row}\n")),
+            "s.csv: line 2, column `M_e`: `-` is not a number (a row of units under the header? \
+             Remove it or start it with `#`, and declare the units in the manifest's [units], \
+             docs/tuning-data.md)"
+        );
+        assert!(parse_stationary_csv(&format!("{own}\n#{units_row}\n{row}\n"), p, &layout).is_ok());
         // a timestamp logged twice, in ms
         let head = "Time,n_t,p_em,p_im,Air mass flow,M_e,n_e,u_egr,u_vgt,u_delta";
         let r = |t: &str| format!("{t},80000,250000,200000,1080,1000,1500,20,50,150");
