@@ -71,6 +71,10 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
             ("rpm", 1.0, 0.0),
             ("krpm", 1e3, 0.0),
             ("rad/s", 30.0 / std::f64::consts::PI, 0.0),
+            // as German and other test cells head them
+            ("1/min", 1.0, 0.0),
+            ("min^-1", 1.0, 0.0),
+            ("U/min", 1.0, 0.0),
         ],
         "kg/s" => &[
             ("kg/s", 1.0, 0.0),
@@ -81,7 +85,14 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
         "Nm" => &[("Nm", 1.0, 0.0), ("N m", 1.0, 0.0), ("kNm", 1e3, 0.0)],
         "%" => &[("%", 1.0, 0.0), ("-", 100.0, 0.0)],
         "-" => &[("-", 1.0, 0.0), ("%", 0.01, 0.0)],
-        "mg/cycle" => &[("mg/cycle", 1.0, 0.0), ("mg/cycle/cylinder", 1.0, 0.0)],
+        // per cylinder and cycle; mg/stroke, German mg/Hub, is the same (one injection per
+        // cylinder and cycle)
+        "mg/cycle" => &[
+            ("mg/cycle", 1.0, 0.0),
+            ("mg/cycle/cylinder", 1.0, 0.0),
+            ("mg/stroke", 1.0, 0.0),
+            ("mg/Hub", 1.0, 0.0),
+        ],
         "s" => &[("s", 1.0, 0.0), ("ms", 1e-3, 0.0)],
         _ => &[],
     }
@@ -1278,6 +1289,19 @@ mod tests {
              start (subtract the first time); a time in ms needs `t = \"ms\"` in the manifest's \
              [units] (docs/tuning-data.md)"
         );
+    }
+
+    /// QA (a German test cell's headers `n_e [1/min]`, `u_delta [mg/Hub]`): units not known,
+    /// so `campaign --init` noted them in every file and guessed from the values.
+    #[test]
+    fn speeds_in_1_per_min_and_fuel_per_stroke_are_known_units() {
+        for u in ["1/min", "min^-1", "U/min"] {
+            assert_eq!(conversion("n_e", u), Ok((1.0, 0.0)), "{u}");
+            assert_eq!(conversion("n_t", u), Ok((1.0, 0.0)), "{u}");
+        }
+        for u in ["mg/stroke", "mg/Hub"] {
+            assert_eq!(conversion("u_delta", u), Ok((1.0, 0.0)), "{u}");
+        }
     }
 
     #[test]
