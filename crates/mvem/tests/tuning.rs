@@ -338,8 +338,8 @@ fn eta_c_fit_reaches_the_optimum_on_a_2_litre_engine() {
 
 /// QA finding: `mvem lab` on a 5-litre engine with a small turbocharger (`tests/data/
 /// engine_5l.toml`, speeds 1000-2600 rpm, 130 mg at full load) wrote a stationary point with
-/// p_em = 1.15 MPa, which its own loader refused (outside the plausible 0.05-1 MPa). The lab
-/// redraws such points, so what it writes loads.
+/// p_em = 1.15 MPa, which its own loader refused (outside the plausible 0.05-1 MPa, since
+/// widened to 2 MPa). The lab redraws points near a range's edge, so what it writes loads.
 #[test]
 fn the_lab_writes_only_what_its_loader_accepts() {
     let truth = engine("engine_5l.toml");
@@ -360,7 +360,66 @@ fn the_lab_writes_only_what_its_loader_accepts() {
     let back = data::load_campaign(dir.path()).unwrap();
     assert_eq!(back.stationary.len(), 82);
     let max_p_em = back.stationary.iter().map(|s| s.p_em).fold(0.0, f64::max);
-    assert!(max_p_em <= 1e6, "{max_p_em}");
+    assert!(max_p_em <= data::PLAUSIBLE_P_MAX, "{max_p_em}");
+}
+
+/// QA (a larger engine than the loader's old ranges): `mvem lab` on a 100-litre, 20-cylinder
+/// engine (`tests/data/engine_102l_scaled.toml`, 528 mg at full load) stopped with "no
+/// physically valid steady state found for stationary point 1 after 200 draws": the point was
+/// valid, but its fuel was beyond the loader's 500 mg, so no campaign of the engine could be
+/// written or loaded. The ranges hold such an engine now (`data::PLAUSIBLE_*`); where a point
+/// still leaves them, the error says which value and range.
+#[test]
+fn a_100_litre_engines_campaign_is_written_and_loads() {
+    let big = engine("engine_102l_scaled.toml");
+    let envelope = lab::Envelope {
+        n_lo_rpm: 700.0,
+        n_hi_rpm: 1800.0,
+        full_load_mg: 528.0,
+    };
+    let opts = LabOptions {
+        seed: 3,
+        n_stationary: 13,
+        dynamic: false,
+        envelope,
+        ..LabOptions::default()
+    };
+    let (c, _) = lab::campaign(&big, &opts).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    data::save_campaign(dir.path(), &c).unwrap();
+    let back = data::load_campaign(dir.path()).unwrap();
+    let max = |f: fn(&StationaryPoint) -> f64| back.stationary.iter().map(f).fold(0.0, f64::max);
+    assert_eq!(back.stationary.len(), 13);
+    assert_eq!(max(|s| s.u_delta), 528.0);
+    // the loaded points are a large engine's (seed 3: W_c 4.1 kg/s, M_e 14.8 kNm)
+    assert!(max(|s| s.w_c) > 3.0, "{}", max(|s| s.w_c));
+    assert!(max(|s| s.m_e) > 1.2e4, "{}", max(|s| s.m_e));
+    // the same cylinders' fuel of 5 cylinders four times the size: 2112 mg, beyond 2000 mg
+    let mut huge = big.clone();
+    huge.cylinder.n_cyl = 5.0;
+    huge.input_saturation.u_delta = [1.0, 2200.0];
+    let opts = LabOptions {
+        envelope: lab::Envelope {
+            full_load_mg: 4.0 * 528.0,
+            ..envelope
+        },
+        ..opts
+    };
+    let e = lab::campaign(&huge, &opts).unwrap_err().to_string();
+    assert!(
+        e.starts_with(
+            "no physically valid steady state found for stationary point 1 after 200 draws (the \
+             last: n_e "
+        ),
+        "{e}"
+    );
+    assert!(
+        e.contains(
+            "u_delta = 2112 mg/cycle at or within five noise standard deviations of the edge of \
+             the loader's plausible range [0, 2000] mg/cycle"
+        ),
+        "{e}"
+    );
 }
 
 /// QA finding: with 8 stationary points (`tests/data/stationary_8_points.csv`, of the 5-litre

@@ -48,7 +48,7 @@ Examples:
   mvem params check data/wahlstrom_eriksson_2011_parameters.json
 
 A valid file may still get warnings on stderr (exit code 0) for implausible values: a
-displacement v_d outside 0.1-50 dm^3 (it is in m^3), gamma or R inconsistent with c_p and c_V,
+displacement v_d outside 0.1-300 dm^3 (it is in m^3), gamma or R inconsistent with c_p and c_V,
 a c_mlin that is not c_m at w_tlin.")]
     Check {
         /// The parameter file (TOML, nested JSON or the authors' flat JSON).

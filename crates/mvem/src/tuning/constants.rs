@@ -319,11 +319,26 @@ pub fn implausible_constants(
     }
     let e = gross_indicated_efficiency(p);
     if eta_igch_tuned && !(ETA_IG_RANGE.0..=ETA_IG_RANGE.1).contains(&e) {
+        let in_range = |v: f64| (ETA_IG_RANGE.0..=ETA_IG_RANGE.1).contains(&v);
+        // u_delta logged as the fuel of all cylinders per cycle (a factor n_cyl, which the
+        // loader's range cannot tell from a larger cylinder) divides eta_igch by n_cyl
+        let fuel = if c.n_cyl > 1.0 && in_range(e * c.n_cyl) {
+            format!(
+                " Or is u_delta the fuel of all {} cylinders per cycle? It must be per cylinder \
+                 (mg/cycle/cylinder): with u_delta / {} the efficiency would be {:.3}, a diesel \
+                 engine's.",
+                c.n_cyl,
+                c.n_cyl,
+                e * c.n_cyl
+            )
+        } else {
+            String::new()
+        };
         out.push(format!(
             "the measured torque gives a gross indicated efficiency eta_igch (1 - 1/r_c^(gamma_cyl \
              - 1)) of {e:.3} (eq. (29), eta_igch = {:.3}), outside the {:.2}-{:.2} of diesel \
              engines: are n_cyl = {}, q_HV = {:.4e} J/kg and r_c = {} this engine's? Give the \
-             engine's constants with --params FILE",
+             engine's constants with --params FILE.{fuel}",
             c.eta_igch, ETA_IG_RANGE.0, ETA_IG_RANGE.1, c.n_cyl, c.q_hv, c.r_c
         ));
     }
@@ -689,7 +704,25 @@ mod tests {
         let c = implausible_constants(&q, &s, true);
         assert_eq!(c.len(), 1);
         assert!(c[0].contains("n_cyl = 6"), "{}", c[0]);
+        assert!(!c[0].contains("u_delta"), "{}", c[0]);
         assert!(implausible_constants(&q, &s, false).is_empty());
+        // QA (a test cell logging the fuel of all cylinders per cycle, 6 x 121 mg on a
+        // 7-litre engine, with the engine's constants given): the caveat asked for n_cyl,
+        // q_HV, r_c and --params, which were right; it now names the fuel per cylinder
+        let mut f = p.clone();
+        f.cylinder.eta_igch /= 6.0;
+        let c = implausible_constants(&f, &s, true);
+        assert_eq!(c.len(), 1);
+        let e = gross_indicated_efficiency(&p);
+        assert!(
+            c[0].ends_with(&format!(
+                "Or is u_delta the fuel of all 6 cylinders per cycle? It must be per cylinder \
+                 (mg/cycle/cylinder): with u_delta / 6 the efficiency would be {e:.3}, a diesel \
+                 engine's."
+            )),
+            "{}",
+            c[0]
+        );
     }
 
     /// A noise-free campaign of the 13 ESC points and set I (one step).

@@ -43,6 +43,13 @@ impl Layout {
     fn header<'a>(&'a self, name: &'a str) -> &'a str {
         self.names.get(name).map_or(name, |s| s.trim())
     }
+
+    /// mvem's column `name` as an error names it: the file's header name, and mvem's name
+    /// where `[columns]` renames it (the `column` and `renamed` of [`DataError::Value`]).
+    fn label(&self, name: &str) -> (String, Option<String>) {
+        let h = self.header(name);
+        (h.to_string(), (h != name).then(|| name.to_string()))
+    }
 }
 
 /// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
@@ -64,6 +71,10 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
             ("rpm", 1.0, 0.0),
             ("krpm", 1e3, 0.0),
             ("rad/s", 30.0 / std::f64::consts::PI, 0.0),
+            // as German and other test cells head them
+            ("1/min", 1.0, 0.0),
+            ("min^-1", 1.0, 0.0),
+            ("U/min", 1.0, 0.0),
         ],
         "kg/s" => &[
             ("kg/s", 1.0, 0.0),
@@ -74,7 +85,14 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
         "Nm" => &[("Nm", 1.0, 0.0), ("N m", 1.0, 0.0), ("kNm", 1e3, 0.0)],
         "%" => &[("%", 1.0, 0.0), ("-", 100.0, 0.0)],
         "-" => &[("-", 1.0, 0.0), ("%", 0.01, 0.0)],
-        "mg/cycle" => &[("mg/cycle", 1.0, 0.0), ("mg/cycle/cylinder", 1.0, 0.0)],
+        // per cylinder and cycle; mg/stroke, German mg/Hub, is the same (one injection per
+        // cylinder and cycle)
+        "mg/cycle" => &[
+            ("mg/cycle", 1.0, 0.0),
+            ("mg/cycle/cylinder", 1.0, 0.0),
+            ("mg/stroke", 1.0, 0.0),
+            ("mg/Hub", 1.0, 0.0),
+        ],
         "s" => &[("s", 1.0, 0.0), ("ms", 1e-3, 0.0)],
         _ => &[],
     }
@@ -133,14 +151,16 @@ pub enum DataError {
         renamed: Option<String>,
     },
     /// A value is not a finite number or is outside its plausible range.
-    #[error("{path}: line {line}, column `{column}`: {message}")]
+    #[error("{path}: line {line}, column `{column}`{}: {message}", renamed.as_ref().map_or(String::new(), |m| format!(" (mvem's `{m}`)")))]
     Value {
         /// File.
         path: PathBuf,
         /// Line (1-based, header = 1).
         line: usize,
-        /// Column name.
+        /// Column name in the file.
         column: String,
+        /// mvem's name of the column, where the manifest's `[columns]` renames it.
+        renamed: Option<String>,
         /// What is wrong.
         message: String,
     },
@@ -176,15 +196,45 @@ const fn col(name: &'static str, unit: &'static str, min: f64, max: f64) -> Colu
     }
 }
 
+/// Largest plausible compressor mass flow W_c \[kg/s\]: a 300-litre high-speed engine at full
+/// load (about 18 kg/s). A flow logged in g/s read as kg/s is caught at every point above 20 g/s,
+/// i.e. at the loaded points of any engine from about 1.5 litres up (a 2-litre engine idles at
+/// about 16 g/s); kg/h at every point above 20 kg/h (the idle of a 1-litre engine).
+pub const PLAUSIBLE_W_C_MAX: f64 = 20.0;
+
+/// Plausible engine torque M_e \[Nm\]: up to 100 kNm (a 300-litre engine at 20 bar BMEP is
+/// about 50 kNm), down to -20 kNm (motoring such an engine). Power logged in W is caught where
+/// it exceeds 100 kW (below, `mvem tune`'s indicated-efficiency check of `tuning::constants`
+/// sees it).
+pub const PLAUSIBLE_M_E: (f64, f64) = (-2.0e4, 1.0e5);
+
+/// Largest plausible injected fuel u_delta \[mg/cycle/cylinder\]: about 100 mg per litre of
+/// cylinder displacement at full load (the published engine: 220 mg, 2.1 l), so 2000 mg is a
+/// 20-litre cylinder, the largest high-speed engines'. Fuel per cycle of all cylinders instead
+/// of one is a factor n_cyl, which no range can tell from a larger cylinder: `mvem tune` checks
+/// it against the declared n_cyl (the indicated efficiency, `tuning::constants`).
+pub const PLAUSIBLE_U_DELTA_MAX: f64 = 2000.0;
+
+/// Largest plausible manifold or compressor-outlet pressure \[Pa\] (absolute): 20 bar, above
+/// the exhaust manifold of a small turbocharger at full load (11.5 bar measured in QA) and the
+/// boost of two-stage engines. A pressure in kPa, bar or gauge read as Pa falls below the lower
+/// bound, 0.5 bar, at every point.
+pub const PLAUSIBLE_P_MAX: f64 = 2.0e6;
+
+/// Smallest plausible EGR fraction x_egr \[-\]: an EGR rate measured from CO2 concentrations
+/// scatters around 0 with the valve closed (-0.2 % at a test cell's points), which is no unit
+/// mistake; a fraction in % read as `-` is caught at every point above 1 %.
+pub const PLAUSIBLE_X_EGR_MIN: f64 = -0.05;
+
 /// Columns of the stationary CSV (Table 5), in [`StationaryPoint`] field order.
 pub const STATIONARY_COLUMNS: [Column; 17] = [
-    col("M_e", "Nm", -2000.0, 20000.0),
+    col("M_e", "Nm", PLAUSIBLE_M_E.0, PLAUSIBLE_M_E.1),
     col("n_e", "r/min", 300.0, 6000.0),
     col("n_t", "r/min", 0.0, 300000.0),
     col("p_amb", "Pa", 5.0e4, 1.2e5),
-    col("p_c", "Pa", 5.0e4, 1.0e6),
-    col("p_em", "Pa", 5.0e4, 1.0e6),
-    col("p_im", "Pa", 5.0e4, 1.0e6),
+    col("p_c", "Pa", 5.0e4, PLAUSIBLE_P_MAX),
+    col("p_em", "Pa", 5.0e4, PLAUSIBLE_P_MAX),
+    col("p_im", "Pa", 5.0e4, PLAUSIBLE_P_MAX),
     col("T_amb", "K", 220.0, 330.0),
     col("T_c", "K", 220.0, 700.0),
     col("T_em", "K", 250.0, 1500.0),
@@ -192,25 +242,25 @@ pub const STATIONARY_COLUMNS: [Column; 17] = [
     col("T_t", "K", 220.0, 1500.0),
     col("u_egr", "%", -1.0, 101.0),
     col("u_vgt", "%", -1.0, 101.0),
-    col("u_delta", "mg/cycle", 0.0, 500.0),
-    col("W_c", "kg/s", 0.0, 5.0),
-    col("x_egr", "-", 0.0, 1.0),
+    col("u_delta", "mg/cycle", 0.0, PLAUSIBLE_U_DELTA_MAX),
+    col("W_c", "kg/s", 0.0, PLAUSIBLE_W_C_MAX),
+    col("x_egr", "-", PLAUSIBLE_X_EGR_MIN, 1.0),
 ];
 
 /// Columns of a dynamic CSV (Table 6) after the time column `t` \[s\]. `u_egr_pos`, `u_vgt_pos`
 /// are the measured actuator positions (tilde u in the paper), `u_egr`, `u_vgt` the commands.
 pub const DYNAMIC_COLUMNS: [Column; 11] = [
     col("n_t", "r/min", 0.0, 300000.0),
-    col("p_em", "Pa", 5.0e4, 1.0e6),
-    col("p_im", "Pa", 5.0e4, 1.0e6),
-    col("W_c", "kg/s", 0.0, 5.0),
+    col("p_em", "Pa", 5.0e4, PLAUSIBLE_P_MAX),
+    col("p_im", "Pa", 5.0e4, PLAUSIBLE_P_MAX),
+    col("W_c", "kg/s", 0.0, PLAUSIBLE_W_C_MAX),
     col("u_egr_pos", "%", -50.0, 150.0),
     col("u_vgt_pos", "%", -50.0, 150.0),
-    col("M_e", "Nm", -2000.0, 20000.0),
+    col("M_e", "Nm", PLAUSIBLE_M_E.0, PLAUSIBLE_M_E.1),
     col("n_e", "r/min", 300.0, 6000.0),
     col("u_egr", "%", -1.0, 101.0),
     col("u_vgt", "%", -1.0, 101.0),
-    col("u_delta", "mg/cycle", 0.0, 500.0),
+    col("u_delta", "mg/cycle", 0.0, PLAUSIBLE_U_DELTA_MAX),
 ];
 
 /// Columns an actuator data set (role [`Role::Actuator`], data set J) needs besides `t`.
@@ -505,9 +555,17 @@ fn parse_columns(
         } => DataError::Value {
             path: path.to_path_buf(),
             line,
-            column: names[column].to_string(),
+            column: layout.label(names[column]).0,
+            renamed: layout.label(names[column]).1,
             message: if field.is_empty() {
                 "missing value".into()
+            } else if line == 2 {
+                // test-cell exports often put the units in a row under the header
+                format!(
+                    "`{field}` is not a number (a row of units under the header? Remove it or \
+                     start it with `#`, and declare the units in the manifest's [units], \
+                     docs/tuning-data.md)"
+                )
             } else {
                 format!("`{field}` is not a number")
             },
@@ -519,7 +577,8 @@ fn parse_columns(
             let bad = |message: String| DataError::Value {
                 path: path.to_path_buf(),
                 line,
-                column: c.name.to_string(),
+                column: layout.label(c.name).0,
+                renamed: layout.label(c.name).1,
                 message,
             };
             if !v.is_finite() {
@@ -534,6 +593,16 @@ fn parse_columns(
                 }
                 None => String::new(),
             };
+            if c.name == "t" && v.abs() > c.max {
+                return Err(bad(format!(
+                    "{given}{} s is beyond the {} s (11.6 days) a data set may span: an absolute \
+                     clock (seconds since 1970)? Give each set's time from its start (subtract \
+                     the first time); a time in ms needs `t = \"ms\"` in the manifest's [units] \
+                     (docs/tuning-data.md)",
+                    crate::numerics::Num(*v),
+                    c.max
+                )));
+            }
             if *v < c.min || *v > c.max {
                 return Err(bad(format!(
                     "{given}{} {} is outside the plausible range [{}, {}] {} (wrong unit? a \
@@ -670,15 +739,25 @@ pub fn parse_dynamic_csv(
         ),
     };
     let rows = parse_columns(text, path, &req, layout)?;
+    // the times as the file writes them, in its unit (the rows hold seconds)
+    let (unit, (scale, offset)) = match layout.units.get("t") {
+        Some(u) => (u.trim(), conversion("t", u).unwrap_or((1.0, 0.0))),
+        None => ("s", (1.0, 0.0)),
+    };
+    let given = |s: f64| crate::numerics::Num((s - offset) / scale);
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
+            let (column, renamed) = layout.label("t");
             return Err(DataError::Value {
                 path: path.to_path_buf(),
                 line: k + 3,
-                column: "t".into(),
+                column,
+                renamed,
                 message: format!(
-                    "time {} s does not increase (previous row {} s): duplicate or unsorted timestamp",
-                    w[1][0], w[0][0]
+                    "time {} {unit} does not increase (previous row {} {unit}): duplicate or \
+                     unsorted timestamp",
+                    given(w[1][0]),
+                    given(w[0][0])
                 ),
             });
         }
@@ -874,10 +953,12 @@ fn check_time_unit(
     let Some((row, why)) = times_look_like_ms(t, rate_hz) else {
         return Ok(());
     };
+    let (column, renamed) = layout.label("t");
     Err(DataError::Value {
         path: path.to_path_buf(),
         line: row + 2,
-        column: layout.names.get("t").cloned().unwrap_or_else(|| "t".into()),
+        column,
+        renamed,
         message: format!(
             "the time has no unit and reads as seconds, but {why}: logged in ms? Declare the \
              unit: `t = \"ms\"` in the manifest's [units] (`mvem campaign --init` drafts it \
@@ -986,14 +1067,14 @@ mod tests {
         );
         // a value out of range names both units
         let e = parse_stationary_csv(
-            &format!("{}\n{}\n", header(), row.replace(",200,298", ",2000,298")),
+            &format!("{}\n{}\n", header(), row.replace(",200,298", ",2500,298")),
             p,
             &units,
         )
         .unwrap_err()
         .to_string();
         assert!(
-            e.contains("2000 kPa = 2000000 Pa is outside the plausible range"),
+            e.contains("2500 kPa = 2500000 Pa is outside the plausible range"),
             "{e}"
         );
         // the manifest refuses an unknown unit or column, naming it and the choices
@@ -1022,6 +1103,205 @@ mod tests {
         );
         let e = manifest("p_xx = \"kPa\"").unwrap_err().to_string();
         assert!(e.contains("`p_xx` is no column"), "{e}");
+    }
+
+    /// QA (another engine, another lab): a 100-litre, 20-cylinder engine's full-load point (W_c
+    /// 5.9 kg/s, M_e 30 kNm, 530 mg, p_em 1.15 MPa: each beyond the old ranges 5 kg/s, 20 kNm,
+    /// 500 mg, 1 MPa) and its motoring point (-2400 Nm) were refused, so no campaign of such an
+    /// engine loaded (`mvem lab` could not even write one). They load now, and the unit mistakes
+    /// the ranges are for are still caught: W_c in g/s (also a 2-litre engine's) or kg/h read as
+    /// kg/s, pressures in kPa or bar read as Pa, power in W read as torque.
+    #[test]
+    fn a_large_engines_points_load_and_unit_mistakes_are_still_caught() {
+        let p = Path::new("s.csv");
+        let csv = |rows: &[String]| format!("{}\n{}\n", header(), rows.join("\n"));
+        // M_e,n_e,n_t,p_amb,p_c,p_em,p_im,T_amb,T_c,T_em,T_im,T_t,u_egr,u_vgt,u_delta,W_c,x_egr
+        let full =
+            "30000,1500,45000,101300,380000,1150000,375000,298,480,900,310,750,10,40,530,5.9,0.05";
+        let motoring =
+            "-2400,1800,20000,101300,105000,110000,104000,298,310,400,305,390,0,100,0,1.2,0";
+        let idle_2l = "5,800,30000,101300,102000,104000,101500,298,305,450,300,420,0,100,5,0.016,0";
+        let full_2l =
+            "150,4000,180000,101300,250000,280000,245000,298,420,1000,310,850,0,60,52,0.12,0";
+        let pts =
+            parse_stationary_csv(&csv(&[full.into(), motoring.into()]), p, &Layout::default())
+                .unwrap();
+        assert_eq!(
+            (pts[0].w_c, pts[0].m_e, pts[0].u_delta),
+            (5.9, 30000.0, 530.0)
+        );
+        assert_eq!((pts[0].p_em, pts[1].m_e), (1.15e6, -2400.0));
+        let err = |rows: &[String]| {
+            parse_stationary_csv(&csv(rows), p, &Layout::default())
+                .unwrap_err()
+                .to_string()
+        };
+        let hint = "(wrong unit? a manifest's [units] table converts, docs/tuning-data.md)";
+        // W_c logged in g/s: the large engine's point, and the 2-litre engine's loaded point
+        assert_eq!(
+            err(&[full.replace(",5.9,", ",5900,")]),
+            format!("s.csv: line 2, column `W_c`: 5900 kg/s is outside the plausible range [0, 20] kg/s {hint}")
+        );
+        assert_eq!(
+            err(&[idle_2l.into(), full_2l.replace(",0.12,", ",120,")]),
+            format!("s.csv: line 3, column `W_c`: 120 kg/s is outside the plausible range [0, 20] kg/s {hint}")
+        );
+        // kg/h: even the 2-litre engine's idle (58 kg/h)
+        assert!(err(&[idle_2l.replace(",0.016,", ",57.6,")])
+            .starts_with("s.csv: line 2, column `W_c`: 57.6 kg/s is outside"));
+        // p_im in kPa, p_em in bar
+        assert!(err(&[full.replace(",375000,", ",375,")])
+            .starts_with("s.csv: line 2, column `p_im`: 375 Pa is outside the plausible range [50000, 2000000] Pa"));
+        assert!(err(&[full.replace(",1150000,", ",11.5,")])
+            .starts_with("s.csv: line 2, column `p_em`: 11.5 Pa is outside"));
+        // the power in W for the torque (the large engine's 4.7 MW; below 100 kW, a small
+        // engine's, it is caught by `mvem tune`'s indicated-efficiency check, not here)
+        assert!(err(&[full.replace("30000,1500", "4712389,1500")])
+            .starts_with("s.csv: line 2, column `M_e`: 4712389 Nm is outside the plausible range [-20000, 100000] Nm"));
+    }
+
+    /// QA (a test cell's own files, `[columns]` and `[units]` in the manifest): the errors named
+    /// mvem's column (`W_c`, `t`), which the file does not have, and gave a time logged in ms
+    /// in seconds (`time 0.09 s does not increase`). They name the file's header, mvem's name
+    /// beside it, and the time as the file writes it.
+    #[test]
+    fn errors_name_the_files_own_header_and_unit() {
+        let map = |v: &[(&str, &str)]| {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect::<BTreeMap<_, _>>()
+        };
+        let layout = Layout {
+            names: map(&[("W_c", "Air mass flow"), ("t", "Time")]),
+            units: map(&[("W_c", "kg/h"), ("t", "ms")]),
+        };
+        let own = header().replace("W_c", "Air mass flow");
+        let p = Path::new("s.csv");
+        let row = ROW.replace(",0.3,", ",1080,");
+        assert_eq!(
+            parse_stationary_csv(&format!("{own}\n{row}\n"), p, &layout).unwrap()[0].w_c,
+            0.3
+        );
+        let e = |text: String| {
+            parse_stationary_csv(&text, p, &layout)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            e(format!(
+                "{own}\n{row}\n{}\n",
+                ROW.replace(",0.3,", ",1080e3,")
+            )),
+            "s.csv: line 3, column `Air mass flow` (mvem's `W_c`): 1080000 kg/h = 300 kg/s is \
+             outside the plausible range [0, 20] kg/s (wrong unit? a manifest's [units] table \
+             converts, docs/tuning-data.md)"
+        );
+        assert_eq!(
+            e(format!("{own}\n{row}\n{}\n", ROW.replace(",0.3,", ",n/a,"))),
+            "s.csv: line 3, column `Air mass flow` (mvem's `W_c`): `n/a` is not a number"
+        );
+        // a row of units under the header, as test-cell exports write it
+        let units_row = own
+            .split(',')
+            .map(|h| if h == "Air mass flow" { "kg/h" } else { "-" })
+            .collect::<Vec<_>>()
+            .join(",");
+        assert_eq!(
+            e(format!("{own}\n{units_row}\n{row}\n")),
+            "s.csv: line 2, column `M_e`: `-` is not a number (a row of units under the header? \
+             Remove it or start it with `#`, and declare the units in the manifest's [units], \
+             docs/tuning-data.md)"
+        );
+        assert!(parse_stationary_csv(&format!("{own}\n#{units_row}\n{row}\n"), p, &layout).is_ok());
+        // a timestamp logged twice, in ms
+        let head = "Time,n_t,p_em,p_im,Air mass flow,M_e,n_e,u_egr,u_vgt,u_delta";
+        let r = |t: &str| format!("{t},80000,250000,200000,1080,1000,1500,20,50,150");
+        let text = [head.to_string(), r("80"), r("90"), r("90")].join("\n");
+        let e = parse_dynamic_csv(&text, Path::new("C.csv"), "C", StepKind::VgtEgr, &layout)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "C.csv: line 4, column `Time` (mvem's `t`): time 90 ms does not increase (previous \
+             row 90 ms): duplicate or unsorted timestamp"
+        );
+        // without [columns] and [units], mvem's names and seconds as before
+        let text = (text.replace("Time", "t"))
+            .replace("Air mass flow", "W_c")
+            .replace(",1080,", ",0.3,");
+        let e = parse_dynamic_csv(
+            &text,
+            Path::new("C.csv"),
+            "C",
+            StepKind::VgtEgr,
+            &Layout::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("C.csv: line 4, column `t`: time 90 s does not increase"),
+            "{e}"
+        );
+    }
+
+    /// QA (a test cell's logs): an EGR rate measured from CO2 concentrations is -0.2 % at a
+    /// closed valve's points, and the loader refused it as a unit mistake ("-0.0021 - is
+    /// outside the plausible range [0, 1]"); a dynamic set logged with an absolute clock (Unix
+    /// seconds) was refused with "wrong unit?". The first loads, a fraction in % read as `-`
+    /// is still refused, and the clock is named as such.
+    #[test]
+    fn a_slightly_negative_egr_rate_loads_and_an_absolute_clock_is_named() {
+        let p = Path::new("s.csv");
+        let x = |v: &str| {
+            parse_stationary_csv(
+                &format!("{}\n{}\n", header(), ROW.replace(",0.1", &format!(",{v}"))),
+                p,
+                &Layout::default(),
+            )
+        };
+        assert_eq!(x("-0.0021").unwrap()[0].x_egr, -0.0021);
+        assert_eq!(x("-0.05").unwrap()[0].x_egr, -0.05);
+        let e = x("-0.06").unwrap_err().to_string();
+        assert!(
+            e.starts_with(
+                "s.csv: line 2, column `x_egr`: -0.06 - is outside the plausible range [-0.05, 1]"
+            ),
+            "{e}"
+        );
+        let e = x("21").unwrap_err().to_string();
+        assert!(e.contains("21 - is outside the plausible range"), "{e}");
+        let head = "t,n_t,p_em,p_im,W_c,M_e,n_e,u_egr,u_vgt,u_delta";
+        let r = |t: &str| format!("{t},80000,250000,200000,0.3,1000,1500,20,50,150");
+        let text = [head.to_string(), r("1733443200"), r("1733443200.01")].join("\n");
+        let e = parse_dynamic_csv(
+            &text,
+            Path::new("B.csv"),
+            "B",
+            StepKind::VgtEgr,
+            &Layout::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "B.csv: line 2, column `t`: 1733443200 s is beyond the 1000000 s (11.6 days) a data \
+             set may span: an absolute clock (seconds since 1970)? Give each set's time from its \
+             start (subtract the first time); a time in ms needs `t = \"ms\"` in the manifest's \
+             [units] (docs/tuning-data.md)"
+        );
+    }
+
+    /// QA (a German test cell's headers `n_e [1/min]`, `u_delta [mg/Hub]`): units not known,
+    /// so `campaign --init` noted them in every file and guessed from the values.
+    #[test]
+    fn speeds_in_1_per_min_and_fuel_per_stroke_are_known_units() {
+        for u in ["1/min", "min^-1", "U/min"] {
+            assert_eq!(conversion("n_e", u), Ok((1.0, 0.0)), "{u}");
+            assert_eq!(conversion("n_t", u), Ok((1.0, 0.0)), "{u}");
+        }
+        for u in ["mg/stroke", "mg/Hub"] {
+            assert_eq!(conversion("u_delta", u), Ok((1.0, 0.0)), "{u}");
+        }
     }
 
     #[test]

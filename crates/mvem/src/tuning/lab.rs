@@ -8,8 +8,8 @@
 //!   ([`crate::analysis::steady::steady_state`]); a point that fails or is not physically valid
 //!   (guard saturation, lambda_O < 1, unstable) or whose measurement the campaign's loader could
 //!   refuse (a value within five noise standard deviations of the edge of its plausible range,
-//!   [`super::data::STATIONARY_COLUMNS`]: p_em above 1 MPa on a small engine at full load) is
-//!   redrawn with new actuator positions (and, for random points, a new speed and load).
+//!   [`super::data::STATIONARY_COLUMNS`]) is redrawn with new actuator positions (and, for
+//!   random points, a new speed and load); after 200 draws the error says why the last failed.
 //!   Load L % means u_delta = L/100 * [`U_DELTA_MAX`]. These speeds and the fuel are the
 //!   published engine's; [`LabOptions::envelope`] maps them onto another engine's ESC speeds
 //!   and full-load fuel ([`Envelope`]). The EGR position is kept below the
@@ -236,13 +236,17 @@ pub enum LabError {
     Params(String),
     /// No valid equilibrium was found for a point after many draws.
     #[error(
-        "no physically valid steady state found for stationary point {index} after {tries} draws"
+        "no physically valid steady state found for stationary point {index} after {tries} draws \
+         (the last: {last})"
     )]
     NoValidPoint {
         /// Point index.
         index: usize,
         /// Draws.
         tries: usize,
+        /// Why the last draw was refused (no equilibrium, not physically valid, or a value the
+        /// loader could refuse, named with its range).
+        last: String,
     },
     /// Writing the campaign failed.
     #[error(transparent)]
@@ -364,6 +368,7 @@ pub fn stationary(
     const TRIES: usize = 200;
     for index in 0..opts.n_stationary.max(13) {
         let mut found = None;
+        let mut last = String::new();
         for _ in 0..TRIES {
             let (n_e, load) = if index < 13 {
                 ESC_POINTS[index]
@@ -382,18 +387,45 @@ pub fn stationary(
             let u_vgt = rng.gen_range(20.0..100.0);
             let e = &opts.envelope;
             let d = Drive::new(e.speed(n_e), e.fuel(load), u_egr, u_vgt);
-            // an equilibrium whose measurement the loader would refuse (p_em above 1 MPa on a
-            // small engine at full load) is redrawn like an invalid one
-            if let Some(pt) = crate::dispatch!(&m, m => stationary_truth(m, p, &d))
-                .filter(|pt| outside_loader_range(pt, opts.noise).is_none())
-            {
-                found = Some(pt);
-                break;
+            // an equilibrium whose measurement the loader could refuse (a value near the edge of
+            // its plausible range) is redrawn like an invalid one
+            match crate::dispatch!(&m, m => stationary_truth(m, p, &d)) {
+                None => {
+                    last = format!(
+                        "n_e {} r/min, u_delta {} mg: no physically valid equilibrium",
+                        d.n_e_rpm, d.u_delta_mg
+                    )
+                }
+                Some(pt) => match outside_loader_range(&pt, opts.noise) {
+                    None => {
+                        found = Some(pt);
+                        break;
+                    }
+                    Some((c, v)) => {
+                        let k = super::data::STATIONARY_COLUMNS
+                            .iter()
+                            .find(|k| k.name == c)
+                            .expect("a stationary column");
+                        last = format!(
+                            "n_e {} r/min, u_delta {} mg: {c} = {} {} at or within five noise \
+                             standard deviations of the edge of the loader's plausible range \
+                             [{}, {}] {} (docs/tuning-data.md)",
+                            d.n_e_rpm,
+                            d.u_delta_mg,
+                            crate::numerics::Num(v),
+                            k.unit,
+                            k.min,
+                            k.max,
+                            k.unit
+                        )
+                    }
+                },
             }
         }
         truth.push(found.ok_or(LabError::NoValidPoint {
             index,
             tries: TRIES,
+            last,
         })?);
     }
     let mut g = Gauss(ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_0001));
@@ -870,7 +902,7 @@ pub fn step_set(
         ("u_delta".to_string(), command(1)),
     ];
     // what the campaign's own loader would refuse (a transient beyond a plausible range, e.g.
-    // p_em above 1 MPa on a small engine): the set is redrawn
+    // p_em beyond the pressure range): the set is redrawn
     for (c, v) in &columns {
         let col = super::data::DYNAMIC_COLUMNS.iter().find(|k| k.name == c);
         if let Some((k, x)) = col.and_then(|k| {

@@ -1107,7 +1107,7 @@ pub fn inherited_static_bias(parameters: &BTreeMap<String, ParamEstimate>) -> Op
         .map(|(s, n)| format!("{s} {} of {}", n.0, n.1))
         .collect();
     Some(format!(
-        "{} are reported identifiable with standard errors that include the static maps' \
+        "{} {} reported identifiable with standard errors that include the static maps' \
          covariance, but {total} static parameters are flagged not identifiable ({}): their \
          covariance does not bound their error, and step 3 inherits that error as a bias its \
          standard errors do not show (on virtual campaigns of the published engine V_im came \
@@ -1115,6 +1115,7 @@ pub fn inherited_static_bias(parameters: &BTreeMap<String, ParamEstimate>) -> Op
          with design data, or \
          run steps 3-4 on static maps you trust (--params FILE --steps 3-4)",
         dynamics.join(", "),
+        if dynamics.len() == 1 { "is" } else { "are" },
         sections.join(", ")
     ))
 }
@@ -1747,6 +1748,14 @@ mod tests {
             flagged3.insert(k.to_string(), est(false, 3));
         }
         assert_eq!(inherited_static_bias(&flagged3), None);
+        // QA (a 100-litre engine's campaign): one parameter read "turbo.j_t are reported"
+        let mut one = p.clone();
+        one.insert("intake_manifold.v_im".to_string(), est(false, 3));
+        let note = inherited_static_bias(&one).expect("a caveat");
+        assert!(
+            note.starts_with("turbo.j_t is reported identifiable with standard errors"),
+            "{note}"
+        );
     }
 
     #[test]

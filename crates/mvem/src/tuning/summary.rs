@@ -121,26 +121,31 @@ pub fn sampling_warnings(c: &Campaign) -> Vec<String> {
                 }
             ));
         }
-        let gaps: Vec<(f64, f64)> =
-            d.t.windows(2)
-                .filter(|w| w[1] - w[0] > GAP_FACTOR * dt)
-                .map(|w| (w[0], w[1]))
-                .collect();
-        if let Some(&(a, b)) = gaps
+        let gaps: Vec<(usize, f64, f64)> = (d.t.windows(2).enumerate())
+            .filter(|(_, w)| w[1] - w[0] > GAP_FACTOR * dt)
+            .map(|(k, w)| (k, w[0], w[1]))
+            .collect();
+        if let Some(&(k, a, b)) = gaps
             .iter()
-            .max_by(|x, y| (x.1 - x.0).total_cmp(&(y.1 - y.0)))
+            .max_by(|x, y| (x.2 - x.1).total_cmp(&(y.2 - y.1)))
         {
+            // the times in full (a clock that does not start at 0 needs every digit to find
+            // them in the file) and the samples' numbers
             out.push(format!(
                 "set {} ({}): irregular sampling: {} hole(s) longer than {GAP_FACTOR} median \
-                 steps ({} s), the longest {} s from t = {} s to {} s; tune and validate \
-                 simulate across it with the commands held at their last sample",
+                 steps ({} s), the longest {} s from t = {} s to {} s (samples {} and {} of \
+                 {}); tune and validate simulate across it with the commands held at their \
+                 last sample",
                 info.name,
                 info.file,
                 gaps.len(),
                 sig(dt),
                 sig(b - a),
-                sig(a),
-                sig(b)
+                crate::numerics::Num(a),
+                crate::numerics::Num(b),
+                k + 1,
+                k + 2,
+                d.t.len()
             ));
         }
     }
@@ -495,6 +500,26 @@ mod tests {
             gap.contains("irregular sampling: 1 hole(s)") && gap.contains("the longest 5.1 s"),
             "{gap}"
         );
+        // QA (a test cell's clock from 10 h): the times were cut to 4 digits, "from t = 36010 s
+        // to 36010 s"; now in full, with the samples' numbers
+        for t in &mut c.dynamic[i].t {
+            *t += 36000.0;
+        }
+        let w = sampling_warnings(&c);
+        let gap = w.iter().find(|m| m.starts_with("set I (I.csv)")).unwrap();
+        let (a, b) = (c.dynamic[i].t[n / 2 - 1], c.dynamic[i].t[n / 2]);
+        assert!(
+            gap.contains(&format!(
+                "the longest 5.1 s from t = {} s to {} s (samples {} and {} of {n})",
+                crate::numerics::Num(a),
+                crate::numerics::Num(b),
+                n / 2,
+                n / 2 + 1
+            )),
+            "{gap}"
+        );
+        // (to 4 digits both ends read the same)
+        assert_eq!(sig(a), sig(b), "{a} {b}");
         let text = summarize(&c).text();
         assert!(text.contains("\nwarning: set J (J.csv)"), "{text}");
     }
