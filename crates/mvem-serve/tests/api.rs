@@ -530,8 +530,9 @@ fn margins_equal_the_library() {
 /// `"margins": S` in closed mode: the loop margins along the run are the library's
 /// (`control::along` on the core's run of the same cycle, as `mvem closed-loop --margins S`):
 /// summary and samples equal to the bit, here the WHTC every 30 s (60 samples, the one at
-/// 690.01 s unstable: docs/control.md); a demand's margins too. In open mode, below the
-/// controller sample and with too many samples, `margins` is a 400 naming it.
+/// 1050.01 s unstable with the default tuning: docs/control.md); a demand's margins too. In
+/// open mode, below the controller sample and with too many samples, `margins` is a 400
+/// naming it.
 #[test]
 fn closed_loop_mode_gives_the_loop_margins_along_the_run() {
     use mvem::control::along;
