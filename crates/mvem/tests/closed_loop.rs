@@ -806,10 +806,7 @@ fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
         );
         let held = pole_at(&b.traj, &hold, t);
         eprintln!("t = {t}: default |z| {z} (u_egr {u_egr} %), with the hold {held:?}");
-        assert!(
-            held.map_or(true, |(z, _)| z < 1.0),
-            "hold, t = {t}: {held:?}"
-        );
+        assert!(held.is_none_or(|(z, _)| z < 1.0), "hold, t = {t}: {held:?}");
     }
     let (sa, sb) = (&a.stats, &b.stats);
     eprintln!(
