@@ -1,7 +1,8 @@
 //! Set-point steps of the baseline air-path controller (docs/control.md): prints rise and
 //! settling times for the default tuning, or for gains given as
 //! `KEY=VALUE` arguments (x_vgt_kp, x_vgt_ki, x_egr_kp, x_egr_ki, l_egr_kp, l_egr_ki, l_vgt_kp,
-//! l_vgt_ki, l_cap, and the gain schedules' vgt_closed, vgt_knee, egr_closed, egr_knee), runs
+//! l_vgt_ki, l_cap, and the gain schedules' vgt_closed, vgt_knee, egr_closed, egr_knee, and vgt_hold, the
+//! EGR command below which the x_egr loop may not close the VGT), runs
 //! the closed-loop WHTC with them when `whtc` is given, and with `grid` the steps x_egr,s +0.02
 //! and lambda_O,s +0.2 from the set-point maps' values at 20 operating points (800-2000 rpm,
 //! 40-180 mg), with a count of those that settle without a limit cycle.
@@ -46,6 +47,7 @@ fn main() {
             "vgt_knee" => tuning.vgt_gain_knee = v,
             "egr_closed" => tuning.egr_gain_closed = v,
             "egr_knee" => tuning.egr_gain_knee = v,
+            "vgt_hold" => tuning.vgt_hold_below_egr = v,
             _ => panic!("unknown key {k}"),
         }
     }

@@ -754,3 +754,65 @@ fn a_tip_in_out_of_motoring_is_fired_as_the_demand_rises() {
     );
     assert!(run.stats.torque.r2 > 0.88, "{:?}", run.stats.torque);
 }
+
+/// Session 38: the VGT hold near the shut EGR valve (`vgt_hold_below_egr`, off by default). At
+/// the WHTC's fast instabilities of the default tuning (442, 1101 and 1436 s: the valve at
+/// 0.1-0.4 % under the lambda_O loop, the VGT at 20-31 % under the x_egr loop) the two main
+/// loops are in feedback together and unstable, the slowest mode growing by more than 0.5 % per
+/// 10 ms sample (|z| 1.0135, 1.0193, 1.0161 measured): their pairing's relative gain is
+/// 0.007-0.03 there (`examples/loop_interaction.rs`). With the hold at 5 % the x_egr loop does
+/// not close the VGT there, and at the same samples of that run no loop pair is unstable. On
+/// the whole cycle the regulation still passes, the mean p_em - p_im falls (19 781 -> 18 815 Pa
+/// measured; asserted: at least 3 % lower) and x_egr is held about as well (RMS error 0.0228 ->
+/// 0.0234; asserted: within 5 %). docs/control.md, "Session 38".
+#[test]
+fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
+    use mvem::control::along::loops_in_charge;
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme};
+    use mvem::control::margins::margins_at;
+    use mvem::control::InCharge;
+    let m = model();
+    let e8 = Engine8::published();
+    let default = BaselineTuning::default();
+    let hold = BaselineTuning {
+        vgt_hold_below_egr: 5.0,
+        ..default
+    };
+    // the largest closed-loop pole of the loops in feedback at the sample at time `t` (None:
+    // no loop in feedback)
+    let pole_at = |traj: &Trajectory, tuning: &BaselineTuning, t: f64| -> Option<(f64, f64)> {
+        let g = |n: &str| traj.get(n).unwrap();
+        let k = g("t").iter().position(|&s| (s - t).abs() < 1e-6).unwrap();
+        let d = Drive::new(g("n_e")[k], g("u_delta")[k], g("u_egr")[k], g("u_vgt")[k]);
+        let (e, v) = (
+            InCharge::from_code(g("egr_loop")[k]),
+            InCharge::from_code(g("vgt_loop")[k]),
+        );
+        let loops = loops_in_charge(tuning, e, v, &d);
+        if loops.is_empty() {
+            return None;
+        }
+        let (_, a) = margins_at(&e8, &d, &loops, tuning.ts).unwrap();
+        Some((a.max_pole_all, d.u_egr_pct))
+    };
+    let a = run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(default), None).unwrap();
+    let b = run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(hold), None).unwrap();
+    assert!(b.violations.is_empty(), "{:?}", b.violations);
+    for t in [442.01, 1101.01, 1436.01] {
+        let (z, u_egr) = pole_at(&a.traj, &default, t).expect("loops in feedback");
+        assert!(
+            z > 1.005 && u_egr < 1.0,
+            "default, t = {t}: |z| {z}, u_egr {u_egr}"
+        );
+        let held = pole_at(&b.traj, &hold, t);
+        eprintln!("t = {t}: default |z| {z} (u_egr {u_egr} %), with the hold {held:?}");
+        assert!(held.is_none_or(|(z, _)| z < 1.0), "hold, t = {t}: {held:?}");
+    }
+    let (sa, sb) = (&a.stats, &b.stats);
+    eprintln!(
+        "PMEP {} -> {} Pa, x_egr RMS error {} -> {}",
+        sa.pmep_mean_pa, sb.pmep_mean_pa, sa.x_egr_rms_error, sb.x_egr_rms_error
+    );
+    assert!(sb.pmep_mean_pa < 0.97 * sa.pmep_mean_pa);
+    assert!(sb.x_egr_rms_error < 1.05 * sa.x_egr_rms_error);
+}

@@ -99,6 +99,14 @@ pub struct BaselineTuning {
     /// EGR command from which the EGR-valve loops have their full gains [%] (see
     /// [`Self::egr_gain_closed`]).
     pub egr_gain_knee: f64,
+    /// EGR command [%] below which the x_egr -> u_vgt loop may not close the VGT while the
+    /// lambda_O loop gives the valve's command (0: never, the default). There the valve is
+    /// being shut for air (smoke before NOx), x_egr,s is out of reach, and the two main loops
+    /// interact so strongly (relative gain of the pairing 0.007-0.25 at the WHTC's fast
+    /// instabilities) that they destabilize each other; the VGT is held (or opened by the
+    /// x_egr loop, or closed by the lambda_O -> u_vgt limiter) instead (docs/control.md,
+    /// "Session 38").
+    pub vgt_hold_below_egr: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -134,6 +142,7 @@ impl Default for BaselineTuning {
             vgt_gain_knee: 40.0,
             egr_gain_closed: 1.0,
             egr_gain_knee: 10.0,
+            vgt_hold_below_egr: 0.0,
         }
     }
 }
@@ -157,7 +166,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 15] = [
+    pub const FIELDS: [VarMeta; 16] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -236,12 +245,18 @@ impl BaselineTuning {
             unit: "%",
             description: "EGR command from which the EGR-valve loops have their full gains",
         },
+        VarMeta {
+            name: "vgt_hold_below_egr",
+            unit: "%",
+            description: "EGR command below which the x_egr loop may not close the VGT while \
+                          the lambda_O loop gives the valve's command (0: never)",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 15] = [
+    pub const BOUNDS: [(&'static str, Bounds); 16] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -306,10 +321,14 @@ impl BaselineTuning {
                 ..Bounds::closed(0.0, 100.0, " % (above the closed valve, 0 %)")
             },
         ),
+        (
+            "vgt_hold_below_egr",
+            Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 15] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 16] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -326,6 +345,7 @@ impl BaselineTuning {
             ("vgt_gain_knee", [self.vgt_gain_knee, 0.0], 1),
             ("egr_gain_closed", [self.egr_gain_closed, 0.0], 1),
             ("egr_gain_knee", [self.egr_gain_knee, 0.0], 1),
+            ("vgt_hold_below_egr", [self.vgt_hold_below_egr, 0.0], 1),
         ]
     }
 
@@ -347,7 +367,8 @@ impl BaselineTuning {
     /// [`Self::GAIN_MAX`]], lambda_lim in [1, 5], the smoke margin in [0, 1), d_x in [0, 1],
     /// d_lambda in [0, 10], the lambda_O error cap in (0, 10], the full-load VGT limit in
     /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %; the
-    /// EGR-valve loops' factor in (0, 10], their knee in (0, 100] %),
+    /// EGR-valve loops' factor in (0, 10], their knee in (0, 100] %; the VGT hold's EGR command
+    /// in [0, 100] %),
     /// the set-point floor lambda_lim (1 + 2 smoke margin) at most
     /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field (an
     /// element of a pair 1-based: `torque[1]` is the torque PI's kp, `torque[2]` its ki), its
@@ -635,6 +656,8 @@ pub struct Baseline {
     u_vgt_prev: f64,
     /// The previous EGR command [%] (the EGR-valve loops' gain schedule's variable).
     u_egr_prev: f64,
+    /// Whether the lambda_O loop gave the previous EGR command (won the valve's selector).
+    egr_by_lambda_prev: bool,
 }
 
 impl Baseline {
@@ -658,6 +681,7 @@ impl Baseline {
             fuel_override: f64::NAN,
             u_vgt_prev: 100.0,
             u_egr_prev: 100.0,
+            egr_by_lambda_prev: false,
         })
     }
 
@@ -699,6 +723,7 @@ impl Controller for Baseline {
         self.lambda_vgt.reset(u_vgt);
         self.u_vgt_prev = u_vgt;
         self.u_egr_prev = u_egr;
+        self.egr_by_lambda_prev = false;
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -754,6 +779,11 @@ impl Controller for Baseline {
             self.x_vgt.output(e_xv, dt),
             self.lambda_vgt.output(e_lv, dt),
         );
+        // the VGT hold: with the valve nearly shut by the lambda_O loop the x_egr loop may
+        // open the VGT but not close it (its command no lower than the previous VGT command)
+        let hold = self.egr_by_lambda_prev && self.u_egr_prev < self.tuning.vgt_hold_below_egr;
+        let held = hold && u_vgt_x < self.u_vgt_prev;
+        let u_vgt_x = if held { self.u_vgt_prev } else { u_vgt_x };
         let u_vgt = u_vgt_x.min(u_vgt_l).clamp(20.0, vmax);
         // which loop is in feedback (a command at one of its limits, where only one side of
         // the selector's output passes, and the error cap cut it)
@@ -771,7 +801,12 @@ impl Controller for Baseline {
         let vgt_loop = if u_vgt <= 20.0 || u_vgt >= vmax {
             InCharge::None
         } else if u_vgt_x <= u_vgt_l {
-            InCharge::Main
+            // held: the previous command, no feedback
+            if held {
+                InCharge::None
+            } else {
+                InCharge::Main
+            }
         } else if e_lv < cap {
             InCharge::Limiter
         } else {
@@ -783,6 +818,7 @@ impl Controller for Baseline {
         self.x_vgt.commit(e_xv, dt, u_vgt);
         self.u_vgt_prev = u_vgt;
         self.u_egr_prev = u_egr;
+        self.egr_by_lambda_prev = u_egr_l <= u_egr_x;
         Output {
             u_delta,
             u_egr,
