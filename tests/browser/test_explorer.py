@@ -508,7 +508,7 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     # inputs outside the parameter set's ranges run clamped, and the info line says so
     wide = tmp_path / "wide.csv"
     wide.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n"
-                    "2,2600,110,80,75\n4,1500,110,80,75\n")
+                    "2,2600,0,80,75\n4,1500,110,80,75\n")
     page.set_input_files("input[name=cycle_file]", str(wide))
     page.wait_for_function(
         "document.querySelector('select[name=cycle] option[value=__file]').textContent.includes('wide.csv')")
@@ -517,8 +517,16 @@ def test_uploaded_cycle_files(page, server, tmp_path):
                            timeout=60000)
     info = page.text_content("#cycle-info")
     # 1500 rpm at 0 s, 2600 rpm at 2 s: the input crosses 2000 rpm at 10/11 s
-    assert "n_e_rpm leaves [500, 2000] first at t = 0.90909" in info, info
-    assert "s (values from 2600 to 2600)" in info, info
+    assert ("n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to 2600), "
+            "first at t = 0.90909") in info, info
+    assert "s (the whole channel runs from 1500 to 2600)" in info, info
+    # a fuel of 0 below [1, 250] read "(values from 0 to 0)", the extremes of the values outside
+    # only: now the rows outside, their side and extreme, and the whole channel's values
+    # (110 mg at 0 s, 0 at 2 s: 1 mg at 109/110 * 2 s)
+    assert ("u_delta_mg is outside its range [1, 250] at 1 of 3 input rows (1 below, down to 0), "
+            "first at t = 1.98181") in info, info
+    assert "s (the whole channel runs from 0 to 110)" in info, info
+    assert "values from" not in info, info
     page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)
 
 

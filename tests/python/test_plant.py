@@ -101,7 +101,8 @@ def test_out_of_range_commands_are_clamped_with_a_warning():
         "u_egr_pct": [80.0, 80.0, 80.0],
         "u_vgt_pct": [75.0, 75.0, 75.0],
     }
-    with pytest.warns(UserWarning, match=r"simulate: u_delta_mg leaves \[1, 250\] first at t = 0\.73684\d* s \(values from 300 to 300\)"):
+    with pytest.warns(UserWarning, match=r"simulate: u_delta_mg is outside its range \[1, 250\] at 1 of 3 input rows "
+                      r"\(1 above, up to 300\), first at t = 0\.73684\d* s \(the whole channel runs from 110 to 300\)"):
         mvem.simulate(rows, dt=0.5)
 
 

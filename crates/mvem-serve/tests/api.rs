@@ -660,7 +660,7 @@ fn open_loop_csv_equals_the_same_cycle_by_name() {
 
 /// Inputs outside the parameter set's saturation ranges run clamped, and the answer says so
 /// (one warning per channel naming the time the input, linear between the rows, crosses the
-/// range and the extreme values), as
+/// range, how many input rows lie outside it and the values of the whole channel), as
 /// `mvem simulate` warns on stderr.
 #[test]
 fn open_loop_csv_outside_the_input_ranges_warns() {
@@ -673,12 +673,17 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
     assert_eq!(w.len(), 2, "{w:?}");
     assert!(
         // 1200 rpm at 0 s, 2600 at 2 s: 2000 rpm at 8/7 s
-        w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 1.142857142857")
-            && w[0].contains("s (values from 2600 to 2600)"),
+        w[0].starts_with(
+            "n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to \
+             2600), first at t = 1.142857142857"
+        ) && w[0].contains("s (the whole channel runs from 1200 to 2600)"),
         "{w:?}"
     );
     assert!(
-        w[1].starts_with("u_delta_mg leaves [1, 250] first at t = 3.5 s (values from 300 to 300)"),
+        w[1].starts_with(
+            "u_delta_mg is outside its range [1, 250] at 1 of 3 input rows (1 above, up to 300), \
+             first at t = 3.5 s (the whole channel runs from 100 to 300)"
+        ),
         "{w:?}"
     );
 }
