@@ -106,6 +106,34 @@ def test_out_of_range_commands_are_clamped_with_a_warning():
         mvem.simulate(rows, dt=0.5)
 
 
+def test_a_range_warning_comes_before_the_step():
+    """Plant.step warns of a changed command outside its range before it steps (one lock per
+    step otherwise): a warning made an error leaves the plant, its time and held commands as
+    they were; the command held on warns no more."""
+    import warnings
+
+    p = mvem.Plant(n_e=1500.0, u_delta=110.0, u_egr=80.0, u_vgt=75.0)
+    p.step(0.1)
+    x = p.state.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match=r"Plant.step: u_vgt_pct = 10 is outside \[20, 100\]"):
+            p.step(0.1, u_vgt=10.0)
+    assert p.t == pytest.approx(0.1, abs=1e-12)
+    np.testing.assert_array_equal(p.state, x)
+    assert list(p.commands) == [1500.0, 110.0, 80.0, 75.0]
+    with pytest.warns(UserWarning, match=r"u_vgt_pct = 10 is outside"):
+        p.step(0.1, u_vgt=10.0)
+    assert p.t == pytest.approx(0.2, abs=1e-12) and p.commands[3] == 10.0
+    # held on (unchanged): no warning; in range again: none either
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p.step(0.1)
+        p.step(0.1, u_vgt=10.0)
+        p.step(0.1, u_vgt=60.0)
+    assert p.t == pytest.approx(0.5, abs=1e-12)
+
+
 def test_a_plant_shared_by_threads_serializes_its_steps():
     """QA: a Plant stepped from several threads raised RuntimeError "Already borrowed" (the
     GIL is released while it integrates). Its calls are serialized: every step of every
