@@ -686,6 +686,20 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
         ),
         "{w:?}"
     );
+    // the inputs as commanded and as the model applied them (clamped into the ranges)
+    let j = r.json();
+    assert_eq!(j["t"], serde_json::json!([0.0, 1.0, 2.0, 3.0, 4.0]));
+    assert_eq!(
+        j["inputs"]["n_e"],
+        serde_json::json!([1200.0, 1900.0, 2600.0, 1900.0, 1200.0])
+    );
+    assert_eq!(
+        j["inputs_applied"]["n_e"],
+        serde_json::json!([1200.0, 1900.0, 2000.0, 1900.0, 1200.0])
+    );
+    assert_eq!(j["inputs"]["u_delta"][4], 300.0);
+    assert_eq!(j["inputs_applied"]["u_delta"][4], 250.0);
+    assert_eq!(j["inputs_applied"]["u_vgt"], j["inputs"]["u_vgt"]);
 }
 
 /// A cycle longer than 50 000 samples at the asked `dt` (3 h at 0.2 s: 54 001) is a 400 naming
