@@ -2,7 +2,7 @@
 //! an accepted schedule must be usable (evaluation, breakpoints, range warnings).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use mvem::io::csv_inputs::{parse_inputs_csv, range_warnings};
+use mvem::io::csv_inputs::{parse_inputs_csv, range_warnings, INPUT_RANGES};
 use std::path::Path;
 
 fuzz_target!(|data: &[u8]| {
@@ -17,6 +17,6 @@ fuzz_target!(|data: &[u8]| {
         for c in 0..4 {
             let _ = s.breakpoints(c);
         }
-        let _ = range_warnings(&s);
+        let _ = range_warnings(&s, &INPUT_RANGES);
     }
 });

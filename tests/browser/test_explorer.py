@@ -508,7 +508,7 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     # inputs outside the parameter set's ranges run clamped, and the info line says so
     wide = tmp_path / "wide.csv"
     wide.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n"
-                    "2,2600,110,80,75\n4,1500,110,80,75\n")
+                    "2,2600,0,80,75\n4,1500,110,80,75\n")
     page.set_input_files("input[name=cycle_file]", str(wide))
     page.wait_for_function(
         "document.querySelector('select[name=cycle] option[value=__file]').textContent.includes('wide.csv')")
@@ -517,8 +517,29 @@ def test_uploaded_cycle_files(page, server, tmp_path):
                            timeout=60000)
     info = page.text_content("#cycle-info")
     # 1500 rpm at 0 s, 2600 rpm at 2 s: the input crosses 2000 rpm at 10/11 s
-    assert "n_e_rpm leaves [500, 2000] first at t = 0.90909" in info, info
-    assert "s (values from 2600 to 2600)" in info, info
+    assert ("n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to 2600), "
+            "first at t = 0.90909") in info, info
+    assert "s (the whole channel runs from 1500 to 2600)" in info, info
+    # a fuel of 0 below [1, 250] read "(values from 0 to 0)", the extremes of the values outside
+    # only: now the rows outside, their side and extreme, and the whole channel's values
+    # (110 mg at 0 s, 0 at 2 s: 1 mg at 109/110 * 2 s)
+    assert ("u_delta_mg is outside its range [1, 250] at 1 of 3 input rows (1 below, down to 0), "
+            "first at t = 1.98181") in info, info
+    assert "s (the whole channel runs from 0 to 110)" in info, info
+    assert "values from" not in info, info
+    # the cursor's table shows the inputs the model used (clamped into their ranges), with the
+    # command beside a clamped one; it showed the command (0 mg, 2600 rpm at 2 s)
+    page.fill("input[name=cycle_t]", "10")
+    page.dispatch_event("input[name=cycle_t]", "input")
+    assert page.text_content("#cycle-time") == "2.0"
+    cells = page.eval_on_selector_all("#cycle-values tr", """rs => Object.fromEntries(rs.map(r => [
+        r.cells[0].textContent,
+        [r.cells[1].textContent, r.cells[3].textContent, r.cells[3].dataset.commanded ?? null]]))""")
+    assert cells["u_delta"] == ["1.00000", "commanded 0, clamped to the range", "0"], cells["u_delta"]
+    assert cells["n_e"] == ["2000.00", "commanded 2600.00, clamped to the range", "2600"], cells["n_e"]
+    assert cells["u_vgt"] == ["75.0000", "", None] and cells["W_c"][1:] == ["", None], cells
+    # the plot draws the applied inputs, the commands dashed where they differ
+    assert page.evaluate("window.mvem.cycle.inputs_applied.u_delta[10]") == 1
     page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)
 
 
@@ -819,6 +840,53 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     assert page.is_hidden("#step-warnings")
 
 
+def test_the_cycle_cursor_leaves_the_tick_labels_readable(page, tmp_path):
+    """The time cursor crossed the whole canvas: at t = 0 it ran through the time axis's "0"
+    tick label under every strip, which read as a red dot. It covers the strips' plot areas
+    only: no cursor red outside them, and the "0" labels' grey ink under the cursor's column."""
+    f = tmp_path / "short.csv"
+    f.write_text("time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n0,1500,110,80,75\n4,1500,110,80,65\n")
+    page.set_input_files("input[name=cycle_file]", str(f))
+    page.wait_for_function("document.querySelector('select[name=cycle]').value !== 'whtc'")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn='21']", timeout=60000)
+    assert page.input_value("input[name=cycle_t]") == "0"
+    col = page.evaluate("""() => {
+        const c = document.querySelector('canvas[data-plot=cycle]');
+        const dpr = window.devicePixelRatio || 1;
+        const panels = window.mvem.cyclePanels;
+        const X = Math.round(panels[0].px(window.mvem.cycle.t[0]) * dpr);
+        const ctx = c.getContext('2d');
+        // the cursor's colour, rgba(198,40,40,0.8) on white (an antialiased 1 px line over two
+        // columns: about 216,154,157); the labels' grey has r < g < b
+        const red = (d, i) => d[i] - d[i + 1] > 40 && d[i] - d[i + 2] > 40;
+        const d = ctx.getImageData(X, 0, 1, c.height).data;
+        const inside = (y) => panels.some(p => y >= p.clip[1] * dpr - 1 && y <= (p.clip[1] + p.clip[3]) * dpr + 1);
+        let redOutside = 0, redInside = 0;
+        for (let y = 0; y < c.height; y++) {
+            if (red(d, 4 * y)) { if (inside(y)) redInside++; else redOutside++; }
+        }
+        // each strip's "0" tick label (centred under the cursor, 14 px below its plot area):
+        // grey ink, none of it red
+        let labelled = 0, redLabels = 0;
+        for (const p of panels) {
+            const y0 = Math.round((p.clip[1] + p.clip[3]) * dpr) + 2;
+            const b = ctx.getImageData(X - 4 * dpr, y0, 9 * dpr, 12 * dpr).data;
+            let ink = 0;
+            for (let i = 0; i < b.length; i += 4) {
+                if (red(b, i)) redLabels++;
+                else if (b[i] < 200) ink++;
+            }
+            if (ink > 0) labelled++;
+        }
+        return {redOutside, redInside, labelled, redLabels, panels: panels.length};
+    }""")
+    assert col["redOutside"] == 0 and col["redLabels"] == 0, col
+    assert col["redInside"] > 100, col  # the cursor is drawn over the plot areas
+    assert col["labelled"] == col["panels"], col  # each strip's "0" label has its ink
+    page.locator("canvas[data-plot=cycle]").screenshot(path=str(ART / "explorer_cycle_cursor.png"))
+
+
 def test_cycle_plot_shows_the_references_and_legends(page):
     """The cycle figure: n_e and u_delta strips, and in closed loop the references M_ref,
     x_egr_ref, lambda_O_ref (dashed) beside what follows them, each strip with a legend."""
@@ -922,16 +990,24 @@ _CLIP_RECORDER = r"""
 """
 
 
+def _page_at_1024(browser, server, init_script=None):
+    """A new context at 1024 x 768 (with `init_script` run before the page's) and its page,
+    loaded and ready."""
+    ctx = browser.new_context(viewport={"width": 1024, "height": 768})
+    if init_script:
+        ctx.add_init_script(init_script)
+    page = ctx.new_page()
+    page.goto(server)
+    page.wait_for_selector("body[data-state=ready]", timeout=15000)
+    return ctx, page
+
+
 def test_no_figure_text_is_cut_at_the_canvas_edge(browser, server, tmp_path):
     """At 1024 x 768 no label of a figure runs past its canvas: the last time tick of a cycle
     that ends on a tick ("300" at 300 s was centred on the plot's right edge and cut to "30")
     and the map's legend (its last item, "no gain (kink / no equilibrium)", ran past the edge:
     the items now wrap onto as many rows as the width needs)."""
-    ctx = browser.new_context(viewport={"width": 1024, "height": 768})
-    ctx.add_init_script(_CLIP_RECORDER)
-    page = ctx.new_page()
-    page.goto(server)
-    page.wait_for_selector("body[data-state=ready]", timeout=15000)
+    ctx, page = _page_at_1024(browser, server, _CLIP_RECORDER)
     page.fill("input[name=map_n]", "3")
     page.click("[data-action=map]")
     page.wait_for_selector("canvas[data-plot=map][data-cells='9']", timeout=60000)
@@ -948,4 +1024,27 @@ def test_no_figure_text_is_cut_at_the_canvas_edge(browser, server, tmp_path):
     cut = page.evaluate("window.__cut")
     assert cut == [], cut
     assert int(page.get_attribute("canvas[data-plot=map]", "data-legend-rows")) >= 3
+    ctx.close()
+
+
+def test_the_step_table_is_readable_at_1024_px(browser, server):
+    """At 1024 x 768 the step panel's metrics table wrapped its cells ("3.52 % at 0.123 s" on
+    two lines, a DC gain broken at its sign): every cell stays on one line, and a table wider
+    than its panel scrolls inside it instead of widening the page."""
+    ctx, page = _page_at_1024(browser, server)
+    page.fill("input[name=u_vgt]", "75")
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    lines = page.eval_on_selector_all("#metrics td, #metrics-head th", """cells => cells.map(c => {
+        const r = document.createRange();
+        r.selectNodeContents(c);
+        // one rectangle per line box of the cell's text
+        const tops = new Set([...r.getClientRects()].map(q => Math.round(q.top)));
+        return [c.textContent, tops.size];
+    })""")
+    assert len(lines) >= 7 * 8, lines
+    wrapped = [t for t, n in lines if n > 1]
+    assert wrapped == [], wrapped
+    assert page.evaluate("document.documentElement.scrollWidth") <= 1024
+    page.locator("#step").screenshot(path=str(ART / "explorer_step_table_1024.png"))
     ctx.close()

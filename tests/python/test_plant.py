@@ -101,8 +101,37 @@ def test_out_of_range_commands_are_clamped_with_a_warning():
         "u_egr_pct": [80.0, 80.0, 80.0],
         "u_vgt_pct": [75.0, 75.0, 75.0],
     }
-    with pytest.warns(UserWarning, match=r"simulate: u_delta_mg leaves \[1, 250\] first at t = 0\.73684\d* s \(values from 300 to 300\)"):
+    with pytest.warns(UserWarning, match=r"simulate: u_delta_mg is outside its range \[1, 250\] at 1 of 3 input rows "
+                      r"\(1 above, up to 300\), first at t = 0\.73684\d* s \(the whole channel runs from 110 to 300\)"):
         mvem.simulate(rows, dt=0.5)
+
+
+def test_a_range_warning_comes_before_the_step():
+    """Plant.step warns of a changed command outside its range before it steps (one lock per
+    step otherwise): a warning made an error leaves the plant, its time and held commands as
+    they were; the command held on warns no more."""
+    import warnings
+
+    p = mvem.Plant(n_e=1500.0, u_delta=110.0, u_egr=80.0, u_vgt=75.0)
+    p.step(0.1)
+    x = p.state.copy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match=r"Plant.step: u_vgt_pct = 10 is outside \[20, 100\]"):
+            p.step(0.1, u_vgt=10.0)
+    assert p.t == pytest.approx(0.1, abs=1e-12)
+    np.testing.assert_array_equal(p.state, x)
+    assert list(p.commands) == [1500.0, 110.0, 80.0, 75.0]
+    with pytest.warns(UserWarning, match=r"u_vgt_pct = 10 is outside"):
+        p.step(0.1, u_vgt=10.0)
+    assert p.t == pytest.approx(0.2, abs=1e-12) and p.commands[3] == 10.0
+    # held on (unchanged): no warning; in range again: none either
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p.step(0.1)
+        p.step(0.1, u_vgt=10.0)
+        p.step(0.1, u_vgt=60.0)
+    assert p.t == pytest.approx(0.5, abs=1e-12)
 
 
 def test_a_plant_shared_by_threads_serializes_its_steps():

@@ -535,7 +535,13 @@ fn out_of_range_inputs_warn_once_and_succeed() {
     assert!(o.status.success(), "{err}");
     assert_eq!(err.matches("warning").count(), 1, "{err}");
     assert_eq!(err.matches("u_vgt_pct").count(), 1, "{err}");
-    assert!(err.contains("u_vgt_pct leaves [20, 100]"), "{err}");
+    assert!(
+        err.contains(
+            "u_vgt_pct is outside its range [20, 100] at 20 of 20 input rows (20 below, down to \
+             10), first at t = 0 s (the whole channel runs from 10 to 10)"
+        ),
+        "{err}"
+    );
     let (h, rows) = read_csv(&d.path().join("out.csv"));
     // the authors' saturation clamps the command to 20 %
     assert_eq!(rows[0][col(&h, "u_vgt")], 20.0);

@@ -162,6 +162,15 @@ fn ranges_of(p: Option<&Params>) -> [(&'static str, f64, f64); 4] {
     }
 }
 
+/// Whether a value of `values` (n_e, u_delta, u_egr, u_vgt) lies outside its range of
+/// `ranges`: what [`warn_out_of_range`] warns about.
+fn out_of_range(values: [f64; 4], ranges: &[(&str, f64, f64); 4]) -> bool {
+    ranges
+        .iter()
+        .zip(values)
+        .any(|((_, lo, hi), v)| v < *lo || v > *hi)
+}
+
 /// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::input_ranges` of the
 /// parameter set `p`): a value outside its range is used clamped, and Python is told so by a
 /// `UserWarning` naming the input, its value and the range (the CLI prints the same on stderr).
@@ -1289,21 +1298,31 @@ impl Plant {
         u_egr: Option<f64>,
         u_vgt: Option<f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let (cmd, changed) = self.locked(py, |s| {
-            let cmd = merge_cmd(s.cmd, n_e, u_delta, u_egr, u_vgt);
-            (cmd, cmd != s.cmd)
-        });
-        if changed {
-            warn_out_of_range(py, "Plant.step", cmd, &self.ranges)?;
-        }
-        let out = self
-            .locked(py, |s| {
+        // One lock per step: the commands are merged with the held ones and the plant steps
+        // under the same lock (another thread cannot change the held commands in between).
+        // Only a changed command outside its range stops first: its warning needs the GIL and
+        // comes before the step (a warning made an error leaves the plant as it was), then the
+        // lock is taken again and the step runs if the commands are still the ones warned of.
+        let mut warned: Option<[f64; 4]> = None;
+        loop {
+            let ranges = &self.ranges;
+            let r = self.locked(py, |s| {
+                let cmd = merge_cmd(s.cmd, n_e, u_delta, u_egr, u_vgt);
+                if cmd != s.cmd && warned != Some(cmd) && out_of_range(cmd, ranges) {
+                    return Ok(Err(cmd));
+                }
                 s.plant.step(dt, cmd)?;
                 s.cmd = cmd;
-                Ok(Self::outputs_of(s))
-            })
-            .map_err(to_py_err)?;
-        outputs_dict(py, out)
+                Ok(Ok(Self::outputs_of(s)))
+            });
+            match r.map_err(to_py_err)? {
+                Ok(out) => return outputs_dict(py, out),
+                Err(cmd) => {
+                    warn_out_of_range(py, "Plant.step", cmd, &self.ranges)?;
+                    warned = Some(cmd);
+                }
+            }
+        }
     }
 
     /// The outputs at the current time (dict of floats).

@@ -778,7 +778,7 @@
       const m = j.outputs[n];
       const tr = document.createElement("tr");
       tr.dataset.metric = n;
-      if (m.error) { tr.innerHTML = `<td>${n}</td><td colspan="6">${m.error}</td>`; return tr; }
+      if (m.error) { tr.innerHTML = `<td>${n}</td><td colspan="6" class="msg">${m.error}</td>`; return tr; }
       tr.innerHTML = `<td>${n} [${unit(n)}]</td><td data-field="dc_gain">${fmt(m.dc_gain)}</td><td>${m.gain_sign}</td>` +
         `<td data-field="nmp">${m.non_minimum_phase ? (100 * m.wrong_way.relative).toFixed(2) + " % at " + m.wrong_way.time.toFixed(3) + " s" : "–"}</td>` +
         `<td data-field="overshoot">${m.overshoot_pct.toFixed(2)} %</td><td>${m.rise_time === null ? "–" : m.rise_time.toFixed(3) + " s"}</td>` +
@@ -1096,8 +1096,16 @@
     tbl.hidden = false;
   }
 
+  // an input as the model applied it (the authors' saturation clamps a command outside its
+  // range: the server's "inputs_applied"), a series as computed
   function cycleValue(j, n, i) {
-    return (j.series[n] ?? j.inputs[n])[i];
+    return (j.series[n] ?? (j.inputs_applied || j.inputs)[n])[i];
+  }
+
+  // the commanded values of input `n` where the model applied another one (clamped), else null
+  function cycleCommanded(j, n) {
+    const c = j.inputs[n], a = j.inputs_applied?.[n];
+    return a && c && c.some((v, i) => v !== a[i]) ? c : null;
   }
 
   function drawCycle(j) {
@@ -1108,15 +1116,22 @@
     const drawn = [];
     app.cyclePanels = CYCLE_PANELS.map(({ series, cap }, k) => {
       const items = series.filter(([n]) => (j.series[n] ?? j.inputs[n]) !== undefined);
-      const ys = items.map(([n]) => j.series[n] ?? j.inputs[n]);
-      let [lo, hi] = robustRange(ys, 0.002);
+      const ys = items.map(([n]) => j.series[n] ?? (j.inputs_applied || j.inputs)[n]);
+      // an input the model clamped somewhere: its commanded values dashed in grey under the
+      // applied ones
+      const asked = items.map(([n]) => j.series[n] ? null : cycleCommanded(j, n));
+      let [lo, hi] = robustRange(ys.concat(asked.filter((a) => a)), 0.002);
       const capped = cap !== undefined && hi > cap;
       if (capped) hi = cap;
       const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(lo, hi), "",
         { xLabel: k === CYCLE_PANELS.length - 1 ? "t [s]" : undefined });
+      asked.forEach((a) => { if (a) line(ctx, p, j.t, a, "#9aa3b2", 1, [4, 3]); });
       // (a reference dashed over what follows it)
       items.forEach(([, color, dash], q) => line(ctx, p, j.t, ys[q], color, dash ? 1.2 : 1, dash || []));
-      legend(ctx, p, k * h, items, capped ? `(axis cut at ${cap})` : "");
+      const notes = [];
+      if (asked.some((a) => a)) notes.push("(grey dashed: commanded, clamped to the range)");
+      if (capped) notes.push(`(axis cut at ${cap})`);
+      legend(ctx, p, k * h, items, notes.join(" "));
       drawn.push(...items.map(([n]) => n));
       return p;
     });
@@ -1191,10 +1206,12 @@
     const strips = [["gm", "gain margin [dB], other loop closed (0 dB: the stability boundary)"], ["pm", "phase margin [deg], other loop closed"]];
     const h = c.drawH / strips.length;
     let dots = 0;
+    app.marginsPanels = [];
     strips.forEach(([key, title], k) => {
       const [lo, hi] = robustRange(pts.map((q) => q[key][1]), 0);
       const p = panel(ctx, [0, k * h, c.drawW, h], xr, niceRange(Math.min(lo, 0), Math.max(hi, 0)), title,
         { yTicks: 5, xLabel: k === strips.length - 1 ? "t [s]" : undefined });
+      app.marginsPanels.push(p);
       // the samples whose loops are unstable together: a band as wide as the spacing (at least
       // 3 px), over the whole height of the strip
       ctx.save(); ctx.beginPath(); ctx.rect(...p.clip); ctx.clip();
@@ -1245,18 +1262,35 @@
     const c = $("[data-plot=cycle]");
     const ctx = cycleImage ? restore(c, cycleImage) : c.getContext("2d");
     const X = app.cyclePanels[0].px(j.t[i]);
-    const cursor = (cv, cx) => { cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath(); cx.moveTo(X, 0); cx.lineTo(X, cv.drawH); cx.stroke(); cx.restore(); };
-    cursor(c, ctx);
+    // the cursor over each strip's plot area only: across the whole canvas it ran through the
+    // time axis's tick labels and hid the "0" at the start under a red bar
+    const cursor = (cx, panels) => {
+      cx.save(); cx.strokeStyle = "rgba(198,40,40,0.8)"; cx.beginPath();
+      for (const p of panels) { const [, y, , hh] = p.clip; cx.moveTo(X, y); cx.lineTo(X, y + hh); }
+      cx.stroke(); cx.restore();
+    };
+    cursor(ctx, app.cyclePanels);
     // the margins figure shares the time axis
     if (j.margins && marginsImage) {
       const mc = $("[data-plot=cycle-margins]");
-      cursor(mc, restore(mc, marginsImage));
+      cursor(restore(mc, marginsImage), app.marginsPanels || []);
     }
     $("#cycle-time").textContent = j.t[i].toFixed(1);
     const names = INPUTS.concat(Object.keys(j.series));
     $("#cycle-values").replaceChildren(...names.map((n) => {
       const tr = document.createElement("tr");
-      tr.innerHTML = `<td>${n}</td><td class="v" data-cycle-signal="${n}">${fmt(cycleValue(j, n, i))}</td><td class="u">${unit(n)}</td>`;
+      // an input: the value the model applied; where the command was outside the input's range
+      // (clamped), the command beside it
+      const v = cycleValue(j, n, i);
+      const cmd = j.series[n] === undefined ? j.inputs[n][i] : v;
+      const note = document.createElement("td");
+      note.className = "d";
+      if (cmd !== v) {
+        note.textContent = `commanded ${fmt(cmd)}, clamped to the range`;
+        note.dataset.commanded = String(cmd);
+      }
+      tr.innerHTML = `<td>${n}</td><td class="v" data-cycle-signal="${n}">${fmt(v)}</td><td class="u">${unit(n)}</td>`;
+      tr.append(note);
       return tr;
     }));
   }

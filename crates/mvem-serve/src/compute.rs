@@ -6,6 +6,7 @@ use mvem::analysis::json::{drive_json, linear_model_json, steady_json, step_json
 use mvem::analysis::linearize::{linearize_steady, LinearizeError, LinearizeOptions};
 use mvem::analysis::map::{dc_gain_map, steady_map, Axis, ChannelMapOptions, Grid, MapOptions};
 use mvem::analysis::steady::{simulate_from_steady, steady_state};
+use mvem::components::Semantics;
 use mvem::control::along;
 use mvem::control::baseline::BaselineTuning;
 use mvem::control::drive::{self, CycleSource, Scheme};
@@ -14,6 +15,7 @@ use mvem::io::csv_demand::parse_cycle_file;
 use mvem::io::csv_inputs::{input_ranges, range_warnings};
 use mvem::model::{saturate_inputs, AnyModel, Drive, Model, Signals};
 use mvem::numerics::Num;
+use mvem::params::Params;
 use mvem::sim::{InputSchedule, SimOptions};
 use serde::Deserialize;
 use serde_json::{json, Map, Value};
@@ -686,13 +688,9 @@ fn open_cycle<const N: usize, M: Model<N>>(
         series.insert(n.clone(), json!(sol.get(n).unwrap_or_default()));
         units.insert(n.clone(), json!(unit(n)));
     }
-    let mut inputs = Map::new();
-    let rows: Vec<[f64; 4]> = sol.t().iter().map(|&t| sched.at(t).to_array()).collect();
-    for (k, n) in Drive::NAMES.iter().enumerate() {
-        inputs.insert(
-            n.to_string(),
-            json!(rows.iter().map(|r| r[k]).collect::<Vec<f64>>()),
-        );
+    let rows: Vec<Drive> = sol.t().iter().map(|&t| sched.at(t)).collect();
+    let (inputs, inputs_applied) = inputs_json(&rows, m.options().semantics, m.params());
+    for n in Drive::NAMES {
         units.insert(n.to_string(), json!(unit(n)));
     }
     // inputs outside the parameter set's saturation ranges are clamped by the model: say so,
@@ -704,10 +702,31 @@ fn open_cycle<const N: usize, M: Model<N>>(
         "warnings": warnings,
         "t": sol.t(),
         "series": Value::Object(series),
-        "inputs": Value::Object(inputs),
+        "inputs": inputs,
+        "inputs_applied": inputs_applied,
         "units": Value::Object(units),
         "stats": {"steps": sol.stats.steps, "rejected": sol.stats.rejected, "rhs_evals": sol.stats.rhs_evals},
     }))
+}
+
+/// The inputs of a run's samples as commanded (`"inputs"`: the schedule's or the controllers'
+/// values) and as the model applies them (`"inputs_applied"`: the authors' saturation clamps a
+/// value outside its range, [`saturate_inputs`]; the paper's semantics use them as given), each
+/// an object of the four input series.
+fn inputs_json(rows: &[Drive], sem: Semantics, p: &Params) -> (Value, Value) {
+    let applied: Vec<Drive> = rows
+        .iter()
+        .map(|d| saturate_inputs(d, sem, &p.input_saturation).0)
+        .collect();
+    let object = |ds: &[Drive]| {
+        let mut o = Map::new();
+        for (k, n) in Drive::NAMES.iter().enumerate() {
+            let v: Vec<f64> = ds.iter().map(|d| d.to_array()[k]).collect();
+            o.insert(n.to_string(), json!(v));
+        }
+        Value::Object(o)
+    };
+    (object(rows), object(&applied))
 }
 
 /// Series of the closed-loop mode: the plant's outputs and the references.
@@ -781,9 +800,14 @@ fn closed_cycle(
         series.insert(n.clone(), json!(col(n)));
         units.insert(n.clone(), json!(Trajectory::unit(n)));
     }
-    let mut inputs = Map::new();
+    let cols: Vec<Vec<f64>> = Drive::NAMES.iter().map(|n| col(n)).collect();
+    let rows: Vec<Drive> = (0..cols[0].len())
+        .map(|i| Drive::new(cols[0][i], cols[1][i], cols[2][i], cols[3][i]))
+        .collect();
+    let (inputs, inputs_applied) = mvem::dispatch!(model, m => {
+        inputs_json(&rows, m.options().semantics, m.params())
+    });
     for n in Drive::NAMES {
-        inputs.insert(n.to_string(), json!(col(n)));
         units.insert(n.to_string(), json!(Trajectory::unit(n)));
     }
     let mut v = json!({
@@ -791,7 +815,8 @@ fn closed_cycle(
         "mode": "closed",
         "t": col("t"),
         "series": Value::Object(series),
-        "inputs": Value::Object(inputs),
+        "inputs": inputs,
+        "inputs_applied": inputs_applied,
         "units": Value::Object(units),
         "stats": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
         "sample_time_s": drive::SAMPLE_TIME,

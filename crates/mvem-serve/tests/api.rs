@@ -660,7 +660,7 @@ fn open_loop_csv_equals_the_same_cycle_by_name() {
 
 /// Inputs outside the parameter set's saturation ranges run clamped, and the answer says so
 /// (one warning per channel naming the time the input, linear between the rows, crosses the
-/// range and the extreme values), as
+/// range, how many input rows lie outside it and the values of the whole channel), as
 /// `mvem simulate` warns on stderr.
 #[test]
 fn open_loop_csv_outside_the_input_ranges_warns() {
@@ -673,14 +673,33 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
     assert_eq!(w.len(), 2, "{w:?}");
     assert!(
         // 1200 rpm at 0 s, 2600 at 2 s: 2000 rpm at 8/7 s
-        w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 1.142857142857")
-            && w[0].contains("s (values from 2600 to 2600)"),
+        w[0].starts_with(
+            "n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to \
+             2600), first at t = 1.142857142857"
+        ) && w[0].contains("s (the whole channel runs from 1200 to 2600)"),
         "{w:?}"
     );
     assert!(
-        w[1].starts_with("u_delta_mg leaves [1, 250] first at t = 3.5 s (values from 300 to 300)"),
+        w[1].starts_with(
+            "u_delta_mg is outside its range [1, 250] at 1 of 3 input rows (1 above, up to 300), \
+             first at t = 3.5 s (the whole channel runs from 100 to 300)"
+        ),
         "{w:?}"
     );
+    // the inputs as commanded and as the model applied them (clamped into the ranges)
+    let j = r.json();
+    assert_eq!(j["t"], serde_json::json!([0.0, 1.0, 2.0, 3.0, 4.0]));
+    assert_eq!(
+        j["inputs"]["n_e"],
+        serde_json::json!([1200.0, 1900.0, 2600.0, 1900.0, 1200.0])
+    );
+    assert_eq!(
+        j["inputs_applied"]["n_e"],
+        serde_json::json!([1200.0, 1900.0, 2000.0, 1900.0, 1200.0])
+    );
+    assert_eq!(j["inputs"]["u_delta"][4], 300.0);
+    assert_eq!(j["inputs_applied"]["u_delta"][4], 250.0);
+    assert_eq!(j["inputs_applied"]["u_vgt"], j["inputs"]["u_vgt"]);
 }
 
 /// A cycle longer than 50 000 samples at the asked `dt` (3 h at 0.2 s: 54 001) is a 400 naming

@@ -18,8 +18,8 @@ use crate::analysis::zeros;
 use crate::model::{AnyModel, Drive, Guard, InputError, Model, ModelInput, Signals};
 use crate::sim::stepper::{AnyPlant, Plant};
 use crate::sim::{
-    check_interval, simulate, simulate_into_with_guess, simulate_with_guess, InputSchedule, Side,
-    SimError, SimOptions, Solution, Start,
+    check_interval, simulate, simulate_checked, InputSchedule, Side, SimError, SimOptions,
+    Solution, Start,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -119,13 +119,16 @@ pub fn simulate_from_steady<const N: usize, M: Model<N>>(
 ) -> Result<Solution, SimFromSteadyError> {
     let start = steady_start(model, sched, t0, t_end, opts)?;
     let guess = chunk_guess(model, sched);
-    Ok(simulate_with_guess(
+    let sol = Solution::new(&model.state_names());
+    // (steady_start checked the interval)
+    Ok(simulate_checked(
         model,
         sched,
         t0,
         t_end,
         start,
         opts,
+        sol,
         Some(&guess),
     )?)
 }
@@ -161,7 +164,8 @@ pub fn simulate_from_steady_into<const N: usize, M: Model<N>>(
 ) -> Result<Solution, SimFromSteadyError> {
     let start = steady_start(model, sched, t0, t_end, opts)?;
     let guess = chunk_guess(model, sched);
-    Ok(simulate_into_with_guess(
+    // (steady_start checked the interval)
+    Ok(simulate_checked(
         model,
         sched,
         t0,

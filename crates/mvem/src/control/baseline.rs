@@ -38,7 +38,7 @@ use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, InCharge, Measurement, Output};
 use crate::model::meta::VarMeta;
-use crate::model::{AnyModel, Drive};
+use crate::model::{AnyModel, Drive, U_VGT_RANGE};
 use crate::numerics::Num;
 use crate::sim::InputSchedule;
 
@@ -291,7 +291,7 @@ impl BaselineTuning {
         ),
         (
             "u_vgt_full_load",
-            Bounds::closed(20.0, 100.0, " % (the VGT's command range)"),
+            Bounds::closed(U_VGT_RANGE.0, U_VGT_RANGE.1, " % (the VGT's command range)"),
         ),
         (
             "vgt_gain_closed",
@@ -304,7 +304,11 @@ impl BaselineTuning {
             "vgt_gain_knee",
             Bounds {
                 lo_open: true,
-                ..Bounds::closed(20.0, 100.0, " % (above the VGT's closed end, 20 %)")
+                ..Bounds::closed(
+                    U_VGT_RANGE.0,
+                    U_VGT_RANGE.1,
+                    " % (above the VGT's closed end, 20 %)",
+                )
             },
         ),
         (
@@ -349,11 +353,18 @@ impl BaselineTuning {
         ]
     }
 
-    /// The VGT loops' gain factor at the VGT command `u_vgt` [%]: [`Self::vgt_gain_closed`] at
-    /// 20 % and below, 1 at [`Self::vgt_gain_knee`] and above, linear between (exactly 1
-    /// everywhere when `vgt_gain_closed` is 1).
+    /// The VGT loops' gain factor at the VGT command `u_vgt` [%] of the model's VGT range
+    /// ([`crate::model::U_VGT_RANGE`]): [`Self::vgt_gain_factor_in`] of that range.
     pub fn vgt_gain_factor(&self, u_vgt: f64) -> f64 {
-        scheduled_factor(u_vgt, 20.0, self.vgt_gain_knee, self.vgt_gain_closed)
+        self.vgt_gain_factor_in(u_vgt, U_VGT_RANGE)
+    }
+
+    /// The VGT loops' gain factor at the VGT command `u_vgt` [%] of a VGT whose command range
+    /// is `range` [%]: [`Self::vgt_gain_closed`] at its closed end `range.0` and below, 1 at
+    /// [`Self::vgt_gain_knee`] and above, linear between (exactly 1 everywhere when
+    /// `vgt_gain_closed` is 1, or when the knee is not above the closed end).
+    pub fn vgt_gain_factor_in(&self, u_vgt: f64, range: (f64, f64)) -> f64 {
+        scheduled_factor(u_vgt, range.0, self.vgt_gain_knee, self.vgt_gain_closed)
     }
 
     /// The EGR-valve loops' gain factor at the EGR command `u_egr` [%]:
@@ -416,6 +427,10 @@ impl BaselineTuning {
 /// A gain factor scheduled on a command `u` [%]: `at_closed` at the closed end `closed` and
 /// below, 1 at `knee` and above, linear between.
 fn scheduled_factor(u: f64, closed: f64, knee: f64, at_closed: f64) -> f64 {
+    if knee <= closed {
+        // (every command at or above the closed end is at or above the knee)
+        return 1.0;
+    }
     let w = ((knee - u) / (knee - closed)).clamp(0.0, 1.0);
     1.0 - (1.0 - at_closed) * w
 }
@@ -513,6 +528,11 @@ pub struct SetpointMaps {
     /// Fuel range of the model's input saturation (the mapping curve's) \[mg\]: motoring fuel
     /// and the largest fuel.
     pub u_delta_range: (f64, f64),
+    /// Command range of the VGT \[%\] (the model's saturation of the command,
+    /// [`crate::model::U_VGT_RANGE`]): the closed end, where the controller's VGT command stops
+    /// and the VGT loops' gain schedule has its closed-end factor, and the open end, the most
+    /// open position at no load. The one place the baseline takes it from.
+    pub u_vgt_range: (f64, f64),
 }
 
 impl SetpointMaps {
@@ -532,6 +552,7 @@ impl SetpointMaps {
         let mut maps = SetpointMaps {
             u_full: n_e.iter().map(|&n| curve.u_full_at(n)).collect(),
             u_delta_range: curve.u_delta_range,
+            u_vgt_range: U_VGT_RANGE,
             n_e,
             load,
             m_e: vec![],
@@ -669,7 +690,14 @@ impl Baseline {
     ) -> Result<Self, ControlError> {
         tuning.validate()?;
         let maps = SetpointMaps::compute(model, curve, &tuning)?;
-        Ok(Self {
+        Ok(Self::with_maps(maps, tuning))
+    }
+
+    /// Build with set-point maps already solved (`tuning` as [`BaselineTuning::validate`]
+    /// accepts it).
+    pub fn with_maps(maps: SetpointMaps, tuning: BaselineTuning) -> Self {
+        let u_vgt_open = maps.u_vgt_range.1;
+        Self {
             torque: Pid::new(tuning.torque.0, tuning.torque.1, 0.0),
             x_vgt: Pid::new(tuning.x_egr_vgt.0, tuning.x_egr_vgt.1, 0.0),
             x_egr: Pid::new(tuning.x_egr_egr.0, tuning.x_egr_egr.1, 0.0),
@@ -679,15 +707,17 @@ impl Baseline {
             maps,
             setpoint_override: (f64::NAN, f64::NAN),
             fuel_override: f64::NAN,
-            u_vgt_prev: 100.0,
+            u_vgt_prev: u_vgt_open,
             u_egr_prev: 100.0,
             egr_by_lambda_prev: false,
-        })
+        }
     }
 
-    /// Most open VGT position at load fraction `l` [%].
+    /// Most open VGT position at load fraction `l` [%]: the open end of the VGT's range at no
+    /// load, [`BaselineTuning::u_vgt_full_load`] at full load.
     fn u_vgt_max(&self, l: f64) -> f64 {
-        100.0 - (100.0 - self.tuning.u_vgt_full_load) * l
+        let open = self.maps.u_vgt_range.1;
+        open - (open - self.tuning.u_vgt_full_load) * l
     }
 
     fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
@@ -715,7 +745,7 @@ impl Controller for Baseline {
         };
         let l = self.maps.load_of(n_e, u);
         let (u_egr, u_vgt) = nominal_actuators(l);
-        let u_vgt = u_vgt.min(self.u_vgt_max(l));
+        let u_vgt = u_vgt.min(self.u_vgt_max(l)).max(self.maps.u_vgt_range.0);
         self.torque.reset(0.0);
         self.x_vgt.reset(u_vgt);
         self.x_egr.reset(u_egr);
@@ -764,7 +794,10 @@ impl Controller for Baseline {
         let e_le = (s.lambda_o - lambda_s).min(cap);
         let e_lv = (s.lambda_o - (lambda_s - self.tuning.d_lambda)).min(cap);
         // the gains scheduled on the previous commands (1 without a schedule)
-        let g = self.tuning.vgt_gain_factor(self.u_vgt_prev);
+        let closed = self.maps.u_vgt_range.0;
+        let g = self
+            .tuning
+            .vgt_gain_factor_in(self.u_vgt_prev, self.maps.u_vgt_range);
         self.x_vgt.set_scale(g);
         self.lambda_vgt.set_scale(g);
         let g = self.tuning.egr_gain_factor(self.u_egr_prev);
@@ -784,7 +817,7 @@ impl Controller for Baseline {
         let hold = self.egr_by_lambda_prev && self.u_egr_prev < self.tuning.vgt_hold_below_egr;
         let held = hold && u_vgt_x < self.u_vgt_prev;
         let u_vgt_x = if held { self.u_vgt_prev } else { u_vgt_x };
-        let u_vgt = u_vgt_x.min(u_vgt_l).clamp(20.0, vmax);
+        let u_vgt = u_vgt_x.min(u_vgt_l).clamp(closed, vmax);
         // which loop is in feedback (a command at one of its limits, where only one side of
         // the selector's output passes, and the error cap cut it)
         let egr_loop = if u_egr <= 0.0 || u_egr >= 100.0 {
@@ -798,7 +831,7 @@ impl Controller for Baseline {
         } else {
             InCharge::Limiter
         };
-        let vgt_loop = if u_vgt <= 20.0 || u_vgt >= vmax {
+        let vgt_loop = if u_vgt <= closed || u_vgt >= vmax {
             InCharge::None
         } else if u_vgt_x <= u_vgt_l {
             // held: the previous command, no feedback
@@ -1089,6 +1122,100 @@ mod tests {
             assert_eq!(none.vgt_gain_factor(u), 1.0);
             assert_eq!(none.egr_gain_factor(u), 1.0);
         }
+    }
+
+    /// Set-point maps over two speeds and two loads (flat set-points lambda_O,s = 2, x_egr,s =
+    /// 0.1), of a VGT whose command range is `u_vgt_range`.
+    fn flat_maps(u_vgt_range: (f64, f64)) -> super::SetpointMaps {
+        super::SetpointMaps {
+            n_e: vec![1000.0, 2000.0],
+            load: vec![0.0, 1.0],
+            m_e: vec![vec![0.0, 1000.0]; 2],
+            lambda_o: vec![vec![2.0; 2]; 2],
+            x_egr: vec![vec![0.1; 2]; 2],
+            u_full: vec![200.0; 2],
+            u_delta_range: (1.0, 250.0),
+            u_vgt_range,
+        }
+    }
+
+    /// The VGT commands of the baseline at no load (the fuel held at the motoring 1 mg) with an
+    /// EGR fraction `x_egr` held against its set-point 0.1 and lambda_O at 10: (u_vgt, the VGT's
+    /// loop in charge) after each of `n` samples.
+    fn vgt_commands(
+        u_vgt_range: (f64, f64),
+        x_egr: f64,
+        n: usize,
+    ) -> Vec<(f64, Option<super::InCharge>)> {
+        use super::{Baseline, Controller, Measurement};
+        let mut b = Baseline::with_maps(flat_maps(u_vgt_range), BaselineTuning::default());
+        b.fuel_override = 1.0;
+        b.start(0.0, 1500.0, 0.0, false);
+        let sig = crate::model::Signals {
+            u_delta: 1.0,
+            lambda_o: 10.0,
+            x_egr,
+            ..Default::default()
+        };
+        (0..n)
+            .map(|k| {
+                let o = b.update(&Measurement {
+                    t: 0.01 * k as f64,
+                    n_e: 1500.0,
+                    m_ref: 0.0,
+                    motoring: false,
+                    signals: &sig,
+                    p_im: 1e5,
+                    p_em: 1e5,
+                    omega_t: 5000.0,
+                    x_oim: 0.2,
+                });
+                (o.u_vgt, o.vgt_loop)
+            })
+            .collect()
+    }
+
+    /// The VGT's closed end (the clamp of the command, the loop in charge there, the gain
+    /// schedule's closed-end factor) and its open end (the most open position at no load)
+    /// come from the maps' VGT range, not a literal 20 % and 100 %: a VGT of 10-90 % closes to
+    /// 10 % and opens to 90 %, the authors' 20-100 % to 20 % and 100 %.
+    #[test]
+    fn the_baseline_follows_the_vgt_range_of_its_maps() {
+        use super::InCharge;
+        for (range, closed, open) in [((20.0, 100.0), 20.0, 100.0), ((10.0, 90.0), 10.0, 90.0)] {
+            // x_egr far below its set-point: the x_egr -> u_vgt loop closes the VGT to its end
+            let run = vgt_commands(range, 0.0, 400);
+            let (u, in_charge) = *run.last().unwrap();
+            assert_eq!(u, closed, "{range:?}");
+            assert_eq!(in_charge, Some(InCharge::None), "{range:?}");
+            assert!(run.iter().all(|(u, _)| *u >= closed), "{range:?}");
+            // on the way there, in feedback between the ends
+            assert!(
+                run.iter()
+                    .any(|(u, c)| *u > closed && *c == Some(InCharge::Main)),
+                "{range:?}"
+            );
+            // x_egr far above: it opens to the no-load open end
+            let (u, in_charge) = *vgt_commands(range, 0.5, 400).last().unwrap();
+            assert_eq!(u, open, "{range:?}");
+            assert_eq!(in_charge, Some(InCharge::None), "{range:?}");
+        }
+        // the schedule: the closed-end factor 0.5 at the range's closed end, 1 from the knee
+        // (40 %), linear between
+        let t = BaselineTuning::default();
+        for (u, g) in [(10.0, 0.5), (25.0, 0.75), (40.0, 1.0), (5.0, 0.5)] {
+            assert!(
+                (t.vgt_gain_factor_in(u, (10.0, 90.0)) - g).abs() < 1e-12,
+                "u_vgt {u}"
+            );
+        }
+        assert_eq!(
+            t.vgt_gain_factor(20.0),
+            t.vgt_gain_factor_in(20.0, (20.0, 100.0))
+        );
+        // a knee at or below the closed end: no schedule
+        assert_eq!(t.vgt_gain_factor_in(50.0, (50.0, 100.0)), 1.0);
+        assert_eq!(t.vgt_gain_factor_in(60.0, (50.0, 100.0)), 1.0);
     }
 
     /// The bounds name the fields of the metadata in its order, and their notation.

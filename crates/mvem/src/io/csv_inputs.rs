@@ -310,13 +310,39 @@ pub fn input_ranges(s: &InputSaturation) -> [(&'static str, f64, f64); 4] {
 }
 
 /// For each channel whose values leave its saturation range (`ranges`, e.g. [`input_ranges`]),
-/// one warning naming the first time it happens (where the linear interpolation between the
-/// rows crosses the limit) and the extreme value.
+/// one warning naming the channel, its range, how many of the input rows lie outside it (below
+/// and above, with the extreme value on each side), the first time it happens (where the linear
+/// interpolation between the rows crosses the limit), and the values of the whole channel.
 pub fn range_warnings(s: &InputSchedule, ranges: &[(&str, f64, f64); 4]) -> Vec<String> {
     range_warnings_of_rows(
         s.times().iter().copied().zip(s.rows().iter().copied()),
         ranges,
     )
+}
+
+/// Per channel: the rows below and above its range, the lowest value below and the highest
+/// above, the first time it leaves the range, and the extremes of the whole channel.
+#[derive(Clone, Copy)]
+struct Excursion {
+    below: usize,
+    above: usize,
+    min_below: f64,
+    max_above: f64,
+    first: Option<f64>,
+    min: f64,
+    max: f64,
+}
+
+impl Excursion {
+    const NONE: Self = Self {
+        below: 0,
+        above: 0,
+        min_below: f64::INFINITY,
+        max_above: f64::NEG_INFINITY,
+        first: None,
+        min: f64::INFINITY,
+        max: f64::NEG_INFINITY,
+    };
 }
 
 /// [`range_warnings`] of input rows `(t [s], [n_e, u_delta, u_egr, u_vgt])` that are not (yet) an
@@ -325,15 +351,17 @@ pub fn range_warnings_of_rows(
     rows: impl IntoIterator<Item = (f64, [f64; 4])>,
     ranges: &[(&str, f64, f64); 4],
 ) -> Vec<String> {
-    let mut first: [Option<f64>; 4] = [None; 4];
-    let mut vmin = [f64::INFINITY; 4];
-    let mut vmax = [f64::NEG_INFINITY; 4];
+    let mut ex = [Excursion::NONE; 4];
+    let mut n = 0usize;
     let mut prev: Option<(f64, [f64; 4])> = None;
     for (t, r) in rows {
+        n += 1;
         for (c, (_, lo, hi)) in ranges.iter().enumerate() {
-            let v = r[c];
+            let (v, e) = (r[c], &mut ex[c]);
+            e.min = e.min.min(v);
+            e.max = e.max.max(v);
             if v < *lo || v > *hi {
-                first[c].get_or_insert_with(|| match prev {
+                e.first.get_or_insert_with(|| match prev {
                     // the input is linear between the rows: it crosses the limit in between
                     Some((tp, rp)) if t > tp && (*lo..=*hi).contains(&rp[c]) => {
                         let limit = if v > *hi { *hi } else { *lo };
@@ -341,24 +369,40 @@ pub fn range_warnings_of_rows(
                     }
                     _ => t,
                 });
-                vmin[c] = vmin[c].min(v);
-                vmax[c] = vmax[c].max(v);
+                if v < *lo {
+                    e.below += 1;
+                    e.min_below = e.min_below.min(v);
+                } else {
+                    e.above += 1;
+                    e.max_above = e.max_above.max(v);
+                }
             }
         }
         prev = Some((t, r));
     }
     ranges
         .iter()
-        .enumerate()
-        .filter_map(|(c, (name, lo, hi))| {
-            first[c].map(|t| {
-                format!(
-                    "{name} leaves [{lo}, {hi}] first at t = {} s (values from {} to {}); the authors' saturation clamps it (the paper's semantics use it as given; n_e and u_delta ranges: input_saturation of the parameter file)",
-                    Num(t),
-                    Num(vmin[c]),
-                    Num(vmax[c])
-                )
-            })
+        .zip(ex)
+        .filter_map(|((name, lo, hi), e)| {
+            let t = e.first?;
+            let mut sides = Vec::with_capacity(2);
+            if e.below > 0 {
+                sides.push(format!("{} below, down to {}", e.below, Num(e.min_below)));
+            }
+            if e.above > 0 {
+                sides.push(format!("{} above, up to {}", e.above, Num(e.max_above)));
+            }
+            Some(format!(
+                "{name} is outside its range [{lo}, {hi}] at {} of {n} input rows ({}), first at \
+                 t = {} s (the whole channel runs from {} to {}); the authors' saturation clamps \
+                 it (the paper's semantics use it as given; n_e and u_delta ranges: \
+                 input_saturation of the parameter file)",
+                e.below + e.above,
+                sides.join("; "),
+                Num(t),
+                Num(e.min),
+                Num(e.max)
+            ))
         })
         .collect()
 }
@@ -585,6 +629,45 @@ mod tests {
         }
     }
 
+    /// A fuel of 0 below the range [1, 250] read "(values from 0 to 0)" (the extremes of the
+    /// values outside only, which read as a channel that is 0 throughout): the warning counts the
+    /// rows below and above with their extremes and gives the whole channel's values.
+    #[test]
+    fn a_range_warning_counts_the_rows_outside_and_gives_the_channel() {
+        let h = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n";
+        let s = parse(&format!(
+            "{h}0,1500,0,80,75\n1,1500,0,80,75\n2,1500,110,80,75\n3,1500,300,80,75\n4,1500,120,80,75\n"
+        ))
+        .unwrap();
+        let w = range_warnings(&s, &INPUT_RANGES);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with(
+                "u_delta_mg is outside its range [1, 250] at 3 of 5 input rows (2 below, down to \
+                 0; 1 above, up to 300), first at t = 0 s (the whole channel runs from 0 to 300); \
+                 the authors' saturation clamps it"
+            ),
+            "{}",
+            w[0]
+        );
+        // one side only: the other is not named
+        let s = parse(&format!("{h}0,1500,110,80,75\n2,1500,110,80,0\n")).unwrap();
+        let w = range_warnings(&s, &INPUT_RANGES);
+        assert!(
+            w[0].starts_with(
+                "u_vgt_pct is outside its range [20, 100] at 1 of 2 input rows (1 below, down to \
+                 0), first at t = 1.46666"
+            ),
+            "{}",
+            w[0]
+        );
+        assert!(
+            w[0].contains("(the whole channel runs from 0 to 75)"),
+            "{}",
+            w[0]
+        );
+    }
+
     #[test]
     fn out_of_range_inputs_warn_once_per_channel() {
         let h = "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n";
@@ -596,12 +679,19 @@ mod tests {
         assert_eq!(w.len(), 2);
         // 1500 rpm at 1 s, 2500 rpm at 2 s: 2000 rpm at 1.5 s
         assert!(
-            w[0].starts_with("n_e_rpm leaves [500, 2000] first at t = 1.5 s"),
+            w[0].starts_with(
+                "n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to \
+                 2500), first at t = 1.5 s (the whole channel runs from 1500 to 2500)"
+            ),
             "{}",
             w[0]
         );
-        assert!(
-            w[1].starts_with("u_vgt_pct leaves [20, 100] first at t = 0 s (values from 5 to 10)")
+        assert_eq!(
+            w[1],
+            "u_vgt_pct is outside its range [20, 100] at 2 of 3 input rows (2 below, down to 5), \
+             first at t = 0 s (the whole channel runs from 5 to 50); the authors' saturation \
+             clamps it (the paper's semantics use it as given; n_e and u_delta ranges: \
+             input_saturation of the parameter file)"
         );
         // the authors' ranges are the default parameter set's; another engine's speed range
         let authors = [
@@ -619,7 +709,10 @@ mod tests {
         let w = range_warnings(&s, &input_ranges(&car));
         assert_eq!(w.len(), 2);
         assert!(
-            w[0].starts_with("u_delta_mg leaves [1, 80] first at t = 0 s"),
+            w[0].starts_with(
+                "u_delta_mg is outside its range [1, 80] at 3 of 3 input rows (3 above, up to \
+                 110), first at t = 0 s"
+            ),
             "{}",
             w[0]
         );

@@ -424,7 +424,8 @@ pub(super) fn simulate_chunked<const N: usize, M: Dynamics<N>>(
         opts.chunk_overlap,
     );
     if splits.is_empty() {
-        first.advance(t_end, &mut sol, true)?;
+        // (the interval [t0, t_end] was checked by the caller, `simulate_into_with_guess`)
+        first.advance_checked(t_end, &mut sol, true)?;
         sol.stats = first.stats;
         sol.finish_stream();
         return Ok(sol);

@@ -446,6 +446,17 @@ impl<'a, const N: usize, M: Dynamics<N>> Integrator<'a, N, M> {
         final_sample: bool,
     ) -> Result<(), SimError> {
         super::check_horizon(self.t, t_end, self.opts.dt_out)?;
+        self.advance_checked(t_end, sol, final_sample)
+    }
+
+    /// [`Self::advance`] to a `t_end` whose interval from `self.t` [`super::check_interval`]
+    /// has already accepted (a whole simulation's, from its start).
+    pub(super) fn advance_checked(
+        &mut self,
+        t_end: f64,
+        sol: &mut Solution,
+        final_sample: bool,
+    ) -> Result<(), SimError> {
         let skip = self.skip_lag_stops();
         let stops = if self.opts.stop_at_breakpoints {
             stop_times_except(self.model, self.sched, self.t, t_end, skip)

@@ -116,7 +116,7 @@ pub fn simulate_with_guess<const N: usize, M: Dynamics<N>>(
     opts: &SimOptions,
     guess: Option<&ChunkGuess<N>>,
 ) -> Result<Solution, SimError> {
-    check_interval(opts, t0, t_end)?;
+    // (the interval is checked once, by simulate_into_with_guess, before any work)
     let sol = Solution::new(&model.state_names());
     simulate_into_with_guess(model, sched, t0, t_end, start, opts, sol, guess)
 }
@@ -132,10 +132,27 @@ pub fn simulate_into_with_guess<const N: usize, M: Dynamics<N>>(
     t_end: f64,
     start: Start<N>,
     opts: &SimOptions,
-    mut sol: Solution,
+    sol: Solution,
     guess: Option<&ChunkGuess<N>>,
 ) -> Result<Solution, SimError> {
     check_interval(opts, t0, t_end)?;
+    simulate_checked(model, sched, t0, t_end, start, opts, sol, guess)
+}
+
+/// [`simulate_into_with_guess`] after [`check_interval`] accepted the options and the interval,
+/// so that a simulation checks them once (`analysis::steady::simulate_from_steady` checks them
+/// before it solves the steady start, then runs this).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn simulate_checked<const N: usize, M: Dynamics<N>>(
+    model: &M,
+    sched: &InputSchedule,
+    t0: f64,
+    t_end: f64,
+    start: Start<N>,
+    opts: &SimOptions,
+    mut sol: Solution,
+    guess: Option<&ChunkGuess<N>>,
+) -> Result<Solution, SimError> {
     if !sol.is_streaming() {
         // a solution that keeps every sample: room for all of them (a streaming one holds a block)
         let samples = ((t_end - t0) / opts.dt_out).ceil() + 2.0;
@@ -146,7 +163,8 @@ pub fn simulate_into_with_guess<const N: usize, M: Dynamics<N>>(
         return chunks::simulate_chunked(model, sched, t0, t_end, y0, opts, sol, guess);
     }
     let mut run = Integrator::new(model, sched, t0, y0, opts)?;
-    run.advance(t_end, &mut sol, true)?;
+    // (the interval was checked: not again for the integrator's one call)
+    run.advance_checked(t_end, &mut sol, true)?;
     sol.stats = run.stats;
     sol.finish_stream();
     Ok(sol)
@@ -174,6 +192,8 @@ pub fn check_interval(opts: &SimOptions, t0: f64, t_end: f64) -> Result<(), SimE
 /// magnitude, or with more than [`MAX_ROWS`] output samples every `dt_out` seconds, naming the
 /// values and the limit.
 pub fn check_horizon(t0: f64, t_end: f64, dt_out: f64) -> Result<(), SimError> {
+    #[cfg(test)]
+    tests::HORIZON_CHECKS.with(|n| n.set(n.get() + 1));
     let num = crate::numerics::Num;
     if let Some((name, t)) = [("start time", t0), ("end time", t_end)]
         .into_iter()
@@ -205,4 +225,68 @@ pub fn check_horizon(t0: f64, t_end: f64, dt_out: f64) -> Result<(), SimError> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::steady::{simulate_from_steady, simulate_from_steady_into};
+    use crate::model::{Drive, Engine8};
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Calls of [`check_horizon`] on this thread.
+        pub(super) static HORIZON_CHECKS: Cell<usize> = const { Cell::new(0) };
+    }
+
+    /// A simulation checks its interval once: `simulate` ran `check_interval` twice (in
+    /// `simulate_with_guess` and again in `simulate_into_with_guess`) and the integrator's
+    /// `advance` checked the same horizon a third time; `simulate_from_steady` (`mvem
+    /// simulate`) once more before its steady state. A bad horizon is still refused.
+    #[test]
+    fn a_simulation_checks_its_horizon_once() {
+        let m = Engine8::new(
+            crate::params::Params::published(),
+            crate::model::ModelOptions::default(),
+        )
+        .unwrap();
+        let d = Drive::new(1500.0, 110.0, 80.0, 75.0);
+        let sched = InputSchedule::constant(d);
+        let x = crate::analysis::steady::steady_state(&m, &d).unwrap().x;
+        for chunks in [1, 2] {
+            let opts = SimOptions {
+                dt_out: 0.05,
+                time_chunks: chunks,
+                ..SimOptions::default()
+            };
+            HORIZON_CHECKS.with(|n| n.set(0));
+            simulate(&m, &sched, 0.0, 0.2, Start::State(x), &opts).unwrap();
+            assert_eq!(HORIZON_CHECKS.with(Cell::get), 1, "time_chunks {chunks}");
+            HORIZON_CHECKS.with(|n| n.set(0));
+            let sol = Solution::new(&m.state_names());
+            simulate_into(&m, &sched, 0.0, 0.2, Start::State(x), &opts, sol).unwrap();
+            assert_eq!(HORIZON_CHECKS.with(Cell::get), 1, "time_chunks {chunks}");
+            let e = simulate(&m, &sched, 0.0, 2.0 * MAX_TIME, Start::State(x), &opts).unwrap_err();
+            assert!(matches!(e, SimError::BadHorizon { .. }), "{e}");
+            // from the steady state (checked before the steady state is solved)
+            HORIZON_CHECKS.with(|n| n.set(0));
+            simulate_from_steady(&m, &sched, 0.0, 0.2, &opts).unwrap();
+            assert_eq!(HORIZON_CHECKS.with(Cell::get), 1, "time_chunks {chunks}");
+            HORIZON_CHECKS.with(|n| n.set(0));
+            let sol = Solution::new(&m.state_names());
+            simulate_from_steady_into(&m, &sched, 0.0, 0.2, &opts, sol).unwrap();
+            assert_eq!(HORIZON_CHECKS.with(Cell::get), 1, "time_chunks {chunks}");
+            let e = simulate_from_steady(&m, &sched, 0.0, 2.0 * MAX_TIME, &opts).unwrap_err();
+            assert!(e.to_string().contains("beyond the 1e9 s"), "{e}");
+        }
+        // the integrator advanced by hand checks each call's horizon
+        let opts = SimOptions::default();
+        let mut run = Integrator::new(&m, &sched, 0.0, x, &opts).unwrap();
+        let mut sol = Solution::new(&m.state_names());
+        HORIZON_CHECKS.with(|n| n.set(0));
+        run.advance(0.1, &mut sol, false).unwrap();
+        assert_eq!(HORIZON_CHECKS.with(Cell::get), 1);
+        let e = run.advance(2.0 * MAX_TIME, &mut sol, false).unwrap_err();
+        assert!(matches!(e, SimError::BadHorizon { .. }), "{e}");
+    }
 }
