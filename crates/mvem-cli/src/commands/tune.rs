@@ -611,7 +611,9 @@ fn parameter_table(
         s,
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
-         error <= 25 % and no correlation > 0.99 (docs/tuning.md). Elements are counted from 1, \
+         error <= 25 % and no correlation > 0.99, from a search that reached its optimum (not \
+         converged: step 5 stopped short of it, or steps 3-4 ran again on its maps; \
+         docs/tuning.md). Elements are counted from 1, \
          as the parameter registry, the FMU and Python's params= name them (cylinder.c_vol[1] \
          is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \
@@ -654,7 +656,11 @@ fn parameter_table(
             } else {
                 "inf".into()
             },
-            if e.identifiable { "yes" } else { "**no**" },
+            match (e.identifiable, e.converged) {
+                (true, _) => "yes",
+                (false, true) => "**no**",
+                (false, false) => "**no** (not converged)",
+            },
             e.reason,
             if corr.is_empty() { "" } else { "; " },
             corr
