@@ -6,7 +6,7 @@
 //! degrees Celsius or a speed in rad/s where r/min is expected is caught), time strictly
 //! increasing. Errors name the file, the line (1-based, the header is line 1) and the column.
 
-use crate::io::csv_columns::{header_names, read_columns, ColumnsError};
+use crate::io::csv_columns::{header_names, read_columns_with_units, split_unit, ColumnsError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -98,6 +98,27 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
     }
 }
 
+/// The names of the units a column of mvem unit `base` may be given in ([`units_of`]), for
+/// messages: "Pa, hPa, mbar, ...".
+pub(crate) fn unit_names(base: &str) -> String {
+    units_of(base)
+        .iter()
+        .map(|u| u.0)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The unit `unit` (as a header's brackets or a units row write it: exact, else ignoring ASCII
+/// case, `KPA` for `kPa`) of a column of mvem unit `base`, from [`units_of`]: (name, scale,
+/// offset); `None` when it is not one of them.
+pub(crate) fn known_unit(base: &str, unit: &str) -> Option<&'static (&'static str, f64, f64)> {
+    let known = units_of(base);
+    known
+        .iter()
+        .find(|k| k.0 == unit)
+        .or_else(|| known.iter().find(|k| k.0.eq_ignore_ascii_case(unit)))
+}
+
 /// Every column a campaign file may have, with its mvem unit (`t` of the dynamic sets first).
 pub(crate) fn campaign_columns() -> impl Iterator<Item = Column> {
     std::iter::once(col("t", "s", -1.0e6, 1.0e6))
@@ -121,10 +142,9 @@ pub(crate) fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String>
         .find(|(n, _, _)| *n == unit.trim())
         .map(|&(_, s, o)| (s, o))
         .ok_or_else(|| {
-            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
             format!(
                 "{column} = \"{unit}\": not a unit of {column} (one of {})",
-                names.join(", ")
+                unit_names(c.unit)
             )
         })
 }
@@ -487,31 +507,129 @@ pub(crate) fn read(path: &Path) -> Result<String, DataError> {
     })
 }
 
+/// What [`parse_columns`] read: the rows in mvem's units, each row's 1-based line in the file,
+/// and each column's conversion.
+struct Parsed {
+    rows: Vec<Vec<f64>>,
+    lines: Vec<usize>,
+    conv: Vec<Conversion>,
+}
+
+/// A column's unit and its conversion to mvem's (`scale * v + offset`): (scale, offset, the
+/// unit's name as the messages give the values).
+type Conversion = Option<(f64, f64, String)>;
+
+/// The unit of each column of `required` (headed `headers` in the file) and its conversion to
+/// mvem's unit, from up to three places: the manifest's `[units]`, the header's brackets
+/// (`p_im [kPa]`, a unit mvem knows: [`known_unit`], as `mvem campaign --init` reads them) and
+/// the file's units row under the header (`units_row`: its line and its fields in `required`'s
+/// order). Where several give a unit they must agree (the same conversion: `rpm` and `1/min`
+/// do); a units-row unit mvem does not know is an error unless `[units]` declares the column.
+/// `None` for a column in mvem's unit.
+fn column_units(
+    path: &Path,
+    required: &[Column],
+    headers: &[&str],
+    layout: &Layout,
+    units_row: Option<&(usize, Vec<String>)>,
+) -> Result<Vec<Conversion>, DataError> {
+    let mut out = Vec::with_capacity(required.len());
+    for (k, c) in required.iter().enumerate() {
+        let bad = |line: usize, message: String| DataError::Value {
+            path: path.to_path_buf(),
+            line,
+            column: layout.label(c.name).0,
+            renamed: layout.label(c.name).1,
+            message,
+        };
+        // (where, line, unit, scale, offset)
+        let mut given: Vec<(String, usize, String, f64, f64)> = Vec::new();
+        let declared = layout.units.get(c.name);
+        if let Some(u) = declared {
+            let (sc, o) = conversion(c.name, u).map_err(|m| DataError::Format {
+                path: path.to_path_buf(),
+                message: format!("units: {m}"),
+            })?;
+            given.push(("the manifest's [units]".into(), 1, u.trim().into(), sc, o));
+        }
+        let h = split_unit(headers[k]);
+        if let Some(&(u, sc, o)) = h
+            .unit
+            .filter(|_| h.closed)
+            .and_then(|u| known_unit(c.unit, u))
+        {
+            given.push(("its header".into(), 1, u.into(), sc, o));
+        }
+        if let Some((line, cells)) = units_row {
+            let cell = cells[k].trim();
+            match known_unit(c.unit, cell) {
+                _ if cell.is_empty() => {}
+                Some(&(u, sc, o)) => {
+                    given.push((
+                        format!("the units row (line {line})"),
+                        *line,
+                        u.into(),
+                        sc,
+                        o,
+                    ));
+                }
+                None if declared.is_some() => {}
+                None => {
+                    return Err(bad(
+                        *line,
+                        format!(
+                            "`{cell}` in the units row is not a unit of {} (one of {}): correct \
+                             it, or declare the column's unit in the manifest's [units] \
+                             (docs/tuning-data.md)",
+                            c.name,
+                            unit_names(c.unit)
+                        ),
+                    ));
+                }
+            }
+        }
+        let Some(first) = given.first() else {
+            out.push(None);
+            continue;
+        };
+        let same = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0);
+        if let Some(other) = given[1..]
+            .iter()
+            .find(|g| !(same(g.3, first.3) && same(g.4, first.4)))
+        {
+            return Err(bad(
+                other.1.max(first.1),
+                format!(
+                    "{} gives the unit `{}`, {} `{}`: which is it? (a unit given in more than \
+                     one place must agree; docs/tuning-data.md)",
+                    first.0, first.2, other.0, other.2
+                ),
+            ));
+        }
+        // a unit found in the file that is mvem's own needs no conversion
+        out.push(
+            (declared.is_some() || !(first.3 == 1.0 && first.4 == 0.0))
+                .then(|| (first.3, first.4, first.2.clone())),
+        );
+    }
+    Ok(out)
+}
+
 /// Parse a CSV into (header, rows), checking that `required` columns exist and every value of
-/// them is finite and, converted from its unit in `units` to mvem's, within its range. Returns
-/// the rows of the required columns in order, in mvem's units.
+/// them is finite and, converted to mvem's units, within its range. The units: the manifest's
+/// `[units]`, brackets in the header names and an optional units row under the header
+/// ([`column_units`]). Returns the rows of the required columns in order, in mvem's units, and
+/// each column's conversion.
 fn parse_columns(
     text: &str,
     path: &Path,
     required: &[Column],
     layout: &Layout,
-) -> Result<Vec<Vec<f64>>, DataError> {
-    let units = &layout.units;
+) -> Result<Parsed, DataError> {
     let fmt = |message: String| DataError::Format {
         path: path.to_path_buf(),
         message,
     };
-    let conv: Vec<Option<(f64, f64, &str)>> = required
-        .iter()
-        .map(|c| {
-            units.get(c.name).map(|u| {
-                conversion(c.name, u)
-                    .map(|(s, o)| (s, o, u.as_str()))
-                    .map_err(|m| fmt(format!("units: {m}")))
-            })
-        })
-        .map(Option::transpose)
-        .collect::<Result<_, _>>()?;
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
     let headers: Vec<&str> = names.iter().map(|n| layout.header(n)).collect();
     // a column headed twice: the reader would take the first silently
@@ -536,7 +654,7 @@ fn parse_columns(
             }
         }
     }
-    let read = read_columns(text, &headers).map_err(|e| match e {
+    let (units_row, read) = read_columns_with_units(text, &headers).map_err(|e| match e {
         ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
         ColumnsError::Missing { missing, .. } => DataError::MissingColumn {
             path: path.to_path_buf(),
@@ -562,16 +680,18 @@ fn parse_columns(
             } else if line == 2 {
                 // test-cell exports often put the units in a row under the header
                 format!(
-                    "`{field}` is not a number (a row of units under the header? Remove it or \
-                     start it with `#`, and declare the units in the manifest's [units], \
-                     docs/tuning-data.md)"
+                    "`{field}` is not a number (a row of units under the header? A units row \
+                     has a unit or nothing in every column, no number; or start it with `#` and \
+                     declare the units in the manifest's [units], docs/tuning-data.md)"
                 )
             } else {
                 format!("`{field}` is not a number")
             },
         },
     })?;
+    let conv = column_units(path, required, &headers, layout, units_row.as_ref())?;
     let mut rows = Vec::with_capacity(read.len());
+    let mut lines = Vec::with_capacity(read.len());
     for (line, mut row) in read {
         for ((c, v), cv) in required.iter().zip(row.iter_mut()).zip(&conv) {
             let bad = |message: String| DataError::Value {
@@ -616,11 +736,12 @@ fn parse_columns(
             }
         }
         rows.push(row);
+        lines.push(line);
     }
     if rows.is_empty() {
         return Err(fmt("no data rows".into()));
     }
-    Ok(rows)
+    Ok(Parsed { rows, lines, conv })
 }
 
 /// `cols` without those named in `optional` that the header of `text` lacks (by the file's
@@ -652,7 +773,7 @@ pub fn parse_stationary_csv(
 ) -> Result<Vec<StationaryPoint>, DataError> {
     let cols = without_absent(text, layout, STATIONARY_COLUMNS.to_vec(), &["T_t"]);
     let t_t_given = cols.len() == STATIONARY_COLUMNS.len();
-    let rows = parse_columns(text, path, &cols, layout)?;
+    let rows = parse_columns(text, path, &cols, layout)?.rows;
     Ok(rows
         .into_iter()
         .map(|mut r| {
@@ -729,6 +850,18 @@ pub fn parse_dynamic_csv(
     kind: StepKind,
     layout: &Layout,
 ) -> Result<DynamicData, DataError> {
+    parse_dynamic(text, path, name, kind, layout).map(|(d, _)| d)
+}
+
+/// [`parse_dynamic_csv`], and whether the time's unit is given (the manifest's `[units]`, the
+/// header's brackets or a units row).
+fn parse_dynamic(
+    text: &str,
+    path: &Path,
+    name: &str,
+    kind: StepKind,
+    layout: &Layout,
+) -> Result<(DynamicData, bool), DataError> {
     let req = match kind {
         StepKind::Actuator => dynamic_required(kind),
         _ => without_absent(
@@ -738,10 +871,10 @@ pub fn parse_dynamic_csv(
             &OPTIONAL_DYNAMIC_COLUMNS,
         ),
     };
-    let rows = parse_columns(text, path, &req, layout)?;
+    let Parsed { rows, lines, conv } = parse_columns(text, path, &req, layout)?;
     // the times as the file writes them, in its unit (the rows hold seconds)
-    let (unit, (scale, offset)) = match layout.units.get("t") {
-        Some(u) => (u.trim(), conversion("t", u).unwrap_or((1.0, 0.0))),
+    let (unit, (scale, offset)) = match &conv[0] {
+        Some((s, o, u)) => (u.as_str(), (*s, *o)),
         None => ("s", (1.0, 0.0)),
     };
     let given = |s: f64| crate::numerics::Num((s - offset) / scale);
@@ -750,7 +883,7 @@ pub fn parse_dynamic_csv(
             let (column, renamed) = layout.label("t");
             return Err(DataError::Value {
                 path: path.to_path_buf(),
-                line: k + 3,
+                line: lines[k + 1],
                 column,
                 renamed,
                 message: format!(
@@ -768,11 +901,15 @@ pub fn parse_dynamic_csv(
         .enumerate()
         .map(|(j, c)| (c.name.to_string(), rows.iter().map(|r| r[j + 1]).collect()))
         .collect();
-    Ok(DynamicData {
-        name: name.to_string(),
-        t,
-        columns,
-    })
+    let declared = conv[0].is_some() || layout.units.contains_key("t");
+    Ok((
+        DynamicData {
+            name: name.to_string(),
+            t,
+            columns,
+        },
+        declared,
+    ))
 }
 
 /// A dynamic data set as CSV text (`t` first, then the columns in stored order).
@@ -873,8 +1010,8 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        let set = parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind, &layout)?;
-        if !layout.units.contains_key("t") {
+        let (set, time_unit_given) = parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
+        if !time_unit_given {
             check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout)?;
         }
         dynamic.push(set);
@@ -1011,6 +1148,121 @@ mod tests {
     }
     const ROW: &str =
         "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+
+    /// Test-cell exports write a row of units under the header: read and applied as a unit in
+    /// the header's brackets or the manifest's [units] is (session 38; before, "`Nm` is not a
+    /// number (a row of units under the header? ...)"); units given in two places must agree.
+    #[test]
+    fn a_units_row_under_the_header_is_read_like_units_in_brackets() {
+        let p = Path::new("s.csv");
+        let want =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
+        let units = "Nm,1/min,rpm,hPa,kPa,bar,kPa,degC,K,degC,degC,K,%,%,mg/stroke,g/s,%";
+        let row = "1000,1500,80000,1013,200,2.5,200,24.85,390,526.85,36.85,700,20,50,150,300,10";
+        let close = |got: &[StationaryPoint]| {
+            got.len() == 1
+                && (got[0].values().iter().zip(want[0].values()))
+                    .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1.0))
+        };
+        let read = |text: String, layout: &Layout| parse_stationary_csv(&text, p, layout);
+        let got = read(
+            format!("{}\n{units}\n{row}\n", header()),
+            &Layout::default(),
+        )
+        .unwrap();
+        assert!(close(&got), "{got:?}");
+        // with a comment line between, `;` separated, and empty cells (mvem's unit)
+        let semi = format!(
+            "{}\n# exported\n{}\n{}\n",
+            header().replace(',', ";"),
+            units.replace("K,", ";").replace(',', ";"),
+            row.replace(',', ";")
+        );
+        assert!(close(&read(semi, &Layout::default()).unwrap()));
+        // the same unit in the header's brackets and the row, or in [units] and the row
+        let map = |v: &[(&str, &str)]| {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect::<BTreeMap<_, _>>()
+        };
+        let bracket = Layout {
+            names: map(&[("p_im", "p_im [kPa]")]),
+            units: ColumnUnits::new(),
+        };
+        let head = header().replace("p_im", "p_im [kPa]");
+        assert!(close(
+            &read(format!("{head}\n{units}\n{row}\n"), &bracket).unwrap()
+        ));
+        let declared = Layout {
+            names: ColumnNames::new(),
+            units: map(&[("p_em", "bar"), ("n_e", "rpm")]),
+        };
+        assert!(close(
+            &read(format!("{}\n{units}\n{row}\n", header()), &declared).unwrap()
+        ));
+        // conflicts name the file, the line and the column
+        let bar = units.replacen("kPa,degC", "bar,degC", 1);
+        assert_eq!(
+            read(format!("{head}\n{bar}\n{row}\n"), &bracket)
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): its header gives the unit `kPa`, \
+             the units row (line 2) `bar`: which is it? (a unit given in more than one place \
+             must agree; docs/tuning-data.md)"
+        );
+        let kpa = Layout {
+            names: ColumnNames::new(),
+            units: map(&[("p_im", "kPa")]),
+        };
+        assert_eq!(
+            read(format!("{}\n#\n{bar}\n{row}\n", header()), &kpa)
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 3, column `p_im`: the manifest's [units] gives the unit `kPa`, the units \
+             row (line 3) `bar`: which is it? (a unit given in more than one place must agree; \
+             docs/tuning-data.md)"
+        );
+        // a unit of the row mvem does not know: an error, unless [units] declares the column
+        let psia = units.replacen("kPa,degC", "psia,degC", 1);
+        let e = read(format!("{}\n{psia}\n{row}\n", header()), &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "s.csv: line 2, column `p_im`: `psia` in the units row is not a unit of p_im (one \
+                 of Pa, hPa, mbar, kPa, bar, MPa, psi)"
+            ),
+            "{e}"
+        );
+        assert!(close(
+            &read(format!("{}\n{psia}\n{row}\n", header()), &kpa).unwrap()
+        ));
+        // a dynamic set's times in ms by its units row: converted, and the lines of its
+        // messages count the row
+        let head = "t,n_t,p_em,p_im,W_c,M_e,n_e,u_egr,u_vgt,u_delta";
+        let units = "ms,rpm,kPa,kPa,kg/h,Nm,rpm,%,%,mg/stroke";
+        let r = |t: &str| format!("{t},80000,250,200,1080,1000,1500,20,50,150");
+        let text = [head.to_string(), units.into(), r("80"), r("90")].join("\n");
+        let set = |text: &str| {
+            parse_dynamic_csv(
+                text,
+                Path::new("C.csv"),
+                "C",
+                StepKind::VgtEgr,
+                &Layout::default(),
+            )
+        };
+        let d = set(&text).unwrap();
+        assert_eq!(d.t, [0.08, 0.09]);
+        assert!((d.get("p_em").unwrap()[0] - 2.5e5).abs() < 1e-6);
+        assert!((d.get("W_c").unwrap()[1] - 0.3).abs() < 1e-12);
+        let e = set(&[text, r("90")].join("\n")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "C.csv: line 5, column `t`: time 90 ms does not increase (previous row 90 ms): \
+             duplicate or unsorted timestamp"
+        );
+    }
 
     #[test]
     fn a_directory_without_manifest_points_to_the_draft() {
@@ -1200,7 +1452,8 @@ mod tests {
             e(format!("{own}\n{row}\n{}\n", ROW.replace(",0.3,", ",n/a,"))),
             "s.csv: line 3, column `Air mass flow` (mvem's `W_c`): `n/a` is not a number"
         );
-        // a row of units under the header, as test-cell exports write it
+        // a row of units under the header, as test-cell exports write it, with a unit mvem
+        // does not know (session 38 reads the row: units_row_under_the_header_...)
         let units_row = own
             .split(',')
             .map(|h| if h == "Air mass flow" { "kg/h" } else { "-" })
@@ -1208,11 +1461,19 @@ mod tests {
             .join(",");
         assert_eq!(
             e(format!("{own}\n{units_row}\n{row}\n")),
-            "s.csv: line 2, column `M_e`: `-` is not a number (a row of units under the header? \
-             Remove it or start it with `#`, and declare the units in the manifest's [units], \
-             docs/tuning-data.md)"
+            "s.csv: line 2, column `M_e`: `-` in the units row is not a unit of M_e (one of Nm, \
+             N m, kNm): correct it, or declare the column's unit in the manifest's [units] \
+             (docs/tuning-data.md)"
         );
         assert!(parse_stationary_csv(&format!("{own}\n#{units_row}\n{row}\n"), p, &layout).is_ok());
+        // a second line with numbers and text is data, with the hint
+        let half = ROW.replacen("1000,", "Nm,", 1);
+        assert_eq!(
+            e(format!("{own}\n{half}\n{row}\n")),
+            "s.csv: line 2, column `M_e`: `Nm` is not a number (a row of units under the header? \
+             A units row has a unit or nothing in every column, no number; or start it with `#` \
+             and declare the units in the manifest's [units], docs/tuning-data.md)"
+        );
         // a timestamp logged twice, in ms
         let head = "Time,n_t,p_em,p_im,Air mass flow,M_e,n_e,u_egr,u_vgt,u_delta";
         let r = |t: &str| format!("{t},80000,250000,200000,1080,1000,1500,20,50,150");
