@@ -6,11 +6,12 @@
 //!
 //! The guesses: a file with every stationary column (Table 5; `T_t` optional) is the stationary
 //! file (the first in name order if several); a file with `t` and the actuator columns only is
-//! an actuator set (role `actuator`); a file with the dynamic columns is a fuel-step set (roles
-//! `dynamic`, `static`) when only u_delta steps, else a VGT/EGR set (role `static`, and
-//! `dynamic` when sampled at 10 Hz or faster, as the paper's sets B and C); no set gets the
-//! role `validation` (hold some back by hand). Files that are neither are skipped, with the
-//! columns they lack.
+//! an actuator set (role `actuator`); a file with the dynamic columns is a fuel-step set when
+//! only u_delta steps, else a VGT/EGR set; both get the role `static`, and `dynamic` when
+//! sampled at 10 Hz or faster ([`DYNAMIC_MIN_RATE_HZ`]: the paper's B, C and I; its 1 Hz sets,
+//! fuel steps V too, only show settled levels). With at least three static sets, one that is
+//! only static (a slow fuel-step set first, as the paper's V) is held back with the role
+//! `validation` alone. Files that are neither are skipped, with the columns they lack.
 //!
 //! Headers that are not mvem's names are matched when they differ only in case, spaces,
 //! underscores, hyphens and dots (`P_IM`, `p im`, `Time` for `t`) and may carry a unit in
@@ -374,7 +375,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             let fuel = steps(&["u_delta"]);
             let air = steps(&["u_egr", "u_vgt"]);
             if fuel > 0 && air == 0 {
-                (StepKind::Fuel, vec![Role::Dynamic, Role::Static], fuel)
+                (StepKind::Fuel, vec![Role::Static], fuel)
             } else {
                 (
                     StepKind::VgtEgr,
@@ -404,8 +405,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             (r * scale).round() / scale
         });
         let mut roles = roles;
-        if kind == StepKind::VgtEgr && rate >= 10.0 {
-            roles.push(Role::Dynamic);
+        // a set sampled slower than DYNAMIC_MIN_RATE_HZ shows the settled levels of its
+        // steps, not their responses: static only (step 5), as the paper's 1 Hz sets
+        if kind != StepKind::Actuator && rate >= DYNAMIC_MIN_RATE_HZ {
+            roles.insert(usize::from(kind == StepKind::VgtEgr), Role::Dynamic);
         }
         let speed = get("n_e")
             .and_then(|n| median(n.clone()))
@@ -536,12 +539,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         ));
         units.insert("t".to_string(), "ms".to_string());
     }
-    if !sets.iter().any(|s| s.roles.contains(&Role::Validation)) {
-        notes.push(
-            "no set has the role \"validation\": give it to sets you hold back from the tuning"
-                .into(),
-        );
-    }
+    notes.push(hold_back_for_validation(&mut sets));
     Ok(ManifestDraft {
         manifest: Manifest {
             stationary,
@@ -558,6 +556,51 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         },
         notes,
     })
+}
+
+/// The slowest sample rate \[Hz\] at which `campaign --init` gives a set the role `dynamic`:
+/// the paper's dynamic sets (B, C, I) are sampled at 10-100 Hz, its 1 Hz sets only show the
+/// settled levels of their steps (roles static and validation, Table 1), and the fastest time
+/// constants steps 3-4 fit (the manifolds', the turbo's, tau_Me about 1 s) need several
+/// samples within a step's response.
+pub const DYNAMIC_MIN_RATE_HZ: f64 = 10.0;
+
+/// The fewest static-role sets that leave one to hold back for validation: step 5 then still
+/// has two operating points.
+pub const VALIDATION_MIN_STATIC_SETS: usize = 3;
+
+/// Hold one set back for validation (its roles become only `validation`) when enough remain
+/// for the tuning: of the sets that are static only (not needed by steps 2-4), a slow fuel-step
+/// set (the paper's V) if there is one, else the last VGT/EGR set in name order, and only when
+/// at least [`VALIDATION_MIN_STATIC_SETS`] sets have the role static. A note says which and
+/// why, or why none.
+fn hold_back_for_validation(sets: &mut [DataSetInfo]) -> String {
+    let statics = sets
+        .iter()
+        .filter(|s| s.roles.contains(&Role::Static))
+        .count();
+    let only_static = |s: &DataSetInfo| s.roles == [Role::Static];
+    let pick = sets
+        .iter()
+        .rposition(|s| only_static(s) && s.kind == StepKind::Fuel)
+        .or_else(|| sets.iter().rposition(only_static));
+    match pick {
+        Some(k) if statics >= VALIDATION_MIN_STATIC_SETS => {
+            sets[k].roles = vec![Role::Validation];
+            format!(
+                "set {} held back for validation (role \"validation\" only; {} of {statics} sets \
+                 with the role \"static\" remain for step 5): give the role to other sets you \
+                 hold back, or \"static\" back to tune on it",
+                sets[k].name,
+                statics - 1
+            )
+        }
+        _ => format!(
+            "no set has the role \"validation\" ({statics} with the role \"static\", a set is \
+             held back from {VALIDATION_MIN_STATIC_SETS} on): give it to sets you hold back from \
+             the tuning"
+        ),
+    }
 }
 
 /// Why [`write_draft`] wrote nothing.
@@ -596,7 +639,13 @@ mod tests {
     fn a_lab_campaign_without_its_manifest_is_drafted_back() {
         let opts = LabOptions {
             max_steps: Some(3),
-            sets: Some(vec!["B".into(), "G".into(), "I".into(), "J".into()]),
+            sets: Some(vec![
+                "B".into(),
+                "G".into(),
+                "I".into(),
+                "J".into(),
+                "V".into(),
+            ]),
             ..LabOptions::default()
         };
         let (c, _) = campaign(&Params::published(), &opts).unwrap();
@@ -638,6 +687,18 @@ mod tests {
         }
         assert_eq!(by_name("I").roles, [Role::Dynamic, Role::Static]);
         assert_eq!(by_name("J").roles, [Role::Actuator]);
+        // the 1 Hz fuel steps of V show settled levels, not tau_Me's response: not dynamic
+        // (it was [dynamic, static]); with four static sets it is held back for validation,
+        // as the paper's V (Table 1)
+        assert_eq!(by_name("V").roles, [Role::Validation]);
+        assert!(
+            d.notes.iter().any(|n| n.starts_with(
+                "set V held back for validation (role \"validation\" only; 3 of 4 sets with \
+                 the role \"static\" remain for step 5)"
+            )),
+            "{:?}",
+            d.notes
+        );
         // B at 100 Hz tunes the dynamics, G at 1 Hz only the statics
         assert_eq!(by_name("B").roles, [Role::Static, Role::Dynamic]);
         assert_eq!(by_name("G").roles, [Role::Static]);
@@ -653,6 +714,49 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = draft_manifest(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
+    }
+
+    #[test]
+    fn one_static_only_set_is_held_back_for_validation_when_three_remain() {
+        let set = |name: &str, kind: StepKind, roles: &[Role]| DataSetInfo {
+            name: name.into(),
+            roles: roles.to_vec(),
+            kind,
+            file: format!("{name}.csv"),
+            sample_rate_hz: 1.0,
+            speed_rpm: None,
+            load_pct: None,
+            steps: 3,
+        };
+        let (st, dy) = (&[Role::Static][..], &[Role::Static, Role::Dynamic][..]);
+        let mut sets = vec![
+            set("A", StepKind::VgtEgr, st),
+            set("B", StepKind::VgtEgr, dy),
+            set("D", StepKind::VgtEgr, st),
+        ];
+        let note = hold_back_for_validation(&mut sets);
+        assert_eq!(sets[2].roles, [Role::Validation], "{note}");
+        assert_eq!(
+            (sets[0].roles.as_slice(), sets[1].roles.as_slice()),
+            (st, dy)
+        );
+        // two static sets: none held back, and the note says from how many
+        let mut two = sets[..2].to_vec();
+        assert_eq!(
+            hold_back_for_validation(&mut two),
+            "no set has the role \"validation\" (2 with the role \"static\", a set is held \
+             back from 3 on): give it to sets you hold back from the tuning"
+        );
+        assert_eq!(two, sets[..2]);
+        // only dynamic sets besides one static: none either (steps 3-4 need them)
+        let mut dyn3 = vec![
+            set("B", StepKind::VgtEgr, dy),
+            set("C", StepKind::VgtEgr, dy),
+            set("I", StepKind::Fuel, &[Role::Dynamic, Role::Static]),
+        ];
+        let before = dyn3.clone();
+        assert!(hold_back_for_validation(&mut dyn3).starts_with("no set has"));
+        assert_eq!(dyn3, before);
     }
 
     /// A small campaign of the published engine: 13 stationary points, sets I and J of 2 steps.
