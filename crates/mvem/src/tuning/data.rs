@@ -223,10 +223,80 @@ const fn col(name: &'static str, unit: &'static str, min: f64, max: f64) -> Colu
 pub const PLAUSIBLE_W_C_MAX: f64 = 20.0;
 
 /// Plausible engine torque M_e \[Nm\]: up to 100 kNm (a 300-litre engine at 20 bar BMEP is
-/// about 50 kNm), down to -20 kNm (motoring such an engine). Power logged in W is caught where
-/// it exceeds 100 kW (below, `mvem tune`'s indicated-efficiency check of `tuning::constants`
-/// sees it).
+/// about 50 kNm), down to -20 kNm (motoring such an engine). Power logged in W is caught by
+/// this range where it exceeds 100 kW, and at lower powers by the torque's BMEP for the
+/// displacement the air flows imply ([`PLAUSIBLE_BMEP_MAX`]).
 pub const PLAUSIBLE_M_E: (f64, f64) = (-2.0e4, 1.0e5);
+
+/// Largest brake mean effective pressure BMEP = 4 pi M_e / V_d of a four-stroke diesel engine
+/// \[Pa\]: about 30 bar (heavy-duty engines reach 25-30 at full load). Torque columns whose
+/// values exceed it for the displacement the air flows imply ([`displacement_bound`]) are
+/// refused ([`torque_beyond_bmep`]): power logged in W and read as torque gives about
+/// `2 pi n_e / 60` (31-630 /s) times the torque, beyond it at every point above a few percent
+/// of full load, also where it stays inside [`PLAUSIBLE_M_E`].
+pub const PLAUSIBLE_BMEP_MAX: f64 = 30.0e5;
+
+/// Gas constant of air \[J/(kg K)\] of the displacement estimate [`displacement_bound`] (the
+/// published parameter set's R_a).
+const R_AIR: f64 = 287.0;
+
+/// The largest displacement \[m^3\] the stationary points' air flows allow: eq. (11) solved
+/// for V_d, `W_ei 120 R_a T_im / (eta_vol p_im n_e)` with W_ei = W_c / (1 - x_egr) (eq. (10))
+/// and the lowest volumetric efficiency of four-stroke diesels, 0.7
+/// (`tuning::constants::ETA_VOL_RANGE`), the largest over the points (x_egr below 0.95). A
+/// larger displacement would need a lower volumetric efficiency, so a torque is checked against
+/// its smallest plausible BMEP; a point whose flow is too large only makes the check less
+/// sensitive (power read as torque exceeds the bound 31-630 times). `None` without a usable
+/// point.
+pub fn displacement_bound(points: &[StationaryPoint]) -> Option<f64> {
+    let eta_vol_min = super::constants::ETA_VOL_RANGE.0;
+    let v = points
+        .iter()
+        .filter(|s| s.x_egr < 0.95)
+        .map(|s| s.w_c / (1.0 - s.x_egr) * 120.0 * R_AIR * s.t_im / (eta_vol_min * s.p_im * s.n_e))
+        .filter(|v| v.is_finite() && *v > 0.0);
+    v.reduce(f64::max)
+}
+
+/// The first (0-based) sample of the torques `m_e` \[Nm\] at the speeds `n_e` \[r/min\] whose
+/// BMEP `4 pi M_e / v_d` exceeds [`PLAUSIBLE_BMEP_MAX`] with the displacement bound `v_d`
+/// \[m^3\] ([`displacement_bound`]), with why, naming the suspected cause: power in W when the
+/// values read as power give a plausible torque at every sample, else a wrong unit or column.
+pub fn torque_beyond_bmep(m_e: &[f64], n_e: &[f64], v_d: f64) -> Option<(usize, String)> {
+    let bmep = |m: f64| 4.0 * std::f64::consts::PI * m / v_d;
+    let k = m_e.iter().position(|m| bmep(*m) > PLAUSIBLE_BMEP_MAX)?;
+    let omega = |n: f64| 2.0 * std::f64::consts::PI * n / 60.0;
+    let as_power = m_e
+        .iter()
+        .zip(n_e)
+        .all(|(m, n)| bmep(m / omega(*n)).abs() <= PLAUSIBLE_BMEP_MAX);
+    let cause = if as_power {
+        format!(
+            "power logged in W? As power, {} W at {} r/min is a torque of {} Nm, {:.1} bar, \
+             and so are the other values plausible torques: give the torque in Nm (or kNm, \
+             [units])",
+            crate::numerics::Num(m_e[k]),
+            crate::numerics::Num(n_e[k]),
+            crate::numerics::Num(m_e[k] / omega(n_e[k])),
+            bmep(m_e[k] / omega(n_e[k])) / 1e5
+        )
+    } else {
+        "a wrong unit or column? (torque in Nm, or kNm with [units])".to_string()
+    };
+    Some((
+        k,
+        format!(
+            "{} Nm is a brake mean effective pressure of at least {:.0} bar (4 pi M_e / V_d with \
+             V_d at most {:.3} dm^3, the displacement the stationary points' air flows allow by \
+             eq. (11) at a volumetric efficiency of 0.7 or more), beyond the {:.0} bar of \
+             four-stroke diesel engines: {cause}",
+            crate::numerics::Num(m_e[k]),
+            bmep(m_e[k]) / 1e5,
+            v_d * 1e3,
+            PLAUSIBLE_BMEP_MAX / 1e5
+        ),
+    ))
+}
 
 /// Largest plausible injected fuel u_delta \[mg/cycle/cylinder\]: about 100 mg per litre of
 /// cylinder displacement at full load (the published engine: 220 mg, 2.1 l), so 2000 mg is a
@@ -773,8 +843,8 @@ pub fn parse_stationary_csv(
 ) -> Result<Vec<StationaryPoint>, DataError> {
     let cols = without_absent(text, layout, STATIONARY_COLUMNS.to_vec(), &["T_t"]);
     let t_t_given = cols.len() == STATIONARY_COLUMNS.len();
-    let rows = parse_columns(text, path, &cols, layout)?.rows;
-    Ok(rows
+    let Parsed { rows, lines, .. } = parse_columns(text, path, &cols, layout)?;
+    let points: Vec<StationaryPoint> = rows
         .into_iter()
         .map(|mut r| {
             if !t_t_given {
@@ -784,7 +854,37 @@ pub fn parse_stationary_csv(
             v.copy_from_slice(&r);
             StationaryPoint::from_values(v)
         })
-        .collect())
+        .collect();
+    if let Some(v_d) = displacement_bound(&points) {
+        let m_e: Vec<f64> = points.iter().map(|s| s.m_e).collect();
+        let n_e: Vec<f64> = points.iter().map(|s| s.n_e).collect();
+        check_torque(path, layout, &m_e, &n_e, &lines, v_d)?;
+    }
+    Ok(points)
+}
+
+/// Refuse torques `m_e` at speeds `n_e` (rows on the file's `lines`) beyond the BMEP of a
+/// diesel engine of displacement at most `v_d` ([`torque_beyond_bmep`]), naming the file, the
+/// line and the column.
+fn check_torque(
+    path: &Path,
+    layout: &Layout,
+    m_e: &[f64],
+    n_e: &[f64],
+    lines: &[usize],
+    v_d: f64,
+) -> Result<(), DataError> {
+    let Some((k, message)) = torque_beyond_bmep(m_e, n_e, v_d) else {
+        return Ok(());
+    };
+    let (column, renamed) = layout.label("M_e");
+    Err(DataError::Value {
+        path: path.to_path_buf(),
+        line: lines[k],
+        column,
+        renamed,
+        message,
+    })
 }
 
 /// Load a stationary CSV file.
@@ -850,18 +950,18 @@ pub fn parse_dynamic_csv(
     kind: StepKind,
     layout: &Layout,
 ) -> Result<DynamicData, DataError> {
-    parse_dynamic(text, path, name, kind, layout).map(|(d, _)| d)
+    parse_dynamic(text, path, name, kind, layout).map(|(d, ..)| d)
 }
 
-/// [`parse_dynamic_csv`], and whether the time's unit is given (the manifest's `[units]`, the
-/// header's brackets or a units row).
+/// [`parse_dynamic_csv`], whether the time's unit is given (the manifest's `[units]`, the
+/// header's brackets or a units row), and each row's line in the file.
 fn parse_dynamic(
     text: &str,
     path: &Path,
     name: &str,
     kind: StepKind,
     layout: &Layout,
-) -> Result<(DynamicData, bool), DataError> {
+) -> Result<(DynamicData, bool, Vec<usize>), DataError> {
     let req = match kind {
         StepKind::Actuator => dynamic_required(kind),
         _ => without_absent(
@@ -909,6 +1009,7 @@ fn parse_dynamic(
             columns,
         },
         declared,
+        lines,
     ))
 }
 
@@ -1007,10 +1108,16 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let manifest = parse_manifest(&text, &mpath)?;
     let layout = Layout::of(&manifest);
     let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &layout)?;
+    let v_d = displacement_bound(&stationary);
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        let (set, time_unit_given) = parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
+        let (set, time_unit_given, lines) =
+            parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
+        // the torque of a dynamic set against the displacement of the stationary points
+        if let (Some(v_d), Some(m_e), Some(n_e)) = (v_d, set.get("M_e"), set.get("n_e")) {
+            check_torque(&p, &layout, m_e, n_e, &lines, v_d)?;
+        }
         if !time_unit_given {
             check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout)?;
         }
@@ -1264,6 +1371,91 @@ mod tests {
         );
     }
 
+    /// Power logged in W and read as torque was caught only above 100 kW (the range of M_e);
+    /// below, the campaign loaded and step 1 fitted eta_igch to it (session 37). The torque's
+    /// BMEP for the displacement the air flows allow catches it, in the stationary file and in
+    /// the dynamic sets, while the published engine's campaign loads.
+    #[test]
+    fn power_in_w_read_as_torque_is_caught_below_100_kw() {
+        let opts = crate::tuning::lab::LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into()]),
+            ..Default::default()
+        };
+        let p = crate::params::Params::published();
+        let (c, _) = crate::tuning::lab::campaign(&p, &opts).unwrap();
+        // the bound lies above the true displacement (volumetric efficiency 0.7, not ~0.9)
+        let v_d = displacement_bound(&c.stationary).unwrap();
+        assert!((1.0..1.5).contains(&(v_d / p.cylinder.v_d)), "{v_d}");
+        let bmep = |m: f64| 4.0 * std::f64::consts::PI * m / v_d;
+        let most = c.stationary.iter().map(|s| bmep(s.m_e)).fold(0.0, f64::max);
+        assert!(most < 0.8 * PLAUSIBLE_BMEP_MAX, "{most}");
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        assert!(load_campaign(dir.path()).is_ok());
+        // the points below 100 kW with their power in the torque column
+        let omega = |n: f64| 2.0 * std::f64::consts::PI * n / 60.0;
+        let power: Vec<StationaryPoint> = c
+            .stationary
+            .iter()
+            .filter(|s| s.m_e * omega(s.n_e) < 1e5)
+            .map(|s| StationaryPoint {
+                m_e: s.m_e * omega(s.n_e),
+                ..*s
+            })
+            .collect();
+        assert!(power.len() >= 3, "{}", power.len());
+        let k = power
+            .iter()
+            .position(|s| bmep(s.m_e) > PLAUSIBLE_BMEP_MAX)
+            .unwrap();
+        let text = stationary_csv(&power);
+        let e = parse_stationary_csv(&text, Path::new("s.csv"), &Layout::default())
+            .unwrap_err()
+            .to_string();
+        let s = &power[k];
+        let want = format!(
+            "s.csv: line {}, column `M_e`: {} Nm is a brake mean effective pressure of at least \
+             {:.0} bar (4 pi M_e / V_d with V_d at most {:.3} dm^3, the displacement the \
+             stationary points' air flows allow by eq. (11) at a volumetric efficiency of 0.7 or \
+             more), beyond the 30 bar of four-stroke diesel engines: power logged in W? As \
+             power, {} W at {} r/min is a torque of {} Nm",
+            k + 2,
+            crate::numerics::Num(s.m_e),
+            bmep(s.m_e) / 1e5,
+            v_d * 1e3,
+            crate::numerics::Num(s.m_e),
+            crate::numerics::Num(s.n_e),
+            crate::numerics::Num(s.m_e / omega(s.n_e)),
+        );
+        assert!(e.starts_with(&want), "{e}\n{want}");
+        // values that are no torque as power either (a 2-litre engine's 90 kNm at 600 r/min,
+        // 1432 Nm as power): another cause
+        let (_, why) = torque_beyond_bmep(&[100.0, 9.0e4], &[1500.0, 600.0], 2.0e-3).unwrap();
+        assert!(
+            why.ends_with("engines: a wrong unit or column? (torque in Nm, or kNm with [units])"),
+            "{why}"
+        );
+        // a dynamic set at 300 Nm with its power in W (47 kW at 1500 r/min): named with its
+        // file's line
+        let mut d = c.clone();
+        let n_e = d.dynamic[0].get("n_e").unwrap().to_vec();
+        let m_e = &mut d.dynamic[0]
+            .columns
+            .iter_mut()
+            .find(|c| c.0 == "M_e")
+            .unwrap()
+            .1;
+        for (m, n) in m_e.iter_mut().zip(&n_e) {
+            *m = 300.0 * omega(*n);
+        }
+        save_campaign(dir.path(), &d).unwrap();
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("I.csv: line 2, column `M_e`: "), "{e}");
+        assert!(e.contains("power logged in W?"), "{e}");
+    }
+
     #[test]
     fn a_directory_without_manifest_points_to_the_draft() {
         let d = tempfile::tempdir().unwrap();
@@ -1406,8 +1598,8 @@ mod tests {
             .starts_with("s.csv: line 2, column `p_im`: 375 Pa is outside the plausible range [50000, 2000000] Pa"));
         assert!(err(&[full.replace(",1150000,", ",11.5,")])
             .starts_with("s.csv: line 2, column `p_em`: 11.5 Pa is outside"));
-        // the power in W for the torque (the large engine's 4.7 MW; below 100 kW, a small
-        // engine's, it is caught by `mvem tune`'s indicated-efficiency check, not here)
+        // the power in W for the torque (the large engine's 4.7 MW; below 100 kW, by the
+        // torque's BMEP: power_in_w_read_as_torque_is_caught_below_100_kw)
         assert!(err(&[full.replace("30000,1500", "4712389,1500")])
             .starts_with("s.csv: line 2, column `M_e`: 4712389 Nm is outside the plausible range [-20000, 100000] Nm"));
     }
