@@ -371,3 +371,30 @@ def test_campaign_init_drafts_the_manifest_of_a_directory_of_csv_files(tmp_path)
         mvem.campaign(tmp_path / "c", init=True)
     assert "notes" in mvem.campaign(tmp_path / "c", init=True, force=True)
     assert "notes" not in mvem.campaign(tmp_path / "c")
+
+
+def test_params_takes_the_names_the_tuning_report_uses(cli_run):
+    """The report's `correlated_with` (and step 5's `at_bounds`) name parameters by their paper
+    symbols (`c_vol1`, `a3`, `w_copt`); `params=` refused them ("unknown parameter `c_vol1`",
+    session 37). Each such name sets the same scalar(s) as its registry path."""
+    _, rep, _ = cli_run
+    by_symbol = {}
+    for p in mvem.parameters():
+        by_symbol.setdefault(p["symbol"], []).append(p)
+    names = {n for e in rep["parameters"].values() for n, _ in e["correlated_with"]}
+    names |= {"c_vol1", "a3", "c_egr[2]"}  # a symbol of two entries, a field with its index
+    model_names = sorted(n for n in names if not n.startswith("tau_"))  # tau_*: the test cell's
+    assert len(model_names) >= 8, model_names
+    point = (1500, 110, 80, 75)
+    for name in model_names:
+        entries = by_symbol.get(name) or [p for p in mvem.parameters()
+                                          if p["path"].split(".", 1)[1] == name]
+        assert entries, name
+        value = entries[0]["published"] * 1.01
+        by_name = mvem.steady(*point, params={name: value})
+        by_path = mvem.steady(*point, params={e["path"]: value for e in entries})
+        assert by_name == by_path, name
+    assert mvem.steady(*point, params={"c_vol1": 1.01 * by_symbol["c_vol1"][0]["published"]}) \
+        != mvem.steady(*point)
+    with pytest.raises(ValueError, match="unknown parameter `c_vo1`"):
+        mvem.steady(*point, params={"c_vo1": 1.0})

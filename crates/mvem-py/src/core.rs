@@ -101,6 +101,17 @@ fn merge(
                     merge(slot, &Value::Object(nested), &head_path, elements)?;
                     continue;
                 }
+                // at the top level, a scalar by the name the tuning report gives it (its
+                // paper symbol `c_vol1`, `a3`, or its field `c_vol[1]`): one element
+                let by_name = if path.is_empty() && !b.contains_key(k) {
+                    registry_paths(k)
+                } else {
+                    Vec::new()
+                };
+                if !by_name.is_empty() {
+                    elements.extend(by_name.iter().map(|f| (f.to_string(), v.clone())));
+                    continue;
+                }
                 if k.contains('[') {
                     elements.push((p, v.clone()));
                     continue;
@@ -123,6 +134,35 @@ fn merge(
         (_, o) => Err(CoreError::Value(format!(
             "parameter `{path}`: unexpected value {o} (numbers, lists or tables of them)"
         ))),
+    }
+}
+
+/// The registry paths of the scalar parameter `name` as the tuning report's `correlated_with`,
+/// `at_bounds` and messages name it: its path, its paper symbol where unique (`c_vol1`,
+/// `w_copt`; [`mvem::params::ParamInfo::find`]; `a3` names both symmetric entries of Q_c, and
+/// both are set) or its field and index without the group (`c_vol[1]`,
+/// [`mvem::params::element_name`]) where one group has it. Empty otherwise.
+fn registry_paths(name: &str) -> Vec<&'static str> {
+    let reg = Params::registry();
+    if let Some(i) = mvem::params::ParamInfo::find(name) {
+        if i.path == name {
+            return vec![i.path.as_str()];
+        }
+        return reg
+            .iter()
+            .filter(|r| r.symbol == name)
+            .map(|r| r.path.as_str())
+            .collect();
+    }
+    let fields: Vec<&str> = reg
+        .iter()
+        .filter(|i| i.path.split_once('.').map(|(_, f)| f) == Some(name))
+        .map(|i| i.path.as_str())
+        .collect();
+    if fields.len() == 1 {
+        fields
+    } else {
+        Vec::new()
     }
 }
 
@@ -168,8 +208,9 @@ fn set_element(p: &mut Params, path: &str, v: &Value) -> CoreResult<()> {
 }
 
 /// Parameters: the published set with the overrides of `json` (nested `{group: {field: v}}`,
-/// dotted `{"group.field": v}`, or one element by its registry path `{"cylinder.c_vol[1]": v}`,
-/// 1-based), validated.
+/// dotted `{"group.field": v}`, one element by its registry path `{"cylinder.c_vol[1]": v}`,
+/// 1-based, or one scalar by the name the tuning report uses, `{"c_vol1": v}`,
+/// [`registry_paths`]), validated.
 pub fn params_from_overrides(json: &str) -> CoreResult<Params> {
     let over: Value = serde_json::from_str(json)
         .map_err(|e| CoreError::Value(format!("params: not a JSON-like mapping: {e}")))?;
@@ -1430,6 +1471,24 @@ mod tests {
             e.starts_with("parameter `cylinder.c_vol[4]`: no such element"),
             "{e}"
         );
+        // the tuning report's names (correlated_with, at_bounds): paper symbols, and fields
+        // with their 1-based index (session 38; `c_vol1` was an unknown parameter)
+        let q = params_from_overrides(r#"{"c_vol1": 1.2, "a3": 0.5, "c_egr[2]": 0.01}"#).unwrap();
+        assert_eq!(q.cylinder.c_vol[0], 1.2);
+        assert_eq!((q.compressor.q_c[0][1], q.compressor.q_c[1][0]), (0.5, 0.5));
+        assert_eq!(q.egr_valve.c_egr[1], 0.01);
+        for (path, symbol, ..) in parameters() {
+            let Some(info) = mvem::params::ParamInfo::find(symbol) else {
+                continue; // a symbol of several scalars (r_c of compressor and cylinder)
+            };
+            let v = published.value(info);
+            let q = params_from_overrides(&format!(r#"{{"{symbol}": {v:e}}}"#)).unwrap();
+            assert_eq!(q, published, "{symbol} ({path})");
+        }
+        let e = params_from_overrides(r#"{"c_vo1": 1.2}"#)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "unknown parameter `c_vo1`");
         let e = params_from_overrides(r#"{"cylinder.c_vo[1]": 1.2}"#)
             .unwrap_err()
             .to_string();

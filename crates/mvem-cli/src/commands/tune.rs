@@ -49,7 +49,8 @@ errors do not cover (V_im, V_em, J_t fitted on static maps that are flagged not 
 inherit their error as a bias; docs/tuning.md, session 21; constants the campaign contradicts,
 session 23). \"ambient\": the means used. A step 5 stopped away from its optimum
 by more than the noise is reported with a warning (relative offset R: up to R sqrt(p) standard
-errors from the least-squares optimum).
+errors from the least-squares optimum), and its parameters and those of steps 3-4 repeated on
+its static maps with \"converged\": false, not identifiable (session 38).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
 least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
 model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58
@@ -611,7 +612,9 @@ fn parameter_table(
         s,
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
-         error <= 25 % and no correlation > 0.99 (docs/tuning.md). Elements are counted from 1, \
+         error <= 25 % and no correlation > 0.99, from a search that reached its optimum (not \
+         converged: step 5 stopped short of it, or steps 3-4 ran again on its maps; \
+         docs/tuning.md). Elements are counted from 1, \
          as the parameter registry, the FMU and Python's params= name them (cylinder.c_vol[1] \
          is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \
@@ -654,7 +657,11 @@ fn parameter_table(
             } else {
                 "inf".into()
             },
-            if e.identifiable { "yes" } else { "**no**" },
+            match (e.identifiable, e.converged) {
+                (true, _) => "yes",
+                (false, true) => "**no**",
+                (false, false) => "**no** (not converged)",
+            },
             e.reason,
             if corr.is_empty() { "" } else { "; " },
             corr

@@ -49,7 +49,9 @@ in parallel):
 
 model: 8 (the paper's model), 10 or 12 states (section 9 extensions).
 params: None (published set), a dict of overrides ({"turbo": {"j_t": 1e-4}} or
-{"turbo.j_t": 1e-4}) or a path to a TOML/JSON parameter file.
+{"turbo.j_t": 1e-4}; one element by its path {"cylinder.c_vol[1]": 0.9} or by the name the
+tuning report gives it, {"c_vol1": 0.9}, {"c_egr[2]": 0.01}) or a path to a TOML/JSON
+parameter file.
 Units: Pa, K, kg/s, rad/s (omega_t), rpm (n_e, n_t), Nm, %, mg/cycle/cylinder.
 Errors: ValueError (bad input, options, parameters), RuntimeError (solver / no equilibrium),
 both carrying the Rust message.

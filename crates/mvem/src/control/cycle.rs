@@ -558,10 +558,8 @@ pub fn header_fields(text: &str) -> Vec<String> {
 
 /// A header name without its unit in brackets, lower case ("Speed [%]" -> "speed").
 pub fn bare_name(field: &str) -> String {
-    field
-        .split(['[', '('])
-        .next()
-        .unwrap_or("")
+    crate::io::csv_columns::split_unit(field)
+        .name
         .trim()
         .to_ascii_lowercase()
 }

@@ -63,6 +63,40 @@ pub fn header_line(text: &str, comment: Option<u8>) -> &str {
         .unwrap_or("")
 }
 
+/// A header name and the unit in brackets or parentheses after it (`p_im [kPa]`, `T_em (degC)`,
+/// `Speed [%]`): the one reading of such headers, shared by the demand cycles, the normalized
+/// cycles' column names, `mvem campaign --init` and the campaign loader.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HeaderUnit<'a> {
+    /// The text before the first `[` or `(` (the whole header without one), untrimmed.
+    pub name: &'a str,
+    /// The text between that bracket and the first `]` or `)` after it (or the end), trimmed;
+    /// `None` when there is no bracket or nothing in it.
+    pub unit: Option<&'a str>,
+    /// Whether the unit's closing bracket ends the header (`p_im [kPa]`, not `p_im [kPa] avg`
+    /// or `p_im [kPa`).
+    pub closed: bool,
+}
+
+/// `header` split at its unit in brackets ([`HeaderUnit`]).
+pub fn split_unit(header: &str) -> HeaderUnit<'_> {
+    let Some(open) = header.find(['[', '(']) else {
+        return HeaderUnit {
+            name: header,
+            unit: None,
+            closed: false,
+        };
+    };
+    let rest = &header[open + 1..];
+    let close = rest.find([']', ')']);
+    let inner = &rest[..close.unwrap_or(rest.len())];
+    HeaderUnit {
+        name: &header[..open],
+        unit: Some(inner.trim()).filter(|u| !u.is_empty()),
+        closed: close.is_some_and(|c| c + 1 == rest.len()),
+    }
+}
+
 /// Why a CSV's named columns could not be read: each caller words it for its own file.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ColumnsError {
@@ -152,10 +186,18 @@ pub fn read_columns(text: &str, names: &[&str]) -> Result<Vec<(usize, Vec<f64>)>
     read_columns_matched(text, names, &column_of, false).map(|(_, rows)| rows)
 }
 
+/// [`read_columns`] with an optional units row under the header (a record without a number,
+/// [`read_columns_matched`]), returned with its line.
+pub fn read_columns_with_units(text: &str, names: &[&str]) -> Result<UnitsAndRows, ColumnsError> {
+    let column_of = |h: &str| names.iter().position(|c| *c == h);
+    read_columns_matched(text, names, &column_of, true)
+}
+
 /// [`read_columns`] with the header's names matched by `column_of` (a header name -> the index
 /// in `names` of the column it is, or `None`; the first header name matching a column is
-/// taken) and, with `units_row`, the first record taken as a units row when its first field
-/// matched is not a number: returned with the rows, its fields in `names`' order.
+/// taken) and, with `units_row`, the first record taken as a units row when none of its fields
+/// matched is a number (`s,rpm,Nm`; an empty field is no number): returned with its 1-based
+/// line and the rows, its fields in `names`' order.
 pub fn read_columns_matched(
     text: &str,
     names: &[&str],
@@ -188,18 +230,14 @@ pub fn read_columns_matched(
             line: e.position().map(|p| file_line(text, p, Some(b'#'))),
             message: e.to_string(),
         })?;
+        let line = rec.position().map_or(0, |p| file_line(text, p, Some(b'#')));
         if units_row && rows.is_empty() && units.is_none() {
-            let first = rec.get(idx[0]).unwrap_or("");
-            if dialect.number(first).is_none() {
-                units = Some(
-                    idx.iter()
-                        .map(|&i| rec.get(i).unwrap_or("").to_string())
-                        .collect(),
-                );
+            let field = |i: usize| rec.get(i).unwrap_or("");
+            if idx.iter().all(|&i| dialect.number(field(i)).is_none()) {
+                units = Some((line, idx.iter().map(|&i| field(i).to_string()).collect()));
                 continue;
             }
         }
-        let line = rec.position().map_or(0, |p| file_line(text, p, Some(b'#')));
         let mut row = Vec::with_capacity(names.len());
         for (column, &i) in idx.iter().enumerate() {
             let field = rec.get(i).unwrap_or("");
@@ -218,9 +256,9 @@ pub fn read_columns_matched(
     Ok((units, rows))
 }
 
-/// A units row (its fields in the asked columns' order), if any, and the data rows each with its
-/// 1-based line ([`read_columns_matched`]).
-pub type UnitsAndRows = (Option<Vec<String>>, Vec<(usize, Vec<f64>)>);
+/// A units row (its 1-based line and its fields in the asked columns' order), if any, and the
+/// data rows each with its 1-based line ([`read_columns_matched`]).
+pub type UnitsAndRows = (Option<(usize, Vec<String>)>, Vec<(usize, Vec<f64>)>);
 
 #[cfg(test)]
 mod tests {
@@ -258,6 +296,45 @@ mod tests {
             ColumnsError::Record { line: Some(3), .. }
         ));
         assert_eq!(read_columns("a,b\n", &["a"]).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn a_unit_in_brackets_is_split_from_the_name() {
+        let h = |name, unit, closed| HeaderUnit { name, unit, closed };
+        assert_eq!(split_unit("p_im [kPa]"), h("p_im ", Some("kPa"), true));
+        assert_eq!(split_unit("T_em(degC)"), h("T_em", Some("degC"), true));
+        assert_eq!(
+            split_unit("p_im [ kPa ] avg"),
+            h("p_im ", Some("kPa"), false)
+        );
+        assert_eq!(split_unit("p_im [kPa"), h("p_im ", Some("kPa"), false));
+        assert_eq!(split_unit("a []"), h("a ", None, true));
+        assert_eq!(split_unit("p_im"), h("p_im", None, false));
+        // a units row is a record without a number; its line is the file's
+        let (units, rows) = read_columns_matched(
+            "t,a\n# c\ns,\n0,1\n",
+            &["a", "t"],
+            &|h| ["a", "t"].iter().position(|c| *c == h),
+            true,
+        )
+        .unwrap();
+        assert_eq!(units, Some((3, vec![String::new(), "s".into()])));
+        assert_eq!(rows, vec![(4, vec![1.0, 0.0])]);
+        // a record with a number is data (and its other field not a number)
+        assert_eq!(
+            read_columns_matched(
+                "t,a\ns,1\n",
+                &["t", "a"],
+                &|h| ["t", "a"].iter().position(|c| *c == h),
+                true
+            )
+            .unwrap_err(),
+            ColumnsError::NotANumber {
+                line: 2,
+                column: 0,
+                field: "s".into()
+            }
+        );
     }
 
     #[test]

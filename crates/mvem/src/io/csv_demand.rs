@@ -10,7 +10,7 @@
 //!   denormalized with the engine's mapping curve as the built-in WHTC is
 //!   ([`crate::control::cycle::parse_normalized_table`]).
 
-use super::csv_columns::{header_names, read_columns_matched, ColumnsError};
+use super::csv_columns::{header_names, read_columns_matched, split_unit, ColumnsError};
 use super::{format_err as err, IoError};
 use crate::control::cycle::{
     bare_name, header_fields, is_normalized_header, parse_normalized_table,
@@ -41,14 +41,6 @@ pub fn demand_column(header: &str) -> Option<usize> {
     } else {
         None
     }
-}
-
-/// The unit in brackets after a header name (`n_e [rpm]`, `n_e (rpm)`), if any.
-fn bracket_unit(header: &str) -> Option<&str> {
-    let open = header.find(['[', '('])?;
-    let rest = &header[open + 1..];
-    let close = rest.find([']', ')']).unwrap_or(rest.len());
-    Some(rest[..close].trim()).filter(|u| !u.is_empty())
 }
 
 /// Read a demand cycle from CSV text (`path` only names it in messages): the columns `t` \[s\],
@@ -126,9 +118,9 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
             .iter()
             .find(|h| demand_column(h) == Some(c))
             .map_or("", String::as_str);
-        let (unit, place) = match (bracket_unit(name), &units_row) {
+        let (unit, place) = match (split_unit(name).unit, &units_row) {
             (Some(u), _) => (u.to_string(), "the header"),
-            (None, Some(r)) => (r[c].trim().to_string(), "the units row"),
+            (None, Some((_, r))) => (r[c].trim().to_string(), "the units row"),
             (None, None) => continue,
         };
         if unit.is_empty() {

@@ -633,6 +633,7 @@ pub fn fit_dynamic(
             value: fit.theta[k],
             std_error: f64::INFINITY,
             identifiable: false,
+            converged: true,
             correlated_with: Vec::new(),
             reason: if at_upper(k) {
                 format!(
@@ -1536,28 +1537,54 @@ impl Step5Report {
         })
     }
 
-    /// A note when the search stopped away from the least-squares optimum by more than the
-    /// noise: a rule other than the relative offset or gtol stopped it with the Bates-Watts
-    /// relative offset R above `1/sqrt(p)` (p parameters), so the Gauss-Newton step from the
-    /// end point predicts a cost decrease of `R^2 p` residual variances and the estimate may lie
-    /// up to `R sqrt(p)` standard errors (in the Gauss-Newton metric) from the optimum, which the
-    /// reported standard errors do not include. `None` otherwise.
-    pub fn stop_note(&self) -> Option<String> {
+    /// How far the search stopped from the least-squares optimum when that exceeds the noise:
+    /// a rule other than the relative offset or gtol stopped it with the Bates-Watts relative
+    /// offset R above `1/sqrt(p)` (p parameters), so the Gauss-Newton step from the end point
+    /// predicts a cost decrease of `R^2 p` residual variances and the estimate may lie up to
+    /// `R sqrt(p)` standard errors (in the Gauss-Newton metric) from the optimum. Returns
+    /// (`R^2 p`, `R sqrt(p)`); `None` otherwise.
+    fn distance_to_optimum(&self) -> Option<(f64, f64)> {
         let p = self.params.len() as f64;
         let r = self.rel_offset;
         let by_noise = matches!(self.stopped_by.as_str(), "relative offset" | "gtol");
         if by_noise || !r.is_finite() || p < 1.0 || r * r * p <= 1.0 {
             return None;
         }
+        Some((r * r * p, r * p.sqrt()))
+    }
+
+    /// A note when the search stopped away from the least-squares optimum by more than the
+    /// noise ([`Self::distance_to_optimum`]), which the reported standard errors do not
+    /// include. `None` otherwise.
+    pub fn stop_note(&self) -> Option<String> {
+        let (variances, ses) = self.distance_to_optimum()?;
         Some(format!(
             "step 5 stopped ({}) before its optimum: the Gauss-Newton step from its end point \
-             predicts a cost decrease of {:.1} residual variances (relative offset {r:.3}, \
-             {} parameters), so the estimate may lie up to {:.1} standard errors from the \
+             predicts a cost decrease of {variances:.1} residual variances (relative offset {:.3}, \
+             {} parameters), so the estimate may lie up to {ses:.1} standard errors from the \
              least-squares optimum; the standard errors do not include that distance",
             self.stopped_by,
-            r * r * p,
+            self.rel_offset,
             self.params.len(),
-            r * p.sqrt()
+        ))
+    }
+
+    /// Why the search did not reach its optimum, as a reason for the estimates it gave
+    /// (`ParamEstimate::flag_not_converged`): stopped at its evaluation limit (`converged`
+    /// false), or by ftol/xtol farther from the optimum than the noise
+    /// ([`Self::distance_to_optimum`]). `None` when it converged.
+    pub fn early_stop(&self) -> Option<String> {
+        if !self.converged {
+            return Some(format!(
+                "step 5 stopped at its evaluation limit before converging, after {} evaluations",
+                self.n_eval
+            ));
+        }
+        let (_, ses) = self.distance_to_optimum()?;
+        Some(format!(
+            "step 5 stopped ({}) before its optimum (relative offset {:.3}: up to {ses:.1} \
+             standard errors from it, not in the standard errors)",
+            self.stopped_by, self.rel_offset
         ))
     }
 }

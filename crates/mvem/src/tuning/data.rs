@@ -6,7 +6,7 @@
 //! degrees Celsius or a speed in rad/s where r/min is expected is caught), time strictly
 //! increasing. Errors name the file, the line (1-based, the header is line 1) and the column.
 
-use crate::io::csv_columns::{header_names, read_columns, ColumnsError};
+use crate::io::csv_columns::{header_names, read_columns_with_units, split_unit, ColumnsError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -98,6 +98,27 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
     }
 }
 
+/// The names of the units a column of mvem unit `base` may be given in ([`units_of`]), for
+/// messages: "Pa, hPa, mbar, ...".
+pub(crate) fn unit_names(base: &str) -> String {
+    units_of(base)
+        .iter()
+        .map(|u| u.0)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The unit `unit` (as a header's brackets or a units row write it: exact, else ignoring ASCII
+/// case, `KPA` for `kPa`) of a column of mvem unit `base`, from [`units_of`]: (name, scale,
+/// offset); `None` when it is not one of them.
+pub(crate) fn known_unit(base: &str, unit: &str) -> Option<&'static (&'static str, f64, f64)> {
+    let known = units_of(base);
+    known
+        .iter()
+        .find(|k| k.0 == unit)
+        .or_else(|| known.iter().find(|k| k.0.eq_ignore_ascii_case(unit)))
+}
+
 /// Every column a campaign file may have, with its mvem unit (`t` of the dynamic sets first).
 pub(crate) fn campaign_columns() -> impl Iterator<Item = Column> {
     std::iter::once(col("t", "s", -1.0e6, 1.0e6))
@@ -121,10 +142,9 @@ pub(crate) fn conversion(column: &str, unit: &str) -> Result<(f64, f64), String>
         .find(|(n, _, _)| *n == unit.trim())
         .map(|&(_, s, o)| (s, o))
         .ok_or_else(|| {
-            let names: Vec<&str> = units.iter().map(|u| u.0).collect();
             format!(
                 "{column} = \"{unit}\": not a unit of {column} (one of {})",
-                names.join(", ")
+                unit_names(c.unit)
             )
         })
 }
@@ -203,10 +223,80 @@ const fn col(name: &'static str, unit: &'static str, min: f64, max: f64) -> Colu
 pub const PLAUSIBLE_W_C_MAX: f64 = 20.0;
 
 /// Plausible engine torque M_e \[Nm\]: up to 100 kNm (a 300-litre engine at 20 bar BMEP is
-/// about 50 kNm), down to -20 kNm (motoring such an engine). Power logged in W is caught where
-/// it exceeds 100 kW (below, `mvem tune`'s indicated-efficiency check of `tuning::constants`
-/// sees it).
+/// about 50 kNm), down to -20 kNm (motoring such an engine). Power logged in W is caught by
+/// this range where it exceeds 100 kW, and at lower powers by the torque's BMEP for the
+/// displacement the air flows imply ([`PLAUSIBLE_BMEP_MAX`]).
 pub const PLAUSIBLE_M_E: (f64, f64) = (-2.0e4, 1.0e5);
+
+/// Largest brake mean effective pressure BMEP = 4 pi M_e / V_d of a four-stroke diesel engine
+/// \[Pa\]: about 30 bar (heavy-duty engines reach 25-30 at full load). Torque columns whose
+/// values exceed it for the displacement the air flows imply ([`displacement_bound`]) are
+/// refused ([`torque_beyond_bmep`]): power logged in W and read as torque gives about
+/// `2 pi n_e / 60` (31-630 /s) times the torque, beyond it at every point above a few percent
+/// of full load, also where it stays inside [`PLAUSIBLE_M_E`].
+pub const PLAUSIBLE_BMEP_MAX: f64 = 30.0e5;
+
+/// Gas constant of air \[J/(kg K)\] of the displacement estimate [`displacement_bound`] (the
+/// published parameter set's R_a).
+const R_AIR: f64 = 287.0;
+
+/// The largest displacement \[m^3\] the stationary points' air flows allow: eq. (11) solved
+/// for V_d, `W_ei 120 R_a T_im / (eta_vol p_im n_e)` with W_ei = W_c / (1 - x_egr) (eq. (10))
+/// and the lowest volumetric efficiency of four-stroke diesels, 0.7
+/// (`tuning::constants::ETA_VOL_RANGE`), the largest over the points (x_egr below 0.95). A
+/// larger displacement would need a lower volumetric efficiency, so a torque is checked against
+/// its smallest plausible BMEP; a point whose flow is too large only makes the check less
+/// sensitive (power read as torque exceeds the bound 31-630 times). `None` without a usable
+/// point.
+pub fn displacement_bound(points: &[StationaryPoint]) -> Option<f64> {
+    let eta_vol_min = super::constants::ETA_VOL_RANGE.0;
+    let v = points
+        .iter()
+        .filter(|s| s.x_egr < 0.95)
+        .map(|s| s.w_c / (1.0 - s.x_egr) * 120.0 * R_AIR * s.t_im / (eta_vol_min * s.p_im * s.n_e))
+        .filter(|v| v.is_finite() && *v > 0.0);
+    v.reduce(f64::max)
+}
+
+/// The first (0-based) sample of the torques `m_e` \[Nm\] at the speeds `n_e` \[r/min\] whose
+/// BMEP `4 pi M_e / v_d` exceeds [`PLAUSIBLE_BMEP_MAX`] with the displacement bound `v_d`
+/// \[m^3\] ([`displacement_bound`]), with why, naming the suspected cause: power in W when the
+/// values read as power give a plausible torque at every sample, else a wrong unit or column.
+pub fn torque_beyond_bmep(m_e: &[f64], n_e: &[f64], v_d: f64) -> Option<(usize, String)> {
+    let bmep = |m: f64| 4.0 * std::f64::consts::PI * m / v_d;
+    let k = m_e.iter().position(|m| bmep(*m) > PLAUSIBLE_BMEP_MAX)?;
+    let omega = |n: f64| 2.0 * std::f64::consts::PI * n / 60.0;
+    let as_power = m_e
+        .iter()
+        .zip(n_e)
+        .all(|(m, n)| bmep(m / omega(*n)).abs() <= PLAUSIBLE_BMEP_MAX);
+    let cause = if as_power {
+        format!(
+            "power logged in W? As power, {} W at {} r/min is a torque of {} Nm, {:.1} bar, \
+             and so are the other values plausible torques: give the torque in Nm (or kNm, \
+             [units])",
+            crate::numerics::Num(m_e[k]),
+            crate::numerics::Num(n_e[k]),
+            crate::numerics::Num(m_e[k] / omega(n_e[k])),
+            bmep(m_e[k] / omega(n_e[k])) / 1e5
+        )
+    } else {
+        "a wrong unit or column? (torque in Nm, or kNm with [units])".to_string()
+    };
+    Some((
+        k,
+        format!(
+            "{} Nm is a brake mean effective pressure of at least {:.0} bar (4 pi M_e / V_d with \
+             V_d at most {:.3} dm^3, the displacement the stationary points' air flows allow by \
+             eq. (11) at a volumetric efficiency of 0.7 or more), beyond the {:.0} bar of \
+             four-stroke diesel engines: {cause}",
+            crate::numerics::Num(m_e[k]),
+            bmep(m_e[k]) / 1e5,
+            v_d * 1e3,
+            PLAUSIBLE_BMEP_MAX / 1e5
+        ),
+    ))
+}
 
 /// Largest plausible injected fuel u_delta \[mg/cycle/cylinder\]: about 100 mg per litre of
 /// cylinder displacement at full load (the published engine: 220 mg, 2.1 l), so 2000 mg is a
@@ -487,31 +577,129 @@ pub(crate) fn read(path: &Path) -> Result<String, DataError> {
     })
 }
 
+/// What [`parse_columns`] read: the rows in mvem's units, each row's 1-based line in the file,
+/// and each column's conversion.
+struct Parsed {
+    rows: Vec<Vec<f64>>,
+    lines: Vec<usize>,
+    conv: Vec<Conversion>,
+}
+
+/// A column's unit and its conversion to mvem's (`scale * v + offset`): (scale, offset, the
+/// unit's name as the messages give the values).
+type Conversion = Option<(f64, f64, String)>;
+
+/// The unit of each column of `required` (headed `headers` in the file) and its conversion to
+/// mvem's unit, from up to three places: the manifest's `[units]`, the header's brackets
+/// (`p_im [kPa]`, a unit mvem knows: [`known_unit`], as `mvem campaign --init` reads them) and
+/// the file's units row under the header (`units_row`: its line and its fields in `required`'s
+/// order). Where several give a unit they must agree (the same conversion: `rpm` and `1/min`
+/// do); a units-row unit mvem does not know is an error unless `[units]` declares the column.
+/// `None` for a column in mvem's unit.
+fn column_units(
+    path: &Path,
+    required: &[Column],
+    headers: &[&str],
+    layout: &Layout,
+    units_row: Option<&(usize, Vec<String>)>,
+) -> Result<Vec<Conversion>, DataError> {
+    let mut out = Vec::with_capacity(required.len());
+    for (k, c) in required.iter().enumerate() {
+        let bad = |line: usize, message: String| DataError::Value {
+            path: path.to_path_buf(),
+            line,
+            column: layout.label(c.name).0,
+            renamed: layout.label(c.name).1,
+            message,
+        };
+        // (where, line, unit, scale, offset)
+        let mut given: Vec<(String, usize, String, f64, f64)> = Vec::new();
+        let declared = layout.units.get(c.name);
+        if let Some(u) = declared {
+            let (sc, o) = conversion(c.name, u).map_err(|m| DataError::Format {
+                path: path.to_path_buf(),
+                message: format!("units: {m}"),
+            })?;
+            given.push(("the manifest's [units]".into(), 1, u.trim().into(), sc, o));
+        }
+        let h = split_unit(headers[k]);
+        if let Some(&(u, sc, o)) = h
+            .unit
+            .filter(|_| h.closed)
+            .and_then(|u| known_unit(c.unit, u))
+        {
+            given.push(("its header".into(), 1, u.into(), sc, o));
+        }
+        if let Some((line, cells)) = units_row {
+            let cell = cells[k].trim();
+            match known_unit(c.unit, cell) {
+                _ if cell.is_empty() => {}
+                Some(&(u, sc, o)) => {
+                    given.push((
+                        format!("the units row (line {line})"),
+                        *line,
+                        u.into(),
+                        sc,
+                        o,
+                    ));
+                }
+                None if declared.is_some() => {}
+                None => {
+                    return Err(bad(
+                        *line,
+                        format!(
+                            "`{cell}` in the units row is not a unit of {} (one of {}): correct \
+                             it, or declare the column's unit in the manifest's [units] \
+                             (docs/tuning-data.md)",
+                            c.name,
+                            unit_names(c.unit)
+                        ),
+                    ));
+                }
+            }
+        }
+        let Some(first) = given.first() else {
+            out.push(None);
+            continue;
+        };
+        let same = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0);
+        if let Some(other) = given[1..]
+            .iter()
+            .find(|g| !(same(g.3, first.3) && same(g.4, first.4)))
+        {
+            return Err(bad(
+                other.1.max(first.1),
+                format!(
+                    "{} gives the unit `{}`, {} `{}`: which is it? (a unit given in more than \
+                     one place must agree; docs/tuning-data.md)",
+                    first.0, first.2, other.0, other.2
+                ),
+            ));
+        }
+        // a unit found in the file that is mvem's own needs no conversion
+        out.push(
+            (declared.is_some() || !(first.3 == 1.0 && first.4 == 0.0))
+                .then(|| (first.3, first.4, first.2.clone())),
+        );
+    }
+    Ok(out)
+}
+
 /// Parse a CSV into (header, rows), checking that `required` columns exist and every value of
-/// them is finite and, converted from its unit in `units` to mvem's, within its range. Returns
-/// the rows of the required columns in order, in mvem's units.
+/// them is finite and, converted to mvem's units, within its range. The units: the manifest's
+/// `[units]`, brackets in the header names and an optional units row under the header
+/// ([`column_units`]). Returns the rows of the required columns in order, in mvem's units, and
+/// each column's conversion.
 fn parse_columns(
     text: &str,
     path: &Path,
     required: &[Column],
     layout: &Layout,
-) -> Result<Vec<Vec<f64>>, DataError> {
-    let units = &layout.units;
+) -> Result<Parsed, DataError> {
     let fmt = |message: String| DataError::Format {
         path: path.to_path_buf(),
         message,
     };
-    let conv: Vec<Option<(f64, f64, &str)>> = required
-        .iter()
-        .map(|c| {
-            units.get(c.name).map(|u| {
-                conversion(c.name, u)
-                    .map(|(s, o)| (s, o, u.as_str()))
-                    .map_err(|m| fmt(format!("units: {m}")))
-            })
-        })
-        .map(Option::transpose)
-        .collect::<Result<_, _>>()?;
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
     let headers: Vec<&str> = names.iter().map(|n| layout.header(n)).collect();
     // a column headed twice: the reader would take the first silently
@@ -536,7 +724,7 @@ fn parse_columns(
             }
         }
     }
-    let read = read_columns(text, &headers).map_err(|e| match e {
+    let (units_row, read) = read_columns_with_units(text, &headers).map_err(|e| match e {
         ColumnsError::Header(m) => fmt(format!("cannot read the header: {m}")),
         ColumnsError::Missing { missing, .. } => DataError::MissingColumn {
             path: path.to_path_buf(),
@@ -562,16 +750,18 @@ fn parse_columns(
             } else if line == 2 {
                 // test-cell exports often put the units in a row under the header
                 format!(
-                    "`{field}` is not a number (a row of units under the header? Remove it or \
-                     start it with `#`, and declare the units in the manifest's [units], \
-                     docs/tuning-data.md)"
+                    "`{field}` is not a number (a row of units under the header? A units row \
+                     has a unit or nothing in every column, no number; or start it with `#` and \
+                     declare the units in the manifest's [units], docs/tuning-data.md)"
                 )
             } else {
                 format!("`{field}` is not a number")
             },
         },
     })?;
+    let conv = column_units(path, required, &headers, layout, units_row.as_ref())?;
     let mut rows = Vec::with_capacity(read.len());
+    let mut lines = Vec::with_capacity(read.len());
     for (line, mut row) in read {
         for ((c, v), cv) in required.iter().zip(row.iter_mut()).zip(&conv) {
             let bad = |message: String| DataError::Value {
@@ -616,11 +806,12 @@ fn parse_columns(
             }
         }
         rows.push(row);
+        lines.push(line);
     }
     if rows.is_empty() {
         return Err(fmt("no data rows".into()));
     }
-    Ok(rows)
+    Ok(Parsed { rows, lines, conv })
 }
 
 /// `cols` without those named in `optional` that the header of `text` lacks (by the file's
@@ -652,8 +843,8 @@ pub fn parse_stationary_csv(
 ) -> Result<Vec<StationaryPoint>, DataError> {
     let cols = without_absent(text, layout, STATIONARY_COLUMNS.to_vec(), &["T_t"]);
     let t_t_given = cols.len() == STATIONARY_COLUMNS.len();
-    let rows = parse_columns(text, path, &cols, layout)?;
-    Ok(rows
+    let Parsed { rows, lines, .. } = parse_columns(text, path, &cols, layout)?;
+    let points: Vec<StationaryPoint> = rows
         .into_iter()
         .map(|mut r| {
             if !t_t_given {
@@ -663,7 +854,37 @@ pub fn parse_stationary_csv(
             v.copy_from_slice(&r);
             StationaryPoint::from_values(v)
         })
-        .collect())
+        .collect();
+    if let Some(v_d) = displacement_bound(&points) {
+        let m_e: Vec<f64> = points.iter().map(|s| s.m_e).collect();
+        let n_e: Vec<f64> = points.iter().map(|s| s.n_e).collect();
+        check_torque(path, layout, &m_e, &n_e, &lines, v_d)?;
+    }
+    Ok(points)
+}
+
+/// Refuse torques `m_e` at speeds `n_e` (rows on the file's `lines`) beyond the BMEP of a
+/// diesel engine of displacement at most `v_d` ([`torque_beyond_bmep`]), naming the file, the
+/// line and the column.
+fn check_torque(
+    path: &Path,
+    layout: &Layout,
+    m_e: &[f64],
+    n_e: &[f64],
+    lines: &[usize],
+    v_d: f64,
+) -> Result<(), DataError> {
+    let Some((k, message)) = torque_beyond_bmep(m_e, n_e, v_d) else {
+        return Ok(());
+    };
+    let (column, renamed) = layout.label("M_e");
+    Err(DataError::Value {
+        path: path.to_path_buf(),
+        line: lines[k],
+        column,
+        renamed,
+        message,
+    })
 }
 
 /// Load a stationary CSV file.
@@ -729,6 +950,18 @@ pub fn parse_dynamic_csv(
     kind: StepKind,
     layout: &Layout,
 ) -> Result<DynamicData, DataError> {
+    parse_dynamic(text, path, name, kind, layout).map(|(d, ..)| d)
+}
+
+/// [`parse_dynamic_csv`], whether the time's unit is given (the manifest's `[units]`, the
+/// header's brackets or a units row), and each row's line in the file.
+fn parse_dynamic(
+    text: &str,
+    path: &Path,
+    name: &str,
+    kind: StepKind,
+    layout: &Layout,
+) -> Result<(DynamicData, bool, Vec<usize>), DataError> {
     let req = match kind {
         StepKind::Actuator => dynamic_required(kind),
         _ => without_absent(
@@ -738,10 +971,10 @@ pub fn parse_dynamic_csv(
             &OPTIONAL_DYNAMIC_COLUMNS,
         ),
     };
-    let rows = parse_columns(text, path, &req, layout)?;
+    let Parsed { rows, lines, conv } = parse_columns(text, path, &req, layout)?;
     // the times as the file writes them, in its unit (the rows hold seconds)
-    let (unit, (scale, offset)) = match layout.units.get("t") {
-        Some(u) => (u.trim(), conversion("t", u).unwrap_or((1.0, 0.0))),
+    let (unit, (scale, offset)) = match &conv[0] {
+        Some((s, o, u)) => (u.as_str(), (*s, *o)),
         None => ("s", (1.0, 0.0)),
     };
     let given = |s: f64| crate::numerics::Num((s - offset) / scale);
@@ -750,7 +983,7 @@ pub fn parse_dynamic_csv(
             let (column, renamed) = layout.label("t");
             return Err(DataError::Value {
                 path: path.to_path_buf(),
-                line: k + 3,
+                line: lines[k + 1],
                 column,
                 renamed,
                 message: format!(
@@ -768,11 +1001,16 @@ pub fn parse_dynamic_csv(
         .enumerate()
         .map(|(j, c)| (c.name.to_string(), rows.iter().map(|r| r[j + 1]).collect()))
         .collect();
-    Ok(DynamicData {
-        name: name.to_string(),
-        t,
-        columns,
-    })
+    let declared = conv[0].is_some() || layout.units.contains_key("t");
+    Ok((
+        DynamicData {
+            name: name.to_string(),
+            t,
+            columns,
+        },
+        declared,
+        lines,
+    ))
 }
 
 /// A dynamic data set as CSV text (`t` first, then the columns in stored order).
@@ -870,11 +1108,17 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let manifest = parse_manifest(&text, &mpath)?;
     let layout = Layout::of(&manifest);
     let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &layout)?;
+    let v_d = displacement_bound(&stationary);
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        let set = parse_dynamic_csv(&read(&p)?, &p, &d.name, d.kind, &layout)?;
-        if !layout.units.contains_key("t") {
+        let (set, time_unit_given, lines) =
+            parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
+        // the torque of a dynamic set against the displacement of the stationary points
+        if let (Some(v_d), Some(m_e), Some(n_e)) = (v_d, set.get("M_e"), set.get("n_e")) {
+            check_torque(&p, &layout, m_e, n_e, &lines, v_d)?;
+        }
+        if !time_unit_given {
             check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout)?;
         }
         dynamic.push(set);
@@ -1011,6 +1255,206 @@ mod tests {
     }
     const ROW: &str =
         "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+
+    /// Test-cell exports write a row of units under the header: read and applied as a unit in
+    /// the header's brackets or the manifest's [units] is (session 38; before, "`Nm` is not a
+    /// number (a row of units under the header? ...)"); units given in two places must agree.
+    #[test]
+    fn a_units_row_under_the_header_is_read_like_units_in_brackets() {
+        let p = Path::new("s.csv");
+        let want =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
+        let units = "Nm,1/min,rpm,hPa,kPa,bar,kPa,degC,K,degC,degC,K,%,%,mg/stroke,g/s,%";
+        let row = "1000,1500,80000,1013,200,2.5,200,24.85,390,526.85,36.85,700,20,50,150,300,10";
+        let close = |got: &[StationaryPoint]| {
+            got.len() == 1
+                && (got[0].values().iter().zip(want[0].values()))
+                    .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1.0))
+        };
+        let read = |text: String, layout: &Layout| parse_stationary_csv(&text, p, layout);
+        let got = read(
+            format!("{}\n{units}\n{row}\n", header()),
+            &Layout::default(),
+        )
+        .unwrap();
+        assert!(close(&got), "{got:?}");
+        // with a comment line between, `;` separated, and empty cells (mvem's unit)
+        let semi = format!(
+            "{}\n# exported\n{}\n{}\n",
+            header().replace(',', ";"),
+            units.replace("K,", ";").replace(',', ";"),
+            row.replace(',', ";")
+        );
+        assert!(close(&read(semi, &Layout::default()).unwrap()));
+        // the same unit in the header's brackets and the row, or in [units] and the row
+        let map = |v: &[(&str, &str)]| {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect::<BTreeMap<_, _>>()
+        };
+        let bracket = Layout {
+            names: map(&[("p_im", "p_im [kPa]")]),
+            units: ColumnUnits::new(),
+        };
+        let head = header().replace("p_im", "p_im [kPa]");
+        assert!(close(
+            &read(format!("{head}\n{units}\n{row}\n"), &bracket).unwrap()
+        ));
+        let declared = Layout {
+            names: ColumnNames::new(),
+            units: map(&[("p_em", "bar"), ("n_e", "rpm")]),
+        };
+        assert!(close(
+            &read(format!("{}\n{units}\n{row}\n", header()), &declared).unwrap()
+        ));
+        // conflicts name the file, the line and the column
+        let bar = units.replacen("kPa,degC", "bar,degC", 1);
+        assert_eq!(
+            read(format!("{head}\n{bar}\n{row}\n"), &bracket)
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): its header gives the unit `kPa`, \
+             the units row (line 2) `bar`: which is it? (a unit given in more than one place \
+             must agree; docs/tuning-data.md)"
+        );
+        let kpa = Layout {
+            names: ColumnNames::new(),
+            units: map(&[("p_im", "kPa")]),
+        };
+        assert_eq!(
+            read(format!("{}\n#\n{bar}\n{row}\n", header()), &kpa)
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 3, column `p_im`: the manifest's [units] gives the unit `kPa`, the units \
+             row (line 3) `bar`: which is it? (a unit given in more than one place must agree; \
+             docs/tuning-data.md)"
+        );
+        // a unit of the row mvem does not know: an error, unless [units] declares the column
+        let psia = units.replacen("kPa,degC", "psia,degC", 1);
+        let e = read(format!("{}\n{psia}\n{row}\n", header()), &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "s.csv: line 2, column `p_im`: `psia` in the units row is not a unit of p_im (one \
+                 of Pa, hPa, mbar, kPa, bar, MPa, psi)"
+            ),
+            "{e}"
+        );
+        assert!(close(
+            &read(format!("{}\n{psia}\n{row}\n", header()), &kpa).unwrap()
+        ));
+        // a dynamic set's times in ms by its units row: converted, and the lines of its
+        // messages count the row
+        let head = "t,n_t,p_em,p_im,W_c,M_e,n_e,u_egr,u_vgt,u_delta";
+        let units = "ms,rpm,kPa,kPa,kg/h,Nm,rpm,%,%,mg/stroke";
+        let r = |t: &str| format!("{t},80000,250,200,1080,1000,1500,20,50,150");
+        let text = [head.to_string(), units.into(), r("80"), r("90")].join("\n");
+        let set = |text: &str| {
+            parse_dynamic_csv(
+                text,
+                Path::new("C.csv"),
+                "C",
+                StepKind::VgtEgr,
+                &Layout::default(),
+            )
+        };
+        let d = set(&text).unwrap();
+        assert_eq!(d.t, [0.08, 0.09]);
+        assert!((d.get("p_em").unwrap()[0] - 2.5e5).abs() < 1e-6);
+        assert!((d.get("W_c").unwrap()[1] - 0.3).abs() < 1e-12);
+        let e = set(&[text, r("90")].join("\n")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "C.csv: line 5, column `t`: time 90 ms does not increase (previous row 90 ms): \
+             duplicate or unsorted timestamp"
+        );
+    }
+
+    /// Power logged in W and read as torque was caught only above 100 kW (the range of M_e);
+    /// below, the campaign loaded and step 1 fitted eta_igch to it (session 37). The torque's
+    /// BMEP for the displacement the air flows allow catches it, in the stationary file and in
+    /// the dynamic sets, while the published engine's campaign loads.
+    #[test]
+    fn power_in_w_read_as_torque_is_caught_below_100_kw() {
+        let opts = crate::tuning::lab::LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into()]),
+            ..Default::default()
+        };
+        let p = crate::params::Params::published();
+        let (c, _) = crate::tuning::lab::campaign(&p, &opts).unwrap();
+        // the bound lies above the true displacement (volumetric efficiency 0.7, not ~0.9)
+        let v_d = displacement_bound(&c.stationary).unwrap();
+        assert!((1.0..1.5).contains(&(v_d / p.cylinder.v_d)), "{v_d}");
+        let bmep = |m: f64| 4.0 * std::f64::consts::PI * m / v_d;
+        let most = c.stationary.iter().map(|s| bmep(s.m_e)).fold(0.0, f64::max);
+        assert!(most < 0.8 * PLAUSIBLE_BMEP_MAX, "{most}");
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        assert!(load_campaign(dir.path()).is_ok());
+        // the points below 100 kW with their power in the torque column
+        let omega = |n: f64| 2.0 * std::f64::consts::PI * n / 60.0;
+        let power: Vec<StationaryPoint> = c
+            .stationary
+            .iter()
+            .filter(|s| s.m_e * omega(s.n_e) < 1e5)
+            .map(|s| StationaryPoint {
+                m_e: s.m_e * omega(s.n_e),
+                ..*s
+            })
+            .collect();
+        assert!(power.len() >= 3, "{}", power.len());
+        let k = power
+            .iter()
+            .position(|s| bmep(s.m_e) > PLAUSIBLE_BMEP_MAX)
+            .unwrap();
+        let text = stationary_csv(&power);
+        let e = parse_stationary_csv(&text, Path::new("s.csv"), &Layout::default())
+            .unwrap_err()
+            .to_string();
+        let s = &power[k];
+        let want = format!(
+            "s.csv: line {}, column `M_e`: {} Nm is a brake mean effective pressure of at least \
+             {:.0} bar (4 pi M_e / V_d with V_d at most {:.3} dm^3, the displacement the \
+             stationary points' air flows allow by eq. (11) at a volumetric efficiency of 0.7 or \
+             more), beyond the 30 bar of four-stroke diesel engines: power logged in W? As \
+             power, {} W at {} r/min is a torque of {} Nm",
+            k + 2,
+            crate::numerics::Num(s.m_e),
+            bmep(s.m_e) / 1e5,
+            v_d * 1e3,
+            crate::numerics::Num(s.m_e),
+            crate::numerics::Num(s.n_e),
+            crate::numerics::Num(s.m_e / omega(s.n_e)),
+        );
+        assert!(e.starts_with(&want), "{e}\n{want}");
+        // values that are no torque as power either (a 2-litre engine's 90 kNm at 600 r/min,
+        // 1432 Nm as power): another cause
+        let (_, why) = torque_beyond_bmep(&[100.0, 9.0e4], &[1500.0, 600.0], 2.0e-3).unwrap();
+        assert!(
+            why.ends_with("engines: a wrong unit or column? (torque in Nm, or kNm with [units])"),
+            "{why}"
+        );
+        // a dynamic set at 300 Nm with its power in W (47 kW at 1500 r/min): named with its
+        // file's line
+        let mut d = c.clone();
+        let n_e = d.dynamic[0].get("n_e").unwrap().to_vec();
+        let m_e = &mut d.dynamic[0]
+            .columns
+            .iter_mut()
+            .find(|c| c.0 == "M_e")
+            .unwrap()
+            .1;
+        for (m, n) in m_e.iter_mut().zip(&n_e) {
+            *m = 300.0 * omega(*n);
+        }
+        save_campaign(dir.path(), &d).unwrap();
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("I.csv: line 2, column `M_e`: "), "{e}");
+        assert!(e.contains("power logged in W?"), "{e}");
+    }
 
     #[test]
     fn a_directory_without_manifest_points_to_the_draft() {
@@ -1154,8 +1598,8 @@ mod tests {
             .starts_with("s.csv: line 2, column `p_im`: 375 Pa is outside the plausible range [50000, 2000000] Pa"));
         assert!(err(&[full.replace(",1150000,", ",11.5,")])
             .starts_with("s.csv: line 2, column `p_em`: 11.5 Pa is outside"));
-        // the power in W for the torque (the large engine's 4.7 MW; below 100 kW, a small
-        // engine's, it is caught by `mvem tune`'s indicated-efficiency check, not here)
+        // the power in W for the torque (the large engine's 4.7 MW; below 100 kW, by the
+        // torque's BMEP: power_in_w_read_as_torque_is_caught_below_100_kw)
         assert!(err(&[full.replace("30000,1500", "4712389,1500")])
             .starts_with("s.csv: line 2, column `M_e`: 4712389 Nm is outside the plausible range [-20000, 100000] Nm"));
     }
@@ -1200,7 +1644,8 @@ mod tests {
             e(format!("{own}\n{row}\n{}\n", ROW.replace(",0.3,", ",n/a,"))),
             "s.csv: line 3, column `Air mass flow` (mvem's `W_c`): `n/a` is not a number"
         );
-        // a row of units under the header, as test-cell exports write it
+        // a row of units under the header, as test-cell exports write it, with a unit mvem
+        // does not know (session 38 reads the row: units_row_under_the_header_...)
         let units_row = own
             .split(',')
             .map(|h| if h == "Air mass flow" { "kg/h" } else { "-" })
@@ -1208,11 +1653,19 @@ mod tests {
             .join(",");
         assert_eq!(
             e(format!("{own}\n{units_row}\n{row}\n")),
-            "s.csv: line 2, column `M_e`: `-` is not a number (a row of units under the header? \
-             Remove it or start it with `#`, and declare the units in the manifest's [units], \
-             docs/tuning-data.md)"
+            "s.csv: line 2, column `M_e`: `-` in the units row is not a unit of M_e (one of Nm, \
+             N m, kNm): correct it, or declare the column's unit in the manifest's [units] \
+             (docs/tuning-data.md)"
         );
         assert!(parse_stationary_csv(&format!("{own}\n#{units_row}\n{row}\n"), p, &layout).is_ok());
+        // a second line with numbers and text is data, with the hint
+        let half = ROW.replacen("1000,", "Nm,", 1);
+        assert_eq!(
+            e(format!("{own}\n{half}\n{row}\n")),
+            "s.csv: line 2, column `M_e`: `Nm` is not a number (a row of units under the header? \
+             A units row has a unit or nothing in every column, no number; or start it with `#` \
+             and declare the units in the manifest's [units], docs/tuning-data.md)"
+        );
         // a timestamp logged twice, in ms
         let head = "Time,n_t,p_em,p_im,Air mass flow,M_e,n_e,u_egr,u_vgt,u_delta";
         let r = |t: &str| format!("{t},80000,250000,200000,1080,1000,1500,20,50,150");

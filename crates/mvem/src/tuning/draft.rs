@@ -6,11 +6,12 @@
 //!
 //! The guesses: a file with every stationary column (Table 5; `T_t` optional) is the stationary
 //! file (the first in name order if several); a file with `t` and the actuator columns only is
-//! an actuator set (role `actuator`); a file with the dynamic columns is a fuel-step set (roles
-//! `dynamic`, `static`) when only u_delta steps, else a VGT/EGR set (role `static`, and
-//! `dynamic` when sampled at 10 Hz or faster, as the paper's sets B and C); no set gets the
-//! role `validation` (hold some back by hand). Files that are neither are skipped, with the
-//! columns they lack.
+//! an actuator set (role `actuator`); a file with the dynamic columns is a fuel-step set when
+//! only u_delta steps, else a VGT/EGR set; both get the role `static`, and `dynamic` when
+//! sampled at 10 Hz or faster ([`DYNAMIC_MIN_RATE_HZ`]: the paper's B, C and I; its 1 Hz sets,
+//! fuel steps V too, only show settled levels). With at least three static sets, one that is
+//! only static (a slow fuel-step set first, as the paper's V) is held back with the role
+//! `validation` alone. Files that are neither are skipped, with the columns they lack.
 //!
 //! Headers that are not mvem's names are matched when they differ only in case, spaces,
 //! underscores, hyphens and dots (`P_IM`, `p im`, `Time` for `t`) and may carry a unit in
@@ -21,12 +22,12 @@
 //! before it is skipped, naming both.
 
 use super::data::{
-    campaign_columns, conversion, dynamic_required, read, times_look_like_ms, units_of, Column,
-    DataError, DataSetInfo, Manifest, Role, StepKind, ACTUATOR_COLUMNS, DYNAMIC_COLUMNS,
-    OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
+    campaign_columns, conversion, dynamic_required, known_unit, read, times_look_like_ms,
+    unit_names, units_of, Column, DataError, DataSetInfo, Manifest, Role, StepKind,
+    ACTUATOR_COLUMNS, DYNAMIC_COLUMNS, OPTIONAL_DYNAMIC_COLUMNS, STATIONARY_COLUMNS,
 };
 use super::summary::{manifest_name, median, median_step, roles_text, steps_in};
-use crate::io::csv_columns::{header_names, read_columns};
+use crate::io::csv_columns::{header_names, read_columns_with_units, split_unit};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -91,44 +92,94 @@ fn normalized(name: &str) -> String {
 struct Heading {
     /// The header name in the file.
     header: String,
-    /// The unit the header gives in brackets, where mvem knows it (and it is not mvem's).
+    /// The unit the header gives in brackets, or the file's units row, where mvem knows it
+    /// (and it is not mvem's).
     unit: Option<&'static str>,
+    /// Whether the units row gives a unit mvem does not know (the loader refuses that unless
+    /// `[units]` declares the column).
+    unknown_in_row: bool,
 }
 
 /// mvem's column a header names (see the module documentation), the unit in its brackets where
 /// known (None for mvem's own unit), and a note for a bracketed unit mvem does not know.
 fn match_header(h: &str) -> Option<(Column, Option<&'static str>, Option<String>)> {
     let h = h.trim();
-    let (base, unit) = match h.find(['[', '(']) {
-        Some(k) if h.ends_with([']', ')']) => (&h[..k], Some(h[k + 1..h.len() - 1].trim())),
+    let (base, unit) = match split_unit(h) {
+        s if s.closed => (s.name, s.unit),
         _ => (h, None),
     };
     let key = normalized(base);
     let key = if key == "time" { "t".to_string() } else { key };
     let c = campaign_columns().find(|c| normalized(c.name) == key)?;
-    let Some(u) = unit.filter(|u| !u.is_empty()) else {
+    let Some(u) = unit else {
         return Some((c, None, None));
     };
-    let known = units_of(c.unit);
-    let found = known
-        .iter()
-        .find(|k| k.0 == u)
-        .or_else(|| known.iter().find(|k| k.0.eq_ignore_ascii_case(u)));
-    match found {
-        Some(k) if k.0 == c.unit || (k.1 == 1.0 && k.2 == 0.0) => Some((c, None, None)),
-        Some(k) => Some((c, Some(k.0), None)),
-        None => Some((
-            c,
+    let (unit, note) = unit_of_column(&c, u, h);
+    Some((c, unit, note))
+}
+
+/// The unit `u` that `place` (a header, a units row) gives column `c`, as [`Heading::unit`]
+/// takes it: `None` for mvem's own unit, and a note for a unit mvem does not know (the column's
+/// unit is then guessed from its values).
+fn unit_of_column(c: &Column, u: &str, place: &str) -> (Option<&'static str>, Option<String>) {
+    match known_unit(c.unit, u) {
+        Some(k) if k.0 == c.unit || (k.1 == 1.0 && k.2 == 0.0) => (None, None),
+        Some(k) => (Some(k.0), None),
+        None => (
             None,
             Some(format!(
-                "{h}: unit `{u}` not known for {} (mvem's unit {}; known: {}), guessed from \
+                "{place}: unit `{u}` not known for {} (mvem's unit {}; known: {}), guessed from \
                  the values",
                 c.name,
                 c.unit,
-                known.iter().map(|k| k.0).collect::<Vec<_>>().join(", ")
+                unit_names(c.unit)
             )),
-        )),
+        ),
     }
+}
+
+/// The units a file's units row (a row of units under the header, [`read_columns_with_units`])
+/// gives the columns of `heads` that their headers give none, as the headers' brackets are
+/// taken ([`unit_of_column`]); notes for unknown units and for a units-row unit that
+/// contradicts the header's (the loader refuses the file then).
+fn units_from_row(f: &str, text: &str, heads: &mut BTreeMap<&'static str, Heading>) -> Vec<String> {
+    let names: Vec<&str> = heads.values().map(|g| g.header.as_str()).collect();
+    let Some((line, cells)) = read_columns_with_units(text, &names).ok().and_then(|r| r.0) else {
+        return Vec::new();
+    };
+    let mut notes = Vec::new();
+    for ((name, g), cell) in heads.iter_mut().zip(cells) {
+        let cell = cell.trim();
+        let Some(c) = campaign_columns()
+            .find(|c| c.name == *name)
+            .filter(|_| !cell.is_empty())
+        else {
+            continue;
+        };
+        let place = format!("{f}: units row (line {line}), column `{}`", g.header);
+        let (unit, note) = unit_of_column(&c, cell, &place);
+        let h = split_unit(&g.header);
+        match h
+            .unit
+            .filter(|_| h.closed)
+            .and_then(|b| known_unit(c.unit, b))
+        {
+            Some(b) if known_unit(c.unit, cell).is_some_and(|r| (r.1, r.2) != (b.1, b.2)) => {
+                notes.push(format!(
+                    "{place}: `{cell}`, but its header says `{}`: the campaign cannot be loaded \
+                     until they agree",
+                    b.0
+                ));
+            }
+            Some(_) => {}
+            None => {
+                g.unknown_in_row = note.is_some();
+                notes.extend(note);
+                g.unit = unit;
+            }
+        }
+    }
+    notes
 }
 
 /// How a file with `header` heads mvem's columns: exact names first, then matched ones
@@ -143,6 +194,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                 Heading {
                     header: h.clone(),
                     unit: None,
+                    unknown_in_row: false,
                 },
             );
         }
@@ -167,6 +219,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
             Heading {
                 header: h.clone(),
                 unit,
+                unknown_in_row: false,
             },
         );
     }
@@ -186,8 +239,8 @@ fn columns(
         .copied()
         .collect();
     let names: Vec<&str> = have.iter().map(|c| heads[c.name].header.as_str()).collect();
-    match read_columns(text, &names) {
-        Ok(rows) => have
+    match read_columns_with_units(text, &names) {
+        Ok((_, rows)) => have
             .iter()
             .enumerate()
             .map(|(k, c)| {
@@ -235,7 +288,8 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     for f in &files {
         let text = read(&dir.join(f))?;
         let header = header_names(&text).unwrap_or_default();
-        let (heads, head_notes) = headings(f, &header);
+        let (mut heads, mut head_notes) = headings(f, &header);
+        head_notes.extend(units_from_row(f, &text, &mut heads));
         let clash = heads.iter().find_map(|(name, g)| {
             headed
                 .get(name)
@@ -321,7 +375,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             let fuel = steps(&["u_delta"]);
             let air = steps(&["u_egr", "u_vgt"]);
             if fuel > 0 && air == 0 {
-                (StepKind::Fuel, vec![Role::Dynamic, Role::Static], fuel)
+                (StepKind::Fuel, vec![Role::Static], fuel)
             } else {
                 (
                     StepKind::VgtEgr,
@@ -351,8 +405,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             (r * scale).round() / scale
         });
         let mut roles = roles;
-        if kind == StepKind::VgtEgr && rate >= 10.0 {
-            roles.push(Role::Dynamic);
+        // a set sampled slower than DYNAMIC_MIN_RATE_HZ shows the settled levels of its
+        // steps, not their responses: static only (step 5), as the paper's 1 Hz sets
+        if kind != StepKind::Actuator && rate >= DYNAMIC_MIN_RATE_HZ {
+            roles.insert(usize::from(kind == StepKind::VgtEgr), Role::Dynamic);
         }
         let speed = get("n_e")
             .and_then(|n| median(n.clone()))
@@ -449,6 +505,15 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                  in %, set [units] {name} = \"-\" (read as it is, 1 means 1 %)"
             ));
         }
+        // a unit of the units row mvem does not know, no other guessed: declared in mvem's
+        // unit, which the loader takes over the row's (its values lie in range in it)
+        if !units.contains_key(*name) && headed.get(name).is_some_and(|(g, _)| g.unknown_in_row) {
+            notes.push(format!(
+                "{name}: in {} (its values lie in range; the units row's unit is not known)",
+                c.unit
+            ));
+            units.insert(name.to_string(), c.unit.to_string());
+        }
     }
     // a unit a header gives for a column whose values are not checked against a range above:
     // the time (`t [ms]`, `Time [ms]`), which the sample rates were computed in
@@ -474,12 +539,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         ));
         units.insert("t".to_string(), "ms".to_string());
     }
-    if !sets.iter().any(|s| s.roles.contains(&Role::Validation)) {
-        notes.push(
-            "no set has the role \"validation\": give it to sets you hold back from the tuning"
-                .into(),
-        );
-    }
+    notes.push(hold_back_for_validation(&mut sets));
     Ok(ManifestDraft {
         manifest: Manifest {
             stationary,
@@ -496,6 +556,51 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         },
         notes,
     })
+}
+
+/// The slowest sample rate \[Hz\] at which `campaign --init` gives a set the role `dynamic`:
+/// the paper's dynamic sets (B, C, I) are sampled at 10-100 Hz, its 1 Hz sets only show the
+/// settled levels of their steps (roles static and validation, Table 1), and the fastest time
+/// constants steps 3-4 fit (the manifolds', the turbo's, tau_Me about 1 s) need several
+/// samples within a step's response.
+pub const DYNAMIC_MIN_RATE_HZ: f64 = 10.0;
+
+/// The fewest static-role sets that leave one to hold back for validation: step 5 then still
+/// has two operating points.
+pub const VALIDATION_MIN_STATIC_SETS: usize = 3;
+
+/// Hold one set back for validation (its roles become only `validation`) when enough remain
+/// for the tuning: of the sets that are static only (not needed by steps 2-4), a slow fuel-step
+/// set (the paper's V) if there is one, else the last VGT/EGR set in name order, and only when
+/// at least [`VALIDATION_MIN_STATIC_SETS`] sets have the role static. A note says which and
+/// why, or why none.
+fn hold_back_for_validation(sets: &mut [DataSetInfo]) -> String {
+    let statics = sets
+        .iter()
+        .filter(|s| s.roles.contains(&Role::Static))
+        .count();
+    let only_static = |s: &DataSetInfo| s.roles == [Role::Static];
+    let pick = sets
+        .iter()
+        .rposition(|s| only_static(s) && s.kind == StepKind::Fuel)
+        .or_else(|| sets.iter().rposition(only_static));
+    match pick {
+        Some(k) if statics >= VALIDATION_MIN_STATIC_SETS => {
+            sets[k].roles = vec![Role::Validation];
+            format!(
+                "set {} held back for validation (role \"validation\" only; {} of {statics} sets \
+                 with the role \"static\" remain for step 5): give the role to other sets you \
+                 hold back, or \"static\" back to tune on it",
+                sets[k].name,
+                statics - 1
+            )
+        }
+        _ => format!(
+            "no set has the role \"validation\" ({statics} with the role \"static\", a set is \
+             held back from {VALIDATION_MIN_STATIC_SETS} on): give it to sets you hold back from \
+             the tuning"
+        ),
+    }
 }
 
 /// Why [`write_draft`] wrote nothing.
@@ -534,7 +639,13 @@ mod tests {
     fn a_lab_campaign_without_its_manifest_is_drafted_back() {
         let opts = LabOptions {
             max_steps: Some(3),
-            sets: Some(vec!["B".into(), "G".into(), "I".into(), "J".into()]),
+            sets: Some(vec![
+                "B".into(),
+                "G".into(),
+                "I".into(),
+                "J".into(),
+                "V".into(),
+            ]),
             ..LabOptions::default()
         };
         let (c, _) = campaign(&Params::published(), &opts).unwrap();
@@ -576,6 +687,18 @@ mod tests {
         }
         assert_eq!(by_name("I").roles, [Role::Dynamic, Role::Static]);
         assert_eq!(by_name("J").roles, [Role::Actuator]);
+        // the 1 Hz fuel steps of V show settled levels, not tau_Me's response: not dynamic
+        // (it was [dynamic, static]); with four static sets it is held back for validation,
+        // as the paper's V (Table 1)
+        assert_eq!(by_name("V").roles, [Role::Validation]);
+        assert!(
+            d.notes.iter().any(|n| n.starts_with(
+                "set V held back for validation (role \"validation\" only; 3 of 4 sets with \
+                 the role \"static\" remain for step 5)"
+            )),
+            "{:?}",
+            d.notes
+        );
         // B at 100 Hz tunes the dynamics, G at 1 Hz only the statics
         assert_eq!(by_name("B").roles, [Role::Static, Role::Dynamic]);
         assert_eq!(by_name("G").roles, [Role::Static]);
@@ -593,6 +716,49 @@ mod tests {
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
     }
 
+    #[test]
+    fn one_static_only_set_is_held_back_for_validation_when_three_remain() {
+        let set = |name: &str, kind: StepKind, roles: &[Role]| DataSetInfo {
+            name: name.into(),
+            roles: roles.to_vec(),
+            kind,
+            file: format!("{name}.csv"),
+            sample_rate_hz: 1.0,
+            speed_rpm: None,
+            load_pct: None,
+            steps: 3,
+        };
+        let (st, dy) = (&[Role::Static][..], &[Role::Static, Role::Dynamic][..]);
+        let mut sets = vec![
+            set("A", StepKind::VgtEgr, st),
+            set("B", StepKind::VgtEgr, dy),
+            set("D", StepKind::VgtEgr, st),
+        ];
+        let note = hold_back_for_validation(&mut sets);
+        assert_eq!(sets[2].roles, [Role::Validation], "{note}");
+        assert_eq!(
+            (sets[0].roles.as_slice(), sets[1].roles.as_slice()),
+            (st, dy)
+        );
+        // two static sets: none held back, and the note says from how many
+        let mut two = sets[..2].to_vec();
+        assert_eq!(
+            hold_back_for_validation(&mut two),
+            "no set has the role \"validation\" (2 with the role \"static\", a set is held \
+             back from 3 on): give it to sets you hold back from the tuning"
+        );
+        assert_eq!(two, sets[..2]);
+        // only dynamic sets besides one static: none either (steps 3-4 need them)
+        let mut dyn3 = vec![
+            set("B", StepKind::VgtEgr, dy),
+            set("C", StepKind::VgtEgr, dy),
+            set("I", StepKind::Fuel, &[Role::Dynamic, Role::Static]),
+        ];
+        let before = dyn3.clone();
+        assert!(hold_back_for_validation(&mut dyn3).starts_with("no set has"));
+        assert_eq!(dyn3, before);
+    }
+
     /// A small campaign of the published engine: 13 stationary points, sets I and J of 2 steps.
     fn small_ij_campaign() -> crate::tuning::data::Campaign {
         let opts = LabOptions {
@@ -602,6 +768,17 @@ mod tests {
             ..LabOptions::default()
         };
         campaign(&Params::published(), &opts).unwrap().0
+    }
+
+    /// `c` saved in a temporary directory, and the paths of its CSV files.
+    fn saved(c: &crate::tuning::data::Campaign) -> (tempfile::TempDir, Vec<PathBuf>) {
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), c).unwrap();
+        let files = std::iter::once(&c.manifest.stationary)
+            .chain(c.manifest.datasets.iter().map(|s| &s.file))
+            .map(|f| dir.path().join(f))
+            .collect();
+        (dir, files)
     }
 
     /// (mvem's name, the test cell's header, value in its unit from mvem's)
@@ -665,6 +842,77 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Test-cell exports write a row of units under the header (session 38): the draft reads
+    /// it as the headers' brackets (the units into `[units]`, the sample rates in seconds, the
+    /// unit guesses from the converted values) and the loader reads the files with it; a unit
+    /// the row gives against the header's is noted (the loader refuses it).
+    #[test]
+    fn a_units_row_is_drafted_like_units_in_brackets() {
+        let c = small_ij_campaign();
+        let (dir, files) = saved(&c);
+        for path in files {
+            rewrite(
+                &path,
+                &[("t", "t", |v| 1e3 * v), ("p_im", "p_im", |v| v / 1e3)],
+            );
+            let text = std::fs::read_to_string(&path).unwrap();
+            let (head, rest) = text.split_once('\n').unwrap();
+            let units: Vec<&str> = head
+                .split(',')
+                .map(|h| match h {
+                    "t" => "ms",
+                    "p_im" => "kPa",
+                    "n_e" => "1/min",
+                    "u_delta" => "mg/Hub",
+                    _ => "",
+                })
+                .collect();
+            std::fs::write(&path, format!("{head}\n{}\n{rest}", units.join(","))).unwrap();
+        }
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let m = &d.manifest;
+        let want = [("p_im", "kPa"), ("t", "ms")].map(|(a, b)| (a.to_string(), b.to_string()));
+        assert_eq!(m.units, BTreeMap::from(want), "{:?}", d.notes);
+        assert!(
+            d.notes
+                .iter()
+                .any(|n| n == "p_im: in kPa (its header says so)"),
+            "{:?}",
+            d.notes
+        );
+        for (s, orig) in m.datasets.iter().zip(&c.manifest.datasets) {
+            assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+            assert_eq!(s.steps, orig.steps, "{}", s.name);
+        }
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            assert!((a.p_im - b.p_im).abs() <= 1e-9 * b.p_im);
+        }
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            assert!((a.t[1] - b.t[1]).abs() <= 1e-9 * b.t[1].abs().max(1.0));
+        }
+        // the row against the header's brackets: noted
+        for f in [&c.manifest.stationary, &c.manifest.datasets[0].file] {
+            let path = dir.path().join(f);
+            let text = std::fs::read_to_string(&path).unwrap();
+            std::fs::write(&path, text.replacen("p_im", "p_im [bar]", 1)).unwrap();
+        }
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        assert!(
+            d.notes.iter().any(|n| n
+                == &format!(
+                    "{}: units row (line 2), column `p_im [bar]`: `kPa`, but its header says \
+                     `bar`: the campaign cannot be loaded until they agree",
+                    c.manifest.stationary
+                )),
+            "{:?}",
+            d.notes
+        );
     }
 
     /// QA finding: a campaign whose times are in ms with no unit anywhere (a bare `t` header,
@@ -737,13 +985,10 @@ mod tests {
     #[test]
     fn ambiguous_guesses_are_named() {
         let c = small_ij_campaign();
-        let dir = tempfile::tempdir().unwrap();
-        save_campaign(dir.path(), &c).unwrap();
-        let files = std::iter::once(&c.manifest.stationary)
-            .chain(c.manifest.datasets.iter().map(|s| &s.file));
-        for f in files {
+        let (dir, files) = saved(&c);
+        for path in files {
             rewrite(
-                &dir.path().join(f),
+                &path,
                 &[
                     ("W_c", "W_c", |v| 3600.0 * v),
                     ("u_vgt", "u_vgt", |v| v / 100.0),

@@ -510,14 +510,14 @@ pub fn tune(
                 // fixed point the joint covariance describes
                 let th0 = static_theta(&p);
                 let (r5, c5) = run_step5(&mut p, c, &th0, opts, &mut cov, &mut est)?;
-                let converged = r5.converged;
+                let stop = r5.early_stop();
                 rep.step5_refined = Some(r5);
                 let (r, c3) = run_step3(&mut p, &sets, c, opts, &mut cov, &mut est)?;
                 hold_lags(opts, &r);
                 rep.step3_refined = Some(r);
                 if let (Some(c5), Some(c3)) = (&c5, &c3) {
                     rep.joint_uncertainty =
-                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, converged);
+                        joint_step5_step3(c5, c3, &mut cov, &mut est, &p, stop.as_deref());
                 }
             }
         }
@@ -582,6 +582,16 @@ pub fn tune(
     flag_vgt_area_map(&mut rep.parameters);
     flag_efficiency_ellipse_shape(&mut rep.parameters);
     flag_maps_known_only_as_a_whole(&mut rep.parameters);
+    // steps 3-4 repeated on the static maps of a step 5 stopped short of its optimum
+    let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
+    if let Some(stop) = last5.and_then(Step5Report::early_stop) {
+        flag_rests_on_unconverged_step5(
+            &mut rep.parameters,
+            &stop,
+            rep.step3_refined.is_some(),
+            rep.step4_refined.is_some(),
+        );
+    }
     if opts.steps[0] || opts.steps[4] {
         rep.combinations
             .extend(turbine_efficiency_on_the_measured_range(
@@ -1297,8 +1307,8 @@ fn run_step5(
         &boxes,
         opts.fixed_jacobian,
     );
-    if !r.converged {
-        flag_unconverged(&mut r.uncertainty);
+    if let Some(why) = r.early_stop() {
+        flag_not_converged(&mut r.uncertainty, &why);
     }
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
@@ -1576,7 +1586,7 @@ fn joint_step5_step3(
     cov: &mut NamedCov,
     est: &mut Vec<(String, ParamEstimate)>,
     p: &Params,
-    step5_converged: bool,
+    step5_stop: Option<&str>,
 ) -> bool {
     let mut own: Vec<&str> = c5.names.iter().map(String::as_str).collect();
     own.extend(c3.names.iter().map(String::as_str));
@@ -1594,8 +1604,8 @@ fn joint_step5_step3(
             .map(|n| super::complete::param_value(p, n).unwrap_or(f64::NAN))
             .collect();
         let mut e = estimates_from_cov(&names, &theta, &sub, step);
-        if step == 5 && !step5_converged {
-            flag_unconverged(&mut e);
+        if let Some(why) = step5_stop.filter(|_| step == 5) {
+            flag_not_converged(&mut e, why);
         }
         est.extend(e);
         row0 += nb;
@@ -1604,16 +1614,34 @@ fn joint_step5_step3(
     true
 }
 
-/// Flag the estimates of a step-5 search stopped by its evaluation limit: it is not at an
-/// optimum, so the linearized covariance at its end point does not describe the estimate (seeds
-/// 2 and 4 of `mvem lab` put some such parameters 60-360 standard errors from the truth).
-fn flag_unconverged(e: &mut [(String, ParamEstimate)]) {
-    for (_, e) in e.iter_mut().filter(|(_, e)| e.identifiable) {
-        e.identifiable = false;
-        e.reason = format!(
-            "step 5 stopped at its evaluation limit before converging ({} at its end point)",
-            e.reason
-        );
+/// Flag the estimates of a step-5 search that did not reach its optimum (`why`,
+/// [`Step5Report::early_stop`]: its evaluation limit, or ftol/xtol far from it): the
+/// linearized covariance at its end point does not describe the estimate (seeds 2 and 4 of
+/// `mvem lab` put some such parameters 60-360 standard errors from the truth).
+fn flag_not_converged(e: &mut [(String, ParamEstimate)], why: &str) {
+    for (_, e) in e.iter_mut() {
+        e.flag_not_converged(why);
+    }
+}
+
+/// Flag the reported estimates of steps 3 and 4 repeated after a step 5 that did not reach its
+/// optimum (`stop`, [`Step5Report::early_stop`] of the last step-5 pass; `step3_rerun`,
+/// `step4_rerun`: whether the step ran again on its static maps): they were fitted on those
+/// maps, so they carry the maps' distance from their optimum, which their standard errors do not
+/// include (QA, session 37: an 8.9-litre campaign of 15 points, step 5 stopped by xtol at
+/// relative offset 3.8, reported V_em +67 % off the truth as identifiable, 4.9 standard errors).
+/// The step-5 estimates themselves are flagged where step 5 ran ([`run_step5`]).
+fn flag_rests_on_unconverged_step5(
+    parameters: &mut BTreeMap<String, ParamEstimate>,
+    stop: &str,
+    step3_rerun: bool,
+    step4_rerun: bool,
+) {
+    let why = format!("fitted on the static maps of a {stop}");
+    for e in parameters.values_mut() {
+        if (e.step == 3 && step3_rerun) || (e.step == 4 && step4_rerun) {
+            e.flag_not_converged(&why);
+        }
     }
 }
 
@@ -1716,6 +1744,7 @@ mod tests {
             correlated_with: vec![],
             reason: String::new(),
             step,
+            converged: true,
         };
         let mut p = BTreeMap::new();
         p.insert("intake_manifold.v_im".to_string(), est(true, 3));
@@ -1756,6 +1785,90 @@ mod tests {
             note.starts_with("turbo.j_t is reported identifiable with standard errors"),
             "{note}"
         );
+    }
+
+    /// QA (session 37, an 8.9-litre campaign of 15 points): step 5 stopped by xtol at relative
+    /// offset 3.8 (35 parameters: up to 22.5 standard errors from its optimum), step 3 ran
+    /// again on its static maps, and V_em, 4.9 standard errors off the truth, was reported
+    /// identifiable; the early stop was a separate warning. Now every estimate of that step 5
+    /// and of the steps repeated on its maps is "not converged", with the stop as the reason.
+    #[test]
+    fn estimates_of_a_step_5_stopped_short_of_its_optimum_are_not_identifiable() {
+        let est = |identifiable: bool, step: u8, reason: &str| ParamEstimate {
+            value: 1.0,
+            std_error: 0.1,
+            identifiable,
+            correlated_with: vec![],
+            reason: reason.to_string(),
+            step,
+            converged: true,
+        };
+        // converged, or stopped within the noise: nothing to flag
+        assert_eq!(
+            Step5Report::for_tests(35, "relative offset", 0.1).early_stop(),
+            None
+        );
+        assert_eq!(Step5Report::for_tests(35, "xtol", 0.16).early_stop(), None); // R^2 p = 0.9
+        let r = Step5Report::for_tests(35, "xtol", 3.8);
+        let stop = r.early_stop().expect("stopped short");
+        assert_eq!(
+            stop,
+            "step 5 stopped (xtol) before its optimum (relative offset 3.800: up to 22.5 \
+             standard errors from it, not in the standard errors)"
+        );
+        let mut limit = Step5Report::for_tests(35, "evaluation limit", f64::NAN);
+        limit.converged = false;
+        limit.n_eval = 80;
+        assert_eq!(
+            limit.early_stop().as_deref(),
+            Some("step 5 stopped at its evaluation limit before converging, after 80 evaluations")
+        );
+        // step 5's own estimates (run_step5)
+        let mut s5 = vec![
+            ("k_t".to_string(), est(true, 5, "rel. std. error 1.00 %")),
+            ("w_copt".to_string(), est(false, 5, "rel. std. error 40 %")),
+        ];
+        flag_not_converged(&mut s5, &stop);
+        assert!(s5.iter().all(|(_, e)| !e.identifiable && !e.converged));
+        assert_eq!(s5[0].1.reason, format!("{stop} (rel. std. error 1.00 %)"));
+        assert_eq!(s5[1].1.reason, format!("rel. std. error 40 %; {stop}"));
+        // the steps repeated on its maps
+        let mut m = BTreeMap::new();
+        m.insert(
+            "exhaust_manifold.v_em".to_string(),
+            est(true, 3, "rel. std. error 13.60 %"),
+        );
+        m.insert(
+            "test_cell.tau_me".to_string(),
+            est(true, 4, "rel. std. error 2.00 %"),
+        );
+        m.insert(
+            "egr_actuator.tau_egr1".to_string(),
+            est(true, 2, "rel. std. error 1.00 %"),
+        );
+        m.insert(
+            "cylinder.eta_sc".to_string(),
+            est(true, 1, "rel. std. error 1.00 %"),
+        );
+        let mut only3 = m.clone();
+        flag_rests_on_unconverged_step5(&mut only3, &stop, true, false);
+        let v_em = &only3["exhaust_manifold.v_em"];
+        assert!(!v_em.identifiable && !v_em.converged);
+        assert_eq!(
+            v_em.reason,
+            format!("fitted on the static maps of a {stop} (rel. std. error 13.60 %)")
+        );
+        // step 4 not repeated, steps 1-2 not on step 5's maps: unchanged
+        for k in [
+            "test_cell.tau_me",
+            "egr_actuator.tau_egr1",
+            "cylinder.eta_sc",
+        ] {
+            assert_eq!(only3[k], m[k], "{k}");
+        }
+        flag_rests_on_unconverged_step5(&mut m, &stop, true, true);
+        assert!(!m["test_cell.tau_me"].identifiable && !m["test_cell.tau_me"].converged);
+        assert!(m["cylinder.eta_sc"].identifiable);
     }
 
     #[test]
@@ -1806,6 +1919,7 @@ mod tests {
             correlated_with: vec![],
             reason: "rel. std. error 1 %".into(),
             step: 5,
+            converged: true,
         }
     }
 
@@ -1951,6 +2065,7 @@ mod tests {
                     correlated_with: Vec::new(),
                     reason: "rel. std. error 12.5 %".into(),
                     step: 5,
+                    converged: true,
                 };
                 (k.to_string(), e)
             })
@@ -1962,6 +2077,7 @@ mod tests {
             correlated_with: Vec::new(),
             reason: "rel. std. error 4.5 %".into(),
             step: 3,
+            converged: true,
         };
         m.insert("turbo.j_t".into(), j_t);
         flag_flow_map_coefficients(&mut m);
@@ -2026,6 +2142,7 @@ mod tests {
             correlated_with: Vec::new(),
             reason: "rel. std. error 1 %".into(),
             step: 5,
+            converged: true,
         };
         let mut m = BTreeMap::new();
         // 2 of 3 turbine-efficiency coefficients flagged; 1 of 2 turbine-flow ones; 1 of 3

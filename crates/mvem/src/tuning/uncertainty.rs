@@ -43,7 +43,10 @@
 //!   ([`joint_covariance`]).
 //! * **A search stopped by its evaluation limit** (step 5 on `mvem lab` seeds 2 and 4 with the
 //!   former limit of 600 evaluations) reports the covariance at its end point and says
-//!   `converged: false`; the pipeline then flags step 5's parameters. Adding the remaining
+//!   `converged: false`; the pipeline then flags step 5's parameters, as it does where ftol or
+//!   xtol stopped step 5 far from its optimum (the Bates-Watts relative offset,
+//!   [`super::complete::Step5Report::early_stop`]), and the parameters of steps 3-4 repeated on
+//!   such a step 5's static maps (`converged: false`, never identifiable). Adding the remaining
 //!   Gauss-Newton step as a bias (`Cov + delta delta^T`) was tried and rejected: in the flat
 //!   directions of cost (77) that step is 1e3-1e7 times the parameters and flagged everything.
 //! * **eta_tm in the T_c domain.** Step 1 fits eta_tm to the compressor temperature rise it
@@ -88,6 +91,12 @@ pub struct ParamEstimate {
     pub reason: String,
     /// Tuning step whose optimum gave the estimate (1-5; 6-8 the 12-state steps).
     pub step: u8,
+    /// Whether the searches behind the estimate reached their optimum: false when it comes
+    /// from a step 5 that stopped at its evaluation limit or before its optimum
+    /// ([`super::complete::Step5Report::early_stop`]), or from steps 3-4 repeated on such a
+    /// step 5's static maps. Such an estimate is never reported identifiable (`reason` names
+    /// the stop): its standard error does not include the distance to the optimum.
+    pub converged: bool,
 }
 
 impl ParamEstimate {
@@ -105,6 +114,18 @@ impl ParamEstimate {
     pub fn flag_first(&mut self, why: &str) {
         self.identifiable = false;
         self.reason = format!("{why} ({})", self.reason);
+    }
+
+    /// Mark the estimate as coming from a search that did not reach its optimum (`why` names
+    /// the stop): not converged, and not identifiable with `why` as the first reason; an
+    /// estimate already flagged keeps its reason with `why` added after it.
+    pub fn flag_not_converged(&mut self, why: &str) {
+        self.converged = false;
+        if self.identifiable {
+            self.flag(why);
+        } else {
+            self.reason = format!("{}; {why}", self.reason);
+        }
     }
 }
 
@@ -759,6 +780,7 @@ pub fn estimates_from_cov(
                     correlated_with: corr,
                     reason,
                     step,
+                    converged: true,
                 },
             )
         })
