@@ -210,7 +210,7 @@ fn set_element(p: &mut Params, path: &str, v: &Value) -> CoreResult<()> {
 /// Parameters: the published set with the overrides of `json` (nested `{group: {field: v}}`,
 /// dotted `{"group.field": v}`, one element by its registry path `{"cylinder.c_vol[1]": v}`,
 /// 1-based, or one scalar by the name the tuning report uses, `{"c_vol1": v}`,
-/// [`registry_paths`]), validated.
+/// `registry_paths`), validated.
 pub fn params_from_overrides(json: &str) -> CoreResult<Params> {
     let over: Value = serde_json::from_str(json)
         .map_err(|e| CoreError::Value(format!("params: not a JSON-like mapping: {e}")))?;

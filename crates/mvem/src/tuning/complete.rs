@@ -1554,7 +1554,7 @@ impl Step5Report {
     }
 
     /// A note when the search stopped away from the least-squares optimum by more than the
-    /// noise ([`Self::distance_to_optimum`]), which the reported standard errors do not
+    /// noise (`distance_to_optimum`), which the reported standard errors do not
     /// include. `None` otherwise.
     pub fn stop_note(&self) -> Option<String> {
         let (variances, ses) = self.distance_to_optimum()?;
@@ -1572,7 +1572,7 @@ impl Step5Report {
     /// Why the search did not reach its optimum, as a reason for the estimates it gave
     /// (`ParamEstimate::flag_not_converged`): stopped at its evaluation limit (`converged`
     /// false), or by ftol/xtol farther from the optimum than the noise
-    /// ([`Self::distance_to_optimum`]). `None` when it converged.
+    /// (`distance_to_optimum`). `None` when it converged.
     pub fn early_stop(&self) -> Option<String> {
         if !self.converged {
             return Some(format!(
