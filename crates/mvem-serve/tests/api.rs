@@ -675,7 +675,7 @@ fn open_loop_csv_outside_the_input_ranges_warns() {
         // 1200 rpm at 0 s, 2600 at 2 s: 2000 rpm at 8/7 s
         w[0].starts_with(
             "n_e_rpm is outside its range [500, 2000] at 1 of 3 input rows (1 above, up to \
-             2600), first at t = 1.142857142857"
+             2600), first at t = 1.142857 s"
         ) && w[0].contains("s (the whole channel runs from 1200 to 2600)"),
         "{w:?}"
     );

@@ -399,7 +399,8 @@ pub fn range_warnings_of_rows(
                  input_saturation of the parameter file)",
                 e.below + e.above,
                 sides.join("; "),
-                Num(t),
+                // to the microsecond: a crossing between rows is interpolated (0.9090909... s)
+                Num((t * 1e6).round() / 1e6),
                 Num(e.min),
                 Num(e.max)
             ))
@@ -656,7 +657,7 @@ mod tests {
         assert!(
             w[0].starts_with(
                 "u_vgt_pct is outside its range [20, 100] at 1 of 2 input rows (1 below, down to \
-                 0), first at t = 1.46666"
+                 0), first at t = 1.466667 s"
             ),
             "{}",
             w[0]
