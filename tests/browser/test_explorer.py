@@ -540,6 +540,15 @@ def test_uploaded_cycle_files(page, server, tmp_path):
     assert cells["u_vgt"] == ["75.0000", "", None] and cells["W_c"][1:] == ["", None], cells
     # the plot draws the applied inputs, the commands dashed where they differ
     assert page.evaluate("window.mvem.cycle.inputs_applied.u_delta[10]") == 1
+    # the CSV download has the commands as given and, for the clamped inputs, the applied values
+    with page.expect_download() as d:
+        page.click("[data-download=cycle]")
+    lines = Path(d.value.path()).read_text().splitlines()
+    head = lines[0].split(",")
+    assert head[:7] == ["t", "n_e", "u_delta", "u_egr", "u_vgt", "n_e_applied", "u_delta_applied"], head
+    row = dict(zip(head, lines[1 + 10].split(",")))  # t = 2 s
+    assert float(row["t"]) == 2.0 and float(row["u_delta"]) == 0 and float(row["u_delta_applied"]) == 1, row
+    assert float(row["n_e"]) == 2600 and float(row["n_e_applied"]) == 2000, row
     page.screenshot(path=str(ART / "explorer_inputs_warning.png"), full_page=True)
 
 

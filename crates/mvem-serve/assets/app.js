@@ -1333,8 +1333,16 @@
       const j = app.cycle;
       if (!j) return;
       const names = Object.keys(j.series);
-      const rows = [["t", ...INPUTS, ...names]];
-      j.t.forEach((t, i) => rows.push([t, ...INPUTS.map((n) => j.inputs[n][i]), ...names.map((n) => j.series[n][i])]));
+      // the commands as given, and beside each one the model clamped somewhere (the
+      // parameter set's input ranges) the values it applied
+      const applied = INPUTS.filter((n) => j.inputs_applied?.[n]?.some((v, i) => v !== j.inputs[n][i]));
+      const rows = [["t", ...INPUTS, ...applied.map((n) => `${n}_applied`), ...names]];
+      j.t.forEach((t, i) => rows.push([
+        t,
+        ...INPUTS.map((n) => j.inputs[n][i]),
+        ...applied.map((n) => j.inputs_applied[n][i]),
+        ...names.map((n) => j.series[n][i]),
+      ]));
       download(`${j.source}_${j.mode}.csv`, rows);
     });
   }
