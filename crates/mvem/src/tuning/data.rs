@@ -1119,7 +1119,7 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
             check_torque(&p, &layout, m_e, n_e, &lines, v_d)?;
         }
         if !time_unit_given {
-            check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout)?;
+            check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout, &lines)?;
         }
         dynamic.push(set);
     }
@@ -1184,8 +1184,8 @@ pub fn times_look_like_ms(t: &[f64], rate_hz: Option<f64>) -> Option<(usize, Str
     ))
 }
 
-/// Refuse a dynamic set whose time column has no declared unit and whose times only make
-/// sense in ms ([`times_look_like_ms`]; a declared unit, `t = "s"` or `"ms"`, is taken as it
+/// Refuse a dynamic set whose time column (its samples on the file's `lines`) has no declared
+/// unit and whose times only make sense in ms ([`times_look_like_ms`]; a declared unit, `t = "s"` or `"ms"`, is taken as it
 /// is): read as seconds they would stretch every response a thousandfold (QA: step 3 then
 /// fitted V_im = 78 dm^3).
 fn check_time_unit(
@@ -1193,6 +1193,7 @@ fn check_time_unit(
     rate_hz: Option<f64>,
     path: &Path,
     layout: &Layout,
+    lines: &[usize],
 ) -> Result<(), DataError> {
     let Some((row, why)) = times_look_like_ms(t, rate_hz) else {
         return Ok(());
@@ -1200,7 +1201,8 @@ fn check_time_unit(
     let (column, renamed) = layout.label("t");
     Err(DataError::Value {
         path: path.to_path_buf(),
-        line: row + 2,
+        // the file's line of that sample (a units row or comments above count)
+        line: lines.get(row).copied().unwrap_or(row + 2),
         column,
         renamed,
         message: format!(
@@ -1602,6 +1604,28 @@ mod tests {
         // torque's BMEP: power_in_w_read_as_torque_is_caught_below_100_kw)
         assert!(err(&[full.replace("30000,1500", "4712389,1500")])
             .starts_with("s.csv: line 2, column `M_e`: 4712389 Nm is outside the plausible range [-20000, 100000] Nm"));
+    }
+
+    /// A time logged in ms was refused on line `sample + 2`, one line off when a units row (or
+    /// any line) above the samples was skipped: the line is the file's own.
+    #[test]
+    fn a_time_in_ms_is_refused_on_its_own_line_below_a_units_row() {
+        // 10 Hz declared, times in ms: the second sample is the first that shows it
+        let t: Vec<f64> = (0..50).map(|k| k as f64 * 100.0).collect();
+        let lines: Vec<usize> = (3..53).collect(); // header, units row, then the samples
+        let e = check_time_unit(
+            &t,
+            Some(10.0),
+            Path::new("B.csv"),
+            &Layout::default(),
+            &lines,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("B.csv: line 4, column `t`: the time has no unit"),
+            "{e}"
+        );
     }
 
     /// QA (a test cell's own files, `[columns]` and `[units]` in the manifest): the errors named
