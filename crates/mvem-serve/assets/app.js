@@ -1335,7 +1335,7 @@
       const names = Object.keys(j.series);
       // the commands as given, and beside each one the model clamped somewhere (the
       // parameter set's input ranges) the values it applied
-      const applied = INPUTS.filter((n) => j.inputs_applied?.[n]?.some((v, i) => v !== j.inputs[n][i]));
+      const applied = INPUTS.filter((n) => cycleCommanded(j, n));
       const rows = [["t", ...INPUTS, ...applied.map((n) => `${n}_applied`), ...names]];
       j.t.forEach((t, i) => rows.push([
         t,

@@ -78,6 +78,15 @@ pub struct HeaderUnit<'a> {
     pub closed: bool,
 }
 
+impl<'a> HeaderUnit<'a> {
+    /// The unit the header gives its column: the one in brackets that end the header
+    /// (`p_im [kPa]`; not `p_im [kPa] avg`), as the campaign loader and `campaign --init` read
+    /// it.
+    pub fn closed_unit(&self) -> Option<&'a str> {
+        self.unit.filter(|_| self.closed)
+    }
+}
+
 /// `header` split at its unit in brackets ([`HeaderUnit`]).
 pub fn split_unit(header: &str) -> HeaderUnit<'_> {
     let Some(open) = header.find(['[', '(']) else {

@@ -622,10 +622,8 @@ fn column_units(
             })?;
             given.push(("the manifest's [units]".into(), 1, u.trim().into(), sc, o));
         }
-        let h = split_unit(headers[k]);
-        if let Some(&(u, sc, o)) = h
-            .unit
-            .filter(|_| h.closed)
+        if let Some(&(u, sc, o)) = split_unit(headers[k])
+            .closed_unit()
             .and_then(|u| known_unit(c.unit, u))
         {
             given.push(("its header".into(), 1, u.into(), sc, o));
@@ -1202,7 +1200,7 @@ fn check_time_unit(
     Err(DataError::Value {
         path: path.to_path_buf(),
         // the file's line of that sample (a units row or comments above count)
-        line: lines.get(row).copied().unwrap_or(row + 2),
+        line: lines[row],
         column,
         renamed,
         message: format!(

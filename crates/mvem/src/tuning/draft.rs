@@ -158,10 +158,8 @@ fn units_from_row(f: &str, text: &str, heads: &mut BTreeMap<&'static str, Headin
         };
         let place = format!("{f}: units row (line {line}), column `{}`", g.header);
         let (unit, note) = unit_of_column(&c, cell, &place);
-        let h = split_unit(&g.header);
-        match h
-            .unit
-            .filter(|_| h.closed)
+        match split_unit(&g.header)
+            .closed_unit()
             .and_then(|b| known_unit(c.unit, b))
         {
             Some(b) if known_unit(c.unit, cell).is_some_and(|r| (r.1, r.2) != (b.1, b.2)) => {
