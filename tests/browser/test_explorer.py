@@ -849,6 +849,30 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     assert page.is_hidden("#step-warnings")
 
 
+def test_a_step_metrics_error_is_shown_as_text(page):
+    """An output whose metrics the server could not compute answers `{"error": "..."}` in its
+    row; the page put that message into the table as markup (innerHTML). The message is shown
+    as text: a message with markup in it reads literally and adds no element."""
+    bad = "no change in <b id=injected>p_im</b> & none"
+
+    def tamper(route):
+        r = route.fetch()
+        j = r.json()
+        j["outputs"]["p_im"] = {"error": bad}
+        route.fulfill(response=r, json=j)
+
+    page.route("**/api/step", tamper)
+    page.click("[data-action=step]")
+    page.wait_for_selector("canvas[data-plot=step][data-drawn]", timeout=30000)
+    cell = page.locator("[data-metric=p_im] td.msg")
+    assert cell.text_content() == bad
+    assert cell.get_attribute("colspan") == "6"
+    assert page.locator("#injected").count() == 0
+    # the other rows keep their metrics
+    assert "%" in page.text_content("[data-metric=W_c] [data-field=overshoot]")
+    page.unroute("**/api/step")
+
+
 def test_the_cycle_cursor_leaves_the_tick_labels_readable(page, tmp_path):
     """The time cursor crossed the whole canvas: at t = 0 it ran through the time axis's "0"
     tick label under every strip, which read as a red dot. It covers the strips' plot areas

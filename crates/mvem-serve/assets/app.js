@@ -778,7 +778,17 @@
       const m = j.outputs[n];
       const tr = document.createElement("tr");
       tr.dataset.metric = n;
-      if (m.error) { tr.innerHTML = `<td>${n}</td><td colspan="6" class="msg">${m.error}</td>`; return tr; }
+      if (m.error) {
+        // the server's message as text, never as markup
+        const name = document.createElement("td");
+        name.textContent = n;
+        const msg = document.createElement("td");
+        msg.colSpan = 6;
+        msg.className = "msg";
+        msg.textContent = String(m.error);
+        tr.append(name, msg);
+        return tr;
+      }
       tr.innerHTML = `<td>${n} [${unit(n)}]</td><td data-field="dc_gain">${fmt(m.dc_gain)}</td><td>${m.gain_sign}</td>` +
         `<td data-field="nmp">${m.non_minimum_phase ? (100 * m.wrong_way.relative).toFixed(2) + " % at " + m.wrong_way.time.toFixed(3) + " s" : "–"}</td>` +
         `<td data-field="overshoot">${m.overshoot_pct.toFixed(2)} %</td><td>${m.rise_time === null ? "–" : m.rise_time.toFixed(3) + " s"}</td>` +
