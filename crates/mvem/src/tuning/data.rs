@@ -86,12 +86,17 @@ pub(crate) fn units_of(base: &str) -> &'static [(&'static str, f64, f64)] {
         "%" => &[("%", 1.0, 0.0), ("-", 100.0, 0.0)],
         "-" => &[("-", 1.0, 0.0), ("%", 0.01, 0.0)],
         // per cylinder and cycle; mg/stroke, German mg/Hub, is the same (one injection per
-        // cylinder and cycle)
+        // cylinder and cycle); a bare `mg` is how engine-control labels write the injected
+        // quantity per cylinder and cycle (fuel of all cylinders in mg is caught by the
+        // indicated-efficiency check of `mvem tune`, which knows n_cyl)
         "mg/cycle" => &[
             ("mg/cycle", 1.0, 0.0),
             ("mg/cycle/cylinder", 1.0, 0.0),
             ("mg/stroke", 1.0, 0.0),
             ("mg/Hub", 1.0, 0.0),
+            ("mg", 1.0, 0.0),
+            ("mg/cyc", 1.0, 0.0),
+            ("mg/str", 1.0, 0.0),
         ],
         "s" => &[("s", 1.0, 0.0), ("ms", 1e-3, 0.0)],
         _ => &[],
@@ -1774,9 +1779,15 @@ mod tests {
             assert_eq!(conversion("n_e", u), Ok((1.0, 0.0)), "{u}");
             assert_eq!(conversion("n_t", u), Ok((1.0, 0.0)), "{u}");
         }
-        for u in ["mg/stroke", "mg/Hub"] {
+        // and as engine-control labels write the injected quantity (session 39)
+        for u in ["mg/stroke", "mg/Hub", "mg", "mg/cyc", "mg/str"] {
             assert_eq!(conversion("u_delta", u), Ok((1.0, 0.0)), "{u}");
         }
+        // headers and units rows ignore the case
+        assert_eq!(
+            known_unit("mg/cycle", "MG/STR").map(|k| k.0),
+            Some("mg/str")
+        );
     }
 
     #[test]

@@ -98,11 +98,35 @@ struct Heading {
     /// Whether the units row gives a unit mvem does not know (the loader refuses that unless
     /// `[units]` declares the column).
     unknown_in_row: bool,
+    /// Whether the file gives the column a unit mvem knows (its brackets or its units row),
+    /// mvem's own included: `t [s]` is a time in seconds, a bare `t` one whose unit is guessed.
+    given: bool,
+}
+
+impl Heading {
+    /// The header and what the file says of its unit, for messages: "`p_im [kPa]` (in kPa)".
+    fn describe(&self) -> String {
+        let unit = match (self.unit, self.given, self.unknown_in_row) {
+            (Some(u), _, _) => format!(" (in {u})"),
+            (None, true, _) => " (in mvem's unit)".to_string(),
+            (None, false, true) => " (its units row's unit not known)".to_string(),
+            (None, false, false) => " (no unit)".to_string(),
+        };
+        format!("`{}`{unit}", self.header)
+    }
+
+    /// Whether `self` and `other` head their column alike for the manifest, which holds one
+    /// header and one unit per column: the same header and the same unit, mvem's own or none
+    /// being the same (where the files differ only in an unknown units-row unit, `[units]`
+    /// declares mvem's unit, which serves both).
+    fn alike(&self, other: &Heading) -> bool {
+        self.header == other.header && self.unit == other.unit
+    }
 }
 
 /// mvem's column a header names (see the module documentation), the unit in its brackets where
 /// known (None for mvem's own unit), and a note for a bracketed unit mvem does not know.
-fn match_header(h: &str) -> Option<(Column, Option<&'static str>, Option<String>)> {
+fn match_header(h: &str) -> Option<(Column, Option<&'static str>, Option<String>, bool)> {
     let h = h.trim();
     let (base, unit) = match split_unit(h) {
         s if s.closed => (s.name, s.unit),
@@ -112,10 +136,11 @@ fn match_header(h: &str) -> Option<(Column, Option<&'static str>, Option<String>
     let key = if key == "time" { "t".to_string() } else { key };
     let c = campaign_columns().find(|c| normalized(c.name) == key)?;
     let Some(u) = unit else {
-        return Some((c, None, None));
+        return Some((c, None, None, false));
     };
     let (unit, note) = unit_of_column(&c, u, h);
-    Some((c, unit, note))
+    let given = note.is_none();
+    Some((c, unit, note, given))
 }
 
 /// The unit `u` that `place` (a header, a units row) gives column `c`, as [`Heading::unit`]
@@ -172,6 +197,7 @@ fn units_from_row(f: &str, text: &str, heads: &mut BTreeMap<&'static str, Headin
             Some(_) => {}
             None => {
                 g.unknown_in_row = note.is_some();
+                g.given = note.is_none();
                 notes.extend(note);
                 g.unit = unit;
             }
@@ -193,6 +219,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                     header: h.clone(),
                     unit: None,
                     unknown_in_row: false,
+                    given: false,
                 },
             );
         }
@@ -201,7 +228,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
         if map.values().any(|g| &g.header == h) {
             continue;
         }
-        let Some((c, unit, note)) = match_header(h) else {
+        let Some((c, unit, note, given)) = match_header(h) else {
             continue;
         };
         if let Some(g) = map.get(c.name) {
@@ -218,6 +245,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                 header: h.clone(),
                 unit,
                 unknown_in_row: false,
+                given,
             },
         );
     }
@@ -281,6 +309,8 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     };
     // the dynamic files whose bare times look like ms (with why) and those that do not
     let (mut ms_times, mut s_times) = (Vec::new(), Vec::new());
+    // the dynamic files whose header or units row says their time is in seconds
+    let mut s_given = Vec::new();
     // the header and unit of each column, from the first file drafted that heads it
     let mut headed: BTreeMap<&'static str, (Heading, String)> = BTreeMap::new();
     for f in &files {
@@ -291,21 +321,25 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let clash = heads.iter().find_map(|(name, g)| {
             headed
                 .get(name)
-                .filter(|(h, _)| h != g)
+                .filter(|(h, _)| !h.alike(g))
                 .map(|(h, other)| (name, g, h, other))
         });
         if let Some((name, g, h, other)) = clash {
             notes.push(format!(
-                "{f}: skipped (heads {name} `{}`, {other} heads it `{}`: [columns] and [units] \
+                "{f}: skipped (heads {name} {}, {other} heads it {}: [columns] and [units] \
                  hold one header and unit per column)",
-                g.header, h.header
+                g.describe(),
+                h.describe()
             ));
             continue;
         }
         notes.extend(head_notes);
         let accept = |headed: &mut BTreeMap<&'static str, (Heading, String)>| {
             for (name, g) in &heads {
-                headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
+                let e = headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
+                // a units-row unit mvem does not know in any file: `[units]` declares the
+                // column's unit for all of them
+                e.0.unknown_in_row |= g.unknown_in_row;
             }
         };
         let has = |n: &str| heads.contains_key(n);
@@ -348,7 +382,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         // a bare time column whose times only make sense in ms (the loader's check,
         // data::times_look_like_ms): guessed in ms, as a bare column's unit is guessed from its
         // values, and the rate computed in seconds
-        if heads.get("t").is_some_and(|g| g.unit.is_none()) {
+        if heads.get("t").is_some_and(|g| g.given && g.unit.is_none()) {
+            // in seconds by its header or units row
+            s_given.push(f.clone());
+        } else if heads.get("t").is_some_and(|g| g.unit.is_none()) {
             if let Some(t) = cols.iter_mut().find(|c| c.0.name == "t") {
                 match times_look_like_ms(&t.1, None) {
                     Some((_, why)) => {
@@ -522,20 +559,30 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         }
     }
     if !ms_times.is_empty() && !units.contains_key("t") {
-        notes.push(format!(
-            "t: in ms? ({}){}",
-            ms_times.join("; "),
-            if s_times.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; but the times of {} look like seconds and [units] holds one unit for \
-                     all files: check",
-                    s_times.join(", ")
-                )
-            }
-        ));
-        units.insert("t".to_string(), "ms".to_string());
+        if s_times.is_empty() && s_given.is_empty() {
+            notes.push(format!("t: in ms? ({})", ms_times.join("; ")));
+            units.insert("t".to_string(), "ms".to_string());
+        } else {
+            // [units] holds one unit for all files: `t = "ms"` would read the files in seconds
+            // 1000 times too slow (the loader only warns of their rates then) or contradict
+            // their own unit; without it the loader refuses the files in ms, naming them
+            let seconds: Vec<String> = [
+                (&s_given, "as a header or units row says"),
+                (&s_times, "as their values look"),
+            ]
+            .iter()
+            .filter(|(files, _)| !files.is_empty())
+            .map(|(files, why)| format!("{} ({why})", files.join(", ")))
+            .collect();
+            notes.push(format!(
+                "t: not drafted: the times of some files look like ms ({}), but those of {} are \
+                 in seconds, and [units] holds one unit for all files: give the files in ms \
+                 their unit (a header `t [ms]` or a units row) or convert them to seconds (the \
+                 loader refuses them until then)",
+                ms_times.join("; "),
+                seconds.join("; ")
+            ));
+        }
     }
     notes.push(hold_back_for_validation(&mut sets));
     Ok(ManifestDraft {
@@ -842,6 +889,115 @@ mod tests {
         }
     }
 
+    /// Insert a units row under the header of the CSV file `path`: the unit of each (header,
+    /// unit) given, empty cells for the other columns.
+    fn add_units_row(path: &Path, units: &[(&str, &str)]) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let (head, rest) = text.split_once('\n').unwrap();
+        let row: Vec<&str> = head
+            .split(',')
+            .map(|h| units.iter().find(|u| u.0 == h).map_or("", |u| u.1))
+            .collect();
+        std::fs::write(path, format!("{head}\n{}\n{rest}", row.join(","))).unwrap();
+    }
+
+    /// Session 39: files that differ in their time unit. `[units]` holds one unit per column,
+    /// but the draft wrote `t = "ms"` when any bare time column looked like ms: the files in
+    /// seconds beside it were then either read 1000 times too slow (bare: the loader only
+    /// warned of their rates) or refused for their own units row's `s` against the manifest's
+    /// `ms`. Now `t` is not drafted then, a note names both kinds of files, and the loader
+    /// refuses the file in ms by name until it is given its unit; the file's own units row
+    /// then loads the campaign as the lab wrote it.
+    #[test]
+    fn files_in_ms_beside_files_in_seconds_get_no_time_unit_in_the_draft() {
+        let c = small_ij_campaign();
+        // I in ms without a unit; J in seconds, said by its units row or only by its values
+        for j_says_s in [true, false] {
+            let (dir, _) = saved(&c);
+            let (i, j) = (dir.path().join("I.csv"), dir.path().join("J.csv"));
+            rewrite(&i, &[("t", "t", |v| 1e3 * v)]);
+            if j_says_s {
+                add_units_row(&j, &[("t", "s")]);
+            }
+            std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+            let d = draft_manifest(dir.path()).unwrap();
+            assert_eq!(d.manifest.units.get("t"), None, "{:?}", d.notes);
+            let note = d
+                .notes
+                .iter()
+                .find(|n| n.starts_with("t: not drafted"))
+                .unwrap_or_else(|| panic!("{:?}", d.notes));
+            let j_note = if j_says_s {
+                "J.csv (as a header or units row says)"
+            } else {
+                "J.csv (as their values look)"
+            };
+            assert!(
+                note.contains("I.csv: its median time step is 100 s") && note.contains(j_note),
+                "{note}"
+            );
+            // the rates are drafted as the lab's (I's computed in ms)
+            for (s, orig) in d.manifest.datasets.iter().zip(&c.manifest.datasets) {
+                assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+            }
+            std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+            let e = load_campaign(dir.path()).unwrap_err().to_string();
+            assert!(
+                e.contains("I.csv: line 3, column `t`: the time has no unit"),
+                "{e}"
+            );
+            add_units_row(&i, &[("t", "ms")]);
+            let back = load_campaign(dir.path()).unwrap();
+            for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+                assert_eq!(a.t.len(), b.t.len());
+                for (x, y) in a.t.iter().zip(&b.t) {
+                    assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{x} vs {y}");
+                }
+            }
+        }
+    }
+
+    /// Session 39: a units row with a unit mvem does not know in one file only (`percent` for
+    /// u_vgt in J, none in I) made the draft skip J ("heads u_vgt `u_vgt`, I.csv heads it
+    /// `u_vgt`", the same header twice); `[units]` declaring mvem's unit serves both files, so
+    /// both are drafted and the campaign loads. Headings that do differ are named with their
+    /// units.
+    #[test]
+    fn an_unknown_units_row_unit_in_one_file_does_not_skip_it() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        add_units_row(&dir.path().join("J.csv"), &[("u_vgt", "percent")]);
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let names: Vec<&str> = d
+            .manifest
+            .datasets
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect();
+        assert_eq!(names, ["I", "J"], "{:?}", d.notes);
+        assert_eq!(
+            d.manifest.units.get("u_vgt").map(String::as_str),
+            Some("%"),
+            "{:?}",
+            d.notes
+        );
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        assert_eq!(back.dynamic.len(), c.dynamic.len());
+        // a header that differs is still skipped, and the note says how each file heads it
+        let (dir, _) = saved(&c);
+        rewrite(&dir.path().join("J.csv"), &[("u_vgt", "u_vgt [%]", |v| v)]);
+        let d = draft_manifest(dir.path()).unwrap();
+        assert!(
+            d.notes.iter().any(|n| n
+                == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), I.csv heads it \
+                    `u_vgt` (no unit): [columns] and [units] hold one header and unit per column)"),
+            "{:?}",
+            d.notes
+        );
+    }
+
     /// Test-cell exports write a row of units under the header (session 38): the draft reads
     /// it as the headers' brackets (the units into `[units]`, the sample rates in seconds, the
     /// unit guesses from the converted values) and the loader reads the files with it; a unit
@@ -1080,7 +1236,7 @@ mod tests {
             d.notes
         );
         // the headers one by one
-        let m = |h: &str| match_header(h).map(|(c, u, note)| (c.name, u, note.is_some()));
+        let m = |h: &str| match_header(h).map(|(c, u, note, _)| (c.name, u, note.is_some()));
         assert_eq!(m("P_IM"), Some(("p_im", None, false)));
         assert_eq!(m(" p_im [kPa] "), Some(("p_im", Some("kPa"), false)));
         assert_eq!(m("p_im [KPA]"), Some(("p_im", Some("kPa"), false)));
