@@ -704,9 +704,30 @@ fn parse_columns(
         message,
     };
     let names: Vec<&str> = required.iter().map(|c| c.name).collect();
-    let headers: Vec<&str> = names.iter().map(|n| layout.header(n)).collect();
+    let found = header_names(text).ok();
+    // each column's header in this file: the manifest's (`[columns]`, else mvem's name), or
+    // where the file has no such header, the one header that is it with a unit in brackets
+    // (`t [ms]`, `p_im [kPa]`: per file, so files may differ in their units)
+    let headers: Vec<&str> = names
+        .iter()
+        .map(|n| {
+            let h = layout.header(n);
+            let Some(found) = &found else { return h };
+            if found.iter().any(|f| f == h) {
+                return h;
+            }
+            let mut with_unit = found.iter().filter(|f| {
+                let s = split_unit(f);
+                s.closed_unit().is_some() && s.name.trim() == h
+            });
+            match (with_unit.next(), with_unit.next()) {
+                (Some(f), None) => f.as_str(),
+                _ => h,
+            }
+        })
+        .collect();
     // a column headed twice: the reader would take the first silently
-    if let Ok(found) = header_names(text) {
+    if let Some(found) = &found {
         for (n, h) in names.iter().zip(&headers) {
             let at: Vec<String> = (found.iter().enumerate())
                 .filter(|(_, f)| f == h)
@@ -1211,7 +1232,9 @@ fn check_time_unit(
         message: format!(
             "the time has no unit and reads as seconds, but {why}: logged in ms? Declare the \
              unit: `t = \"ms\"` in the manifest's [units] (`mvem campaign --init` drafts it \
-             from a header `t [ms]`), or `t = \"s\"` if these are seconds (docs/tuning-data.md)"
+             from a header `t [ms]`), or for this file alone a header `t [ms]` or a units row \
+             with `ms` under the header (where other files are in seconds), or `t = \"s\"` if \
+             these are seconds (docs/tuning-data.md)"
         ),
     })
 }
@@ -1260,6 +1283,27 @@ mod tests {
     }
     const ROW: &str =
         "1000,1500,80000,101300,200000,250000,200000,298,390,800,310,700,20,50,150,0.3,0.1";
+
+    /// Session 39: a header that is mvem's name with its unit in brackets (`p_im [kPa]`) was
+    /// read only where `[columns]` named that header (as `campaign --init` drafts it), else
+    /// "missing column `p_im`"; `[columns]` holds one header for all files, so files that
+    /// differed in a unit could not be loaded together. Such a header is now found in each file
+    /// by itself, its unit read as `[columns]`' would be.
+    #[test]
+    fn a_header_with_its_unit_in_brackets_is_found_without_columns() {
+        let p = Path::new("s.csv");
+        let want =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
+        let head = header().replace("p_im", "p_im [kPa]");
+        let row = ROW.replace(",200000,298", ",200,298");
+        let got = parse_stationary_csv(&format!("{head}\n{row}\n"), p, &Layout::default()).unwrap();
+        assert_eq!(got[0].p_im, want[0].p_im);
+        assert_eq!(got[0].values(), want[0].values());
+        // two headers that are p_im with a unit: which one is not guessed
+        let two = format!("{head},p_im (bar)\n{row},2\n");
+        let e = parse_stationary_csv(&two, p, &Layout::default()).unwrap_err();
+        assert!(e.to_string().contains("missing column `p_im`"), "{e}");
+    }
 
     /// Test-cell exports write a row of units under the header: read and applied as a unit in
     /// the header's brackets or the manifest's [units] is (session 38; before, "`Nm` is not a

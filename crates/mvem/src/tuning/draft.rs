@@ -957,6 +957,23 @@ mod tests {
         }
     }
 
+    /// Session 39: files that differ in their time unit load together when each says its
+    /// own: I headed `t [ms]`, J's bare `t` in seconds, the lab's manifest (no `[columns]`, no
+    /// `[units]`); before, I's `t` was a missing column.
+    #[test]
+    fn a_time_unit_in_one_files_header_is_that_files_alone() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        rewrite(&dir.path().join("I.csv"), &[("t", "t [ms]", |v| 1e3 * v)]);
+        let back = load_campaign(dir.path()).unwrap();
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            assert_eq!((a.name.as_str(), a.t.len()), (b.name.as_str(), b.t.len()));
+            for (x, y) in a.t.iter().zip(&b.t) {
+                assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{}: {x} vs {y}", a.name);
+            }
+        }
+    }
+
     /// Session 39: a units row with a unit mvem does not know in one file only (`percent` for
     /// u_vgt in J, none in I) made the draft skip J ("heads u_vgt `u_vgt`, I.csv heads it
     /// `u_vgt`", the same header twice); `[units]` declaring mvem's unit serves both files, so
