@@ -157,11 +157,7 @@ fn step_grid(m: &AnyModel, curve: &MappingCurve, tuning: BaselineTuning) {
             // held at its position set-point): the lambda_O step is then taken from the
             // lambda_O at rest, so that it moves the loop (a step from lambda_O,s would stay
             // below it)
-            let rest = setpoint_step(
-                m, curve, tuning, n, u, maps_own, maps_own, "lambda_O", 10.0, 10.5,
-            )
-            .map(|r| r.metrics.y0)
-            .unwrap_or(l0);
+            let rest = rest_lambda(m, &maps, tuning, n, u);
             let l_from = if maps.u_egr_max_at(n, u) < 100.0 {
                 rest.max(l0)
             } else {
@@ -235,4 +231,20 @@ fn settle_at(m: &AnyModel, curve: &MappingCurve, tuning: BaselineTuning, n: f64,
             println!("  windup {e}");
         }
     }
+}
+
+/// lambda_O after 10 s of the closed loop at (n rpm, u mg) with the maps' own set-points.
+fn rest_lambda(
+    m: &AnyModel,
+    maps: &mvem::control::baseline::SetpointMaps,
+    tuning: BaselineTuning,
+    n: f64,
+    u: f64,
+) -> f64 {
+    use mvem::control::{run, Demand};
+    let mut c = Baseline::with_maps(maps.clone(), tuning);
+    c.fuel_override = u;
+    let d = Demand::new(vec![0.0, 10.0], vec![n, n], vec![0.0; 2], vec![false; 2]).unwrap();
+    let (traj, _) = run(m.clone(), &d, &mut c, &plant_options()).unwrap();
+    *traj.get("lambda_O").unwrap().last().unwrap()
 }
