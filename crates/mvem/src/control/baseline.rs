@@ -22,6 +22,11 @@
 //!   closes for air only when closing the EGR valve was not enough (high load, where closing the
 //!   VGT raises the boost).
 //! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
+//! - Set-point pairs out of reach (session 39): where no steady state within the actuator
+//!   ranges gives a map cell's lambda_O,s and x_egr,s together, the cell's nominal valve
+//!   position is a third set-point, `u_egr,lambda <= u_egr,max(n_e, L)`
+//!   ([`SetpointMaps::u_egr_max`], [`SetpointMaps::adjusted`]); a command wound to the end of
+//!   its range by one loop is recorded ([`WindupEvent`]) and reported as a warning.
 //!
 //! Measured signals: lambda_O and x_egr (in an engine: estimates from the air mass flow sensor,
 //! p_im, n_e and u_delta; here the model's own values, i.e. perfect estimates), u_delta and n_e.
