@@ -439,6 +439,9 @@ fn the_loop_columns_name_the_loop_in_feedback_and_the_margins_follow_them() {
     let g = |n: &str| traj.get(n).unwrap();
     let (u_egr, u_vgt, egr, vgt) = (g("u_egr"), g("u_vgt"), g("egr_loop"), g("vgt_loop"));
     let (lambda, lambda_ref) = (g("lambda_O"), g("lambda_O_ref"));
+    let (n_e, u_delta) = (g("n_e"), g("u_delta"));
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let maps = Baseline::new(&m, &curve, tuning).unwrap().maps;
     assert!(egr[0].is_nan() && vgt[0].is_nan());
     let mut seen = [[0usize; 3]; 2];
     for k in 1..traj.len() {
@@ -455,9 +458,13 @@ fn the_loop_columns_name_the_loop_in_feedback_and_the_margins_follow_them() {
         let lambda_err = lambda[k] - lambda_ref[k];
         match e {
             InCharge::Main => assert!(lambda_err < tuning.lambda_error_cap, "row {k}"),
-            InCharge::None if u_egr[k] > 0.0 && u_egr[k] < 100.0 => {
-                assert!(lambda_err >= tuning.lambda_error_cap, "row {k}")
-            }
+            // the lambda_O loop's error at its cap, or the valve held at the maps' position
+            // set-point where their pair is out of reach (session 39)
+            InCharge::None if u_egr[k] > 0.0 && u_egr[k] < 100.0 => assert!(
+                lambda_err >= tuning.lambda_error_cap
+                    || u_egr[k] == maps.u_egr_max_at(n_e[k], u_delta[k]),
+                "row {k}"
+            ),
             _ => {}
         }
         for (c, x) in [(0, e), (1, v)] {
@@ -759,8 +766,10 @@ fn a_tip_in_out_of_motoring_is_fired_as_the_demand_rises() {
 /// the WHTC's fast instabilities of the default tuning (442, 1101 and 1436 s: the valve at
 /// 0.1-0.4 % under the lambda_O loop, the VGT at 20-31 % under the x_egr loop) the two main
 /// loops are in feedback together and unstable, the slowest mode growing by more than 0.5 % per
-/// 10 ms sample (|z| 1.0135, 1.0193, 1.0161 measured): their pairing's relative gain is
-/// 0.007-0.03 there (`examples/loop_interaction.rs`). With the hold at 5 % the x_egr loop does
+/// 10 ms sample (|z| 1.0135, 1.0193, 1.0161 measured; since session 39's valve position
+/// set-points the default's run passes 1436 s with its loops stable, |z| 0.995, and the test
+/// checks 442 and 1101 s): their pairing's relative gain is 0.007-0.03 there
+/// (`examples/loop_interaction.rs`). With the hold at 5 % the x_egr loop does
 /// not close the VGT there, and at the same samples of that run no loop pair is unstable. On
 /// the whole cycle the regulation still passes, the mean p_em - p_im falls (19 781 -> 18 815 Pa
 /// measured; asserted: at least 3 % lower) and x_egr is held about as well (RMS error 0.0228 ->
@@ -798,7 +807,9 @@ fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
     let a = run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(default), None).unwrap();
     let b = run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(hold), None).unwrap();
     assert!(b.violations.is_empty(), "{:?}", b.violations);
-    for t in [442.01, 1101.01, 1436.01] {
+    // (1436.01 s too until session 39, whose valve position set-points made the default's
+    // loops stable there)
+    for t in [442.01, 1101.01] {
         let (z, u_egr) = pole_at(&a.traj, &default, t).expect("loops in feedback");
         assert!(
             z > 1.005 && u_egr < 1.0,
@@ -815,4 +826,80 @@ fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
     );
     assert!(sb.pmep_mean_pa < 0.97 * sa.pmep_mean_pa);
     assert!(sb.x_egr_rms_error < 1.05 * sa.x_egr_rms_error);
+}
+
+/// The closed loop held at (n rpm, u mg) with the maps' own set-points (no override) for 40 s:
+/// (u_egr, u_vgt) at every sample, and the windup events.
+fn held_at_maps_setpoints(
+    m: &AnyModel,
+    maps: mvem::control::baseline::SetpointMaps,
+    n: f64,
+    u: f64,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>, usize) {
+    let mut c = Baseline::with_maps(maps, BaselineTuning::default());
+    c.fuel_override = u;
+    let d = mvem::control::Demand::new(vec![0.0, 40.0], vec![n, n], vec![0.0; 2], vec![false; 2])
+        .unwrap();
+    let (traj, _) = run(m.clone(), &d, &mut c, &plant_options()).unwrap();
+    let g = |k: &str| traj.get(k).unwrap().to_vec();
+    (g("t"), g("u_egr"), g("u_vgt"), c.windup_events().len())
+}
+
+/// Session 39: at 800 rpm / 180 mg the maps' pair cannot be reached (p_em below p_im: no valve
+/// position gives EGR, and lambda_O stays above lambda_O,s); the cells around it are reported
+/// with the valve position set there, and the closed loop with the maps' set-points is at rest
+/// within 2 s (both commands within 0.1 % from 2 s to 40 s), without a windup. The maps without
+/// the valve position set-point (as before session 39) wind the valve open at about 2.6 %/s to
+/// 100 % (a windup event; the valve moves more than 50 % after 2 s): what the test fails with
+/// when the reachability check is taken out.
+#[test]
+fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
+    let m = model();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let maps = Baseline::new(&m, &curve, BaselineTuning::default())
+        .unwrap()
+        .maps;
+    // 800 rpm lies between the 750 and 1000 rpm cells, 180 mg between L 0.75 and 1
+    for n in [750.0, 1000.0] {
+        for l in [0.75, 1.0] {
+            let c = maps
+                .adjusted
+                .iter()
+                .find(|c| c.n_e == n && c.load == l)
+                .unwrap_or_else(|| panic!("cell {n} rpm L {l} not reported"));
+            // the nominal valve position 50 (1 - L) is its position set-point
+            assert!((c.u_egr_max - 50.0 * (1.0 - l)).abs() < 1e-12, "{c:?}");
+            assert!(c.lambda_o_reached > c.lambda_o_s, "{c:?}");
+            assert!(c.reason.contains("lambda_O"), "{}", c.reason);
+        }
+    }
+    let cap = maps.u_egr_max_at(800.0, 180.0);
+    assert!(cap > 0.0 && cap < 20.0, "{cap}");
+    let band = |v: &[f64], t: &[f64], from: f64| {
+        let i = t.partition_point(|&s| s < from);
+        let w = &v[i..];
+        w.iter().cloned().fold(f64::MIN, f64::max) - w.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    let (t, ue, uv, windups) = held_at_maps_setpoints(&m, maps.clone(), 800.0, 180.0);
+    assert!(band(&ue, &t, 2.0) < 0.1, "u_egr p-p {}", band(&ue, &t, 2.0));
+    assert!(band(&uv, &t, 2.0) < 0.1, "u_vgt p-p {}", band(&uv, &t, 2.0));
+    assert!(
+        (ue[ue.len() - 1] - cap).abs() < 0.5,
+        "{} {cap}",
+        ue[ue.len() - 1]
+    );
+    assert_eq!(windups, 0);
+    // the maps without the valve position set-point: the valve winds open
+    let mut free = maps;
+    for row in &mut free.u_egr_max {
+        row.iter_mut().for_each(|c| *c = 100.0);
+    }
+    let (t, ue, _, windups) = held_at_maps_setpoints(&m, free, 800.0, 180.0);
+    assert!(
+        band(&ue, &t, 2.0) > 50.0,
+        "u_egr p-p {}",
+        band(&ue, &t, 2.0)
+    );
+    assert_eq!(ue[ue.len() - 1], 100.0);
+    assert!(windups >= 1);
 }

@@ -412,3 +412,41 @@ fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
         .iter()
         .any(|k| k.variable == "u_egr1"));
 }
+
+/// Session 39: the one sample of the closed-loop WHTC's `--margins 1` refused until then (t =
+/// 516.01 s of the default run before session 39: 1032.74 rpm, 11.52 mg, EGR 42.86 %, VGT
+/// 28.20 %, the valve's x_egr limiter and the VGT's x_egr loop in feedback). Its steady state
+/// has omega_t = 2769.2141 rad/s, 0.005 rad/s above c_m2 = 2769.2092 rad/s, where eq. (51)'s
+/// c_m leaves zero (the authors' max(omega_t, c_m2)): the point is on the linear c_m branch,
+/// but the finest central stencil (2h/256 = 0.0078 rad/s) reached across the kink, so the
+/// omega_t column was refused. It is now the one-sided derivative upward, on the point's own
+/// side: d(d omega_t/dt)/d omega_t = -16.33 1/s (a forward difference of 0.002 rad/s gives
+/// -16.325; the branch below c_m2 has -2.85 and the central average would be about -9.6), and
+/// the loops are analysed. Fails without the change (the sample is refused).
+#[test]
+fn a_state_just_beside_a_kink_is_differenced_on_its_own_side() {
+    use mvem::control::along::loops_in_charge;
+    use mvem::control::InCharge;
+    let t = BaselineTuning::default();
+    let d = Drive::new(
+        1032.7435080462517,
+        11.516189664617212,
+        42.86227304638158,
+        28.20475970157859,
+    );
+    let m = Engine8::published();
+    let loops = loops_in_charge(&t, Some(InCharge::Limiter), Some(InCharge::Main), &d);
+    assert_eq!(loops.len(), 2);
+    let (dm, a) = margins_at(&m, &d, &loops, t.ts).unwrap();
+    assert!(a.max_pole_all.is_finite());
+    let lin = &dm.continuous;
+    assert!(lin.kinks.is_empty(), "{:?}", lin.kinks);
+    let k = lin
+        .one_sided
+        .iter()
+        .find(|k| k.variable == "omega_t")
+        .expect("omega_t one-sided");
+    assert!(k.beside_kink && k.side == 1, "{k:?}");
+    let i = 4; // omega_t
+    assert!((lin.a[(i, i)] + 16.33).abs() < 0.01, "{}", lin.a[(i, i)]);
+}

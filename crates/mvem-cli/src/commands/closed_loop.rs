@@ -490,6 +490,20 @@ pub fn run(a: &Args) -> Result<()> {
         } else {
             println!("regulation limits: FAIL: {}", r.violations.join("; "));
         }
+        if !r.setpoint_adjustments.is_empty() {
+            println!(
+                "set-point maps: {} cell(s) whose pair (lambda_O,s, x_egr,s) the actuators cannot \
+                 reach together; the EGR valve's position is their third set-point (the lambda_O \
+                 loop opens it no further):",
+                r.setpoint_adjustments.len()
+            );
+            for c in &r.setpoint_adjustments {
+                println!(
+                    "  {:.0} rpm, L {:.2} ({:.1} mg): u_egr <= {:.1} % ({})",
+                    c.n_e, c.load, c.u_delta, c.u_egr_max, c.reason
+                );
+            }
+        }
         println!("{} samples in {:.2} s", r.traj.len(), w.wall_s);
         if let Some(m) = &margins {
             print_margins(m);

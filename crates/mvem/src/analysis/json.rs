@@ -360,6 +360,7 @@ pub fn cycle_run_json(
         "violations": run.violations,
         "passes": run.violations.is_empty(),
         "warnings": run.warnings,
+        "setpoint_adjustments": run.setpoint_adjustments,
         "solver": {"steps": run.solver.steps, "rejected": run.solver.rejected, "rhs_evals": run.solver.rhs_evals},
     })
 }

@@ -172,11 +172,24 @@ pub struct OneSided {
     pub limit: f64,
     /// +1: the derivative is taken upward, -1 downward.
     pub side: i8,
+    /// A state beside (not at) a kink without a limit (e.g. omega_t just above c_m2 of eq.
+    /// (51)): the column is the one-sided derivative on the point's own side, where the
+    /// one-sided slopes agree; `limit` is then the point's own value.
+    pub beside_kink: bool,
 }
 
 impl fmt::Display for OneSided {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let dir = if self.side > 0 { "upward" } else { "downward" };
+        if self.beside_kink {
+            return write!(
+                f,
+                "{} = {} lies beside a kink of the model, within the difference stencil: its \
+                 column is the one-sided derivative {dir}, on the point's side of the kink",
+                self.variable,
+                crate::numerics::Num(self.value)
+            );
+        }
         write!(
             f,
             "{} = {} sits at a limit ({}) of its range: its column is the one-sided derivative {dir}, on the side where fewer saturations are active",
@@ -665,9 +678,59 @@ fn linearize_impl<const N: usize, M: Model<N>>(
                             value: v0s[c],
                             limit,
                             side: *side,
+                            beside_kink: false,
                         });
                         continue;
                     }
+                }
+            }
+            if limits.is_none() && levels >= 1 {
+                // a state's kink near the point but not at it (within the finest stencil,
+                // 2h/256; e.g. omega_t a few mrad/s above c_m2, where eq. (51)'s c_m leaves
+                // zero): the point lies on one side's branch, whose one-sided slopes from the
+                // point agree while the other side's straddle the kink. That side is the
+                // point's derivative. Both sides smooth: the kink is at the point, refused.
+                let h = h0[c] / 256.0;
+                let mut sides = Vec::with_capacity(2);
+                for side in [1i8, -1] {
+                    let (sw, _) = differ.one_sided_column(&dirs[c], v0s[c], h, side, &mut work);
+                    evaluations += levels + 2;
+                    if let Some(r) = work.d.iter().position(|v| !v.is_finite()) {
+                        return Err(non_finite(c, r, work.d[r]));
+                    }
+                    // the slopes at h and 2h, scaled as the inconsistency test
+                    let spread = (0..nrow)
+                        .filter(|&r| reference[r] > 0.0)
+                        .map(|r| {
+                            (work.dk[r] - work.dk[nrow + r]).abs() * col_scale[c] / reference[r]
+                        })
+                        .fold(0.0, f64::max);
+                    sides.push((side, sw, spread, work.d.clone(), work.corr.clone()));
+                }
+                let (a, b) = (&sides[0], &sides[1]);
+                let smooth = |x: &(i8, u32, f64, Vec<f64>, Vec<f64>),
+                              y: &(i8, u32, f64, Vec<f64>, Vec<f64>)| {
+                    x.1 == 0 && y.2 > opts.kink_tol && x.2 < 1e-3 * y.2
+                };
+                let pick = if smooth(a, b) {
+                    Some(a)
+                } else if smooth(b, a) {
+                    Some(b)
+                } else {
+                    None
+                };
+                if let Some((side, _, _, d, cr)) = pick {
+                    jac.column_mut(c).copy_from_slice(d);
+                    corr.column_mut(c).copy_from_slice(cr);
+                    incons.column_mut(c).fill(0.0);
+                    one_sided.push(OneSided {
+                        variable: dir_name(&dirs[c]),
+                        value: v0s[c],
+                        limit: v0s[c],
+                        side: *side,
+                        beside_kink: true,
+                    });
+                    continue;
                 }
             }
             kinks.push(Kink {

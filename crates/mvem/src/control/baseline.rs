@@ -22,6 +22,11 @@
 //!   closes for air only when closing the EGR valve was not enough (high load, where closing the
 //!   VGT raises the boost).
 //! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
+//! - Set-point pairs out of reach (session 39): where no steady state within the actuator
+//!   ranges gives a map cell's lambda_O,s and x_egr,s together, the cell's nominal valve
+//!   position is a third set-point, `u_egr,lambda <= u_egr,max(n_e, L)`
+//!   ([`SetpointMaps::u_egr_max`], [`SetpointMaps::adjusted`]); a command wound to the end of
+//!   its range by one loop is recorded ([`WindupEvent`]) and reported as a warning.
 //!
 //! Measured signals: lambda_O and x_egr (in an engine: estimates from the air mass flow sensor,
 //! p_im, n_e and u_delta; here the model's own values, i.e. perfect estimates), u_delta and n_e.
@@ -533,6 +538,40 @@ pub struct SetpointMaps {
     /// and the VGT loops' gain schedule has its closed-end factor, and the open end, the most
     /// open position at no load. The one place the baseline takes it from.
     pub u_vgt_range: (f64, f64),
+    /// Most open EGR valve position the lambda_O loop may command [%], `[speed][load]`: 100
+    /// (no limit) where the cell's set-point pair is reachable, the cell's nominal valve
+    /// position where it is not (the valve's position as a third set-point there, see
+    /// [`SetpointMaps::adjusted`]).
+    pub u_egr_max: Vec<Vec<f64>>,
+    /// The cells whose set-point pair the actuators cannot reach together, with what was
+    /// adjusted (empty when every pair is reachable).
+    pub adjusted: Vec<AdjustedCell>,
+}
+
+/// A set-point map cell whose pair (lambda_O,s, x_egr,s) no steady state within the actuator
+/// ranges reaches together ([`SetpointMaps::compute`]), and the valve position set there.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct AdjustedCell {
+    /// Speed \[rpm\].
+    pub n_e: f64,
+    /// Load fraction [-].
+    pub load: f64,
+    /// Fuel u_delta \[mg\].
+    pub u_delta: f64,
+    /// The cell's set-points lambda_O,s [-] and x_egr,s [-] (unchanged).
+    pub lambda_o_s: f64,
+    /// x_egr set-point [-].
+    pub x_egr_s: f64,
+    /// The lowest lambda_O [-] the valve reaches with x_egr held at x_egr,s (the VGT
+    /// within its range), above lambda_O,s; NaN where x_egr,s itself is out of reach.
+    pub lambda_o_reached: f64,
+    /// The largest x_egr [-] the actuators give (valve open, VGT at its closed end).
+    pub x_egr_max: f64,
+    /// The valve's position set-point there [%] (the cell's nominal position): the most open
+    /// position the lambda_O loop may command, instead of 100 %.
+    pub u_egr_max: f64,
+    /// Why the pair is out of reach, in words.
+    pub reason: String,
 }
 
 impl SetpointMaps {
@@ -558,9 +597,12 @@ impl SetpointMaps {
             m_e: vec![],
             lambda_o: vec![],
             x_egr: vec![],
+            u_egr_max: vec![],
+            adjusted: vec![],
         };
         for (i, &n) in maps.n_e.iter().enumerate() {
             let (mut m_row, mut l_row, mut x_row) = (vec![], vec![], vec![]);
+            let mut cap_row = vec![];
             let mut guess = None;
             for &l in &maps.load {
                 let u = u_min + l * (maps.u_full[i] - u_min);
@@ -571,9 +613,37 @@ impl SetpointMaps {
                     })?;
                 m_row.push(s.m_e);
                 // floor <= LAMBDA_SETPOINT_MAX: checked by BaselineTuning::validate
-                l_row.push((0.9 * s.lambda_o).clamp(floor, LAMBDA_SETPOINT_MAX));
+                let lambda_s = (0.9 * s.lambda_o).clamp(floor, LAMBDA_SETPOINT_MAX);
+                l_row.push(lambda_s);
                 x_row.push(s.x_egr);
+                let vmax = maps.u_vgt_range.1 - (maps.u_vgt_range.1 - tuning.u_vgt_full_load) * l;
+                let cell = Cell {
+                    n,
+                    u,
+                    lambda_s,
+                    x_s: s.x_egr,
+                    d_x: tuning.d_x,
+                    vgt: (maps.u_vgt_range.0, vmax),
+                };
+                match cell.out_of_reach(model) {
+                    Some((lambda_reached, x_max, reason)) => {
+                        cap_row.push(ue);
+                        maps.adjusted.push(AdjustedCell {
+                            n_e: n,
+                            load: l,
+                            u_delta: u,
+                            lambda_o_s: lambda_s,
+                            x_egr_s: s.x_egr,
+                            lambda_o_reached: lambda_reached,
+                            x_egr_max: x_max,
+                            u_egr_max: ue,
+                            reason,
+                        });
+                    }
+                    None => cap_row.push(100.0),
+                }
             }
+            maps.u_egr_max.push(cap_row);
             // the torque map must increase with the fuel to be inverted
             for k in 1..m_row.len() {
                 if m_row[k] <= m_row[k - 1] {
@@ -585,6 +655,20 @@ impl SetpointMaps {
             maps.x_egr.push(x_row);
         }
         Ok(maps)
+    }
+
+    /// The most open EGR valve position the lambda_O loop may command at (n_e \[rpm\],
+    /// u_delta \[mg\]) [%]: [`Self::u_egr_max`] interpolated as the set-points (100 where the
+    /// four surrounding cells' pairs are reachable).
+    pub fn u_egr_max_at(&self, n: f64, u_delta: f64) -> f64 {
+        let l = self.load_of(n, u_delta);
+        let c = self.bilinear(&self.u_egr_max, n, l);
+        // exactly 100 (no limit) between reachable cells, whatever the rounding of the weights
+        if c >= 100.0 - 1e-9 {
+            100.0
+        } else {
+            c
+        }
     }
 
     /// Full-load fuel at `n` \[mg\].
@@ -657,6 +741,105 @@ impl SetpointMaps {
     }
 }
 
+/// A set-point map cell under test: speed \[rpm\], fuel \[mg\], the set-point pair and the
+/// VGT's range there (closed end, most open position at the cell's load) \[%\].
+struct Cell {
+    n: f64,
+    u: f64,
+    lambda_s: f64,
+    x_s: f64,
+    /// The band of the valve's x_egr limiter above x_egr,s [-].
+    d_x: f64,
+    vgt: (f64, f64),
+}
+
+/// Bisection steps of the reachability test along the VGT (of its 80 % range: 0.3 %).
+const REACH_STEPS: usize = 8;
+/// Intervals of the reachability test's scan of the EGR valve (12.5 % apart).
+const REACH_SCAN: usize = 8;
+
+impl Cell {
+    /// Whether the pair (lambda_O,s, x_egr,s) is out of reach of the steady states within the
+    /// actuator ranges: `Some((the lambda_O nearest lambda_O,s reached with x_egr at x_egr,s,
+    /// the largest x_egr, why))` when it is, `None` when it is reachable (or a steady state was
+    /// not found: the cell is left as it is).
+    ///
+    /// The path the two main loops move along: the EGR valve's position `u_egr` (its lambda_O
+    /// loop) with the VGT holding x_egr at x_egr,s (its x_egr loop). On [`REACH_SCAN`] + 1
+    /// valve positions from shut to open the VGT position with x_egr = x_egr,s is found by
+    /// bisection within its range (x_egr falls as the VGT opens); the pair is reachable when
+    /// lambda_O,s lies within the lambda_O of those points (lambda_O is not monotonic along the
+    /// path: its extremes are often inside). The cell's own steady state (at the nominal
+    /// positions) is on the path.
+    fn out_of_reach(&self, model: &AnyModel) -> Option<(f64, f64, String)> {
+        let mut guess = None;
+        let mut at = |ue: f64, uv: f64| {
+            steady_signals(model, &Drive::new(self.n, self.u, ue, uv), &mut guess).ok()
+        };
+        let (closed, vmax) = self.vgt;
+        let x_max = at(100.0, closed)?.x_egr;
+        if x_max < self.x_s - 1e-4 {
+            return Some((
+                f64::NAN,
+                x_max,
+                format!(
+                    "x_egr,s {:.4} is above the largest x_egr {:.4} (valve open, VGT closed)",
+                    self.x_s, x_max
+                ),
+            ));
+        }
+        let (mut lo_l, mut hi_l) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..=REACH_SCAN {
+            let ue = 100.0 * k as f64 / REACH_SCAN as f64;
+            // x_egr,s within the VGT's range at this valve position?
+            let (x_c, x_o) = (at(ue, closed)?, at(ue, vmax)?);
+            let l = if x_o.x_egr > self.x_s {
+                // the VGT at its most open position: a rest of the loops while the valve's
+                // x_egr limiter (x_egr,s + d_x) lets the valve open
+                if x_o.x_egr > self.x_s + self.d_x {
+                    continue;
+                }
+                x_o.lambda_o
+            } else if x_c.x_egr < self.x_s {
+                continue;
+            } else {
+                let (mut lo, mut hi) = (closed, vmax);
+                for _ in 0..REACH_STEPS {
+                    let mid = 0.5 * (lo + hi);
+                    if at(ue, mid)?.x_egr > self.x_s {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                at(ue, 0.5 * (lo + hi))?.lambda_o
+            };
+            lo_l = lo_l.min(l);
+            hi_l = hi_l.max(l);
+            if lo_l <= self.lambda_s && self.lambda_s <= hi_l {
+                return None;
+            }
+        }
+        if !lo_l.is_finite() {
+            // x_egr,s is reached at no scanned valve position with the VGT in range: leave it
+            return None;
+        }
+        let (near, side) = if lo_l > self.lambda_s {
+            (lo_l, "lowest")
+        } else {
+            (hi_l, "highest")
+        };
+        Some((
+            near,
+            x_max,
+            format!(
+                "with x_egr at x_egr,s {:.4} the {side} lambda_O is {:.3}, lambda_O,s {:.3}",
+                self.x_s, near, self.lambda_s
+            ),
+        ))
+    }
+}
+
 /// The baseline engine + air-path controller (see the module documentation).
 #[derive(Debug, Clone)]
 pub struct Baseline {
@@ -670,6 +853,8 @@ pub struct Baseline {
     lambda_egr: Pid,
     lambda_vgt: Pid,
     /// Set-point overrides (lambda_O,s, x_egr,s) for set-point step tests (NaN: from the maps).
+    /// A lambda_O,s override also lifts the map's valve position set-point
+    /// ([`SetpointMaps::u_egr_max`]), which belongs to the map's pair.
     pub setpoint_override: (f64, f64),
     /// Hold the fuel at this value instead of following the torque demand (NaN: follow).
     pub fuel_override: f64,
@@ -679,6 +864,119 @@ pub struct Baseline {
     u_egr_prev: f64,
     /// Whether the lambda_O loop gave the previous EGR command (won the valve's selector).
     egr_by_lambda_prev: bool,
+    /// The EGR command's current run in one direction under one loop (windup watch).
+    egr_ramp: Ramp,
+    /// The VGT command's (windup watch).
+    vgt_ramp: Ramp,
+}
+
+/// Shortest run of a command in one direction under one loop that counts as winding up to
+/// the end of its range \[s\] ([`WindupEvent`]).
+pub const WINDUP_MIN_S: f64 = 2.0;
+/// Slowest mean rate of such a run [%/s] (a loop's integral winding at several %/s).
+pub const WINDUP_MIN_RATE: f64 = 1.0;
+
+/// An air-path command wound to an end of its range by one loop: a run of at least
+/// [`WINDUP_MIN_S`] in one direction at a mean rate of at least [`WINDUP_MIN_RATE`], the
+/// same loop in feedback all the way. What a set-point pair out of the actuators' reach
+/// does (the loop's error keeps its sign until the command saturates).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct WindupEvent {
+    /// Time the command reached the end of its range \[s\].
+    pub t: f64,
+    /// The loop that wound it (`lambda_O->u_egr`, `x_egr->u_vgt`, ...).
+    pub loop_name: &'static str,
+    /// The end it reached [%].
+    pub end: f64,
+    /// Mean rate of the run [%/s].
+    pub rate: f64,
+    /// Duration of the run \[s\].
+    pub duration: f64,
+    /// The set-points (lambda_O,s, x_egr,s) [-] when it reached the end.
+    pub setpoints: (f64, f64),
+}
+
+impl std::fmt::Display for WindupEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "t = {} s: {} wound its command to {:.1} % at {:.1} %/s over {:.1} s \
+             (lambda_O,s {:.3}, x_egr,s {:.4})",
+            Num((self.t * 100.0).round() / 100.0),
+            self.loop_name,
+            self.end,
+            self.rate,
+            self.duration,
+            self.setpoints.0,
+            self.setpoints.1
+        )
+    }
+}
+
+/// A command's run in one direction under one loop (see [`WindupEvent`]).
+#[derive(Debug, Clone, Default)]
+struct Ramp {
+    /// Direction (+1 opening, -1 closing; 0: no run).
+    dir: f64,
+    /// Start time \[s\] and command \[%\].
+    t0: f64,
+    u0: f64,
+    /// The loop in feedback during the run.
+    loop_name: &'static str,
+    /// The runs that ended at an end of the range.
+    events: Vec<WindupEvent>,
+}
+
+impl Ramp {
+    /// The command went from `u.0` to `u.1` over the sample before `t` (`dt` \[s\]) with
+    /// `in_charge` in feedback (`name`), within `range` [%].
+    #[allow(clippy::too_many_arguments)]
+    fn track(
+        &mut self,
+        t: f64,
+        dt: f64,
+        u: (f64, f64),
+        range: (f64, f64),
+        in_charge: InCharge,
+        name: &'static str,
+        setpoints: (f64, f64),
+    ) {
+        let du = u.1 - u.0;
+        let dir = if du > 0.0 {
+            1.0
+        } else if du < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let at_end = (dir > 0.0 && u.1 >= range.1) || (dir < 0.0 && u.1 <= range.0);
+        if at_end && dir == self.dir {
+            // (at the end no loop is in feedback: the run's loop wound it there)
+            let duration = t - self.t0;
+            let rate = (u.1 - self.u0).abs() / duration;
+            if duration >= WINDUP_MIN_S && rate >= WINDUP_MIN_RATE {
+                self.events.push(WindupEvent {
+                    t,
+                    loop_name: self.loop_name,
+                    end: u.1,
+                    rate,
+                    duration,
+                    setpoints,
+                });
+            }
+            self.dir = 0.0;
+        } else if in_charge == InCharge::None || dir == 0.0 {
+            self.dir = 0.0;
+        } else if dir != self.dir || name != self.loop_name {
+            *self = Self {
+                dir,
+                t0: t - dt,
+                u0: u.0,
+                loop_name: name,
+                events: std::mem::take(&mut self.events),
+            };
+        }
+    }
 }
 
 impl Baseline {
@@ -710,7 +1008,23 @@ impl Baseline {
             u_vgt_prev: u_vgt_open,
             u_egr_prev: 100.0,
             egr_by_lambda_prev: false,
+            egr_ramp: Ramp::default(),
+            vgt_ramp: Ramp::default(),
         }
+    }
+
+    /// The air-path commands wound to an end of their ranges so far, in time order
+    /// ([`WindupEvent`]).
+    pub fn windup_events(&self) -> Vec<WindupEvent> {
+        let mut v: Vec<WindupEvent> = self
+            .egr_ramp
+            .events
+            .iter()
+            .chain(&self.vgt_ramp.events)
+            .cloned()
+            .collect();
+        v.sort_by(|a, b| a.t.total_cmp(&b.t));
+        v
     }
 
     /// Most open VGT position at load fraction `l` [%]: the open end of the VGT's range at no
@@ -754,6 +1068,8 @@ impl Controller for Baseline {
         self.u_vgt_prev = u_vgt;
         self.u_egr_prev = u_egr;
         self.egr_by_lambda_prev = false;
+        self.egr_ramp = Ramp::default();
+        self.vgt_ramp = Ramp::default();
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -764,6 +1080,30 @@ impl Controller for Baseline {
             egr_loop: None,
             vgt_loop: None,
         }
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let ev = self.windup_events();
+        let Some(first) = ev.first() else {
+            return Vec::new();
+        };
+        let more = if ev.len() > 1 {
+            format!(
+                "; {} more, the last at {}",
+                ev.len() - 1,
+                ev.last().expect("not empty")
+            )
+        } else {
+            String::new()
+        };
+        vec![format!(
+            "{} time(s) an air-path loop wound its actuator to the end of its range (at least \
+             {} %/s for at least {} s under one loop: a set-point pair out of reach, or a long \
+             transient): {first}{more}",
+            ev.len(),
+            WINDUP_MIN_RATE,
+            WINDUP_MIN_S
+        )]
     }
 
     fn update(&mut self, m: &Measurement) -> Output {
@@ -807,7 +1147,16 @@ impl Controller for Baseline {
             self.lambda_egr.output(e_le, dt),
             self.x_egr.output(e_xe, dt),
         );
-        let u_egr = u_egr_l.min(u_egr_x).clamp(0.0, 100.0);
+        // the valve's position set-point of a cell whose pair is out of reach: the lambda_O
+        // loop opens the valve no further (100 %, no limit, elsewhere)
+        // (it belongs to the map's pair: a lambda_O,s override, a pair the user gives, has none)
+        let egr_max = if self.setpoint_override.0.is_nan() {
+            self.maps.u_egr_max_at(m.n_e, u_delta)
+        } else {
+            100.0
+        };
+        let u_egr_lc = u_egr_l.min(egr_max);
+        let u_egr = u_egr_lc.min(u_egr_x).clamp(0.0, 100.0);
         let (u_vgt_x, u_vgt_l) = (
             self.x_vgt.output(e_xv, dt),
             self.lambda_vgt.output(e_lv, dt),
@@ -822,8 +1171,9 @@ impl Controller for Baseline {
         // the selector's output passes, and the error cap cut it)
         let egr_loop = if u_egr <= 0.0 || u_egr >= 100.0 {
             InCharge::None
-        } else if u_egr_l <= u_egr_x {
-            if e_le < cap {
+        } else if u_egr_lc <= u_egr_x {
+            // (within (0, 100) this is u_egr_l <= u_egr_x where egr_max is 100)
+            if e_le < cap && u_egr_l <= egr_max {
                 InCharge::Main
             } else {
                 InCharge::None
@@ -849,6 +1199,36 @@ impl Controller for Baseline {
         self.x_egr.commit(e_xe, dt, u_egr);
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
         self.x_vgt.commit(e_xv, dt, u_vgt);
+        let t = m.t;
+        let egr_name = if egr_loop == InCharge::Limiter {
+            "x_egr->u_egr (limiter)"
+        } else {
+            "lambda_O->u_egr"
+        };
+        let sp = (lambda_s, x_s);
+        self.egr_ramp.track(
+            t,
+            dt,
+            (self.u_egr_prev, u_egr),
+            (0.0, 100.0),
+            egr_loop,
+            egr_name,
+            sp,
+        );
+        let vgt_name = if vgt_loop == InCharge::Limiter {
+            "lambda_O->u_vgt (limiter)"
+        } else {
+            "x_egr->u_vgt"
+        };
+        self.vgt_ramp.track(
+            t,
+            dt,
+            (self.u_vgt_prev, u_vgt),
+            (closed, vmax),
+            vgt_loop,
+            vgt_name,
+            sp,
+        );
         self.u_vgt_prev = u_vgt;
         self.u_egr_prev = u_egr;
         self.egr_by_lambda_prev = u_egr_l <= u_egr_x;
@@ -1136,6 +1516,8 @@ mod tests {
             u_full: vec![200.0; 2],
             u_delta_range: (1.0, 250.0),
             u_vgt_range,
+            u_egr_max: vec![vec![100.0; 2]; 2],
+            adjusted: vec![],
         }
     }
 

@@ -3,7 +3,7 @@
 //! denormalized for this engine, or a given speed/torque demand), the controller, the loop
 //! ([`super::run`]) and the regulation's statistics.
 
-use super::baseline::{Baseline, BaselineTuning, OpenLoop};
+use super::baseline::{AdjustedCell, Baseline, BaselineTuning, OpenLoop};
 use super::cycle::{
     parse_normalized_table, whtc_demand, Demand, MappingCurve, MappingOptions, NormalizedRow,
     ReferenceSpeeds, WHTC_NORMALIZED,
@@ -155,8 +155,13 @@ pub struct CycleRun {
     pub solver: SimStats,
     /// What the run did that its input did not say (each a sentence): the duration or the
     /// cycle's end rounded to the sample grid, a duration longer than the cycle, normalized
-    /// speeds clamped into the engine's range, a demand below the motoring torque.
+    /// speeds clamped into the engine's range, a demand below the motoring torque, the
+    /// controller's notes ([`Controller::notes`]: an actuator wound to its end).
     pub warnings: Vec<String>,
+    /// The baseline's set-point map cells whose pair is out of the actuators' reach, with the
+    /// valve position set there ([`super::baseline::SetpointMaps::adjusted`]; empty for the
+    /// open-loop schedule).
+    pub setpoint_adjustments: Vec<AdjustedCell>,
 }
 
 /// The normalized WHTC table with the first sample repeated at t = 0 (as
@@ -257,11 +262,14 @@ pub fn run_cycle_with(
     } else {
         demand
     };
+    let mut setpoint_adjustments = Vec::new();
     let mut ctrl: Box<dyn Controller> = match scheme {
         Scheme::Baseline(tuning) => {
-            Box::new(Baseline::new(model, &curve, tuning).map_err(|e| {
+            let b = Baseline::new(model, &curve, tuning).map_err(|e| {
                 ControlError::Setup(format!("cannot set up the baseline controller: {e}"))
-            })?)
+            })?;
+            setpoint_adjustments.clone_from(&b.maps.adjusted);
+            Box::new(b)
         }
         Scheme::OpenLoop(schedule) => Box::new(OpenLoop {
             schedule,
@@ -275,6 +283,7 @@ pub fn run_cycle_with(
         &crate::sim::stepper::plant_options(),
         on_row,
     )?;
+    warnings.extend(ctrl.notes());
     let stats = CycleStats::compute(&traj, curve.m_peak(), LAMBDA_LIMIT);
     let violations = stats.violations(LAMBDA_FLOOR);
     Ok(CycleRun {
@@ -284,6 +293,7 @@ pub fn run_cycle_with(
         speeds,
         solver,
         warnings,
+        setpoint_adjustments,
     })
 }
 

@@ -127,6 +127,11 @@ pub trait Controller {
     fn start(&mut self, t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output;
     /// The commands for the interval after the sample `m`.
     fn update(&mut self, m: &Measurement) -> Output;
+    /// What the controller did during the run that its user should know (each a sentence;
+    /// e.g. the baseline's loops that wound an actuator to its end, [`baseline::WindupEvent`]).
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// Why a closed-loop run failed.

@@ -26,6 +26,9 @@ impl Controller for Stepped {
         }
         self.inner.update(m)
     }
+    fn notes(&self) -> Vec<String> {
+        self.inner.notes()
+    }
 }
 
 /// Result of one set-point step.
@@ -43,7 +46,9 @@ pub struct SetpointStep {
 
 /// Hold `n_e` \[rpm\] and `u_delta` \[mg\], settle with the set-points `before` (lambda_O,s,
 /// x_egr,s) until `t_step`, then step to `after`; run to `t_end`. `signal` is `"lambda_O"` or
-/// `"x_egr"` (the stepped one, for the metrics).
+/// `"x_egr"` (the stepped one, for the metrics). A NaN set-point is the maps' own at the
+/// operating point (with a lambda_O,s from the maps their valve position set-point applies,
+/// [`super::baseline::SetpointMaps::u_egr_max`]).
 #[allow(clippy::too_many_arguments)]
 pub fn setpoint_step(
     model: &AnyModel,
@@ -58,6 +63,8 @@ pub fn setpoint_step(
     t_end: f64,
 ) -> Result<SetpointStep, ControlError> {
     let mut inner = Baseline::new(model, curve, tuning)?;
+    let (l_map, x_map) = inner.maps.setpoints(n_e, u_delta);
+    let or_map = |v: f64, map: f64| if v.is_nan() { map } else { v };
     inner.fuel_override = u_delta;
     inner.setpoint_override = before;
     let mut c = Stepped {
@@ -91,9 +98,9 @@ pub fn setpoint_step(
     let pp = tail2.iter().cloned().fold(f64::MIN, f64::max)
         - tail2.iter().cloned().fold(f64::MAX, f64::min);
     let du = if signal == "lambda_O" {
-        after.0 - before.0
+        or_map(after.0, l_map) - or_map(before.0, l_map)
     } else {
-        after.1 - before.1
+        or_map(after.1, x_map) - or_map(before.1, x_map)
     };
     let metrics = StepMetrics::compute(t, y, t_step, y0, y_final, du)
         .map_err(|e| ControlError::Setup(e.to_string()))?;
