@@ -833,10 +833,11 @@ fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
 fn held_at_maps_setpoints(
     m: &AnyModel,
     maps: mvem::control::baseline::SetpointMaps,
+    tuning: BaselineTuning,
     n: f64,
     u: f64,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>, usize) {
-    let mut c = Baseline::with_maps(maps, BaselineTuning::default());
+    let mut c = Baseline::with_maps(maps, tuning);
     c.fuel_override = u;
     let d = mvem::control::Demand::new(vec![0.0, 40.0], vec![n, n], vec![0.0; 2], vec![false; 2])
         .unwrap();
@@ -880,7 +881,8 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
         let w = &v[i..];
         w.iter().cloned().fold(f64::MIN, f64::max) - w.iter().cloned().fold(f64::MAX, f64::min)
     };
-    let (t, ue, uv, windups) = held_at_maps_setpoints(&m, maps.clone(), 800.0, 180.0);
+    let (t, ue, uv, windups) =
+        held_at_maps_setpoints(&m, maps.clone(), BaselineTuning::default(), 800.0, 180.0);
     assert!(band(&ue, &t, 2.0) < 0.1, "u_egr p-p {}", band(&ue, &t, 2.0));
     assert!(band(&uv, &t, 2.0) < 0.1, "u_vgt p-p {}", band(&uv, &t, 2.0));
     assert!(
@@ -890,11 +892,12 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
     );
     assert_eq!(windups, 0);
     // the maps without the valve position set-point: the valve winds open
-    let mut free = maps;
+    let mut free = maps.clone();
     for row in &mut free.u_egr_max {
         row.iter_mut().for_each(|c| *c = 100.0);
     }
-    let (t, ue, _, windups) = held_at_maps_setpoints(&m, free, 800.0, 180.0);
+    let (t, ue, uv, windups) =
+        held_at_maps_setpoints(&m, free, BaselineTuning::default(), 800.0, 180.0);
     assert!(
         band(&ue, &t, 2.0) > 50.0,
         "u_egr p-p {}",
@@ -902,4 +905,12 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
     );
     assert_eq!(ue[ue.len() - 1], 100.0);
     assert!(windups >= 1);
+    // the tuning's switch back to that behaviour: the valve may open 100 % beyond its position
+    // set-point, i.e. without limit: the same commands to the bit
+    let open = BaselineTuning {
+        egr_open_beyond_setpoint: 100.0,
+        ..BaselineTuning::default()
+    };
+    let (t2, ue2, uv2, windups2) = held_at_maps_setpoints(&m, maps, open, 800.0, 180.0);
+    assert_eq!((t2, ue2, uv2, windups2), (t, ue, uv, windups));
 }

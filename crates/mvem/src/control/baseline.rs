@@ -112,6 +112,12 @@ pub struct BaselineTuning {
     /// x_egr loop, or closed by the lambda_O -> u_vgt limiter) instead (docs/control.md,
     /// "Session 38").
     pub vgt_hold_below_egr: f64,
+    /// How far [%] the lambda_O loop may open the EGR valve beyond the valve's position
+    /// set-point of a set-point cell whose pair is out of reach ([`SetpointMaps::adjusted`]):
+    /// 0 holds the valve at the cell's nominal position (the default since session 39), 100
+    /// lets it open without limit (the behaviour before: the valve winds open at a few %/s
+    /// while neither valve loop's error changes sign). No effect where the pair is reachable.
+    pub egr_open_beyond_setpoint: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -148,6 +154,7 @@ impl Default for BaselineTuning {
             egr_gain_closed: 1.0,
             egr_gain_knee: 10.0,
             vgt_hold_below_egr: 0.0,
+            egr_open_beyond_setpoint: 0.0,
         }
     }
 }
@@ -171,7 +178,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 16] = [
+    pub const FIELDS: [VarMeta; 17] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -256,12 +263,19 @@ impl BaselineTuning {
             description: "EGR command below which the x_egr loop may not close the VGT while \
                           the lambda_O loop gives the valve's command (0: never)",
         },
+        VarMeta {
+            name: "egr_open_beyond_setpoint",
+            unit: "%",
+            description: "how far the lambda_O loop may open the EGR valve beyond its position \
+                          set-point where the set-point pair is out of reach (0: holds it; 100: \
+                          no limit)",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 16] = [
+    pub const BOUNDS: [(&'static str, Bounds); 17] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -334,10 +348,14 @@ impl BaselineTuning {
             "vgt_hold_below_egr",
             Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
         ),
+        (
+            "egr_open_beyond_setpoint",
+            Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 16] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 17] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -355,6 +373,11 @@ impl BaselineTuning {
             ("egr_gain_closed", [self.egr_gain_closed, 0.0], 1),
             ("egr_gain_knee", [self.egr_gain_knee, 0.0], 1),
             ("vgt_hold_below_egr", [self.vgt_hold_below_egr, 0.0], 1),
+            (
+                "egr_open_beyond_setpoint",
+                [self.egr_open_beyond_setpoint, 0.0],
+                1,
+            ),
         ]
     }
 
@@ -1151,7 +1174,8 @@ impl Controller for Baseline {
         // loop opens the valve no further (100 %, no limit, elsewhere)
         // (it belongs to the map's pair: a lambda_O,s override, a pair the user gives, has none)
         let egr_max = if self.setpoint_override.0.is_nan() {
-            self.maps.u_egr_max_at(m.n_e, u_delta)
+            (self.maps.u_egr_max_at(m.n_e, u_delta) + self.tuning.egr_open_beyond_setpoint)
+                .min(100.0)
         } else {
             100.0
         };
