@@ -578,7 +578,7 @@ pub fn check_drive(d: &Drive, ranges: Option<&InputRanges>) -> Result<()> {
     for ((name, lo, hi), v) in ranges.into_iter().flatten().zip(d.to_array()) {
         if v < *lo || v > *hi {
             eprintln!(
-                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the n_e and u_delta ranges are input_saturation of the parameter file)",
+                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the ranges are input_saturation of the parameter file)",
                 mvem::numerics::Num(v)
             );
         }

@@ -587,7 +587,11 @@ pub fn validate_campaign(
     ]
     .into_iter()
     .flatten()
-    {
+    .chain(super::constants::commands_outside_ranges(
+        &selected,
+        &p.input_saturation,
+        "the parameter set",
+    )) {
         messages.push(format!("warning: {w}"));
     }
     let report =
