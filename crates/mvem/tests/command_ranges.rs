@@ -135,8 +135,7 @@ fn the_closed_loop_and_its_margins_use_the_engines_vgt_range() {
     )
     .unwrap();
     let e = mvem::control::baseline::Baseline::new(&narrow, &curve, tuning)
-        .err()
-        .expect("refused")
+        .expect_err("refused")
         .to_string();
     assert!(
         e.contains("u_vgt_full_load = 35: must be in [40, 100] %"),
