@@ -221,7 +221,7 @@ impl ModelArgs {
     }
 
     /// The input saturation ranges the model will apply (the parameter set's
-    /// `input_saturation` and the authors' command ranges; `None` with `--semantics paper`,
+    /// `input_saturation`, the command ranges included; `None` with `--semantics paper`,
     /// which applies none), for the warnings of [`check_drive`] and [`warn_ranges`].
     pub fn input_ranges(&self) -> Result<Option<InputRanges>> {
         Ok(match self.semantics {

@@ -399,14 +399,6 @@ pub fn tune(
     // it cannot reach (its integrator limit)
     rep.caveats
         .extend(super::constants::inputs_outside_saturation(&p, c));
-    // commands outside the parameter set's EGR and VGT command ranges (another engine's
-    // actuators commanded over a wider range than the authors')
-    rep.caveats
-        .extend(super::constants::commands_outside_ranges(
-            c,
-            &p.input_saturation,
-            "the parameter set",
-        ));
     rep.caveats
         .extend(super::constants::turbo_speeds_above_limit(&p, c));
     // estimates by tuning name; a later step overwrites an earlier one

@@ -587,11 +587,7 @@ pub fn validate_campaign(
     ]
     .into_iter()
     .flatten()
-    .chain(super::constants::commands_outside_ranges(
-        &selected,
-        &p.input_saturation,
-        "the parameter set",
-    )) {
+    {
         messages.push(format!("warning: {w}"));
     }
     let report =

@@ -51,9 +51,10 @@ fn steps_or_err(
 /// against the responses of eqs (39)-(41) and (57) to the commanded steps. The commands are
 /// first saturated as the model does before the actuators (authors' implementation, items 3-4:
 /// into `base`'s `input_saturation.u_egr`, `u_vgt`, by default [0, 100] % and [20, 100] %), so
-/// with the default a command below 20 % VGT moves the actuator only to 20 %. Each change of the saturated command is a step; the model response is the sum
-/// of the unit step responses, which equals the paper's comparison of normalized, time-shifted
-/// steps once every step has settled and stays exact when it has not. K_egr is bounded to
+/// with the default a command below 20 % VGT moves the actuator only to 20 %. Each change of
+/// the saturated command is a step; the model response is the sum of the unit step responses,
+/// which equals the paper's comparison of normalized, time-shifted steps once every step has
+/// settled and stays exact when it has not. K_egr is bounded to
 /// [1, 5] (overshoot), which removes the symmetry (tau_egr1, tau_egr2, K) <-> (tau_egr2,
 /// tau_egr1, 1 - K). Relative errors by eq. (5) with the mean measured position.
 pub fn step2(
