@@ -24,12 +24,14 @@ TIMINGS = {}
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    # a second parameter set whose engine runs to 3200 rpm and 180 mg ([input_saturation])
+    # a second parameter set whose engine runs to 3200 rpm and 180 mg, its VGT commanded 10-90 %
+    # ([input_saturation])
     text = subprocess.run([CLI, "params", "show"], check=True, capture_output=True, text=True).stdout
-    assert "n_e = [500.0, 2000.0]" in text
+    assert "n_e = [500.0, 2000.0]" in text and "u_vgt = [20.0, 100.0]" in text
     wide = tmp_path_factory.mktemp("params") / "wide.toml"
     wide.write_text(text.replace("n_e = [500.0, 2000.0]", "n_e = [600.0, 3200.0]")
-                    .replace("u_delta = [1.0, 250.0]", "u_delta = [2.0, 180.0]"))
+                    .replace("u_delta = [1.0, 250.0]", "u_delta = [2.0, 180.0]")
+                    .replace("u_vgt = [20.0, 100.0]", "u_vgt = [10.0, 90.0]"))
     p = subprocess.Popen([CLI, "serve", "--port", "0", "--params", str(wide)],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     line = p.stdout.readline().strip()
@@ -201,18 +203,18 @@ def test_map_cycle_and_csv(page):
 
 def test_sliders_span_the_parameter_sets_input_saturation(page):
     def ranges():
-        return page.evaluate("""() => Object.fromEntries(["n_e", "u_delta"].map(n => {
+        return page.evaluate("""() => Object.fromEntries(["n_e", "u_delta", "u_vgt"].map(n => {
             const s = document.querySelector(`input[data-slider=${n}]`);
             return [n, [Number(s.min), Number(s.max)]];
         }))""")
-    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250]}
+    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250], "u_vgt": [20, 100]}
     page.select_option("select[name=params]", "wide")
-    assert ranges() == {"n_e": [600, 3200], "u_delta": [2, 180]}
+    assert ranges() == {"n_e": [600, 3200], "u_delta": [2, 180], "u_vgt": [10, 90]}
     # 2800 rpm is inside the wide set's range: the slider follows the number field
     page.fill("input[name=n_e]", "2800")
     assert page.eval_on_selector("input[data-slider=n_e]", "s => Number(s.value)") == 2800
     page.select_option("select[name=params]", "published")
-    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250]}
+    assert ranges() == {"n_e": [500, 2000], "u_delta": [1, 250], "u_vgt": [20, 100]}
 
 
 def test_closed_loop_cycle_shows_the_regulation_check(page):
@@ -776,6 +778,10 @@ def test_a_map_axis_spans_its_inputs_range(page):
     assert rng("x") == [610, 3190] and rng("y") == [3, 179]
     page.select_option("select[name=map_y]", "u_egr")
     assert rng("y") == [0.5, 99.5]
+    # the wide set's VGT range, 10-90 % (session 39)
+    page.select_option("select[name=map_y]", "u_vgt")
+    assert rng("y") == [10.5, 89.5]
+    page.select_option("select[name=map_y]", "u_egr")
     page.select_option("select[name=params]", "published")
     assert rng("x") == [510, 1990] and rng("y") == [0.5, 99.5]
     page.fill("input[name=map_n]", "3")

@@ -104,7 +104,7 @@ def test_a_normalized_cycle_file_equals_the_cli(mvem_cli, tmp_path):
     ({"tuning": {"lamda_limit": 1.1}}, "unknown field `lamda_limit`"),
     ({"tuning": {"torque": [-1.0, 2.0]}}, r"torque\[1\] = -1"),
     ({"tuning": 1.1}, "expected a dict"),
-    ({"tuning": {"vgt_gain_knee": 20.0}}, r"vgt_gain_knee = 20: must be in \(20, 100\]"),
+    ({"tuning": {"vgt_gain_knee": 0.0}}, r"vgt_gain_knee = 0: must be in \(0, 100\]"),
     ({"duration": -1.0}, "duration -1: must be a finite number of seconds > 0"),
     ({"model": 9}, "model = 9"),
 ])

@@ -221,7 +221,7 @@ impl ModelArgs {
     }
 
     /// The input saturation ranges the model will apply (the parameter set's
-    /// `input_saturation` and the authors' command ranges; `None` with `--semantics paper`,
+    /// `input_saturation`, the command ranges included; `None` with `--semantics paper`,
     /// which applies none), for the warnings of [`check_drive`] and [`warn_ranges`].
     pub fn input_ranges(&self) -> Result<Option<InputRanges>> {
         Ok(match self.semantics {
@@ -578,7 +578,7 @@ pub fn check_drive(d: &Drive, ranges: Option<&InputRanges>) -> Result<()> {
     for ((name, lo, hi), v) in ranges.into_iter().flatten().zip(d.to_array()) {
         if v < *lo || v > *hi {
             eprintln!(
-                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the n_e and u_delta ranges are input_saturation of the parameter file)",
+                "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the ranges are input_saturation of the parameter file)",
                 mvem::numerics::Num(v)
             );
         }

@@ -571,7 +571,13 @@ fn margins_of_the_baseline_loops() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let t = BaselineTuning::default();
     let op = Drive::new(1500.0, 110.0, 50.0, 60.0);
-    let (_, a) = margins_at(&Engine8::published(), &op, &baseline_loops(&t, &op), t.ts).unwrap();
+    let (_, a) = margins_at(
+        &Engine8::published(),
+        &op,
+        &baseline_loops(&t, &op, &Default::default()),
+        t.ts,
+    )
+    .unwrap();
     let lib = loop_analysis_json(&a);
     assert_eq!(j["loops"], lib["loops"]);
     assert_eq!(j["max_pole_all"], lib["max_pole_all"]);
@@ -688,6 +694,7 @@ fn margins_along_the_run() {
             InCharge::from_code(r[col(&h, "egr_loop")]),
             InCharge::from_code(r[col(&h, "vgt_loop")]),
             &drive,
+            &Default::default(),
         );
         let Some(egr) = loops.iter().position(|l| l.input == "u_egr") else {
             continue;

@@ -1029,7 +1029,7 @@ pub fn loop_margins(
     let m = model(params, variant)?;
     let drive = Drive::from_array(d);
     let (_, an) =
-        mvem::dispatch!(&m, m => margins_at(m, &drive, &baseline_loops(&tuning, &drive), tuning.ts))
+        mvem::dispatch!(&m, m => margins_at(m, &drive, &baseline_loops(&tuning, &drive, &m.params().input_saturation), tuning.ts))
             .map_err(CoreError::Runtime)?;
     Ok(margins_report_json(&drive, m.order().states(), &an).to_string())
 }

@@ -154,7 +154,7 @@ fn user_warning(py: Python<'_>, msg: String) -> PyResult<()> {
 }
 
 /// The input saturation ranges of a parameter set (`None`: the published set): its
-/// `input_saturation` for n_e and u_delta, the authors' command ranges.
+/// `input_saturation` (n_e, u_delta and the EGR and VGT command ranges).
 fn ranges_of(p: Option<&Params>) -> [(&'static str, f64, f64); 4] {
     match p {
         Some(p) => input_ranges(&p.input_saturation),

@@ -252,16 +252,16 @@
     $("select[name=model]").addEventListener("change", scheduleSteady);
     $("select[name=params]").addEventListener("change", () => {
       applyInputRanges();
-      // a map axis of n_e or u_delta follows the parameter set's range
-      for (const a of ["x", "y"]) if (["n_e", "u_delta"].includes($(`select[name=map_${a}]`).value)) applyMapRange(a);
+      // a map axis follows the parameter set's range of its input
+      for (const a of ["x", "y"]) if (RANGED_INPUTS.includes($(`select[name=map_${a}]`).value)) applyMapRange(a);
       scheduleSteady();
     });
     for (const a of ["x", "y"]) $(`select[name=map_${a}]`).addEventListener("change", () => applyMapRange(a));
   }
 
   // a map axis's range when its input is chosen: the input's slider range (the parameter
-  // set's for n_e and u_delta) one slider step inside its ends, as the defaults (u_egr
-  // 0.5-99.5 %, u_vgt 20.5-99.5 %: the saturation's kinks at the ends have no DC gain)
+  // set's) one slider step inside its ends, as the defaults (u_egr 0.5-99.5 %, u_vgt
+  // 20.5-99.5 % with the authors' ranges: the saturation's kinks at the ends have no DC gain)
   function applyMapRange(axis) {
     const sl = $(`input[data-slider=${$(`select[name=map_${axis}]`).value}]`);
     const step = Number(sl.step) || 0;
@@ -270,13 +270,15 @@
     $(`input[name=map_${axis}_hi]`).value = round(Number(sl.max) - step);
   }
 
-  // the n_e and u_delta sliders span the selected parameter set's input saturation (/api/models
-  // "input_ranges"; the authors' 500-2000 rpm and 1-250 mg by default); the number fields take
-  // any value (the model clamps it, as the warnings of the CLI say)
+  // the inputs' sliders span the selected parameter set's input saturation (/api/models
+  // "input_ranges"; the authors' 500-2000 rpm, 1-250 mg, 0-100 % EGR and 20-100 % VGT by
+  // default); the number fields take any value (the model clamps it, as the warnings of the
+  // CLI say)
+  const RANGED_INPUTS = ["n_e", "u_delta", "u_egr", "u_vgt"];
   function applyInputRanges() {
     const r = (app.inputRanges || {})[$("select[name=params]").value];
     if (!r) return;
-    for (const n of ["n_e", "u_delta"]) {
+    for (const n of RANGED_INPUTS) {
       if (!Array.isArray(r[n])) continue;
       const sl = $(`input[data-slider=${n}]`);
       sl.min = String(r[n][0]);

@@ -372,16 +372,19 @@ async fn models_info(State(app): State<Shared>) -> Json<Value> {
         "units": units,
         "orders": [8, 10, 12],
         "params": app.models.names(),
-        // per parameter set, the n_e and u_delta ranges its model clamps into (its
-        // input_saturation): the explorer's sliders span them
+        // per parameter set, the n_e, u_delta, u_egr and u_vgt ranges its model clamps into
+        // (its input_saturation): the explorer's sliders span them
         "input_ranges": app
             .models
             .names()
             .into_iter()
             .filter_map(|n| {
                 let m = app.models.get(Some(n), ModelOrder::Eight)?;
-                let s = mvem::dispatch!(m, m => m.params().input_saturation.clone());
-                Some((n.to_string(), json!({"n_e": s.n_e, "u_delta": s.u_delta})))
+                let s = &m.params().input_saturation;
+                Some((
+                    n.to_string(),
+                    json!({"n_e": s.n_e, "u_delta": s.u_delta, "u_egr": s.u_egr, "u_vgt": s.u_vgt}),
+                ))
             })
             .collect::<serde_json::Map<String, Value>>(),
         "cycles": app.models.cycles.iter().map(|(n, _)| n).collect::<Vec<_>>(),

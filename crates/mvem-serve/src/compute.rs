@@ -173,8 +173,13 @@ pub(crate) fn margins<const N: usize, M: Model<N>>(
         .validate()
         .map_err(|e| input(format!("tuning: {e}")))?;
     let d = r.point.drive();
-    let (_, a) = margins_at(m, &d, &baseline_loops(&tuning, &d), tuning.ts)
-        .map_err(|e| Fail::Model(format!("loop margins: {e}")))?;
+    let (_, a) = margins_at(
+        m,
+        &d,
+        &baseline_loops(&tuning, &d, &m.params().input_saturation),
+        tuning.ts,
+    )
+    .map_err(|e| Fail::Model(format!("loop margins: {e}")))?;
     Ok(margins_report_json(&d, N, &a))
 }
 

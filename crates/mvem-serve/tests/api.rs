@@ -57,8 +57,8 @@ fn health_models_and_page() {
     assert_eq!(
         m["input_ranges"],
         serde_json::json!({
-            "published": {"n_e": [500.0, 2000.0], "u_delta": [1.0, 250.0]},
-            "second": {"n_e": [500.0, 3000.0], "u_delta": [1.0, 250.0]},
+            "published": {"n_e": [500.0, 2000.0], "u_delta": [1.0, 250.0], "u_egr": [0.0, 100.0], "u_vgt": [20.0, 100.0]},
+            "second": {"n_e": [500.0, 3000.0], "u_delta": [1.0, 250.0], "u_egr": [0.0, 100.0], "u_vgt": [20.0, 100.0]},
         })
     );
     assert_eq!(m["cycles"], serde_json::json!(["whtc"]));
@@ -504,7 +504,13 @@ fn margins_equal_the_library() {
     );
     assert_eq!(r.status, 200, "{}", String::from_utf8_lossy(&r.body));
     let t = BaselineTuning::default();
-    let (_, a) = margins_at(&Engine8::published(), &d, &baseline_loops(&t, &d), t.ts).unwrap();
+    let (_, a) = margins_at(
+        &Engine8::published(),
+        &d,
+        &baseline_loops(&t, &d, &Default::default()),
+        t.ts,
+    )
+    .unwrap();
     assert_eq!(r.json(), margins_report_json(&d, 8, &a));
     let doubled = post(
         "/api/margins",

@@ -482,7 +482,7 @@ fn the_loop_columns_name_the_loop_in_feedback_and_the_margins_follow_them() {
     assert_eq!(points.len(), 15);
     assert!((points[0].t - 0.01).abs() < 1e-9 && (points[1].t - 20.01).abs() < 1e-9);
     for p in &points {
-        let loops = loops_in_charge(&tuning, p.egr, p.vgt, &p.drive);
+        let loops = loops_in_charge(&tuning, p.egr, p.vgt, &p.drive, &Default::default());
         match &p.outcome {
             Outcome::NoLoop => assert!(loops.is_empty()),
             Outcome::Analysed(a) => assert_eq!(a.loops, loops),
@@ -797,7 +797,7 @@ fn the_vgt_hold_ends_the_fast_instabilities_at_the_shut_egr_valve() {
             InCharge::from_code(g("egr_loop")[k]),
             InCharge::from_code(g("vgt_loop")[k]),
         );
-        let loops = loops_in_charge(tuning, e, v, &d);
+        let loops = loops_in_charge(tuning, e, v, &d, &Default::default());
         if loops.is_empty() {
             return None;
         }

@@ -8,8 +8,17 @@ use mvem::control::baseline::BaselineTuning;
 use mvem::control::margins::{baseline_loops, margins_at, LoopAnalysis, PiLoop};
 use mvem::control::pid::Pid;
 use mvem::model::{Actuators, Drive, Engine12, Engine8, Model, ModelOptions};
+use mvem::params::InputSaturation;
 use mvem::sim::stepper::plant_options;
 use nalgebra::Complex;
+
+/// The authors' command ranges (the published parameters').
+const AUTHORS: InputSaturation = InputSaturation {
+    n_e: [500.0, 2000.0],
+    u_delta: [1.0, 250.0],
+    u_egr: [0.0, 100.0],
+    u_vgt: [20.0, 100.0],
+};
 
 /// 1 / |L| where L crosses the negative real axis nearest `near_hz` (interpolated on the grid).
 fn nyquist_gain_margin(f_hz: &[f64], l: &[Complex<f64>], near_hz: f64) -> (f64, f64) {
@@ -39,7 +48,7 @@ fn analysis(d: Drive) -> (Vec<PiLoop>, LoopAnalysis) {
 
 fn analysis_of<const N: usize, M: Model<N>>(m: &M, d: Drive) -> (Vec<PiLoop>, LoopAnalysis) {
     let t = BaselineTuning::default();
-    let loops = baseline_loops(&t, &d);
+    let loops = baseline_loops(&t, &d, &m.params().input_saturation);
     let (_, a) = margins_at(m, &d, &loops, t.ts).unwrap();
     (loops, a)
 }
@@ -110,7 +119,7 @@ fn nonlinear_amplitudes_of<const N: usize, M: Model<N>>(
     others: bool,
 ) -> Vec<f64> {
     let t = BaselineTuning::default();
-    let loops = baseline_loops(&t, &d);
+    let loops = baseline_loops(&t, &d, &m.params().input_saturation);
     let mut p = plant_from_steady(m, d, 0.0, &plant_options()).unwrap();
     let s0 = *p.signals();
     let y0 = [s0.lambda_o, s0.x_egr];
@@ -280,7 +289,13 @@ fn loops_on_one_output_keep_their_margins_in_the_nonlinear_loop() {
     use mvem::control::InCharge;
     let t = BaselineTuning::default();
     let d = Drive::new(873.2, 94.2, 17.64, 27.57);
-    let loops = loops_in_charge(&t, Some(InCharge::Limiter), Some(InCharge::Main), &d);
+    let loops = loops_in_charge(
+        &t,
+        Some(InCharge::Limiter),
+        Some(InCharge::Main),
+        &d,
+        &AUTHORS,
+    );
     assert_eq!(loops[0].output, loops[1].output);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     assert!(a.max_pole_all < 1.0, "{}", a.max_pole_all);
@@ -309,7 +324,7 @@ fn the_whtc_passes_a_point_where_the_vgt_loop_is_unstable() {
     use mvem::control::InCharge;
     let t = BaselineTuning::unscheduled();
     let d = Drive::new(907.28, 94.58, 25.31, 22.31);
-    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
+    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d, &AUTHORS);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     assert!(a.alone[0].stable && !a.alone[1].stable, "{:?}", a.alone);
     assert!(a.max_pole_all > 1.005, "{}", a.max_pole_all);
@@ -333,9 +348,9 @@ fn the_vgt_gain_schedule_stabilizes_that_point() {
         ..BaselineTuning::unscheduled()
     };
     let d = Drive::new(907.28, 94.58, 25.31, 22.31);
-    let g = t.vgt_gain_factor(d.u_vgt_pct);
+    let g = t.vgt_gain_factor_in(d.u_vgt_pct, mvem::model::U_VGT_RANGE);
     assert!((g - (0.5 + 0.5 * 2.31 / 20.0)).abs() < 1e-12, "{g}");
-    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
+    let loops = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d, &AUTHORS);
     assert_eq!(loops[1].kp, g * t.x_egr_vgt.0);
     let (_, a) = margins_at(&Engine8::published(), &d, &loops, t.ts).unwrap();
     eprintln!("alone {:?}\nothers closed {:?}", a.alone, a.others_closed);
@@ -392,7 +407,7 @@ fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
         22.335667468086168,
     );
     let m = Engine8::published();
-    let vgt_only = loops_in_charge(&t, Some(InCharge::None), Some(InCharge::Main), &d);
+    let vgt_only = loops_in_charge(&t, Some(InCharge::None), Some(InCharge::Main), &d, &AUTHORS);
     let (_, a) = margins_at(&m, &d, &vgt_only, t.ts).unwrap();
     assert_eq!(a.loops.len(), 1);
     assert!(
@@ -402,7 +417,7 @@ fn a_shut_egr_valve_does_not_stop_the_vgt_loops_analysis() {
     );
     // with the EGR loop in feedback too: the shut valve's actuator states are differenced on
     // the open valve's side (docs/analysis.md, one_sided), so both loops are analysed
-    let both = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d);
+    let both = loops_in_charge(&t, Some(InCharge::Main), Some(InCharge::Main), &d, &AUTHORS);
     let (dm, b) = margins_at(&m, &d, &both, t.ts).unwrap();
     assert_eq!(b.loops.len(), 2);
     assert!(dm.continuous.kinks.is_empty());

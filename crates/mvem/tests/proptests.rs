@@ -190,6 +190,10 @@ fn perturb(p: &Params, factors: &[f64]) -> Params {
     q.cylinder.x_cv = q.cylinder.x_cv.min(1.0);
     q.egr_valve.pi_egropt = q.egr_valve.pi_egropt.min(0.999);
     q.turbine.w_tlin = q.turbine.w_tlin.max(1.01 * q.turbine.c_m[1]);
+    // the command ranges are positions: inside [0, 100] %
+    for r in [&mut q.input_saturation.u_egr, &mut q.input_saturation.u_vgt] {
+        r[1] = r[1].min(100.0);
+    }
     q
 }
 

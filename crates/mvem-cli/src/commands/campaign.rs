@@ -5,7 +5,7 @@ use crate::common;
 use anyhow::Result;
 use mvem::tuning::data::load_campaign;
 use mvem::tuning::draft::{write_draft, WriteDraftError};
-use mvem::tuning::summary::summarize;
+use mvem::tuning::summary::summarize_for;
 use std::path::PathBuf;
 
 /// Arguments of `mvem campaign`.
@@ -20,7 +20,10 @@ Loads the campaign as `mvem tune` does (manifest, [columns] and [units], every f
 errors name the file, line and column) and prints the stationary points' ranges, one row per
 dynamic set (kind, roles, samples, duration, the manifest's and the measured sample rate, the
 command steps found, whether the actuator positions are there) and which of the tuning steps
-1-5 the data support. --json prints the same as one object. --init first drafts DIR/manifest.toml
+1-5 the data support, with warnings: time bases that differ from the manifest's, and EGR or VGT
+commands outside the parameter set's command ranges (--params, by default the published
+parameters: input_saturation.u_egr = [0, 100] %, u_vgt = [20, 100] %), which the model would
+run clamped: set this engine's ranges before tuning (tune and validate do not repeat this). --json prints the same as one object. --init first drafts DIR/manifest.toml
 from the CSV files in DIR (the stationary file, each set's kind, roles, sample rate and steps,
 units guessed where values are out of range in mvem's unit; every guess listed as a comment
 and on stderr; an existing manifest is kept unless --force). Format: docs/tuning-data.md.")]
@@ -37,6 +40,10 @@ pub struct Args {
     /// With --init: replace an existing manifest.toml.
     #[arg(long, requires = "init")]
     pub force: bool,
+    /// Parameter file (TOML or JSON) whose command ranges ([input_saturation] u_egr, u_vgt)
+    /// the campaign's commands are checked against [default: the published parameters].
+    #[arg(long, value_name = "FILE")]
+    pub params: Option<PathBuf>,
 }
 
 /// Run `mvem campaign`.
@@ -56,7 +63,17 @@ pub fn run(a: &Args) -> Result<()> {
         }
     }
     let c = load_campaign(&a.data).map_err(|e| common::usage(e.to_string()))?;
-    let s = summarize(&c);
+    let (p, set) = match &a.params {
+        Some(path) => (
+            mvem::io::params::load_params(path).map_err(|e| common::usage(e.to_string()))?,
+            path.display().to_string(),
+        ),
+        None => (
+            mvem::params::Params::published(),
+            "the published parameters".to_string(),
+        ),
+    };
+    let s = summarize_for(&c, &p.input_saturation, &set);
     if a.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else {

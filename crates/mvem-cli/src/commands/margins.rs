@@ -63,9 +63,14 @@ fn report<const N: usize, M: Model<N>>(
     tuning: &BaselineTuning,
     json: bool,
 ) -> Result<()> {
-    let (_, an) = margins_at(m, d, &baseline_loops(tuning, d), tuning.ts)
-        .map_err(anyhow::Error::msg)
-        .context("loop margins")?;
+    let (_, an) = margins_at(
+        m,
+        d,
+        &baseline_loops(tuning, d, &m.params().input_saturation),
+        tuning.ts,
+    )
+    .map_err(anyhow::Error::msg)
+    .context("loop margins")?;
     if json {
         let v = margins_report_json(d, N, &an);
         println!("{}", serde_json::to_string_pretty(&v)?);

@@ -99,7 +99,8 @@ pub fn compressor_map(p: &Params, sem: Semantics) -> CompressorMap {
 pub struct TurbineMaps {
     /// Choking function f_Pi_t over Pi_t in [0.2, 1] (eq. (53)).
     pub f_pi_t: Curve,
-    /// Effective area f_vgt over u_vgt in [20, 100] % (eq. (56)).
+    /// Effective area f_vgt over the VGT's command range (`input_saturation.u_vgt`, the
+    /// authors' [20, 100] %) (eq. (56)).
     pub f_vgt: Curve,
     /// Efficiency eta_tm over BSR (eqs (49)-(51)) at the turbo speeds [rad/s] of
     /// [`TURBINE_EFFICIENCY_SPEEDS`] (Pi_t = 0.5, T_em chosen to give each BSR).
@@ -111,7 +112,8 @@ pub fn turbine_maps(p: &Params, sem: Semantics) -> TurbineMaps {
     let t = &p.turbine;
     let g = &p.gas;
     let pis = linspace(0.2, 1.0, 200);
-    let us = linspace(20.0, 100.0, 200);
+    let [u_lo, u_hi] = p.input_saturation.u_vgt;
+    let us = linspace(u_lo, u_hi, 200);
     let (f_pi_t, f_vgt) = turbine_points(p, sem, &pis, &us);
     // eta_tm at fixed omega_t as a function of BSR, through turbine::power with T_em chosen to
     // give each BSR: BSR = R_t omega / sqrt(2 c_pe T_em dh) => T_em = (R_t omega / BSR)^2 / (2 c_pe dh)
@@ -159,7 +161,8 @@ pub struct EgrMaps {
     /// Flow function Psi_egr over p_im / p_em in [0.2, 1.05] (eqs (34)-(35): choked below
     /// Pi_egr,opt, no flow above 1).
     pub psi_egr: Curve,
-    /// Effective area f_egr over u_egr in [0, 100] % (eq. (38)).
+    /// Effective area f_egr over the EGR valve's command range (`input_saturation.u_egr`, the
+    /// authors' [0, 100] %) (eq. (38)).
     pub f_egr: Curve,
 }
 
@@ -171,7 +174,8 @@ pub fn egr_maps(p: &Params, sem: Semantics) -> EgrMaps {
         .iter()
         .map(|&r| egr::psi_egr(v, egr::pi_egr(v, r, 1.0)))
         .collect();
-    let us = linspace(0.0, 100.0, 300);
+    let [u_lo, u_hi] = p.input_saturation.u_egr;
+    let us = linspace(u_lo, u_hi, 300);
     let (_, f) = egr_points(p, sem, &[], &us);
     EgrMaps {
         psi_egr: Curve { x: ratios, y: psi },

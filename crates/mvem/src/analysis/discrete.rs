@@ -185,7 +185,8 @@ pub fn delay_split<const N: usize, M: Model<N>>(
     let mem = m.memory_start(x, &u);
     let mut g = DMatrix::zeros(n, 2);
     let mut gd = DMatrix::zeros(p, 2);
-    let (egr_lim, vgt_lim) = crate::model::command_saturation(m.options().semantics);
+    let (egr_lim, vgt_lim) =
+        crate::model::command_saturation(m.options().semantics, &m.params().input_saturation);
     let u0 = d.to_array();
     for (q, input) in ["u_egr", "u_vgt"].into_iter().enumerate() {
         // a command at a limit of its range, which `linearize` differenced on one side (its

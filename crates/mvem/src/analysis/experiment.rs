@@ -186,9 +186,9 @@ pub struct StepRun<const N: usize> {
     /// between the steady states, relative to max(|value before|, the state's scale) [-].
     pub size: f64,
     /// The input change the model sees (unit of the input): `spec.du()` after the model's input
-    /// saturation (the authors' semantics clamp n_e and u_delta into the parameter set's
-    /// `input_saturation`, u_egr into [0, 100] %, u_vgt into [20, 100] %), which the DC gain
-    /// divides by.
+    /// saturation (the authors' semantics clamp n_e, u_delta, u_egr and u_vgt into the
+    /// parameter set's `input_saturation`, by default [500, 2000] rpm, [1, 250] mg, [0, 100] %
+    /// and [20, 100] %), which the DC gain divides by.
     pub du_effective: f64,
 }
 

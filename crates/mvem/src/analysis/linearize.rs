@@ -596,7 +596,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
     // the saturation ranges the model applies (none under the paper's semantics), in the
     // linear model's input order (u_delta, u_egr, u_vgt, n_e)
     let sem = m.options().semantics;
-    let (egr_lim, vgt_lim) = crate::model::command_saturation(sem);
+    let (egr_lim, vgt_lim) = crate::model::command_saturation(sem, &m.params().input_saturation);
     let ranges = crate::io::csv_inputs::input_ranges(&m.params().input_saturation);
     let input_limits = |k: usize| -> (f64, f64) {
         if !sem.authors() {

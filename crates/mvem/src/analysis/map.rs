@@ -18,9 +18,10 @@
 //! The channel maps ([`channel_map`], [`dc_gain_map`], [`rhp_zero_map`]) linearize every
 //! converged point. A point where a kink of the model lies on the channel is marked with the
 //! reason (see [`crate::analysis::linearize`]); in particular the input saturations of the
-//! authors' implementation (n_e in [500, 2000] rpm, u_delta in [1, 250] mg, u_egr in [0, 100] %,
-//! u_vgt in [20, 100] %) make a channel one-sided exactly at those limits, so grid edges on
-//! them give marked points: place the edges just inside (e.g. u_vgt from 20.5 %).
+//! authors' implementation (the parameter set's `input_saturation`, by default n_e in [500,
+//! 2000] rpm, u_delta in [1, 250] mg, u_egr in [0, 100] %, u_vgt in [20, 100] %) make a channel
+//! one-sided exactly at those limits, so grid edges on them give marked points: place the
+//! edges just inside (e.g. u_vgt from 20.5 %).
 
 use super::linearize::{linearize, LinearizeOptions};
 use super::steady::{steady_state_with, SteadyOptions, SteadyState};

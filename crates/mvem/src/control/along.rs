@@ -15,6 +15,7 @@ use super::margins::{loop_analysis_json, margins_at, LoopAnalysis, LoopMargins, 
 use super::{InCharge, Trajectory};
 use crate::model::{AnyModel, Drive};
 use crate::numerics::cancel;
+use crate::params::InputSaturation;
 use rayon::prelude::*;
 
 /// What the analysis found at one sample.
@@ -49,13 +50,15 @@ pub struct AlongPoint {
 /// limiter x_egr -> u_egr (its error x_egr,s + d_x - x_egr is r - y: gains negated in the
 /// y - r convention of [`PiLoop`]); x_egr -> u_vgt or the limiter lambda_O -> u_vgt; each
 /// with the gains of its schedule at the operating point's commands `d` (the EGR-valve loops'
-/// at `d.u_egr_pct`, [`BaselineTuning::egr_gain_factor`]; the VGT loops' at `d.u_vgt_pct`,
-/// [`BaselineTuning::vgt_gain_factor`]).
+/// at `d.u_egr_pct`, [`BaselineTuning::egr_gain_factor_in`]; the VGT loops' at `d.u_vgt_pct`,
+/// [`BaselineTuning::vgt_gain_factor_in`]; each in the engine's command range of `limits`, the
+/// parameter set's `input_saturation`, as the controller schedules them).
 pub fn loops_in_charge(
     t: &BaselineTuning,
     egr: Option<InCharge>,
     vgt: Option<InCharge>,
     d: &Drive,
+    limits: &InputSaturation,
 ) -> Vec<PiLoop> {
     let pi = |name: &str, input: &str, output: &str, (kp, ki): (f64, f64)| PiLoop {
         name: name.into(),
@@ -65,7 +68,7 @@ pub fn loops_in_charge(
         ki,
     };
     let mut loops = Vec::with_capacity(2);
-    let g = t.egr_gain_factor(d.u_egr_pct);
+    let g = t.egr_gain_factor_in(d.u_egr_pct, limits.egr());
     match egr {
         Some(InCharge::Main) => loops.push(pi(
             "lambda_O->u_egr",
@@ -81,7 +84,7 @@ pub fn loops_in_charge(
         )),
         Some(InCharge::None) | None => {}
     }
-    let g = t.vgt_gain_factor(d.u_vgt_pct);
+    let g = t.vgt_gain_factor_in(d.u_vgt_pct, limits.vgt());
     match vgt {
         Some(InCharge::Main) => loops.push(pi(
             "x_egr->u_vgt",
@@ -120,6 +123,7 @@ pub fn along_trajectory(
     let (t, n_e, u_delta) = (col("t")?, col("n_e")?, col("u_delta")?);
     let (u_egr, u_vgt) = (col("u_egr")?, col("u_vgt")?);
     let (egr, vgt) = (col("egr_loop")?, col("vgt_loop")?);
+    let limits = model.params().input_saturation.clone();
     let rows: Vec<usize> = if t.len() < 2 {
         Vec::new()
     } else {
@@ -145,7 +149,7 @@ pub fn along_trajectory(
             }
             let drive = Drive::new(n_e[k], u_delta[k], u_egr[k], u_vgt[k]);
             let (e, v) = (InCharge::from_code(egr[k]), InCharge::from_code(vgt[k]));
-            let loops = loops_in_charge(tuning, e, v, &drive);
+            let loops = loops_in_charge(tuning, e, v, &drive, &limits);
             let outcome = if loops.is_empty() {
                 Outcome::NoLoop
             } else {

@@ -43,7 +43,7 @@ use super::cycle::{interp, steady_signals, MappingCurve};
 use super::pid::Pid;
 use super::{ControlError, Controller, InCharge, Measurement, Output};
 use crate::model::meta::VarMeta;
-use crate::model::{AnyModel, Drive, U_VGT_RANGE};
+use crate::model::{AnyModel, Drive};
 use crate::numerics::Num;
 use crate::sim::InputSchedule;
 
@@ -233,12 +233,14 @@ impl BaselineTuning {
         VarMeta {
             name: "u_vgt_full_load",
             unit: "%",
-            description: "most open VGT position at full load (100 % at no load)",
+            description: "most open VGT position at full load (the open end of the VGT's \
+                          command range input_saturation.u_vgt at no load)",
         },
         VarMeta {
             name: "vgt_gain_closed",
             unit: "-",
-            description: "gain factor of both VGT loops at u_vgt = 20 % (scheduled on the VGT \
+            description: "gain factor of both VGT loops at the VGT's closed end (the lower end \
+                          of input_saturation.u_vgt, the authors' 20 %; scheduled on the VGT \
                           command, linear up to the knee; 1: no schedule)",
         },
         VarMeta {
@@ -249,8 +251,9 @@ impl BaselineTuning {
         VarMeta {
             name: "egr_gain_closed",
             unit: "-",
-            description: "gain factor of both EGR-valve loops at u_egr = 0 % (scheduled on the \
-                          EGR command, linear up to the knee; 1: no schedule)",
+            description: "gain factor of both EGR-valve loops at the valve's closed end (the \
+                          lower end of input_saturation.u_egr, the authors' 0 %; scheduled on \
+                          the EGR command, linear up to the knee; 1: no schedule)",
         },
         VarMeta {
             name: "egr_gain_knee",
@@ -310,7 +313,11 @@ impl BaselineTuning {
         ),
         (
             "u_vgt_full_load",
-            Bounds::closed(U_VGT_RANGE.0, U_VGT_RANGE.1, " % (the VGT's command range)"),
+            Bounds::closed(
+                0.0,
+                100.0,
+                " % (a VGT position, inside the VGT's command range input_saturation.u_vgt)",
+            ),
         ),
         (
             "vgt_gain_closed",
@@ -324,9 +331,9 @@ impl BaselineTuning {
             Bounds {
                 lo_open: true,
                 ..Bounds::closed(
-                    U_VGT_RANGE.0,
-                    U_VGT_RANGE.1,
-                    " % (above the VGT's closed end, 20 %)",
+                    0.0,
+                    100.0,
+                    " % (a VGT position; no schedule at or below the VGT's closed end)",
                 )
             },
         ),
@@ -341,7 +348,11 @@ impl BaselineTuning {
             "egr_gain_knee",
             Bounds {
                 lo_open: true,
-                ..Bounds::closed(0.0, 100.0, " % (above the closed valve, 0 %)")
+                ..Bounds::closed(
+                    0.0,
+                    100.0,
+                    " % (an EGR-valve position; no schedule at or below the closed end)",
+                )
             },
         ),
         (
@@ -381,12 +392,6 @@ impl BaselineTuning {
         ]
     }
 
-    /// The VGT loops' gain factor at the VGT command `u_vgt` [%] of the model's VGT range
-    /// ([`crate::model::U_VGT_RANGE`]): [`Self::vgt_gain_factor_in`] of that range.
-    pub fn vgt_gain_factor(&self, u_vgt: f64) -> f64 {
-        self.vgt_gain_factor_in(u_vgt, U_VGT_RANGE)
-    }
-
     /// The VGT loops' gain factor at the VGT command `u_vgt` [%] of a VGT whose command range
     /// is `range` [%]: [`Self::vgt_gain_closed`] at its closed end `range.0` and below, 1 at
     /// [`Self::vgt_gain_knee`] and above, linear between (exactly 1 everywhere when
@@ -395,19 +400,20 @@ impl BaselineTuning {
         scheduled_factor(u_vgt, range.0, self.vgt_gain_knee, self.vgt_gain_closed)
     }
 
-    /// The EGR-valve loops' gain factor at the EGR command `u_egr` [%]:
-    /// [`Self::egr_gain_closed`] at 0 % and below, 1 at [`Self::egr_gain_knee`] and above,
-    /// linear between (exactly 1 everywhere when `egr_gain_closed` is 1).
-    pub fn egr_gain_factor(&self, u_egr: f64) -> f64 {
-        scheduled_factor(u_egr, 0.0, self.egr_gain_knee, self.egr_gain_closed)
+    /// The EGR-valve loops' gain factor at the EGR command `u_egr` [%] of a valve whose command
+    /// range is `range` [%]: [`Self::egr_gain_closed`] at its closed end `range.0` (the
+    /// authors' 0 %) and below, 1 at [`Self::egr_gain_knee`] and above, linear between (exactly
+    /// 1 everywhere when `egr_gain_closed` is 1, or when the knee is not above the closed end).
+    pub fn egr_gain_factor_in(&self, u_egr: f64, range: (f64, f64)) -> f64 {
+        scheduled_factor(u_egr, range.0, self.egr_gain_knee, self.egr_gain_closed)
     }
 
     /// Check every field: finite and in its [`Self::BOUNDS`] (PI gains in [0,
     /// [`Self::GAIN_MAX`]], lambda_lim in [1, 5], the smoke margin in [0, 1), d_x in [0, 1],
     /// d_lambda in [0, 10], the lambda_O error cap in (0, 10], the full-load VGT limit in
-    /// [20, 100] %, the VGT loops' factor at the closed end in (0, 10], the knee in (20, 100] %; the
-    /// EGR-valve loops' factor in (0, 10], their knee in (0, 100] %; the VGT hold's EGR command
-    /// in [0, 100] %),
+    /// [0, 100] % (and inside the engine's VGT range: [`Baseline::new`]), the VGT loops' factor
+    /// at the closed end in (0, 10], the knee in (0, 100] %; the EGR-valve loops' factor in
+    /// (0, 10], their knee in (0, 100] %; the VGT hold's EGR command in [0, 100] %),
     /// the set-point floor lambda_lim (1 + 2 smoke margin) at most
     /// [`LAMBDA_SETPOINT_MAX`], and the sample time in (0, 1] s. The error names the field (an
     /// element of a pair 1-based: `torque[1]` is the torque PI's kp, `torque[2]` its ki), its
@@ -556,11 +562,16 @@ pub struct SetpointMaps {
     /// Fuel range of the model's input saturation (the mapping curve's) \[mg\]: motoring fuel
     /// and the largest fuel.
     pub u_delta_range: (f64, f64),
-    /// Command range of the VGT \[%\] (the model's saturation of the command,
-    /// [`crate::model::U_VGT_RANGE`]): the closed end, where the controller's VGT command stops
-    /// and the VGT loops' gain schedule has its closed-end factor, and the open end, the most
-    /// open position at no load. The one place the baseline takes it from.
+    /// Command range of the VGT \[%\] (the model's saturation of the command, the parameter
+    /// set's `input_saturation.u_vgt`, by default the authors' [`crate::model::U_VGT_RANGE`]):
+    /// the closed end, where the controller's VGT command stops and the VGT loops' gain
+    /// schedule has its closed-end factor, and the open end, the most open position at no
+    /// load. The one place the baseline takes it from.
     pub u_vgt_range: (f64, f64),
+    /// Command range of the EGR valve \[%\] (the parameter set's `input_saturation.u_egr`, by
+    /// default the authors' [`crate::model::U_EGR_RANGE`]): the controller's EGR command stays
+    /// in it, the EGR-valve loops' gain schedule has its closed-end factor at its lower end.
+    pub u_egr_range: (f64, f64),
     /// Most open EGR valve position the lambda_O loop may command [%], `[speed][load]`: 100
     /// (no limit) where the cell's set-point pair is reachable, the cell's nominal valve
     /// position where it is not (the valve's position as a third set-point there, see
@@ -611,10 +622,14 @@ impl SetpointMaps {
         let u_min = curve.u_delta_min();
         let load = vec![0.0, 0.1, 0.25, 0.5, 0.75, 1.0];
         let floor = tuning.lambda_limit * (1.0 + 2.0 * tuning.smoke_margin);
+        // the engine's command ranges (its parameter set's, whatever the semantics: the
+        // controller commands a real actuator's range)
+        let limits = &model.params().input_saturation;
         let mut maps = SetpointMaps {
             u_full: n_e.iter().map(|&n| curve.u_full_at(n)).collect(),
             u_delta_range: curve.u_delta_range,
-            u_vgt_range: U_VGT_RANGE,
+            u_vgt_range: limits.vgt(),
+            u_egr_range: limits.egr(),
             n_e,
             load,
             m_e: vec![],
@@ -647,6 +662,7 @@ impl SetpointMaps {
                     x_s: s.x_egr,
                     d_x: tuning.d_x,
                     vgt: (maps.u_vgt_range.0, vmax),
+                    egr: maps.u_egr_range,
                 };
                 match cell.out_of_reach(model) {
                     Some((lambda_reached, x_max, reason)) => {
@@ -764,8 +780,9 @@ impl SetpointMaps {
     }
 }
 
-/// A set-point map cell under test: speed \[rpm\], fuel \[mg\], the set-point pair and the
-/// VGT's range there (closed end, most open position at the cell's load) \[%\].
+/// A set-point map cell under test: speed \[rpm\], fuel \[mg\], the set-point pair, the
+/// VGT's range there (closed end, most open position at the cell's load) \[%\] and the EGR
+/// valve's command range \[%\].
 struct Cell {
     n: f64,
     u: f64,
@@ -774,6 +791,7 @@ struct Cell {
     /// The band of the valve's x_egr limiter above x_egr,s [-].
     d_x: f64,
     vgt: (f64, f64),
+    egr: (f64, f64),
 }
 
 /// Bisection steps of the reachability test along the VGT (of its 80 % range: 0.3 %).
@@ -800,7 +818,8 @@ impl Cell {
             steady_signals(model, &Drive::new(self.n, self.u, ue, uv), &mut guess).ok()
         };
         let (closed, vmax) = self.vgt;
-        let x_max = at(100.0, closed)?.x_egr;
+        let (shut, open) = self.egr;
+        let x_max = at(open, closed)?.x_egr;
         if x_max < self.x_s - 1e-4 {
             return Some((
                 f64::NAN,
@@ -813,7 +832,7 @@ impl Cell {
         }
         let (mut lo_l, mut hi_l) = (f64::INFINITY, f64::NEG_INFINITY);
         for k in 0..=REACH_SCAN {
-            let ue = 100.0 * k as f64 / REACH_SCAN as f64;
+            let ue = shut + (open - shut) * k as f64 / REACH_SCAN as f64;
             // x_egr,s within the VGT's range at this valve position?
             let (x_c, x_o) = (at(ue, closed)?, at(ue, vmax)?);
             let l = if x_o.x_egr > self.x_s {
@@ -1010,14 +1029,25 @@ impl Baseline {
         tuning: BaselineTuning,
     ) -> Result<Self, ControlError> {
         tuning.validate()?;
+        let (lo, hi) = model.params().input_saturation.vgt();
+        if !(lo..=hi).contains(&tuning.u_vgt_full_load) {
+            return Err(ControlError::Setup(format!(
+                "controller tuning u_vgt_full_load = {}: must be in [{}, {}] % (the VGT's \
+                 command range, input_saturation.u_vgt of the parameter set)",
+                Num(tuning.u_vgt_full_load),
+                Num(lo),
+                Num(hi)
+            )));
+        }
         let maps = SetpointMaps::compute(model, curve, &tuning)?;
         Ok(Self::with_maps(maps, tuning))
     }
 
     /// Build with set-point maps already solved (`tuning` as [`BaselineTuning::validate`]
-    /// accepts it).
+    /// accepts it; a full-load VGT limit outside the maps' VGT range acts as its closed end).
     pub fn with_maps(maps: SetpointMaps, tuning: BaselineTuning) -> Self {
         let u_vgt_open = maps.u_vgt_range.1;
+        let u_egr_open = maps.u_egr_range.1;
         Self {
             torque: Pid::new(tuning.torque.0, tuning.torque.1, 0.0),
             x_vgt: Pid::new(tuning.x_egr_vgt.0, tuning.x_egr_vgt.1, 0.0),
@@ -1029,7 +1059,7 @@ impl Baseline {
             setpoint_override: (f64::NAN, f64::NAN),
             fuel_override: f64::NAN,
             u_vgt_prev: u_vgt_open,
-            u_egr_prev: 100.0,
+            u_egr_prev: u_egr_open,
             egr_by_lambda_prev: false,
             egr_ramp: Ramp::default(),
             vgt_ramp: Ramp::default(),
@@ -1051,10 +1081,10 @@ impl Baseline {
     }
 
     /// Most open VGT position at load fraction `l` [%]: the open end of the VGT's range at no
-    /// load, [`BaselineTuning::u_vgt_full_load`] at full load.
+    /// load, [`BaselineTuning::u_vgt_full_load`] at full load (never below the closed end).
     fn u_vgt_max(&self, l: f64) -> f64 {
-        let open = self.maps.u_vgt_range.1;
-        open - (open - self.tuning.u_vgt_full_load) * l
+        let (closed, open) = self.maps.u_vgt_range;
+        (open - (open - self.tuning.u_vgt_full_load) * l).max(closed)
     }
 
     fn setpoints(&self, n: f64, u_delta: f64) -> (f64, f64) {
@@ -1082,6 +1112,8 @@ impl Controller for Baseline {
         };
         let l = self.maps.load_of(n_e, u);
         let (u_egr, u_vgt) = nominal_actuators(l);
+        let (egr_lo, egr_hi) = self.maps.u_egr_range;
+        let u_egr = u_egr.min(egr_hi).max(egr_lo);
         let u_vgt = u_vgt.min(self.u_vgt_max(l)).max(self.maps.u_vgt_range.0);
         self.torque.reset(0.0);
         self.x_vgt.reset(u_vgt);
@@ -1163,7 +1195,10 @@ impl Controller for Baseline {
             .vgt_gain_factor_in(self.u_vgt_prev, self.maps.u_vgt_range);
         self.x_vgt.set_scale(g);
         self.lambda_vgt.set_scale(g);
-        let g = self.tuning.egr_gain_factor(self.u_egr_prev);
+        let (egr_closed, egr_open) = self.maps.u_egr_range;
+        let g = self
+            .tuning
+            .egr_gain_factor_in(self.u_egr_prev, self.maps.u_egr_range);
         self.lambda_egr.set_scale(g);
         self.x_egr.set_scale(g);
         let (u_egr_l, u_egr_x) = (
@@ -1171,16 +1206,16 @@ impl Controller for Baseline {
             self.x_egr.output(e_xe, dt),
         );
         // the valve's position set-point of a cell whose pair is out of reach: the lambda_O
-        // loop opens the valve no further (100 %, no limit, elsewhere)
+        // loop opens the valve no further (the range's open end, no limit, elsewhere)
         // (it belongs to the map's pair: a lambda_O,s override, a pair the user gives, has none)
         let egr_max = if self.setpoint_override.0.is_nan() {
             (self.maps.u_egr_max_at(m.n_e, u_delta) + self.tuning.egr_open_beyond_setpoint)
-                .min(100.0)
+                .min(egr_open)
         } else {
-            100.0
+            egr_open
         };
         let u_egr_lc = u_egr_l.min(egr_max);
-        let u_egr = u_egr_lc.min(u_egr_x).clamp(0.0, 100.0);
+        let u_egr = u_egr_lc.min(u_egr_x).clamp(egr_closed, egr_open);
         let (u_vgt_x, u_vgt_l) = (
             self.x_vgt.output(e_xv, dt),
             self.lambda_vgt.output(e_lv, dt),
@@ -1193,10 +1228,10 @@ impl Controller for Baseline {
         let u_vgt = u_vgt_x.min(u_vgt_l).clamp(closed, vmax);
         // which loop is in feedback (a command at one of its limits, where only one side of
         // the selector's output passes, and the error cap cut it)
-        let egr_loop = if u_egr <= 0.0 || u_egr >= 100.0 {
+        let egr_loop = if u_egr <= egr_closed || u_egr >= egr_open {
             InCharge::None
         } else if u_egr_lc <= u_egr_x {
-            // (within (0, 100) this is u_egr_l <= u_egr_x where egr_max is 100)
+            // (inside the range this is u_egr_l <= u_egr_x where egr_max is the open end)
             if e_le < cap && u_egr_l <= egr_max {
                 InCharge::Main
             } else {
@@ -1307,6 +1342,7 @@ impl Controller for OpenLoop {
 #[cfg(test)]
 mod tests {
     use super::BaselineTuning;
+    use crate::model::{U_EGR_RANGE as AUTHORS_EGR, U_VGT_RANGE as AUTHORS_VGT};
 
     /// Values that once passed the check and then broke a run (a gain whose products overflow,
     /// a smoke limit whose set-point floor is above the maps' cap) are refused, naming the field;
@@ -1389,10 +1425,10 @@ mod tests {
             ),
             (
                 BaselineTuning {
-                    vgt_gain_knee: 20.0,
+                    vgt_gain_knee: 0.0,
                     ..base
                 },
-                "vgt_gain_knee = 20",
+                "vgt_gain_knee = 0",
             ),
             (
                 BaselineTuning {
@@ -1498,7 +1534,10 @@ mod tests {
             (50.0, 1.0),
             (80.0, 1.0),
         ] {
-            assert!((t.vgt_gain_factor(u) - g).abs() < 1e-12, "u_vgt {u}");
+            assert!(
+                (t.vgt_gain_factor_in(u, AUTHORS_VGT) - g).abs() < 1e-12,
+                "u_vgt {u}"
+            );
         }
         for (u, g) in [
             (-1.0, 0.2),
@@ -1508,14 +1547,20 @@ mod tests {
             (20.0, 1.0),
             (90.0, 1.0),
         ] {
-            assert!((t.egr_gain_factor(u) - g).abs() < 1e-12, "u_egr {u}");
+            assert!(
+                (t.egr_gain_factor_in(u, AUTHORS_EGR) - g).abs() < 1e-12,
+                "u_egr {u}"
+            );
         }
         let d = BaselineTuning::default();
         for (u, g) in [(20.0, 0.5), (30.0, 0.75), (40.0, 1.0), (100.0, 1.0)] {
-            assert!((d.vgt_gain_factor(u) - g).abs() < 1e-12, "u_vgt {u}");
+            assert!(
+                (d.vgt_gain_factor_in(u, AUTHORS_VGT) - g).abs() < 1e-12,
+                "u_vgt {u}"
+            );
         }
         for u in [0.0, 5.0, 10.0, 100.0] {
-            assert_eq!(d.egr_gain_factor(u), 1.0);
+            assert_eq!(d.egr_gain_factor_in(u, AUTHORS_EGR), 1.0);
         }
         let none = BaselineTuning {
             vgt_gain_closed: 1.0,
@@ -1523,8 +1568,8 @@ mod tests {
             ..d
         };
         for u in [0.0, 5.0, 20.0, 20.5, 33.3, 40.0, 100.0] {
-            assert_eq!(none.vgt_gain_factor(u), 1.0);
-            assert_eq!(none.egr_gain_factor(u), 1.0);
+            assert_eq!(none.vgt_gain_factor_in(u, AUTHORS_VGT), 1.0);
+            assert_eq!(none.egr_gain_factor_in(u, AUTHORS_EGR), 1.0);
         }
     }
 
@@ -1540,6 +1585,7 @@ mod tests {
             u_full: vec![200.0; 2],
             u_delta_range: (1.0, 250.0),
             u_vgt_range,
+            u_egr_range: crate::model::U_EGR_RANGE,
             u_egr_max: vec![vec![100.0; 2]; 2],
             adjusted: vec![],
         }
@@ -1615,10 +1661,18 @@ mod tests {
                 "u_vgt {u}"
             );
         }
-        assert_eq!(
-            t.vgt_gain_factor(20.0),
-            t.vgt_gain_factor_in(20.0, (20.0, 100.0))
-        );
+        // and the EGR valve's: its closed-end factor at the range's closed end
+        let e = BaselineTuning {
+            egr_gain_closed: 0.2,
+            egr_gain_knee: 20.0,
+            ..t
+        };
+        for (u, g) in [(10.0, 0.2), (15.0, 0.6), (20.0, 1.0), (0.0, 0.2)] {
+            assert!(
+                (e.egr_gain_factor_in(u, (10.0, 90.0)) - g).abs() < 1e-12,
+                "u_egr {u}"
+            );
+        }
         // a knee at or below the closed end: no schedule
         assert_eq!(t.vgt_gain_factor_in(50.0, (50.0, 100.0)), 1.0);
         assert_eq!(t.vgt_gain_factor_in(60.0, (50.0, 100.0)), 1.0);

@@ -619,11 +619,16 @@ fn margins_of(
 
 /// The baseline controller's two main air-path loops ([`super::baseline`]): lambda_O -> u_egr
 /// and x_egr -> u_vgt with their PI gains, each at its gain schedule's factor for the operating
-/// point's commands `d` (the limiters, selectors and saturations are not part of the linear
+/// point's commands `d` in the engine's command ranges `limits` (the parameter set's
+/// `input_saturation`; the limiters, selectors and saturations are not part of the linear
 /// analysis).
-pub fn baseline_loops(t: &super::baseline::BaselineTuning, d: &crate::model::Drive) -> Vec<PiLoop> {
+pub fn baseline_loops(
+    t: &super::baseline::BaselineTuning,
+    d: &crate::model::Drive,
+    limits: &crate::params::InputSaturation,
+) -> Vec<PiLoop> {
     use super::InCharge::Main;
-    super::along::loops_in_charge(t, Some(Main), Some(Main), d)
+    super::along::loops_in_charge(t, Some(Main), Some(Main), d, limits)
 }
 
 /// The sampled model of `m` at its steady state for the constant inputs `d`, at the sample

@@ -296,16 +296,13 @@ pub const INPUT_RANGES: [(&str, f64, f64); 4] = {
     ]
 };
 
-/// The input saturation ranges of a parameter set (items 1-4): n_e and u_delta from its
-/// `input_saturation`, the commands the authors' [`crate::model::U_EGR_RANGE`],
-/// [`crate::model::U_VGT_RANGE`].
+/// The input saturation ranges of a parameter set (items 1-4): its `input_saturation`.
 pub fn input_ranges(s: &InputSaturation) -> [(&'static str, f64, f64); 4] {
-    let (e, v) = (crate::model::U_EGR_RANGE, crate::model::U_VGT_RANGE);
     [
         ("n_e_rpm", s.n_e[0], s.n_e[1]),
         ("u_delta_mg", s.u_delta[0], s.u_delta[1]),
-        ("u_egr_pct", e.0, e.1),
-        ("u_vgt_pct", v.0, v.1),
+        ("u_egr_pct", s.u_egr[0], s.u_egr[1]),
+        ("u_vgt_pct", s.u_vgt[0], s.u_vgt[1]),
     ]
 }
 
@@ -395,8 +392,8 @@ pub fn range_warnings_of_rows(
             Some(format!(
                 "{name} is outside its range [{lo}, {hi}] at {} of {n} input rows ({}), first at \
                  t = {} s (the whole channel runs from {} to {}); the authors' saturation clamps \
-                 it (the paper's semantics use it as given; n_e and u_delta ranges: \
-                 input_saturation of the parameter file)",
+                 it (the paper's semantics use it as given; the ranges are input_saturation of \
+                 the parameter file)",
                 e.below + e.above,
                 sides.join("; "),
                 // to the microsecond: a crossing between rows is interpolated (0.9090909... s)
@@ -691,7 +688,7 @@ mod tests {
             w[1],
             "u_vgt_pct is outside its range [20, 100] at 2 of 3 input rows (2 below, down to 5), \
              first at t = 0 s (the whole channel runs from 5 to 50); the authors' saturation \
-             clamps it (the paper's semantics use it as given; n_e and u_delta ranges: \
+             clamps it (the paper's semantics use it as given; the ranges are \
              input_saturation of the parameter file)"
         );
         // the authors' ranges are the default parameter set's; another engine's speed range
@@ -706,6 +703,7 @@ mod tests {
         let car = InputSaturation {
             n_e: [700.0, 4500.0],
             u_delta: [1.0, 80.0],
+            ..InputSaturation::default()
         };
         let w = range_warnings(&s, &input_ranges(&car));
         assert_eq!(w.len(), 2);
@@ -718,5 +716,25 @@ mod tests {
             w[0]
         );
         assert!(w[1].starts_with("u_vgt_pct"));
+        // and its VGT command range (session 39): a VGT commanded 0-100 % takes 5 % as given,
+        // one commanded 10-90 % clamps it
+        let full = InputSaturation {
+            u_vgt: [0.0, 100.0],
+            ..car.clone()
+        };
+        let w = range_warnings(&s, &input_ranges(&full));
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("u_delta_mg"), "{w:?}");
+        let mid = InputSaturation {
+            u_vgt: [10.0, 90.0],
+            ..car
+        };
+        let w = range_warnings(&s, &input_ranges(&mid));
+        assert!(
+            w[1].starts_with(
+                "u_vgt_pct is outside its range [10, 90] at 1 of 3 input rows (1 below, down to 5)"
+            ),
+            "{w:?}"
+        );
     }
 }

@@ -82,6 +82,11 @@ impl AnyModel {
             AnyModel::Twelve(_) => ModelOrder::Twelve,
         }
     }
+
+    /// The variant's parameter set.
+    pub fn params(&self) -> &Params {
+        crate::dispatch!(self, m => super::Model::params(m))
+    }
 }
 
 /// Call generic code on the concrete model inside an [`AnyModel`]:

@@ -95,8 +95,8 @@ pub(crate) fn evaluate<const SIGNALS: bool>(
 
     // Inputs: saturations before the delays (items 1-4).
     let (d, mut guards) = saturate_inputs(&u.now, sem, &p.input_saturation);
-    let ue_delayed = saturate_u_egr(u.u_egr_delayed, sem);
-    let uv_delayed = saturate_u_vgt(u.u_vgt_delayed, sem);
+    let ue_delayed = saturate_u_egr(u.u_egr_delayed, sem, &p.input_saturation);
+    let uv_delayed = saturate_u_vgt(u.u_vgt_delayed, sem, &p.input_saturation);
 
     // Actuator outputs (eq. (39), state of eq. (57)) or the bypass switch (item 6).
     let (u_egr_act, u_vgt_act) = match opts.actuators {

@@ -133,11 +133,12 @@ impl Model<8> for Engine8 {
 
     fn actuator_state_values(&self, d: &Drive) -> Vec<(usize, f64)> {
         let s = self.opts.semantics;
-        let ue = saturate_u_egr(d.u_egr_pct, s);
+        let limits = &self.p.input_saturation;
+        let ue = saturate_u_egr(d.u_egr_pct, s, limits);
         vec![
             (ix::U_EGR1, ue),
             (ix::U_EGR2, ue),
-            (ix::U_VGT, saturate_u_vgt(d.u_vgt_pct, s)),
+            (ix::U_VGT, saturate_u_vgt(d.u_vgt_pct, s, limits)),
         ]
     }
 

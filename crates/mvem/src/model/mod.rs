@@ -280,18 +280,24 @@ pub const N_E_RANGE: (f64, f64) = (500.0, 2000.0);
 /// Saturation range of the injected fuel u_delta [mg/cycle/cylinder] in the authors'
 /// implementation (item 2; the default of `input_saturation.u_delta`).
 pub const U_DELTA_RANGE: (f64, f64) = (1.0, 250.0);
-/// Saturation range [%] of the EGR command in the authors' implementation (item 3).
+/// Saturation range [%] of the EGR command in the authors' implementation (item 3; the default
+/// of `input_saturation.u_egr`).
 pub const U_EGR_RANGE: (f64, f64) = (0.0, 100.0);
-/// Saturation range [%] of the VGT command in the authors' implementation (item 4).
+/// Saturation range [%] of the VGT command in the authors' implementation (item 4; the default
+/// of `input_saturation.u_vgt`).
 pub const U_VGT_RANGE: (f64, f64) = (20.0, 100.0);
 
 /// The saturations (EGR, VGT) [%] the model applies to the commands before the actuators:
-/// [`U_EGR_RANGE`], [`U_VGT_RANGE`] for the authors' implementation, none (infinite) for the
+/// the parameter set's `input_saturation.u_egr`, `u_vgt` (`limits`; the authors' are
+/// [`U_EGR_RANGE`], [`U_VGT_RANGE`]) for the authors' implementation, none (infinite) for the
 /// paper's equations.
-pub fn command_saturation(sem: Semantics) -> ((f64, f64), (f64, f64)) {
+pub fn command_saturation(
+    sem: Semantics,
+    limits: &crate::params::InputSaturation,
+) -> ((f64, f64), (f64, f64)) {
     let none = (f64::NEG_INFINITY, f64::INFINITY);
     if sem.authors() {
-        (U_EGR_RANGE, U_VGT_RANGE)
+        (limits.egr(), limits.vgt())
     } else {
         (none, none)
     }
@@ -299,7 +305,7 @@ pub fn command_saturation(sem: Semantics) -> ((f64, f64), (f64, f64)) {
 
 /// The three actuator lags (u_egr1, u_egr2, u_vgt at the given state indices).
 pub(crate) fn actuator_lags(p: &Params, sem: Semantics, ix: [usize; 3]) -> Vec<LinearLag> {
-    let (egr, vgt) = command_saturation(sem);
+    let (egr, vgt) = command_saturation(sem, &p.input_saturation);
     vec![
         LinearLag {
             state: ix[0],
@@ -507,8 +513,8 @@ pub(crate) fn engine_initial_memory<const N: usize, M: Model<N, Memory = Seliger
 }
 
 /// Input saturations of the authors' implementation (items 1-4), returned with guard bits:
-/// n_e and u_delta into the ranges of `limits` (the parameter set's; the authors' are
-/// [`N_E_RANGE`], [`U_DELTA_RANGE`]), the commands into [`U_EGR_RANGE`], [`U_VGT_RANGE`].
+/// n_e, u_delta and the commands into the ranges of `limits` (the parameter set's; the
+/// authors' are [`N_E_RANGE`], [`U_DELTA_RANGE`], [`U_EGR_RANGE`], [`U_VGT_RANGE`]).
 pub fn saturate_inputs(
     d: &Drive,
     sem: Semantics,
@@ -537,27 +543,39 @@ pub fn saturate_inputs(
             limits.u_delta[1],
             Guard::InputUDelta,
         ),
-        clamp(d.u_egr_pct, U_EGR_RANGE.0, U_EGR_RANGE.1, Guard::InputUEgr),
-        clamp(d.u_vgt_pct, U_VGT_RANGE.0, U_VGT_RANGE.1, Guard::InputUVgt),
+        clamp(
+            d.u_egr_pct,
+            limits.u_egr[0],
+            limits.u_egr[1],
+            Guard::InputUEgr,
+        ),
+        clamp(
+            d.u_vgt_pct,
+            limits.u_vgt[0],
+            limits.u_vgt[1],
+            Guard::InputUVgt,
+        ),
     );
     (out, g)
 }
 
-/// Authors' saturation of a delayed EGR command (item 3, applied before the delay).
+/// Authors' saturation of a delayed EGR command (item 3, applied before the delay) into
+/// `limits.u_egr` (the parameter set's).
 #[inline]
-pub fn saturate_u_egr(u: f64, sem: Semantics) -> f64 {
+pub fn saturate_u_egr(u: f64, sem: Semantics, limits: &crate::params::InputSaturation) -> f64 {
     if sem.authors() {
-        u.clamp(U_EGR_RANGE.0, U_EGR_RANGE.1)
+        u.clamp(limits.u_egr[0], limits.u_egr[1])
     } else {
         u
     }
 }
 
-/// Authors' saturation of a delayed VGT command (item 4, applied before the delay).
+/// Authors' saturation of a delayed VGT command (item 4, applied before the delay) into
+/// `limits.u_vgt` (the parameter set's).
 #[inline]
-pub fn saturate_u_vgt(u: f64, sem: Semantics) -> f64 {
+pub fn saturate_u_vgt(u: f64, sem: Semantics, limits: &crate::params::InputSaturation) -> f64 {
     if sem.authors() {
-        u.clamp(U_VGT_RANGE.0, U_VGT_RANGE.1)
+        u.clamp(limits.u_vgt[0], limits.u_vgt[1])
     } else {
         u
     }

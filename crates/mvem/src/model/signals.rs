@@ -148,10 +148,10 @@ guards! {
     InputNe = 0, "input:n_e in input_saturation.n_e", false;
     /// u_delta outside `input_saturation.u_delta` (default [1, 250] mg) was clamped (item 2).
     InputUDelta = 1, "input:u_delta in input_saturation.u_delta", false;
-    /// u_egr outside [0, 100] % was clamped (item 3).
-    InputUEgr = 2, "input:u_egr in [0,100]", false;
-    /// u_vgt outside [20, 100] % was clamped (item 4).
-    InputUVgt = 3, "input:u_vgt in [20,100]", false;
+    /// u_egr outside `input_saturation.u_egr` (default [0, 100] %) was clamped (item 3).
+    InputUEgr = 2, "input:u_egr in input_saturation.u_egr", false;
+    /// u_vgt outside `input_saturation.u_vgt` (default [20, 100] %) was clamped (item 4).
+    InputUVgt = 3, "input:u_vgt in input_saturation.u_vgt", false;
     /// A state is at an integrator limit (items 9-12, 37).
     StateLimit = 4, "saturation:integrator_limit", true;
     /// X_Oe = max(0, .) active (item 14).

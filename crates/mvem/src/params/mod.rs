@@ -22,7 +22,7 @@ macro_rules! param_group {
     (
         $title:literal
         $(#[$doc:meta])*
-        $name:ident $key:literal {
+        $name:ident $key:literal $([$attr:meta])* {
             $( $field:ident : $ty:ty { $( $sym:ident : $unit:literal ),+ } $desc:literal ; )*
         }
     ) => {
@@ -30,6 +30,7 @@ macro_rules! param_group {
         $(#[$doc])*
         #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
         #[serde(deny_unknown_fields)]
+        $(#[$attr])*
         pub struct $name {
             $(
                 #[doc = concat!($desc, ".")]
@@ -246,25 +247,43 @@ impl Default for Intercooler {
 }
 
 param_group! {
-    "Input saturation of the authors' implementation (items 1-2 of docs/authors-implementation.md)"
-    /// Their engine's speed and fuel range: under the authors' semantics the model clamps n_e
-    /// and u_delta into it before the cylinder (with a guard flag); `Semantics::Paper` takes the
-    /// inputs as given. Not in the authors' parameter file (hard-coded there): the defaults are
-    /// their values, 500-2000 rpm and 1-250 mg; an engine with another speed or fuel range
-    /// sets its own.
-    InputSaturation "input_saturation" {
+    "Input saturation of the authors' implementation (items 1-4 of docs/authors-implementation.md)"
+    /// Their engine's speed and fuel range and their actuators' command ranges: under the
+    /// authors' semantics the model clamps n_e and u_delta into them before the cylinder and
+    /// the EGR and VGT commands before the actuators' delays (each with a guard flag);
+    /// `Semantics::Paper` takes the inputs as given. Not in the authors' parameter file
+    /// (hard-coded there): the defaults are their values, 500-2000 rpm, 1-250 mg, 0-100 % EGR
+    /// and 20-100 % VGT; an engine with another speed, fuel or command range sets its own. A
+    /// field the file leaves out takes its default.
+    InputSaturation "input_saturation" [serde(default)] {
         n_e: [f64; 2] { n_e_min: "rpm", n_e_max: "rpm" } "Engine speed range n_e_min < n_e_max the model clamps n_e into (item 1)";
         u_delta: [f64; 2] { u_delta_min: "mg/cycle", u_delta_max: "mg/cycle" } "Injected fuel range u_delta_min < u_delta_max the model clamps u_delta into (item 2)";
+        u_egr: [f64; 2] { u_egr_min: "%", u_egr_max: "%" } "EGR-valve command range u_egr_min < u_egr_max, inside [0, 100] %, the model clamps u_egr into (item 3)";
+        u_vgt: [f64; 2] { u_vgt_min: "%", u_vgt_max: "%" } "VGT command range u_vgt_min < u_vgt_max, inside [0, 100] %, the model clamps u_vgt into (item 4)";
     }
 }
 
 impl Default for InputSaturation {
     fn default() -> Self {
-        let (n, u) = (crate::model::N_E_RANGE, crate::model::U_DELTA_RANGE);
+        use crate::model::{N_E_RANGE, U_DELTA_RANGE, U_EGR_RANGE, U_VGT_RANGE};
         Self {
-            n_e: [n.0, n.1],
-            u_delta: [u.0, u.1],
+            n_e: [N_E_RANGE.0, N_E_RANGE.1],
+            u_delta: [U_DELTA_RANGE.0, U_DELTA_RANGE.1],
+            u_egr: [U_EGR_RANGE.0, U_EGR_RANGE.1],
+            u_vgt: [U_VGT_RANGE.0, U_VGT_RANGE.1],
         }
+    }
+}
+
+impl InputSaturation {
+    /// The EGR command range (lo, hi) [%] (`u_egr`).
+    pub fn egr(&self) -> (f64, f64) {
+        (self.u_egr[0], self.u_egr[1])
+    }
+
+    /// The VGT command range (lo, hi) [%] (`u_vgt`).
+    pub fn vgt(&self) -> (f64, f64) {
+        (self.u_vgt[0], self.u_vgt[1])
     }
 }
 
@@ -307,7 +326,7 @@ pub struct Params {
     /// Extension parameters for the 12-state model (defaults if absent).
     #[serde(default)]
     pub intercooler: Intercooler,
-    /// The authors' input saturation ranges (defaults, their values, if absent).
+    /// The authors' input saturation ranges (defaults, their values, where absent).
     #[serde(default)]
     pub input_saturation: InputSaturation,
     /// The authors' turbo-speed integrator limit (default, their value, if absent).

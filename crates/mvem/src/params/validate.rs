@@ -38,6 +38,9 @@ impl fmt::Display for ParamIssues {
 
 impl std::error::Error for ParamIssues {}
 
+/// The constraint of a range's upper end.
+const RANGE_ENDS: &str = "the upper end of the range must exceed its lower end";
+
 struct Checker {
     issues: Vec<ParamIssue>,
 }
@@ -103,7 +106,8 @@ impl Params {
     /// Checks: all values finite; volumes, inertia, gas properties, radii, areas, time
     /// constants, heating value, displacement positive; delays non-negative; ratios of specific
     /// heats > 1 and consistent with c_p/c_V; 0 < Pi_egropt < 1; 0 < X_Oc <= 1; compression
-    /// ratio > 1; efficiencies in (0, 1]; Q_c symmetric positive semidefinite (eq. (65)); K_egr >= 1.
+    /// ratio > 1; efficiencies in (0, 1]; Q_c symmetric positive semidefinite (eq. (65)); K_egr >= 1;
+    /// the input saturation ranges lo < hi, the command ranges inside [0, 100] %.
     pub fn validate(&self) -> Result<(), ParamIssues> {
         let mut c = Checker { issues: Vec::new() };
         let g = &self.gas;
@@ -280,17 +284,25 @@ impl Params {
         c.positive("input_saturation.n_e[1]", s.n_e[0]);
         c.positive("input_saturation.u_delta[1]", s.u_delta[0]);
         c.positive("integrator_limits.n_t[1]", self.integrator_limits.n_t[0]);
+        // the actuators' command ranges: positions in percent (eqs (38), (56))
+        for (n, r) in [
+            ("input_saturation.u_egr", s.u_egr),
+            ("input_saturation.u_vgt", s.u_vgt),
+        ] {
+            for (i, v) in r.iter().enumerate() {
+                c.closed_range(&super::element_name(n, &[i]), *v, 0.0, 100.0);
+            }
+            if r.iter().all(|v| v.is_finite()) && r[1] <= r[0] {
+                c.push(&super::element_name(n, &[1]), r[1], RANGE_ENDS);
+            }
+        }
         for (n, r) in [
             ("input_saturation.n_e[2]", s.n_e),
             ("input_saturation.u_delta[2]", s.u_delta),
             ("integrator_limits.n_t[2]", self.integrator_limits.n_t),
         ] {
             if c.finite(n, r[1]) && r[0].is_finite() && r[1] <= r[0] {
-                c.push(
-                    n,
-                    r[1],
-                    "the upper end of the range must exceed its lower end",
-                );
+                c.push(n, r[1], RANGE_ENDS);
             }
         }
 
@@ -537,5 +549,34 @@ mod tests {
             e.contains("input_saturation.u_delta[1] = 0: must be > 0"),
             "{e}"
         );
+    }
+
+    /// The EGR and VGT command ranges (session 39): finite, lo < hi, inside [0, 100] %, each
+    /// error naming its field.
+    #[test]
+    fn a_command_range_must_be_a_range_of_positions() {
+        let mut p = Params::published();
+        p.input_saturation.u_vgt = [60.0, 40.0];
+        let e = p.validate().unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "input_saturation.u_vgt[2] = 40: the upper end of the range must exceed its lower end"
+            ),
+            "{e}"
+        );
+        p.input_saturation.u_vgt = [0.0, 100.0];
+        p.input_saturation.u_egr = [-5.0, f64::NAN];
+        let e = p.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("input_saturation.u_egr[1] = -5: must lie in [0, 100]"),
+            "{e}"
+        );
+        assert!(
+            e.contains("input_saturation.u_egr[2] = NaN: must be finite"),
+            "{e}"
+        );
+        assert!(!e.contains("u_vgt"), "{e}");
+        p.input_saturation.u_egr = [10.0, 90.0];
+        assert!(p.validate().is_ok());
     }
 }

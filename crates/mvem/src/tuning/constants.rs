@@ -24,12 +24,13 @@
 
 use super::data::StationaryPoint;
 use crate::components::cylinder;
+use crate::numerics::Num;
 use crate::params::Params;
 use serde::{Deserialize, Serialize};
 
 /// Parameters that no tuning step estimates (names of the parameter registry, paths of the
 /// parameter file) besides the ambient conditions: the engine's geometry and properties.
-pub const ENGINE_CONSTANTS: [&str; 29] = [
+pub const ENGINE_CONSTANTS: [&str; 33] = [
     "cylinder.v_d",
     "cylinder.n_cyl",
     "cylinder.r_c",
@@ -57,6 +58,10 @@ pub const ENGINE_CONSTANTS: [&str; 29] = [
     "input_saturation.n_e[2]",
     "input_saturation.u_delta[1]",
     "input_saturation.u_delta[2]",
+    "input_saturation.u_egr[1]",
+    "input_saturation.u_egr[2]",
+    "input_saturation.u_vgt[1]",
+    "input_saturation.u_vgt[2]",
     "integrator_limits.n_t[1]",
     "integrator_limits.n_t[2]",
 ];
@@ -379,6 +384,84 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
             s.u_delta[1]
         )
     })
+}
+
+/// The campaign's EGR and VGT commands outside the command ranges of `s` (the parameter set
+/// `set` names, e.g. `the published parameters` or its file; `input_saturation.u_egr`,
+/// `u_vgt`, the authors' items 3-4): one warning per data set (the stationary points, each
+/// dynamic set) and column, naming both, the range, how many values lie outside and how far
+/// (the extreme below and above, in points of %). The model runs such commands clamped (with
+/// the authors' [20, 100] % a VGT commanded to 10 % sits at 20 %), so another engine whose
+/// actuators are commanded over a wider range must set its range before tuning. Empty when
+/// every command lies inside.
+pub fn commands_outside_ranges(
+    c: &super::data::Campaign,
+    s: &crate::params::InputSaturation,
+    set: &str,
+) -> Vec<String> {
+    // (where, what a value is, the column's values)
+    let stationary = |col: &str| -> Vec<f64> {
+        c.stationary
+            .iter()
+            .map(|x| if col == "u_egr" { x.u_egr } else { x.u_vgt })
+            .collect()
+    };
+    let mut sources: Vec<(String, &str, Vec<f64>, Vec<f64>)> = vec![(
+        format!("the stationary points ({})", c.manifest.stationary),
+        "points",
+        stationary("u_egr"),
+        stationary("u_vgt"),
+    )];
+    for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
+        let col = |name: &str| d.get(name).map(<[f64]>::to_vec).unwrap_or_default();
+        sources.push((
+            format!("set {} ({})", info.name, info.file),
+            "samples",
+            col("u_egr"),
+            col("u_vgt"),
+        ));
+    }
+    let mut out = Vec::new();
+    for (data, unit, egr, vgt) in &sources {
+        for (col, actuator, [lo, hi], values) in [
+            ("u_egr", "EGR-valve", s.u_egr, egr),
+            ("u_vgt", "VGT", s.u_vgt, vgt),
+        ] {
+            let below: Vec<f64> = values.iter().copied().filter(|v| *v < lo).collect();
+            let above: Vec<f64> = values.iter().copied().filter(|v| *v > hi).collect();
+            if below.is_empty() && above.is_empty() {
+                continue;
+            }
+            let mut sides = Vec::with_capacity(2);
+            if let Some(m) = below.iter().copied().reduce(f64::min) {
+                sides.push(format!(
+                    "{} below, down to {} % ({} points of % under {lo} %)",
+                    below.len(),
+                    Num(m),
+                    Num(lo - m)
+                ));
+            }
+            if let Some(m) = above.iter().copied().reduce(f64::max) {
+                sides.push(format!(
+                    "{} above, up to {} % ({} points of % over {hi} %)",
+                    above.len(),
+                    Num(m),
+                    Num(m - hi)
+                ));
+            }
+            out.push(format!(
+                "{data}: {col} leaves the {actuator} command range [{lo}, {hi}] % of {set} \
+                 (input_saturation.{col}) at {} of {} {unit} ({}); the model runs these \
+                 commands clamped into the range: if this engine's {actuator} is commanded \
+                 over a wider range, set input_saturation.{col} of the parameter file before \
+                 tuning",
+                below.len() + above.len(),
+                values.len(),
+                sides.join("; ")
+            ));
+        }
+    }
+    out
 }
 
 /// Where the tuned model's input ranges (`[input_saturation]`, the authors' items 1-2) come

@@ -476,8 +476,10 @@ pub fn actuator_set(p: &Params, opts: &LabOptions) -> DynamicData {
     let ue: Vec<f64> = t.iter().map(|&tt| level(&egr_steps, egr[0], tt)).collect();
     let uv: Vec<f64> = t.iter().map(|&tt| level(&vgt_steps, vgt[0], tt)).collect();
     // the true positions: the actuator models driven by the commands after the model's
-    // saturation (VGT commands below 20 % do not move the actuator further)
-    let (sat_egr, sat_vgt) = crate::model::command_saturation(Semantics::Authors);
+    // saturation, the parameter set's command ranges (with the authors' ranges, VGT commands
+    // below 20 % do not move the actuator further)
+    let (sat_egr, sat_vgt) =
+        crate::model::command_saturation(Semantics::Authors, &p.input_saturation);
     let pos_e = actuator::position(&t, &ue, sat_egr, |s| {
         egr::actuator_step_response(&p.egr_actuator, s)
     });

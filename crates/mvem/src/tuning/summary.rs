@@ -34,7 +34,8 @@ pub struct CampaignSummary {
     pub datasets: Vec<SetSummary>,
     /// Steps 1-5: which sets each would use, or what is missing.
     pub steps: Vec<StepSupport>,
-    /// What the user should check before tuning, one line each ([`sampling_warnings`]).
+    /// What the user should check before tuning, one line each ([`sampling_warnings`], then
+    /// the commands outside the parameter set's command ranges).
     pub warnings: Vec<String>,
 }
 
@@ -220,8 +221,24 @@ pub(crate) fn roles_text(roles: &[Role]) -> String {
         .join(", ")
 }
 
-/// Summarize a loaded campaign (see the module documentation).
+/// Summarize a loaded campaign (see the module documentation) for the published parameters'
+/// command ranges ([`summarize_for`]).
 pub fn summarize(c: &Campaign) -> CampaignSummary {
+    summarize_for(
+        c,
+        &crate::params::Params::published().input_saturation,
+        "the published parameters",
+    )
+}
+
+/// Summarize a loaded campaign for the parameter set `set` names, whose input saturation is
+/// `s`: its warnings add the commands outside that set's EGR and VGT command ranges
+/// ([`super::constants::commands_outside_ranges`]) to [`sampling_warnings`].
+pub fn summarize_for(
+    c: &Campaign,
+    s: &crate::params::InputSaturation,
+    set: &str,
+) -> CampaignSummary {
     let st = &c.stationary;
     let m = &c.manifest;
     let datasets: Vec<SetSummary> = m
@@ -317,7 +334,10 @@ pub fn summarize(c: &Campaign) -> CampaignSummary {
         units: m.units.clone(),
         datasets,
         steps,
-        warnings: sampling_warnings(c),
+        warnings: sampling_warnings(c)
+            .into_iter()
+            .chain(super::constants::commands_outside_ranges(c, s, set))
+            .collect(),
     }
 }
 
@@ -449,7 +469,40 @@ mod tests {
         let ok: Vec<bool> = s2.steps.iter().map(|x| x.supported).collect();
         assert_eq!(ok, [true, false, true, false, true]);
         assert!(s2.text().contains("NO  step 2"), "{}", s2.text());
-        assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+        // the lab's actuator set commands the VGT down to 10 %, below the published parameters'
+        // VGT range (the model runs it at 20 %): said, naming the set, the column and how far
+        // (session 39); a parameter set whose VGT range reaches 10 % says nothing
+        assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
+        let w = &s.warnings[0];
+        assert!(
+            w.starts_with(
+                "set J (J.csv): u_vgt leaves the VGT command range [20, 100] % of the published \
+                 parameters (input_saturation.u_vgt) at "
+            ),
+            "{w}"
+        );
+        assert!(
+            w.contains(" below, down to 10 % (10 points of % under 20 %))"),
+            "{w}"
+        );
+        let mut wide = Params::published().input_saturation;
+        wide.u_vgt = [10.0, 100.0];
+        let s_wide = summarize_for(&c, &wide, "car.toml");
+        assert!(s_wide.warnings.is_empty(), "{:?}", s_wide.warnings);
+        // a narrower EGR range: the stationary points' and the sets' EGR commands above it
+        wide.u_egr = [0.0, 30.0];
+        let s_egr = summarize_for(&c, &wide, "car.toml");
+        assert!(
+            s_egr
+                .warnings
+                .iter()
+                .any(|w| w.starts_with("the stationary points (")
+                    && w.contains(
+                        "u_egr leaves the EGR-valve command range [0, 30] % of car.toml"
+                    )),
+            "{:?}",
+            s_egr.warnings
+        );
         // QA finding: 3 or 5 stationary points were "yes step 1", which then failed
         let mut few = c.clone();
         few.stationary.truncate(STEP1_MIN_POINTS - 1);

@@ -50,10 +50,11 @@ fn steps_or_err(
 /// Step 2: actuator parameters from an actuator data set (J): NLS of the measured positions
 /// against the responses of eqs (39)-(41) and (57) to the commanded steps. The commands are
 /// first saturated as the model does before the actuators (authors' implementation, items 3-4:
-/// u_egr in [0, 100] %, u_vgt in [20, 100] %), so a command below 20 % VGT moves the actuator
-/// only to 20 %. Each change of the saturated command is a step; the model response is the sum
-/// of the unit step responses, which equals the paper's comparison of normalized, time-shifted
-/// steps once every step has settled and stays exact when it has not. K_egr is bounded to
+/// into `base`'s `input_saturation.u_egr`, `u_vgt`, by default [0, 100] % and [20, 100] %), so
+/// with the default a command below 20 % VGT moves the actuator only to 20 %. Each change of
+/// the saturated command is a step; the model response is the sum of the unit step responses,
+/// which equals the paper's comparison of normalized, time-shifted steps once every step has
+/// settled and stays exact when it has not. K_egr is bounded to
 /// [1, 5] (overshoot), which removes the symmetry (tau_egr1, tau_egr2, K) <-> (tau_egr2,
 /// tau_egr1, 1 - K). Relative errors by eq. (5) with the mean measured position.
 pub fn step2(
@@ -74,7 +75,7 @@ pub fn step2(
         col("u_vgt_pos")?,
     );
     need("EGR actuator", j.t.len(), 10)?;
-    let (sat_egr, sat_vgt) = command_saturation(SEM);
+    let (sat_egr, sat_vgt) = command_saturation(SEM, &base.input_saturation);
     let mut p = base.clone();
     let mut reports = Vec::new();
     let opts = LsqOptions {
@@ -163,9 +164,10 @@ pub fn step2(
 }
 
 /// Actuator position predicted from the command column `u` (EGR: eqs (39)-(41), VGT: eq. (57)),
-/// the commands saturated as in the model (authors' implementation, items 3-4).
+/// the commands saturated as in the model (authors' implementation, items 3-4: `p`'s command
+/// ranges).
 pub fn actuator_response(p: &Params, t: &[f64], u: &[f64], egr: bool) -> Vec<f64> {
-    let (sat_egr, sat_vgt) = command_saturation(SEM);
+    let (sat_egr, sat_vgt) = command_saturation(SEM, &p.input_saturation);
     if egr {
         crate::components::actuator::position(t, u, sat_egr, |s| {
             egr::actuator_step_response(&p.egr_actuator, s)
