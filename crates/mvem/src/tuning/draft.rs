@@ -969,7 +969,11 @@ mod tests {
         for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
             assert_eq!((a.name.as_str(), a.t.len()), (b.name.as_str(), b.t.len()));
             for (x, y) in a.t.iter().zip(&b.t) {
-                assert!((x - y).abs() <= 1e-9 * y.abs().max(1.0), "{}: {x} vs {y}", a.name);
+                assert!(
+                    (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                    "{}: {x} vs {y}",
+                    a.name
+                );
             }
         }
     }
