@@ -50,7 +50,10 @@ inherit their error as a bias; docs/tuning.md, session 21; constants the campaig
 session 23). \"ambient\": the means used. A step 5 stopped away from its optimum
 by more than the noise is reported with a warning (relative offset R: up to R sqrt(p) standard
 errors from the least-squares optimum), and its parameters and those of steps 3-4 repeated on
-its static maps with \"converged\": false, not identifiable (session 38).
+its static maps with \"converged\": false, not identifiable (session 38), unless the cost
+measured along the Gauss-Newton step at 1, 0.1, 0.01, 0.001 of it falls by less than one
+residual variance (\"gauss_newton_decrease\"): then it stopped at its optimum within the
+noise (session 39).
 --model 12: after steps 1-5 (8-state model) the three steps of section 9.2.1: 6 k_ic by linear
 least squares of the stationary p_c - p_im (eq. (86)), 7 V_ic, V_im, V_em, J_t on the 12-state
 model (with step 3), 8 the static parameters and k_ic by (77) with z_8 = W_ic, beta = 2.58

@@ -436,39 +436,146 @@ impl ParamStats {
 /// in [`param_stats`]). 0 at a (linearized) optimum, `r` orthogonal to the Jacobian's columns;
 /// NaN when `m <= p`; infinite when the residuals lie in the column space.
 pub fn relative_offset(jacobian: &DMatrix<f64>, residuals: &[f64]) -> f64 {
+    match split_by_span(jacobian, residuals, false) {
+        Some(s) => (s.in_span / s.rank as f64).sqrt() / s.variance.sqrt(),
+        None => f64::NAN,
+    }
+}
+
+/// The residuals `r` split by the column space of the Jacobian (see [`relative_offset`]).
+struct SpanSplit {
+    /// `||Q_1^T r||^2`: the decrease of `||r||^2` the Gauss-Newton model predicts.
+    in_span: f64,
+    /// `||Q_2^T r||^2 / (m - p)`: the residual variance.
+    variance: f64,
+    /// Numerical rank p.
+    rank: usize,
+    /// The rank-truncated Gauss-Newton step `-J^+ r` (when asked for).
+    step: Option<DVector<f64>>,
+}
+
+/// [`SpanSplit`] of `residuals` by `jacobian`; `None` when `m <= p`, `p = 0` or the SVD fails.
+fn split_by_span(jacobian: &DMatrix<f64>, residuals: &[f64], with_step: bool) -> Option<SpanSplit> {
     let (m, n) = jacobian.shape();
     if m == 0 || n == 0 || residuals.len() != m {
-        return f64::NAN;
+        return None;
     }
     let mut js = jacobian.clone();
-    for mut c in js.column_iter_mut() {
+    let mut norms = vec![0.0; n];
+    for (j, mut c) in js.column_iter_mut().enumerate() {
         let cn = c.norm();
         if cn > 0.0 && cn.is_finite() {
             c.scale_mut(1.0 / cn);
+            norms[j] = cn;
         } else {
             c.fill(0.0);
         }
     }
-    let Some(svd) = SVD::try_new(js, true, false, f64::EPSILON * 5.0, super::SVD_MAX_ITER) else {
-        return f64::NAN;
-    };
+    let svd = SVD::try_new(js, true, with_step, f64::EPSILON * 5.0, super::SVD_MAX_ITER)?;
     let u = svd.u.as_ref().expect("u requested");
     let s = &svd.singular_values;
     let tol = f64::EPSILON * m.max(n) as f64 * s.iter().copied().fold(0.0, f64::max);
     let r = DVector::from_column_slice(residuals);
     let mut in_span = 0.0;
     let mut p = 0usize;
+    let mut step = with_step.then(|| DVector::zeros(n));
     for (k, sk) in s.iter().enumerate() {
         if *sk > tol {
-            in_span += u.column(k).dot(&r).powi(2);
+            let c = u.column(k).dot(&r);
+            in_span += c * c;
             p += 1;
+            if let (Some(d), Some(vt)) = (step.as_mut(), svd.v_t.as_ref()) {
+                // in the column-normalized variables: -v_k (u_k^T r) / s_k
+                *d -= vt.row(k).transpose() * (c / sk);
+            }
         }
     }
     if m <= p || p == 0 {
-        return f64::NAN;
+        return None;
+    }
+    if let Some(d) = step.as_mut() {
+        for (dj, nj) in d.iter_mut().zip(&norms) {
+            *dj = if *nj > 0.0 { *dj / nj } else { 0.0 };
+        }
     }
     let rest = (r.norm_squared() - in_span).max(0.0);
-    (in_span / p as f64).sqrt() / (rest / (m - p) as f64).sqrt()
+    Some(SpanSplit {
+        in_span,
+        variance: rest / (m - p) as f64,
+        rank: p,
+        step,
+    })
+}
+
+/// The cost measured along the Gauss-Newton step from a point ([`gauss_newton_line`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaussNewtonLine {
+    /// Decrease of `||r||^2` the Gauss-Newton model predicts for the whole step, in residual
+    /// variances: `||Q_1^T r||^2 / sigma^2 = R^2 p` ([`relative_offset`] R, p the rank,
+    /// `sigma^2 = ||Q_2^T r||^2 / (m - p)`).
+    pub predicted: f64,
+    /// Largest decrease of `||r||^2` measured at the fractions `t` of the step, in the same
+    /// residual variances (negative: the cost rose at every `t`).
+    pub measured: f64,
+    /// The fraction of the step where [`GaussNewtonLine::measured`] was found.
+    pub t: f64,
+    /// The point there (projected into the bounds).
+    pub theta: Vec<f64>,
+    /// Residual evaluations made (one per `t`).
+    pub n_eval: usize,
+}
+
+/// The decrease of `||r||^2` actually available along the rank-truncated Gauss-Newton step
+/// `delta = -J^+ r` from `theta` (residuals `residuals`, Jacobian `jacobian` there), measured at
+/// `theta + t delta` for each `t` of `fractions`, each point projected into `bounds` as the
+/// solver projects a trial step (a coordinate beyond its bound put just inside it). The
+/// Gauss-Newton model predicts `||r(t)||^2 = ||r||^2 - (2 t - t^2) ||Q_1^T r||^2`, the
+/// decrease the relative offset measures ([`relative_offset`]); where the residuals' own
+/// curvature (`sum r_i Hess r_i`, left out of `J^T J`) dominates along the step, as in the
+/// flat directions of a badly determined fit, the cost rises from a small `t` on and the
+/// measured decrease is far below the prediction. Points whose residuals are not all finite
+/// are skipped. `None` when the relative offset is undefined (`m <= p`) or no point was finite.
+pub fn gauss_newton_line<F>(
+    mut residual: F,
+    theta: &[f64],
+    jacobian: &DMatrix<f64>,
+    residuals: &[f64],
+    bounds: &Bounds,
+    fractions: &[f64],
+) -> Option<GaussNewtonLine>
+where
+    F: FnMut(&[f64]) -> Vec<f64>,
+{
+    let split = split_by_span(jacobian, residuals, true)?;
+    let delta = split.step?;
+    if delta.len() != theta.len() || !split.variance.is_finite() || split.variance <= 0.0 {
+        return None;
+    }
+    let x = DVector::from_column_slice(theta);
+    let lo = DVector::from_column_slice(&bounds.lo);
+    let hi = DVector::from_column_slice(&bounds.hi);
+    let ss0: f64 = residuals.iter().map(|r| r * r).sum();
+    let mut best: Option<GaussNewtonLine> = None;
+    let mut n_eval = 0;
+    for &t in fractions {
+        let xt = make_strictly_feasible(&(&x + &delta * t), &lo, &hi, 0.0);
+        let r = residual(xt.as_slice());
+        n_eval += 1;
+        if r.len() != residuals.len() || !r.iter().all(|v| v.is_finite()) {
+            continue;
+        }
+        let down = (ss0 - r.iter().map(|v| v * v).sum::<f64>()) / split.variance;
+        if best.as_ref().is_none_or(|b| down > b.measured) {
+            best = Some(GaussNewtonLine {
+                predicted: split.in_span / split.variance,
+                measured: down,
+                t,
+                theta: xt.iter().copied().collect(),
+                n_eval: 0,
+            });
+        }
+    }
+    best.map(|b| GaussNewtonLine { n_eval, ..b })
 }
 
 /// Linearized statistics from a Jacobian (m x n) and residuals at a least-squares solution.
@@ -1815,6 +1922,69 @@ mod tests {
         // the column scaling does not change it
         let js = DMatrix::from_fn(m, 2, |i, k| j[(i, k)] * if k == 0 { 1e6 } else { 1e-3 });
         assert!((relative_offset(&js, &r) / want - 1.0).abs() < 1e-8);
+    }
+
+    /// A Rosenbrock-like residual (10 (y - x^2), 1 - x) with four residuals the parameters do
+    /// not move (2, -1, 1, 0: residual variance 6 / (6 - 2) = 1.5), and its exact Jacobian.
+    fn rosenbrock_with_noise(th: &[f64]) -> Vec<f64> {
+        vec![
+            10.0 * (th[1] - th[0] * th[0]),
+            1.0 - th[0],
+            2.0,
+            -1.0,
+            1.0,
+            0.0,
+        ]
+    }
+
+    fn rosenbrock_jacobian(th: &[f64]) -> DMatrix<f64> {
+        let mut j = DMatrix::zeros(6, 2);
+        j[(0, 0)] = -20.0 * th[0];
+        j[(0, 1)] = 10.0;
+        j[(1, 0)] = -1.0;
+        j
+    }
+
+    #[test]
+    fn the_cost_along_the_gauss_newton_step_by_hand() {
+        let ts = [1.0, 0.1, 0.01, 0.001];
+        // on the valley y = x^2 at x = -2: r = (0, 3), the Gauss-Newton step (3, -12) gives
+        // y - x^2 = -9 t^2, so ||r(t)||^2 = 8100 t^4 + 9 (1 - t)^2 + 6 where J^T J predicts
+        // 15 - 9 (2 t - t^2): R^2 p = 9 / 1.5 = 6 residual variances, R = 1.73 > 1 / sqrt(2)
+        // (the relative-offset rule: stopped short); measured, the best is t = 0.1 with
+        // 9 - 8.1 = 0.9, i.e. 0.6 residual variances (t = 1: the cost rises by 8091)
+        let th = [-2.0, 4.0];
+        let (r, j) = (rosenbrock_with_noise(&th), rosenbrock_jacobian(&th));
+        let big_r = relative_offset(&j, &r);
+        assert!((big_r - 3f64.sqrt()).abs() < 1e-12, "{big_r}");
+        let line = gauss_newton_line(rosenbrock_with_noise, &th, &j, &r, &Bounds::none(2), &ts)
+            .expect("a line");
+        assert!((line.predicted - 6.0).abs() < 1e-9, "{line:?}");
+        assert!((line.predicted - big_r * big_r * 2.0).abs() < 1e-9);
+        assert_eq!((line.t, line.n_eval), (0.1, 4));
+        assert!((line.measured - 0.6).abs() < 1e-9, "{line:?}");
+        assert!((line.theta[0] + 1.7).abs() < 1e-12 && (line.theta[1] - 2.8).abs() < 1e-12);
+        // off the valley at (0, 1): r = (10, 1), the step (1, -1) removes most of r_1 first:
+        // t = 0.1 gives 8.9^2 + 0.9^2 = 80.02 against 101, 13.99 residual variances (of 67.3
+        // predicted), t = 1 only 1
+        let th = [0.0, 1.0];
+        let (r, j) = (rosenbrock_with_noise(&th), rosenbrock_jacobian(&th));
+        let line = gauss_newton_line(rosenbrock_with_noise, &th, &j, &r, &Bounds::none(2), &ts)
+            .expect("a line");
+        assert!((line.predicted - 101.0 / 1.5).abs() < 1e-9, "{line:?}");
+        assert_eq!(line.t, 0.1);
+        assert!((line.measured - 20.98 / 1.5).abs() < 1e-9, "{line:?}");
+        // the points are projected into the bounds as the solver's trial steps: x <= 0.05
+        let b = Bounds::new(vec![-1.0, -1.0], vec![0.05, 2.0]);
+        let line = gauss_newton_line(rosenbrock_with_noise, &th, &j, &r, &b, &ts).expect("a line");
+        assert!(
+            line.theta[0] < 0.05 && line.theta[0] > 0.05 - 1e-15,
+            "{line:?}"
+        );
+        // no residual variance left (m = p): undefined, as the relative offset
+        let two = |t: &[f64]| rosenbrock_with_noise(t)[..2].to_vec();
+        let j2 = rosenbrock_jacobian(&th).rows(0, 2).into_owned();
+        assert!(gauss_newton_line(two, &th, &j2, &r[..2], &Bounds::none(2), &ts).is_none());
     }
 
     #[test]

@@ -28,8 +28,8 @@
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
 use super::lsq::{
-    least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult, Termination,
-    XScale,
+    gauss_newton_line, least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult,
+    Termination, XScale,
 };
 use super::scale::CampaignScale;
 use super::sensors::{SensorLags, LAG_NAMES, MAX_LAG_S};
@@ -1435,6 +1435,16 @@ pub struct Step5Report {
     pub stopped_by: String,
     /// Bates-Watts relative offset at the end ([`super::lsq::relative_offset`]).
     pub rel_offset: f64,
+    /// When ftol or xtol stopped the search with `R^2 p` above 1 (`R` the relative offset, `p`
+    /// parameters: the Gauss-Newton step from the end point predicts a decrease of (77) of
+    /// more than one residual variance): the largest decrease of (77) measured along that step
+    /// at [`STEP5_LINE_FRACTIONS`] of it ([`super::lsq::gauss_newton_line`]), in residual
+    /// variances (negative: it rose at each). Below 1 the search stopped at its optimum within
+    /// the noise and its estimates are not flagged. `None`: not measured.
+    pub gauss_newton_decrease: Option<f64>,
+    /// The fraction of the Gauss-Newton step where [`Step5Report::gauss_newton_decrease`] was
+    /// measured.
+    pub gauss_newton_t: Option<f64>,
     /// Data sets left out of a first pass of step 5 because the model at its start oscillated on
     /// them where the engine does not (`PipelineOptions::stage_oscillating`); this report is
     /// the second pass, on every set, from the first pass's result (its evaluations, iterations
@@ -1490,6 +1500,8 @@ impl Step5Report {
             converged: true,
             stopped_by: stopped_by.into(),
             rel_offset,
+            gauss_newton_decrease: None,
+            gauss_newton_t: None,
             first_pass_without: Vec::new(),
             first_pass_evaluations: 0,
             first_pass_stopped_by: String::new(),
@@ -1543,26 +1555,69 @@ impl Step5Report {
     /// predicts a cost decrease of `R^2 p` residual variances and the estimate may lie up to
     /// `R sqrt(p)` standard errors (in the Gauss-Newton metric) from the optimum. Returns
     /// (`R^2 p`, `R sqrt(p)`); `None` otherwise.
-    fn distance_to_optimum(&self) -> Option<(f64, f64)> {
-        let p = self.params.len() as f64;
-        let r = self.rel_offset;
-        let by_noise = matches!(self.stopped_by.as_str(), "relative offset" | "gtol");
-        if by_noise || !r.is_finite() || p < 1.0 || r * r * p <= 1.0 {
-            return None;
-        }
-        Some((r * r * p, r * p.sqrt()))
+    fn predicted_distance(&self) -> Option<(f64, f64)> {
+        predicted_distance(&self.stopped_by, self.rel_offset, self.params.len())
     }
 
-    /// A note when the search stopped away from the least-squares optimum by more than the
-    /// noise (`distance_to_optimum`), which the reported standard errors do not
-    /// include. `None` otherwise.
+    /// [`Step5Report::predicted_distance`] unless the decrease measured along the
+    /// Gauss-Newton step ([`Step5Report::gauss_newton_decrease`]) is below one residual
+    /// variance: then the search stopped at its optimum within the noise (session 39: the
+    /// residuals' curvature in the flat directions of (77), which `J^T J` leaves out, makes
+    /// the cost rise along the step where R predicted 4-109 residual variances).
+    fn distance_to_optimum(&self) -> Option<(f64, f64)> {
+        let d = self.predicted_distance()?;
+        match self.gauss_newton_decrease {
+            Some(measured) if measured < 1.0 => None,
+            _ => Some(d),
+        }
+    }
+
+    /// What the cost measured along the Gauss-Newton step says of a stop R calls short
+    /// ("relative offset 3.800 predicts 505.4 residual variances, measured along the
+    /// Gauss-Newton step at most 0.02 (t = 0.01)"); `None` when not measured.
+    fn measured_line(&self) -> Option<String> {
+        let (variances, _) = self.predicted_distance()?;
+        let (measured, t) = (self.gauss_newton_decrease?, self.gauss_newton_t?);
+        let at_most = if measured > 0.0 {
+            format!("at most {} (t = {t})", variances_text(measured))
+        } else {
+            format!(
+                "no decrease (the cost rose at each t, least by {})",
+                variances_text(-measured)
+            )
+        };
+        Some(format!(
+            "relative offset {:.3} predicts {variances:.1} residual variances, measured along \
+             the Gauss-Newton step {at_most}",
+            self.rel_offset
+        ))
+    }
+
+    /// A note on where the search stopped when R says away from the least-squares optimum
+    /// (`predicted_distance`): farther than the noise by the decrease measured
+    /// along the Gauss-Newton step, or R's prediction alone (not measured), which the reported
+    /// standard errors do not include; or, when the measured decrease is below one residual
+    /// variance, that it stopped at its optimum within the noise. `None` otherwise.
     pub fn stop_note(&self) -> Option<String> {
-        let (variances, ses) = self.distance_to_optimum()?;
+        let (variances, ses) = self.predicted_distance()?;
+        if self.distance_to_optimum().is_none() {
+            return Some(format!(
+                "step 5 stopped ({}) at its optimum within the noise: {}, below one residual \
+                 variance ({} parameters)",
+                self.stopped_by,
+                self.measured_line()?,
+                self.params.len(),
+            ));
+        }
+        let measured = self
+            .measured_line()
+            .map(|m| format!("; {m}"))
+            .unwrap_or_default();
         Some(format!(
             "step 5 stopped ({}) before its optimum: the Gauss-Newton step from its end point \
              predicts a cost decrease of {variances:.1} residual variances (relative offset {:.3}, \
              {} parameters), so the estimate may lie up to {ses:.1} standard errors from the \
-             least-squares optimum; the standard errors do not include that distance",
+             least-squares optimum; the standard errors do not include that distance{measured}",
             self.stopped_by,
             self.rel_offset,
             self.params.len(),
@@ -1572,7 +1627,8 @@ impl Step5Report {
     /// Why the search did not reach its optimum, as a reason for the estimates it gave
     /// (`ParamEstimate::flag_not_converged`): stopped at its evaluation limit (`converged`
     /// false), or by ftol/xtol farther from the optimum than the noise
-    /// (`distance_to_optimum`). `None` when it converged.
+    /// (`distance_to_optimum`, with the decrease measured along the Gauss-Newton step when it
+    /// was). `None` when it converged.
     pub fn early_stop(&self) -> Option<String> {
         if !self.converged {
             return Some(format!(
@@ -1581,12 +1637,47 @@ impl Step5Report {
             ));
         }
         let (_, ses) = self.distance_to_optimum()?;
+        let measured = match (self.gauss_newton_decrease, self.gauss_newton_t) {
+            (Some(d), Some(t)) => {
+                format!(
+                    "; measured along the Gauss-Newton step: {} residual variances at t = {t}",
+                    variances_text(d)
+                )
+            }
+            _ => String::new(),
+        };
         Some(format!(
             "step 5 stopped ({}) before its optimum (relative offset {:.3}: up to {ses:.1} \
-             standard errors from it, not in the standard errors)",
+             standard errors from it, not in the standard errors{measured})",
             self.stopped_by, self.rel_offset
         ))
     }
+}
+
+/// A number of residual variances with two decimals, or two digits in scientific notation
+/// below 0.01 (`0.02`, `5.25`, `1.5e-3`).
+fn variances_text(x: f64) -> String {
+    if x != 0.0 && x.abs() < 0.01 {
+        format!("{x:.1e}")
+    } else {
+        format!("{x:.2}")
+    }
+}
+
+/// The fractions of the Gauss-Newton step at which step 5 measures the cost when it stopped
+/// by ftol/xtol with `R^2 p > 1` ([`Step5Report::gauss_newton_decrease`]).
+pub const STEP5_LINE_FRACTIONS: [f64; 4] = [1.0, 0.1, 0.01, 0.001];
+
+/// (`R^2 p`, `R sqrt(p)`) of a search stopped by `stopped_by` at relative offset `r` with `p`
+/// parameters when a rule other than the relative offset or gtol stopped it with `R^2 p > 1`
+/// ([`Step5Report::predicted_distance`]); `None` otherwise.
+fn predicted_distance(stopped_by: &str, r: f64, p: usize) -> Option<(f64, f64)> {
+    let p = p as f64;
+    let by_noise = matches!(stopped_by, "relative offset" | "gtol");
+    if by_noise || !r.is_finite() || p < 1.0 || r * r * p <= 1.0 {
+        return None;
+    }
+    Some((r * r * p, r * p.sqrt()))
 }
 
 /// The box step 5 searches from `theta0` on `base` and the stationary points `stat`
@@ -1699,6 +1790,22 @@ pub fn step5(
             break;
         }
     }
+    // R says the stop is short of the optimum: measure the decrease the Gauss-Newton step
+    // actually gives (four evaluations; session 39 found the cost rising along it)
+    let line = (fit.termination.converged()
+        && predicted_distance(fit.termination.name(), fit.rel_offset, th0.len()).is_some())
+    .then(|| {
+        gauss_newton_line(
+            |th: &[f64]| cost.residuals(th),
+            &fit.theta,
+            &fit.jacobian,
+            &fit.residuals,
+            &Bounds::new(lo.clone(), hi.clone()),
+            &STEP5_LINE_FRACTIONS,
+        )
+    })
+    .flatten();
+    fit.n_eval += line.as_ref().map_or(0, |l| l.n_eval);
     let p = cost.params(&fit.theta);
     let theta = theta_of(&list, &p);
     let at_bounds = list
@@ -1790,6 +1897,8 @@ pub fn step5(
             converged: fit.termination.converged(),
             stopped_by: fit.termination.name().to_string(),
             rel_offset: fit.rel_offset,
+            gauss_newton_decrease: line.as_ref().map(|l| l.measured),
+            gauss_newton_t: line.as_ref().map(|l| l.t),
             first_pass_without: Vec::new(),
             first_pass_evaluations: 0,
             first_pass_stopped_by: String::new(),
@@ -1972,5 +2081,61 @@ mod tests {
         assert!(report("ftol", 0.16).stop_note().is_none()); // R^2 p = 0.90
         assert!(report("ftol", 0.17).stop_note().is_some()); // 1.01
         assert!(report("evaluation limit", f64::NAN).stop_note().is_none());
+    }
+
+    /// Session 39: R = 3.8 on 35 parameters predicts 505 residual variances, but along the
+    /// Gauss-Newton step the cost fell by at most 0.02 of one (the campaigns measured: 1e-4 to
+    /// 0.05): the stop is at the optimum within the noise, a note, no flag. A measured decrease
+    /// above one residual variance keeps R's flag and names it.
+    #[test]
+    fn a_stop_r_calls_short_is_judged_by_the_cost_along_the_gauss_newton_step() {
+        let mut r = report("xtol", 3.8);
+        // R alone (not measured): stopped short
+        assert!(r.early_stop().is_some());
+        r.gauss_newton_decrease = Some(0.02);
+        r.gauss_newton_t = Some(0.01);
+        assert_eq!(r.early_stop(), None);
+        assert_eq!(
+            r.stop_note().as_deref(),
+            Some(
+                "step 5 stopped (xtol) at its optimum within the noise: relative offset 3.800 \
+                 predicts 505.4 residual variances, measured along the Gauss-Newton step at most \
+                 0.02 (t = 0.01), below one residual variance (35 parameters)"
+            )
+        );
+        // the cost rose at every t
+        r.gauss_newton_decrease = Some(-1.5e-3);
+        r.gauss_newton_t = Some(0.001);
+        assert_eq!(r.early_stop(), None);
+        let note = r.stop_note().expect("a note");
+        assert!(
+            note.contains("no decrease (the cost rose at each t, least by 1.5e-3)"),
+            "{note}"
+        );
+        // a real decrease: flagged, with the measured figure
+        r.gauss_newton_decrease = Some(5.25);
+        r.gauss_newton_t = Some(0.1);
+        assert_eq!(
+            r.early_stop().as_deref(),
+            Some(
+                "step 5 stopped (xtol) before its optimum (relative offset 3.800: up to 22.5 \
+                 standard errors from it, not in the standard errors; measured along the \
+                 Gauss-Newton step: 5.25 residual variances at t = 0.1)"
+            )
+        );
+        let note = r.stop_note().expect("a note");
+        assert!(note.contains("before its optimum"), "{note}");
+        assert!(note.ends_with("measured along the Gauss-Newton step at most 5.25 (t = 0.1)"));
+        // exactly one residual variance is not within the noise; the evaluation limit is
+        // flagged whatever was measured
+        r.gauss_newton_decrease = Some(1.0);
+        assert!(r.early_stop().is_some());
+        r.gauss_newton_decrease = Some(0.02);
+        r.converged = false;
+        r.stopped_by = "evaluation limit".into();
+        assert!(r
+            .early_stop()
+            .expect("flagged")
+            .contains("evaluation limit"));
     }
 }

@@ -1809,12 +1809,20 @@ mod tests {
             None
         );
         assert_eq!(Step5Report::for_tests(35, "xtol", 0.16).early_stop(), None); // R^2 p = 0.9
-        let r = Step5Report::for_tests(35, "xtol", 3.8);
+                                                                                 // R = 3.8 with a decrease of 5.25 residual variances measured along the Gauss-Newton
+                                                                                 // step (session 39: one below 1 is the optimum within the noise, not flagged)
+        let mut r = Step5Report::for_tests(35, "xtol", 3.8);
+        r.gauss_newton_decrease = Some(0.4);
+        r.gauss_newton_t = Some(0.01);
+        assert_eq!(r.early_stop(), None);
+        r.gauss_newton_decrease = Some(5.25);
+        r.gauss_newton_t = Some(0.1);
         let stop = r.early_stop().expect("stopped short");
         assert_eq!(
             stop,
             "step 5 stopped (xtol) before its optimum (relative offset 3.800: up to 22.5 \
-             standard errors from it, not in the standard errors)"
+             standard errors from it, not in the standard errors; measured along the \
+             Gauss-Newton step: 5.25 residual variances at t = 0.1)"
         );
         let mut limit = Step5Report::for_tests(35, "evaluation limit", f64::NAN);
         limit.converged = false;

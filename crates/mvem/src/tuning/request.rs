@@ -432,7 +432,14 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
             ));
         }
         if let Some(note) = r.stop_note() {
-            out.push(format!("warning: {note}"));
+            // a stop at the optimum within the noise (measured along the Gauss-Newton step)
+            // is a note, one short of it a warning
+            let kind = if r.early_stop().is_some() {
+                "warning"
+            } else {
+                "note"
+            };
+            out.push(format!("{kind}: {note}"));
         }
     }
     for o in &rep.oscillations {
