@@ -450,7 +450,13 @@ fn a_state_just_beside_a_kink_is_differenced_on_its_own_side() {
         28.20475970157859,
     );
     let m = Engine8::published();
-    let loops = loops_in_charge(&t, Some(InCharge::Limiter), Some(InCharge::Main), &d);
+    let loops = loops_in_charge(
+        &t,
+        Some(InCharge::Limiter),
+        Some(InCharge::Main),
+        &d,
+        &m.params().input_saturation,
+    );
     assert_eq!(loops.len(), 2);
     let (dm, a) = margins_at(&m, &d, &loops, t.ts).unwrap();
     assert!(a.max_pole_all.is_finite());
