@@ -22,19 +22,7 @@ lap clippy
 # the API documentation of every crate: no broken or private intra-doc links (units in brackets
 # are escaped, \[s\], so that rustdoc does not read them as links; the CLI binary is not
 # documented, its doc comments being the --help texts)
-#
-# On a fresh checkout right after the cold clippy build, cargo's own probe of rustc for the doc
-# build ("failed to run `rustc` to learn about target-specific information": `rustc -` read a
-# rustc error message as its input) failed on this project's CI machines in session 39, and cargo
-# caches that failed probe in target/.rustc_info.json; the same command after dropping the cache
-# passes (the probe is cargo's, not this project's code). So one retry with the probe cache
-# dropped; a real documentation error fails both runs.
-doc() { RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --profile "$MVEM_PROFILE" -q; }
-if ! doc; then
-  echo "test-all.sh: cargo doc failed; retrying once with cargo's rustc probe cache dropped"
-  rm -f target/.rustc_info.json
-  doc
-fi
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --profile "$MVEM_PROFILE" -q
 lap "cargo doc"
 cargo test --workspace --profile "$MVEM_PROFILE" --no-run
 lap "cargo test build"

@@ -16,10 +16,42 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
 /// Write to `path` atomically through a buffered writer: `fill` writes the content to a
 /// temporary file in the target's directory, which is flushed and renamed over the
 /// target only when `fill` succeeded (on any error the temporary file is removed).
+///
+/// Where `path` is not a regular file the rename would replace what is there, so:
+/// - a symbolic link to a regular file: the file it points to is written (atomically, in its
+///   own directory), the link stays;
+/// - an existing file that is no regular file (`/dev/null`, `/dev/stdout`, a named pipe): the
+///   content is written into it directly (a device or a pipe has no partial state to guard;
+///   the rename replaced `/dev/null` itself with a regular file when run as root).
 pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), IoError> {
+    let fail = |source| IoError::File {
+        path: path.to_path_buf(),
+        source,
+    };
+    // (follows symbolic links)
+    if let Ok(meta) = std::fs::metadata(path) {
+        if meta.is_file() {
+            let real = std::fs::canonicalize(path).map_err(fail)?;
+            if real != path {
+                return write_atomic_with(&real, fill).map_err(|e| match e {
+                    IoError::File { source, .. } => fail(source),
+                    other => other,
+                });
+            }
+        } else if !meta.is_dir() {
+            let f = std::fs::OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(fail)?;
+            let mut w = std::io::BufWriter::with_capacity(1 << 16, f);
+            return fill(&mut w)
+                .and_then(|()| w.into_inner().map(drop).map_err(|e| e.into_error()))
+                .map_err(fail);
+        }
+    }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -418,6 +450,48 @@ pub fn write_streaming<T, E>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Session 39: `mvem simulate --out /dev/null` (as root) renamed its temporary file over
+    /// `/dev/null`, which became a regular file collecting every later write to it (and
+    /// `--out /dev/stdout` replaced that link). A named pipe stands for such a file here: it is
+    /// written into and stays a pipe; a symbolic link to a regular file stays a link, the file
+    /// it points to gets the content; a plain file is replaced atomically as before.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn special_files_and_links_are_written_into_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let ok = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(ok.success());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        write_atomic(&fifo, b"t,p_im\n0,1e5\n").unwrap();
+        assert_eq!(reader.join().unwrap(), b"t,p_im\n0,1e5\n");
+        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+        assert!(kind.is_fifo(), "{kind:?}");
+        // no temporary left beside it
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+
+        let real = dir.path().join("real.csv");
+        std::fs::write(&real, "old").unwrap();
+        let link = dir.path().join("link.csv");
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        write_atomic(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&real).unwrap(), b"new");
+        write_atomic(&real, b"newer").unwrap();
+        assert_eq!(std::fs::read(&link).unwrap(), b"newer");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 3);
+    }
 
     /// The multi-threaded CSV (row blocks) is byte for byte the single-threaded one, for a row
     /// count that does not divide evenly, with non-finite values.
