@@ -33,15 +33,14 @@ pub fn write_atomic_with(
     };
     // (follows symbolic links)
     if let Ok(meta) = std::fs::metadata(path) {
-        if meta.is_file() {
+        let link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+        if meta.is_file() && link {
             let real = std::fs::canonicalize(path).map_err(fail)?;
-            if real != path {
-                return write_atomic_with(&real, fill).map_err(|e| match e {
-                    IoError::File { source, .. } => fail(source),
-                    other => other,
-                });
-            }
-        } else if !meta.is_dir() {
+            return write_atomic_with(&real, fill).map_err(|e| match e {
+                IoError::File { source, .. } => fail(source),
+                other => other,
+            });
+        } else if !meta.is_file() && !meta.is_dir() {
             let f = std::fs::OpenOptions::new()
                 .write(true)
                 .open(path)

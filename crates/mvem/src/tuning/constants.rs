@@ -399,18 +399,12 @@ pub fn commands_outside_ranges(
     s: &crate::params::InputSaturation,
     set: &str,
 ) -> Vec<String> {
-    // (where, what a value is, the column's values)
-    let stationary = |col: &str| -> Vec<f64> {
-        c.stationary
-            .iter()
-            .map(|x| if col == "u_egr" { x.u_egr } else { x.u_vgt })
-            .collect()
-    };
+    // (where, what a value is, the EGR and VGT commands)
     let mut sources: Vec<(String, &str, Vec<f64>, Vec<f64>)> = vec![(
         format!("the stationary points ({})", c.manifest.stationary),
         "points",
-        stationary("u_egr"),
-        stationary("u_vgt"),
+        c.stationary.iter().map(|x| x.u_egr).collect(),
+        c.stationary.iter().map(|x| x.u_vgt).collect(),
     )];
     for (info, d) in c.manifest.datasets.iter().zip(&c.dynamic) {
         let col = |name: &str| d.get(name).map(<[f64]>::to_vec).unwrap_or_default();
