@@ -670,9 +670,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
                         _ => None,
                     };
                     if let Some((side, _, d, cr)) = pick {
-                        jac.column_mut(c).copy_from_slice(d);
-                        corr.column_mut(c).copy_from_slice(cr);
-                        incons.column_mut(c).fill(0.0);
+                        adopt_one_sided(c, d, cr, &mut jac, &mut corr, &mut incons);
                         one_sided.push(OneSided {
                             variable: dir_name(&dirs[c]),
                             value: v0s[c],
@@ -720,9 +718,7 @@ fn linearize_impl<const N: usize, M: Model<N>>(
                     None
                 };
                 if let Some((side, _, _, d, cr)) = pick {
-                    jac.column_mut(c).copy_from_slice(d);
-                    corr.column_mut(c).copy_from_slice(cr);
-                    incons.column_mut(c).fill(0.0);
+                    adopt_one_sided(c, d, cr, &mut jac, &mut corr, &mut incons);
                     one_sided.push(OneSided {
                         variable: dir_name(&dirs[c]),
                         value: v0s[c],
@@ -910,6 +906,21 @@ impl Work {
 
 /// Weights 1 / (4^j - 1) of the Richardson table of central differences (errors in h^2, h^4, ...).
 const INV_W_CENTRAL: [f64; 4] = [0.0, 1.0 / 3.0, 1.0 / 15.0, 1.0 / 63.0];
+/// Takes a one-sided column `c` into the Jacobian: its derivatives `d` and their Richardson
+/// corrections `cr`, with no inconsistency left (the side was chosen because its slopes agree).
+fn adopt_one_sided(
+    c: usize,
+    d: &[f64],
+    cr: &[f64],
+    jac: &mut DMatrix<f64>,
+    corr: &mut DMatrix<f64>,
+    incons: &mut DMatrix<f64>,
+) {
+    jac.column_mut(c).copy_from_slice(d);
+    corr.column_mut(c).copy_from_slice(cr);
+    incons.column_mut(c).fill(0.0);
+}
+
 /// Weights 1 / (2^j - 1) of the Richardson table of one-sided differences (errors in h, h^2, ...).
 const INV_W_ONE_SIDED: [f64; 4] = [0.0, 1.0, 1.0 / 3.0, 1.0 / 7.0];
 
