@@ -585,3 +585,18 @@ def test_an_absurd_horizon_is_refused_at_once():
     with pytest.raises(ValueError, match=r"^end time 1e300 s is beyond the 1e9 s"):
         mvem.simulate(STEP, t_end=1e300, dt=1e299)
     assert time.perf_counter() - t < 2.0
+
+
+@pytest.mark.parametrize("call", [
+    lambda: mvem.steady(1500, math.inf, 80, 75),
+    lambda: mvem.linearize(1500, 110, -math.inf, 75),
+    lambda: mvem.Plant(1500, 110, 80, math.inf),
+])
+def test_a_non_finite_input_is_refused_without_a_clamp_warning_first(call):
+    """An infinite input got a UserWarning "outside [1, 250]; the authors' saturation clamps it"
+    and then the ValueError "is not finite": it is refused only, as the CLI does."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="not finite|must be finite"):
+            call()

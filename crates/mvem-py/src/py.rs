@@ -168,7 +168,13 @@ fn out_of_range(values: [f64; 4], ranges: &[(&str, f64, f64); 4]) -> bool {
     ranges
         .iter()
         .zip(values)
-        .any(|((_, lo, hi), v)| v < *lo || v > *hi)
+        .any(|((_, lo, hi), v)| outside(v, *lo, *hi))
+}
+
+/// Whether `v` is a finite value outside `[lo, hi]`: a non-finite value is refused with an
+/// error where it is checked, so it gets no clamp warning first.
+fn outside(v: f64, lo: f64, hi: f64) -> bool {
+    v.is_finite() && (v < lo || v > hi)
 }
 
 /// The authors' implementation saturates the inputs (`mvem::io::csv_inputs::input_ranges` of the
@@ -182,7 +188,7 @@ fn warn_out_of_range(
     ranges: &[(&str, f64, f64); 4],
 ) -> PyResult<()> {
     for ((name, lo, hi), v) in ranges.iter().zip(values) {
-        if v < *lo || v > *hi {
+        if outside(v, *lo, *hi) {
             let msg = format!(
                 "{what}: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it",
                 Num(v)
