@@ -1214,3 +1214,29 @@ def test_every_control_has_a_label(page):
     assert unnamed == [], unnamed
     label = page.eval_on_selector("input[name=bode_fmax]", "e => e.labels[0].textContent.replace(/\\s+/g, \" \").trim()")
     assert label == "to Hz", label
+
+
+def test_the_step_target_follows_the_chosen_input(page):
+    """Choosing another step input kept the previous input's target: u_vgt's 65 % became a step
+    of n_e from 1500 to 65 rpm (clamped to 500). The target is now the point's value of the
+    chosen input plus a step of its own size (u_vgt and u_egr -10 %, u_delta +10 mg, n_e
+    +100 rpm), the other way where that would leave the input's range; a typed target stays
+    until the input is changed."""
+    def target_after(inp):
+        page.select_option("select[name=step_input]", inp)
+        return float(page.input_value("input[name=step_target]"))
+
+    assert page.input_value("input[name=step_target]") == "65"
+    assert target_after("n_e") == 1600
+    assert target_after("u_delta") == 120
+    assert target_after("u_egr") == 70
+    assert target_after("u_vgt") == 65
+    page.fill("input[name=u_egr]", "5")
+    assert target_after("u_egr") == 15
+    page.fill("input[name=n_e]", "1950")
+    assert target_after("n_e") == 1850
+    page.fill("input[name=step_target]", "1700")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    assert page.text_content("#step-at").startswith("step of n_e from 1950 to 1700 at")
+    assert page.get_attribute("#step-warnings", "data-count") == "0"

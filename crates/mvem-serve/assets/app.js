@@ -762,6 +762,20 @@
   // ---------------------------------------------------------------------------------------------
   // step panel
 
+  // a step's size when its input is chosen: the target the point's value of that input plus
+  // this, or minus it where plus would leave the input's range (the slider's); it kept the
+  // previous input's target (u_vgt's 65 % became a step of n_e from 1500 to 65 rpm, clamped)
+  const STEP_SIZE = { u_vgt: -10, u_egr: -10, u_delta: 10, n_e: 100 };
+  function stepTargetForInput() {
+    const n = $("select[name=step_input]").value;
+    const from = Number($(`input[name=${n}]`).value);
+    const sl = $(`input[data-slider=${n}]`);
+    if ($(`input[name=${n}]`).value.trim() === "" || !Number.isFinite(from)) return;
+    let to = from + STEP_SIZE[n];
+    if (to < Number(sl.min) || to > Number(sl.max)) to = from - STEP_SIZE[n];
+    $("input[name=step_target]").value = String(Number(to.toPrecision(12)));
+  }
+
   async function runStep() {
     await busy("[data-action=step]", "running step…", "#step-error", async () => {
       const body = { point: point(), input: $("select[name=step_input]").value, target: num("step_target", "step to"),
@@ -1435,6 +1449,7 @@
     wireInputs();
     downloads();
     $("[data-action=step]").addEventListener("click", runStep);
+    $("select[name=step_input]").addEventListener("change", stepTargetForInput);
     $("[data-action=linearize]").addEventListener("click", runLinearize);
     $("[data-action=map]").addEventListener("click", runMap);
     $("[data-action=cycle]").addEventListener("click", runCycle);
