@@ -1240,3 +1240,24 @@ def test_the_step_target_follows_the_chosen_input(page):
     page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
     assert page.text_content("#step-at").startswith("step of n_e from 1950 to 1700 at")
     assert page.get_attribute("#step-warnings", "data-count") == "0"
+
+
+def test_an_answer_that_is_not_json_is_named(page):
+    """An answer that is not the server's JSON (a proxy's page, another server on the port) was
+    shown as the page's own failure, "Cannot read properties of null (reading 'cycle_stats')",
+    and an error status with a text body as "HTTP 500" without its text: both are named, with
+    the start of what came back."""
+    page.route("**/api/simulate", lambda r: r.fulfill(status=200, content_type="text/html",
+                                                       body="<html><body>proxy login</body></html>"))
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    assert page.text_content("#cycle-error") == (
+        "the server's answer to /api/simulate is not the JSON of mvem serve "
+        "(text/html: <html><body>proxy login</body></html>)")
+    page.route("**/api/linearize*", lambda r: r.fulfill(status=500, content_type="text/plain",
+                                                         body="internal error\n"))
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert page.text_content("#lin-error") == "HTTP 500: internal error"
+    page.wait_for_selector("#status[data-status=ok]")
+    page.console_errors[:] = [e for e in page.console_errors if "status of 500" not in e]

@@ -52,12 +52,22 @@
       err.kind = "network";
       throw err;
     }
+    // (an answer that is not JSON, from something else than mvem serve: a proxy's page, another
+    // server on the port, a crash's text, is named so, with the start of its text, instead of
+    // failing later as "Cannot read properties of null")
+    const text = await r.text();
     let j = null;
-    try { j = await r.json(); } catch (_) { j = null; }
+    try { j = JSON.parse(text); } catch (_) { j = null; }
+    const head = () => text.trim().replace(/\s+/g, " ").slice(0, 120);
     if (!r.ok) {
-      const err = new Error((j && j.error) || `HTTP ${r.status}`);
+      const err = new Error((j && j.error) || `HTTP ${r.status}${head() ? `: ${head()}` : ""}`);
       err.kind = "http";
       err.status = r.status;
+      throw err;
+    }
+    if (j === null || typeof j !== "object") {
+      const err = new Error(`the server's answer to ${path.split("?")[0]} is not the JSON of mvem serve (${r.headers.get("content-type") || "no content type"}${head() ? `: ${head()}` : ""})`);
+      err.kind = "answer";
       throw err;
     }
     return j;
