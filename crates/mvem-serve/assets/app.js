@@ -331,18 +331,23 @@
   }
 
   // about n ticks at a step of 1, 2 or 5 times a power of ten, at least two of them: one tick
-  // alone gives no scale (a step's n_t axis had only "13350", a cycle's lambda_O strip "5")
+  // alone gives no scale (a step's n_t axis had only "13350", a cycle's lambda_O strip "5");
+  // where there would be one, the largest step of 5, 2.5, 2, 1 ... times a power of ten that
+  // gives two (not simply more ticks: a 46 px strip got four, "2 4 6 8", their labels touching)
   function ticks(lo, hi, n) {
-    for (let k = n; k < n + 4; k++) {
-      const t = ticksAbout(lo, hi, k);
-      if (t.length >= 2) return t;
-    }
-    return ticksAbout(lo, hi, n);
-  }
-  function ticksAbout(lo, hi, n) {
     const step0 = (hi - lo) / n;
-    const mag = Math.pow(10, Math.floor(Math.log10(step0)));
-    const step = [1, 2, 5, 10].map((k) => k * mag).find((s) => s >= step0) || step0;
+    const mag0 = Math.pow(10, Math.floor(Math.log10(step0)));
+    const t = ticksAt(lo, hi, [1, 2, 5, 10].map((k) => k * mag0).find((s) => s >= step0) || step0);
+    if (t.length >= 2) return t;
+    const mag = Math.pow(10, Math.floor(Math.log10(hi - lo)));
+    for (const k of [5, 2.5, 2, 1, 0.5, 0.25, 0.2, 0.1]) {
+      const u = ticksAt(lo, hi, k * mag);
+      if (u.length >= 2) return u;
+    }
+    return t;
+  }
+  function ticksAt(lo, hi, step) {
+    if (!(step > 0 && Number.isFinite(step))) return [];
     const out = [];
     for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
     return out;
