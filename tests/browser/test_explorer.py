@@ -1205,7 +1205,7 @@ def test_an_input_outside_its_range_is_named_as_clamped(page):
 def test_every_control_has_a_label(page):
     """Keyboard and screen-reader use: every input and menu has a label (its own <label> or an
     aria-label); the "Bode ... to" field had none (one <label> held both frequency fields, and
-    a label names only its first)."""
+    a label names only its first), and the tuning form's PI gains were read as "torque[1]"."""
     page.select_option("select[name=cycle_mode]", "closed")
     page.click("[data-action=linearize]")
     page.wait_for_selector("#lin-at[data-stale=false]", timeout=30000)
@@ -1214,6 +1214,10 @@ def test_every_control_has_a_label(page):
         .filter(e => !(e.labels && e.labels.length) && !e.getAttribute("aria-label"))
         .map(e => e.name || e.outerHTML)""")
     assert unnamed == [], unnamed
+    # the tuning form's entries by their names, a PI pair's as kp and ki ("torque[1]" before)
+    names = page.eval_on_selector_all("input[data-tuning]", "els => els.map(e => e.getAttribute('aria-label'))")
+    assert "torque kp" in names and "torque ki" in names and "lambda_limit" in names, names
+    assert len(set(names)) == len(names), names
     label = page.eval_on_selector("input[name=bode_fmax]", "e => e.labels[0].textContent.replace(/\\s+/g, \" \").trim()")
     assert label == "to Hz", label
 

@@ -1058,7 +1058,9 @@
       for (const [key, lab] of keys) {
         if (lab) { const l = document.createElement("span"); l.className = "unit"; l.textContent = ` ${lab} `; inputs.append(l); }
         const inp = document.createElement("input");
-        inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key; inp.setAttribute("aria-label", key);
+        inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key;
+        // (read out as "torque kp", not "torque[1]")
+        inp.setAttribute("aria-label", lab ? `${f.name} ${lab}` : f.name);
         // the accepted interval (BaselineTuning::BOUNDS): the browser marks a value outside it
         // (min/max include their ends; an open end is checked in boundsMessage)
         if (f.bounds) {
