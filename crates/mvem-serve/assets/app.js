@@ -1020,7 +1020,17 @@
       const key = cycleStamp(body.mode);
       const source = cycle === FILE_CYCLE ? `file ${app.cycleFile.name}` : cycle === "whtc" ? "the WHTC" : cycle;
       const at = `${source}, ${MODE_LABELS[body.mode] || body.mode}, ${body.model} states, parameters ${$("select[name=params]").value}`;
-      const j = await api("/api/simulate", body);
+      let j;
+      try {
+        j = await api("/api/simulate", body);
+      } catch (e) {
+        // the server's time limit (60 s) reached with the loop margins along the run: say what
+        // makes it shorter (on a loaded 2-core machine every 2 s of the WHTC took longer)
+        if (e.status === 503 && body.margins !== undefined) {
+          e.message += `; the loop margins every ${body.margins} s cost about 40 ms of CPU per sample: a larger spacing runs faster`;
+        }
+        throw e;
+      }
       app.cycle = j;
       stamp("cycle", key, at);
       showCycleStats(j);
