@@ -629,7 +629,7 @@ def test_linear_model_panel(page, server):
     page.wait_for_selector("#lin-at[data-stale=false]")
     # the point it was computed at; moving an input marks it as another point's
     at = page.text_content("#lin-at")
-    assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states", at
+    assert at == "at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states, parameters published", at
     assert page.get_attribute("#lin-at", "data-stale") == "false"
     page.fill("input[name=u_vgt]", "70")
     page.wait_for_selector("#lin-at[data-stale=true]")
@@ -986,7 +986,8 @@ def test_results_of_another_point_are_marked(page):
     page.click("[data-action=cycle]")
     page.wait_for_selector("#cycle-at[data-stale=false]", timeout=120000)
     assert page.text_content("#step-at") == (
-        "step of u_vgt from 75 to 65 at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states")
+        "step of u_vgt from 75 to 65 at n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %, 8 states, "
+        "parameters published")
     page.fill("input[name=u_vgt]", "70")
     page.wait_for_selector("#step-at[data-stale=true]")
     assert stale() == {"#step-at": "true", "#margins-at": "true", "#map-at": "true", "#cycle-at": "false"}
@@ -1087,3 +1088,206 @@ def test_the_step_table_is_readable_at_1024_px(browser, server):
     assert page.evaluate("document.documentElement.scrollWidth") <= 1024
     page.locator("#step").screenshot(path=str(ART / "explorer_step_table_1024.png"))
     ctx.close()
+
+
+# --- session 40: what a person exploring the page met ---------------------------------------
+
+
+def test_every_axis_has_at_least_two_tick_labels(page):
+    """A figure's y axis had a single labelled tick where its range was just over one tick step
+    (a step at 500 rpm, 1 mg: W_c only "0.0628", n_t only "13350"; the open-loop WHTC's lambda_O
+    strip only "5"): no scale can be read from one label. Every panel of the step figure and
+    every strip of the cycle figure now has at least two, and a strip at most three."""
+    set_inputs(page, {"n_e": 500, "u_delta": 1, "u_egr": 0, "u_vgt": 100})
+    page.wait_for_function("window.mvem.steady && window.mvem.steady.n_e === 500")
+    page.select_option("select[name=step_input]", "u_vgt")
+    page.fill("input[name=step_target]", "65")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    step = [int(k) for k in page.get_attribute("canvas[data-plot=step]", "data-y-ticks").split(",")]
+    assert len(step) == 8 and min(step) >= 2, step
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("canvas[data-plot=cycle][data-drawn]", timeout=120000)
+    cycle = [int(k) for k in page.get_attribute("canvas[data-plot=cycle]", "data-y-ticks").split(",")]
+    # (and at most the three asked for in a strip 46 px high: the next finer step after one tick
+    # at 5 gave four, 2 to 8, their labels touching)
+    assert len(cycle) == 8 and min(cycle) >= 2 and max(cycle) <= 3, cycle
+    page.locator("#step").screenshot(path=str(ART / "explorer_step_ticks_500rpm.png"))
+
+
+def test_the_at_lines_name_what_changed(page):
+    """A result line named "the point has changed" when the model or the parameter set had
+    changed (and did not name the parameter set at all), and the loop margins and a closed-loop
+    run computed with the drive-cycle panel's controller tuning were not marked when that tuning
+    was edited afterwards: each line now names the parameter set, and what changed."""
+    page.select_option("select[name=cycle_mode]", "closed")
+    for action, at in (("linearize", "#lin-at"), ("margins", "#margins-at"), ("cycle", "#cycle-at")):
+        page.click(f"[data-action={action}]")
+        page.wait_for_selector(f"{at}[data-stale=false]", timeout=120000)
+    assert page.text_content("#lin-at").endswith(", 8 states, parameters published")
+    page.select_option("select[name=params]", "wide")
+    page.wait_for_selector("#lin-at[data-stale=true]")
+    assert page.text_content("#lin-at").endswith("; the parameter set has changed: Linearize again")
+    page.select_option("select[name=model]", "12")
+    assert page.text_content("#margins-at").endswith(
+        "; the model and the parameter set have changed: Loop margins again")
+    page.select_option("select[name=model]", "8")
+    page.select_option("select[name=params]", "published")
+    page.wait_for_selector("#lin-at[data-stale=false]")
+    # the tuning form: the loop margins and the closed-loop run were computed with the defaults
+    page.click("#tuning summary")
+    page.fill("input[data-tuning='x_egr_vgt[1]']", "120")
+    page.wait_for_selector("#margins-at[data-stale=true]")
+    assert page.text_content("#margins-at").endswith(
+        "; the controller tuning has changed: Loop margins again")
+    assert page.text_content("#cycle-at").endswith("; the controller tuning has changed: Run cycle again")
+    assert page.get_attribute("#lin-at", "data-stale") == "false"
+    page.click("[data-action=tuning-defaults]")
+    page.wait_for_selector("#margins-at[data-stale=false]")
+    assert page.get_attribute("#cycle-at", "data-stale") == "false"
+    # an open-loop run does not depend on the tuning
+    page.select_option("select[name=cycle_mode]", "open")
+    page.click("[data-action=cycle]")
+    page.wait_for_function("window.mvem.cycle.mode === 'open'", timeout=120000)
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.fill("input[data-tuning='x_egr_vgt[1]']", "120")
+    page.wait_for_selector("#margins-at[data-stale=true]")
+    assert page.get_attribute("#cycle-at", "data-stale") == "false"
+
+
+def test_the_steady_state_is_asked_again_when_the_server_answers_again(page):
+    """With the server unreachable the steady state failed (its values struck through); a
+    button's computation that then succeeded set the header to "ready" while the table still
+    said "server unreachable" with the old values. The steady state is now asked again as soon
+    as the server answers, and the flags and eigenvalues of a failed one are struck through
+    with the table."""
+    page.route("**/api/steady*", lambda r: r.abort())
+    page.fill("input[name=u_vgt]", "70")
+    page.wait_for_selector("table.signals[data-stale=true]")
+    assert page.text_content("#validity").startswith("server unreachable")
+    assert "line-through" in page.eval_on_selector(
+        "#eigenvalues", "e => getComputedStyle(e).textDecorationLine")
+    page.unroute("**/api/steady*")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    page.wait_for_selector("table.signals[data-stale=false]", timeout=15000)
+    assert page.get_attribute("#validity", "data-valid") == "true"
+    assert page.evaluate("window.mvem.steady.u_vgt") == 70
+    assert page.text_content("#status") == "ready"
+    assert "line-through" not in page.eval_on_selector(
+        "#eigenvalues", "e => getComputedStyle(e).textDecorationLine")
+    page.console_errors[:] = [e for e in page.console_errors if "net::ERR_FAILED" not in e]
+
+
+def test_an_input_outside_its_range_is_named_as_clamped(page):
+    """n_e = 3000 rpm with the published set (500-2000 rpm) showed the values at 2000 rpm with
+    only the flag "input:n_e in input_saturation.n_e" to tell: the panel now says which input
+    the model clamped, to what, and the range; with the wide set (600-3200 rpm) nothing is."""
+    page.fill("input[name=n_e]", "3000")
+    page.wait_for_function("window.mvem.steady.inputs.n_e_rpm === 3000")
+    assert page.evaluate("window.mvem.steady.n_e") == 2000
+    assert page.get_attribute("#steady-clamped", "data-clamped") == "n_e"
+    assert page.text_content("#steady-clamped") == (
+        "n_e 3000 rpm is outside the parameter set's range [500, 2000] rpm: the model clamps it to "
+        "2000 rpm (the authors' saturation), the values below are at 2000 rpm")
+    page.fill("input[name=u_egr]", "-10")
+    page.wait_for_selector("#steady-clamped[data-clamped='n_e,u_egr']", state="attached")
+    assert "u_egr -10 % is outside the parameter set's range [0, 100] %: the model clamps it to 0 %" in \
+        page.text_content("#steady-clamped")
+    page.locator("#point").screenshot(path=str(ART / "explorer_clamped_input.png"))
+    page.fill("input[name=u_egr]", "80")
+    page.select_option("select[name=params]", "wide")
+    page.wait_for_selector("#steady-clamped[data-clamped='']", state="attached")
+    assert page.text_content("#steady-clamped") == ""
+    assert page.evaluate("window.mvem.steady.n_e") == 3000
+
+
+def test_every_control_has_a_label(page):
+    """Keyboard and screen-reader use: every input and menu has a label (its own <label> or an
+    aria-label); the "Bode ... to" field had none (one <label> held both frequency fields, and
+    a label names only its first), and the tuning form's PI gains were read as "torque[1]"."""
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-at[data-stale=false]", timeout=30000)
+    unnamed = page.eval_on_selector_all("input, select", """els => els
+        .filter(e => e.type !== "hidden")
+        .filter(e => !(e.labels && e.labels.length) && !e.getAttribute("aria-label"))
+        .map(e => e.name || e.outerHTML)""")
+    assert unnamed == [], unnamed
+    # the tuning form's entries by their names, a PI pair's as kp and ki ("torque[1]" before)
+    names = page.eval_on_selector_all("input[data-tuning]", "els => els.map(e => e.getAttribute('aria-label'))")
+    assert "torque kp" in names and "torque ki" in names and "lambda_limit" in names, names
+    assert len(set(names)) == len(names), names
+    label = page.eval_on_selector("input[name=bode_fmax]", "e => e.labels[0].textContent.replace(/\\s+/g, \" \").trim()")
+    assert label == "to Hz", label
+
+
+def test_the_step_target_follows_the_chosen_input(page):
+    """Choosing another step input kept the previous input's target: u_vgt's 65 % became a step
+    of n_e from 1500 to 65 rpm (clamped to 500). The target is now the point's value of the
+    chosen input plus a step of its own size (u_vgt and u_egr -10 %, u_delta +10 mg, n_e
+    +100 rpm), the other way where that would leave the input's range; a typed target stays
+    until the input is changed."""
+    def target_after(inp):
+        page.select_option("select[name=step_input]", inp)
+        return float(page.input_value("input[name=step_target]"))
+
+    assert page.input_value("input[name=step_target]") == "65"
+    assert target_after("n_e") == 1600
+    assert target_after("u_delta") == 120
+    assert target_after("u_egr") == 70
+    assert target_after("u_vgt") == 65
+    page.fill("input[name=u_egr]", "5")
+    assert target_after("u_egr") == 15
+    page.fill("input[name=n_e]", "1950")
+    assert target_after("n_e") == 1850
+    page.fill("input[name=step_target]", "1700")
+    page.click("[data-action=step]")
+    page.wait_for_selector("#step-at[data-stale=false]", timeout=30000)
+    assert page.text_content("#step-at").startswith("step of n_e from 1950 to 1700 at")
+    assert page.get_attribute("#step-warnings", "data-count") == "0"
+
+
+def test_an_answer_that_is_not_json_is_named(page):
+    """An answer that is not the server's JSON (a proxy's page, another server on the port) was
+    shown as the page's own failure, "Cannot read properties of null (reading 'cycle_stats')",
+    and an error status with a text body as "HTTP 500" without its text: both are named, with
+    the start of what came back."""
+    page.route("**/api/simulate", lambda r: r.fulfill(status=200, content_type="text/html",
+                                                       body="<html><body>proxy login</body></html>"))
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    assert page.text_content("#cycle-error") == (
+        "the server's answer to /api/simulate is not the JSON of mvem serve "
+        "(text/html: <html><body>proxy login</body></html>)")
+    page.route("**/api/linearize*", lambda r: r.fulfill(status=500, content_type="text/plain",
+                                                         body="internal error\n"))
+    page.click("[data-action=linearize]")
+    page.wait_for_selector("#lin-error:not([hidden])")
+    assert page.text_content("#lin-error") == "HTTP 500: internal error"
+    page.wait_for_selector("#status[data-status=ok]")
+    page.console_errors[:] = [e for e in page.console_errors if "status of 500" not in e]
+
+
+def test_a_cycle_with_margins_past_the_time_limit_says_what_helps(page):
+    """The closed-loop WHTC with loop margins every 2 s (900 samples) took longer than the
+    server's 60 s on the loaded 2-core machine: its 503 said only "the computation took longer
+    than 60 s". With margins asked, the page adds that a larger spacing runs faster (the 503 is
+    the server's, held back here rather than waited for)."""
+    page.route("**/api/simulate", lambda r: r.fulfill(
+        status=503, headers={"Retry-After": "1"}, content_type="application/json",
+        body='{"error": "the computation took longer than 60 s"}'))
+    page.select_option("select[name=cycle_mode]", "closed")
+    page.check("input[name=cycle_margins]")
+    page.fill("input[name=cycle_margins_every]", "2")
+    page.click("[data-action=cycle]")
+    page.wait_for_selector("#cycle-error:not([hidden])")
+    assert page.text_content("#cycle-error") == (
+        "the computation took longer than 60 s; the loop margins every 2 s cost about 40 ms of CPU "
+        "per sample: a larger spacing runs faster")
+    # without margins, the server's message alone
+    page.uncheck("input[name=cycle_margins]")
+    page.click("[data-action=cycle]")
+    page.wait_for_function("document.querySelector('#cycle-error').textContent === "
+                           "'the computation took longer than 60 s'")
+    page.console_errors[:] = [e for e in page.console_errors if "status of 503" not in e]

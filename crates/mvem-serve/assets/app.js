@@ -52,12 +52,22 @@
       err.kind = "network";
       throw err;
     }
+    // (an answer that is not JSON, from something else than mvem serve: a proxy's page, another
+    // server on the port, a crash's text, is named so, with the start of its text, instead of
+    // failing later as "Cannot read properties of null")
+    const text = await r.text();
     let j = null;
-    try { j = await r.json(); } catch (_) { j = null; }
+    try { j = JSON.parse(text); } catch (_) { j = null; }
+    const head = () => text.trim().replace(/\s+/g, " ").slice(0, 120);
     if (!r.ok) {
-      const err = new Error((j && j.error) || `HTTP ${r.status}`);
+      const err = new Error((j && j.error) || `HTTP ${r.status}${head() ? `: ${head()}` : ""}`);
       err.kind = "http";
       err.status = r.status;
+      throw err;
+    }
+    if (j === null || typeof j !== "object") {
+      const err = new Error(`the server's answer to ${path.split("?")[0]} is not the JSON of mvem serve (${r.headers.get("content-type") || "no content type"}${head() ? `: ${head()}` : ""})`);
+      err.kind = "answer";
       throw err;
     }
     return j;
@@ -175,6 +185,7 @@
       if (modelSel().params) q.set("params", modelSel().params);
       const j = await api(`/api/steady?${q}`);
       showSteady(j, seq);
+      app.steadyFailed = null;
       showError("#steady-error", null);
       $("table.signals").dataset.stale = "false";
       app.statusError = null;
@@ -188,6 +199,7 @@
       $("#validity").dataset.error = e.kind === "http" ? String(e.status) : (e.kind || "error");
       $("#validity").textContent = app.steady ? `${kind} (the values below are of the last point computed)` : kind;
       $("table.signals").dataset.stale = "true";
+      app.steadyFailed = e.kind || "error";
       app.statusError = { source: "steady", text: `steady state: ${kind}` };
       refreshStatus();
     } finally {
@@ -218,6 +230,7 @@
       return s;
     }));
     if (!(j.flags || []).length) flags.textContent = "no flags";
+    showClamped(j);
     $("#eigenvalues").textContent = (j.eigenvalues || []).map(cplx).join(", ");
     app.shown = seq;
     document.body.dataset.steadySeq = String(seq);
@@ -226,6 +239,24 @@
       document.body.dataset.readyMs = performance.now().toFixed(1);
       document.body.dataset.state = "ready";
     }
+  }
+
+  // an input outside the parameter set's range: the model clamps it (the authors' saturation),
+  // and the values shown are those of the clamped input; said in words, not only by the flag
+  // "input:n_e in input_saturation.n_e" (the answer's "inputs" as given, n_e ... as applied)
+  const INPUT_KEYS = { n_e: "n_e_rpm", u_delta: "u_delta_mg", u_egr: "u_egr_pct", u_vgt: "u_vgt_pct" };
+  const INPUT_UNITS = { n_e: "rpm", u_delta: "mg/cycle", u_egr: "%", u_vgt: "%" };
+  function showClamped(j) {
+    const el = $("#steady-clamped");
+    const range = (app.inputRanges || {})[$("select[name=params]").value] || {};
+    const clamped = INPUTS.filter((n) => j.inputs && typeof j[n] === "number" && j.inputs[INPUT_KEYS[n]] !== j[n]);
+    el.dataset.clamped = clamped.join(",");
+    el.textContent = clamped.map((n) => {
+      const u = INPUT_UNITS[n];
+      const r = Array.isArray(range[n]) ? ` [${range[n][0]}, ${range[n][1]}] ${u}` : "";
+      const used = `${tickLabel(j[n])} ${u}`;
+      return `${n} ${tickLabel(j.inputs[INPUT_KEYS[n]])} ${u} is outside the parameter set's range${r}: the model clamps it to ${used} (the authors' saturation), the values below are at ${used}`;
+    }).join("; ");
   }
 
   function buildSignalTable() {
@@ -299,10 +330,24 @@
     return [lo - pad, hi + pad];
   }
 
+  // about n ticks at a step of 1, 2 or 5 times a power of ten, at least two of them: one tick
+  // alone gives no scale (a step's n_t axis had only "13350", a cycle's lambda_O strip "5");
+  // where there would be one, the largest step of 5, 2.5, 2, 1 ... times a power of ten that
+  // gives two (not simply more ticks: a 46 px strip got four, "2 4 6 8", their labels touching)
   function ticks(lo, hi, n) {
     const step0 = (hi - lo) / n;
-    const mag = Math.pow(10, Math.floor(Math.log10(step0)));
-    const step = [1, 2, 5, 10].map((k) => k * mag).find((s) => s >= step0) || step0;
+    const mag0 = Math.pow(10, Math.floor(Math.log10(step0)));
+    const t = ticksAt(lo, hi, [1, 2, 5, 10].map((k) => k * mag0).find((s) => s >= step0) || step0);
+    if (t.length >= 2) return t;
+    const mag = Math.pow(10, Math.floor(Math.log10(hi - lo)));
+    for (const k of [5, 2.5, 2, 1, 0.5, 0.25, 0.2, 0.1]) {
+      const u = ticksAt(lo, hi, k * mag);
+      if (u.length >= 2) return u;
+    }
+    return t;
+  }
+  function ticksAt(lo, hi, step) {
+    if (!(step > 0 && Number.isFinite(step))) return [];
     const out = [];
     for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(Math.abs(v) < step * 1e-9 ? 0 : v);
     return out;
@@ -368,7 +413,8 @@
     ctx.strokeRect(x0 + L, y0 + T, w - L - R, h - T - B);
     ctx.fillStyle = "#5d6778"; ctx.font = "11px system-ui, sans-serif";
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
-    for (const v of (opts.yTickFn || ticks)(yr[0], yr[1], opts.yTicks || 3)) {
+    const yTicks = (opts.yTickFn || ticks)(yr[0], yr[1], opts.yTicks || 3);
+    for (const v of yTicks) {
       ctx.fillText(tickLabel(v), x0 + L - 4, py(v));
       ctx.strokeStyle = "#eef0f4"; ctx.beginPath(); ctx.moveTo(x0 + L, py(v)); ctx.lineTo(x0 + w - R, py(v)); ctx.stroke();
     }
@@ -391,7 +437,7 @@
     ctx.fillStyle = "#1d2330"; ctx.textAlign = "left"; ctx.textBaseline = "top";
     fitTitle(ctx, title, x0 + 4, x0 + L + 4, x0 + w - R, y0 + 2);
     ctx.restore();
-    return { px, py, clip: [x0 + L, y0 + T, w - L - R, h - T - B] };
+    return { px, py, clip: [x0 + L, y0 + T, w - L - R, h - T - B], yTicks: yTicks.length };
   }
 
   function line(ctx, p, xs, ys, color, width = 1.5, dash = []) {
@@ -463,23 +509,37 @@
   // right half plane, as `mvem linearize` marks it
   const isRhp = (z) => z.re > 1e-9 * (1 + Math.hypot(z.re, z.im));
 
-  // the point, model and parameter set a result was asked for, as a key and as text
-  const pointStamp = () => JSON.stringify([pointKey(), modelSel()]);
-  const modelStamp = () => JSON.stringify(modelSel());
+  // what a result was asked for (the point, model, parameter set and, for the loop margins and a
+  // closed-loop run, the controller tuning of the drive-cycle panel's form), as a key (JSON) and
+  // as text
+  const pointStamp = () => JSON.stringify({ point: pointKey(), ...modelSel() });
+  // the tuning form's entries as typed (a number, or the text of one that is none)
+  const tuningKey = () => app.tuningDefaults
+    ? $$("input[data-tuning]").map((i) => { const v = Number(i.value); return i.value.trim() !== "" && Number.isFinite(v) ? v : i.value; })
+    : undefined;
+  const marginsStamp = () => JSON.stringify({ point: pointKey(), ...modelSel(), tuning: tuningKey() });
+  // (the tuning only matters to a closed-loop run: `mode` the run's, by default the shown one's)
+  const cycleStamp = (mode = app.cycle && app.cycle.mode) => JSON.stringify({ ...modelSel(), tuning: mode === "closed" ? tuningKey() : undefined });
   function pointText() {
     const p = point();
-    return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states`;
+    return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states, parameters ${$("select[name=params]").value}`;
+  }
+  // the parts of a key that changed, as words ("the point", "the parameter set" ...)
+  const KEY_PARTS = { point: "the point", model: "the model", params: "the parameter set", tuning: "the controller tuning" };
+  function changedParts(was, now) {
+    const a = JSON.parse(was), b = JSON.parse(now);
+    return Object.keys(KEY_PARTS).filter((k) => JSON.stringify(a[k]) !== JSON.stringify(b[k])).map((k) => KEY_PARTS[k]);
   }
   // each result panel's line naming what its result was computed at (the panel: its line, the
-  // key of what it depends on, what changed when that key changes, its button). A result of
-  // another point, model or parameter set than the inputs' is marked (not recomputed: the
-  // sliders would ask for one per move), and so is one whose next computation failed
+  // key of what it depends on, its button). A result of another point, model, parameter set
+  // (or tuning) than the inputs' is marked, naming what changed (not recomputed: the sliders
+  // would ask for one per move), and so is one whose next computation failed
   const STAMPS = {
-    linear: ["#lin-at", pointStamp, "the point has changed", "Linearize"],
-    margins: ["#margins-at", pointStamp, "the point has changed", "Loop margins"],
-    step: ["#step-at", pointStamp, "the point has changed", "Run step"],
-    map: ["#map-at", pointStamp, "the point has changed", "Compute map"],
-    cycle: ["#cycle-at", modelStamp, "the model has changed", "Run cycle"],
+    linear: ["#lin-at", pointStamp, "Linearize"],
+    margins: ["#margins-at", marginsStamp, "Loop margins"],
+    step: ["#step-at", pointStamp, "Run step"],
+    map: ["#map-at", pointStamp, "Compute map"],
+    cycle: ["#cycle-at", cycleStamp, "Run cycle"],
   };
   const stamps = {};
   function stamp(panel, key, text) {
@@ -488,12 +548,12 @@
   }
   function markStale() {
     for (const [panel, st] of Object.entries(stamps)) {
-      const [sel, keyOf, changed, button] = STAMPS[panel];
+      const [sel, keyOf, button] = STAMPS[panel];
       const el = $(sel);
-      const moved = st.key !== keyOf();
-      el.dataset.stale = String(moved || st.failed);
+      const changed = changedParts(st.key, keyOf());
+      el.dataset.stale = String(changed.length > 0 || st.failed);
       el.textContent = st.failed ? `${st.text}; the last ${button} failed: this is the result before it`
-        : moved ? `${st.text}; ${changed}: ${button} again` : st.text;
+        : changed.length ? `${st.text}; ${changed.join(" and ")} ${changed.length > 1 ? "have" : "has"} changed: ${button} again` : st.text;
     }
   }
 
@@ -509,6 +569,9 @@
       await work();
       showError(errorId, null);
       if (app.statusError && app.statusError.source === "network") app.statusError = null;
+      // the server answers again: the steady state that failed for want of it is asked again
+      // (the header said "ready" beside a table still marked "server unreachable")
+      if (app.steadyFailed === "network") requestSteady();
     } catch (e) {
       showError(errorId, e);
       // the result shown stays, marked as the one before
@@ -612,7 +675,7 @@
   async function runMargins() {
     await busy("[data-action=margins]", "loop margins…", "#margins-error", async () => {
       const body = { point: point(), ...modelSel() };
-      const key = pointStamp();
+      const key = marginsStamp();
       const at = pointText();
       // the tuning of the drive-cycle panel's form (shown in closed-loop mode): the summary
       // says which entries differ from the defaults
@@ -714,6 +777,20 @@
   // ---------------------------------------------------------------------------------------------
   // step panel
 
+  // a step's size when its input is chosen: the target the point's value of that input plus
+  // this, or minus it where plus would leave the input's range (the slider's); it kept the
+  // previous input's target (u_vgt's 65 % became a step of n_e from 1500 to 65 rpm, clamped)
+  const STEP_SIZE = { u_vgt: -10, u_egr: -10, u_delta: 10, n_e: 100 };
+  function stepTargetForInput() {
+    const n = $("select[name=step_input]").value;
+    const from = Number($(`input[name=${n}]`).value);
+    const sl = $(`input[data-slider=${n}]`);
+    if ($(`input[name=${n}]`).value.trim() === "" || !Number.isFinite(from)) return;
+    let to = from + STEP_SIZE[n];
+    if (to < Number(sl.min) || to > Number(sl.max)) to = from - STEP_SIZE[n];
+    $("input[name=step_target]").value = String(Number(to.toPrecision(12)));
+  }
+
   async function runStep() {
     await busy("[data-action=step]", "running step…", "#step-error", async () => {
       const body = { point: point(), input: $("select[name=step_input]").value, target: num("step_target", "step to"),
@@ -746,6 +823,7 @@
     const w = c.drawW / cols, h = c.drawH / rows;
     const xr = [j.t[0], j.t[j.t.length - 1]];
     let marks = { nmp: 0, overshoot: 0, dc: 0 };
+    const yTicks = [];
     panels.forEach((pn, k) => {
       const box = [(k % cols) * w, Math.floor(k / cols) * h, w, h];
       let lo = Math.min(...pn.y), hi = Math.max(...pn.y);
@@ -754,6 +832,7 @@
       if (m && !m.error) { lo = Math.min(lo, m.y0, m.y_final); hi = Math.max(hi, m.y0, m.y_final); }
       const title = pn.input ? pn.name : `${pn.name} [${unit(pn.name)}]` + (m && !m.error ? `   DC gain ${fmt(m.dc_gain)} ${ratioUnit(unit(pn.name), j.input_unit)}` : "");
       const p = panel(ctx, box, xr, niceRange(lo, hi), title);
+      yTicks.push(p.yTicks);
       if (m && !m.error) {
         line(ctx, p, xr, [m.y0, m.y0], "#9aa3b2", 1, [3, 3]);
         line(ctx, p, xr, [m.y_final, m.y_final], "#2e7d32", 1, [6, 3]);
@@ -774,6 +853,8 @@
     });
     c.dataset.series = String(panels.length);
     c.dataset.marks = JSON.stringify(marks);
+    // the number of labelled y ticks of each panel
+    c.dataset.yTicks = yTicks.join(",");
     c.dataset.drawn = String(Date.now());
     const tb = $("#metrics");
     tb.replaceChildren(...names.map((n) => {
@@ -936,10 +1017,20 @@
       if (cycle === FILE_CYCLE) body.csv = app.cycleFile.text; else body.cycle = cycle;
       if (body.mode === "closed" && app.tuningDefaults) body.tuning = tuningValue();
       body.margins = marginsEvery();
-      const key = modelStamp();
+      const key = cycleStamp(body.mode);
       const source = cycle === FILE_CYCLE ? `file ${app.cycleFile.name}` : cycle === "whtc" ? "the WHTC" : cycle;
       const at = `${source}, ${MODE_LABELS[body.mode] || body.mode}, ${body.model} states, parameters ${$("select[name=params]").value}`;
-      const j = await api("/api/simulate", body);
+      let j;
+      try {
+        j = await api("/api/simulate", body);
+      } catch (e) {
+        // the server's time limit (60 s) reached with the loop margins along the run: say what
+        // makes it shorter (on a loaded 2-core machine every 2 s of the WHTC took longer)
+        if (e.status === 503 && body.margins !== undefined) {
+          e.message += `; the loop margins every ${body.margins} s cost about 40 ms of CPU per sample: a larger spacing runs faster`;
+        }
+        throw e;
+      }
       app.cycle = j;
       stamp("cycle", key, at);
       showCycleStats(j);
@@ -977,7 +1068,9 @@
       for (const [key, lab] of keys) {
         if (lab) { const l = document.createElement("span"); l.className = "unit"; l.textContent = ` ${lab} `; inputs.append(l); }
         const inp = document.createElement("input");
-        inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key; inp.setAttribute("aria-label", key);
+        inp.type = "number"; inp.step = "any"; inp.dataset.tuning = key;
+        // (read out as "torque kp", not "torque[1]")
+        inp.setAttribute("aria-label", lab ? `${f.name} ${lab}` : f.name);
         // the accepted interval (BaselineTuning::BOUNDS): the browser marks a value outside it
         // (min/max include their ends; an open end is checked in boundsMessage)
         if (f.bounds) {
@@ -1026,6 +1119,8 @@
       changed += on ? 1 : 0;
     }
     $("#tuning-changed").textContent = changed ? `${changed} changed from the defaults` : "the defaults";
+    // the loop margins and a closed-loop run shown were computed with the tuning before
+    markStale();
   }
 
   // the request's "tuning" from the form; an entry that is not a number is an error naming it
@@ -1148,6 +1243,7 @@
       return p;
     });
     cycleImage = snapshot(c);
+    c.dataset.yTicks = app.cyclePanels.map((p) => p.yTicks).join(",");
     c.dataset.series = drawn.join(",");
     c.dataset.drawn = String(j.t.length);
   }
@@ -1380,6 +1476,7 @@
     wireInputs();
     downloads();
     $("[data-action=step]").addEventListener("click", runStep);
+    $("select[name=step_input]").addEventListener("change", stepTargetForInput);
     $("[data-action=linearize]").addEventListener("click", runLinearize);
     $("[data-action=map]").addEventListener("click", runMap);
     $("[data-action=cycle]").addEventListener("click", runCycle);
