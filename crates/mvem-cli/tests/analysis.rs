@@ -432,6 +432,18 @@ fn linearize_at_a_given_state() {
     std::fs::write(d.path().join("bad.json"), r#"{"p_im": 1.5e5}"#).unwrap();
     let err = common::usage_error(d.path(), &lin_args("75", &["--state", "bad.json"]));
     assert!(err.contains("field p_em: missing state"), "{err}");
+    // a given state that is not physically valid is called so, not an equilibrium
+    let mut x2 = ss.x;
+    x2[0] = 0.5 * ss.x[1];
+    write("x2.json", &x2);
+    let o = mvem(d.path(), &lin_args("75", &["--state", "x2.json"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("warning: the given state is not physically valid; flags: ")
+            && !err.contains("equilibrium"),
+        "{err}"
+    );
 }
 
 /// A state or signal of a steady state.

@@ -766,3 +766,112 @@ fn a_termination_signal_leaves_no_temporary_file() {
         assert!(!out.exists(), "left: {:?}", files(&out));
     }
 }
+
+/// The set-point maps' unreachable cells, as `mvem closed-loop` prints them and writes them to
+/// stats.json (`setpoint_adjustments`), are the core's `SetpointMaps::adjusted` for the tuning
+/// run: the same cells in the same order, the printed numbers to their printed digits, the JSON's
+/// to 1e-12; the printed valve limit is the one the controller applies, the position set-point
+/// plus `egr_open_beyond_setpoint` within the valve's range (30 %: 12.5 % -> 42.5 %; 100 %: the
+/// open end everywhere), not the set-point alone.
+#[test]
+fn setpoint_adjustments_are_the_cores_with_the_tunings_valve_limit() {
+    use mvem::control::baseline::{Baseline, BaselineTuning};
+    use mvem::control::cycle::{MappingCurve, MappingOptions};
+    use mvem::model::{AnyModel, ModelOrder};
+    use mvem::params::Params;
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(
+        d.path().join("c.csv"),
+        "t,n_e,M_ref\n0,1200,100\n0.2,1200,100\n",
+    )
+    .unwrap();
+    let m = AnyModel::new(ModelOrder::Eight, Params::published(), Default::default()).unwrap();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    for (out, beyond) in [("a", 0.0), ("b", 30.0), ("c", 100.0)] {
+        let toml = format!("egr_open_beyond_setpoint = {beyond}\n");
+        std::fs::write(d.path().join(format!("{out}.toml")), toml).unwrap();
+        let tuning = BaselineTuning {
+            egr_open_beyond_setpoint: beyond,
+            ..BaselineTuning::default()
+        };
+        let cells = Baseline::new(&m, &curve, tuning).unwrap().maps.adjusted;
+        assert!(cells.len() >= 10, "{}", cells.len());
+        let o = mvem(
+            d.path(),
+            &[
+                "closed-loop",
+                "--cycle",
+                "c.csv",
+                "--tuning",
+                &format!("{out}.toml"),
+                "--out",
+                out,
+            ],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = stdout(&o);
+        let head = text
+            .lines()
+            .find(|l| l.starts_with("set-point maps: "))
+            .unwrap_or_else(|| panic!("{text}"));
+        assert!(head.contains(&format!("{} cell(s)", cells.len())), "{head}");
+        assert_eq!(
+            beyond == 0.0,
+            head.contains("opens it no further"),
+            "{head}"
+        );
+        let lines: Vec<&str> = text
+            .lines()
+            .skip_while(|l| !l.starts_with("set-point maps: "))
+            .skip(1)
+            .take_while(|l| l.starts_with("  ") && l.contains(" rpm, L "))
+            .collect();
+        assert_eq!(lines.len(), cells.len(), "{text}");
+        // (printed numbers within half a unit of their last digit)
+        let num = |s: &str| s.trim().parse::<f64>().unwrap_or_else(|_| panic!("{s:?}"));
+        for (line, c) in lines.iter().zip(&cells) {
+            // "  N rpm, L x (y mg): u_egr <= X % ([set-point S %; ]reason)"
+            let (n, rest) = line.split_once(" rpm, L ").unwrap();
+            let (l, rest) = rest.split_once(" (").unwrap();
+            let (u, rest) = rest.split_once(" mg): u_egr <= ").unwrap();
+            let (lim, rest) = rest.split_once(" % (").unwrap();
+            assert!((num(n) - c.n_e).abs() <= 0.5 + 1e-9, "{line}");
+            assert!((num(l) - c.load).abs() <= 0.005 + 1e-9, "{line}");
+            assert!((num(u) - c.u_delta).abs() <= 0.05 + 1e-9, "{line}: {c:?}");
+            let want = (c.u_egr_max + beyond).min(100.0);
+            assert!(
+                (num(lim) - want).abs() <= 0.05 + 1e-9,
+                "{line}: want {want}"
+            );
+            assert!((c.u_egr_limit - want).abs() < 1e-12, "{c:?}");
+            if want != c.u_egr_max {
+                let set = rest.strip_prefix("set-point ").unwrap();
+                let (s, _) = set.split_once(" %; ").unwrap();
+                assert!((num(s) - c.u_egr_max).abs() <= 0.05 + 1e-9, "{line}");
+            }
+            assert!(line.ends_with(&format!("{})", c.reason)), "{line}");
+        }
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(d.path().join(out).join("stats.json")).unwrap(),
+        )
+        .unwrap();
+        let js = json["setpoint_adjustments"].as_array().unwrap();
+        assert_eq!(js.len(), cells.len());
+        for (j, c) in js.iter().zip(&cells) {
+            for (key, v) in [
+                ("n_e", c.n_e),
+                ("load", c.load),
+                ("u_delta", c.u_delta),
+                ("lambda_o_s", c.lambda_o_s),
+                ("x_egr_s", c.x_egr_s),
+                ("x_egr_max", c.x_egr_max),
+                ("u_egr_max", c.u_egr_max),
+                ("u_egr_limit", c.u_egr_limit),
+            ] {
+                let got = j[key].as_f64().unwrap_or_else(|| panic!("{key}: {j}"));
+                assert!((got - v).abs() <= 1e-12 * v.abs().max(1.0), "{key}: {j}");
+            }
+            assert_eq!(j["reason"], c.reason.as_str());
+        }
+    }
+}

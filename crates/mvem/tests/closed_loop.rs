@@ -876,6 +876,17 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
     }
     let cap = maps.u_egr_max_at(800.0, 180.0);
     assert!(cap > 0.0 && cap < 20.0, "{cap}");
+    // the limit each cell reports is the controller's tuning's: the set-point itself by default,
+    // the set-point + egr_open_beyond_setpoint within the valve's range for another tuning
+    assert!(maps.adjusted.iter().all(|c| c.u_egr_limit == c.u_egr_max));
+    let wider = BaselineTuning {
+        egr_open_beyond_setpoint: 30.0,
+        ..BaselineTuning::default()
+    };
+    let wide = Baseline::with_maps(maps.clone(), wider).maps;
+    for c in &wide.adjusted {
+        assert_eq!(c.u_egr_limit, (c.u_egr_max + 30.0).min(100.0), "{c:?}");
+    }
     let band = |v: &[f64], t: &[f64], from: f64| {
         let i = t.partition_point(|&s| s < from);
         let w = &v[i..];

@@ -233,6 +233,38 @@ fn loops_without_effect_are_inert() {
     assert!(a.alone.iter().all(|m| !m.inert));
 }
 
+/// At the shut EGR valve (u_egr = 0: x_egr = 0 whatever the VGT does, while opening the valve
+/// moves x_egr) the x_egr -> u_vgt loop has no feedback by itself: its figures with the other
+/// loop open are those of the loop analysed alone (inert, stable: its integral is a pole at 1
+/// that nothing moves; reported UNSTABLE before session 40), while with the lambda_O loop closed
+/// it has feedback through that loop. Low load at 600 rpm and full load at 2000 rpm, VGT at its
+/// closed end.
+#[test]
+fn a_loop_without_its_own_channel_is_inert_alone() {
+    for d in [
+        Drive::new(600.0, 5.0, 0.0, 20.0),
+        Drive::new(2000.0, 250.0, 0.0, 20.0),
+    ] {
+        let (loops, a) = analysis(d);
+        assert_eq!(loops[1].name, "x_egr->u_vgt");
+        assert!(a.l_alone[1].iter().all(|l| l.norm() == 0.0), "{d:?}");
+        assert!(
+            a.l_others_closed[1].iter().any(|l| l.norm() > 1e-3),
+            "{d:?}"
+        );
+        let m = &a.alone[1];
+        assert!(
+            m.inert && m.stable && m.gain_margin.is_none(),
+            "{d:?}: {m:?}"
+        );
+        assert!(!a.others_closed[1].inert && !a.alone[0].inert, "{d:?}");
+        // the same as the loop analysed without the other
+        let (_, by_itself) = margins_at(&Engine8::published(), &d, &loops[1..], 0.01).unwrap();
+        assert_eq!(by_itself.alone[0], *m, "{d:?}");
+        assert_eq!(by_itself.others_closed[0], *m, "{d:?}");
+    }
+}
+
 /// Per-second swing (largest minus smallest) of loop `which`'s command in a 10 s closed loop of
 /// the nonlinear 8-state model with the PIs `loops` (each on its output's deviation from the
 /// steady state of `d`, commands u_egr / u_vgt, outputs lambda_O / x_egr), loop `which` scaled

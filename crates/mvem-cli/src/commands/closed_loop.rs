@@ -491,16 +491,31 @@ pub fn run(a: &Args) -> Result<()> {
             println!("regulation limits: FAIL: {}", r.violations.join("; "));
         }
         if !r.setpoint_adjustments.is_empty() {
+            // the limit each line gives is the one the controller applies (`u_egr_limit`: the
+            // valve's position set-point plus the tuning's egr_open_beyond_setpoint)
+            let beyond = tuning.egr_open_beyond_setpoint;
+            let how = if beyond == 0.0 {
+                "the lambda_O loop opens it no further".to_string()
+            } else {
+                format!(
+                    "the lambda_O loop opens it up to egr_open_beyond_setpoint = {} % further",
+                    mvem::numerics::Num(beyond)
+                )
+            };
             println!(
                 "set-point maps: {} cell(s) whose pair (lambda_O,s, x_egr,s) the actuators cannot \
-                 reach together; the EGR valve's position is their third set-point (the lambda_O \
-                 loop opens it no further):",
+                 reach together; the EGR valve's position is their third set-point ({how}):",
                 r.setpoint_adjustments.len()
             );
             for c in &r.setpoint_adjustments {
+                let set = if c.u_egr_limit == c.u_egr_max {
+                    String::new()
+                } else {
+                    format!("set-point {:.1} %; ", c.u_egr_max)
+                };
                 println!(
-                    "  {:.0} rpm, L {:.2} ({:.1} mg): u_egr <= {:.1} % ({})",
-                    c.n_e, c.load, c.u_delta, c.u_egr_max, c.reason
+                    "  {:.0} rpm, L {:.2} ({:.1} mg): u_egr <= {:.1} % ({set}{})",
+                    c.n_e, c.load, c.u_delta, c.u_egr_limit, c.reason
                 );
             }
         }

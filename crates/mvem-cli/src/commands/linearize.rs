@@ -183,8 +183,14 @@ pub fn run(a: &Args) -> Result<()> {
     }
     if let Some(w) = v.get("physically_valid").and_then(Value::as_bool) {
         if !w {
+            // (--state: the given state, which is no equilibrium in general)
+            let what = if v["steady_state"].as_bool() == Some(false) {
+                "the given state"
+            } else {
+                "the equilibrium"
+            };
             eprintln!(
-                "warning: the equilibrium is not physically valid; flags: {}",
+                "warning: {what} is not physically valid; flags: {}",
                 v["flags"]
                     .as_array()
                     .map(|f| f

@@ -115,8 +115,14 @@ fn print_table(d: &Drive, n: usize, an: &LoopAnalysis) {
             an.steady_state_warnings.join(", ")
         );
     }
-    for (l, m) in an.loops.iter().zip(&an.alone) {
-        if m.inert {
+    for ((l, m), mo) in an.loops.iter().zip(&an.alone).zip(&an.others_closed) {
+        if m.inert && !mo.inert {
+            println!(
+                "\n{}: {} does not move {} at this point (no EGR flow?): no feedback by itself; \
+                 with the other loop closed it has some, through that loop",
+                l.name, l.input, l.output
+            );
+        } else if m.inert {
             println!(
                 "\n{}: {} moves none of the loops' outputs, or no loop command moves {}, at this \
                  point (no EGR flow?): the loop is left open in the others' figures",

@@ -400,6 +400,14 @@ impl BaselineTuning {
         scheduled_factor(u_vgt, range.0, self.vgt_gain_knee, self.vgt_gain_closed)
     }
 
+    /// The most open EGR-valve position [%] the lambda_O loop may command where the valve's
+    /// position set-point is `u_egr_set` [%] ([`SetpointMaps::u_egr_max_at`]: 100 where the
+    /// set-point pair is reachable), for a valve whose command range is `range` [%]: the
+    /// set-point plus [`Self::egr_open_beyond_setpoint`], within the range.
+    pub fn egr_limit_in(&self, u_egr_set: f64, range: (f64, f64)) -> f64 {
+        (u_egr_set + self.egr_open_beyond_setpoint).clamp(range.0, range.1)
+    }
+
     /// The EGR-valve loops' gain factor at the EGR command `u_egr` [%] of a valve whose command
     /// range is `range` [%]: [`Self::egr_gain_closed`] at its closed end `range.0` (the
     /// authors' 0 %) and below, 1 at [`Self::egr_gain_knee`] and above, linear between (exactly
@@ -601,9 +609,13 @@ pub struct AdjustedCell {
     pub lambda_o_reached: f64,
     /// The largest x_egr [-] the actuators give (valve open, VGT at its closed end).
     pub x_egr_max: f64,
-    /// The valve's position set-point there [%] (the cell's nominal position): the most open
-    /// position the lambda_O loop may command, instead of 100 %.
+    /// The valve's position set-point there [%] (the cell's nominal position).
     pub u_egr_max: f64,
+    /// The most open position [%] the lambda_O loop may command there, instead of the range's
+    /// open end: the set-point plus the tuning's [`BaselineTuning::egr_open_beyond_setpoint`],
+    /// within the valve's command range ([`BaselineTuning::egr_limit_in`]; the controller's
+    /// tuning: [`Baseline::with_maps`] sets it).
+    pub u_egr_limit: f64,
     /// Why the pair is out of reach, in words.
     pub reason: String,
 }
@@ -676,6 +688,7 @@ impl SetpointMaps {
                             lambda_o_reached: lambda_reached,
                             x_egr_max: x_max,
                             u_egr_max: ue,
+                            u_egr_limit: tuning.egr_limit_in(ue, maps.u_egr_range),
                             reason,
                         });
                     }
@@ -1045,7 +1058,12 @@ impl Baseline {
 
     /// Build with set-point maps already solved (`tuning` as [`BaselineTuning::validate`]
     /// accepts it; a full-load VGT limit outside the maps' VGT range acts as its closed end).
-    pub fn with_maps(maps: SetpointMaps, tuning: BaselineTuning) -> Self {
+    pub fn with_maps(mut maps: SetpointMaps, tuning: BaselineTuning) -> Self {
+        // the limits the adjusted cells report are this tuning's
+        let range = maps.u_egr_range;
+        for c in &mut maps.adjusted {
+            c.u_egr_limit = tuning.egr_limit_in(c.u_egr_max, range);
+        }
         let u_vgt_open = maps.u_vgt_range.1;
         let u_egr_open = maps.u_egr_range.1;
         Self {
@@ -1209,8 +1227,11 @@ impl Controller for Baseline {
         // loop opens the valve no further (the range's open end, no limit, elsewhere)
         // (it belongs to the map's pair: a lambda_O,s override, a pair the user gives, has none)
         let egr_max = if self.setpoint_override.0.is_nan() {
-            (self.maps.u_egr_max_at(m.n_e, u_delta) + self.tuning.egr_open_beyond_setpoint)
-                .min(egr_open)
+            // (its clamp at the closed end changes no command: u_egr is clamped there below)
+            self.tuning.egr_limit_in(
+                self.maps.u_egr_max_at(m.n_e, u_delta),
+                self.maps.u_egr_range,
+            )
         } else {
             egr_open
         };

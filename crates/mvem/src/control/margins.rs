@@ -64,7 +64,10 @@ pub struct LoopMargins {
     /// The loop's command moves none of the loops' outputs at this point, or no loop command
     /// moves its output (e.g. where no EGR flows): no feedback, nothing to analyse; the loop is
     /// left open in the other loops' figures and the other fields say so (stable, no margins,
-    /// |1/(1+L)| = 1).
+    /// |1/(1+L)| = 1). In [`LoopAnalysis::alone`] also where only the loop's own channel is
+    /// zero (x_egr at the shut EGR valve whatever the VGT does, while the valve moves it): by
+    /// itself it has no feedback (its integral a pole at 1 nothing moves, not an
+    /// instability); with the other loops closed it has, through them.
     pub inert: bool,
     /// Whether the closed loop (this loop, with the others open or closed as the field says) is
     /// stable at the nominal gains; the gain margins are `None` when it is not.
@@ -474,18 +477,7 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
     let mut l_others = Vec::with_capacity(n_loops);
     for k in 0..n_loops {
         if inert[k] {
-            let m = LoopMargins {
-                inert: true,
-                stable: true,
-                gain_margin: None,
-                gain_reduction_margin: None,
-                gain_margin_hz: None,
-                phase_margin_deg: None,
-                gain_crossover_hz: None,
-                delay_margin_s: None,
-                peak_sensitivity: 1.0,
-                peak_sensitivity_hz: f_hz[0],
-            };
+            let m = LoopMargins::inert(f_hz[0]);
             alone.push(m.clone());
             others_closed.push(m);
             l_alone.push(vec![Complex::new(0.0, 0.0); f_hz.len()]);
@@ -521,10 +513,24 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
             };
             lo.push(-h * kk);
         }
-        for (set, l, out) in [
-            (vec![k], &la, &mut alone),
-            (all.clone(), &lo, &mut others_closed),
+        // alone, a loop whose command does not move its own output here (x_egr at the shut
+        // EGR valve whatever the VGT does, while the valve still moves x_egr) has no feedback:
+        // inert by itself (its PI integral a pole at 1 that nothing moves, not an instability),
+        // its feedback only through the other loops
+        let alone_inert = g_grid.iter().all(|(g, _)| g[(k, k)] == zero);
+        for (set, l, out, no_feedback) in [
+            (vec![k], &la, &mut alone, alone_inert),
+            (
+                all.clone(),
+                &lo,
+                &mut others_closed,
+                alone_inert && others.is_empty(),
+            ),
         ] {
+            if no_feedback {
+                out.push(LoopMargins::inert(f_hz[0]));
+                continue;
+            }
             let stable_at = |s: f64| -> Result<(bool, f64), MarginsError> {
                 let mut sc = ones.clone();
                 sc[k] = s;
@@ -561,6 +567,25 @@ pub fn loop_margins_of(dm: &SampledPlant, loops: &[PiLoop]) -> Result<LoopAnalys
         l_others_closed: l_others,
         steady_state_warnings: Vec::new(),
     })
+}
+
+impl LoopMargins {
+    /// The figures of a loop without feedback ([`Self::inert`]): stable, no margins,
+    /// |1/(1+L)| = 1 at the grid's first frequency `f0_hz` \[Hz\].
+    fn inert(f0_hz: f64) -> Self {
+        Self {
+            inert: true,
+            stable: true,
+            gain_margin: None,
+            gain_reduction_margin: None,
+            gain_margin_hz: None,
+            phase_margin_deg: None,
+            gain_crossover_hz: None,
+            delay_margin_s: None,
+            peak_sensitivity: 1.0,
+            peak_sensitivity_hz: f0_hz,
+        }
+    }
 }
 
 /// The frequency-domain figures of one return ratio and the gain margins found.
