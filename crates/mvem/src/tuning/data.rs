@@ -707,25 +707,48 @@ fn parse_columns(
     let found = header_names(text).ok();
     // each column's header in this file: the manifest's (`[columns]`, else mvem's name), or
     // where the file has no such header, the one header that is it with a unit in brackets
-    // (`t [ms]`, `p_im [kPa]`: per file, so files may differ in their units)
+    // (`t [ms]`, `p_im [kPa]`: per file, so files may differ in their units); two such headers
+    // (`p_im [kPa]` and `p_im [bar]`) are ambiguous
     let headers: Vec<&str> = names
         .iter()
         .map(|n| {
             let h = layout.header(n);
-            let Some(found) = &found else { return h };
+            let Some(found) = &found else { return Ok(h) };
             if found.iter().any(|f| f == h) {
-                return h;
+                return Ok(h);
             }
-            let mut with_unit = found.iter().filter(|f| {
-                let s = split_unit(f);
-                s.closed_unit().is_some() && s.name.trim() == h
-            });
-            match (with_unit.next(), with_unit.next()) {
-                (Some(f), None) => f.as_str(),
-                _ => h,
+            let with_unit: Vec<(usize, &String)> = (found.iter().enumerate())
+                .filter(|(_, f)| {
+                    let s = split_unit(f);
+                    s.closed_unit().is_some() && s.name.trim() == h
+                })
+                .collect();
+            match with_unit[..] {
+                [] => Ok(h),
+                [(_, f)] => Ok(f.as_str()),
+                _ => Err(fmt(format!(
+                    "ambiguous column `{h}`{}: the header (line 1) has {} (columns {}), each \
+                     `{h}` with a unit in brackets: remove or rename all but one (or name one in \
+                     the manifest's [columns])",
+                    if h != *n {
+                        format!(" (mvem's `{n}`, renamed by the manifest's [columns])")
+                    } else {
+                        String::new()
+                    },
+                    with_unit
+                        .iter()
+                        .map(|(_, f)| format!("`{f}`"))
+                        .collect::<Vec<_>>()
+                        .join(" and "),
+                    with_unit
+                        .iter()
+                        .map(|(k, _)| (k + 1).to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))),
             }
         })
-        .collect();
+        .collect::<Result<_, _>>()?;
     // a column headed twice: the reader would take the first silently
     if let Some(found) = &found {
         for (n, h) in names.iter().zip(&headers) {
@@ -1299,10 +1322,46 @@ mod tests {
         let got = parse_stationary_csv(&format!("{head}\n{row}\n"), p, &Layout::default()).unwrap();
         assert_eq!(got[0].p_im, want[0].p_im);
         assert_eq!(got[0].values(), want[0].values());
-        // two headers that are p_im with a unit: which one is not guessed
+        // two headers that are p_im with a unit: which one is not guessed, and the error says
+        // so, naming the file and both headers (session 40; before, "missing column `p_im`")
         let two = format!("{head},p_im (bar)\n{row},2\n");
-        let e = parse_stationary_csv(&two, p, &Layout::default()).unwrap_err();
-        assert!(e.to_string().contains("missing column `p_im`"), "{e}");
+        let e = parse_stationary_csv(&two, p, &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "s.csv: ambiguous column `p_im`: the header (line 1) has `p_im [kPa]` and `p_im \
+             (bar)` (columns 7, 18), each `p_im` with a unit in brackets: remove or rename all \
+             but one (or name one in the manifest's [columns])"
+        );
+        // the same through [columns], in a dynamic file
+        let layout = Layout {
+            names: [("p_im".to_string(), "MAP".to_string())].into(),
+            ..Layout::default()
+        };
+        let e = parse_dynamic_csv(
+            "t,u_egr,u_vgt,u_delta,n_e,MAP [kPa],MAP [bar],p_em,W_c,n_t,M_e\n0,0,50,100,1500,200,2,2e5,0.2,5e4,800\n",
+            Path::new("B.csv"),
+            "B",
+            StepKind::VgtEgr,
+            &layout,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with(
+                "B.csv: ambiguous column `MAP` (mvem's `p_im`, renamed by the manifest's \
+                 [columns]): the header (line 1) has `MAP [kPa]` and `MAP [bar]` (columns 6, 7)"
+            ),
+            "{e}"
+        );
+        // one of them named in [columns] is no longer ambiguous
+        let layout = Layout {
+            names: [("p_im".to_string(), "p_im [kPa]".to_string())].into(),
+            ..Layout::default()
+        };
+        let got = parse_stationary_csv(&two, p, &layout).unwrap();
+        assert_eq!(got[0].p_im, want[0].p_im);
     }
 
     /// Test-cell exports write a row of units under the header: read and applied as a unit in
