@@ -297,6 +297,28 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         .filter(|n| n.to_ascii_lowercase().ends_with(".csv"))
         .collect();
     files.sort();
+    // the stationary file first (the first one in name order): [columns] and [units] hold the
+    // headers and units of the files drafted first, and a file that heads a column otherwise is
+    // skipped, so a stationary file sorted after the dynamic files (`steady.csv` after
+    // `run_B.csv`) was skipped for heading a column otherwise than they do, and the draft
+    // failed with "no stationary file"
+    let lacks_stationary = |heads: &BTreeMap<&'static str, Heading>| -> Vec<String> {
+        (STATIONARY_COLUMNS.iter())
+            .map(|c| c.name)
+            .filter(|n| *n != "T_t" && !heads.contains_key(n))
+            .map(str::to_string)
+            .collect()
+    };
+    let first_stationary = files.iter().position(|f| {
+        read(&dir.join(f)).is_ok_and(|text| {
+            let header = header_names(&text).unwrap_or_default();
+            lacks_stationary(&headings(f, &header).0).is_empty()
+        })
+    });
+    if let Some(k) = first_stationary {
+        let f = files.remove(k);
+        files.insert(0, f);
+    }
     let mut notes = Vec::new();
     let mut stationary: Option<String> = None;
     let mut sets = Vec::new();
@@ -346,12 +368,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let lacks = |cols: &mut dyn Iterator<Item = &str>| -> Vec<String> {
             cols.filter(|n| !has(n)).map(str::to_string).collect()
         };
-        let st_missing = lacks(
-            &mut STATIONARY_COLUMNS
-                .iter()
-                .map(|c| c.name)
-                .filter(|n| *n != "T_t"),
-        );
+        let st_missing = lacks_stationary(&heads);
         if st_missing.is_empty() {
             if stationary.is_none() {
                 stationary = Some(f.clone());
@@ -901,6 +918,52 @@ mod tests {
         std::fs::write(path, format!("{head}\n{}\n{rest}", row.join(","))).unwrap();
     }
 
+    /// Session 40: a test cell's stationary file sorted after its dynamic files (the lab's
+    /// `stationary.csv` after `I.csv`) that heads a column otherwise than they do (`p_im [kPa]`
+    /// against a bare `p_im`) was skipped as a clash with them, and the draft failed with "no
+    /// stationary file among 3 CSV files", the skip's note unprinted. The stationary file is
+    /// drafted first now; the dynamic file that heads p_im otherwise is skipped, saying why.
+    #[test]
+    fn the_stationary_file_is_drafted_first() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        rewrite(
+            &dir.path().join("stationary.csv"),
+            &[("p_im", "p_im [kPa]", |v| v / 1e3)],
+        );
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        assert_eq!(d.manifest.stationary, "stationary.csv");
+        assert_eq!(
+            d.manifest.units.get("p_im").map(String::as_str),
+            Some("kPa")
+        );
+        let sets: Vec<&str> = d
+            .manifest
+            .datasets
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect();
+        assert_eq!(sets, ["J"], "{:?}", d.notes);
+        assert!(
+            d.notes.iter().any(|n| n
+                == "I.csv: skipped (heads p_im `p_im` (no unit), stationary.csv heads it `p_im \
+                    [kPa]` (in kPa): [columns] and [units] hold one header and unit per column)"),
+            "{:?}",
+            d.notes
+        );
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            assert!(
+                (a.p_im - b.p_im).abs() <= 1e-9 * b.p_im,
+                "{} vs {}",
+                a.p_im,
+                b.p_im
+            );
+        }
+    }
+
     /// Session 39: files that differ in their time unit. `[units]` holds one unit per column,
     /// but the draft wrote `t = "ms"` when any bare time column looked like ms: the files in
     /// seconds beside it were then either read 1000 times too slow (bare: the loader only
@@ -1012,8 +1075,9 @@ mod tests {
         let d = draft_manifest(dir.path()).unwrap();
         assert!(
             d.notes.iter().any(|n| n
-                == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), I.csv heads it \
-                    `u_vgt` (no unit): [columns] and [units] hold one header and unit per column)"),
+                == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), stationary.csv \
+                    heads it `u_vgt` (no unit): [columns] and [units] hold one header and unit \
+                    per column)"),
             "{:?}",
             d.notes
         );
