@@ -717,12 +717,7 @@ fn parse_columns(
             if found.iter().any(|f| f == h) {
                 return Ok(h);
             }
-            let with_unit: Vec<(usize, &String)> = (found.iter().enumerate())
-                .filter(|(_, f)| {
-                    let s = split_unit(f);
-                    s.closed_unit().is_some() && s.name.trim() == h
-                })
-                .collect();
+            let with_unit = with_unit_in_brackets(found, h);
             match with_unit[..] {
                 [] => Ok(h),
                 [(_, f)] => Ok(f.as_str()),
@@ -861,8 +856,21 @@ fn parse_columns(
     Ok(Parsed { rows, lines, conv })
 }
 
+/// The headers of `found` (with their 0-based positions) that are `h` with a unit in brackets
+/// that end them (`p_im [kPa]`, `p_im (bar)` for `p_im`): where `h` itself is missing, the
+/// loader reads the one such header, and two are ambiguous.
+fn with_unit_in_brackets<'a>(found: &'a [String], h: &str) -> Vec<(usize, &'a String)> {
+    (found.iter().enumerate())
+        .filter(|(_, f)| {
+            let s = split_unit(f);
+            s.closed_unit().is_some() && s.name.trim() == h
+        })
+        .collect()
+}
+
 /// `cols` without those named in `optional` that the header of `text` lacks (by the file's
-/// names, `layout`); all of `cols` when the header cannot be read (the parse reports that).
+/// names, `layout`, or those names with a unit in brackets, as [`parse_columns`] finds them);
+/// all of `cols` when the header cannot be read (the parse reports that).
 fn without_absent(
     text: &str,
     layout: &Layout,
@@ -871,7 +879,10 @@ fn without_absent(
 ) -> Vec<Column> {
     if let Ok(header) = header_names(text) {
         cols.retain(|c| {
-            !optional.contains(&c.name) || header.iter().any(|h| h == layout.header(c.name))
+            let h = layout.header(c.name);
+            !optional.contains(&c.name)
+                || header.iter().any(|f| f == h)
+                || !with_unit_in_brackets(&header, h).is_empty()
         });
     }
     cols
@@ -1362,6 +1373,49 @@ mod tests {
         };
         let got = parse_stationary_csv(&two, p, &layout).unwrap();
         assert_eq!(got[0].p_im, want[0].p_im);
+    }
+
+    /// Session 40: an optional column headed with its unit in brackets (`u_egr_pos [-]` in a
+    /// VGT/EGR set, `T_t [degC]` in the stationary file) was dropped without a word: the check
+    /// for optional columns looked for the exact name, while the required ones are also found
+    /// with a unit in brackets.
+    #[test]
+    fn optional_columns_with_their_unit_in_brackets_are_read() {
+        let head = "t,u_egr,u_vgt,u_delta,n_e,p_im,p_em,W_c,n_t,M_e";
+        let row = "0,10,50,100,1500,2e5,2.2e5,0.2,5e4,800";
+        let plain = format!("{head},u_egr_pos,u_vgt_pos\n{row},11,52\n");
+        let bracket = format!("{head},u_egr_pos [-],u_vgt_pos (%)\n{row},0.11,52\n");
+        let read = |text: &str| {
+            parse_dynamic_csv(
+                text,
+                Path::new("B.csv"),
+                "B",
+                StepKind::VgtEgr,
+                &Layout::default(),
+            )
+            .unwrap()
+        };
+        let (want, got) = (read(&plain), read(&bracket));
+        for n in ["u_egr_pos", "u_vgt_pos"] {
+            let (w, g) = (want.get(n).unwrap()[0], got.get(n).map(|v| v[0]));
+            assert!(
+                g.is_some_and(|g| (g - w).abs() < 1e-12),
+                "{n}: {g:?} vs {w}"
+            );
+        }
+        // the stationary file's T_t in degC
+        let p = Path::new("s.csv");
+        let st =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
+        let head = header().replace("T_t", "T_t [degC]");
+        let row = ROW.replace(",310,700,", ",310,426.85,");
+        let got = parse_stationary_csv(&format!("{head}\n{row}\n"), p, &Layout::default()).unwrap();
+        assert!(
+            (got[0].t_t - st[0].t_t).abs() < 1e-9,
+            "{} vs {}",
+            got[0].t_t,
+            st[0].t_t
+        );
     }
 
     /// Test-cell exports write a row of units under the header: read and applied as a unit in
