@@ -594,6 +594,20 @@ struct Parsed {
 /// unit's name as the messages give the values).
 type Conversion = Option<(f64, f64, String)>;
 
+/// Whether the pressure unit `u` says the pressure is gauge, relative to the ambient (`barg`,
+/// `bar(g)`, `kPa g`, `psig`, `bar gauge`, `bar rel`).
+fn is_gauge(u: &str) -> bool {
+    let n: String = u
+        .chars()
+        .filter(|c| !matches!(c, ' ' | '(' | ')' | '.' | '_' | '-'))
+        .flat_map(char::to_lowercase)
+        .collect();
+    let known = |x: &str| known_unit("Pa", x).is_some();
+    n.ends_with("gauge")
+        || n.strip_suffix("rel").is_some_and(known)
+        || n.strip_suffix('g').is_some_and(known)
+}
+
 /// The unit of each column of `required` (headed `headers` in the file) and its conversion to
 /// mvem's unit, from up to three places: the manifest's `[units]`, the header's brackets
 /// (`p_im [kPa]`, a unit mvem knows: [`known_unit`], as `mvem campaign --init` reads them) and
@@ -617,6 +631,26 @@ fn column_units(
             renamed: layout.label(c.name).1,
             message,
         };
+        // a gauge pressure in the header's brackets or the units row: refused even where
+        // `[units]` declares the column (an unknown unit is otherwise left to it), since read
+        // as absolute it is off by the ambient pressure, inside the plausible range at boost
+        let header_unit = split_unit(headers[k]).closed_unit();
+        let row_unit = units_row.map(|(line, cells)| (*line, cells[k].trim()));
+        for (line, u) in [
+            (1, header_unit),
+            (row_unit.map_or(1, |r| r.0), row_unit.map(|r| r.1)),
+        ] {
+            if let Some(u) = u.filter(|u| c.unit == "Pa" && is_gauge(u)) {
+                return Err(bad(
+                    line,
+                    format!(
+                        "`{u}` is a gauge pressure (relative to the ambient): mvem reads absolute \
+                         pressures; log them absolute or add each point's ambient pressure \
+                         (docs/tuning-data.md)"
+                    ),
+                ));
+            }
+        }
         // (where, line, unit, scale, offset)
         let mut given: Vec<(String, usize, String, f64, f64)> = Vec::new();
         let declared = layout.units.get(c.name);
@@ -1416,6 +1450,46 @@ mod tests {
             got[0].t_t,
             st[0].t_t
         );
+    }
+
+    /// Session 40: a gauge pressure (`p_im [barg]`, a units row `bar(g)`) was read as absolute
+    /// where `[units]` declared the column (an unknown unit in brackets or the units row is
+    /// left to `[units]`): off by the ambient pressure, inside the plausible range at boost, so
+    /// without a word. Refused now, naming the file, line and column.
+    #[test]
+    fn gauge_pressures_are_refused() {
+        let p = Path::new("s.csv");
+        let bar = Layout {
+            units: [("p_im".to_string(), "bar".to_string())].into(),
+            ..Layout::default()
+        };
+        let row = ROW.replace(",200000,298", ",1.2,298");
+        let head = header();
+        // as absolute bar, the row loads
+        assert!(parse_stationary_csv(&format!("{head}\n{row}\n"), p, &bar).is_ok());
+        for (head, units) in [
+            (head.replace("p_im", "p_im [barg]"), String::new()),
+            (head.replace("p_im", "p_im (bar g)"), String::new()),
+            (head.clone(), {
+                let cells: Vec<&str> = (head.split(','))
+                    .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
+                    .collect();
+                format!("{}\n", cells.join(","))
+            }),
+        ] {
+            let text = format!("{head}\n{units}{row}\n");
+            let e = parse_stationary_csv(&text, p, &bar)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("s.csv: line ")
+                    && e.contains("column `p_im`: `")
+                    && e.contains("is a gauge pressure (relative to the ambient)"),
+                "{e}"
+            );
+        }
+        assert!(is_gauge("psig") && is_gauge("bar rel") && is_gauge("mbar gauge"));
+        assert!(!is_gauge("bar") && !is_gauge("kPa") && !is_gauge("g/s") && !is_gauge("mg"));
     }
 
     /// Test-cell exports write a row of units under the header: read and applied as a unit in
