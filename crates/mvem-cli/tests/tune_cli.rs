@@ -377,6 +377,24 @@ fn stationary_campaign(d: &std::path::Path, extra: &[&str]) {
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
+/// `mvem lab --out c --sets SETS --max-steps 2 --n-stationary 20` in `d` (a small campaign with
+/// the actuator set J), which must succeed.
+fn small_campaign(d: &std::path::Path, sets: &str) {
+    let args = [
+        "lab",
+        "--out",
+        "c",
+        "--sets",
+        sets,
+        "--max-steps",
+        "2",
+        "--n-stationary",
+        "20",
+    ];
+    let o = mvem(d, &args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// `mvem tune --data c --steps 1 --out t.toml --report REP EXTRA...` in `d`: its stderr and
 /// report.
 fn tune_step1(d: &std::path::Path, extra: &[&str], rep: &str) -> (String, serde_json::Value) {
@@ -598,21 +616,7 @@ fn tune_widens_the_input_ranges_to_the_campaign() {
 fn campaign_summary_says_which_steps_the_data_support() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let o = mvem(
-        d,
-        &[
-            "lab",
-            "--out",
-            "c",
-            "--sets",
-            "B,C,Q",
-            "--max-steps",
-            "2",
-            "--n-stationary",
-            "20",
-        ],
-    );
-    assert!(o.status.success(), "{}", stderr(&o));
+    small_campaign(d, "B,C,Q");
     let o = mvem(d, &["campaign", "--data", "c", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -645,18 +649,7 @@ fn campaign_summary_says_which_steps_the_data_support() {
 fn campaign_init_drafts_a_manifest_that_loads() {
     let tmp = tempfile::tempdir().unwrap();
     let d = tmp.path();
-    let lab = [
-        "lab",
-        "--out",
-        "c",
-        "--sets",
-        "B,I",
-        "--max-steps",
-        "2",
-        "--n-stationary",
-        "20",
-    ];
-    assert!(mvem(d, &lab).status.success());
+    small_campaign(d, "B,I");
     std::fs::remove_file(d.join("c/manifest.toml")).unwrap();
     let o = mvem(d, &["campaign", "--data", "c", "--init", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -802,4 +795,82 @@ fn tune_report_names_elements_as_the_parameter_file_counts_them() {
     let truth = mvem::params::Params::published().cylinder.c_fric[0];
     assert!(row.contains(&format!("| {truth:.6e} |")), "{row}");
     assert!(md.contains("Elements are counted from 1"), "{md}");
+}
+
+/// Session 40: `mvem tune` and `mvem validate` warn of EGR and VGT commands outside their
+/// parameter file's command ranges (`[input_saturation] u_egr`, `u_vgt`) as `mvem campaign
+/// --params` does (before, only `campaign` did, and the model ran them clamped without a word).
+/// The lab's actuator set J commands the VGT down to 10 %: below the published [20, 100] %.
+#[test]
+fn campaign_tune_and_validate_warn_of_commands_outside_the_command_ranges() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    small_campaign(d, "I");
+    write_published_with(d, "pub.toml", &[]);
+    let vgt = ("u_vgt = [20.0, 100.0]", "u_vgt = [10.0, 100.0]");
+    write_published_with(d, "wide.toml", &[vgt]);
+    write_published_with(
+        d,
+        "egr30.toml",
+        &[vgt, ("u_egr = [0.0, 100.0]", "u_egr = [0.0, 30.0]")],
+    );
+    let j_vgt = |set: &str| {
+        format!(
+            "warning: set J (J.csv): u_vgt leaves the VGT command range [20, 100] % of {set} \
+             (input_saturation.u_vgt) at 100 of 5000 samples (100 below, down to 10 % (10 \
+             points of % under 20 %)); the model runs these commands clamped"
+        )
+    };
+    // campaign --params: the file's ranges, named by the file
+    let campaign = |params: &[&str]| {
+        let mut args = vec!["campaign", "--data", "c"];
+        args.extend_from_slice(params);
+        let o = mvem(d, &args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let out = campaign(&[]);
+    assert!(out.contains(&j_vgt("the published parameters")), "{out}");
+    let out = campaign(&["--params", "pub.toml"]);
+    assert!(out.contains(&j_vgt("pub.toml")), "{out}");
+    assert!(!campaign(&["--params", "wide.toml"]).contains("leaves the"));
+    let out = campaign(&["--params", "egr30.toml"]);
+    assert!(
+        out.contains(
+            "warning: the stationary points (stationary.csv): u_egr leaves the EGR-valve command \
+             range [0, 30] % of egr30.toml (input_saturation.u_egr) at "
+        ) && !out.contains("u_vgt leaves"),
+        "{out}"
+    );
+    // tune (step 2 alone, on the actuator set) and validate: the same warnings on stderr
+    let run = |args: &[&str]| {
+        let o = mvem(d, args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let tune = |params: &[&str]| {
+        let mut args = vec!["tune", "--data", "c", "--steps", "2", "--out", "t.toml"];
+        args.extend_from_slice(params);
+        run(&args)
+    };
+    let err = tune(&[]);
+    assert!(err.contains(&j_vgt("the published parameters")), "{err}");
+    let err = tune(&["--params", "pub.toml"]);
+    assert!(err.contains(&j_vgt("the parameters given")), "{err}");
+    assert!(!tune(&["--params", "wide.toml"]).contains("leaves the"));
+    let validate = |params: &str| {
+        run(&[
+            "validate", "--data", "c", "--params", params, "--roles", "actuator",
+        ])
+    };
+    let err = validate("pub.toml");
+    assert!(err.contains(&j_vgt("the parameters validated")), "{err}");
+    assert!(!validate("wide.toml").contains("leaves the"));
+    let err = validate("egr30.toml");
+    assert!(
+        err.contains(
+            "u_egr leaves the EGR-valve command range [0, 30] % of the parameters validated"
+        ),
+        "{err}"
+    );
 }

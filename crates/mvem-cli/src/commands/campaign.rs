@@ -23,7 +23,8 @@ command steps found, whether the actuator positions are there) and which of the 
 1-5 the data support, with warnings: time bases that differ from the manifest's, and EGR or VGT
 commands outside the parameter set's command ranges (--params, by default the published
 parameters: input_saturation.u_egr = [0, 100] %, u_vgt = [20, 100] %), which the model would
-run clamped: set this engine's ranges before tuning (tune and validate do not repeat this). --json prints the same as one object. --init first drafts DIR/manifest.toml
+run clamped: set this engine's ranges before tuning (tune and validate warn of both too, against
+their parameter file). --json prints the same as one object. --init first drafts DIR/manifest.toml
 from the CSV files in DIR (the stationary file, each set's kind, roles, sample rate and steps,
 units guessed where values are out of range in mvem's unit; every guess listed as a comment
 and on stderr; an existing manifest is kept unless --force). Format: docs/tuning-data.md.")]

@@ -317,14 +317,86 @@ pub fn range_warnings(s: &InputSchedule, ranges: &[(&str, f64, f64); 4]) -> Vec<
     )
 }
 
-/// Per channel: the rows below and above its range, the lowest value below and the highest
-/// above, the first time it leaves the range, and the extremes of the whole channel.
+/// The values of one channel outside a range `[lo, hi]`: how many lie below and above it, the
+/// lowest below and the highest above. The count shared by the input files' range warnings
+/// ([`range_warnings_of_rows`]) and a tuning campaign's command-range warnings
+/// ([`crate::tuning::constants::commands_outside_ranges`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outside {
+    /// Values below the range.
+    pub below: usize,
+    /// Values above the range.
+    pub above: usize,
+    /// The lowest value below (+inf without one).
+    pub min_below: f64,
+    /// The highest value above (-inf without one).
+    pub max_above: f64,
+}
+
+impl Outside {
+    /// No value outside.
+    pub const NONE: Self = Self {
+        below: 0,
+        above: 0,
+        min_below: f64::INFINITY,
+        max_above: f64::NEG_INFINITY,
+    };
+
+    /// The values of `values` outside `[lo, hi]`.
+    pub fn of(values: impl IntoIterator<Item = f64>, lo: f64, hi: f64) -> Self {
+        let mut o = Self::NONE;
+        for v in values {
+            o.add(v, lo, hi);
+        }
+        o
+    }
+
+    /// Count `v` if it lies outside `[lo, hi]`; whether it does.
+    pub fn add(&mut self, v: f64, lo: f64, hi: f64) -> bool {
+        if v < lo {
+            self.below += 1;
+            self.min_below = self.min_below.min(v);
+        } else if v > hi {
+            self.above += 1;
+            self.max_above = self.max_above.max(v);
+        } else {
+            return false;
+        }
+        true
+    }
+
+    /// How many values lie outside.
+    pub fn count(&self) -> usize {
+        self.below + self.above
+    }
+
+    /// The sides as text, "`3 below, down to X; 1 above, up to Y`", each extreme written by
+    /// `extreme(value, below)`.
+    pub fn sides(&self, extreme: impl Fn(f64, bool) -> String) -> String {
+        let mut sides = Vec::with_capacity(2);
+        if self.below > 0 {
+            sides.push(format!(
+                "{} below, down to {}",
+                self.below,
+                extreme(self.min_below, true)
+            ));
+        }
+        if self.above > 0 {
+            sides.push(format!(
+                "{} above, up to {}",
+                self.above,
+                extreme(self.max_above, false)
+            ));
+        }
+        sides.join("; ")
+    }
+}
+
+/// Per channel: the rows outside its range, the first time it leaves the range, and the
+/// extremes of the whole channel.
 #[derive(Clone, Copy)]
 struct Excursion {
-    below: usize,
-    above: usize,
-    min_below: f64,
-    max_above: f64,
+    outside: Outside,
     first: Option<f64>,
     min: f64,
     max: f64,
@@ -332,10 +404,7 @@ struct Excursion {
 
 impl Excursion {
     const NONE: Self = Self {
-        below: 0,
-        above: 0,
-        min_below: f64::INFINITY,
-        max_above: f64::NEG_INFINITY,
+        outside: Outside::NONE,
         first: None,
         min: f64::INFINITY,
         max: f64::NEG_INFINITY,
@@ -357,7 +426,7 @@ pub fn range_warnings_of_rows(
             let (v, e) = (r[c], &mut ex[c]);
             e.min = e.min.min(v);
             e.max = e.max.max(v);
-            if v < *lo || v > *hi {
+            if e.outside.add(v, *lo, *hi) {
                 e.first.get_or_insert_with(|| match prev {
                     // the input is linear between the rows: it crosses the limit in between
                     Some((tp, rp)) if t > tp && (*lo..=*hi).contains(&rp[c]) => {
@@ -366,13 +435,6 @@ pub fn range_warnings_of_rows(
                     }
                     _ => t,
                 });
-                if v < *lo {
-                    e.below += 1;
-                    e.min_below = e.min_below.min(v);
-                } else {
-                    e.above += 1;
-                    e.max_above = e.max_above.max(v);
-                }
             }
         }
         prev = Some((t, r));
@@ -382,20 +444,13 @@ pub fn range_warnings_of_rows(
         .zip(ex)
         .filter_map(|((name, lo, hi), e)| {
             let t = e.first?;
-            let mut sides = Vec::with_capacity(2);
-            if e.below > 0 {
-                sides.push(format!("{} below, down to {}", e.below, Num(e.min_below)));
-            }
-            if e.above > 0 {
-                sides.push(format!("{} above, up to {}", e.above, Num(e.max_above)));
-            }
             Some(format!(
                 "{name} is outside its range [{lo}, {hi}] at {} of {n} input rows ({}), first at \
                  t = {} s (the whole channel runs from {} to {}); the authors' saturation clamps \
                  it (the paper's semantics use it as given; the ranges are input_saturation of \
                  the parameter file)",
-                e.below + e.above,
-                sides.join("; "),
+                e.outside.count(),
+                e.outside.sides(|v, _| Num(v).to_string()),
                 // to the microsecond: a crossing between rows is interpolated (0.9090909... s)
                 Num((t * 1e6).round() / 1e6),
                 Num(e.min),

@@ -24,6 +24,7 @@
 
 use super::data::StationaryPoint;
 use crate::components::cylinder;
+use crate::io::csv_inputs::Outside;
 use crate::numerics::Num;
 use crate::params::Params;
 use serde::{Deserialize, Serialize};
@@ -394,6 +395,13 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
 /// the authors' [20, 100] % a VGT commanded to 10 % sits at 20 %), so another engine whose
 /// actuators are commanded over a wider range must set its range before tuning. Empty when
 /// every command lies inside.
+///
+/// The count is the input files' ([`crate::io::csv_inputs::Outside`]), but not their whole
+/// warning ([`crate::io::csv_inputs::range_warnings_of_rows`]): that one reads rows of all four
+/// inputs with their times, linear between rows (so it interpolates the first time a channel
+/// crosses its limit), while a campaign's stationary points have no time and its dynamic
+/// commands are held between samples (zero-order hold), and the two say different things to
+/// do (an inputs file runs clamped; a campaign needs the engine's range before tuning).
 pub fn commands_outside_ranges(
     c: &super::data::Campaign,
     s: &crate::params::InputSaturation,
@@ -421,37 +429,26 @@ pub fn commands_outside_ranges(
             ("u_egr", "EGR-valve", s.u_egr, egr),
             ("u_vgt", "VGT", s.u_vgt, vgt),
         ] {
-            let below: Vec<f64> = values.iter().copied().filter(|v| *v < lo).collect();
-            let above: Vec<f64> = values.iter().copied().filter(|v| *v > hi).collect();
-            if below.is_empty() && above.is_empty() {
+            let o = Outside::of(values.iter().copied(), lo, hi);
+            if o.count() == 0 {
                 continue;
             }
-            let mut sides = Vec::with_capacity(2);
-            if let Some(m) = below.iter().copied().reduce(f64::min) {
-                sides.push(format!(
-                    "{} below, down to {} % ({} points of % under {lo} %)",
-                    below.len(),
-                    Num(m),
-                    Num(lo - m)
-                ));
-            }
-            if let Some(m) = above.iter().copied().reduce(f64::max) {
-                sides.push(format!(
-                    "{} above, up to {} % ({} points of % over {hi} %)",
-                    above.len(),
-                    Num(m),
-                    Num(m - hi)
-                ));
-            }
+            let sides = o.sides(|v, below| {
+                let (d, side, limit) = if below {
+                    (lo - v, "under", lo)
+                } else {
+                    (v - hi, "over", hi)
+                };
+                format!("{} % ({} points of % {side} {limit} %)", Num(v), Num(d))
+            });
             out.push(format!(
                 "{data}: {col} leaves the {actuator} command range [{lo}, {hi}] % of {set} \
-                 (input_saturation.{col}) at {} of {} {unit} ({}); the model runs these \
+                 (input_saturation.{col}) at {} of {} {unit} ({sides}); the model runs these \
                  commands clamped into the range: if this engine's {actuator} is commanded \
                  over a wider range, set input_saturation.{col} of the parameter file before \
                  tuning",
-                below.len() + above.len(),
+                o.count(),
                 values.len(),
-                sides.join("; ")
             ));
         }
     }

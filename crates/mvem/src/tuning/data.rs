@@ -594,6 +594,20 @@ struct Parsed {
 /// unit's name as the messages give the values).
 type Conversion = Option<(f64, f64, String)>;
 
+/// Whether the pressure unit `u` says the pressure is gauge, relative to the ambient (`barg`,
+/// `bar(g)`, `kPa g`, `psig`, `bar gauge`, `bar rel`).
+fn is_gauge(u: &str) -> bool {
+    let n: String = u
+        .chars()
+        .filter(|c| !matches!(c, ' ' | '(' | ')' | '.' | '_' | '-'))
+        .flat_map(char::to_lowercase)
+        .collect();
+    let known = |x: &str| known_unit("Pa", x).is_some();
+    n.ends_with("gauge")
+        || n.strip_suffix("rel").is_some_and(known)
+        || n.strip_suffix('g').is_some_and(known)
+}
+
 /// The unit of each column of `required` (headed `headers` in the file) and its conversion to
 /// mvem's unit, from up to three places: the manifest's `[units]`, the header's brackets
 /// (`p_im [kPa]`, a unit mvem knows: [`known_unit`], as `mvem campaign --init` reads them) and
@@ -617,6 +631,26 @@ fn column_units(
             renamed: layout.label(c.name).1,
             message,
         };
+        // a gauge pressure in the header's brackets or the units row: refused even where
+        // `[units]` declares the column (an unknown unit is otherwise left to it), since read
+        // as absolute it is off by the ambient pressure, inside the plausible range at boost
+        let header_unit = split_unit(headers[k]).closed_unit();
+        let row_unit = units_row.map(|(line, cells)| (*line, cells[k].trim()));
+        for (line, u) in [
+            (1, header_unit),
+            (row_unit.map_or(1, |r| r.0), row_unit.map(|r| r.1)),
+        ] {
+            if let Some(u) = u.filter(|u| c.unit == "Pa" && is_gauge(u)) {
+                return Err(bad(
+                    line,
+                    format!(
+                        "`{u}` is a gauge pressure (relative to the ambient): mvem reads absolute \
+                         pressures; log them absolute or add each point's ambient pressure \
+                         (docs/tuning-data.md)"
+                    ),
+                ));
+            }
+        }
         // (where, line, unit, scale, offset)
         let mut given: Vec<(String, usize, String, f64, f64)> = Vec::new();
         let declared = layout.units.get(c.name);
@@ -707,25 +741,43 @@ fn parse_columns(
     let found = header_names(text).ok();
     // each column's header in this file: the manifest's (`[columns]`, else mvem's name), or
     // where the file has no such header, the one header that is it with a unit in brackets
-    // (`t [ms]`, `p_im [kPa]`: per file, so files may differ in their units)
+    // (`t [ms]`, `p_im [kPa]`: per file, so files may differ in their units); two such headers
+    // (`p_im [kPa]` and `p_im [bar]`) are ambiguous
     let headers: Vec<&str> = names
         .iter()
         .map(|n| {
             let h = layout.header(n);
-            let Some(found) = &found else { return h };
+            let Some(found) = &found else { return Ok(h) };
             if found.iter().any(|f| f == h) {
-                return h;
+                return Ok(h);
             }
-            let mut with_unit = found.iter().filter(|f| {
-                let s = split_unit(f);
-                s.closed_unit().is_some() && s.name.trim() == h
-            });
-            match (with_unit.next(), with_unit.next()) {
-                (Some(f), None) => f.as_str(),
-                _ => h,
+            let with_unit = with_unit_in_brackets(found, h);
+            match with_unit[..] {
+                [] => Ok(h),
+                [(_, f)] => Ok(f.as_str()),
+                _ => Err(fmt(format!(
+                    "ambiguous column `{h}`{}: the header (line 1) has {} (columns {}), each \
+                     `{h}` with a unit in brackets: remove or rename all but one (or name one in \
+                     the manifest's [columns])",
+                    if h != *n {
+                        format!(" (mvem's `{n}`, renamed by the manifest's [columns])")
+                    } else {
+                        String::new()
+                    },
+                    with_unit
+                        .iter()
+                        .map(|(_, f)| format!("`{f}`"))
+                        .collect::<Vec<_>>()
+                        .join(" and "),
+                    with_unit
+                        .iter()
+                        .map(|(k, _)| (k + 1).to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))),
             }
         })
-        .collect();
+        .collect::<Result<_, _>>()?;
     // a column headed twice: the reader would take the first silently
     if let Some(found) = &found {
         for (n, h) in names.iter().zip(&headers) {
@@ -838,8 +890,21 @@ fn parse_columns(
     Ok(Parsed { rows, lines, conv })
 }
 
+/// The headers of `found` (with their 0-based positions) that are `h` with a unit in brackets
+/// that end them (`p_im [kPa]`, `p_im (bar)` for `p_im`): where `h` itself is missing, the
+/// loader reads the one such header, and two are ambiguous.
+fn with_unit_in_brackets<'a>(found: &'a [String], h: &str) -> Vec<(usize, &'a String)> {
+    (found.iter().enumerate())
+        .filter(|(_, f)| {
+            let s = split_unit(f);
+            s.closed_unit().is_some() && s.name.trim() == h
+        })
+        .collect()
+}
+
 /// `cols` without those named in `optional` that the header of `text` lacks (by the file's
-/// names, `layout`); all of `cols` when the header cannot be read (the parse reports that).
+/// names, `layout`, or those names with a unit in brackets, as [`parse_columns`] finds them);
+/// all of `cols` when the header cannot be read (the parse reports that).
 fn without_absent(
     text: &str,
     layout: &Layout,
@@ -848,7 +913,10 @@ fn without_absent(
 ) -> Vec<Column> {
     if let Ok(header) = header_names(text) {
         cols.retain(|c| {
-            !optional.contains(&c.name) || header.iter().any(|h| h == layout.header(c.name))
+            let h = layout.header(c.name);
+            !optional.contains(&c.name)
+                || header.iter().any(|f| f == h)
+                || !with_unit_in_brackets(&header, h).is_empty()
         });
     }
     cols
@@ -1299,10 +1367,129 @@ mod tests {
         let got = parse_stationary_csv(&format!("{head}\n{row}\n"), p, &Layout::default()).unwrap();
         assert_eq!(got[0].p_im, want[0].p_im);
         assert_eq!(got[0].values(), want[0].values());
-        // two headers that are p_im with a unit: which one is not guessed
+        // two headers that are p_im with a unit: which one is not guessed, and the error says
+        // so, naming the file and both headers (session 40; before, "missing column `p_im`")
         let two = format!("{head},p_im (bar)\n{row},2\n");
-        let e = parse_stationary_csv(&two, p, &Layout::default()).unwrap_err();
-        assert!(e.to_string().contains("missing column `p_im`"), "{e}");
+        let e = parse_stationary_csv(&two, p, &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "s.csv: ambiguous column `p_im`: the header (line 1) has `p_im [kPa]` and `p_im \
+             (bar)` (columns 7, 18), each `p_im` with a unit in brackets: remove or rename all \
+             but one (or name one in the manifest's [columns])"
+        );
+        // the same through [columns], in a dynamic file
+        let layout = Layout {
+            names: [("p_im".to_string(), "MAP".to_string())].into(),
+            ..Layout::default()
+        };
+        let e = parse_dynamic_csv(
+            "t,u_egr,u_vgt,u_delta,n_e,MAP [kPa],MAP [bar],p_em,W_c,n_t,M_e\n0,0,50,100,1500,200,2,2e5,0.2,5e4,800\n",
+            Path::new("B.csv"),
+            "B",
+            StepKind::VgtEgr,
+            &layout,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with(
+                "B.csv: ambiguous column `MAP` (mvem's `p_im`, renamed by the manifest's \
+                 [columns]): the header (line 1) has `MAP [kPa]` and `MAP [bar]` (columns 6, 7)"
+            ),
+            "{e}"
+        );
+        // one of them named in [columns] is no longer ambiguous
+        let layout = Layout {
+            names: [("p_im".to_string(), "p_im [kPa]".to_string())].into(),
+            ..Layout::default()
+        };
+        let got = parse_stationary_csv(&two, p, &layout).unwrap();
+        assert_eq!(got[0].p_im, want[0].p_im);
+    }
+
+    /// Session 40: an optional column headed with its unit in brackets (`u_egr_pos [-]` in a
+    /// VGT/EGR set, `T_t [degC]` in the stationary file) was dropped without a word: the check
+    /// for optional columns looked for the exact name, while the required ones are also found
+    /// with a unit in brackets.
+    #[test]
+    fn optional_columns_with_their_unit_in_brackets_are_read() {
+        let head = "t,u_egr,u_vgt,u_delta,n_e,p_im,p_em,W_c,n_t,M_e";
+        let row = "0,10,50,100,1500,2e5,2.2e5,0.2,5e4,800";
+        let plain = format!("{head},u_egr_pos,u_vgt_pos\n{row},11,52\n");
+        let bracket = format!("{head},u_egr_pos [-],u_vgt_pos (%)\n{row},0.11,52\n");
+        let read = |text: &str| {
+            parse_dynamic_csv(
+                text,
+                Path::new("B.csv"),
+                "B",
+                StepKind::VgtEgr,
+                &Layout::default(),
+            )
+            .unwrap()
+        };
+        let (want, got) = (read(&plain), read(&bracket));
+        for n in ["u_egr_pos", "u_vgt_pos"] {
+            let (w, g) = (want.get(n).unwrap()[0], got.get(n).map(|v| v[0]));
+            assert!(
+                g.is_some_and(|g| (g - w).abs() < 1e-12),
+                "{n}: {g:?} vs {w}"
+            );
+        }
+        // the stationary file's T_t in degC
+        let p = Path::new("s.csv");
+        let st =
+            parse_stationary_csv(&format!("{}\n{ROW}\n", header()), p, &Layout::default()).unwrap();
+        let head = header().replace("T_t", "T_t [degC]");
+        let row = ROW.replace(",310,700,", ",310,426.85,");
+        let got = parse_stationary_csv(&format!("{head}\n{row}\n"), p, &Layout::default()).unwrap();
+        assert!(
+            (got[0].t_t - st[0].t_t).abs() < 1e-9,
+            "{} vs {}",
+            got[0].t_t,
+            st[0].t_t
+        );
+    }
+
+    /// Session 40: a gauge pressure (`p_im [barg]`, a units row `bar(g)`) was read as absolute
+    /// where `[units]` declared the column (an unknown unit in brackets or the units row is
+    /// left to `[units]`): off by the ambient pressure, inside the plausible range at boost, so
+    /// without a word. Refused now, naming the file, line and column.
+    #[test]
+    fn gauge_pressures_are_refused() {
+        let p = Path::new("s.csv");
+        let bar = Layout {
+            units: [("p_im".to_string(), "bar".to_string())].into(),
+            ..Layout::default()
+        };
+        let row = ROW.replace(",200000,298", ",1.2,298");
+        let head = header();
+        // as absolute bar, the row loads
+        assert!(parse_stationary_csv(&format!("{head}\n{row}\n"), p, &bar).is_ok());
+        for (head, units) in [
+            (head.replace("p_im", "p_im [barg]"), String::new()),
+            (head.replace("p_im", "p_im (bar g)"), String::new()),
+            (head.clone(), {
+                let cells: Vec<&str> = (head.split(','))
+                    .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
+                    .collect();
+                format!("{}\n", cells.join(","))
+            }),
+        ] {
+            let text = format!("{head}\n{units}{row}\n");
+            let e = parse_stationary_csv(&text, p, &bar)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("s.csv: line ")
+                    && e.contains("column `p_im`: `")
+                    && e.contains("is a gauge pressure (relative to the ambient)"),
+                "{e}"
+            );
+        }
+        assert!(is_gauge("psig") && is_gauge("bar rel") && is_gauge("mbar gauge"));
+        assert!(!is_gauge("bar") && !is_gauge("kPa") && !is_gauge("g/s") && !is_gauge("mg"));
     }
 
     /// Test-cell exports write a row of units under the header: read and applied as a unit in

@@ -101,6 +101,12 @@ struct Heading {
     /// Whether the file gives the column a unit mvem knows (its brackets or its units row),
     /// mvem's own included: `t [s]` is a time in seconds, a bare `t` one whose unit is guessed.
     given: bool,
+    /// The header's name before a unit mvem knows in brackets that end it (`P_IM` of
+    /// `P_IM [kPa]`): the loader finds such a header by that name in each file.
+    base: Option<String>,
+    /// Whether the files drafted head the column alike but not with the same text (`M_E [Nm]`
+    /// in one, `M_E` in another): `[columns]` then gets the name without the brackets.
+    mixed: bool,
 }
 
 impl Heading {
@@ -116,11 +122,31 @@ impl Heading {
     }
 
     /// Whether `self` and `other` head their column alike for the manifest, which holds one
-    /// header and one unit per column: the same header and the same unit, mvem's own or none
-    /// being the same (where the files differ only in an unknown units-row unit, `[units]`
-    /// declares mvem's unit, which serves both).
+    /// header and one unit per column: the same header, or the same name before a known unit
+    /// in brackets ([`Heading::name`]: the loader finds `P_IM [kPa]` by `P_IM` in each file)
+    /// where both files give the unit (a bare header's unit may be guessed from its values),
+    /// and the same unit, mvem's own or none being the same (where the files differ only in an
+    /// unknown units-row unit, `[units]` declares mvem's unit, which serves both).
     fn alike(&self, other: &Heading) -> bool {
-        self.header == other.header && self.unit == other.unit
+        let named = self.header == other.header
+            || (self.name() == other.name() && self.given && other.given);
+        named && self.unit == other.unit
+    }
+
+    /// The header without a known unit in brackets that ends it (`P_IM` of `P_IM [kPa]`), else
+    /// the header.
+    fn name(&self) -> &str {
+        self.base.as_deref().unwrap_or(&self.header)
+    }
+
+    /// What `[columns]` gives: the header, or its name without the brackets where the files
+    /// head the column differently ([`Heading::mixed`]).
+    fn columns_entry(&self) -> &str {
+        if self.mixed {
+            self.name()
+        } else {
+            &self.header
+        }
     }
 }
 
@@ -220,6 +246,8 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                     unit: None,
                     unknown_in_row: false,
                     given: false,
+                    base: None,
+                    mixed: false,
                 },
             );
         }
@@ -238,6 +266,9 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
             ));
             continue;
         }
+        // a known unit in brackets that end the header (not `p_im [kPa] avg`)
+        let split = split_unit(h.trim());
+        let base = (given && split.closed_unit().is_some()).then(|| split.name.trim().to_string());
         notes.extend(note.map(|n| format!("{f}: {n}")));
         map.insert(
             c.name,
@@ -246,6 +277,8 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                 unit,
                 unknown_in_row: false,
                 given,
+                base,
+                mixed: false,
             },
         );
     }
@@ -297,6 +330,28 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         .filter(|n| n.to_ascii_lowercase().ends_with(".csv"))
         .collect();
     files.sort();
+    // the stationary file first (the first one in name order): [columns] and [units] hold the
+    // headers and units of the files drafted first, and a file that heads a column otherwise is
+    // skipped, so a stationary file sorted after the dynamic files (`steady.csv` after
+    // `run_B.csv`) was skipped for heading a column otherwise than they do, and the draft
+    // failed with "no stationary file"
+    let lacks_stationary = |heads: &BTreeMap<&'static str, Heading>| -> Vec<String> {
+        (STATIONARY_COLUMNS.iter())
+            .map(|c| c.name)
+            .filter(|n| *n != "T_t" && !heads.contains_key(n))
+            .map(str::to_string)
+            .collect()
+    };
+    let first_stationary = files.iter().position(|f| {
+        read(&dir.join(f)).is_ok_and(|text| {
+            let header = header_names(&text).unwrap_or_default();
+            lacks_stationary(&headings(f, &header).0).is_empty()
+        })
+    });
+    if let Some(k) = first_stationary {
+        let f = files.remove(k);
+        files.insert(0, f);
+    }
     let mut notes = Vec::new();
     let mut stationary: Option<String> = None;
     let mut sets = Vec::new();
@@ -337,6 +392,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let accept = |headed: &mut BTreeMap<&'static str, (Heading, String)>| {
             for (name, g) in &heads {
                 let e = headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
+                e.0.mixed |= e.0.header != g.header;
                 // a units-row unit mvem does not know in any file: `[units]` declares the
                 // column's unit for all of them
                 e.0.unknown_in_row |= g.unknown_in_row;
@@ -346,12 +402,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let lacks = |cols: &mut dyn Iterator<Item = &str>| -> Vec<String> {
             cols.filter(|n| !has(n)).map(str::to_string).collect()
         };
-        let st_missing = lacks(
-            &mut STATIONARY_COLUMNS
-                .iter()
-                .map(|c| c.name)
-                .filter(|n| *n != "T_t"),
-        );
+        let st_missing = lacks_stationary(&heads);
         if st_missing.is_empty() {
             if stationary.is_none() {
                 stationary = Some(f.clone());
@@ -489,9 +540,18 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     let mut units = BTreeMap::new();
     let mut renamed = BTreeMap::new();
     for (name, (g, _)) in &headed {
-        if g.header != *name {
-            notes.push(format!("{name}: headed `{}`", g.header));
-            renamed.insert(name.to_string(), g.header.clone());
+        let h = g.columns_entry();
+        if g.mixed {
+            notes.push(format!(
+                "{name}: headed `{h}`, with its unit in brackets in some files (the loader \
+                 finds `{h} [unit]` in each file)"
+            ));
+        }
+        if h != *name {
+            if !g.mixed {
+                notes.push(format!("{name}: headed `{h}`"));
+            }
+            renamed.insert(name.to_string(), h.to_string());
         }
     }
     for (name, (c, v)) in &values {
@@ -901,6 +961,124 @@ mod tests {
         std::fs::write(path, format!("{head}\n{}\n{rest}", row.join(","))).unwrap();
     }
 
+    /// Session 40: a test cell's stationary file sorted after its dynamic files (the lab's
+    /// `stationary.csv` after `I.csv`) that heads a column otherwise than they do (`p_im [kPa]`
+    /// against a bare `p_im`) was skipped as a clash with them, and the draft failed with "no
+    /// stationary file among 3 CSV files", the skip's note unprinted. The stationary file is
+    /// drafted first now; the dynamic file that heads p_im otherwise is skipped, saying why.
+    #[test]
+    fn the_stationary_file_is_drafted_first() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        rewrite(
+            &dir.path().join("stationary.csv"),
+            &[("p_im", "p_im [kPa]", |v| v / 1e3)],
+        );
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        assert_eq!(d.manifest.stationary, "stationary.csv");
+        assert_eq!(
+            d.manifest.units.get("p_im").map(String::as_str),
+            Some("kPa")
+        );
+        let sets: Vec<&str> = d
+            .manifest
+            .datasets
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect();
+        assert_eq!(sets, ["J"], "{:?}", d.notes);
+        assert!(
+            d.notes.iter().any(|n| n
+                == "I.csv: skipped (heads p_im `p_im` (no unit), stationary.csv heads it `p_im \
+                    [kPa]` (in kPa): [columns] and [units] hold one header and unit per column)"),
+            "{:?}",
+            d.notes
+        );
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            assert!(
+                (a.p_im - b.p_im).abs() <= 1e-9 * b.p_im,
+                "{} vs {}",
+                a.p_im,
+                b.p_im
+            );
+        }
+    }
+
+    /// Session 40: files that head a column by the same name and unit but write the unit
+    /// otherwise (`M_e [Nm]` in the stationary file, `M_e (Nm)` in I; `N_E [rpm]` and `N_E`
+    /// over a units row `rpm`; `p_im [kPa]` and `p_im (kPa)`) were counted as heading it
+    /// otherwise and I was skipped, though the loader finds `NAME [unit]` by `NAME` in each
+    /// file. Now they are drafted together, `[columns]` giving the name without brackets, and
+    /// the campaign loads as the lab wrote it. (A bare header without a units row still differs
+    /// from a bracketed one: its unit may be guessed from its values.)
+    #[test]
+    fn headers_that_differ_only_by_their_unit_in_brackets_are_drafted_together() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        rewrite(
+            &dir.path().join("stationary.csv"),
+            &[
+                ("M_e", "M_e [Nm]", |v| v),
+                ("n_e", "N_E [rpm]", |v| v),
+                ("p_im", "p_im [kPa]", |v| v / 1e3),
+            ],
+        );
+        let i = dir.path().join("I.csv");
+        rewrite(
+            &i,
+            &[
+                ("M_e", "M_e (Nm)", |v| v),
+                ("n_e", "N_E", |v| v),
+                ("p_im", "p_im (kPa)", |v| v / 1e3),
+            ],
+        );
+        add_units_row(&i, &[("N_E", "rpm")]);
+        std::fs::remove_file(dir.path().join("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let m = &d.manifest;
+        let sets: Vec<&str> = m.datasets.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(sets, ["I", "J"], "{:?}", d.notes);
+        let cols: Vec<(&str, &str)> = (m.columns.iter())
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(cols, [("n_e", "N_E")]);
+        let units: Vec<(&str, &str)> = (m.units.iter())
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(units, [("p_im", "kPa")]);
+        assert!(
+            d.notes.iter().any(|n| n
+                == "n_e: headed `N_E`, with its unit in brackets in some files (the loader finds \
+                    `N_E [unit]` in each file)"),
+            "{:?}",
+            d.notes
+        );
+        std::fs::write(dir.path().join("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            for (x, y) in a.values().iter().zip(b.values()) {
+                assert!(close(*x, y), "{x} vs {y}");
+            }
+        }
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            for n in ["n_e", "p_im", "M_e", "u_vgt"] {
+                let (Some(x), Some(y)) = (a.get(n), b.get(n)) else {
+                    continue;
+                };
+                assert_eq!(x.len(), y.len());
+                assert!(
+                    x.iter().zip(y).all(|(x, y)| close(*x, *y)),
+                    "{} {n}",
+                    a.name
+                );
+            }
+        }
+    }
+
     /// Session 39: files that differ in their time unit. `[units]` holds one unit per column,
     /// but the draft wrote `t = "ms"` when any bare time column looked like ms: the files in
     /// seconds beside it were then either read 1000 times too slow (bare: the loader only
@@ -1012,8 +1190,9 @@ mod tests {
         let d = draft_manifest(dir.path()).unwrap();
         assert!(
             d.notes.iter().any(|n| n
-                == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), I.csv heads it \
-                    `u_vgt` (no unit): [columns] and [units] hold one header and unit per column)"),
+                == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), stationary.csv \
+                    heads it `u_vgt` (no unit): [columns] and [units] hold one header and unit \
+                    per column)"),
             "{:?}",
             d.notes
         );

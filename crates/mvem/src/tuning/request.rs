@@ -315,10 +315,16 @@ pub fn tune_campaign(
         .pipeline_options(model, base_cell)
         .map_err(RequestError::Setting)?;
     let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
-    let mut messages: Vec<String> = super::summary::sampling_warnings(&campaign)
-        .into_iter()
-        .map(|w| format!("warning: {w}"))
-        .collect();
+    let set = if constants_given {
+        "the parameters given"
+    } else {
+        "the published parameters"
+    };
+    let mut messages: Vec<String> =
+        super::summary::campaign_warnings(&campaign, &base.input_saturation, set)
+            .into_iter()
+            .map(|w| format!("warning: {w}"))
+            .collect();
     if !constants_given {
         messages.push(format!(
             "note: the engine's constants are the published engine's ({}): for another engine \
@@ -548,9 +554,13 @@ pub fn validate_campaign(
     };
     let campaign = load_campaign(data_dir).map_err(RequestError::Data)?;
     messages.extend(
-        super::summary::sampling_warnings(&campaign)
-            .into_iter()
-            .map(|w| format!("warning: {w}")),
+        super::summary::campaign_warnings(
+            &campaign,
+            &p.input_saturation,
+            "the parameters validated",
+        )
+        .into_iter()
+        .map(|w| format!("warning: {w}")),
     );
     // the sets validated: those with one of the roles asked for
     let chosen = |r: &[Role]| {

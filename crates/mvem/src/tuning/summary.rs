@@ -232,8 +232,7 @@ pub fn summarize(c: &Campaign) -> CampaignSummary {
 }
 
 /// Summarize a loaded campaign for the parameter set `set` names, whose input saturation is
-/// `s`: its warnings add the commands outside that set's EGR and VGT command ranges
-/// ([`super::constants::commands_outside_ranges`]) to [`sampling_warnings`].
+/// `s`: its warnings are [`campaign_warnings`].
 pub fn summarize_for(
     c: &Campaign,
     s: &crate::params::InputSaturation,
@@ -334,11 +333,23 @@ pub fn summarize_for(
         units: m.units.clone(),
         datasets,
         steps,
-        warnings: sampling_warnings(c)
-            .into_iter()
-            .chain(super::constants::commands_outside_ranges(c, s, set))
-            .collect(),
+        warnings: campaign_warnings(c, s, set),
     }
+}
+
+/// What `mvem campaign`, `mvem tune` and `mvem validate` warn of in a loaded campaign before
+/// they use it, one line each: its time bases ([`sampling_warnings`]), then its EGR and VGT
+/// commands outside the command ranges `s` of the parameter set `set` names
+/// ([`super::constants::commands_outside_ranges`]), which the model runs clamped.
+pub fn campaign_warnings(
+    c: &Campaign,
+    s: &crate::params::InputSaturation,
+    set: &str,
+) -> Vec<String> {
+    sampling_warnings(c)
+        .into_iter()
+        .chain(super::constants::commands_outside_ranges(c, s, set))
+        .collect()
 }
 
 impl CampaignSummary {
