@@ -401,7 +401,7 @@ pub fn inputs_outside_saturation(p: &Params, c: &super::data::Campaign) -> Optio
 /// inputs with their times, linear between rows (so it interpolates the first time a channel
 /// crosses its limit), while a campaign's stationary points have no time and its dynamic
 /// commands are held between samples (zero-order hold), and the two say different things to
-/// do (an inputs file runs clamped; a campaign needs the engine's range before tuning).
+/// do (an inputs file runs clamped; a campaign needs the engine's range in the parameter file).
 pub fn commands_outside_ranges(
     c: &super::data::Campaign,
     s: &crate::params::InputSaturation,
@@ -445,8 +445,8 @@ pub fn commands_outside_ranges(
                 "{data}: {col} leaves the {actuator} command range [{lo}, {hi}] % of {set} \
                  (input_saturation.{col}) at {} of {} {unit} ({sides}); the model runs these \
                  commands clamped into the range: if this engine's {actuator} is commanded \
-                 over a wider range, set input_saturation.{col} of the parameter file before \
-                 tuning",
+                 over a wider range, set input_saturation.{col} of the parameter file (for \
+                 tuning and validation alike)",
                 o.count(),
                 values.len(),
             ));
