@@ -444,6 +444,22 @@ fn linearize_at_a_given_state() {
             && !err.contains("equilibrium"),
         "{err}"
     );
+    // a value beyond the integrator limits: linearized at the limit, said so (it read "the
+    // simulation starts from", a simulation's words)
+    let mut x3 = ss.x;
+    x3[4] = 1e6; // omega_t, above its limit
+    write("x3.json", &x3);
+    let o = mvem(d.path(), &lin_args("75", &["--state", "x3.json"]));
+    let err = stderr(&o);
+    let hi = mvem::model::Model::state_bounds(&m)[4].1;
+    let want = format!(
+        "field omega_t: 1000000 is outside the integrator limits [{}, {}]: the model is \
+         evaluated (and linearized) at the limit, {}",
+        mvem::numerics::Num(mvem::model::Model::state_bounds(&m)[4].0),
+        mvem::numerics::Num(hi),
+        mvem::numerics::Num(hi)
+    );
+    assert!(err.contains(&want) && !err.contains("simulation"), "{err}");
 }
 
 /// A state or signal of a steady state.

@@ -401,7 +401,12 @@ pub fn start_state_warnings(
     let m = model(params.cloned(), variant)?;
     mvem::dispatch!(&m, m => {
         let x = start_state(m, x0)?;
-        Ok(mvem::model::start_clip_warnings(&m.state_names(), &m.state_bounds(), &x))
+        Ok(mvem::model::start_clip_warnings(
+            &m.state_names(),
+            &m.state_bounds(),
+            &x,
+            mvem::model::STARTS_FROM,
+        ))
     })
 }
 

@@ -137,7 +137,12 @@ pub fn run(a: &Args) -> Result<()> {
                 (ss.x, analyse(m, &ss, &opts)?)
             }
             Some((values, path)) => {
-                let x = super::simulate::state_from_map(m, values, path)?;
+                let x = super::simulate::state_from_map(
+                    m,
+                    values,
+                    path,
+                    mvem::model::EVALUATED_AT,
+                )?;
                 (x, analyse_at(m, &x, &d, &opts)?)
             }
         };

@@ -286,6 +286,7 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
     m: &M,
     values: &BTreeMap<String, f64>,
     source: &Path,
+    then: &str,
 ) -> Result<[f64; N]> {
     use mvem::model::meta::{state_from_named, NamedStateError};
     let src = source.display();
@@ -302,7 +303,7 @@ pub fn state_from_map<const N: usize, M: Model<N>>(
         })
     })?;
     // the integrator limits (the authors' limited integrators, items 9-12 and 37) clip the start
-    for w in mvem::model::start_clip_warnings(&m.state_names(), &m.state_bounds(), &x) {
+    for w in mvem::model::start_clip_warnings(&m.state_names(), &m.state_bounds(), &x, then) {
         eprintln!("warning: {src}: field {w}");
     }
     Ok(x)
@@ -326,6 +327,7 @@ fn run_model<const N: usize, M: Model<N>>(
             m,
             map,
             initial_path.unwrap_or(Path::new("initial state")),
+            mvem::model::STARTS_FROM,
         )?)),
         None => None,
     };

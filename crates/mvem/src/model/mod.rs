@@ -599,12 +599,23 @@ pub fn clip_state<const N: usize>(x: &[f64; N], bounds: &[(f64, f64); N]) -> [f6
     })
 }
 
-/// The states of a start state `x` outside the integrator limits `bounds` (which clip it, see
-/// [`clip_state`]), one message each naming the state, its value, the limits and the value the
-/// simulation starts from: `p_im: 1e8 is outside the integrator limits [500, 1e7]: the
-/// simulation starts from 1e7` (the CLI's `simulate --initial-state` and Python's `x0` warn
-/// with them).
-pub fn start_clip_warnings(names: &[&str], bounds: &[(f64, f64)], x: &[f64]) -> Vec<String> {
+/// [`start_clip_warnings`]' words for a simulation's start state.
+pub const STARTS_FROM: &str = "the simulation starts from";
+/// [`start_clip_warnings`]' words for a state the model is evaluated (linearized) at: its
+/// right-hand side clips the state, so the Jacobian's column is that of the limit.
+pub const EVALUATED_AT: &str = "the model is evaluated (and linearized) at the limit,";
+
+/// The states of a given state `x` outside the integrator limits `bounds` (which clip it, see
+/// [`clip_state`]), one message each naming the state, its value, the limits and, after
+/// `then`, the value used: with `then` = [`STARTS_FROM`], `p_im: 1e8 is outside the integrator
+/// limits [500, 1e7]: the simulation starts from 1e7` (the CLI's `simulate --initial-state` and
+/// Python's `x0` warn with them; `linearize --state` with [`EVALUATED_AT`]).
+pub fn start_clip_warnings(
+    names: &[&str],
+    bounds: &[(f64, f64)],
+    x: &[f64],
+    then: &str,
+) -> Vec<String> {
     use crate::numerics::Num;
     names
         .iter()
@@ -613,8 +624,7 @@ pub fn start_clip_warnings(names: &[&str], bounds: &[(f64, f64)], x: &[f64]) -> 
         .filter(|((_, (lo, hi)), v)| *v < lo || *v > hi)
         .map(|((name, (lo, hi)), v)| {
             format!(
-                "{name}: {} is outside the integrator limits [{}, {}]: the simulation starts \
-                 from {}",
+                "{name}: {} is outside the integrator limits [{}, {}]: {then} {}",
                 Num(*v),
                 Num(*lo),
                 Num(*hi),
