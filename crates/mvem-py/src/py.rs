@@ -1463,15 +1463,15 @@ fn warn_points_out_of_range(
     ranges: &[(&'static str, f64, f64); 4],
 ) -> PyResult<()> {
     for (c, (name, lo, hi)) in ranges.iter().enumerate() {
-        let outside: Vec<usize> = (0..inputs.len())
+        let points: Vec<usize> = (0..inputs.len())
             // a non-finite value is refused with its point, not clamped
-            .filter(|&k| inputs[k][c].is_finite() && (inputs[k][c] < *lo || inputs[k][c] > *hi))
+            .filter(|&k| outside(inputs[k][c], *lo, *hi))
             .collect();
-        if let Some(&k) = outside.first() {
+        if let Some(&k) = points.first() {
             let at = if inputs.len() > 1 {
                 format!(
                     " at point {k} ({} of {} points)",
-                    outside.len(),
+                    points.len(),
                     inputs.len()
                 )
             } else {

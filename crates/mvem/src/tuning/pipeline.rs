@@ -1809,8 +1809,9 @@ mod tests {
             None
         );
         assert_eq!(Step5Report::for_tests(35, "xtol", 0.16).early_stop(), None); // R^2 p = 0.9
-                                                                                 // R = 3.8 with a decrease of 5.25 residual variances measured along the Gauss-Newton
-                                                                                 // step (session 39: one below 1 is the optimum within the noise, not flagged)
+
+        // R = 3.8 with a decrease of 5.25 residual variances measured along the Gauss-Newton
+        // step (session 39: one below 1 is the optimum within the noise, not flagged)
         let mut r = Step5Report::for_tests(35, "xtol", 3.8);
         r.gauss_newton_decrease = Some(0.4);
         r.gauss_newton_t = Some(0.01);
