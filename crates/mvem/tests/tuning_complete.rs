@@ -69,7 +69,7 @@ fn lab_table1_sets_have_the_published_shape() {
     ] {
         let (info, d) = c.dataset(name).unwrap();
         assert_eq!(info.sample_rate_hz, hz);
-        assert_eq!(info.steps, 3);
+        assert_eq!(info.steps, Some(3));
         let dt = d.t[1] - d.t[0];
         assert!((dt - 1.0 / hz).abs() < 1e-12, "{name}: dt {dt}");
         // exactly 3 command changes

@@ -493,8 +493,10 @@ pub struct DataSetInfo {
     pub speed_rpm: Option<f64>,
     /// Load [% of the maximum fuel at that speed] (None for fuel steps and the actuator set).
     pub load_pct: Option<f64>,
-    /// Number of steps.
-    pub steps: usize,
+    /// Number of command steps, if the manifest gives it (optional: nothing reads it but the
+    /// reader of the manifest; `mvem campaign` counts the steps in the data).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps: Option<usize>,
 }
 
 /// The campaign manifest (`manifest.toml`).
@@ -819,8 +821,8 @@ fn parse_columns(
         } => DataError::Value {
             path: path.to_path_buf(),
             line,
-            column: layout.label(names[column]).0,
-            renamed: layout.label(names[column]).1,
+            column: headers[column].to_string(),
+            renamed: (headers[column] != names[column]).then(|| names[column].to_string()),
             message: if field.is_empty() {
                 "missing value".into()
             } else if line == 2 {
@@ -839,12 +841,13 @@ fn parse_columns(
     let mut rows = Vec::with_capacity(read.len());
     let mut lines = Vec::with_capacity(read.len());
     for (line, mut row) in read {
-        for ((c, v), cv) in required.iter().zip(row.iter_mut()).zip(&conv) {
+        for (((c, v), cv), h) in required.iter().zip(row.iter_mut()).zip(&conv).zip(&headers) {
+            // the file's header (`p_im [kPa]` found for `p_im`), as the user sees it
             let bad = |message: String| DataError::Value {
                 path: path.to_path_buf(),
                 line,
-                column: layout.label(c.name).0,
-                renamed: layout.label(c.name).1,
+                column: h.to_string(),
+                renamed: (*h != c.name).then(|| c.name.to_string()),
                 message,
             };
             if !v.is_finite() {
@@ -1407,6 +1410,30 @@ mod tests {
         };
         let got = parse_stationary_csv(&two, p, &layout).unwrap();
         assert_eq!(got[0].p_im, want[0].p_im);
+        // a value error names the header as the file has it, with mvem's name (session 41;
+        // before, "column `p_im`", a name the file does not have), for a range error in mvem's
+        // units and for a field that is no number
+        let high = ROW.replace(",200000,298", ",20000,298");
+        let e = parse_stationary_csv(&format!("{head}\n{high}\n"), p, &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): 20000 kPa = 20000000 Pa is \
+                 outside the plausible range"
+            ),
+            "{e}"
+        );
+        let text = ROW.replace(",200000,298", ",x,298");
+        let e = parse_stationary_csv(&format!("{head}\n{text}\n"), p, &Layout::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(
+                "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): `x` is not a number"
+            ),
+            "{e}"
+        );
     }
 
     /// Session 40: an optional column headed with its unit in brackets (`u_egr_pos [-]` in a
@@ -2110,6 +2137,23 @@ mod tests {
         assert_eq!(ok.datasets[0].speed_rpm, Some(1200.0));
         let back = parse_manifest(&toml::to_string(&ok).unwrap(), p).unwrap();
         assert_eq!(back, ok);
+    }
+
+    /// `steps` may be left out of a hand-written `[[dataset]]` (session 41: it was required
+    /// although nothing reads it); left out, it is not written back either.
+    #[test]
+    fn a_dataset_without_steps_is_read_and_written_back_without_them() {
+        let text = "stationary = \"s.csv\"\ndescription = \"d\"\n[[dataset]]\nname = \"B\"\n\
+                    roles = [\"static\"]\nkind = \"fuel\"\nfile = \"B.csv\"\n\
+                    sample_rate_hz = 10.0\n";
+        let p = Path::new("manifest.toml");
+        let m = parse_manifest(text, p).unwrap();
+        assert_eq!(m.datasets[0].steps, None);
+        let written = toml::to_string(&m).unwrap();
+        assert!(!written.contains("steps"), "{written}");
+        assert_eq!(parse_manifest(&written, p).unwrap(), m);
+        let given = parse_manifest(&format!("{text}steps = 4\n"), p).unwrap();
+        assert_eq!(given.datasets[0].steps, Some(4));
     }
 
     #[test]

@@ -519,7 +519,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
                 speed
             },
             load_pct: None,
-            steps,
+            steps: Some(steps),
         });
     }
     let Some(stationary) = stationary else {
@@ -831,7 +831,7 @@ mod tests {
             sample_rate_hz: 1.0,
             speed_rpm: None,
             load_pct: None,
-            steps: 3,
+            steps: Some(3),
         };
         let (st, dy) = (&[Role::Static][..], &[Role::Static, Role::Dynamic][..]);
         let mut sets = vec![

@@ -531,7 +531,7 @@ pub fn campaign(
         sample_rate_hz: 100.0,
         speed_rpm: None,
         load_pct: None,
-        steps: egr.len() + vgt.len() - 2,
+        steps: Some(egr.len() + vgt.len() - 2),
     });
     dynamic.push(j);
     let manifest = Manifest {
@@ -728,7 +728,7 @@ pub fn dynamic_sets(
                             sample_rate_hz: r.sample_rate_hz,
                             speed_rpm: Some(opts.envelope.speed(r.speed_rpm)),
                             load_pct: r.load_pct,
-                            steps: n_steps,
+                            steps: Some(n_steps),
                         };
                         return Ok((info, d));
                     }

@@ -138,7 +138,7 @@ mod tests {
                     sample_rate_hz: 2.0,
                     speed_rpm: None,
                     load_pct: None,
-                    steps: 3,
+                    steps: Some(3),
                 }],
             },
             stationary,

@@ -459,7 +459,7 @@ mod tests {
                 .iter()
                 .find(|i| i.name == d.name)
                 .unwrap();
-            assert_eq!(d.command_steps, info.steps, "{d:?}");
+            assert_eq!(Some(d.command_steps), info.steps, "{d:?}");
         }
         assert!(s
             .text()
