@@ -342,10 +342,14 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             .map(str::to_string)
             .collect()
     };
+    // the files read in this search are kept for the draft below, which would read them again
+    let mut read_before: BTreeMap<String, String> = BTreeMap::new();
     let first_stationary = files.iter().position(|f| {
         read(&dir.join(f)).is_ok_and(|text| {
             let header = header_names(&text).unwrap_or_default();
-            lacks_stationary(&headings(f, &header).0).is_empty()
+            let found = lacks_stationary(&headings(f, &header).0).is_empty();
+            read_before.insert(f.clone(), text);
+            found
         })
     });
     if let Some(k) = first_stationary {
@@ -369,7 +373,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     // the header and unit of each column, from the first file drafted that heads it
     let mut headed: BTreeMap<&'static str, (Heading, String)> = BTreeMap::new();
     for f in &files {
-        let text = read(&dir.join(f))?;
+        let text = match read_before.remove(f) {
+            Some(text) => text,
+            None => read(&dir.join(f))?,
+        };
         let header = header_names(&text).unwrap_or_default();
         let (mut heads, mut head_notes) = headings(f, &header);
         head_notes.extend(units_from_row(f, &text, &mut heads));
