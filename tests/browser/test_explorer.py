@@ -1380,7 +1380,7 @@ def test_the_view_is_kept_in_the_link(page, browser, server):
     page.evaluate("location.hash = '#n_e=1234&model=10'")
     page.wait_for_function("document.querySelector('input[name=n_e]').value === '1234'")
     assert page.input_value("select[name=model]") == "10" and page.input_value("select[name=params]") == "published"
-    assert page.input_value("input[name=map_n]") == "21"
+    assert page.input_value("input[name=map_n]") == "21" and page.input_value("input[name=lin_ts]") == ""
     page.screenshot(path=str(ART / "explorer_link.png"))
 
 
@@ -1416,6 +1416,10 @@ def test_copy_link(browser, server):
     pg.wait_for_function("document.querySelector('#link-copied').textContent === 'link copied'")
     copied = pg.evaluate("navigator.clipboard.readText()")
     assert copied == pg.url and "u_vgt=62.5" in copied.split("#")[1].split("&"), copied
+    # a blank field is not written (opening the link gives its default, not a note)
+    pg.fill("input[name=n_e]", "")
+    pg.wait_for_function("document.body.dataset.url === location.hash && !location.hash.includes('n_e=1500')")
+    assert not any(p.startswith("n_e=") for p in pg.url.split("#")[1].split("&")), pg.url
     assert pg.console_errors == [], pg.console_errors
     ctx.close()
 

@@ -1760,7 +1760,8 @@
   function readField(el) {
     if (el.type === "checkbox") return el.checked ? "1" : "0";
     const v = el.value.trim();
-    if (el.tagName === "INPUT" && v !== "" && !Number.isFinite(Number(v))) return undefined;
+    // (a blank field: nothing, but the optional sample time, whose blank is its default "none")
+    if (el.tagName === "INPUT" && (v === "" ? el.name !== "lin_ts" : !Number.isFinite(Number(v)))) return undefined;
     return v;
   }
   // why the text `v` is no value of the control `el` ("" when it is one)
