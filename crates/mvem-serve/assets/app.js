@@ -15,7 +15,7 @@
   ];
   const $ = (s, r = document) => r.querySelector(s);
   const $$ = (s, r = document) => Array.from(r.querySelectorAll(s));
-  const app = { units: {}, steady: null, step: null, map: null, cycle: null, seq: 0, shown: 0, inflight: false, again: false };
+  const app = { units: {}, steady: null, step: null, map: null, cycle: null, seq: 0, shown: 0, inflight: false, again: false, urlPending: new Set() };
   // hook for the drive-cycle panel: modes come from the server (/api/models "modes"); a label per mode
   const MODE_LABELS = { open: "open loop", closed: "closed loop" };
   window.mvem = app;
@@ -73,9 +73,181 @@
     return j;
   }
 
+  // ---------------------------------------------------------------------------------------------
+  // the shape of the server's answers: every field the page reads is checked before the answer
+  // is used, so an answer that is JSON of another shape (another program on the port, another
+  // version of mvem serve) is named, "the answer of /api/step lacks field series", instead of
+  // failing as a script error ("Cannot convert undefined or null to object") or drawing half
+  // a figure that a redraw on resize then fails on
+
+  // a type of a field: a name of TYPES (a trailing "?": null too, as JSON writes a NaN), an
+  // object spec {field: type} (a trailing "?" on a field's name: it may be absent or null), or
+  // [spec]: an array whose every entry has that shape
+  const TYPES = {
+    number: [(v) => typeof v === "number", "a number"],
+    string: [(v) => typeof v === "string", "a string"],
+    boolean: [(v) => typeof v === "boolean", "true or false"],
+    object: [(v) => v !== null && typeof v === "object" && !Array.isArray(v), "an object"],
+    array: [Array.isArray, "an array"],
+    numbers: [(v) => Array.isArray(v) && v.every((x) => x === null || typeof x === "number"), "an array of numbers"],
+    strings: [(v) => Array.isArray(v) && v.every((x) => typeof x === "string"), "an array of strings"],
+    complexes: [(v) => Array.isArray(v) && v.every((z) => z !== null && typeof z === "object" && typeof z.re === "number" && typeof z.im === "number"),
+      "an array of {re, im}"],
+  };
+  const what = (v) => v === undefined ? "none" : v === null ? "null" : Array.isArray(v) ? "an array" : typeof v === "object" ? "an object"
+    : `${typeof v} ${JSON.stringify(v).slice(0, 40)}`;
+  function answerError(route, text) {
+    const e = new Error(`the answer of ${route} ${text}`);
+    e.kind = "answer";
+    return e;
+  }
+  // `v` (the field `name` of the answer of `route`) checked against `type`
+  function need(route, v, type, name) {
+    const field = name ? `field ${name}` : "answer";
+    if (typeof type === "string") {
+      const nullable = type.endsWith("?");
+      const [ok, words] = TYPES[type.replace("?", "")];
+      if (!(ok(v) || (nullable && v === null))) throw answerError(route, `has ${field} of the wrong type (${what(v)}, expected ${words}${nullable ? " or null" : ""})`);
+    } else if (Array.isArray(type)) {
+      if (!Array.isArray(v)) throw answerError(route, `has ${field} of the wrong type (${what(v)}, expected an array)`);
+      v.forEach((x, i) => need(route, x, type[0], `${name}[${i}]`));
+    } else {
+      if (!TYPES.object[0](v)) throw answerError(route, name ? `has ${field} of the wrong type (${what(v)}, expected an object)` : `is not a JSON object (${what(v)})`);
+      for (const [k, t] of Object.entries(type)) {
+        const opt = k.endsWith("?");
+        const key = opt ? k.slice(0, -1) : k;
+        const path = name ? `${name}.${key}` : key;
+        if (v[key] === undefined || (opt && v[key] === null)) {
+          if (opt) continue;
+          throw answerError(route, `lacks field ${path}`);
+        }
+        need(route, v[key], t, path);
+      }
+    }
+  }
+  // every field of the object `obj` (the field `name`) an array of `n` numbers (a series per time)
+  function sameLength(route, obj, name, n, of) {
+    for (const [k, a] of Object.entries(obj)) {
+      need(route, a, "numbers", `${name}.${k}`);
+      if (a.length !== n) throw answerError(route, `has field ${name}.${k} of ${a.length} values for ${n} ${of}`);
+    }
+  }
+
+  const SHAPE = {
+    models: {
+      params: "strings", cycles: "strings", modes: "strings", "units?": "object", "input_ranges?": "object",
+      "controller_tuning?": { defaults: "object", fields: [{ name: "string", unit: "string", description: "string",
+        "bounds?": { lo: "number", hi: "number", lo_open: "boolean", hi_open: "boolean", interval: "string" } }] },
+    },
+    steady: {
+      physically_valid: "boolean", flags: "strings", eigenvalues: "complexes", "inputs?": "object",
+      ...Object.fromEntries(SIGNALS.map(([n]) => [n, "number?"])),
+    },
+    linearize: {
+      eigenvalues: "complexes", input_names: "strings", output_names: "strings", zeros: "object", "zero_errors?": "object",
+      "dc_gain?": [["number?"]],
+      "discrete?": { ts: "number", delays_s: { u_egr: "number", u_vgt: "number" },
+        delay_samples: { u_egr: { whole: "number", remainder_s: "number" }, u_vgt: { whole: "number", remainder_s: "number" } },
+        state_names: "strings", poles: "complexes" },
+      // (the page always asks for the Bode diagram)
+      frequency_response: { f_hz: "numbers", channels: "object" },
+    },
+    margins: { stable: "boolean", max_pole_all: "number?", "steady_state_warnings?": "strings", loops: [{ name: "string",
+      ...Object.fromEntries(["alone", "others_closed"].map((k) => [k, { inert: "boolean", stable: "boolean", gain_margin: "number?",
+        gain_margin_hz: "number?", phase_margin_deg: "number?", gain_crossover_hz: "number?", delay_margin_s: "number?",
+        peak_sensitivity: "number?", peak_sensitivity_hz: "number?" }])) }] },
+    step: { input: "string", input_unit: "string", from: "number", to: "number", t: "numbers", u: "numbers", "u_applied?": "numbers",
+      "to_applied?": "number", series: "object", outputs: "object", "warnings?": "strings" },
+    // an output's metrics (or its "error")
+    stepOutput: { dc_gain: "number?", gain_sign: "string", y0: "number", y_final: "number", non_minimum_phase: "boolean",
+      overshoot_pct: "number", rise_time: "number?", settling_time: "number?", "wrong_way?": { time: "number", value: "number", relative: "number" },
+      "peak?": { time: "number", value: "number" } },
+    map: { x: { input: "string", unit: "string", values: "numbers" }, y: { input: "string", unit: "string", values: "numbers" },
+      channel: { input: "string", output: "string" }, dc_gain: "numbers", sign: "numbers", physically_valid: "array", errors: "array" },
+    simulate: { source: "string", mode: "string", t: "numbers", series: "object",
+      inputs: Object.fromEntries(INPUTS.map((n) => [n, "numbers"])), "inputs_applied?": Object.fromEntries(INPUTS.map((n) => [n, "numbers"])),
+      stats: { steps: "number" }, "warnings?": "strings", "units?": "object", "passes?": "boolean", "violations?": "strings",
+      "controller_tuning?": "object",
+      // closed loop: mvem closed-loop's stats.json (a figure that does not apply is null)
+      "cycle_stats?": { ...Object.fromEntries(["speed", "torque", "power"].map((k) => [k, { slope: "number?", r2: "number?", see: "number?", "not_applicable?": "string" }])),
+        ...Object.fromEntries(["work_ref_kwh", "work_act_kwh", "work_error", "lambda_o_min", "lambda_o_min_t", "lambda_below_limit_share",
+          "x_egr_rms_error", "pmep_mean_pa", "fuel_kg", "bsfc_g_kwh"].map((k) => [k, "number?"])),
+        lambda_limit: "number", "not_applicable?": "strings" },
+      "margins?": {
+        summary: { every_s: "number", points: "number", analysed: "number", invalid_steady: "number", no_loop: "number", refused: "number",
+          unstable_t: "numbers", loops: [{ name: "string", points: "number", unstable: "number", inert: "number",
+            ...Object.fromEntries(["min_gain_margin", "min_phase_margin_deg", "max_peak_sensitivity"].map((k) => [`${k}?`, { value: "number", t: "number" }])) }] },
+        samples: [{ t: "number", "loops?": [{ name: "string", others_closed: { gain_margin: "number?", phase_margin_deg: "number?" } }] }],
+      },
+    },
+  };
+
+  // each answer's check: its shape, and the lengths that must agree
+  const CHECK = {
+    models: (m) => {
+      need("/api/models", m, SHAPE.models);
+      for (const f of m.controller_tuning ? m.controller_tuning.fields : []) {
+        const d = m.controller_tuning.defaults[f.name];
+        if (!(typeof d === "number" || (Array.isArray(d) && d.length === 2 && d.every((x) => typeof x === "number")))) {
+          throw answerError("/api/models", `has field controller_tuning.defaults.${f.name} of the wrong type (${what(d)}, expected a number or [kp, ki])`);
+        }
+      }
+    },
+    steady: (j) => need("/api/steady", j, SHAPE.steady),
+    linearize: (j) => {
+      const r = "/api/linearize";
+      need(r, j, SHAPE.linearize);
+      if (j.dc_gain && (j.dc_gain.length !== j.output_names.length || j.dc_gain.some((row) => row.length !== j.input_names.length))) {
+        throw answerError(r, `has field dc_gain of another size than ${j.output_names.length} outputs x ${j.input_names.length} inputs`);
+      }
+      for (const [ch, z] of Object.entries(j.zeros)) need(r, z, "complexes?", `zeros.${ch}`);
+      const fr = j.frequency_response;
+      if (!fr.f_hz.length) throw answerError(r, "has field frequency_response.f_hz without a frequency");
+      for (const [ch, g] of Object.entries(fr.channels)) {
+        need(r, g, { mag: "numbers", phase_deg: "numbers" }, `frequency_response.channels.${ch}`);
+        sameLength(r, g, `frequency_response.channels.${ch}`, fr.f_hz.length, "frequencies");
+      }
+    },
+    margins: (j) => need("/api/margins", j, SHAPE.margins),
+    step: (j) => {
+      const r = "/api/step";
+      need(r, j, SHAPE.step);
+      if (!j.t.length) throw answerError(r, "has field t without a time");
+      for (const k of ["u", "u_applied"]) {
+        if (j[k] && j[k].length !== j.t.length) throw answerError(r, `has field ${k} of ${j[k].length} values for ${j.t.length} times`);
+      }
+      sameLength(r, j.series, "series", j.t.length, "times");
+      for (const n of Object.keys(j.series)) {
+        const m = j.outputs[n];
+        if (m === undefined) throw answerError(r, `lacks field outputs.${n}`);
+        if (m !== null && typeof m === "object" && typeof m.error === "string") continue;
+        need(r, m, SHAPE.stepOutput, `outputs.${n}`);
+        if (m.non_minimum_phase && !m.wrong_way) throw answerError(r, `lacks field outputs.${n}.wrong_way`);
+      }
+    },
+    map: (j) => {
+      const r = "/api/map";
+      need(r, j, SHAPE.map);
+      const n = j.x.values.length * j.y.values.length;
+      if (j.x.values.length < 2 || j.y.values.length < 2) throw answerError(r, "has an axis of fewer than two values");
+      for (const k of ["dc_gain", "sign", "physically_valid"]) {
+        if (j[k].length !== n) throw answerError(r, `has field ${k} of ${j[k].length} values for ${n} grid points`);
+      }
+    },
+    simulate: (j) => {
+      const r = "/api/simulate";
+      need(r, j, SHAPE.simulate);
+      if (!j.t.length) throw answerError(r, "has field t without a time");
+      sameLength(r, j.series, "series", j.t.length, "times");
+      sameLength(r, j.inputs, "inputs", j.t.length, "times");
+      if (j.inputs_applied) sameLength(r, j.inputs_applied, "inputs_applied", j.t.length, "times");
+    },
+  };
+
   // what went wrong, in a few words (the label of a failed steady state)
   function errorKind(e) {
     if (e.kind === "input") return "not a number";
+    if (e.kind === "answer") return "unexpected answer";
     if (e.kind === "network") return "server unreachable";
     if (e.kind !== "http") return "error";
     return { 400: "refused: bad input", 422: "no equilibrium", 503: "server busy" }[e.status] || `error (HTTP ${e.status})`;
@@ -184,11 +356,13 @@
       const q = new URLSearchParams({ ...point(), model: modelSel().model });
       if (modelSel().params) q.set("params", modelSel().params);
       const j = await api(`/api/steady?${q}`);
+      CHECK.steady(j);
       showSteady(j, seq);
       app.steadyFailed = null;
       showError("#steady-error", null);
       $("table.signals").dataset.stale = "false";
-      app.statusError = null;
+      // (an answer of /api/models of the wrong shape stands: the menus lack what it lacked)
+      if (!app.statusError || app.statusError.source !== "models") app.statusError = null;
       refreshStatus();
     } catch (e) {
       // the label says what failed; the values left in the table are marked as the last
@@ -455,7 +629,15 @@
     ctx.restore();
   }
 
-  function marker(ctx, X, Y, color, label, shape) {
+  // a mark (the NMP excursion's red dot, the overshoot's orange triangle) and its label. The
+  // label was always drawn right of the mark at its height, so a peak close to the final value
+  // put it on the dashed final-value line ("overshoot 18.9 %" struck through by it, on the
+  // curve too). It is placed now where it touches neither the lines at the heights `place.lines`
+  // (pixels: the steady values before and after) nor a label placed before (`place.taken`,
+  // boxes), inside the plot area `place.clip`: of beside the mark, then above or below it at
+  // growing distances, right or left of it, the nearest over the fewest points of the curve
+  // (`place.curve`, pixels); one moved off the mark's height gets a thin line to the mark
+  function marker(ctx, X, Y, color, label, shape, place) {
     ctx.save();
     ctx.fillStyle = color; ctx.strokeStyle = "#fff"; ctx.lineWidth = 1;
     ctx.beginPath();
@@ -463,7 +645,33 @@
     else ctx.arc(X, Y, 4.5, 0, 2 * Math.PI);
     ctx.fill(); ctx.stroke();
     ctx.font = "bold 11px system-ui, sans-serif"; ctx.textBaseline = "middle"; ctx.textAlign = "left";
-    ctx.fillText(label, X + 7, Y);
+    const w = ctx.measureText(label).width, H = 12;
+    const [cx, cy, cw, ch] = place.clip;
+    // (the mark itself: another label keeps off it too)
+    place.taken.push([X - 6, Y - 7, 12, 14]);
+    const meets = (a, b) => a[0] < b[0] + b[2] && b[0] < a[0] + a[2] && a[1] < b[1] + b[3] && b[1] < a[1] + a[3];
+    let best = null;
+    for (const dy of [0, -9, 9, -13, 13, -17, 17, -21, 21, -27, 27, -33, 33, -40, 40]) {
+      for (const side of [1, -1]) {
+        const box = [side > 0 ? X + 8 : X - 8 - w, Y + dy - H / 2, w, H];
+        if (box[0] < cx + 1 || box[0] + w > cx + cw - 1 || box[1] < cy + 1 || box[1] + H > cy + ch - 1) continue;
+        if (place.lines.some((ly) => ly >= box[1] - 2 && ly <= box[1] + H + 2)) continue;
+        if (place.taken.some((b) => meets(b, box))) continue;
+        const hits = place.curve.reduce((n, [px, py]) => n + (px >= box[0] - 2 && px <= box[0] + w + 2 && py >= box[1] - 2 && py <= box[1] + H + 2 ? 1 : 0), 0);
+        const cost = 1000 * hits + Math.abs(dy) + (side < 0 ? 6 : 0);
+        if (!best || cost < best.cost) best = { cost, box, dy };
+      }
+    }
+    // (no place clear of the lines in a panel too small: beside the mark, as before)
+    if (!best) best = { box: [X + 8, Y - H / 2, w, H], dy: 0 };
+    const [bx, by] = best.box;
+    if (Math.abs(best.dy) > 9) {
+      ctx.strokeStyle = color; ctx.lineWidth = 0.8; ctx.beginPath();
+      ctx.moveTo(X, Y); ctx.lineTo(bx < X ? bx + w : bx, by + H / 2); ctx.stroke();
+    }
+    ctx.fillStyle = color;
+    ctx.fillText(label, bx, by + H / 2);
+    place.taken.push(best.box);
     ctx.restore();
   }
 
@@ -522,7 +730,7 @@
   const cycleStamp = (mode = app.cycle && app.cycle.mode) => JSON.stringify({ ...modelSel(), tuning: mode === "closed" ? tuningKey() : undefined });
   function pointText() {
     const p = point();
-    return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states, parameters ${$("select[name=params]").value}`;
+    return `at n_e ${p.n_e} rpm, u_delta ${p.u_delta} mg/cycle, u_egr ${p.u_egr} %, u_vgt ${p.u_vgt} %, ${modelSel().model} states, parameters ${$("select[name=params]").value}`;
   }
   // the parts of a key that changed, as words ("the point", "the parameter set" ...)
   const KEY_PARTS = { point: "the point", model: "the model", params: "the parameter set", tuning: "the controller tuning" };
@@ -545,6 +753,7 @@
   function stamp(panel, key, text) {
     stamps[panel] = { key, text, failed: false };
     markStale();
+    scheduleUrl();
   }
   function markStale() {
     for (const [panel, st] of Object.entries(stamps)) {
@@ -580,6 +789,10 @@
     } finally {
       btn.disabled = false;
       jobs.delete(id);
+      // (a panel a link asked for: in the link now by its result, or not after a failure)
+      if (panel === "cycle") app.urlCycleT = undefined;
+      if (panel === "linear") app.urlBode = undefined;
+      if (panel && app.urlPending.delete(panel)) scheduleUrl();
       refreshStatus();
     }
   }
@@ -594,6 +807,7 @@
       const key = pointStamp();
       const at = pointText();
       const j = await api(`/api/linearize?${q}`);
+      CHECK.linearize(j);
       app.linear = j;
       stamp("linear", key, at);
       showLinear(j);
@@ -617,7 +831,13 @@
     if (!fr) return;
     const sel = $("select[name=bode_channel]");
     const names = Object.keys(fr.channels);
-    const keep = names.includes(sel.value) ? sel.value : (names.includes("u_vgt->W_c") ? "u_vgt->W_c" : names[0]);
+    let keep = names.includes(sel.value) ? sel.value : (names.includes("u_vgt->W_c") ? "u_vgt->W_c" : names[0]);
+    // the channel of a link, once its linear model is there
+    if (app.urlBode !== undefined) {
+      if (names.includes(app.urlBode)) keep = app.urlBode;
+      else addUrlProblem("bode_channel", `${quoted(app.urlBode)} is not a channel of the linear model`);
+      app.urlBode = undefined;
+    }
     sel.replaceChildren(...names.map((n) => {
       const o = document.createElement("option");
       o.value = n; o.textContent = n.replace("->", " → ");
@@ -686,6 +906,7 @@
         tuning = changed.length ? `; controller tuning of the drive-cycle panel's form (closed loop): ${changed.join(", ")} changed` : "; controller tuning: the defaults";
       }
       const j = await api("/api/margins", body);
+      CHECK.margins(j);
       app.margins = j;
       stamp("margins", key, at);
       showMargins(j, tuning);
@@ -696,7 +917,7 @@
     // (the point, model and parameter set are on the #margins-at line above)
     $("#margins-summary").textContent = `every loop closed ${j.stable ? "stable" : "UNSTABLE"} (largest closed-loop pole |z| = ${fmt(j.max_pole_all)})${(j.steady_state_warnings || []).length ? `; warning: the steady state is not physically valid (${j.steady_state_warnings.join(", ")})` : ""}${tuning}`;
     $("#margins-summary").dataset.stable = String(j.stable);
-    const hz = (f) => `${Number(f.toPrecision(4))} Hz`;
+    const hz = (f) => f === null ? "–" : `${Number(f.toPrecision(4))} Hz`;
     const rows = [];
     for (const l of j.loops) {
       for (const [other, m] of [["open", l.alone], ["closed", l.others_closed]]) {
@@ -798,6 +1019,7 @@
       const key = pointStamp();
       const at = pointText();
       const j = await api("/api/step", body);
+      CHECK.step(j);
       app.step = j;
       stamp("step", key, `step of ${j.input} from ${tickLabel(j.from)} to ${tickLabel(j.to)} ${at}`);
       drawStep(j);
@@ -841,12 +1063,15 @@
       if (pn.asked) line(ctx, p, j.t, pn.asked, "#9aa3b2", 1, [4, 3]);
       line(ctx, p, j.t, pn.y, pn.input ? "#546e7a" : COLORS[k % COLORS.length]);
       if (m && !m.error) {
+        // the labels clear of the lines of the steady values and of the curve
+        const place = { clip: p.clip, lines: [p.py(m.y0), p.py(m.y_final)], taken: [],
+          curve: j.t.flatMap((t, i) => Number.isFinite(pn.y[i]) ? [[p.px(t), p.py(pn.y[i])]] : []) };
         if (m.wrong_way && m.non_minimum_phase) {
-          marker(ctx, p.px(m.wrong_way.time), p.py(m.wrong_way.value), "#c62828", `NMP ${(100 * m.wrong_way.relative).toFixed(1)} %`, "dot");
+          marker(ctx, p.px(m.wrong_way.time), p.py(m.wrong_way.value), "#c62828", `NMP ${(100 * m.wrong_way.relative).toFixed(1)} %`, "dot", place);
           marks.nmp++;
         }
         if (m.peak && m.overshoot_pct > 0.05) {
-          marker(ctx, p.px(m.peak.time), p.py(m.peak.value), "#e67e22", `overshoot ${m.overshoot_pct.toFixed(1)} %`, "tri");
+          marker(ctx, p.px(m.peak.time), p.py(m.peak.value), "#e67e22", `overshoot ${m.overshoot_pct.toFixed(1)} %`, "tri", place);
           marks.overshoot++;
         }
       }
@@ -897,6 +1122,7 @@
       const key = pointStamp();
       const at = pointText();
       const j = await api("/api/map", body);
+      CHECK.map(j);
       app.map = j;
       stamp("map", key, `around the point ${at}`);
       drawMap(j);
@@ -1031,7 +1257,9 @@
         }
         throw e;
       }
+      CHECK.simulate(j);
       app.cycle = j;
+      app.cycleFromFile = cycle === FILE_CYCLE;
       stamp("cycle", key, at);
       showCycleStats(j);
       Object.assign(app.units, j.units || {});
@@ -1047,6 +1275,13 @@
       $("#cycle-info").textContent = info;
       const sl = $("input[name=cycle_t]");
       sl.max = String(j.t.length - 1); sl.value = "0"; sl.disabled = false;
+      // the time of a link: the sample nearest to it
+      if (app.urlCycleT !== undefined) {
+        const t = app.urlCycleT;
+        app.urlCycleT = undefined;
+        if (t < j.t[0] || t > j.t[j.t.length - 1]) addUrlProblem("cycle_t", `${t} s is outside the run's ${j.t[0]} to ${j.t[j.t.length - 1]} s`);
+        else sl.value = String(j.t.reduce((b, x, i) => Math.abs(x - t) < Math.abs(j.t[b] - t) ? i : b, 0));
+      }
       scrub();
       $("[data-download=cycle]").disabled = false;
     }, "cycle");
@@ -1121,6 +1356,7 @@
     $("#tuning-changed").textContent = changed ? `${changed} changed from the defaults` : "the defaults";
     // the loop margins and a closed-loop run shown were computed with the tuning before
     markStale();
+    scheduleUrl();
   }
 
   // the request's "tuning" from the form; an entry that is not a number is an error naming it
@@ -1178,22 +1414,31 @@
     const tbl = $("#cycle-stats");
     const s = j.cycle_stats;
     if (j.mode !== "closed" || !s) { tbl.hidden = true; return; }
-    const pct = (v) => `${(100 * v).toFixed(2)} %`;
-    const reg = (r, u) => `slope ${r.slope.toFixed(3)}, R² ${r.r2.toFixed(3)}, SEE ${r.see.toFixed(1)} ${u}`;
+    // a figure that does not apply to the run is null (NaN in the core), with the reason in
+    // not_applicable ("work_error: ..."; a regression's in its own): said so, not drawn as a
+    // number (a constant speed demand's speed regression failed as "Cannot read properties of
+    // null (reading 'toFixed')")
+    const why = (key) => (s.not_applicable || []).find((r) => r.startsWith(`${key}:`));
+    const na = (key) => { const r = why(key); return `not applicable${r ? ` (${r.slice(key.length + 1).trim()})` : ""}`; };
+    const fix = (v, d, key) => v === null ? na(key) : v.toFixed(d);
+    const pct = (v, key) => v === null ? na(key) : `${(100 * v).toFixed(2)} %`;
+    const reg = (r, u) => r.slope === null || r.r2 === null || r.see === null
+      ? `not applicable${r.not_applicable ? ` (${r.not_applicable})` : ""}`
+      : `slope ${r.slope.toFixed(3)}, R² ${r.r2.toFixed(3)}, SEE ${r.see.toFixed(1)} ${u}`;
     const changed = Object.entries(j.controller_tuning || {})
       .filter(([k, v]) => k !== "ts" && JSON.stringify(v) !== JSON.stringify(app.tuningDefaults?.[k]))
       .map(([k, v]) => `${k} = ${JSON.stringify(v)}`);
     const rows = [
       ["controller tuning", changed.length ? changed.join(", ") : "the defaults"],
-      ["positive work, actual / reference", `${s.work_act_kwh.toFixed(3)} / ${s.work_ref_kwh.toFixed(3)} kWh (${s.work_error >= 0 ? "+" : ""}${pct(s.work_error)})`],
+      ["positive work, actual / reference", `${fix(s.work_act_kwh, 3, "work_act_kwh")} / ${fix(s.work_ref_kwh, 3, "work_ref_kwh")} kWh (${s.work_error >= 0 ? "+" : ""}${pct(s.work_error, "work_error")})`],
       ["torque regression", reg(s.torque, "Nm")],
       ["power regression", reg(s.power, "kW")],
       ["speed regression", reg(s.speed, "rpm")],
-      ["lambda_O min (fired)", `${s.lambda_o_min.toFixed(3)} at t = ${s.lambda_o_min_t.toFixed(2)} s`],
-      [`lambda_O below ${s.lambda_limit}`, `${pct(s.lambda_below_limit_share)} of fired samples`],
-      ["x_egr RMS error", s.x_egr_rms_error.toFixed(4)],
-      ["mean p_em − p_im", `${(s.pmep_mean_pa / 1000).toFixed(2)} kPa`],
-      ["fuel, BSFC", `${s.fuel_kg.toFixed(3)} kg, ${s.bsfc_g_kwh.toFixed(1)} g/kWh`],
+      ["lambda_O min (fired)", s.lambda_o_min === null ? na("lambda_o_min") : `${s.lambda_o_min.toFixed(3)} at t = ${fix(s.lambda_o_min_t, 2, "lambda_o_min_t")} s`],
+      [`lambda_O below ${s.lambda_limit}`, s.lambda_below_limit_share === null ? na("lambda_below_limit_share") : `${pct(s.lambda_below_limit_share)} of fired samples`],
+      ["x_egr RMS error", fix(s.x_egr_rms_error, 4, "x_egr_rms_error")],
+      ["mean p_em − p_im", s.pmep_mean_pa === null ? na("pmep_mean_pa") : `${(s.pmep_mean_pa / 1000).toFixed(2)} kPa`],
+      ["fuel, BSFC", `${fix(s.fuel_kg, 3, "fuel_kg")} kg, ${s.bsfc_g_kwh === null ? `BSFC ${na("bsfc_g_kwh")}` : `${s.bsfc_g_kwh.toFixed(1)} g/kWh`}`],
     ];
     $("tbody", tbl).replaceChildren(...rows.map(([k, v]) => {
       const tr = document.createElement("tr");
@@ -1406,6 +1651,14 @@
   // ---------------------------------------------------------------------------------------------
   // CSV downloads (of what is shown)
 
+  // a CSV column's header: the name and its unit in brackets, `p_im [Pa]`, `x_egr [-]` (the
+  // units of /api/models, those of mvem's JSON and figures); the form in which mvem reads a
+  // unit from a header (mvem closed-loop --cycle FILE, a campaign's files:
+  // csv_columns::split_unit), so the closed-loop cycle's CSV is a demand file mvem closed-loop
+  // reads (t [s], n_e [rpm], M_ref [Nm]; the other columns ignored). mvem simulate --out writes
+  // the bare names in SI units (n_e, n_t in rpm, u_delta in mg/cycle, u_* in %; README)
+  const csvHead = (name, u = unit(name)) => u ? `${name} [${u}]` : name;
+
   function downloads() {
     $("[data-download=steady]").addEventListener("click", () => {
       const j = app.steady;
@@ -1420,14 +1673,15 @@
       const j = app.step;
       if (!j) return;
       const names = Object.keys(j.series);
-      const rows = [["t", j.input, ...names]];
+      const rows = [[csvHead("t", "s"), csvHead(j.input, j.input_unit), ...names.map((n) => csvHead(n))]];
       j.t.forEach((t, i) => rows.push([t, j.u[i], ...names.map((n) => j.series[n][i])]));
       download(`step_${j.input}.csv`, rows);
     });
     $("[data-download=map]").addEventListener("click", () => {
       const j = app.map;
       if (!j) return;
-      const rows = [[j.x.input, j.y.input, `dc_gain_${j.channel.input}_${j.channel.output}`, "sign", "physically_valid"]];
+      const gain = csvHead(`dc_gain_${j.channel.input}_${j.channel.output}`, ratioUnit(unit(j.channel.output), unit(j.channel.input)));
+      const rows = [[csvHead(j.x.input, j.x.unit), csvHead(j.y.input, j.y.unit), gain, "sign", "physically_valid"]];
       const ny = j.y.values.length;
       j.dc_gain.forEach((g, idx) => rows.push([j.x.values[Math.floor(idx / ny)], j.y.values[idx % ny], g, j.sign[idx], j.physically_valid[idx]]));
       download("map.csv", rows);
@@ -1444,7 +1698,9 @@
       // the commands as given, and beside each one the model clamped somewhere (the
       // parameter set's input ranges) the values it applied
       const applied = INPUTS.filter((n) => cycleCommanded(j, n));
-      const rows = [["t", ...INPUTS, ...applied.map((n) => `${n}_applied`), ...names]];
+      // (the run's units, those of /api/models)
+      const u = (n) => (j.units || {})[n] ?? unit(n);
+      const rows = [[csvHead("t", "s"), ...INPUTS.map((n) => csvHead(n, u(n))), ...applied.map((n) => csvHead(`${n}_applied`, u(n))), ...names.map((n) => csvHead(n, u(n)))]];
       j.t.forEach((t, i) => rows.push([
         t,
         ...INPUTS.map((n) => j.inputs[n][i]),
@@ -1470,6 +1726,235 @@
   }
 
   // ---------------------------------------------------------------------------------------------
+  // the page's state in its link: the model, parameter set, operating point, every panel's
+  // settings, the controller tuning entries that differ from the defaults, which panels show a
+  // result and the cycle's time (`#model=8&params=published&n_e=1500&...&show=step,linear`),
+  // written with history.replaceState as they change (no history entry per move), read when
+  // the page loads (and when the hash is edited): a link or bookmark opens the same view, the
+  // panels it lists computed again at its point. A value the page would not take (not a
+  // number, outside its field's range, not an entry of its menu, an unknown name) is ignored,
+  // the field keeps its default, and the note under the header names it (#url-note)
+
+  // the fields of the link: its name, the control, and whether it is always written (the
+  // operating point, model and parameter set; the others only where they differ from the
+  // page's defaults)
+  const URL_FIELDS = [
+    ["model", "select[name=model]", true], ["params", "select[name=params]", true],
+    ...INPUTS.map((n) => [n, `input[name=${n}]`, true]),
+    ["step_input", "select[name=step_input]"], ["step_target", "input[name=step_target]"], ["step_horizon", "input[name=step_horizon]"],
+    ["lin_ts", "input[name=lin_ts]"], ["bode_fmin", "input[name=bode_fmin]"], ["bode_fmax", "input[name=bode_fmax]"],
+    ["map_input", "select[name=map_input]"], ["map_output", "select[name=map_output]"],
+    ["map_x", "select[name=map_x]"], ["map_x_lo", "input[name=map_x_lo]"], ["map_x_hi", "input[name=map_x_hi]"],
+    ["map_y", "select[name=map_y]"], ["map_y_lo", "input[name=map_y_lo]"], ["map_y_hi", "input[name=map_y_hi]"], ["map_n", "input[name=map_n]"],
+    ["cycle_mode", "select[name=cycle_mode]"], ["cycle_margins", "input[name=cycle_margins]"],
+    ["cycle_margins_every", "input[name=cycle_margins_every]"],
+  ].map(([name, sel, always]) => ({ name, sel, always: !!always }));
+  // the panels whose result the link asks for again
+  const URL_PANELS = ["step", "linear", "margins", "map", "cycle"];
+  const RUNS = { step: () => runStep(), linear: () => runLinearize(), margins: () => runMargins(), map: () => runMap(), cycle: () => runCycle() };
+  // a tuning entry's name in the link: "tuning.egr_lambda.kp" for the PI pair's "egr_lambda[1]"
+  const tuningParam = (key) => { const m = TUNING_KEY.exec(key); return `tuning.${m ? `${m[1]}.${m[2] === "1" ? "kp" : "ki"}` : key}`; };
+
+  // a control's value as the link writes it (undefined: nothing to write, as a field without
+  // a number or the cycle menu's file, which a link cannot carry)
+  function readField(el) {
+    if (el.type === "checkbox") return el.checked ? "1" : "0";
+    const v = el.value.trim();
+    // (a blank field: nothing, but the optional sample time, whose blank is its default "none")
+    if (el.tagName === "INPUT" && (v === "" ? el.name !== "lin_ts" : !Number.isFinite(Number(v)))) return undefined;
+    return v;
+  }
+  // why the text `v` is no value of the control `el` ("" when it is one)
+  function fieldProblem(el, v) {
+    if (el.tagName === "SELECT") {
+      const opts = [...el.options].map((o) => o.value).filter((o) => o !== FILE_CYCLE);
+      return opts.includes(v) ? "" : `not one of ${opts.join(", ")}`;
+    }
+    if (el.type === "checkbox") return v === "1" || v === "0" ? "" : "not 1 or 0";
+    // (an optional field, the sample time, may be empty: none)
+    if (v.trim() === "" && el.name === "lin_ts") return "";
+    const x = v.trim() === "" ? NaN : Number(v);
+    if (!Number.isFinite(x)) return "not a number";
+    const lo = el.min === "" ? -Infinity : Number(el.min), hi = el.max === "" ? Infinity : Number(el.max);
+    if (x < lo || x > hi) return hi === Infinity ? `below its least value ${el.min}` : lo === -Infinity ? `above its largest value ${el.max}` : `outside [${el.min}, ${el.max}]`;
+    if (el.step === "1" && !Number.isInteger(x)) return "not a whole number";
+    return "";
+  }
+  // the text of a value in a note: quoted, at most 40 characters
+  const quoted = (v) => JSON.stringify(v.length > 40 ? `${v.slice(0, 40)}…` : v);
+
+  // the page's defaults, taken once /api/models has filled the menus (before a link is read)
+  let urlDefaults = null;
+  function takeUrlDefaults() {
+    urlDefaults = Object.fromEntries(URL_FIELDS.map((f) => [f.name, readField($(f.sel))]));
+  }
+
+  // the state as the link's parameters ([name, value] in order)
+  function urlState() {
+    const out = [];
+    for (const f of URL_FIELDS) {
+      const el = $(f.sel);
+      const v = readField(el);
+      if (v === undefined) continue;
+      if (f.always || v !== urlDefaults[f.name]) out.push([f.name, v]);
+    }
+    const cycle = $("select[name=cycle]").value;
+    if (cycle !== FILE_CYCLE && cycle !== "whtc") out.push(["cycle", cycle]);
+    for (const inp of app.tuningDefaults ? $$("input[data-tuning]") : []) {
+      const v = readField(inp);
+      if (v !== undefined && v !== "" && Number(v) !== tuningDefault(inp.dataset.tuning)) out.push([tuningParam(inp.dataset.tuning), v]);
+    }
+    // (what a link asked for and its panel has not computed yet kept as the link had it)
+    const ch = app.urlBode ?? $("select[name=bode_channel]").value;
+    if ((app.linear || app.urlBode !== undefined) && ch && ch !== "u_vgt->W_c") out.push(["bode_channel", ch]);
+    // the panels with a result (a cycle run of a file: not, a link cannot carry the file)
+    const shown = URL_PANELS.filter((p) => (stamps[p] && !(p === "cycle" && app.cycleFromFile)) || app.urlPending.has(p));
+    if (shown.length) out.push(["show", shown.join(",")]);
+    const i = Number($("input[name=cycle_t]").value);
+    if (app.urlCycleT !== undefined) out.push(["cycle_t", String(app.urlCycleT)]);
+    else if (app.cycle && !app.cycleFromFile && i > 0) out.push(["cycle_t", String(app.cycle.t[i])]);
+    return out;
+  }
+  const urlText = (state) => state.map(([k, v]) => `${encodeURIComponent(k)}=${encodeURIComponent(v).replace(/%2C/g, ",")}`).join("&");
+
+  // the link written at most every 100 ms (a slider's drag moves many times a second; Chromium
+  // throttles replaceState called too often)
+  let urlTimer = 0;
+  function scheduleUrl() {
+    if (!urlDefaults || app.applyingUrl) return;
+    clearTimeout(urlTimer);
+    urlTimer = setTimeout(writeUrl, 100);
+  }
+  function writeUrl() {
+    clearTimeout(urlTimer);
+    if (!urlDefaults) return;
+    const hash = `#${urlText(urlState())}`;
+    if (hash !== location.hash) history.replaceState(history.state, "", `${location.pathname}${location.search}${hash}`);
+    document.body.dataset.url = hash;
+  }
+
+  // the note naming what the link held that the page did not take
+  function showUrlNote(problems) {
+    app.urlProblems = problems;
+    const el = $("#url-note");
+    el.dataset.ignored = problems.map(([name]) => name).join(",");
+    el.textContent = problems.length ? `the link's ${problems.map(([name, text]) => `${name}: ${text}`).join("; ")}: ignored (the page's value kept)` : "";
+    el.hidden = !problems.length;
+  }
+
+  // one more thing of the link ignored (found once its panel has computed)
+  const addUrlProblem = (name, text) => showUrlNote([...(app.urlProblems || []), [name, text]]);
+
+  // the state of the link (`hash`, without "#") set into the page; returns the panels it shows
+  function applyUrl(hash) {
+    const q = new URLSearchParams(hash);
+    const problems = [];
+    const given = new Map();
+    for (const [k, v] of q) {
+      if (given.has(k)) { if (!problems.some(([n]) => n === k)) problems.push([k, "given twice"]); given.set(k, null); continue; }
+      given.set(k, v);
+    }
+    const value = (name) => given.get(name);
+    app.applyingUrl = true;
+    try {
+      const fields = Object.fromEntries(URL_FIELDS.map((f) => [f.name, f]));
+      // what the link does not give is the page's default (a hash edited in the address bar
+      // after other changes sets the view of that link, not a mix)
+      for (const f of URL_FIELDS) {
+        const el = $(f.sel);
+        if (el.type === "checkbox") el.checked = urlDefaults[f.name] === "1";
+        else if (urlDefaults[f.name] !== undefined) el.value = urlDefaults[f.name];
+      }
+      if ($("select[name=cycle]").value !== FILE_CYCLE) $("select[name=cycle]").selectedIndex = 0;
+      for (const inp of app.tuningDefaults ? $$("input[data-tuning]") : []) inp.value = String(tuningDefault(inp.dataset.tuning));
+      applyInputRanges();
+      const set = (name) => {
+        const v = value(name);
+        if (v === undefined || v === null) return false;
+        const el = $(fields[name].sel);
+        const why = fieldProblem(el, v);
+        if (why) { problems.push([name, `${quoted(v)} is ${why}`]); return false; }
+        if (el.type === "checkbox") el.checked = v === "1"; else el.value = v;
+        return true;
+      };
+      // the menus first: the parameter set (the sliders' ranges and the map axes follow it as
+      // when it is chosen), then the inputs whose choice sets another field (the step's target,
+      // a map axis's range) unless the link gives that field too
+      const params = $("select[name=params]").value;
+      set("params");
+      set("model");
+      if ($("select[name=params]").value !== params) {
+        applyInputRanges();
+        for (const a of ["x", "y"]) if (RANGED_INPUTS.includes($(`select[name=map_${a}]`).value)) applyMapRange(a);
+      }
+      for (const f of URL_FIELDS) if (!["params", "model"].includes(f.name) && f.sel.startsWith("select")) set(f.name);
+      if (value("map_x") !== undefined) applyMapRange("x");
+      if (value("map_y") !== undefined) applyMapRange("y");
+      for (const f of URL_FIELDS) if (!f.sel.startsWith("select")) set(f.name);
+      if (value("step_input") !== undefined && value("step_target") === undefined) stepTargetForInput();
+      applyInputRanges();
+      if (given.has("cycle")) {
+        const v = given.get("cycle");
+        const opts = [...$("select[name=cycle]").options].map((o) => o.value).filter((o) => o !== FILE_CYCLE);
+        if (v !== null && opts.includes(v)) $("select[name=cycle]").value = v; else if (v !== null) problems.push(["cycle", `${quoted(v)} is not one of ${opts.join(", ")}`]);
+      }
+      // the controller tuning: a known entry within its accepted interval
+      const keys = Object.fromEntries($$("input[data-tuning]").map((inp) => [tuningParam(inp.dataset.tuning), inp]));
+      for (const [k, v] of given) {
+        if (!k.startsWith("tuning.") || v === null) continue;
+        const inp = keys[k];
+        const x = v.trim() === "" ? NaN : Number(v);
+        if (!inp) problems.push([k, "not an entry of the controller tuning"]);
+        else if (!Number.isFinite(x)) problems.push([k, `${quoted(v)} is not a number`]);
+        else if (boundsMessage(inp.dataset.tuning, v)) problems.push([k, `${quoted(v)} is outside ${app.tuningBounds[inp.dataset.tuning].interval}`]);
+        else inp.value = v;
+      }
+      // the view: the Bode channel (once the linear model is there), the cycle's time (once
+      // the cycle has run), the panels to compute
+      app.urlBode = value("bode_channel") ?? undefined;
+      const t = value("cycle_t");
+      app.urlCycleT = undefined;
+      if (t !== undefined && t !== null) {
+        if (!Number.isFinite(Number(t)) || t.trim() === "") problems.push(["cycle_t", `${quoted(t)} is not a number`]);
+        else app.urlCycleT = Number(t);
+      }
+      const show = [];
+      for (const p of (value("show") ?? "").split(",").filter((p) => p)) {
+        if (URL_PANELS.includes(p)) { if (!show.includes(p)) show.push(p); } else problems.push(["show", `${quoted(p)} is not one of ${URL_PANELS.join(", ")}`]);
+      }
+      if (app.urlCycleT !== undefined && !show.includes("cycle")) { problems.push(["cycle_t", "without a cycle to show"]); app.urlCycleT = undefined; }
+      if (app.urlBode !== undefined && !show.includes("linear")) { problems.push(["bode_channel", "without the linear model to show"]); app.urlBode = undefined; }
+      const known = new Set([...URL_FIELDS.map((f) => f.name), "cycle", "bode_channel", "cycle_t", "show"]);
+      for (const k of given.keys()) if (!known.has(k) && !k.startsWith("tuning.")) problems.push([k, "no setting of the page"]);
+      showUrlNote(problems);
+      showCycleMode();
+      markTuning();
+      return show;
+    } finally {
+      app.applyingUrl = false;
+    }
+  }
+
+  // "Copy link": the link to the clipboard, or, where the browser does not allow that (a page
+  // not served from 127.0.0.1 or https), shown selected to copy by hand
+  async function copyLink() {
+    writeUrl();
+    const out = $("#link-copied");
+    const box = $("input[name=link]");
+    try {
+      await navigator.clipboard.writeText(location.href);
+      box.hidden = true;
+      out.textContent = "link copied";
+    } catch (e) {
+      box.value = location.href;
+      box.hidden = false;
+      box.select();
+      out.textContent = "copy the link from the field";
+    }
+    out.dataset.href = location.href;
+  }
+
+  // ---------------------------------------------------------------------------------------------
   // start
 
   async function init() {
@@ -1490,6 +1975,7 @@
     $("#tuning-fields").addEventListener("input", markTuning);
     try {
       const m = await api("/api/models");
+      CHECK.models(m);
       app.units = m.units || {};
       $("select[name=params]").replaceChildren(...m.params.map((p) => new Option(p, p)));
       app.inputRanges = m.input_ranges || {};
@@ -1500,11 +1986,24 @@
       showCycleMode();
       refreshStatus();
     } catch (e) {
-      app.statusError = { source: "network", text: `server: ${e.message}` };
+      app.statusError = { source: e.kind === "answer" ? "models" : "network", text: `server: ${e.message}` };
       refreshStatus();
     }
     buildSignalTable();
-    requestSteady();
+    // the link's state (the defaults taken first: the link holds what differs from them), the
+    // link written as the controls change, read again when the hash is edited
+    takeUrlDefaults();
+    const fromLink = () => {
+      const show = applyUrl(location.hash.slice(1));
+      app.urlPending = new Set(show);
+      scheduleSteady();
+      for (const p of show) RUNS[p]();
+      writeUrl();
+    };
+    if (location.hash.length > 1) fromLink(); else requestSteady();
+    window.addEventListener("hashchange", fromLink);
+    for (const ev of ["input", "change"]) document.addEventListener(ev, scheduleUrl, true);
+    $("[data-action=copy-link]").addEventListener("click", copyLink);
   }
 
   init();
