@@ -84,8 +84,10 @@ fn bad_input_is_exit_2_and_writes_nothing() {
         d.path(),
         &["closed-loop", "--cycle", "unsorted.csv", "--out", "o"],
     );
+    // (the file's line, as `simulate --inputs` names it; before session 41 "row 3: ... (time
+    // must increase)")
     assert!(
-        err.contains("row 3") && err.contains("time must increase"),
+        err.contains("unsorted.csv, line 4, column t: time 1 s is not monotonic (previous 2 s)"),
         "{err}"
     );
 
@@ -969,4 +971,99 @@ fn a_vgt_range_beyond_the_map_does_not_wreck_a_tip_in() {
     let u_vgt = column(&h, &rows, "u_vgt");
     assert!(u_vgt.last().unwrap() > &30.0, "{:?}", u_vgt.last());
     assert!(slope(&j) > 0.7, "{}", slope(&j));
+}
+
+/// Session 41: a demand CSV may repeat a time (a step there, as `simulate --inputs` reads it;
+/// before, "time must increase" and exit 2). The tip-in at 1200 rpm as a step at 2 s runs as the
+/// same tip-in with a 10 ms ramp (2 -> 2.01 s), one sample earlier: from the step on, M_e, p_em,
+/// p_im, x_egr and the commands of the step's sample k equal the ramp's sample k + 1 within 1e-6
+/// of their scale (1500 Nm, 1e5 Pa, 1, 100 %; measured at most 2.7e-7: the loops are all but at
+/// rest before the step, so the shift is the only difference; 1.6e-6 for u_vgt at 1.9 s, where
+/// they still settle), and the torque regressions agree within 0.01. A third row at one time and a time going back
+/// are refused naming the line.
+#[test]
+fn a_demand_may_repeat_a_time_as_a_step() {
+    let d = tempfile::tempdir().unwrap();
+    let head = "t,n_e,M_ref\n0,1200,100\n2,1200,100\n";
+    std::fs::write(
+        d.path().join("step.csv"),
+        format!("{head}2,1200,1500\n5,1200,1500\n"),
+    )
+    .unwrap();
+    std::fs::write(
+        d.path().join("ramp.csv"),
+        format!("{head}2.01,1200,1500\n5.01,1200,1500\n"),
+    )
+    .unwrap();
+    let run = |cycle: &str| {
+        let out = format!("{cycle}.out");
+        let o = mvem(
+            d.path(),
+            &["closed-loop", "--cycle", cycle, "--out", &out, "--json"],
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let (h, rows) = read_csv(&d.path().join(&out).join("trajectory.csv"));
+        (j, h, rows)
+    };
+    let (js, h, step) = run("step.csv");
+    let (jr, _, ramp) = run("ramp.csv");
+    let slope = |j: &serde_json::Value| j["stats"]["torque"]["slope"].as_f64().unwrap();
+    assert!(
+        (slope(&js) - slope(&jr)).abs() < 0.01,
+        "{} vs {}",
+        slope(&js),
+        slope(&jr)
+    );
+    let t = col(&h, "t");
+    let k0 = step.iter().position(|r| r[t] >= 2.0 - 1e-9).unwrap();
+    assert_eq!(step.len() + 1, ramp.len());
+    let mut worst = 0.0_f64;
+    for (name, scale) in [
+        ("M_e", 1500.0),
+        ("p_em", 1e5),
+        ("p_im", 1e5),
+        ("x_egr", 1.0),
+        ("u_delta", 100.0),
+        ("u_egr", 100.0),
+        ("u_vgt", 100.0),
+    ] {
+        let c = col(&h, name);
+        for k in k0..step.len() {
+            let e = (step[k][c] - ramp[k + 1][c]).abs() / scale;
+            assert!(
+                e < 1e-6,
+                "{name} at t = {}: {} vs {} (ramp at {})",
+                step[k][t],
+                step[k][c],
+                ramp[k + 1][c],
+                ramp[k + 1][t]
+            );
+            worst = worst.max(e);
+        }
+    }
+    // the step reaches the demand at 2.00 s: the sample there already asks for 1500 Nm
+    let m_ref = col(&h, "M_ref");
+    let at2 = step.iter().position(|r| (r[t] - 2.0).abs() < 1e-9).unwrap();
+    assert_eq!((step[at2 - 1][m_ref], step[at2][m_ref]), (100.0, 1500.0));
+    eprintln!("largest difference {worst:e} of the scale");
+
+    for (name, text, want) in [
+        (
+            "three.csv",
+            format!("{head}2,1200,900\n2,1200,1500\n5,1200,1500\n"),
+            "three.csv, line 5, column t: time 2 s is not monotonic (previous 2 s) (more than \
+             two rows with the same time)",
+        ),
+        (
+            "back.csv",
+            format!("{head}1.5,1200,1500\n5,1200,1500\n"),
+            "back.csv, line 4, column t: time 1.5 s is not monotonic (previous 2 s)",
+        ),
+    ] {
+        std::fs::write(d.path().join(name), text).unwrap();
+        let err = usage_error(d.path(), &["closed-loop", "--cycle", name, "--out", "o"]);
+        assert!(err.contains(want), "{err}");
+    }
+    assert!(!d.path().join("o").exists());
 }
