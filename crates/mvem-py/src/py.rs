@@ -638,8 +638,8 @@ const MAX_THREADS: usize = 1024;
 ///
 /// cycle: "whtc" or None (default: the WHTC denormalized with this engine's mapping curve), or a speed/torque
 ///     demand: a dict with arrays "t" [s], "n_e" [rpm], "M_ref" [Nm], or a 2-D array with these
-///     3 columns (linear between rows; speeds in the parameter set's range, torque at most the
-///     full-load torque), or the path of a cycle file (os.PathLike, or a str other than
+///     3 columns (linear between rows, two rows at one time a step there; speeds in the
+///     parameter set's range, torque at most the full-load torque), or the path of a cycle file (os.PathLike, or a str other than
 ///     "whtc"): a demand CSV (t, n_e, M_ref) or a normalized cycle (Time [s], Speed [%],
 ///     Torque [%], "m" motoring: UN GTR No. 4's form, denormalized as the WHTC), as
 ///     `mvem closed-loop --cycle FILE` reads it.
