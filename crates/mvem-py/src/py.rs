@@ -650,7 +650,8 @@ const MAX_THREADS: usize = 1024;
 ///     vgt_hold_below_egr (the VGT hold near the shut EGR valve), egr_open_beyond_setpoint (how
 ///     far the valve may open beyond its position set-point where the set-point pair is out of
 ///     reach; 100: no limit), dp_vgt_limit, dp_vgt=[kp, ki] (the exhaust back-pressure limit on
-///     the VGT, kPa)); the others keep their defaults.
+///     the VGT, kPa), vgt_release_below_egr (the x_egr loop leaves the VGT alone below this EGR
+///     command; 0: never)); the others keep their defaults.
 /// params, model: as in simulate. duration: run only the first seconds of the cycle.
 /// margins: every so many seconds of the run, the loop margins of the air-path loops in feedback
 ///     at that sample (as `mvem closed-loop --margins S`; docs/control.md).

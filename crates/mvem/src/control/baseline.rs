@@ -22,9 +22,9 @@
 //!   closes for air only when closing the EGR valve was not enough (high load, where closing the
 //!   VGT raises the boost).
 //! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
-//!   With the EGR valve commanded to its closed end the x_egr loop has no authority over x_egr
-//!   and leaves the VGT's selector (session 41: conditional integration; the lambda_O limiter
-//!   alone closes the VGT for air there).
+//!   Optionally (`vgt_release_below_egr`, off by default) the x_egr loop leaves the VGT's
+//!   selector while the EGR valve is commanded shut, where it has no authority over x_egr
+//!   (session 41: conditional integration; the lambda_O limiter alone closes the VGT there).
 //! - Exhaust back-pressure limit (session 41): above `p_em - p_im = dp_vgt_limit` a PI on the
 //!   excess opens the VGT through a max selector over both VGT loops
 //!   (`u_vgt = max(min(u_vgt,x, u_vgt,lambda), u_vgt,dp)`), the closed end the engine's
@@ -136,6 +136,12 @@ pub struct BaselineTuning {
     /// of p_em - p_im above [`Self::dp_vgt_limit`]); acts only above the limit.
     #[serde(deserialize_with = "pi_pair")]
     pub dp_vgt: (f64, f64),
+    /// EGR command [%] below which the x_egr -> u_vgt loop leaves the VGT's selector (0: never,
+    /// the default; e.g. 0.01 for the valve's shut end, the authors' 0 %): with the valve shut
+    /// the VGT has no authority over x_egr, and the VGT is left to the lambda_O limiter (session
+    /// 41's conditional integration; on the default WHTC less pumping work but a larger x_egr
+    /// error, docs/control.md, "Session 41").
+    pub vgt_release_below_egr: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -175,6 +181,7 @@ impl Default for BaselineTuning {
             egr_open_beyond_setpoint: 0.0,
             dp_vgt_limit: DP_VGT_LIMIT_DEFAULT,
             dp_vgt: (0.1, 1.0),
+            vgt_release_below_egr: 0.0,
         }
     }
 }
@@ -198,7 +205,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 19] = [
+    pub const FIELDS: [VarMeta; 20] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -305,12 +312,18 @@ impl BaselineTuning {
             description: "PI [kp, ki] of the back-pressure limiter on the VGT (per kPa of p_em - \
                           p_im above dp_vgt_limit)",
         },
+        VarMeta {
+            name: "vgt_release_below_egr",
+            unit: "%",
+            description: "EGR command below which the x_egr loop leaves the VGT to the lambda_O \
+                          limiter (no EGR to act on; 0: never)",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 19] = [
+    pub const BOUNDS: [(&'static str, Bounds); 20] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -403,10 +416,14 @@ impl BaselineTuning {
             },
         ),
         ("dp_vgt", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        (
+            "vgt_release_below_egr",
+            Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 19] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 20] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -431,6 +448,11 @@ impl BaselineTuning {
             ),
             ("dp_vgt_limit", [self.dp_vgt_limit, 0.0], 1),
             ("dp_vgt", [self.dp_vgt.0, self.dp_vgt.1], 2),
+            (
+                "vgt_release_below_egr",
+                [self.vgt_release_below_egr, 0.0],
+                1,
+            ),
         ]
     }
 
@@ -1342,11 +1364,11 @@ impl Controller for Baseline {
         let hold = self.egr_by_lambda_prev && self.u_egr_prev < self.tuning.vgt_hold_below_egr;
         let held = hold && u_vgt_x < self.u_vgt_prev;
         let u_vgt_x = if held { self.u_vgt_prev } else { u_vgt_x };
-        // conditional integration (session 41): with the valve commanded to its closed end the
-        // VGT has no authority over x_egr (no EGR flow whatever p_em), so the x_egr loop leaves
-        // the VGT's selector (its command the open end; its PI tracks the applied command) and
-        // the lambda_O limiter alone closes the VGT for air, as the structure intends
-        let no_egr = u_egr <= egr_closed;
+        // conditional integration (session 41, an option): with the valve commanded (nearly)
+        // shut the VGT has no authority over x_egr (no EGR flow whatever p_em), so the x_egr
+        // loop leaves the VGT's selector (its command the open end; its PI tracks the applied
+        // command) and the lambda_O limiter alone closes the VGT for air
+        let no_egr = u_egr < self.tuning.vgt_release_below_egr;
         let u_vgt_x = if no_egr { vmax } else { u_vgt_x };
         // the exhaust back-pressure limit (session 41): above dp_vgt_limit a PI opens the VGT
         // through a max selector over both VGT loops (below it the limiter takes no part and
