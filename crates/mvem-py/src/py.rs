@@ -638,8 +638,8 @@ const MAX_THREADS: usize = 1024;
 ///
 /// cycle: "whtc" or None (default: the WHTC denormalized with this engine's mapping curve), or a speed/torque
 ///     demand: a dict with arrays "t" [s], "n_e" [rpm], "M_ref" [Nm], or a 2-D array with these
-///     3 columns (linear between rows; speeds in the parameter set's range, torque at most the
-///     full-load torque), or the path of a cycle file (os.PathLike, or a str other than
+///     3 columns (linear between rows, two rows at one time a step there; speeds in the
+///     parameter set's range, torque at most the full-load torque), or the path of a cycle file (os.PathLike, or a str other than
 ///     "whtc"): a demand CSV (t, n_e, M_ref) or a normalized cycle (Time [s], Speed [%],
 ///     Torque [%], "m" motoring: UN GTR No. 4's form, denormalized as the WHTC), as
 ///     `mvem closed-loop --cycle FILE` reads it.
@@ -649,7 +649,9 @@ const MAX_THREADS: usize = 1024;
 ///     loops' gain schedule), egr_gain_closed, egr_gain_knee (the EGR-valve loops'),
 ///     vgt_hold_below_egr (the VGT hold near the shut EGR valve), egr_open_beyond_setpoint (how
 ///     far the valve may open beyond its position set-point where the set-point pair is out of
-///     reach; 100: no limit)); the others keep their defaults.
+///     reach; 100: no limit), dp_vgt_limit, dp_vgt=[kp, ki] (the exhaust back-pressure limit on
+///     the VGT, kPa), vgt_release_below_egr (the x_egr loop leaves the VGT alone below this EGR
+///     command; 0: never)); the others keep their defaults.
 /// params, model: as in simulate. duration: run only the first seconds of the cycle.
 /// margins: every so many seconds of the run, the loop margins of the air-path loops in feedback
 ///     at that sample (as `mvem closed-loop --margins S`; docs/control.md).

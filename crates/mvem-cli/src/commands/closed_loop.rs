@@ -31,9 +31,10 @@ torque at lambda_O >= 1.2, motoring torque for the \"m\" points), speeds 0 s..18
 --cycle FILE.csv: a header with the columns t [s], n_e [rpm], M_ref [Nm] (any order, more
 columns ignored, case ignored, `Time` for t; a unit in brackets after a name, `n_e [rpm]`, or a
 units row under the header, converted where it is another unit of the quantity: ms, krpm,
-rad/s, kNm), time strictly increasing, n_e in the model's speed range (the parameter set's
-[input_saturation] n_e, default 500-2000 rpm), M_ref at most the full-load torque (a torque
-below the motoring torque is run at the minimum fuel, with a warning); linear between rows.
+rad/s, kNm), time increasing (two rows at one time are a step there, as in simulate --inputs),
+n_e in the model's speed range (the parameter set's [input_saturation] n_e, default 500-2000
+rpm), M_ref at most the full-load torque (a torque below the motoring torque is run at the
+minimum fuel, with a warning); linear between rows.
 The run samples every 10 ms from the cycle's first time: a cycle end or a --duration off that
 grid runs the samples up to it (a warning says so); a --duration under 0.01 s is refused.
 Needs the authors' semantics (--semantics paper has no idle equilibrium).

@@ -22,6 +22,14 @@
 //!   closes for air only when closing the EGR valve was not enough (high load, where closing the
 //!   VGT raises the boost).
 //! - Anti-windup: each PI tracks the applied command when it did not give it ([`Pid`]).
+//!   Optionally (`vgt_release_below_egr`, off by default) the x_egr loop leaves the VGT's
+//!   selector while the EGR valve is commanded shut, where it has no authority over x_egr
+//!   (session 41: conditional integration; the lambda_O limiter alone closes the VGT there).
+//! - Exhaust back-pressure limit (session 41): above `p_em - p_im = dp_vgt_limit` a PI on the
+//!   excess opens the VGT through a max selector over both VGT loops
+//!   (`u_vgt = max(min(u_vgt,x, u_vgt,lambda), u_vgt,dp)`), the closed end the engine's
+//!   pressures set where the VGT's command range reaches beyond the VGT area map's
+//!   ([`BaselineTuning::dp_vgt_limit`], [`DpLimitLog`]).
 //! - Set-point pairs out of reach (session 39): where no steady state within the actuator
 //!   ranges gives a map cell's lambda_O,s and x_egr,s together, the cell's nominal valve
 //!   position is a third set-point, `u_egr,lambda <= u_egr,max(n_e, L)`
@@ -118,6 +126,22 @@ pub struct BaselineTuning {
     /// lets it open without limit (the behaviour before: the valve winds open at a few %/s
     /// while neither valve loop's error changes sign). No effect where the pair is reachable.
     pub egr_open_beyond_setpoint: f64,
+    /// Largest exhaust back-pressure p_em - p_im \[kPa\] the VGT loops may close the VGT into:
+    /// above it a limiter ([`Self::dp_vgt`]) opens the VGT through a max selector over both VGT
+    /// loops (session 41). The closed end of the VGT's command range is the model's (the
+    /// parameter set's `input_saturation.u_vgt`); this is the closed end the engine's pressures
+    /// set, whatever that range (docs/control.md, "Session 41").
+    pub dp_vgt_limit: f64,
+    /// PI of the exhaust back-pressure limiter on the VGT (kp [%/kPa], ki [%/(kPa s)] per kPa
+    /// of p_em - p_im above [`Self::dp_vgt_limit`]); acts only above the limit.
+    #[serde(deserialize_with = "pi_pair")]
+    pub dp_vgt: (f64, f64),
+    /// EGR command [%] below which the x_egr -> u_vgt loop leaves the VGT's selector (0: never,
+    /// the default; e.g. 0.01 for the valve's shut end, the authors' 0 %): with the valve shut
+    /// the VGT has no authority over x_egr, and the VGT is left to the lambda_O limiter (session
+    /// 41's conditional integration; on the default WHTC less pumping work but a larger x_egr
+    /// error, docs/control.md, "Session 41").
+    pub vgt_release_below_egr: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -155,6 +179,9 @@ impl Default for BaselineTuning {
             egr_gain_knee: 10.0,
             vgt_hold_below_egr: 0.0,
             egr_open_beyond_setpoint: 0.0,
+            dp_vgt_limit: DP_VGT_LIMIT_DEFAULT,
+            dp_vgt: (0.1, 1.0),
+            vgt_release_below_egr: 0.0,
         }
     }
 }
@@ -178,7 +205,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 17] = [
+    pub const FIELDS: [VarMeta; 20] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -273,12 +300,30 @@ impl BaselineTuning {
                           set-point where the set-point pair is out of reach (0: holds it; 100: \
                           no limit)",
         },
+        VarMeta {
+            name: "dp_vgt_limit",
+            unit: "kPa",
+            description: "largest exhaust back-pressure p_em - p_im the VGT loops may close the \
+                          VGT into (above it a limiter opens the VGT)",
+        },
+        VarMeta {
+            name: "dp_vgt",
+            unit: "%/kPa, %/(kPa s)",
+            description: "PI [kp, ki] of the back-pressure limiter on the VGT (per kPa of p_em - \
+                          p_im above dp_vgt_limit)",
+        },
+        VarMeta {
+            name: "vgt_release_below_egr",
+            unit: "%",
+            description: "EGR command below which the x_egr loop leaves the VGT to the lambda_O \
+                          limiter (no EGR to act on; 0: never)",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 17] = [
+    pub const BOUNDS: [(&'static str, Bounds); 20] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -363,10 +408,22 @@ impl BaselineTuning {
             "egr_open_beyond_setpoint",
             Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
         ),
+        (
+            "dp_vgt_limit",
+            Bounds {
+                lo_open: true,
+                ..Bounds::closed(0.0, 1e4, " kPa (a pressure difference)")
+            },
+        ),
+        ("dp_vgt", Bounds::closed(0.0, Self::GAIN_MAX, "")),
+        (
+            "vgt_release_below_egr",
+            Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 17] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 20] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -387,6 +444,13 @@ impl BaselineTuning {
             (
                 "egr_open_beyond_setpoint",
                 [self.egr_open_beyond_setpoint, 0.0],
+                1,
+            ),
+            ("dp_vgt_limit", [self.dp_vgt_limit, 0.0], 1),
+            ("dp_vgt", [self.dp_vgt.0, self.dp_vgt.1], 2),
+            (
+                "vgt_release_below_egr",
+                [self.vgt_release_below_egr, 0.0],
                 1,
             ),
         ]
@@ -540,6 +604,11 @@ impl Bounds {
         )
     }
 }
+
+/// Default of [`BaselineTuning::dp_vgt_limit`] \[kPa\]: above the largest p_em - p_im of the
+/// published engine's closed-loop WHTC and tip-ins with the authors' VGT range (measured in
+/// docs/control.md, "Session 41"), so it only acts where the VGT closes beyond that.
+pub const DP_VGT_LIMIT_DEFAULT: f64 = 350.0;
 
 /// Upper bound of the lambda_O set-point maps [-] (lean enough for every part load).
 pub const LAMBDA_SETPOINT_MAX: f64 = 10.0;
@@ -907,6 +976,8 @@ pub struct Baseline {
     x_egr: Pid,
     lambda_egr: Pid,
     lambda_vgt: Pid,
+    /// The exhaust back-pressure limiter on the VGT (active only above its limit).
+    dp_vgt: Pid,
     /// Set-point overrides (lambda_O,s, x_egr,s) for set-point step tests (NaN: from the maps).
     /// A lambda_O,s override also lifts the map's valve position set-point
     /// ([`SetpointMaps::u_egr_max`]), which belongs to the map's pair.
@@ -923,6 +994,27 @@ pub struct Baseline {
     egr_ramp: Ramp,
     /// The VGT command's (windup watch).
     vgt_ramp: Ramp,
+    /// Where the exhaust back-pressure limit gave the VGT command ([`DpLimitLog`]).
+    dp_log: DpLimitLog,
+}
+
+/// What the exhaust back-pressure limiter on the VGT ([`BaselineTuning::dp_vgt_limit`]) did
+/// during a run: it acts where the VGT loops close the VGT beyond what the engine's pressures
+/// allow (a VGT command range beyond the VGT area map's, session 41), which the user should know.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DpLimitLog {
+    /// Samples at which the limiter gave the VGT command.
+    pub samples: usize,
+    /// Times it took the VGT command over from the VGT loops (runs of such samples).
+    pub episodes: usize,
+    /// Time of the first sample \[s\] (0 while `samples` is 0).
+    pub first_t: f64,
+    /// The largest p_em - p_im measured at such a sample \[kPa\].
+    pub dp_max: f64,
+    /// The most closed VGT command the loops had reached when it took over [%].
+    pub u_vgt_min: f64,
+    /// Whether it gave the previous sample's command.
+    active: bool,
 }
 
 /// Shortest run of a command in one direction under one loop that counts as winding up to
@@ -1072,6 +1164,7 @@ impl Baseline {
             x_egr: Pid::new(tuning.x_egr_egr.0, tuning.x_egr_egr.1, 0.0),
             lambda_egr: Pid::new(tuning.lambda_egr.0, tuning.lambda_egr.1, 0.0),
             lambda_vgt: Pid::new(tuning.lambda_vgt.0, tuning.lambda_vgt.1, 0.0),
+            dp_vgt: Pid::new(tuning.dp_vgt.0, tuning.dp_vgt.1, 0.0),
             tuning,
             maps,
             setpoint_override: (f64::NAN, f64::NAN),
@@ -1081,7 +1174,13 @@ impl Baseline {
             egr_by_lambda_prev: false,
             egr_ramp: Ramp::default(),
             vgt_ramp: Ramp::default(),
+            dp_log: DpLimitLog::default(),
         }
+    }
+
+    /// What the exhaust back-pressure limit on the VGT did so far ([`DpLimitLog`]).
+    pub fn dp_limit_log(&self) -> &DpLimitLog {
+        &self.dp_log
     }
 
     /// The air-path commands wound to an end of their ranges so far, in time order
@@ -1138,11 +1237,13 @@ impl Controller for Baseline {
         self.x_egr.reset(u_egr);
         self.lambda_egr.reset(u_egr);
         self.lambda_vgt.reset(u_vgt);
+        self.dp_vgt.reset(u_vgt);
         self.u_vgt_prev = u_vgt;
         self.u_egr_prev = u_egr;
         self.egr_by_lambda_prev = false;
         self.egr_ramp = Ramp::default();
         self.vgt_ramp = Ramp::default();
+        self.dp_log = DpLimitLog::default();
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -1156,9 +1257,25 @@ impl Controller for Baseline {
     }
 
     fn notes(&self) -> Vec<String> {
+        let mut notes = Vec::new();
+        let d = &self.dp_log;
+        if d.samples > 0 {
+            notes.push(format!(
+                "the exhaust back-pressure limit (p_em - p_im at most dp_vgt_limit = {} kPa) \
+                 opened the VGT {} time(s), the first at t = {} s, over {} sample(s) in all \
+                 (p_em - p_im up to {:.0} kPa; the VGT loops had closed it to {:.1} %): the VGT \
+                 command range reaches further closed than this engine's pressures allow",
+                Num(self.tuning.dp_vgt_limit),
+                d.episodes,
+                Num((d.first_t * 100.0).round() / 100.0),
+                d.samples,
+                d.dp_max,
+                d.u_vgt_min
+            ));
+        }
         let ev = self.windup_events();
         let Some(first) = ev.first() else {
-            return Vec::new();
+            return notes;
         };
         let more = if ev.len() > 1 {
             format!(
@@ -1169,14 +1286,15 @@ impl Controller for Baseline {
         } else {
             String::new()
         };
-        vec![format!(
+        notes.push(format!(
             "{} time(s) an air-path loop wound its actuator to the end of its range (at least \
              {} %/s for at least {} s under one loop: a set-point pair out of reach, or a long \
              transient): {first}{more}",
             ev.len(),
             WINDUP_MIN_RATE,
             WINDUP_MIN_S
-        )]
+        ));
+        notes
     }
 
     fn update(&mut self, m: &Measurement) -> Output {
@@ -1246,7 +1364,21 @@ impl Controller for Baseline {
         let hold = self.egr_by_lambda_prev && self.u_egr_prev < self.tuning.vgt_hold_below_egr;
         let held = hold && u_vgt_x < self.u_vgt_prev;
         let u_vgt_x = if held { self.u_vgt_prev } else { u_vgt_x };
-        let u_vgt = u_vgt_x.min(u_vgt_l).clamp(closed, vmax);
+        // conditional integration (session 41, an option): with the valve commanded (nearly)
+        // shut the VGT has no authority over x_egr (no EGR flow whatever p_em), so the x_egr
+        // loop leaves the VGT's selector (its command the open end; its PI tracks the applied
+        // command) and the lambda_O limiter alone closes the VGT for air
+        let no_egr = u_egr < self.tuning.vgt_release_below_egr;
+        let u_vgt_x = if no_egr { vmax } else { u_vgt_x };
+        // the exhaust back-pressure limit (session 41): above dp_vgt_limit a PI opens the VGT
+        // through a max selector over both VGT loops (below it the limiter takes no part and
+        // starts from the applied command when the limit is next exceeded)
+        let e_dp = (m.p_em - m.p_im) / 1e3 - self.tuning.dp_vgt_limit;
+        let dp_active = e_dp > 0.0;
+        let u_vgt_sel = u_vgt_x.min(u_vgt_l);
+        let u_vgt_dp = self.dp_vgt.output(e_dp, dt);
+        let by_dp = dp_active && u_vgt_dp > u_vgt_sel;
+        let u_vgt = if by_dp { u_vgt_dp } else { u_vgt_sel }.clamp(closed, vmax);
         // which loop is in feedback (a command at one of its limits, where only one side of
         // the selector's output passes, and the error cap cut it)
         let egr_loop = if u_egr <= egr_closed || u_egr >= egr_open {
@@ -1261,7 +1393,8 @@ impl Controller for Baseline {
         } else {
             InCharge::Limiter
         };
-        let vgt_loop = if u_vgt <= closed || u_vgt >= vmax {
+        let vgt_loop = if u_vgt <= closed || u_vgt >= vmax || by_dp {
+            // (the back-pressure limiter is not an air-path loop of the linear analysis)
             InCharge::None
         } else if u_vgt_x <= u_vgt_l {
             // held: the previous command, no feedback
@@ -1279,6 +1412,25 @@ impl Controller for Baseline {
         self.x_egr.commit(e_xe, dt, u_egr);
         self.lambda_vgt.commit(e_lv, dt, u_vgt);
         self.x_vgt.commit(e_xv, dt, u_vgt);
+        if dp_active {
+            self.dp_vgt.commit(e_dp, dt, u_vgt);
+        } else {
+            self.dp_vgt.reset(u_vgt);
+        }
+        if by_dp {
+            let d = &mut self.dp_log;
+            if !d.active {
+                if d.episodes == 0 {
+                    d.first_t = m.t;
+                    d.u_vgt_min = u_vgt_sel.max(closed);
+                }
+                d.episodes += 1;
+                d.u_vgt_min = d.u_vgt_min.min(u_vgt_sel.max(closed));
+            }
+            d.samples += 1;
+            d.dp_max = d.dp_max.max((m.p_em - m.p_im) / 1e3);
+        }
+        self.dp_log.active = by_dp;
         let t = m.t;
         let egr_name = if egr_loop == InCharge::Limiter {
             "x_egr->u_egr (limiter)"

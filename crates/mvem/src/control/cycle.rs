@@ -21,6 +21,7 @@ use crate::dispatch;
 use crate::io::csv_columns::{file_line, header_line, Dialect};
 use crate::model::{AnyModel, Drive, Signals};
 use crate::numerics::Num;
+use crate::sim::input::{check_time_order, ScheduleError};
 
 /// How the mapping curve is computed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,7 +70,8 @@ pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> f64 {
 /// [`interp`] with `k = xs.partition_point(|&v| v <= x)` already known.
 fn interp_at(xs: &[f64], ys: &[f64], x: f64, k: usize) -> f64 {
     let n = xs.len();
-    if x <= xs[0] {
+    // (at the first time itself the right value: a step there, two rows at xs[0], is taken)
+    if x < xs[0] {
         return ys[0];
     }
     if x >= xs[n - 1] {
@@ -295,8 +297,9 @@ pub struct Demand {
 }
 
 impl Demand {
-    /// Build from rows; checks finite values, strictly increasing time and at least two rows
-    /// (the message names the row, 1-based). The speeds are checked against an engine's range
+    /// Build from rows; checks finite values, the order of the times (not decreasing, two rows
+    /// at one time a step where the demand jumps, no third: [`check_time_order`]) and at least
+    /// two rows (the message names the row, 1-based). The speeds are checked against an engine's range
     /// by [`Demand::check_speeds`].
     pub fn new(
         t: Vec<f64>,
@@ -324,12 +327,17 @@ impl Demand {
                     return bad(format!("row {}: {name} = {v} is not finite", i + 1));
                 }
             }
-            if i > 0 && t[i] <= t[i - 1] {
+            // (two rows at one time are a step, as in an input schedule)
+            if let Err(ScheduleError::NonMonotonic {
+                row,
+                t,
+                prev,
+                detail,
+            }) = check_time_order(&t, i)
+            {
                 return bad(format!(
-                    "row {}: time {} s is not after the previous row's {} s (time must increase)",
-                    i + 1,
-                    t[i],
-                    t[i - 1]
+                    "row {}: time {t} s is not monotonic (previous {prev} s){detail}",
+                    row + 1
                 ));
             }
         }
@@ -339,6 +347,24 @@ impl Demand {
             m_ref,
             motoring,
         })
+    }
+
+    /// The demand up to `t_end` \[s\]: its rows up to `t_end` (both rows of a step), then the
+    /// demand at `t_end` where no row is there (linear at the cut).
+    pub fn until(&self, t_end: f64) -> Result<Self, ControlError> {
+        let k = self.t.partition_point(|&v| v <= t_end);
+        let mut t = self.t[..k].to_vec();
+        let mut n_e = self.n_e[..k].to_vec();
+        let mut m_ref = self.m_ref[..k].to_vec();
+        let mut motoring = self.motoring[..k].to_vec();
+        if t.last() != Some(&t_end) {
+            let p = self.at(t_end);
+            t.push(t_end);
+            n_e.push(p.n_e);
+            m_ref.push(p.m_ref);
+            motoring.push(p.motoring);
+        }
+        Self::new(t, n_e, m_ref, motoring)
     }
 
     /// First and last time \[s\].

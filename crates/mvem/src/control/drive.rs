@@ -191,19 +191,6 @@ fn open_loop_demand(sched: &InputSchedule, curve: &MappingCurve) -> Result<Deman
     Demand::new(t, n, m, mot)
 }
 
-/// The demand up to `t_end` (linear at the cut).
-fn truncate(d: &Demand, t_end: f64) -> Result<Demand, ControlError> {
-    let mut t: Vec<f64> = d.times().iter().cloned().filter(|&t| t < t_end).collect();
-    t.push(t_end);
-    let pts: Vec<_> = t.iter().map(|&x| d.at(x)).collect();
-    Demand::new(
-        t,
-        pts.iter().map(|p| p.n_e).collect(),
-        pts.iter().map(|p| p.m_ref).collect(),
-        pts.iter().map(|p| p.motoring).collect(),
-    )
-}
-
 /// Drive `cycle` with `scheme` on `model`, only the first `duration` seconds if given; the
 /// statistics and the regulation check of the trajectory.
 pub fn run_cycle(
@@ -258,7 +245,7 @@ pub fn run_cycle_with(
     };
     let t_end = planned_end(&demand, duration, SAMPLE_TIME, &mut warnings)?;
     let demand = if t_end < demand.span().1 {
-        truncate(&demand, t_end)?
+        demand.until(t_end)?
     } else {
         demand
     };

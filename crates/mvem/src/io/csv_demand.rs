@@ -11,12 +11,14 @@
 //!   ([`crate::control::cycle::parse_normalized_table`]).
 
 use super::csv_columns::{header_names, read_columns_matched, split_unit, ColumnsError};
+use super::csv_inputs::schedule_error;
 use super::{format_err as err, IoError};
 use crate::control::cycle::{
     bare_name, header_fields, is_normalized_header, parse_normalized_table,
 };
 use crate::control::drive::CycleSource;
 use crate::control::Demand;
+use crate::sim::input::check_time_order;
 use crate::tuning::data::units_of;
 use std::path::Path;
 
@@ -49,9 +51,10 @@ pub fn demand_column(header: &str) -> Option<usize> {
 /// unit in brackets (`n_e [rpm]`) or an optional units row under the header (`s,rpm,Nm`); a
 /// column in another unit of its quantity is converted (`ms`, `krpm`, `rad/s`, `kNm`), an
 /// unknown unit refused. Every problem is named: a missing or doubled column (with the columns
-/// found), a unit, a field that is not a number (its line and column), and what [`Demand::new`]
-/// refuses (too few rows, times not increasing, non-finite values: the row counted after the
-/// header and the units row). The speeds are checked against an engine's range when the cycle
+/// found), a unit, a field that is not a number (its line and column), times out of order (its
+/// line: a time before the previous row's, or a third row at one time; two rows at one time are
+/// a step, as in `simulate --inputs`, [`check_time_order`]), and what [`Demand::new`] refuses
+/// (too few rows, non-finite values: the row counted after the header and the units row). The speeds are checked against an engine's range when the cycle
 /// runs ([`Demand::check_speeds`]).
 pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
     let header = header_names(text).map_err(|e| {
@@ -148,12 +151,18 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
             }
         }
     }
-    let (mut t, mut n, mut m) = (vec![], vec![], vec![]);
+    let (mut t, mut n, mut m, mut lines) = (vec![], vec![], vec![], vec![]);
     let conv = |c: usize, v: f64| scale[c].0 * v + scale[c].1;
-    for (_, v) in rows {
+    for (line, v) in rows {
         t.push(conv(0, v[0]));
         n.push(conv(1, v[1]));
         m.push(conv(2, v[2]));
+        lines.push(line);
+    }
+    // the order of the times as `simulate --inputs` reads it (two rows at one time are a step),
+    // named with the file's line
+    for i in 0..t.len() {
+        check_time_order(&t, i).map_err(|e| schedule_error(path, &lines, "t", e))?;
     }
     let k = t.len();
     let after = if units_row.is_some() {
@@ -215,14 +224,65 @@ mod tests {
             "c.csv, line 5, column n_e: 'fast' is not a number"
         );
         let e = parse("t,n_e,M_ref\n0,1000,100\n2,1000,100\n1,1000,100\n").unwrap_err();
-        assert!(
-            e.contains("row 3") && e.contains("time must increase"),
-            "{e}"
+        assert_eq!(
+            e,
+            "c.csv, line 4, column t: time 1 s is not monotonic (previous 2 s)"
         );
         let e = parse("t,n_e,M_ref\n0,1000,100\n").unwrap_err();
         assert!(e.contains("c.csv: "), "{e}");
         let e = parse("t,n_e,M_ref\n0,1000,100\n1,1000\n").unwrap_err();
         assert!(e.contains("line 3"), "{e}");
+    }
+
+    /// Two rows at one time are a step (session 41; before, "time must increase"), as in
+    /// `simulate --inputs`: the demand before the time is the first row's segment, at and after
+    /// it the second row's; a third row at one time and a time going back are refused naming the
+    /// file's line (after comments and a units row too), in the words of `simulate --inputs`.
+    #[test]
+    fn a_repeated_time_is_a_step() {
+        let d = parse("t,n_e,M_ref\n0,1200,100\n2,1200,100\n2,1300,1500\n4,1300,1500\n").unwrap();
+        assert_eq!(d.times(), &[0.0, 2.0, 2.0, 4.0]);
+        let at = |t: f64| {
+            let p = d.at(t);
+            (p.n_e, p.m_ref)
+        };
+        assert_eq!(at(1.999), (1200.0, 100.0));
+        assert_eq!(at(2.0), (1300.0, 1500.0));
+        assert_eq!(at(3.0), (1300.0, 1500.0));
+        // a step at the first time: the second row from the start
+        let d = parse("t,n_e,M_ref\n0,1200,100\n0,1200,900\n1,1200,900\n").unwrap();
+        assert_eq!(d.at(0.0).m_ref, 900.0);
+        // cut at the step (a --duration): both rows kept, the step still at the end
+        let d = parse("t,n_e,M_ref\n0,1200,100\n2,1200,100\n2,1200,1500\n4,1200,1500\n").unwrap();
+        let cut = d.until(2.0).unwrap();
+        assert_eq!(cut.times(), &[0.0, 2.0, 2.0]);
+        assert_eq!((cut.at(1.999).m_ref, cut.at(2.0).m_ref), (100.0, 1500.0));
+        let cut = d.until(3.0).unwrap();
+        assert_eq!(cut.times(), &[0.0, 2.0, 2.0, 3.0]);
+        assert_eq!(cut.at(2.5).m_ref, 1500.0);
+        assert_eq!(
+            parse("t,n_e,M_ref\n0,1200,100\n2,1200,100\n2,1200,900\n2,1200,1500\n").unwrap_err(),
+            "c.csv, line 5, column t: time 2 s is not monotonic (previous 2 s) (more than two \
+             rows with the same time)"
+        );
+        assert_eq!(
+            parse("# c\nt,n_e,M_ref\ns,rpm,Nm\n0,1200,100\n2,1200,100\n\n1.5,1200,100\n")
+                .unwrap_err(),
+            "c.csv, line 7, column t: time 1.5 s is not monotonic (previous 2 s)"
+        );
+        // the rule is the input schedules' (the same function): Demand::new names the row
+        let e = crate::control::Demand::new(
+            vec![0.0, 1.0, 1.0, 1.0],
+            vec![1200.0; 4],
+            vec![100.0; 4],
+            vec![false; 4],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("row 4: time 1 s is not monotonic (previous 1 s) (more than two rows"),
+            "{e}"
+        );
     }
 
     /// A demand's header is read as the normalized cycles' are: units in brackets or in a units

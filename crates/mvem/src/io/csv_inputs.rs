@@ -137,8 +137,20 @@ pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoErro
     if times.is_empty() {
         return Err(err(path, None, None, "no data rows".into()));
     }
-    // the schedule counts data rows from 0; the messages here name the file line only
-    InputSchedule::new(times, rows).map_err(|e| match e {
+    InputSchedule::new(times, rows).map_err(|e| schedule_error(path, &lines, "time_s", e))
+}
+
+/// A [`ScheduleError`] of a table read from `path` as the file's error: the schedule counts
+/// data rows from 0, the message names the file line of the row (`lines`, one per data row)
+/// only, and a time out of order the time column `time_column` (also the demand reader's,
+/// [`super::csv_demand::parse_demand_csv`]).
+pub(crate) fn schedule_error(
+    path: &Path,
+    lines: &[usize],
+    time_column: &str,
+    e: ScheduleError,
+) -> IoError {
+    match e {
         ScheduleError::NonFinite { row, column, value } => err(
             path,
             lines.get(row).copied(),
@@ -153,11 +165,11 @@ pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoErro
         } => err(
             path,
             lines.get(row).copied(),
-            Some("time_s"),
+            Some(time_column),
             format!("time {t} s is not monotonic (previous {prev} s){detail}"),
         ),
         ScheduleError::Empty => err(path, None, None, e.to_string()),
-    })
+    }
 }
 
 /// The common case of an input table without the csv crate: an ASCII header line of the five

@@ -86,6 +86,34 @@ fn check_values(i: usize, r: &[f64; 4]) -> Result<(), ScheduleError> {
     }
 }
 
+/// Whether row `i` of a table whose `times` are linear between rows, two rows at one time a
+/// step (the value jumps there), may follow the rows before it: its time not before the
+/// previous row's, and no third row at one time. The error names the 0-based row; the input
+/// schedules and the closed loop's demands ([`crate::control::Demand`]) share this rule.
+pub fn check_time_order(times: &[f64], i: usize) -> Result<(), ScheduleError> {
+    if i == 0 {
+        return Ok(());
+    }
+    let (t, prev) = (times[i], times[i - 1]);
+    if t < prev {
+        return Err(ScheduleError::NonMonotonic {
+            row: i,
+            t,
+            prev,
+            detail: "",
+        });
+    }
+    if i > 1 && t == prev && times[i - 2] == prev {
+        return Err(ScheduleError::NonMonotonic {
+            row: i,
+            t,
+            prev,
+            detail: " (more than two rows with the same time)",
+        });
+    }
+    Ok(())
+}
+
 impl InputSchedule {
     /// Build from rows `(t, [n_e, u_delta, u_egr, u_vgt])`; times must be non-decreasing, at most
     /// two rows may share a time (a step).
@@ -102,25 +130,7 @@ impl InputSchedule {
                 });
             }
             check_values(i, r)?;
-            if i > 0 {
-                let prev = times[i - 1];
-                if *t < prev {
-                    return Err(ScheduleError::NonMonotonic {
-                        row: i,
-                        t: *t,
-                        prev,
-                        detail: "",
-                    });
-                }
-                if i > 1 && *t == prev && times[i - 2] == prev {
-                    return Err(ScheduleError::NonMonotonic {
-                        row: i,
-                        t: *t,
-                        prev,
-                        detail: " (more than two rows with the same time)",
-                    });
-                }
-            }
+            check_time_order(&times, i)?;
         }
         Ok(Self {
             times,
