@@ -18,14 +18,10 @@ pub fn pi_c(p_out: f64, p_amb: f64, sem: Semantics) -> f64 {
 }
 
 /// Isentropic temperature-ratio term Pi_c^(1 - 1/gamma_a) - 1 [-] shared by eqs (58), (60),
-/// (61) and (66); computed once per evaluation, as expm1((1 - 1/gamma_a) ln Pi_c) (inline
-/// [`crate::numerics::fastmath`]: within a few ulp of the exact value also near Pi_c = 1, where
-/// `powf` - 1 loses eps/2 / (Pi_c^(1 - 1/gamma_a) - 1) relative; same special values: Pi_c = 0
-/// gives -1, a negative or NaN Pi_c NaN).
+/// (61) and (66); computed once per evaluation.
 #[inline]
 pub fn isentropic_term(pi_c: f64, gamma_a: f64) -> f64 {
-    use crate::numerics::fastmath::{exp_m1, ln};
-    exp_m1((1.0 - 1.0 / gamma_a) * ln(pi_c))
+    pi_c.powf(1.0 - 1.0 / gamma_a) - 1.0
 }
 
 /// Energy transfer coefficient Psi_c [-], eq. (66):

@@ -527,8 +527,7 @@ pub fn exhaust_temp_drop(
     } else {
         (t_amb, 1.0)
     };
-    let a = -pipe.h_tot * PI * pipe.d_pipe * l * pipe.n_pipe / (w_eo * c_pe);
-    t_w + (t_e - t_w) * crate::numerics::fastmath::exp(a)
+    t_w + (t_e - t_w) * (-pipe.h_tot * PI * pipe.d_pipe * l * pipe.n_pipe / (w_eo * c_pe)).exp()
 }
 
 /// Engine torque M_e \[Nm\], eqs (26)-(31):

@@ -2,7 +2,6 @@
 //! and the VGT actuator (section 6.2.3, eq. (57)).
 
 use super::{pow_ln, Semantics};
-use crate::numerics::fastmath;
 use crate::params::{Turbine, VgtActuator};
 
 /// Turbine pressure ratio Pi_t = p_es / p_em with p_es = p_amb, eq. (44); the authors cap it at
@@ -34,13 +33,13 @@ pub fn f_vgt(t: &Turbine, u_vgt: f64, sem: Semantics) -> f64 {
 /// [`expansion_terms`]).
 #[inline]
 pub fn f_pi_t(t: &Turbine, pi_t: f64) -> f64 {
-    one_minus_pow_ln(t.k_t, fastmath::ln(pi_t)).sqrt()
+    one_minus_pow_ln(t.k_t, pi_t.ln()).sqrt()
 }
 
 /// 1 - x^a from ln x, as -expm1(a ln x) (accurate near x = 1, where 1 - powf cancels).
 #[inline]
 fn one_minus_pow_ln(a: f64, ln_x: f64) -> f64 {
-    -fastmath::exp_m1(a * ln_x)
+    -(a * ln_x).exp_m1()
 }
 
 /// The two powers of the turbine pressure ratio in one evaluation, from one logarithm.
@@ -61,7 +60,7 @@ pub struct ExpansionTerms {
 /// Pi_t < 0 NaN.
 #[inline]
 pub fn expansion_terms(t: &Turbine, gamma_e: f64, pi_t: f64) -> ExpansionTerms {
-    let ln = fastmath::ln(pi_t);
+    let ln = pi_t.ln();
     ExpansionTerms {
         f_pi_t: one_minus_pow_ln(t.k_t, ln).sqrt(),
         dh: one_minus_pow_ln(1.0 - 1.0 / gamma_e, ln),
@@ -116,7 +115,7 @@ pub fn power(
     w_t: f64,
     sem: Semantics,
 ) -> TurbinePower {
-    let dh = one_minus_pow_ln(1.0 - 1.0 / gamma_e, fastmath::ln(pi_t));
+    let dh = one_minus_pow_ln(1.0 - 1.0 / gamma_e, pi_t.ln());
     power_dh(t, c_pe, t_em, dh, omega_t, w_t, sem)
 }
 

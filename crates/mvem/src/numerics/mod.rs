@@ -5,8 +5,6 @@
 //!   computation reports as it goes (tuning steps, search iterations) to an observer.
 //! - `linalg`: dense LU with partial pivoting on fixed-size arrays (the Rosenbrock iteration
 //!   matrices of [`crate::sim`]).
-//! - `fastmath`: inline `exp`, `ln`, `exp_m1` and x^a for the model's right-hand side and the
-//!   closed-form lags (within 1 ulp of the standard library, with its special values).
 //! - [`lsq`]: bounded nonlinear least squares (Trust Region Reflective with Coleman–Li
 //!   scaling), finite-difference or user Jacobians, typed errors, linearized parameter
 //!   statistics. Verified on the NIST StRD nonlinear regression problems (`tests/nist.rs`).
@@ -14,7 +12,6 @@
 //!   projection (Golub–Pereyra).
 
 pub mod cancel;
-pub(crate) mod fastmath;
 pub(crate) mod linalg;
 pub mod lsq;
 pub mod progress;

@@ -115,7 +115,7 @@ impl LagPiece {
     fn advance(&self, tau: f64, t: f64, x: f64, s: f64) -> f64 {
         let c = |t: f64| self.c0 + self.beta * (t - self.t0);
         let bt = self.beta * tau;
-        c(t + s) - bt + (x - c(t) + bt) * crate::numerics::fastmath::exp(-s / tau)
+        c(t + s) - bt + (x - c(t) + bt) * (-s / tau).exp()
     }
 }
 
