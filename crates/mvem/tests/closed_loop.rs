@@ -908,7 +908,7 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
         row.iter_mut().for_each(|c| *c = 100.0);
     }
     let (t, ue, uv, windups) =
-        held_at_maps_setpoints(&m, free, BaselineTuning::default(), 800.0, 180.0);
+        held_at_maps_setpoints(&m, free.clone(), BaselineTuning::default(), 800.0, 180.0);
     assert!(
         band(&ue, &t, 2.0) > 50.0,
         "u_egr p-p {}",
@@ -916,6 +916,20 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
     );
     assert_eq!(ue[ue.len() - 1], 100.0);
     assert!(windups >= 1);
+    // the same with the valve's command range ending at 80 % (a parameter set's
+    // input_saturation.u_egr): wound to 80 %, and the windup is reported at that end (session
+    // 41; before, the watch looked for 100 % and reported none)
+    let mut narrow = free.clone();
+    narrow.u_egr_range = (0.0, 80.0);
+    let (tn, uen, _, windups_n) =
+        held_at_maps_setpoints(&m, narrow, BaselineTuning::default(), 800.0, 180.0);
+    assert!(
+        band(&uen, &tn, 2.0) > 40.0,
+        "u_egr p-p {}",
+        band(&uen, &tn, 2.0)
+    );
+    assert_eq!(uen[uen.len() - 1], 80.0);
+    assert!(windups_n >= 1, "no windup reported at the range's open end");
     // the tuning's switch back to that behaviour: the valve may open 100 % beyond its position
     // set-point, i.e. without limit: the same commands to the bit
     let open = BaselineTuning {

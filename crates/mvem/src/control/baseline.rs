@@ -1442,7 +1442,9 @@ impl Controller for Baseline {
             t,
             dt,
             (self.u_egr_prev, u_egr),
-            (0.0, 100.0),
+            // the valve's command range (the parameter set's input_saturation.u_egr; session 41:
+            // was 0-100 %, so a valve wound to the open end of a narrower range was not reported)
+            (egr_closed, egr_open),
             egr_loop,
             egr_name,
             sp,
