@@ -1394,7 +1394,12 @@ def test_a_link_to_a_cycle_time_and_a_map(browser, server):
     # (the samples every 0.2 s: the nearest is 900.2 s, the 4502nd)
     assert pg.text_content("#cycle-time") == "900.2"
     assert pg.input_value("input[name=cycle_t]") == "4501"
-    pg.wait_for_function("document.body.dataset.url === location.hash && location.hash.includes('show=map,cycle')")
+    # (the link is rewritten at most every 100 ms: until then it may still hold the link's own
+    # 900.25, written while the run was pending; wait for the sample's time)
+    pg.wait_for_function(
+        "document.body.dataset.url === location.hash && location.hash.includes('show=map,cycle')"
+        " && Math.abs(Number(new URLSearchParams(location.hash.slice(1)).get('cycle_t')) - 900.2) < 1e-9",
+        timeout=10000)
     t = [p for p in pg.url.split("#")[1].split("&") if p.startswith("cycle_t=")]
     assert len(t) == 1 and abs(float(t[0].split("=")[1]) - 900.2) < 1e-9, pg.url
     assert pg.is_hidden("#url-note")
