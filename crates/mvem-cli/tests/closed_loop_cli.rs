@@ -3,7 +3,9 @@
 
 mod common;
 
-use common::{col, files, mvem, read_csv, stderr, stdout, usage_error, write_published_with};
+use common::{
+    col, files, json_of, mvem, read_csv, stderr, stdout, usage_error, write_published_with,
+};
 
 #[test]
 fn short_whtc_run_writes_the_trajectory_and_statistics() {
@@ -1006,8 +1008,7 @@ fn a_demand_may_repeat_a_time_as_a_step() {
             d.path(),
             &["closed-loop", "--cycle", cycle, "--out", &out, "--json"],
         );
-        assert!(o.status.success(), "{}", stderr(&o));
-        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let j = json_of(&o);
         let (h, rows) = read_csv(&d.path().join(&out).join("trajectory.csv"));
         (j, h, rows)
     };

@@ -48,7 +48,7 @@ impl Layout {
     /// where `[columns]` renames it (the `column` and `renamed` of [`DataError::Value`]).
     fn label(&self, name: &str) -> (String, Option<String>) {
         let h = self.header(name);
-        (h.to_string(), (h != name).then(|| name.to_string()))
+        (h.to_string(), renamed_from(h, name))
     }
 }
 
@@ -822,7 +822,7 @@ fn parse_columns(
             path: path.to_path_buf(),
             line,
             column: headers[column].to_string(),
-            renamed: (headers[column] != names[column]).then(|| names[column].to_string()),
+            renamed: renamed_from(headers[column], names[column]),
             message: if field.is_empty() {
                 "missing value".into()
             } else if line == 2 {
@@ -847,7 +847,7 @@ fn parse_columns(
                 path: path.to_path_buf(),
                 line,
                 column: h.to_string(),
-                renamed: (*h != c.name).then(|| c.name.to_string()),
+                renamed: renamed_from(h, c.name),
                 message,
             };
             if !v.is_finite() {
@@ -891,6 +891,12 @@ fn parse_columns(
         return Err(fmt("no data rows".into()));
     }
     Ok(Parsed { rows, lines, conv })
+}
+
+/// mvem's name `name` of the column a file heads `header`, where the two differ (the
+/// [`DataError::Value`] message gives both).
+fn renamed_from(header: &str, name: &str) -> Option<String> {
+    (header != name).then(|| name.to_string())
 }
 
 /// The headers of `found` (with their 0-based positions) that are `h` with a unit in brackets
