@@ -1373,7 +1373,8 @@ impl Controller for Baseline {
         // the exhaust back-pressure limit (session 41): above dp_vgt_limit a PI opens the VGT
         // through a max selector over both VGT loops (below it the limiter takes no part and
         // starts from the applied command when the limit is next exceeded)
-        let e_dp = (m.p_em - m.p_im) / 1e3 - self.tuning.dp_vgt_limit;
+        let dp_kpa = (m.p_em - m.p_im) / 1e3;
+        let e_dp = dp_kpa - self.tuning.dp_vgt_limit;
         let dp_active = e_dp > 0.0;
         let u_vgt_sel = u_vgt_x.min(u_vgt_l);
         let u_vgt_dp = self.dp_vgt.output(e_dp, dt);
@@ -1428,7 +1429,7 @@ impl Controller for Baseline {
                 d.u_vgt_min = d.u_vgt_min.min(u_vgt_sel.max(closed));
             }
             d.samples += 1;
-            d.dp_max = d.dp_max.max((m.p_em - m.p_im) / 1e3);
+            d.dp_max = d.dp_max.max(dp_kpa);
         }
         self.dp_log.active = by_dp;
         let t = m.t;
