@@ -6,6 +6,7 @@ use mvem::params::Params;
 use mvem::tuning::complete::{fit_dynamic, param_value, Cost77, DynamicFit, Step5Options};
 use mvem::tuning::data::Role;
 use mvem::tuning::lab::{self, LabOptions, Noise};
+use mvem::tuning::pipeline::{tune, PipelineOptions};
 use mvem::tuning::twelve::{fit_k_ic, w_ic_series, V_IC_START};
 
 fn lab12(noise: Noise, sets: &[&str], max_steps: usize, n_stat: usize) -> LabOptions {
@@ -198,4 +199,78 @@ fn step5_with_k_ic_restores_k_ic_from_the_w_ic_row() {
     let w_ic = rep.submodels.iter().find(|r| r.submodel == "W_ic").unwrap();
     assert!(w_ic.mean_abs_rel_err < 1e-4, "{w_ic:?}");
     assert_eq!(rep.params.last().map(|x| x.0.as_str()), Some("k_ic"));
+}
+
+#[test]
+fn steps_7_and_8_stopped_at_their_limits_flag_their_estimates() {
+    // noise-free 12-state campaign (B static+dynamic, G static, 2 steps each), the pipeline from
+    // the true parameters with steps 3 and 5 only and evaluation limits far below what the
+    // searches need: step 7 (limit 8, one Jacobian of 4 parameters takes 5) and step 8 (limit
+    // 20 below its first Jacobian of 36 parameters) stop at their limits, and their estimates
+    // must say so as step 5's do
+    let p = Params::published();
+    let c = lab::campaign(&p, &lab12(Noise::NONE, &["B", "G"], 2, 13))
+        .unwrap()
+        .0;
+    let opts = PipelineOptions {
+        model: ModelOrder::Twelve,
+        steps: [false, false, true, false, true],
+        refine_dynamics: false,
+        step3_max_eval: 8,
+        step5: Step5Options {
+            max_evaluations: 20,
+            ..Step5Options::default()
+        },
+        ..PipelineOptions::default()
+    };
+    let (_, rep) = tune(&c, &p, &opts).unwrap();
+    let t = rep.twelve.as_ref().unwrap();
+    let s7 = t.dynamic.as_ref().unwrap();
+    let s8 = t.statics.as_ref().unwrap();
+    // how they stopped, in the report: the rule, the evaluations (limit + the start cost),
+    // the cost before and after
+    assert_eq!((s7.step, s7.stopped_by.as_str()), (7, "evaluation limit"));
+    assert!(
+        (9..=14).contains(&s7.n_eval),
+        "step 7: {} evaluations",
+        s7.n_eval
+    );
+    assert!(s7.cost <= s7.cost_start && s7.cost_start > 0.0, "{s7:?}");
+    assert_eq!((s8.step, s8.stopped_by.as_str()), (8, "evaluation limit"));
+    assert!(
+        !s8.converged && s8.n_eval >= 20,
+        "{} evaluations",
+        s8.n_eval
+    );
+    let why7 = s7.early_stop().unwrap();
+    assert!(
+        why7.starts_with("step 7 stopped at its evaluation limit before converging, after"),
+        "{why7}"
+    );
+    let why8 = s8.early_stop().unwrap();
+    assert!(
+        why8.starts_with("step 8 stopped at its evaluation limit before converging, after"),
+        "{why8}"
+    );
+    // every estimate of steps 7 and 8 is not converged and names its step's stop; step 5's
+    // (superseded by step 8's) and step 3's lags are not the 12-state steps'
+    let mut n = [0, 0];
+    for (k, e) in &rep.parameters {
+        let (i, why) = match e.step {
+            7 => (0, &why7),
+            8 => (1, &why8),
+            _ => continue,
+        };
+        n[i] += 1;
+        assert!(!e.converged && !e.identifiable, "{k}: {e:?}");
+        assert!(e.reason.contains(why.as_str()), "{k}: {}", e.reason);
+    }
+    // V_ic, V_im, V_em, J_t; the 35 static parameters and k_ic
+    assert_eq!(n, [4, 36], "estimates of steps 7, 8");
+    // and the messages name the steps' stops
+    let msgs = mvem::tuning::request::report_messages(&rep);
+    for step in [7, 8] {
+        let m = format!("warning: step {step} stopped at its evaluation limit");
+        assert!(msgs.iter().any(|x| x.starts_with(&m)), "{msgs:#?}");
+    }
 }

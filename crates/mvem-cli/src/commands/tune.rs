@@ -573,9 +573,13 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
         if let Some(r) = &t.dynamic {
             let _ = writeln!(
                 s,
-                "Step 7: {} evaluations, converged {}",
-                r.n_eval, r.converged
+                "Step 7: cost {:.4e} -> {:.4e}, {} evaluations, converged {} (stopped by: {}, \
+                 relative offset {:.2e})\n",
+                r.cost_start, r.cost, r.n_eval, r.converged, r.stopped_by, r.rel_offset
             );
+            if let Some(note) = r.stop_note() {
+                let _ = writeln!(s, "**Note:** {note}.\n");
+            }
             table(
                 &mut s,
                 "Step 7: V_ic, V_im, V_em, J_t (12-state model, eq. (5) on the dynamic sets)",
@@ -585,9 +589,12 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
         if let Some(r) = &t.statics {
             let _ = writeln!(
                 s,
-                "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {}\n",
-                r.cost_start, r.cost_end, r.n_eval, r.converged
+                "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {} (stopped by: {}, relative offset {:.2e})\n",
+                r.cost_start, r.cost_end, r.n_eval, r.converged, r.stopped_by, r.rel_offset
             );
+            if let Some(note) = r.stop_note() {
+                let _ = writeln!(s, "**Note:** {note}.\n");
+            }
             table(&mut s, "Step 8: submodels (eq. (4))", &r.submodels);
             table(
                 &mut s,
@@ -616,8 +623,8 @@ fn parameter_table(
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
          error <= 25 % and no correlation > 0.99, from a search that reached its optimum (not \
-         converged: step 5 stopped short of it, or steps 3-4 ran again on its maps; \
-         docs/tuning.md). Elements are counted from 1, \
+         converged: step 5, 7 or 8 stopped short of it, or steps 3-4 or 7 ran on the maps of a \
+         step 5 or 8 that did; docs/tuning.md). Elements are counted from 1, \
          as the parameter registry, the FMU and Python's params= name them (cylinder.c_vol[1] \
          is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \

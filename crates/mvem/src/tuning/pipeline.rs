@@ -537,7 +537,9 @@ pub fn tune(
     }
     if opts.model == ModelOrder::Twelve {
         begin(6, false)?;
-        rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
+        let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
+        let stop5 = last5.and_then(Step5Report::early_stop);
+        rep.twelve = Some(tune_twelve(c, &mut p, opts, stop5)?);
     }
     // the last step run (0: none), which the checks of the result are reported under
     let last_step = opts
@@ -1307,9 +1309,8 @@ fn run_step5(
         &boxes,
         opts.fixed_jacobian,
     );
-    if let Some(why) = r.early_stop() {
-        flag_not_converged(&mut r.uncertainty, &why);
-    }
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -1624,6 +1625,22 @@ fn flag_not_converged(e: &mut [(String, ParamEstimate)], why: &str) {
     }
 }
 
+/// Flag the estimates `e` of a search that did not reach its optimum as not converged
+/// ([`flag_not_converged`]); `stop` is the `early_stop` of its report
+/// ([`Step5Report::early_stop`] for steps 5 and 8, [`CompleteReport::early_stop`] for step 7),
+/// `None` when it converged.
+fn flag_early_stop(e: &mut [(String, ParamEstimate)], stop: Option<String>) {
+    if let Some(why) = stop {
+        flag_not_converged(e, &why);
+    }
+}
+
+/// The reason of an estimate fitted on the static maps of a step-5 (or step-8) search that
+/// stopped short of its optimum (`stop`, its `early_stop`).
+fn on_maps_of(stop: &str) -> String {
+    format!("fitted on the static maps of a {stop}")
+}
+
 /// Flag the reported estimates of steps 3 and 4 repeated after a step 5 that did not reach its
 /// optimum (`stop`, [`Step5Report::early_stop`] of the last step-5 pass; `step3_rerun`,
 /// `step4_rerun`: whether the step ran again on its static maps): they were fitted on those
@@ -1637,7 +1654,7 @@ fn flag_rests_on_unconverged_step5(
     step3_rerun: bool,
     step4_rerun: bool,
 ) {
-    let why = format!("fitted on the static maps of a {stop}");
+    let why = on_maps_of(stop);
     for e in parameters.values_mut() {
         if (e.step == 3 && step3_rerun) || (e.step == 4 && step4_rerun) {
             e.flag_not_converged(&why);
@@ -1646,10 +1663,15 @@ fn flag_rests_on_unconverged_step5(
 }
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.
+/// `maps_stop`: the early stop of the last step-5 pass ([`Step5Report::early_stop`]), whose
+/// static maps step 7 runs on. Each search's estimates are flagged as step 5's are when it did
+/// not reach its optimum ([`flag_early_stop`]), and step 7's also when its maps come from such
+/// a search.
 fn tune_twelve(
     c: &Campaign,
     p: &mut Params,
     opts: &PipelineOptions,
+    maps_stop: Option<String>,
 ) -> Result<TwelveReport, PipelineError> {
     let t = Instant::now();
     let infos = &c.manifest.datasets;
@@ -1658,49 +1680,7 @@ fn tune_twelve(
     let mut dynamic = None;
     if opts.steps[2] {
         begin(7, false)?;
-        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
-        if sets.is_empty() {
-            return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
-        }
-        let s3 = &opts.step3;
-        // V_ic's start and bounds are given for the published engine: scaled by the
-        // displacement as step 3's volumes are (Step3Start::scaled_to; the identity there)
-        let v_ic = V_IC_START.map(|v| v * (p.cylinder.v_d / PUBLISHED_V_D));
-        let th0 = [
-            v_ic[0],
-            p.intake_manifold.v_im,
-            p.exhaust_manifold.v_em,
-            p.turbo.j_t,
-        ];
-        let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
-        let th0: Vec<f64> = th0
-            .iter()
-            .zip([v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]])
-            .zip([v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]])
-            .map(|((v, lo), hi)| clip(*v, lo, hi))
-            .collect();
-        let f = DynamicFit {
-            order: ModelOrder::Twelve,
-            names: &["v_ic", "v_im", "v_em", "j_t"],
-            theta0: &th0,
-            lo: &[v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]],
-            hi: &[v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]],
-            scale: &[0.01, 0.02, 0.02, 1e-4],
-            amp_floor: s3.amp_floor,
-            window: s3.window,
-            lags: opts.step5.sensor_lags,
-            max_eval: opts.step3_max_eval,
-        };
-        let (q, r) = fit_dynamic(
-            "12-state step 2 (V_ic, V_im, V_em, J_t)",
-            p,
-            &sets,
-            &c.stationary,
-            &f,
-        )
-        .map_err(at(7))?;
-        *p = q;
-        dynamic = Some(r);
+        dynamic = Some(run_step7(c, p, opts, maps_stop.as_deref())?);
     }
     let mut statics = None;
     if opts.steps[4] {
@@ -1717,8 +1697,10 @@ fn tune_twelve(
             ..opts.step5.clone()
         };
         let th0 = theta_of(&static_params(ModelOrder::Twelve), p);
-        let (q, r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
+        let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
         *p = q;
+        let stop = r.early_stop();
+        flag_early_stop(&mut r.uncertainty, stop);
         statics = Some(r);
     }
     Ok(TwelveReport {
@@ -1727,6 +1709,64 @@ fn tune_twelve(
         statics,
         seconds: t.elapsed().as_secs_f64(),
     })
+}
+
+/// Step 7 (V_ic, V_im, V_em, J_t by (74)-(75) on the 12-state model) from `p` (replaced by
+/// the result), V_ic started at [`V_IC_START`] scaled to the engine, the others at their
+/// values in `p`; its estimates flagged when the search did not reach its optimum, or when the
+/// static maps it ran on come from a search that did not (`maps_stop`).
+fn run_step7(
+    c: &Campaign,
+    p: &mut Params,
+    opts: &PipelineOptions,
+    maps_stop: Option<&str>,
+) -> Result<CompleteReport, PipelineError> {
+    let sets = sets_with_role(&c.manifest.datasets, &c.dynamic, Role::Dynamic, true);
+    if sets.is_empty() {
+        return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
+    }
+    let s3 = &opts.step3;
+    // V_ic's start and bounds are given for the published engine: scaled by the
+    // displacement as step 3's volumes are (Step3Start::scaled_to; the identity there)
+    let v_ic = V_IC_START.map(|v| v * (p.cylinder.v_d / PUBLISHED_V_D));
+    let th0 = [
+        v_ic[0],
+        p.intake_manifold.v_im,
+        p.exhaust_manifold.v_em,
+        p.turbo.j_t,
+    ];
+    let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
+    let th0: Vec<f64> = th0
+        .iter()
+        .zip([v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]])
+        .zip([v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]])
+        .map(|((v, lo), hi)| clip(*v, lo, hi))
+        .collect();
+    let f = DynamicFit {
+        order: ModelOrder::Twelve,
+        names: &["v_ic", "v_im", "v_em", "j_t"],
+        theta0: &th0,
+        lo: &[v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]],
+        hi: &[v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]],
+        scale: &[0.01, 0.02, 0.02, 1e-4],
+        amp_floor: s3.amp_floor,
+        window: s3.window,
+        lags: opts.step5.sensor_lags,
+        max_eval: opts.step3_max_eval,
+    };
+    let (q, mut r) = fit_dynamic(
+        "12-state step 2 (V_ic, V_im, V_em, J_t)",
+        p,
+        &sets,
+        &c.stationary,
+        &f,
+    )
+    .map_err(at(7))?;
+    *p = q;
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
+    flag_early_stop(&mut r.uncertainty, maps_stop.map(on_maps_of));
+    Ok(r)
 }
 
 #[cfg(test)]
