@@ -580,6 +580,18 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
             if let Some(note) = r.stop_note() {
                 let _ = writeln!(s, "**Note:** {note}.\n");
             }
+            let rel: Vec<String> = r
+                .rel_std_err
+                .iter()
+                .map(|(n, e)| format!("{n} {}", pct(*e)))
+                .collect();
+            let _ = writeln!(
+                s,
+                "Step 7: relative standard errors (%) of the search's linearization \
+                 (residuals taken as independent): {}; the parameter table has those of the \
+                 covariance with the residuals' autocorrelation (docs/tuning.md, session 42)\n",
+                rel.join(", ")
+            );
             table(
                 &mut s,
                 "Step 7: V_ic, V_im, V_em, J_t (12-state model, eq. (5) on the dynamic sets)",

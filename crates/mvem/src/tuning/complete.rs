@@ -481,6 +481,12 @@ pub struct CompleteReport {
     pub gauss_newton_decrease: Option<f64>,
     /// As [`Step5Report::gauss_newton_t`].
     pub gauss_newton_t: Option<f64>,
+    /// Linearized relative standard errors of the parameters at the end of the search, as
+    /// [`Step5Report::rel_std_err`] (`sigma^2 (J^T J)^-1` of the search's last Jacobian,
+    /// [`LsqResult::stats`], relative to `max(|value|, 1e-3 typical magnitude)`; infinite for
+    /// unidentifiable directions). `uncertainty` has the standard errors of the block
+    /// covariance at the estimate that the tuning reports.
+    pub rel_std_err: Vec<(String, f64)>,
     /// Standard error and identifiability of each fitted parameter ([`super::uncertainty`]).
     pub uncertainty: Vec<(String, ParamEstimate)>,
     /// Sensor lags the step simulated with (fitted when their names are in `params`).
@@ -742,6 +748,7 @@ pub fn fit_dynamic(
             rel_offset: fit.rel_offset,
             gauss_newton_decrease: line.as_ref().map(|l| l.measured),
             gauss_newton_t: line.as_ref().map(|l| l.t),
+            rel_std_err: rel_std_errors(&fit, f.names, &fit.theta, f.scale),
             uncertainty,
             sensor_lags: lags,
             linearization,
@@ -965,6 +972,7 @@ pub fn step4(
             rel_offset: fit.rel_offset,
             gauss_newton_decrease: None,
             gauss_newton_t: None,
+            rel_std_err: rel_std_errors(&fit, &["tau_me"], &fit.theta, &[0.3]),
             uncertainty,
             sensor_lags: SensorLags::NONE,
             linearization,
@@ -1788,6 +1796,24 @@ fn predicted_distance(stopped_by: &str, r: f64, p: usize) -> Option<(f64, f64)> 
     Some((r * r * p, r * p.sqrt()))
 }
 
+/// The relative standard errors of a search's end ([`LsqResult::stats`]) by parameter name:
+/// standard error over `max(|value|, 1e-3 scale)` (`values` the estimates, `scale` the
+/// typical magnitudes).
+fn rel_std_errors(
+    fit: &LsqResult,
+    names: &[&str],
+    values: &[f64],
+    scale: &[f64],
+) -> Vec<(String, f64)> {
+    let stats = fit.stats();
+    names
+        .iter()
+        .zip(values)
+        .zip(scale.iter().zip(&stats.std_err))
+        .map(|((n, v), (s, e))| (n.to_string(), e / v.abs().max(s * 1e-3)))
+        .collect()
+}
+
 /// The cost along the Gauss-Newton step from the end of `fit` ([`gauss_newton_line`] at
 /// [`STEP5_LINE_FRACTIONS`], `res` the search's residuals, `lo`, `hi` its box) when ftol or
 /// xtol stopped it with the relative offset R saying it is short of its optimum
@@ -1952,13 +1978,7 @@ pub fn step5(
         jacobian: fit.jacobian.clone(),
         covariance,
     });
-    let stats = fit.stats();
-    let rel_std_err = list
-        .iter()
-        .zip(&theta)
-        .zip(&stats.std_err)
-        .map(|((s, v), e)| (s.name.to_string(), e / v.abs().max(s.scale * 1e-3)))
-        .collect();
+    let rel_std_err = rel_std_errors(&fit, &names, &theta, &scale);
     let mut submodels: Vec<FitReport> = super::validate::stationary_errors(&p, stat)?
         .into_iter()
         .map(|o| FitReport {
@@ -2293,6 +2313,7 @@ mod tests {
             rel_offset: 0.9,
             gauss_newton_decrease: None,
             gauss_newton_t: None,
+            rel_std_err: Vec::new(),
             uncertainty: Vec::new(),
             sensor_lags: SensorLags::NONE,
             linearization: None,
