@@ -6,7 +6,7 @@ use mvem::params::Params;
 use mvem::tuning::complete::{fit_dynamic, param_value, Cost77, DynamicFit, Step5Options};
 use mvem::tuning::data::Role;
 use mvem::tuning::lab::{self, LabOptions, Noise};
-use mvem::tuning::pipeline::{tune, PipelineOptions};
+use mvem::tuning::pipeline::{tune, PipelineOptions, TuneReport};
 use mvem::tuning::twelve::{fit_k_ic, w_ic_series, V_IC_START};
 
 fn lab12(noise: Noise, sets: &[&str], max_steps: usize, n_stat: usize) -> LabOptions {
@@ -245,13 +245,11 @@ fn step5_with_k_ic_restores_k_ic_from_the_w_ic_row() {
     assert_eq!(rep.params.last().map(|x| x.0.as_str()), Some("k_ic"));
 }
 
-#[test]
-fn steps_7_and_8_stopped_at_their_limits_flag_their_estimates() {
-    // noise-free 12-state campaign (B static+dynamic, G static, 2 steps each), the pipeline from
-    // the true parameters with steps 3 and 5 only and evaluation limits far below what the
-    // searches need: step 7 (limit 8, one Jacobian of 4 parameters takes 5) and step 8 (limit
-    // 20 below its first Jacobian of 36 parameters) stop at their limits, and their estimates
-    // must say so as step 5's do
+/// The 12-state pipeline from the true parameters on a noise-free campaign of sets B
+/// (static+dynamic) and G (static), 2 steps each, 13 points: steps 3 and 5 only (so 7 and 8),
+/// `refine` as `refine_dynamics`, step 3's and 7's evaluation limit `step7_max`, step 5's and
+/// 8's 20 (below their first Jacobian of 36 parameters).
+fn tune_b_and_g(refine: bool, step7_max: usize) -> (Params, TuneReport) {
     let p = Params::published();
     let c = lab::campaign(&p, &lab12(Noise::NONE, &["B", "G"], 2, 13))
         .unwrap()
@@ -259,18 +257,29 @@ fn steps_7_and_8_stopped_at_their_limits_flag_their_estimates() {
     let opts = PipelineOptions {
         model: ModelOrder::Twelve,
         steps: [false, false, true, false, true],
-        refine_dynamics: false,
-        step3_max_eval: 8,
+        refine_dynamics: refine,
+        step3_max_eval: step7_max,
         step5: Step5Options {
             max_evaluations: 20,
             ..Step5Options::default()
         },
         ..PipelineOptions::default()
     };
-    let (_, rep) = tune(&c, &p, &opts).unwrap();
+    tune(&c, &p, &opts).unwrap()
+}
+
+#[test]
+fn steps_7_and_8_stopped_at_their_limits_flag_their_estimates() {
+    // noise-free 12-state campaign (B static+dynamic, G static, 2 steps each), the pipeline from
+    // the true parameters with steps 3 and 5 only and evaluation limits far below what the
+    // searches need: step 7 (limit 8, one Jacobian of 4 parameters takes 5) and step 8 (limit
+    // 20 below its first Jacobian of 36 parameters) stop at their limits, and their estimates
+    // must say so as step 5's do
+    let (_, rep) = tune_b_and_g(false, 8);
     let t = rep.twelve.as_ref().unwrap();
     let s7 = t.dynamic.as_ref().unwrap();
     let s8 = t.statics.as_ref().unwrap();
+    assert!(t.dynamic_refined.is_none(), "refine_dynamics off");
     // how they stopped, in the report: the rule, the evaluations (limit + the start cost),
     // the cost before and after
     assert_eq!((s7.step, s7.stopped_by.as_str()), (7, "evaluation limit"));
@@ -317,4 +326,41 @@ fn steps_7_and_8_stopped_at_their_limits_flag_their_estimates() {
         let m = format!("warning: step {step} stopped at its evaluation limit");
         assert!(msgs.iter().any(|x| x.starts_with(&m)), "{msgs:#?}");
     }
+}
+
+#[test]
+fn refine_dynamics_repeats_step_7_after_step_8() {
+    // as step 3 after step 5: step 7 again on step 8's static maps, and its V_ic, V_im, V_em,
+    // J_t are the reported ones. Noise-free B and G; step 7 may converge (60 evaluations),
+    // steps 5 and 8 stop at 20, so the first step 7 rests on step 5's maps and the repeated
+    // one on step 8's, each flagged with its own
+    let (q, rep) = tune_b_and_g(true, 60);
+    let t = rep.twelve.as_ref().unwrap();
+    let first = t.dynamic.as_ref().unwrap();
+    let again = t.dynamic_refined.as_ref().expect("step 7 repeated");
+    assert_eq!(again.step, 7);
+    for (n, v) in &again.params {
+        // the result and the report carry the repeated pass's values
+        assert_eq!(param_value(&q, n), Some(*v), "{n}");
+        let key = mvem::tuning::uncertainty::toml_path(n).unwrap();
+        let e = &rep.parameters[key];
+        assert_eq!((e.step, e.value), (7, *v), "{key}");
+        assert!(
+            e.reason
+                .contains("fitted on the static maps of a step 8 stopped at its evaluation"),
+            "{key}: {}",
+            e.reason
+        );
+        assert!(!e.converged, "{key}");
+    }
+    // the first pass ran on step 5's maps
+    let (_, e) = &first.uncertainty[0];
+    assert!(
+        e.reason
+            .contains("fitted on the static maps of a step 5 stopped at its evaluation"),
+        "{}",
+        e.reason
+    );
+    // the repeat is a search of its own (from V_ic = 10 dm^3 again), which converges here
+    assert!(again.converged, "{again:?}");
 }

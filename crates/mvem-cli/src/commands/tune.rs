@@ -105,8 +105,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub beta: f64,
     /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper;
-    /// V_im, V_em, J_t then carry no step-1 static errors). `--refine-dynamics false`: the
-    /// paper's order only.
+    /// V_im, V_em, J_t then carry no step-1 static errors); with --model 12 also step 7 after
+    /// step 8. `--refine-dynamics false`: the paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
     /// With --refine-dynamics: a second round of steps 5 and 3, and the standard errors of
@@ -613,6 +613,15 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
                 "Step 8: 12-state model on the static-tuning sets (eq. (5))",
                 &r.dynamic,
             );
+        }
+        if let Some(r) = &t.dynamic_refined {
+            let _ = writeln!(
+                s,
+                "Step 7 repeated after step 8: cost {:.4e} -> {:.4e}, {} evaluations, converged \
+                 {} (stopped by: {})\n",
+                r.cost_start, r.cost, r.n_eval, r.converged, r.stopped_by
+            );
+            table(&mut s, "Step 7 repeated after step 8", &r.errors);
         }
     }
     parameter_table(&mut s, rep, truth, cell_truth);

@@ -77,7 +77,8 @@ pub struct PipelineOptions {
     pub step5: Step5Options,
     /// After step 5, run steps 3 and 4 again with the final static parameters (not in the
     /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
-    /// V_em; see docs/tuning.md). Default on; only steps that are selected are repeated.
+    /// V_em; see docs/tuning.md); with `model` = 12 also step 7 again after step 8, on step 8's
+    /// static parameters. Default on; only steps that are selected are repeated.
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
@@ -273,6 +274,9 @@ pub struct TwelveReport {
     pub k_ic: FitReport,
     /// Second step: V_ic, V_im, V_em, J_t by (74)-(75) on the 12-state model.
     pub dynamic: Option<CompleteReport>,
+    /// The second step repeated after the third, on its static parameters (option
+    /// `refine_dynamics`, as step 3 after step 5); the reported V_ic, V_im, V_em, J_t are its.
+    pub dynamic_refined: Option<CompleteReport>,
     /// Third step: the static parameters and k_ic by (77), N = 8, z_8 = W_ic, beta = 2.58.
     pub statics: Option<Step5Report>,
     /// Wall time \[s\].
@@ -557,7 +561,7 @@ pub fn tune(
         },
     })?;
     if let Some(t) = &rep.twelve {
-        for r in [&t.dynamic].into_iter().flatten() {
+        for r in [&t.dynamic, &t.dynamic_refined].into_iter().flatten() {
             est.extend(r.uncertainty.iter().cloned());
         }
         if let Some(r) = &t.statics {
@@ -1664,9 +1668,9 @@ fn flag_rests_on_unconverged_step5(
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.
 /// `maps_stop`: the early stop of the last step-5 pass ([`Step5Report::early_stop`]), whose
-/// static maps step 7 runs on. Each search's estimates are flagged as step 5's are when it did
-/// not reach its optimum ([`flag_early_stop`]), and step 7's also when its maps come from such
-/// a search.
+/// static maps step 7 runs on. With `refine_dynamics` step 7 runs again after step 8, on its
+/// maps. Each search's estimates are flagged as step 5's are when it did not reach its optimum
+/// ([`flag_early_stop`]), and step 7's also when its maps come from such a search.
 fn tune_twelve(
     c: &Campaign,
     p: &mut Params,
@@ -1703,9 +1707,17 @@ fn tune_twelve(
         flag_early_stop(&mut r.uncertainty, stop);
         statics = Some(r);
     }
+    // step 7 again on step 8's static maps, as step 3 after step 5
+    let mut dynamic_refined = None;
+    if opts.refine_dynamics && opts.steps[2] && opts.steps[4] {
+        begin(7, true)?;
+        let stop8 = statics.as_ref().and_then(Step5Report::early_stop);
+        dynamic_refined = Some(run_step7(c, p, opts, stop8.as_deref())?);
+    }
     Ok(TwelveReport {
         k_ic: k_rep,
         dynamic,
+        dynamic_refined,
         statics,
         seconds: t.elapsed().as_secs_f64(),
     })

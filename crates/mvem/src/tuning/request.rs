@@ -408,6 +408,12 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
                 .and_then(|t| t.dynamic.as_ref().map(|r| r.converged)),
         ),
         (
+            7,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.dynamic_refined.as_ref().map(|r| r.converged)),
+        ),
+        (
             8,
             rep.twelve
                 .as_ref()
@@ -444,8 +450,10 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
         out.extend(stop_message(r.stop_note(), r.early_stop().is_some()));
     }
     // step 7 judged as step 5 (ftol/xtol with a large relative offset)
-    if let Some(r) = rep.twelve.as_ref().and_then(|t| t.dynamic.as_ref()) {
-        out.extend(stop_message(r.stop_note(), r.early_stop().is_some()));
+    if let Some(t) = &rep.twelve {
+        for r in [&t.dynamic, &t.dynamic_refined].into_iter().flatten() {
+            out.extend(stop_message(r.stop_note(), r.early_stop().is_some()));
+        }
     }
     for o in &rep.oscillations {
         out.push(format!(
