@@ -105,8 +105,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub beta: f64,
     /// After step 5, repeat steps 3 and 4 with the final static parameters (not in the paper;
-    /// V_im, V_em, J_t then carry no step-1 static errors). `--refine-dynamics false`: the
-    /// paper's order only.
+    /// V_im, V_em, J_t then carry no step-1 static errors); with --model 12 also step 7 after
+    /// step 8. `--refine-dynamics false`: the paper's order only.
     #[arg(long = "refine-dynamics", default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub refine_dynamics: bool,
     /// With --refine-dynamics: a second round of steps 5 and 3, and the standard errors of
@@ -573,8 +573,24 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
         if let Some(r) = &t.dynamic {
             let _ = writeln!(
                 s,
-                "Step 7: {} evaluations, converged {}",
-                r.n_eval, r.converged
+                "Step 7: cost {:.4e} -> {:.4e}, {} evaluations, converged {} (stopped by: {}, \
+                 relative offset {:.2e})\n",
+                r.cost_start, r.cost, r.n_eval, r.converged, r.stopped_by, r.rel_offset
+            );
+            if let Some(note) = r.stop_note() {
+                let _ = writeln!(s, "**Note:** {note}.\n");
+            }
+            let rel: Vec<String> = r
+                .rel_std_err
+                .iter()
+                .map(|(n, e)| format!("{n} {}", pct(*e)))
+                .collect();
+            let _ = writeln!(
+                s,
+                "Step 7: relative standard errors (%) of the search's linearization \
+                 (residuals taken as independent): {}; the parameter table has those of the \
+                 covariance with the residuals' autocorrelation (docs/tuning.md, session 42)\n",
+                rel.join(", ")
             );
             table(
                 &mut s,
@@ -585,15 +601,27 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
         if let Some(r) = &t.statics {
             let _ = writeln!(
                 s,
-                "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {}\n",
-                r.cost_start, r.cost_end, r.n_eval, r.converged
+                "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {} (stopped by: {}, relative offset {:.2e})\n",
+                r.cost_start, r.cost_end, r.n_eval, r.converged, r.stopped_by, r.rel_offset
             );
+            if let Some(note) = r.stop_note() {
+                let _ = writeln!(s, "**Note:** {note}.\n");
+            }
             table(&mut s, "Step 8: submodels (eq. (4))", &r.submodels);
             table(
                 &mut s,
                 "Step 8: 12-state model on the static-tuning sets (eq. (5))",
                 &r.dynamic,
             );
+        }
+        if let Some(r) = &t.dynamic_refined {
+            let _ = writeln!(
+                s,
+                "Step 7 repeated after step 8: cost {:.4e} -> {:.4e}, {} evaluations, converged \
+                 {} (stopped by: {})\n",
+                r.cost_start, r.cost, r.n_eval, r.converged, r.stopped_by
+            );
+            table(&mut s, "Step 7 repeated after step 8", &r.errors);
         }
     }
     parameter_table(&mut s, rep, truth, cell_truth);
@@ -616,8 +644,8 @@ fn parameter_table(
         "## Parameters\n\nStandard errors: Gauss-Newton covariance at the optimum of the step \
          that tuned the parameter (residual variance, AR(1) correction); identifiable: rel. std. \
          error <= 25 % and no correlation > 0.99, from a search that reached its optimum (not \
-         converged: step 5 stopped short of it, or steps 3-4 ran again on its maps; \
-         docs/tuning.md). Elements are counted from 1, \
+         converged: step 5, 7 or 8 stopped short of it, or steps 3-4 or 7 ran on the maps of a \
+         step 5 or 8 that did; docs/tuning.md). Elements are counted from 1, \
          as the parameter registry, the FMU and Python's params= name them (cylinder.c_vol[1] \
          is c_vol1).\n\n| parameter | step | value | \
          std. error | rel. std. error (%) | identifiable | true | deviation (%) | deviation / \

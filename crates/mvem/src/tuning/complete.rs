@@ -28,8 +28,8 @@
 use super::data::{DataSetInfo, DynamicData, Role, StationaryPoint};
 use super::lab::first_order_lag;
 use super::lsq::{
-    gauss_newton_line, least_squares, least_squares_par, Bounds, FiniteDiff, LsqOptions, LsqResult,
-    Termination, XScale,
+    gauss_newton_line, least_squares, least_squares_par, Bounds, FiniteDiff, GaussNewtonLine,
+    LsqOptions, LsqResult, Termination, XScale,
 };
 use super::scale::CampaignScale;
 use super::sensors::{SensorLags, LAG_NAMES, MAX_LAG_S};
@@ -413,20 +413,80 @@ pub const PUBLISHED_V_D: f64 = 0.01274;
 /// Compressor radius R_c of the published engine \[m\] (the engine [`Step3Start::default`] is for).
 pub const PUBLISHED_R_C: f64 = 0.04;
 
+/// The stop judgment of a report with the fields `step`, `converged`, `stopped_by`,
+/// `rel_offset`, `params`, `n_eval`, `gauss_newton_decrease`, `gauss_newton_t` ([`Step5Report`],
+/// [`CompleteReport`]): its `stop_note` and `early_stop` ([`SearchStop`]).
+macro_rules! search_end {
+    ($report:ty) => {
+        impl $report {
+            /// How the search stopped, for the judgment of [`SearchStop`].
+            fn search_stop(&self) -> SearchStop<'_> {
+                SearchStop {
+                    step: self.step,
+                    converged: self.converged,
+                    stopped_by: &self.stopped_by,
+                    rel_offset: self.rel_offset,
+                    n_params: self.params.len(),
+                    n_eval: self.n_eval,
+                    gauss_newton_decrease: self.gauss_newton_decrease,
+                    gauss_newton_t: self.gauss_newton_t,
+                }
+            }
+
+            /// A note on where the search stopped when the relative offset R says away from the
+            /// least-squares optimum: farther than the noise, or at it within the noise by the
+            /// cost measured along the Gauss-Newton step (`SearchStop::stop_note`); `None`
+            /// otherwise.
+            pub fn stop_note(&self) -> Option<String> {
+                self.search_stop().stop_note()
+            }
+
+            /// Why the search did not reach its optimum, as a reason for the estimates it gave
+            /// (`ParamEstimate::flag_not_converged`): its evaluation limit, or ftol/xtol farther
+            /// from the optimum than the noise (`SearchStop::early_stop`). `None` when it
+            /// converged.
+            pub fn early_stop(&self) -> Option<String> {
+                self.search_stop().early_stop()
+            }
+        }
+    };
+}
+
 /// Report of a complete-model step: fitted parameters, the search statistics and per-output
 /// errors (eq. (5), mean and max absolute relative error over the sets used).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompleteReport {
+    /// Tuning step: 3, 4, or 7 for the second step of the 12-state model (section 9.2.1), as
+    /// the messages name it.
+    pub step: u8,
     /// Fitted parameters (name, value).
     pub params: Vec<(String, f64)>,
     /// Per output: (name, mean abs rel error, max abs rel error), unnormalized eq. (5).
     pub errors: Vec<FitReport>,
+    /// Cost `0.5 ||r||^2` at the start of the search (as `cost`).
+    pub cost_start: f64,
     /// Final cost `0.5 ||r||^2` of the search (r its residuals).
     pub cost: f64,
-    /// Residual evaluations.
+    /// Residual evaluations (the one at the start and those along the Gauss-Newton step
+    /// included).
     pub n_eval: usize,
     /// Whether a convergence test stopped the search.
     pub converged: bool,
+    /// Which rule stopped the search ([`super::lsq::Termination::name`]: "relative offset",
+    /// "ftol", "xtol", "ftol+xtol", "gtol", "evaluation limit").
+    pub stopped_by: String,
+    /// Bates-Watts relative offset at the end ([`super::lsq::relative_offset`]).
+    pub rel_offset: f64,
+    /// As [`Step5Report::gauss_newton_decrease`] (steps 3 and 7; `None`: not measured).
+    pub gauss_newton_decrease: Option<f64>,
+    /// As [`Step5Report::gauss_newton_t`].
+    pub gauss_newton_t: Option<f64>,
+    /// Linearized relative standard errors of the parameters at the end of the search, as
+    /// [`Step5Report::rel_std_err`] (`sigma^2 (J^T J)^-1` of the search's last Jacobian,
+    /// [`LsqResult::stats`], relative to `max(|value|, 1e-3 typical magnitude)`; infinite for
+    /// unidentifiable directions). `uncertainty` has the standard errors of the block
+    /// covariance at the estimate that the tuning reports.
+    pub rel_std_err: Vec<(String, f64)>,
     /// Standard error and identifiability of each fitted parameter ([`super::uncertainty`]).
     pub uncertainty: Vec<(String, ParamEstimate)>,
     /// Sensor lags the step simulated with (fitted when their names are in `params`).
@@ -435,6 +495,8 @@ pub struct CompleteReport {
     #[serde(skip)]
     pub linearization: Option<Linearization>,
 }
+
+search_end!(CompleteReport);
 
 /// Per-output eq. (5) errors of `p` (model `order`) on `sets` (pooled over the sets).
 pub(crate) fn output_errors(
@@ -595,13 +657,23 @@ pub fn fit_dynamic(
         set_all(&mut q, &mut lags, th);
         res_at(&q, &lags)
     };
-    let fit = least_squares(
+    // the cost at the (clamped) start, for the report
+    let start: Vec<f64> = f
+        .theta0
+        .iter()
+        .zip(f.lo.iter().zip(f.hi))
+        .map(|(v, (l, h))| v.clamp(*l, *h))
+        .collect();
+    let cost_start = 0.5 * res(&start).iter().map(|r| r * r).sum::<f64>();
+    let mut fit = least_squares(
         res,
         f.theta0,
         &Bounds::new(f.lo.to_vec(), f.hi.to_vec()),
         &search_opts(f.max_eval, f.scale.to_vec()),
     )
     .map_err(|e| solver_err(name, e))?;
+    fit.n_eval += 1;
+    let line = line_when_short(&res, &mut fit, f.lo, f.hi);
     let mut p = base.clone();
     let mut lags = f.lags;
     set_all(&mut p, &mut lags, &fit.theta);
@@ -660,6 +732,7 @@ pub fn fit_dynamic(
     Ok((
         p,
         CompleteReport {
+            step,
             params: f
                 .names
                 .iter()
@@ -667,9 +740,15 @@ pub fn fit_dynamic(
                 .map(|(n, v)| (n.to_string(), *v))
                 .collect(),
             errors,
+            cost_start,
             cost: fit.cost,
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
+            stopped_by: fit.termination.name().to_string(),
+            rel_offset: fit.rel_offset,
+            gauss_newton_decrease: line.as_ref().map(|l| l.measured),
+            gauss_newton_t: line.as_ref().map(|l| l.t),
+            rel_std_err: rel_std_errors(&fit, f.names, &fit.theta, f.scale),
             uncertainty,
             sensor_lags: lags,
             linearization,
@@ -853,6 +932,7 @@ pub fn step4(
         fd_rel_step: Some(1e-6),
         ..search_opts(200, vec![0.3])
     };
+    let cost_start = 0.5 * res(&[0.3]).iter().map(|r| r * r).sum::<f64>();
     let fit = least_squares(res, &[0.3], &Bounds::new(vec![0.005], vec![20.0]), &opts)
         .map_err(|e| solver_err(NAME, e))?;
     let tau = fit.theta[0];
@@ -881,11 +961,18 @@ pub fn step4(
     Ok((
         tau,
         CompleteReport {
+            step: 4,
             params: vec![("tau_me".into(), tau)],
             errors,
+            cost_start,
             cost: fit.cost,
             n_eval: fit.n_eval,
             converged: fit.termination.converged(),
+            stopped_by: fit.termination.name().to_string(),
+            rel_offset: fit.rel_offset,
+            gauss_newton_decrease: None,
+            gauss_newton_t: None,
+            rel_std_err: rel_std_errors(&fit, &["tau_me"], &fit.theta, &[0.3]),
             uncertainty,
             sensor_lags: SensorLags::NONE,
             linearization,
@@ -1415,6 +1502,9 @@ impl Cost77 {
 /// Report of step 5.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Step5Report {
+    /// Tuning step: 5, or 8 for the third step of the 12-state model (section 9.2.1; option
+    /// `model` of [`Step5Options`]), as the messages name it.
+    pub step: u8,
     /// Fitted static parameters (name, value).
     pub params: Vec<(String, f64)>,
     /// Cost (77) at the start and at the end.
@@ -1491,6 +1581,7 @@ impl Step5Report {
     /// offset `rel_offset`, one pass, no linearization (unit tests).
     pub(crate) fn for_tests(n: usize, stopped_by: &str, rel_offset: f64) -> Self {
         Self {
+            step: 5,
             params: (0..n).map(|k| (format!("p{k}"), 1.0)).collect(),
             cost_start: 2.0,
             cost_end: 1.0,
@@ -1548,7 +1639,33 @@ impl Step5Report {
             )
         })
     }
+}
 
+search_end!(Step5Report);
+
+/// How the search of a tuning step stopped (steps 5 and 8: [`Step5Report`]; steps 3, 4 and 7:
+/// [`CompleteReport`]): the one judgment of whether it reached its optimum, for the reports'
+/// notes and the estimates' `converged` flag.
+struct SearchStop<'a> {
+    /// Tuning step (1-5; 6-8 the 12-state steps), for the messages.
+    step: u8,
+    /// Whether a convergence test stopped the search.
+    converged: bool,
+    /// The rule that stopped it ([`super::lsq::Termination::name`]).
+    stopped_by: &'a str,
+    /// Bates-Watts relative offset at the end.
+    rel_offset: f64,
+    /// Parameters of the search.
+    n_params: usize,
+    /// Residual evaluations.
+    n_eval: usize,
+    /// Decrease of the cost measured along the Gauss-Newton step, in residual variances.
+    gauss_newton_decrease: Option<f64>,
+    /// The fraction of the Gauss-Newton step where it was measured.
+    gauss_newton_t: Option<f64>,
+}
+
+impl SearchStop<'_> {
     /// How far the search stopped from the least-squares optimum when that exceeds the noise:
     /// a rule other than the relative offset or gtol stopped it with the Bates-Watts relative
     /// offset R above `1/sqrt(p)` (p parameters), so the Gauss-Newton step from the end point
@@ -1556,10 +1673,10 @@ impl Step5Report {
     /// `R sqrt(p)` standard errors (in the Gauss-Newton metric) from the optimum. Returns
     /// (`R^2 p`, `R sqrt(p)`); `None` otherwise.
     fn predicted_distance(&self) -> Option<(f64, f64)> {
-        predicted_distance(&self.stopped_by, self.rel_offset, self.params.len())
+        predicted_distance(self.stopped_by, self.rel_offset, self.n_params)
     }
 
-    /// [`Step5Report::predicted_distance`] unless the decrease measured along the
+    /// [`SearchStop::predicted_distance`] unless the decrease measured along the
     /// Gauss-Newton step ([`Step5Report::gauss_newton_decrease`]) is below one residual
     /// variance: then the search stopped at its optimum within the noise (session 39: the
     /// residuals' curvature in the flat directions of (77), which `J^T J` leaves out, makes
@@ -1598,15 +1715,16 @@ impl Step5Report {
     /// along the Gauss-Newton step, or R's prediction alone (not measured), which the reported
     /// standard errors do not include; or, when the measured decrease is below one residual
     /// variance, that it stopped at its optimum within the noise. `None` otherwise.
-    pub fn stop_note(&self) -> Option<String> {
+    fn stop_note(&self) -> Option<String> {
         let (variances, ses) = self.predicted_distance()?;
         if self.distance_to_optimum().is_none() {
             return Some(format!(
-                "step 5 stopped ({}) at its optimum within the noise: {}, below one residual \
+                "step {} stopped ({}) at its optimum within the noise: {}, below one residual \
                  variance ({} parameters)",
+                self.step,
                 self.stopped_by,
                 self.measured_line()?,
-                self.params.len(),
+                self.n_params,
             ));
         }
         let measured = self
@@ -1614,13 +1732,11 @@ impl Step5Report {
             .map(|m| format!("; {m}"))
             .unwrap_or_default();
         Some(format!(
-            "step 5 stopped ({}) before its optimum: the Gauss-Newton step from its end point \
+            "step {} stopped ({}) before its optimum: the Gauss-Newton step from its end point \
              predicts a cost decrease of {variances:.1} residual variances (relative offset {:.3}, \
              {} parameters), so the estimate may lie up to {ses:.1} standard errors from the \
              least-squares optimum; the standard errors do not include that distance{measured}",
-            self.stopped_by,
-            self.rel_offset,
-            self.params.len(),
+            self.step, self.stopped_by, self.rel_offset, self.n_params,
         ))
     }
 
@@ -1629,11 +1745,11 @@ impl Step5Report {
     /// false), or by ftol/xtol farther from the optimum than the noise
     /// (`distance_to_optimum`, with the decrease measured along the Gauss-Newton step when it
     /// was). `None` when it converged.
-    pub fn early_stop(&self) -> Option<String> {
+    fn early_stop(&self) -> Option<String> {
         if !self.converged {
             return Some(format!(
-                "step 5 stopped at its evaluation limit before converging, after {} evaluations",
-                self.n_eval
+                "step {} stopped at its evaluation limit before converging, after {} evaluations",
+                self.step, self.n_eval
             ));
         }
         let (_, ses) = self.distance_to_optimum()?;
@@ -1647,9 +1763,9 @@ impl Step5Report {
             _ => String::new(),
         };
         Some(format!(
-            "step 5 stopped ({}) before its optimum (relative offset {:.3}: up to {ses:.1} \
+            "step {} stopped ({}) before its optimum (relative offset {:.3}: up to {ses:.1} \
              standard errors from it, not in the standard errors{measured})",
-            self.stopped_by, self.rel_offset
+            self.step, self.stopped_by, self.rel_offset
         ))
     }
 }
@@ -1678,6 +1794,52 @@ fn predicted_distance(stopped_by: &str, r: f64, p: usize) -> Option<(f64, f64)> 
         return None;
     }
     Some((r * r * p, r * p.sqrt()))
+}
+
+/// The relative standard errors of a search's end ([`LsqResult::stats`]) by parameter name:
+/// standard error over `max(|value|, 1e-3 scale)` (`values` the estimates, `scale` the
+/// typical magnitudes).
+fn rel_std_errors(
+    fit: &LsqResult,
+    names: &[&str],
+    values: &[f64],
+    scale: &[f64],
+) -> Vec<(String, f64)> {
+    let stats = fit.stats();
+    names
+        .iter()
+        .zip(values)
+        .zip(scale.iter().zip(&stats.std_err))
+        .map(|((n, v), (s, e))| (n.to_string(), e / v.abs().max(s * 1e-3)))
+        .collect()
+}
+
+/// The cost along the Gauss-Newton step from the end of `fit` ([`gauss_newton_line`] at
+/// [`STEP5_LINE_FRACTIONS`], `res` the search's residuals, `lo`, `hi` its box) when ftol or
+/// xtol stopped it with the relative offset R saying it is short of its optimum
+/// ([`predicted_distance`]; session 39 found the cost rising along the step where R promised a
+/// decrease); its evaluations (four) are added to `fit.n_eval`. `None` otherwise.
+fn line_when_short(
+    res: impl FnMut(&[f64]) -> Vec<f64>,
+    fit: &mut LsqResult,
+    lo: &[f64],
+    hi: &[f64],
+) -> Option<GaussNewtonLine> {
+    if !fit.termination.converged()
+        || predicted_distance(fit.termination.name(), fit.rel_offset, fit.theta.len()).is_none()
+    {
+        return None;
+    }
+    let line = gauss_newton_line(
+        res,
+        &fit.theta,
+        &fit.jacobian,
+        &fit.residuals,
+        &Bounds::new(lo.to_vec(), hi.to_vec()),
+        &STEP5_LINE_FRACTIONS,
+    )?;
+    fit.n_eval += line.n_eval;
+    Some(line)
 }
 
 /// The box step 5 searches from `theta0` on `base` and the stationary points `stat`
@@ -1790,22 +1952,7 @@ pub fn step5(
             break;
         }
     }
-    // R says the stop is short of the optimum: measure the decrease the Gauss-Newton step
-    // actually gives (four evaluations; session 39 found the cost rising along it)
-    let line = (fit.termination.converged()
-        && predicted_distance(fit.termination.name(), fit.rel_offset, th0.len()).is_some())
-    .then(|| {
-        gauss_newton_line(
-            |th: &[f64]| cost.residuals(th),
-            &fit.theta,
-            &fit.jacobian,
-            &fit.residuals,
-            &Bounds::new(lo.clone(), hi.clone()),
-            &STEP5_LINE_FRACTIONS,
-        )
-    })
-    .flatten();
-    fit.n_eval += line.as_ref().map_or(0, |l| l.n_eval);
+    let line = line_when_short(|th: &[f64]| cost.residuals(th), &mut fit, &lo, &hi);
     let p = cost.params(&fit.theta);
     let theta = theta_of(&list, &p);
     let at_bounds = list
@@ -1820,28 +1967,18 @@ pub fn step5(
     let all: Vec<usize> = (0..list.len()).collect();
     fit.jacobian = covariance_jacobian(&|th| cost.residuals(th), &fit, &all, &lo, &hi, &scale);
     let covariance = block_covariance(&fit.jacobian, &fit.residuals, &cost.covariance_blocks());
-    let uncertainty = estimates_from_cov(
-        &names,
-        &theta,
-        &covariance,
-        if opts.model == ModelOrder::Twelve {
-            8
-        } else {
-            5
-        },
-    );
+    let step = if opts.model == ModelOrder::Twelve {
+        8
+    } else {
+        5
+    };
+    let uncertainty = estimates_from_cov(&names, &theta, &covariance, step);
     let linearization = Some(Linearization {
         names: names.iter().map(|s| s.to_string()).collect(),
         jacobian: fit.jacobian.clone(),
         covariance,
     });
-    let stats = fit.stats();
-    let rel_std_err = list
-        .iter()
-        .zip(&theta)
-        .zip(&stats.std_err)
-        .map(|((s, v), e)| (s.name.to_string(), e / v.abs().max(s.scale * 1e-3)))
-        .collect();
+    let rel_std_err = rel_std_errors(&fit, &names, &theta, &scale);
     let mut submodels: Vec<FitReport> = super::validate::stationary_errors(&p, stat)?
         .into_iter()
         .map(|o| FitReport {
@@ -1883,6 +2020,7 @@ pub fn step5(
     Ok((
         p,
         Step5Report {
+            step,
             params: list
                 .iter()
                 .zip(&theta)
@@ -2137,5 +2275,70 @@ mod tests {
             .early_stop()
             .expect("flagged")
             .contains("evaluation limit"));
+    }
+
+    #[test]
+    fn steps_7_and_8_are_judged_as_step_5_and_named() {
+        // step 8 (the 12-state step 5, 36 parameters): xtol at R = 3.8, R sqrt(p) = 22.8
+        let mut r8 = Step5Report {
+            step: 8,
+            gauss_newton_decrease: Some(5.25),
+            gauss_newton_t: Some(0.1),
+            ..Step5Report::for_tests(36, "xtol", 3.8)
+        };
+        let why = r8.early_stop().expect("flagged");
+        let head = "step 8 stopped (xtol) before its optimum (relative offset 3.800: up to 22.8";
+        assert!(why.starts_with(head), "{why}");
+        r8.gauss_newton_decrease = Some(0.02);
+        assert_eq!(r8.early_stop(), None);
+        let note = r8.stop_note().expect("a note");
+        assert!(
+            note.starts_with("step 8 stopped (xtol) at its optimum within the noise"),
+            "{note}"
+        );
+        // step 7 (4 parameters): ftol at R = 0.9 predicts R^2 p = 3.24 residual variances,
+        // up to R sqrt(p) = 1.8 standard errors; not measured: flagged by R
+        let mut r7 = CompleteReport {
+            step: 7,
+            params: ["v_ic", "v_im", "v_em", "j_t"]
+                .iter()
+                .map(|n| (n.to_string(), 1.0))
+                .collect(),
+            errors: Vec::new(),
+            cost_start: 2.0,
+            cost: 1.0,
+            n_eval: 30,
+            converged: true,
+            stopped_by: "ftol".into(),
+            rel_offset: 0.9,
+            gauss_newton_decrease: None,
+            gauss_newton_t: None,
+            rel_std_err: Vec::new(),
+            uncertainty: Vec::new(),
+            sensor_lags: SensorLags::NONE,
+            linearization: None,
+        };
+        assert_eq!(
+            r7.early_stop().as_deref(),
+            Some(
+                "step 7 stopped (ftol) before its optimum (relative offset 0.900: up to 1.8 \
+                 standard errors from it, not in the standard errors)"
+            )
+        );
+        assert!(r7.stop_note().unwrap().contains("3.2 residual variances"));
+        // measured below one residual variance: at its optimum within the noise
+        r7.gauss_newton_decrease = Some(0.3);
+        r7.gauss_newton_t = Some(0.01);
+        assert_eq!(r7.early_stop(), None);
+        // R^2 p below 1 (R = 0.45: 0.81): no note
+        r7.rel_offset = 0.45;
+        assert_eq!(r7.stop_note(), None);
+        // the evaluation limit
+        r7.converged = false;
+        r7.stopped_by = "evaluation limit".into();
+        assert_eq!(
+            r7.early_stop().as_deref(),
+            Some("step 7 stopped at its evaluation limit before converging, after 30 evaluations")
+        );
     }
 }

@@ -77,7 +77,8 @@ pub struct PipelineOptions {
     pub step5: Step5Options,
     /// After step 5, run steps 3 and 4 again with the final static parameters (not in the
     /// paper; step 3 on step-1 static parameters carries their stationary errors into V_im,
-    /// V_em; see docs/tuning.md). Default on; only steps that are selected are repeated.
+    /// V_em; see docs/tuning.md); with `model` = 12 also step 7 again after step 8, on step 8's
+    /// static parameters. Default on; only steps that are selected are repeated.
     pub refine_dynamics: bool,
     /// Model tuned: 8 (steps 1-5) or 12 (steps 1-5, then the three steps of section 9.2.1).
     pub model: ModelOrder,
@@ -273,6 +274,9 @@ pub struct TwelveReport {
     pub k_ic: FitReport,
     /// Second step: V_ic, V_im, V_em, J_t by (74)-(75) on the 12-state model.
     pub dynamic: Option<CompleteReport>,
+    /// The second step repeated after the third, on its static parameters (option
+    /// `refine_dynamics`, as step 3 after step 5); the reported V_ic, V_im, V_em, J_t are its.
+    pub dynamic_refined: Option<CompleteReport>,
     /// Third step: the static parameters and k_ic by (77), N = 8, z_8 = W_ic, beta = 2.58.
     pub statics: Option<Step5Report>,
     /// Wall time \[s\].
@@ -537,7 +541,9 @@ pub fn tune(
     }
     if opts.model == ModelOrder::Twelve {
         begin(6, false)?;
-        rep.twelve = Some(tune_twelve(c, &mut p, opts)?);
+        let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
+        let stop5 = last5.and_then(Step5Report::early_stop);
+        rep.twelve = Some(tune_twelve(c, &mut p, opts, stop5)?);
     }
     // the last step run (0: none), which the checks of the result are reported under
     let last_step = opts
@@ -555,7 +561,7 @@ pub fn tune(
         },
     })?;
     if let Some(t) = &rep.twelve {
-        for r in [&t.dynamic].into_iter().flatten() {
+        for r in [&t.dynamic, &t.dynamic_refined].into_iter().flatten() {
             est.extend(r.uncertainty.iter().cloned());
         }
         if let Some(r) = &t.statics {
@@ -1307,9 +1313,8 @@ fn run_step5(
         &boxes,
         opts.fixed_jacobian,
     );
-    if let Some(why) = r.early_stop() {
-        flag_not_converged(&mut r.uncertainty, &why);
-    }
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -1624,6 +1629,22 @@ fn flag_not_converged(e: &mut [(String, ParamEstimate)], why: &str) {
     }
 }
 
+/// Flag the estimates `e` of a search that did not reach its optimum as not converged
+/// ([`flag_not_converged`]); `stop` is the `early_stop` of its report
+/// ([`Step5Report::early_stop`] for steps 5 and 8, [`CompleteReport::early_stop`] for step 7),
+/// `None` when it converged.
+fn flag_early_stop(e: &mut [(String, ParamEstimate)], stop: Option<String>) {
+    if let Some(why) = stop {
+        flag_not_converged(e, &why);
+    }
+}
+
+/// The reason of an estimate fitted on the static maps of a step-5 (or step-8) search that
+/// stopped short of its optimum (`stop`, its `early_stop`).
+fn on_maps_of(stop: &str) -> String {
+    format!("fitted on the static maps of a {stop}")
+}
+
 /// Flag the reported estimates of steps 3 and 4 repeated after a step 5 that did not reach its
 /// optimum (`stop`, [`Step5Report::early_stop`] of the last step-5 pass; `step3_rerun`,
 /// `step4_rerun`: whether the step ran again on its static maps): they were fitted on those
@@ -1637,7 +1658,7 @@ fn flag_rests_on_unconverged_step5(
     step3_rerun: bool,
     step4_rerun: bool,
 ) {
-    let why = format!("fitted on the static maps of a {stop}");
+    let why = on_maps_of(stop);
     for e in parameters.values_mut() {
         if (e.step == 3 && step3_rerun) || (e.step == 4 && step4_rerun) {
             e.flag_not_converged(&why);
@@ -1646,10 +1667,15 @@ fn flag_rests_on_unconverged_step5(
 }
 
 /// The three steps of section 9.2.1 on `p` (the 8-state result), numbered 6-8 in errors.
+/// `maps_stop`: the early stop of the last step-5 pass ([`Step5Report::early_stop`]), whose
+/// static maps step 7 runs on. With `refine_dynamics` step 7 runs again after step 8, on its
+/// maps. Each search's estimates are flagged as step 5's are when it did not reach its optimum
+/// ([`flag_early_stop`]), and step 7's also when its maps come from such a search.
 fn tune_twelve(
     c: &Campaign,
     p: &mut Params,
     opts: &PipelineOptions,
+    maps_stop: Option<String>,
 ) -> Result<TwelveReport, PipelineError> {
     let t = Instant::now();
     let infos = &c.manifest.datasets;
@@ -1658,49 +1684,7 @@ fn tune_twelve(
     let mut dynamic = None;
     if opts.steps[2] {
         begin(7, false)?;
-        let sets = sets_with_role(infos, &c.dynamic, Role::Dynamic, true);
-        if sets.is_empty() {
-            return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
-        }
-        let s3 = &opts.step3;
-        // V_ic's start and bounds are given for the published engine: scaled by the
-        // displacement as step 3's volumes are (Step3Start::scaled_to; the identity there)
-        let v_ic = V_IC_START.map(|v| v * (p.cylinder.v_d / PUBLISHED_V_D));
-        let th0 = [
-            v_ic[0],
-            p.intake_manifold.v_im,
-            p.exhaust_manifold.v_em,
-            p.turbo.j_t,
-        ];
-        let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
-        let th0: Vec<f64> = th0
-            .iter()
-            .zip([v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]])
-            .zip([v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]])
-            .map(|((v, lo), hi)| clip(*v, lo, hi))
-            .collect();
-        let f = DynamicFit {
-            order: ModelOrder::Twelve,
-            names: &["v_ic", "v_im", "v_em", "j_t"],
-            theta0: &th0,
-            lo: &[v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]],
-            hi: &[v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]],
-            scale: &[0.01, 0.02, 0.02, 1e-4],
-            amp_floor: s3.amp_floor,
-            window: s3.window,
-            lags: opts.step5.sensor_lags,
-            max_eval: opts.step3_max_eval,
-        };
-        let (q, r) = fit_dynamic(
-            "12-state step 2 (V_ic, V_im, V_em, J_t)",
-            p,
-            &sets,
-            &c.stationary,
-            &f,
-        )
-        .map_err(at(7))?;
-        *p = q;
-        dynamic = Some(r);
+        dynamic = Some(run_step7(c, p, opts, maps_stop.as_deref())?);
     }
     let mut statics = None;
     if opts.steps[4] {
@@ -1717,16 +1701,84 @@ fn tune_twelve(
             ..opts.step5.clone()
         };
         let th0 = theta_of(&static_params(ModelOrder::Twelve), p);
-        let (q, r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
+        let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
         *p = q;
+        let stop = r.early_stop();
+        flag_early_stop(&mut r.uncertainty, stop);
         statics = Some(r);
+    }
+    // step 7 again on step 8's static maps, as step 3 after step 5
+    let mut dynamic_refined = None;
+    if opts.refine_dynamics && opts.steps[2] && opts.steps[4] {
+        begin(7, true)?;
+        let stop8 = statics.as_ref().and_then(Step5Report::early_stop);
+        dynamic_refined = Some(run_step7(c, p, opts, stop8.as_deref())?);
     }
     Ok(TwelveReport {
         k_ic: k_rep,
         dynamic,
+        dynamic_refined,
         statics,
         seconds: t.elapsed().as_secs_f64(),
     })
+}
+
+/// Step 7 (V_ic, V_im, V_em, J_t by (74)-(75) on the 12-state model) from `p` (replaced by
+/// the result), V_ic started at [`V_IC_START`] scaled to the engine, the others at their
+/// values in `p`; its estimates flagged when the search did not reach its optimum, or when the
+/// static maps it ran on come from a search that did not (`maps_stop`).
+fn run_step7(
+    c: &Campaign,
+    p: &mut Params,
+    opts: &PipelineOptions,
+    maps_stop: Option<&str>,
+) -> Result<CompleteReport, PipelineError> {
+    let sets = sets_with_role(&c.manifest.datasets, &c.dynamic, Role::Dynamic, true);
+    if sets.is_empty() {
+        return Err(missing(7, "VGT/EGR data set with role \"dynamic\""));
+    }
+    let s3 = &opts.step3;
+    // V_ic's start and bounds are given for the published engine: scaled by the
+    // displacement as step 3's volumes are (Step3Start::scaled_to; the identity there)
+    let v_ic = V_IC_START.map(|v| v * (p.cylinder.v_d / PUBLISHED_V_D));
+    let th0 = [
+        v_ic[0],
+        p.intake_manifold.v_im,
+        p.exhaust_manifold.v_em,
+        p.turbo.j_t,
+    ];
+    let clip = |v: f64, lo: f64, hi: f64| v.clamp(lo, hi);
+    let th0: Vec<f64> = th0
+        .iter()
+        .zip([v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]])
+        .zip([v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]])
+        .map(|((v, lo), hi)| clip(*v, lo, hi))
+        .collect();
+    let f = DynamicFit {
+        order: ModelOrder::Twelve,
+        names: &["v_ic", "v_im", "v_em", "j_t"],
+        theta0: &th0,
+        lo: &[v_ic[1], s3.lo[0], s3.lo[1], s3.lo[2]],
+        hi: &[v_ic[2], s3.hi[0], s3.hi[1], s3.hi[2]],
+        scale: &[0.01, 0.02, 0.02, 1e-4],
+        amp_floor: s3.amp_floor,
+        window: s3.window,
+        lags: opts.step5.sensor_lags,
+        max_eval: opts.step3_max_eval,
+    };
+    let (q, mut r) = fit_dynamic(
+        "12-state step 2 (V_ic, V_im, V_em, J_t)",
+        p,
+        &sets,
+        &c.stationary,
+        &f,
+    )
+    .map_err(at(7))?;
+    *p = q;
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
+    flag_early_stop(&mut r.uncertainty, maps_stop.map(on_maps_of));
+    Ok(r)
 }
 
 #[cfg(test)]

@@ -408,6 +408,12 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
                 .and_then(|t| t.dynamic.as_ref().map(|r| r.converged)),
         ),
         (
+            7,
+            rep.twelve
+                .as_ref()
+                .and_then(|t| t.dynamic_refined.as_ref().map(|r| r.converged)),
+        ),
+        (
             8,
             rep.twelve
                 .as_ref()
@@ -426,7 +432,11 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
             ));
         }
     }
-    for r in [&rep.step5, &rep.step5_refined].into_iter().flatten() {
+    let step8 = rep.twelve.as_ref().and_then(|t| t.statics.as_ref());
+    for r in [rep.step5.as_ref(), rep.step5_refined.as_ref(), step8]
+        .into_iter()
+        .flatten()
+    {
         if let Some(note) = r.passes_note() {
             let kind = if r.first_pass_discarded_for.is_empty() {
                 "note"
@@ -437,15 +447,12 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
                 "{kind}: {note}; --step5-single-pass turns this off"
             ));
         }
-        if let Some(note) = r.stop_note() {
-            // a stop at the optimum within the noise (measured along the Gauss-Newton step)
-            // is a note, one short of it a warning
-            let kind = if r.early_stop().is_some() {
-                "warning"
-            } else {
-                "note"
-            };
-            out.push(format!("{kind}: {note}"));
+        out.extend(stop_message(r.stop_note(), r.early_stop().is_some()));
+    }
+    // step 7 judged as step 5 (ftol/xtol with a large relative offset)
+    if let Some(t) = &rep.twelve {
+        for r in [&t.dynamic, &t.dynamic_refined].into_iter().flatten() {
+            out.extend(stop_message(r.stop_note(), r.early_stop().is_some()));
         }
     }
     for o in &rep.oscillations {
@@ -465,6 +472,14 @@ pub fn report_messages(rep: &TuneReport) -> Vec<String> {
         ));
     }
     out
+}
+
+/// A search's stop note (`stop_note` of its report) as a message: a stop at the optimum within
+/// the noise (measured along the Gauss-Newton step) is a note, one short of it (`short`) a
+/// warning.
+fn stop_message(note: Option<String>, short: bool) -> Option<String> {
+    let kind = if short { "warning" } else { "note" };
+    note.map(|n| format!("{kind}: {n}"))
 }
 
 /// What a validation run gives: the campaign, the relative errors, the dynamometer and sensor
