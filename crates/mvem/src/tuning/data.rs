@@ -626,11 +626,12 @@ fn column_units(
 ) -> Result<Vec<Conversion>, DataError> {
     let mut out = Vec::with_capacity(required.len());
     for (k, c) in required.iter().enumerate() {
+        // the file's header (`p_im [barg]` found for `p_im`), as the value errors name it
         let bad = |line: usize, message: String| DataError::Value {
             path: path.to_path_buf(),
             line,
-            column: layout.label(c.name).0,
-            renamed: layout.label(c.name).1,
+            column: headers[k].to_string(),
+            renamed: renamed_from(headers[k], c.name),
             message,
         };
         // a gauge pressure in the header's brackets or the units row: refused even where
@@ -1500,24 +1501,36 @@ mod tests {
         let head = header();
         // as absolute bar, the row loads
         assert!(parse_stationary_csv(&format!("{head}\n{row}\n"), p, &bar).is_ok());
-        for (head, units) in [
-            (head.replace("p_im", "p_im [barg]"), String::new()),
-            (head.replace("p_im", "p_im (bar g)"), String::new()),
-            (head.clone(), {
-                let cells: Vec<&str> = (head.split(','))
-                    .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
-                    .collect();
-                format!("{}\n", cells.join(","))
-            }),
+        // the error names the file's header, and mvem's name where it differs (session 42;
+        // before, only mvem's `p_im`, a column the file does not have)
+        for (head, units, want) in [
+            (
+                head.replace("p_im", "p_im [barg]"),
+                String::new(),
+                "s.csv: line 1, column `p_im [barg]` (mvem's `p_im`): `barg` is a gauge",
+            ),
+            (
+                head.replace("p_im", "p_im (bar g)"),
+                String::new(),
+                "s.csv: line 1, column `p_im (bar g)` (mvem's `p_im`): `bar g` is a gauge",
+            ),
+            (
+                head.clone(),
+                {
+                    let cells: Vec<&str> = (head.split(','))
+                        .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
+                        .collect();
+                    format!("{}\n", cells.join(","))
+                },
+                "s.csv: line 2, column `p_im`: `kPa(g)` is a gauge",
+            ),
         ] {
             let text = format!("{head}\n{units}{row}\n");
             let e = parse_stationary_csv(&text, p, &bar)
                 .unwrap_err()
                 .to_string();
             assert!(
-                e.starts_with("s.csv: line ")
-                    && e.contains("column `p_im`: `")
-                    && e.contains("is a gauge pressure (relative to the ambient)"),
+                e.starts_with(want) && e.contains("is a gauge pressure (relative to the ambient)"),
                 "{e}"
             );
         }
@@ -1580,6 +1593,16 @@ mod tests {
         let bar = units.replacen("kPa,degC", "bar,degC", 1);
         assert_eq!(
             read(format!("{head}\n{bar}\n{row}\n"), &bracket)
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): its header gives the unit `kPa`, \
+             the units row (line 2) `bar`: which is it? (a unit given in more than one place \
+             must agree; docs/tuning-data.md)"
+        );
+        // the same without [columns]: the header `p_im [kPa]` found for `p_im` is named as the
+        // file heads it (session 42; before, only mvem's `p_im`)
+        assert_eq!(
+            read(format!("{head}\n{bar}\n{row}\n"), &Layout::default())
                 .unwrap_err()
                 .to_string(),
             "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): its header gives the unit `kPa`, \
