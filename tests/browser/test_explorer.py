@@ -859,10 +859,28 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     assert page.evaluate("window.mvem.step.u_applied.at(-1)") == 20
     assert page.evaluate("window.mvem.step.u.at(-1)") == 5
     page.locator("#step").screenshot(path=str(ART / "explorer_step_clamped.png"))
+    # the CSV download has the command as given and beside it the applied (clamped) values, as
+    # the cycle's CSV has them (session 42; it had the command alone)
+    def step_csv():
+        with page.expect_download() as d:
+            page.click("[data-download=step]")
+        lines = Path(d.value.path()).read_text().splitlines()
+        head = lines[0].split(",")
+        return head, [dict(zip(head, line.split(","))) for line in lines[1:]]
+    head, rows = step_csv()
+    assert head[:3] == ["t [s]", "u_vgt [%]", "u_vgt_applied [%]"] and "p_im [Pa]" in head, head
+    assert len(rows) == page.evaluate("window.mvem.step.t.length"), len(rows)
+    first, last = rows[0], rows[-1]
+    assert float(first["u_vgt [%]"]) == 75 and float(first["u_vgt_applied [%]"]) == 75, first
+    assert float(last["u_vgt [%]"]) == 5 and float(last["u_vgt_applied [%]"]) == 20, last
     page.fill("input[name=step_target]", "65")
     page.click("[data-action=step]")
     page.wait_for_selector("#step-warnings[data-count='0']", state="attached", timeout=30000)
     assert page.is_hidden("#step-warnings")
+    # nothing clamped: no applied column
+    head, rows = step_csv()
+    assert head[:2] == ["t [s]", "u_vgt [%]"] and not any("applied" in h for h in head), head
+    assert float(rows[-1]["u_vgt [%]"]) == 65, rows[-1]
 
 
 def test_a_step_metrics_error_is_shown_as_text(page):

@@ -1673,8 +1673,12 @@
       const j = app.step;
       if (!j) return;
       const names = Object.keys(j.series);
-      const rows = [[csvHead("t", "s"), csvHead(j.input, j.input_unit), ...names.map((n) => csvHead(n))]];
-      j.t.forEach((t, i) => rows.push([t, j.u[i], ...names.map((n) => j.series[n][i])]));
+      // the stepped input as commanded and, where the model clamped it (the parameter set's
+      // input ranges), beside it the values it applied, as the cycle's CSV has them
+      const clamped = j.u_applied && j.u.some((v, i) => v !== j.u_applied[i]);
+      const applied = clamped ? [csvHead(`${j.input}_applied`, j.input_unit)] : [];
+      const rows = [[csvHead("t", "s"), csvHead(j.input, j.input_unit), ...applied, ...names.map((n) => csvHead(n))]];
+      j.t.forEach((t, i) => rows.push([t, j.u[i], ...(clamped ? [j.u_applied[i]] : []), ...names.map((n) => j.series[n][i])]));
       download(`step_${j.input}.csv`, rows);
     });
     $("[data-download=map]").addEventListener("click", () => {
