@@ -1569,6 +1569,46 @@ def test_a_models_answer_of_the_wrong_shape_is_named(browser, server):
     ctx.close()
 
 
+@pytest.mark.parametrize("answer,text", [
+    ("500", "server: /api/models: HTTP 500: database on fire"),
+    ("shape", "server: the answer of /api/models lacks field params"),
+])
+def test_a_failed_models_answer_stays_in_the_status(browser, server, answer, text):
+    """A failed /api/models (asked once, at the start: the menus lack what it lacked) stays in
+    the header's status, the later errors beside it: it was replaced by a steady state's error
+    and then by "ready" when the steady state succeeded again (an HTTP error at once, by the
+    first steady state), so the user no longer saw why the menus were empty (session 42)."""
+    ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
+    pg = ctx.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    if answer == "500":
+        pg.route("**/api/models", lambda route: route.fulfill(status=500, body="database on fire"))
+    else:
+        pg.route("**/api/models", _drop("params"))
+    pg.goto(server)
+    pg.wait_for_selector("body[data-state=ready]", timeout=15000)
+    # the first steady state has succeeded: the models error stands
+    pg.wait_for_function("document.querySelector('[data-signal=p_im]').dataset.value", timeout=15000)
+    assert pg.is_hidden("#steady-error")
+    assert pg.text_content("#status") == text
+    assert pg.get_attribute("#status", "data-status") == "error"
+    # a steady state that fails: its error beside the models error
+    pg.route("**/api/steady*", lambda route: route.fulfill(status=422, json={"error": "no equilibrium here"}))
+    pg.fill("input[name=u_vgt]", "70")
+    pg.wait_for_function("t => document.querySelector('#status').textContent === t",
+                         arg=f"{text}; steady state: no equilibrium", timeout=15000)
+    # it succeeds again: its error goes, the models error stays
+    pg.unroute("**/api/steady*")
+    pg.fill("input[name=u_vgt]", "71")
+    pg.wait_for_function("document.querySelector('#steady-error').hidden", timeout=15000)
+    pg.wait_for_timeout(200)
+    assert pg.text_content("#status") == text
+    assert pg.get_attribute("#status", "data-status") == "error"
+    assert errors == [], errors
+    ctx.close()
+
+
 def _run_closed_loop_demand(page, path, text):
     """Run the demand `text` (written to `path`) in closed loop from the page's file input."""
     path.write_text(text)
