@@ -859,10 +859,28 @@ def test_a_step_outside_the_input_range_is_shown_clamped(page):
     assert page.evaluate("window.mvem.step.u_applied.at(-1)") == 20
     assert page.evaluate("window.mvem.step.u.at(-1)") == 5
     page.locator("#step").screenshot(path=str(ART / "explorer_step_clamped.png"))
+    # the CSV download has the command as given and beside it the applied (clamped) values, as
+    # the cycle's CSV has them (session 42; it had the command alone)
+    def step_csv():
+        with page.expect_download() as d:
+            page.click("[data-download=step]")
+        lines = Path(d.value.path()).read_text().splitlines()
+        head = lines[0].split(",")
+        return head, [dict(zip(head, line.split(","))) for line in lines[1:]]
+    head, rows = step_csv()
+    assert head[:3] == ["t [s]", "u_vgt [%]", "u_vgt_applied [%]"] and "p_im [Pa]" in head, head
+    assert len(rows) == page.evaluate("window.mvem.step.t.length"), len(rows)
+    first, last = rows[0], rows[-1]
+    assert float(first["u_vgt [%]"]) == 75 and float(first["u_vgt_applied [%]"]) == 75, first
+    assert float(last["u_vgt [%]"]) == 5 and float(last["u_vgt_applied [%]"]) == 20, last
     page.fill("input[name=step_target]", "65")
     page.click("[data-action=step]")
     page.wait_for_selector("#step-warnings[data-count='0']", state="attached", timeout=30000)
     assert page.is_hidden("#step-warnings")
+    # nothing clamped: no applied column
+    head, rows = step_csv()
+    assert head[:2] == ["t [s]", "u_vgt [%]"] and not any("applied" in h for h in head), head
+    assert float(rows[-1]["u_vgt [%]"]) == 65, rows[-1]
 
 
 def test_a_step_metrics_error_is_shown_as_text(page):
@@ -1547,6 +1565,46 @@ def test_a_models_answer_of_the_wrong_shape_is_named(browser, server):
     pg.goto(server)
     pg.wait_for_selector("body[data-state=ready]", timeout=15000)
     assert pg.text_content("#status") == "server: the answer of /api/models lacks field params"
+    assert errors == [], errors
+    ctx.close()
+
+
+@pytest.mark.parametrize("answer,text", [
+    ("500", "server: /api/models: HTTP 500: database on fire"),
+    ("shape", "server: the answer of /api/models lacks field params"),
+])
+def test_a_failed_models_answer_stays_in_the_status(browser, server, answer, text):
+    """A failed /api/models (asked once, at the start: the menus lack what it lacked) stays in
+    the header's status, the later errors beside it: it was replaced by a steady state's error
+    and then by "ready" when the steady state succeeded again (an HTTP error at once, by the
+    first steady state), so the user no longer saw why the menus were empty (session 42)."""
+    ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
+    pg = ctx.new_page()
+    errors = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    if answer == "500":
+        pg.route("**/api/models", lambda route: route.fulfill(status=500, body="database on fire"))
+    else:
+        pg.route("**/api/models", _drop("params"))
+    pg.goto(server)
+    pg.wait_for_selector("body[data-state=ready]", timeout=15000)
+    # the first steady state has succeeded: the models error stands
+    pg.wait_for_function("document.querySelector('[data-signal=p_im]').dataset.value", timeout=15000)
+    assert pg.is_hidden("#steady-error")
+    assert pg.text_content("#status") == text
+    assert pg.get_attribute("#status", "data-status") == "error"
+    # a steady state that fails: its error beside the models error
+    pg.route("**/api/steady*", lambda route: route.fulfill(status=422, json={"error": "no equilibrium here"}))
+    pg.fill("input[name=u_vgt]", "70")
+    pg.wait_for_function("t => document.querySelector('#status').textContent === t",
+                         arg=f"{text}; steady state: no equilibrium", timeout=15000)
+    # it succeeds again: its error goes, the models error stays
+    pg.unroute("**/api/steady*")
+    pg.fill("input[name=u_vgt]", "71")
+    pg.wait_for_function("document.querySelector('#steady-error').hidden", timeout=15000)
+    pg.wait_for_timeout(200)
+    assert pg.text_content("#status") == text
+    assert pg.get_attribute("#status", "data-status") == "error"
     assert errors == [], errors
     ctx.close()
 

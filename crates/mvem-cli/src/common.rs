@@ -586,10 +586,11 @@ pub fn check_drive(d: &Drive, ranges: Option<&InputRanges>) -> Result<()> {
     Ok(())
 }
 
-/// A point as `n_e 1500 rpm, u_delta 110 mg, u_egr 80 %, u_vgt 75 %`.
+/// A point as `n_e 1500 rpm, u_delta 110 mg/cycle, u_egr 80 %, u_vgt 75 %` (the fuel per cycle
+/// and cylinder, in the unit of the explorer and the CSVs).
 pub fn fmt_drive(d: &Drive) -> String {
     format!(
-        "n_e {} rpm, u_delta {} mg, u_egr {} %, u_vgt {} %",
+        "n_e {} rpm, u_delta {} mg/cycle, u_egr {} %, u_vgt {} %",
         d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
     )
 }

@@ -13,7 +13,7 @@ use serde_json::Value;
 use std::path::Path;
 mod common;
 
-use common::{json_of, mvem, stderr};
+use common::{json_of, mvem, stderr, stdout};
 
 /// `mvem linearize` at 1500 rpm, 110 mg, u_egr 80 % and `u_vgt`, then `extra`.
 fn lin_args<'a>(u_vgt: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
@@ -648,6 +648,50 @@ fn step_in_any_input() {
     assert_eq!(v["outputs"]["W_c"]["gain_sign"], "positive");
 }
 
+/// The fuel u_delta is in mg/cycle (per cycle and cylinder) throughout `mvem step`'s text and
+/// figure, the unit of the explorer and the CSVs: before session 42 the operating point said
+/// `u_delta 110 mg` on the line whose title said `mg/cycle` (a fuel step's `100 -> 120
+/// mg/cycle`), and the figure's title `u_delta 110 mg`.
+#[test]
+fn step_text_and_figure_give_the_fuel_in_mg_per_cycle() {
+    let d = tempfile::tempdir().unwrap();
+    let step = |args: &str| {
+        let a = format!("step {args} --outputs p_im --t-end 3");
+        mvem(d.path(), &a.split(' ').collect::<Vec<_>>())
+    };
+    let o = step("--input u_delta --from 100 --to 120 --n-e 1500 --u-egr 20 --u-vgt 50");
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert_eq!(
+        text.lines().next().unwrap(),
+        "Step u_delta 100 → 120 mg/cycle at t = 1 s (n_e 1500 rpm, u_delta 100 mg/cycle, u_egr \
+         20 %, u_vgt 50 %)",
+        "{text}"
+    );
+    assert!(
+        text.contains("DC gain in output unit per mg/cycle."),
+        "{text}"
+    );
+    // a VGT step's figure names the held fuel in its title
+    let o =
+        step("--input u_vgt --from 75 --to 65 --n-e 1500 --u-delta 110 --u-egr 80 --plot s.svg");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).starts_with(
+            "Step u_vgt 75 → 65 % at t = 1 s (n_e 1500 rpm, u_delta 110 mg/cycle, u_egr 80 %, \
+             u_vgt 75 %)\n"
+        ),
+        "{}",
+        stdout(&o)
+    );
+    let svg = std::fs::read_to_string(d.path().join("s.svg")).unwrap();
+    assert!(
+        svg.contains("n_e 1500 rpm, u_delta 110 mg/cycle, u_egr 80 %") && !svg.contains(" mg,"),
+        "{}",
+        &svg[..svg.len().min(3000)]
+    );
+}
+
 #[test]
 fn map_csv_shape_flags_and_values() {
     let d = tempfile::tempdir().unwrap();
@@ -741,7 +785,8 @@ fn map_keeps_points_without_equilibrium() {
     assert!(o.status.success(), "{}", stderr(&o));
     let err = stderr(&o);
     assert!(
-        err.contains("point (n_e 500 rpm, u_delta 1 mg") && err.contains("no equilibrium"),
+        err.contains("point (n_e 500 rpm, u_delta 1 mg/cycle, u_egr ")
+            && err.contains("no equilibrium"),
         "{err}"
     );
     let mut r = csv::Reader::from_path(d.path().join("m.csv")).unwrap();

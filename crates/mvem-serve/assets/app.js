@@ -254,11 +254,15 @@
   }
 
   // the header's status: busy while any computation runs (each button's job counted, so one
-  // that ends does not say "ready" while another still runs), else the standing error (the
-  // steady state's, or an unreachable server's), else ready
+  // that ends does not say "ready" while another still runs), else the standing errors, else
+  // ready. The standing errors: a failed /api/models (`app.modelsError`: asked once, at the
+  // start, so the menus lack what it lacked until the page is loaded again; it stays, the
+  // other error beside it) and the latest other one (`app.statusError`: the steady state's,
+  // or an unreachable server's, cleared when they succeed again)
   const jobs = new Map();
   let jobSeq = 0;
   app.statusError = null;
+  app.modelsError = null;
   function setStatus(s, text) {
     const el = $("#status");
     el.dataset.status = s;
@@ -268,8 +272,8 @@
     if (jobs.size) {
       const texts = [...jobs.values()];
       setStatus("busy", texts[texts.length - 1] + (jobs.size > 1 ? ` (${jobs.size} computations)` : ""));
-    } else if (app.statusError) {
-      setStatus("error", app.statusError.text);
+    } else if (app.statusError || app.modelsError) {
+      setStatus("error", [app.modelsError, app.statusError?.text].filter(Boolean).join("; "));
     } else {
       setStatus("ok", "ready");
     }
@@ -361,8 +365,8 @@
       app.steadyFailed = null;
       showError("#steady-error", null);
       $("table.signals").dataset.stale = "false";
-      // (an answer of /api/models of the wrong shape stands: the menus lack what it lacked)
-      if (!app.statusError || app.statusError.source !== "models") app.statusError = null;
+      // (a failed /api/models stands apart, app.modelsError: the menus lack what it lacked)
+      app.statusError = null;
       refreshStatus();
     } catch (e) {
       // the label says what failed; the values left in the table are marked as the last
@@ -1673,8 +1677,12 @@
       const j = app.step;
       if (!j) return;
       const names = Object.keys(j.series);
-      const rows = [[csvHead("t", "s"), csvHead(j.input, j.input_unit), ...names.map((n) => csvHead(n))]];
-      j.t.forEach((t, i) => rows.push([t, j.u[i], ...names.map((n) => j.series[n][i])]));
+      // the stepped input as commanded and, where the model clamped it (the parameter set's
+      // input ranges), beside it the values it applied, as the cycle's CSV has them
+      const clamped = j.u_applied && j.u.some((v, i) => v !== j.u_applied[i]);
+      const applied = clamped ? [csvHead(`${j.input}_applied`, j.input_unit)] : [];
+      const rows = [[csvHead("t", "s"), csvHead(j.input, j.input_unit), ...applied, ...names.map((n) => csvHead(n))]];
+      j.t.forEach((t, i) => rows.push([t, j.u[i], ...(clamped ? [j.u_applied[i]] : []), ...names.map((n) => j.series[n][i])]));
       download(`step_${j.input}.csv`, rows);
     });
     $("[data-download=map]").addEventListener("click", () => {
@@ -1986,7 +1994,8 @@
       showCycleMode();
       refreshStatus();
     } catch (e) {
-      app.statusError = { source: e.kind === "answer" ? "models" : "network", text: `server: ${e.message}` };
+      // (the answer's error names /api/models; an HTTP error or no answer is named here)
+      app.modelsError = `server: ${e.kind === "answer" ? "" : "/api/models: "}${e.message}`;
       refreshStatus();
     }
     buildSignalTable();

@@ -424,13 +424,6 @@ pub fn text(c: &StepCase) -> String {
     s
 }
 
-fn short_unit(name: &str) -> &'static str {
-    match name {
-        "u_delta" => "mg",
-        n => common::unit(n),
-    }
-}
-
 /// Display scale and unit for plotting (pressures in kPa).
 pub fn display(name: &str) -> (f64, String) {
     match common::unit(name) {
@@ -448,7 +441,7 @@ pub fn figure(c: &StepCase, label: Option<&str>) -> Figure {
         .iter()
         .zip(c.before.to_array())
         .filter(|(n, _)| **n != c.input.name())
-        .map(|(n, v)| format!("{n} {v} {}", short_unit(n)))
+        .map(|(n, v)| format!("{n} {v} {}", common::unit(n)))
         .collect();
     // a label (e.g. the report's "Fig. 10 equivalent: ...") heads the figure, not the input
     // panel; the operating point then moves to the input panel's title

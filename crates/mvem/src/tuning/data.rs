@@ -43,13 +43,18 @@ impl Layout {
     fn header<'a>(&'a self, name: &'a str) -> &'a str {
         self.names.get(name).map_or(name, |s| s.trim())
     }
+}
 
-    /// mvem's column `name` as an error names it: the file's header name, and mvem's name
-    /// where `[columns]` renames it (the `column` and `renamed` of [`DataError::Value`]).
-    fn label(&self, name: &str) -> (String, Option<String>) {
-        let h = self.header(name);
-        (h.to_string(), renamed_from(h, name))
-    }
+/// The header a file gives each of mvem's columns it was read by (mvem's name -> the file's:
+/// `t` -> `t [ms]`, `p_im` -> `P_IM`), as [`parse_columns`] found them.
+type FileHeaders = BTreeMap<&'static str, String>;
+
+/// mvem's column `name` as an error names it: the file's header (`headers`; mvem's name where
+/// the file was not read by it), and mvem's name where they differ (the `column` and `renamed`
+/// of [`DataError::Value`]).
+fn label(headers: &FileHeaders, name: &str) -> (String, Option<String>) {
+    let h = headers.get(name).map_or(name, String::as_str);
+    (h.to_string(), renamed_from(h, name))
 }
 
 /// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
@@ -590,6 +595,7 @@ struct Parsed {
     rows: Vec<Vec<f64>>,
     lines: Vec<usize>,
     conv: Vec<Conversion>,
+    headers: FileHeaders,
 }
 
 /// A column's unit and its conversion to mvem's (`scale * v + offset`): (scale, offset, the
@@ -626,11 +632,12 @@ fn column_units(
 ) -> Result<Vec<Conversion>, DataError> {
     let mut out = Vec::with_capacity(required.len());
     for (k, c) in required.iter().enumerate() {
+        // the file's header (`p_im [barg]` found for `p_im`), as the value errors name it
         let bad = |line: usize, message: String| DataError::Value {
             path: path.to_path_buf(),
             line,
-            column: layout.label(c.name).0,
-            renamed: layout.label(c.name).1,
+            column: headers[k].to_string(),
+            renamed: renamed_from(headers[k], c.name),
             message,
         };
         // a gauge pressure in the header's brackets or the units row: refused even where
@@ -890,7 +897,15 @@ fn parse_columns(
     if rows.is_empty() {
         return Err(fmt("no data rows".into()));
     }
-    Ok(Parsed { rows, lines, conv })
+    let headers = (required.iter().zip(&headers))
+        .map(|(c, h)| (c.name, h.to_string()))
+        .collect();
+    Ok(Parsed {
+        rows,
+        lines,
+        conv,
+        headers,
+    })
 }
 
 /// mvem's name `name` of the column a file heads `header`, where the two differ (the
@@ -944,7 +959,12 @@ pub fn parse_stationary_csv(
 ) -> Result<Vec<StationaryPoint>, DataError> {
     let cols = without_absent(text, layout, STATIONARY_COLUMNS.to_vec(), &["T_t"]);
     let t_t_given = cols.len() == STATIONARY_COLUMNS.len();
-    let Parsed { rows, lines, .. } = parse_columns(text, path, &cols, layout)?;
+    let Parsed {
+        rows,
+        lines,
+        headers,
+        ..
+    } = parse_columns(text, path, &cols, layout)?;
     let points: Vec<StationaryPoint> = rows
         .into_iter()
         .map(|mut r| {
@@ -959,17 +979,17 @@ pub fn parse_stationary_csv(
     if let Some(v_d) = displacement_bound(&points) {
         let m_e: Vec<f64> = points.iter().map(|s| s.m_e).collect();
         let n_e: Vec<f64> = points.iter().map(|s| s.n_e).collect();
-        check_torque(path, layout, &m_e, &n_e, &lines, v_d)?;
+        check_torque(path, &headers, &m_e, &n_e, &lines, v_d)?;
     }
     Ok(points)
 }
 
 /// Refuse torques `m_e` at speeds `n_e` (rows on the file's `lines`) beyond the BMEP of a
 /// diesel engine of displacement at most `v_d` ([`torque_beyond_bmep`]), naming the file, the
-/// line and the column.
+/// line and the column (as the file heads it: `headers`).
 fn check_torque(
     path: &Path,
-    layout: &Layout,
+    headers: &FileHeaders,
     m_e: &[f64],
     n_e: &[f64],
     lines: &[usize],
@@ -978,7 +998,7 @@ fn check_torque(
     let Some((k, message)) = torque_beyond_bmep(m_e, n_e, v_d) else {
         return Ok(());
     };
-    let (column, renamed) = layout.label("M_e");
+    let (column, renamed) = label(headers, "M_e");
     Err(DataError::Value {
         path: path.to_path_buf(),
         line: lines[k],
@@ -1055,14 +1075,14 @@ pub fn parse_dynamic_csv(
 }
 
 /// [`parse_dynamic_csv`], whether the time's unit is given (the manifest's `[units]`, the
-/// header's brackets or a units row), and each row's line in the file.
+/// header's brackets or a units row), each row's line in the file and the file's headers.
 fn parse_dynamic(
     text: &str,
     path: &Path,
     name: &str,
     kind: StepKind,
     layout: &Layout,
-) -> Result<(DynamicData, bool, Vec<usize>), DataError> {
+) -> Result<(DynamicData, bool, Vec<usize>, FileHeaders), DataError> {
     let req = match kind {
         StepKind::Actuator => dynamic_required(kind),
         _ => without_absent(
@@ -1072,7 +1092,12 @@ fn parse_dynamic(
             &OPTIONAL_DYNAMIC_COLUMNS,
         ),
     };
-    let Parsed { rows, lines, conv } = parse_columns(text, path, &req, layout)?;
+    let Parsed {
+        rows,
+        lines,
+        conv,
+        headers,
+    } = parse_columns(text, path, &req, layout)?;
     // the times as the file writes them, in its unit (the rows hold seconds)
     let (unit, (scale, offset)) = match &conv[0] {
         Some((s, o, u)) => (u.as_str(), (*s, *o)),
@@ -1081,7 +1106,7 @@ fn parse_dynamic(
     let given = |s: f64| crate::numerics::Num((s - offset) / scale);
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
-            let (column, renamed) = layout.label("t");
+            let (column, renamed) = label(&headers, "t");
             return Err(DataError::Value {
                 path: path.to_path_buf(),
                 line: lines[k + 1],
@@ -1111,6 +1136,7 @@ fn parse_dynamic(
         },
         declared,
         lines,
+        headers,
     ))
 }
 
@@ -1213,14 +1239,14 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
-        let (set, time_unit_given, lines) =
+        let (set, time_unit_given, lines, headers) =
             parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
         // the torque of a dynamic set against the displacement of the stationary points
         if let (Some(v_d), Some(m_e), Some(n_e)) = (v_d, set.get("M_e"), set.get("n_e")) {
-            check_torque(&p, &layout, m_e, n_e, &lines, v_d)?;
+            check_torque(&p, &headers, m_e, n_e, &lines, v_d)?;
         }
         if !time_unit_given {
-            check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &layout, &lines)?;
+            check_time_unit(&set.t, Some(d.sample_rate_hz), &p, &headers, &lines)?;
         }
         dynamic.push(set);
     }
@@ -1288,18 +1314,18 @@ pub fn times_look_like_ms(t: &[f64], rate_hz: Option<f64>) -> Option<(usize, Str
 /// Refuse a dynamic set whose time column (its samples on the file's `lines`) has no declared
 /// unit and whose times only make sense in ms ([`times_look_like_ms`]; a declared unit, `t = "s"` or `"ms"`, is taken as it
 /// is): read as seconds they would stretch every response a thousandfold (QA: step 3 then
-/// fitted V_im = 78 dm^3).
+/// fitted V_im = 78 dm^3). The column is named as the file heads it (`headers`).
 fn check_time_unit(
     t: &[f64],
     rate_hz: Option<f64>,
     path: &Path,
-    layout: &Layout,
+    headers: &FileHeaders,
     lines: &[usize],
 ) -> Result<(), DataError> {
     let Some((row, why)) = times_look_like_ms(t, rate_hz) else {
         return Ok(());
     };
-    let (column, renamed) = layout.label("t");
+    let (column, renamed) = label(headers, "t");
     Err(DataError::Value {
         path: path.to_path_buf(),
         // the file's line of that sample (a units row or comments above count)
@@ -1500,24 +1526,36 @@ mod tests {
         let head = header();
         // as absolute bar, the row loads
         assert!(parse_stationary_csv(&format!("{head}\n{row}\n"), p, &bar).is_ok());
-        for (head, units) in [
-            (head.replace("p_im", "p_im [barg]"), String::new()),
-            (head.replace("p_im", "p_im (bar g)"), String::new()),
-            (head.clone(), {
-                let cells: Vec<&str> = (head.split(','))
-                    .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
-                    .collect();
-                format!("{}\n", cells.join(","))
-            }),
+        // the error names the file's header, and mvem's name where it differs (session 42;
+        // before, only mvem's `p_im`, a column the file does not have)
+        for (head, units, want) in [
+            (
+                head.replace("p_im", "p_im [barg]"),
+                String::new(),
+                "s.csv: line 1, column `p_im [barg]` (mvem's `p_im`): `barg` is a gauge",
+            ),
+            (
+                head.replace("p_im", "p_im (bar g)"),
+                String::new(),
+                "s.csv: line 1, column `p_im (bar g)` (mvem's `p_im`): `bar g` is a gauge",
+            ),
+            (
+                head.clone(),
+                {
+                    let cells: Vec<&str> = (head.split(','))
+                        .map(|h| if h == "p_im" { "kPa(g)" } else { "" })
+                        .collect();
+                    format!("{}\n", cells.join(","))
+                },
+                "s.csv: line 2, column `p_im`: `kPa(g)` is a gauge",
+            ),
         ] {
             let text = format!("{head}\n{units}{row}\n");
             let e = parse_stationary_csv(&text, p, &bar)
                 .unwrap_err()
                 .to_string();
             assert!(
-                e.starts_with("s.csv: line ")
-                    && e.contains("column `p_im`: `")
-                    && e.contains("is a gauge pressure (relative to the ambient)"),
+                e.starts_with(want) && e.contains("is a gauge pressure (relative to the ambient)"),
                 "{e}"
             );
         }
@@ -1586,6 +1624,16 @@ mod tests {
              the units row (line 2) `bar`: which is it? (a unit given in more than one place \
              must agree; docs/tuning-data.md)"
         );
+        // the same without [columns]: the header `p_im [kPa]` found for `p_im` is named as the
+        // file heads it (session 42; before, only mvem's `p_im`)
+        assert_eq!(
+            read(format!("{head}\n{bar}\n{row}\n"), &Layout::default())
+                .unwrap_err()
+                .to_string(),
+            "s.csv: line 2, column `p_im [kPa]` (mvem's `p_im`): its header gives the unit `kPa`, \
+             the units row (line 2) `bar`: which is it? (a unit given in more than one place \
+             must agree; docs/tuning-data.md)"
+        );
         let kpa = Layout {
             names: ColumnNames::new(),
             units: map(&[("p_im", "kPa")]),
@@ -1637,6 +1685,18 @@ mod tests {
             e,
             "C.csv: line 5, column `t`: time 90 ms does not increase (previous row 90 ms): \
              duplicate or unsorted timestamp"
+        );
+        // the unit in the header's brackets: the column named as the file heads it (session
+        // 42; before, mvem's `t`)
+        let (head, units) = (
+            head.replacen("t,", "t [ms],", 1),
+            units.replacen("ms,", ",", 1),
+        );
+        let text = [head, units, r("80"), r("90"), r("90")].join("\n");
+        assert_eq!(
+            set(&text).unwrap_err().to_string(),
+            "C.csv: line 5, column `t [ms]` (mvem's `t`): time 90 ms does not increase (previous \
+             row 90 ms): duplicate or unsorted timestamp"
         );
     }
 
@@ -1698,6 +1758,17 @@ mod tests {
             crate::numerics::Num(s.n_e),
             crate::numerics::Num(s.m_e / omega(s.n_e)),
         );
+        assert!(e.starts_with(&want), "{e}\n{want}");
+        // headed with its unit, the column is named as the file heads it (session 42; before,
+        // mvem's `M_e`)
+        let e = parse_stationary_csv(
+            &text.replacen("M_e", "M_e [Nm]", 1),
+            Path::new("s.csv"),
+            &Layout::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        let want = want.replace("column `M_e`", "column `M_e [Nm]` (mvem's `M_e`)");
         assert!(e.starts_with(&want), "{e}\n{want}");
         // values that are no torque as power either (a 2-litre engine's 90 kNm at 600 r/min,
         // 1432 Nm as power): another cause
@@ -1884,7 +1955,7 @@ mod tests {
             &t,
             Some(10.0),
             Path::new("B.csv"),
-            &Layout::default(),
+            &FileHeaders::new(),
             &lines,
         )
         .unwrap_err()

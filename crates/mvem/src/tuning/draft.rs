@@ -19,7 +19,10 @@
 //! column to the header and `[units]` takes a unit it knows (an unknown one is a note, and the
 //! column's unit is guessed from its values as for a bare header). `[columns]` holds one header
 //! per column for all files, so a file that heads a column differently from a file drafted
-//! before it is skipped, naming both.
+//! before it is skipped, naming both. Files that give a column in different units, each file
+//! saying its own (`P_IM [kPa]` in one, `P_IM [bar]` or `P_IM` over a units row `bar` in
+//! another), are drafted together without the column in `[units]`: the loader reads each
+//! file's unit from its header or units row.
 
 use super::data::{
     campaign_columns, conversion, dynamic_required, known_unit, read, times_look_like_ms,
@@ -107,6 +110,10 @@ struct Heading {
     /// Whether the files drafted head the column alike but not with the same text (`M_E [Nm]`
     /// in one, `M_E` in another): `[columns]` then gets the name without the brackets.
     mixed: bool,
+    /// Whether the files drafted give the column in different units, each file its own
+    /// ([`Heading::alike`]): `[units]` then declares none for it, the loader reading each
+    /// file's header or units row.
+    per_file: bool,
 }
 
 impl Heading {
@@ -122,15 +129,17 @@ impl Heading {
     }
 
     /// Whether `self` and `other` head their column alike for the manifest, which holds one
-    /// header and one unit per column: the same header, or the same name before a known unit
-    /// in brackets ([`Heading::name`]: the loader finds `P_IM [kPa]` by `P_IM` in each file)
-    /// where both files give the unit (a bare header's unit may be guessed from its values),
-    /// and the same unit, mvem's own or none being the same (where the files differ only in an
-    /// unknown units-row unit, `[units]` declares mvem's unit, which serves both).
+    /// header per column: the same header, or the same name before a known unit in brackets
+    /// ([`Heading::name`]: the loader finds `P_IM [kPa]` by `P_IM` in each file) where both
+    /// files give the unit (a bare header's unit may be guessed from its values); and the same
+    /// unit, mvem's own or none being the same (where the files differ only in an unknown
+    /// units-row unit, `[units]` declares mvem's unit, which serves both), or units that both
+    /// files give themselves (in brackets or a units row: the loader reads each file's, and
+    /// `[units]` then declares none for the column, [`Heading::per_file`]).
     fn alike(&self, other: &Heading) -> bool {
         let named = self.header == other.header
             || (self.name() == other.name() && self.given && other.given);
-        named && self.unit == other.unit
+        named && (self.unit == other.unit || (self.given && other.given))
     }
 
     /// The header without a known unit in brackets that ends it (`P_IM` of `P_IM [kPa]`), else
@@ -248,6 +257,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                     given: false,
                     base: None,
                     mixed: false,
+                    per_file: false,
                 },
             );
         }
@@ -279,6 +289,7 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                 given,
                 base,
                 mixed: false,
+                per_file: false,
             },
         );
     }
@@ -372,6 +383,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     let mut s_given = Vec::new();
     // the header and unit of each column, from the first file drafted that heads it
     let mut headed: BTreeMap<&'static str, (Heading, String)> = BTreeMap::new();
+    // the unit each file drafted gives each column (None: mvem's, or none), for the note of a
+    // column whose files give different units
+    let mut file_units: BTreeMap<&'static str, Vec<(String, Option<&'static str>)>> =
+        BTreeMap::new();
     for f in &files {
         let text = match read_before.remove(f) {
             Some(text) => text,
@@ -389,17 +404,28 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         if let Some((name, g, h, other)) = clash {
             notes.push(format!(
                 "{f}: skipped (heads {name} {}, {other} heads it {}: [columns] and [units] \
-                 hold one header and unit per column)",
+                 hold one header and unit per column; files may give a column in different \
+                 units where each gives its own, in its header's brackets or a units row)",
                 g.describe(),
                 h.describe()
             ));
             continue;
         }
         notes.extend(head_notes);
-        let accept = |headed: &mut BTreeMap<&'static str, (Heading, String)>| {
+        let accept = |headed: &mut BTreeMap<&'static str, (Heading, String)>,
+                      file_units: &mut BTreeMap<
+            &'static str,
+            Vec<(String, Option<&'static str>)>,
+        >| {
             for (name, g) in &heads {
                 let e = headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
                 e.0.mixed |= e.0.header != g.header;
+                // files that each give their own unit ([`Heading::alike`])
+                e.0.per_file |= e.0.unit != g.unit;
+                file_units
+                    .entry(name)
+                    .or_default()
+                    .push((f.clone(), g.unit));
                 // a units-row unit mvem does not know in any file: `[units]` declares the
                 // column's unit for all of them
                 e.0.unknown_in_row |= g.unknown_in_row;
@@ -414,7 +440,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             if stationary.is_none() {
                 stationary = Some(f.clone());
                 keep(columns(&text, &STATIONARY_COLUMNS, &heads));
-                accept(&mut headed);
+                accept(&mut headed, &mut file_units);
             } else {
                 notes.push(format!("{f}: another stationary file, not used"));
             }
@@ -513,7 +539,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             roles_text(&roles)
         ));
         keep(cols.into_iter().filter(|c| c.0.name != "t").collect());
-        accept(&mut headed);
+        accept(&mut headed, &mut file_units);
         sets.push(DataSetInfo {
             name,
             roles,
@@ -561,7 +587,37 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             renamed.insert(name.to_string(), h.to_string());
         }
     }
+    // a column the files give in different units, each its own: no [units] entry (it would
+    // contradict the files in another unit), the note says each file's
+    let per_file = |name: &str, mvem_unit: &str| -> Option<String> {
+        let (g, _) = headed.get(name).filter(|(g, _)| g.per_file)?;
+        let mut by_unit: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+        for (f, u) in file_units.get(name).into_iter().flatten() {
+            by_unit.entry(u.unwrap_or(mvem_unit)).or_default().push(f);
+        }
+        let each: Vec<String> = (by_unit.iter())
+            .map(|(u, files)| format!("{u} in {}", files.join(", ")))
+            .collect();
+        Some(format!(
+            "{name}: each file in its own unit ({}; headed `{}`), not in [units]: the loader \
+             reads each file's header or units row",
+            each.join("; "),
+            g.columns_entry()
+        ))
+    };
     for (name, (c, v)) in &values {
+        if let Some(note) = per_file(name, c.unit) {
+            // the values are converted by each file's unit: they must lie in the range
+            notes.push(match v.iter().find(|x| !(c.min..=c.max).contains(*x)) {
+                None => note,
+                Some(x) => format!(
+                    "{note}; but a value is {x} {} in mvem's unit, outside {}..{}: check the \
+                     units",
+                    c.unit, c.min, c.max
+                ),
+            });
+            continue;
+        }
         if let Some(u) = headed.get(name).and_then(|(g, _)| g.unit) {
             // the header's unit (the values are converted): they must lie in the range
             let out = v.iter().find(|x| !(c.min..=c.max).contains(*x));
@@ -620,6 +676,15 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     // a unit a header gives for a column whose values are not checked against a range above:
     // the time (`t [ms]`, `Time [ms]`), which the sample rates were computed in
     for (name, (g, _)) in &headed {
+        if g.per_file {
+            if !values.contains_key(name) {
+                let mvem_unit = campaign_columns()
+                    .find(|c| c.name == *name)
+                    .map_or("", |c| c.unit);
+                notes.extend(per_file(name, mvem_unit));
+            }
+            continue;
+        }
         if let (Some(u), false) = (g.unit, units.contains_key(*name)) {
             notes.push(format!("{name}: in {u} (its header says so)"));
             units.insert(name.to_string(), u.to_string());
@@ -998,7 +1063,9 @@ mod tests {
         assert!(
             d.notes.iter().any(|n| n
                 == "I.csv: skipped (heads p_im `p_im` (no unit), stationary.csv heads it `p_im \
-                    [kPa]` (in kPa): [columns] and [units] hold one header and unit per column)"),
+                    [kPa]` (in kPa): [columns] and [units] hold one header and unit per column; \
+                    files may give a column in different units where each gives its own, in its \
+                    header's brackets or a units row)"),
             "{:?}",
             d.notes
         );
@@ -1199,10 +1266,75 @@ mod tests {
             d.notes.iter().any(|n| n
                 == "J.csv: skipped (heads u_vgt `u_vgt [%]` (in mvem's unit), stationary.csv \
                     heads it `u_vgt` (no unit): [columns] and [units] hold one header and unit \
-                    per column)"),
+                    per column; files may give a column in different units where each gives \
+                    its own, in its header's brackets or a units row)"),
             "{:?}",
             d.notes
         );
+    }
+
+    /// Session 42: files that give a column in different units, each its own (the stationary
+    /// file `P_IM` over a units row `kPa`, I `P_IM [bar]`; I `t [ms]`, J `t [s]`), were skipped but the first (`[units]` holds one unit per column), though the
+    /// loader reads each file's unit from its header or units row. Now they are drafted
+    /// together, the column in `[columns]` by its name and not in `[units]`, a note giving each
+    /// file's unit, and the campaign loads as the lab wrote it.
+    #[test]
+    fn files_that_give_a_column_in_their_own_units_are_drafted_together() {
+        let c = small_ij_campaign();
+        let (dir, _) = saved(&c);
+        let path = |f: &str| dir.path().join(f);
+        rewrite(&path("stationary.csv"), &[("p_im", "P_IM", |v| v / 1e3)]);
+        add_units_row(&path("stationary.csv"), &[("P_IM", "kPa")]);
+        rewrite(
+            &path("I.csv"),
+            &[
+                ("p_im", "P_IM [bar]", |v| v / 1e5),
+                ("t", "t [ms]", |v| 1e3 * v),
+            ],
+        );
+        rewrite(&path("J.csv"), &[("t", "t [s]", |v| v)]);
+        std::fs::remove_file(path("manifest.toml")).unwrap();
+        let d = draft_manifest(dir.path()).unwrap();
+        let m = &d.manifest;
+        let sets: Vec<&str> = m.datasets.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(sets, ["I", "J"], "{:?}", d.notes);
+        for (s, orig) in m.datasets.iter().zip(&c.manifest.datasets) {
+            assert_eq!(s.sample_rate_hz, orig.sample_rate_hz, "{}", s.name);
+        }
+        let cols: Vec<(&str, &str)> = (m.columns.iter())
+            .map(|(a, b)| (a.as_str(), b.as_str()))
+            .collect();
+        assert_eq!(cols, [("p_im", "P_IM")]);
+        assert!(m.units.is_empty(), "{:?}", m.units);
+        for want in [
+            "p_im: each file in its own unit (bar in I.csv; kPa in stationary.csv; headed `P_IM`), \
+             not in [units]: the loader reads each file's header or units row",
+            "t: each file in its own unit (ms in I.csv; s in J.csv; headed `t`), not in [units]: \
+             the loader reads each file's header or units row",
+        ] {
+            assert!(d.notes.iter().any(|n| n == want), "{want}\n{:?}", d.notes);
+        }
+        std::fs::write(path("manifest.toml"), d.toml().unwrap()).unwrap();
+        let back = load_campaign(dir.path()).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1.0);
+        assert_eq!(back.stationary.len(), c.stationary.len());
+        for (a, b) in back.stationary.iter().zip(&c.stationary) {
+            assert!(close(a.p_im, b.p_im), "{} vs {}", a.p_im, b.p_im);
+        }
+        assert_eq!(back.dynamic.len(), c.dynamic.len());
+        for (a, b) in back.dynamic.iter().zip(&c.dynamic) {
+            assert_eq!(a.t.len(), b.t.len(), "{}", a.name);
+            assert!(
+                a.t.iter().zip(&b.t).all(|(x, y)| close(*x, *y)),
+                "{}",
+                a.name
+            );
+            // (J, an actuator set, has no p_im)
+            assert_eq!(a.get("p_im").is_some(), a.name == "I", "{}", a.name);
+            if let (Some(x), Some(y)) = (a.get("p_im"), b.get("p_im")) {
+                assert!(x.iter().zip(y).all(|(x, y)| close(*x, *y)), "{}", a.name);
+            }
+        }
     }
 
     /// Test-cell exports write a row of units under the header (session 38): the draft reads
