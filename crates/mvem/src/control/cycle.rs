@@ -607,7 +607,8 @@ pub fn is_normalized_header(fields: &[String]) -> bool {
 /// tabs, semicolons, commas or blanks, as the header is ([`TableFields`]), and may be quoted
 /// except between blanks; every row has the header's number of fields (three without a header):
 /// an extra field is refused, not ignored. `#` starts a comment line. Errors name the line
-/// (1-based); times must increase.
+/// (1-based); times must not decrease, and two rows at one time are a step (the demand jumps
+/// there; a third row at that time is refused).
 pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> {
     let fields = TableFields::of(text);
     let mut out: Vec<NormalizedRow> = Vec::new();
@@ -705,14 +706,20 @@ pub fn parse_normalized_table(text: &str) -> Result<Vec<NormalizedRow>, String> 
             }
             Some(v)
         };
-        if let Some(&(t_prev, _, _)) = out.last() {
-            if t <= t_prev {
-                return Err(format!(
-                    "line {}: time {t} s is not after the previous row's {t_prev} s (time must \
-                     increase)",
-                    line
-                ));
-            }
+        // two rows at one time are a step, as in a demand or an input file
+        // ([`check_time_order`]): the last two rows' times and this one
+        let k = out.len().min(2);
+        let mut times = [0.0; 3];
+        for (slot, row) in times.iter_mut().zip(&out[out.len() - k..]) {
+            *slot = row.0;
+        }
+        times[k] = t;
+        if let Err(ScheduleError::NonMonotonic { prev, detail, .. }) =
+            check_time_order(&times[..=k], k)
+        {
+            return Err(format!(
+                "line {line}: time {t} s is not monotonic (previous {prev} s){detail}"
+            ));
         }
         out.push((t, n, m));
     }

@@ -407,8 +407,8 @@ mod tests {
         );
         bad("t speed torque\n0 0 0\n1 50 101\n", "torque 101 %");
         bad(
-            "t speed torque\n0 0 0\n0 50 10\n",
-            "line 3: time 0 s is not after",
+            "t speed torque\n0 0 0\n1 50 10\n0.5 50 10\n",
+            "line 4: time 0.5 s is not monotonic (previous 1 s)",
         );
         bad("t speed torque\n0 0 0\n1 50\n", "line 3: expected 3 fields");
         bad(
@@ -420,6 +420,48 @@ mod tests {
             "needs at least two rows",
         );
         bad("speed torque\n0 0\n1 1\n", "line 1: no time column");
+    }
+
+    /// Two rows at one time in a normalized cycle are a step, as in a demand file (before, the
+    /// second row was refused: "time 1 s is not after the previous row's 1 s"): the rows are
+    /// kept, the denormalized demand jumps there (right-continuous), also out of a motoring row;
+    /// a third row at that time is refused naming its line, in the demand reader's words.
+    #[test]
+    fn a_normalized_cycle_may_repeat_a_time_as_a_step() {
+        let text = "Time\tSpeed\tTorque\n0\t20\tm\n2\t20\tm\n2\t30\t80\n4\t30\t80\n";
+        assert_eq!(
+            rows(text),
+            vec![
+                (0.0, 20.0, None),
+                (2.0, 20.0, None),
+                (2.0, 30.0, Some(80.0)),
+                (4.0, 30.0, Some(80.0))
+            ]
+        );
+        let m = crate::model::AnyModel::new(
+            crate::model::ModelOrder::Eight,
+            crate::params::Params::published(),
+            Default::default(),
+        )
+        .unwrap();
+        let curve = crate::control::cycle::MappingCurve::compute(&m, Default::default()).unwrap();
+        let speeds = curve.reference_speeds(curve.n_e_range().0);
+        let d = crate::control::cycle::whtc_demand(&rows(text), &curve, &speeds).unwrap();
+        assert_eq!(d.times(), &[0.0, 2.0, 2.0, 4.0]);
+        let (before, at, after) = (d.at(1.999), d.at(2.0), d.at(3.0));
+        assert!(before.motoring && !at.motoring && !after.motoring);
+        assert_eq!(at, after);
+        assert_eq!(at.m_ref, 0.8 * curve.m_max_at(at.n_e));
+        assert_eq!(before.m_ref, curve.m_motor_at(before.n_e));
+        assert!(at.n_e > before.n_e, "{at:?} {before:?}");
+        let e = cycle("t speed torque\n0 0 0\n1 50 10\n1 50 20\n1 50 30\n").unwrap_err();
+        assert!(
+            e.contains(
+                "line 5: time 1 s is not monotonic (previous 1 s) (more than two rows with the \
+                 same time)"
+            ),
+            "{e}"
+        );
     }
 
     /// A row with more fields than the header names is refused naming its line and the extra
