@@ -939,3 +939,99 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
     let (t2, ue2, uv2, windups2) = held_at_maps_setpoints(&m, maps, open, 800.0, 180.0);
     assert_eq!((t2, ue2, uv2, windups2), (t, ue, uv, windups));
 }
+
+/// Session 42: the x_egr -> u_vgt loop's release while motored with p_em <= p_im
+/// (`vgt_release_motored_band`, off by default). A fuel cut at 1000 rpm from 1 700 Nm (the
+/// demand steps below the motoring torque at 10.01 s): the spinning turbo's boost outlasts the
+/// exhaust's energy, p_em is below p_im and no EGR flows (0.2 s by default, where the closed VGT
+/// lifts p_em; 1.4 s released), while x_egr,s jumps from 0 to 0.143. By default the x_egr loop holds the VGT at its closed end (20 %)
+/// until 12 s and x_egr then overshoots its set-point (0.160 measured); released, the VGT is
+/// the lambda_O limiter's (70 % at 11 s) and the loop returns without a bump once p_em - p_im
+/// exceeds the band (x_egr without overshoot, within 5 % of x_egr,s 1.4 s sooner). Fired, the
+/// option does not act even with p_em <= p_im (the first 10 s are the default's to the bit:
+/// there closing the VGT is what raises p_em above p_im). docs/control.md, "Session 42".
+#[test]
+fn the_vgt_is_left_to_the_lambda_limiter_while_motored_without_egr_flow() {
+    use mvem::control::drive::{run_cycle, CycleSource, Scheme};
+    use mvem::io::csv_demand::parse_cycle_file;
+    let m = model();
+    let text = "t,n_e,M_ref\n0,1000,1700\n10,1000,1700\n10.01,1000,-500\n25,1000,-500\n";
+    let go = |tuning: BaselineTuning| {
+        let src = parse_cycle_file(text, std::path::Path::new("tip_out.csv")).unwrap();
+        assert!(matches!(src, CycleSource::Demand(_)));
+        let run = run_cycle(&m, src, Scheme::Baseline(tuning), None).unwrap();
+        let col = |name: &str| {
+            let k = Trajectory::NAMES.iter().position(|n| *n == name).unwrap();
+            run.traj.columns[k].clone()
+        };
+        let names = ["t", "u_vgt", "x_egr", "x_egr_ref", "p_em", "p_im"];
+        let c: Vec<Vec<f64>> = names.iter().map(|n| col(n)).collect();
+        c
+    };
+    let def = go(BaselineTuning::default());
+    let rel = go(BaselineTuning {
+        vgt_release_motored_band: 0.5,
+        ..BaselineTuning::default()
+    });
+    let t = &def[0];
+    let at = |x: f64| t.iter().position(|&v| (v - x).abs() < 1e-6).unwrap();
+    // fired (up to 10 s, p_em - p_im down to -2 Pa at its end): the same commands to the bit
+    let k10 = at(10.0);
+    assert_eq!(def[1][..=k10], rel[1][..=k10]);
+    // motored without EGR flow: p_em below p_im in both runs at 10.05 s (the default's closed
+    // VGT lifts p_em above p_im by 10.5 s, the released run's after 11 s)
+    let no_flow = |r: &[Vec<f64>], x: f64| {
+        let k = at(x);
+        assert!(
+            r[4][k] < r[5][k],
+            "t = {x}: p_em {} p_im {}",
+            r[4][k],
+            r[5][k]
+        );
+        assert!(r[2][k] < 1e-6, "t = {x}: x_egr {}", r[2][k]);
+    };
+    no_flow(&def, 10.05);
+    for x in [10.05, 10.5, 11.0] {
+        no_flow(&rel, x);
+    }
+    // the default's x_egr loop holds the VGT at its closed end; released, it is open
+    for x in [10.2, 10.5, 11.0] {
+        let k = at(x);
+        assert!(def[1][k] <= 20.5, "default, t = {x}: u_vgt {} %", def[1][k]);
+    }
+    assert!(
+        rel[1][at(11.0)] > 60.0,
+        "released: u_vgt {} %",
+        rel[1][at(11.0)]
+    );
+    assert!(
+        rel[1][at(11.5)] > 90.0,
+        "released: u_vgt {} %",
+        rel[1][at(11.5)]
+    );
+    // x_egr after the fuel cut: the default overshoots x_egr,s by more than 5 %, the release
+    // not by more than 1 %; the release is within 5 % of x_egr,s from 14 s on, the default not
+    let k = at(10.01);
+    let x_s = rel[3][t.len() - 1];
+    let peak = |r: &[Vec<f64>]| r[2][k..].iter().cloned().fold(f64::MIN, f64::max);
+    assert!(
+        peak(&def) > 1.05 * x_s,
+        "default peak {} x_egr,s {x_s}",
+        peak(&def)
+    );
+    assert!(
+        peak(&rel) < 1.01 * x_s,
+        "released peak {} x_egr,s {x_s}",
+        peak(&rel)
+    );
+    let settled = |r: &[Vec<f64>]| (at(14.0)..t.len()).all(|i| (r[2][i] - x_s).abs() <= 0.05 * x_s);
+    assert!(settled(&rel) && !settled(&def));
+    // both back at the same rest (the loop's return is bumpless): VGT within 0.1 % at 25 s
+    let kn = t.len() - 1;
+    assert!(
+        (def[1][kn] - rel[1][kn]).abs() < 0.1,
+        "{} {}",
+        def[1][kn],
+        rel[1][kn]
+    );
+}
