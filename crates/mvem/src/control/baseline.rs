@@ -1027,6 +1027,8 @@ pub struct Baseline {
     vgt_ramp: Ramp,
     /// Where the exhaust back-pressure limit gave the VGT command ([`DpLimitLog`]).
     dp_log: DpLimitLog,
+    /// Where the applied VGT command left the authors' VGT range ([`VgtBeyondMap`]).
+    vgt_beyond: VgtBeyondMap,
     /// Whether the x_egr -> u_vgt loop is out of the VGT's selector because p_em <= p_im
     /// ([`BaselineTuning::vgt_release_motored_band`]; kept until p_em - p_im exceeds the band).
     no_egr_flow: bool,
@@ -1049,6 +1051,51 @@ pub struct DpLimitLog {
     pub u_vgt_min: f64,
     /// Whether it gave the previous sample's command.
     active: bool,
+}
+
+/// Where the applied VGT command left the authors' VGT command range
+/// [`crate::model::U_VGT_RANGE`] (20-100 %), the range of the data the published VGT map (the
+/// effective area of eq. (56)) was fitted on: possible only where the parameter set's
+/// `input_saturation.u_vgt` reaches beyond it, and worth a warning there, since beyond it the
+/// model extrapolates that map (session 42). A parameter set does not record the range its own
+/// VGT map was fitted on; the warning names the authors'.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VgtBeyondMap {
+    /// Samples at which the VGT command was outside 20-100 %.
+    pub samples: usize,
+    /// Time of the first \[s\] (0 while `samples` is 0).
+    pub first_t: f64,
+    /// The VGT command there [%].
+    pub first_u: f64,
+    /// The most closed VGT command below 20 % [%] (NaN if none).
+    pub u_min: f64,
+    /// The most open VGT command above 100 % [%] (NaN if none).
+    pub u_max: f64,
+}
+
+impl VgtBeyondMap {
+    /// Record the VGT command `u` [%] applied at `t` \[s\].
+    fn record(&mut self, t: f64, u: f64) {
+        let (lo, hi) = crate::model::U_VGT_RANGE;
+        if (lo..=hi).contains(&u) {
+            return;
+        }
+        if self.samples == 0 {
+            *self = Self {
+                first_t: t,
+                first_u: u,
+                u_min: f64::NAN,
+                u_max: f64::NAN,
+                ..Self::default()
+            };
+        }
+        self.samples += 1;
+        if u < lo {
+            self.u_min = self.u_min.min(u);
+        } else {
+            self.u_max = self.u_max.max(u);
+        }
+    }
 }
 
 /// Shortest run of a command in one direction under one loop that counts as winding up to
@@ -1209,8 +1256,14 @@ impl Baseline {
             egr_ramp: Ramp::default(),
             vgt_ramp: Ramp::default(),
             dp_log: DpLimitLog::default(),
+            vgt_beyond: VgtBeyondMap::default(),
             no_egr_flow: false,
         }
+    }
+
+    /// Where the applied VGT command left the authors' VGT range so far ([`VgtBeyondMap`]).
+    pub fn vgt_beyond_map(&self) -> &VgtBeyondMap {
+        &self.vgt_beyond
     }
 
     /// What the exhaust back-pressure limit on the VGT did so far ([`DpLimitLog`]).
@@ -1254,7 +1307,7 @@ impl Controller for Baseline {
         self.tuning.ts
     }
 
-    fn start(&mut self, _t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output {
+    fn start(&mut self, t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output {
         let u = if !self.fuel_override.is_nan() {
             self.fuel_override
         } else if motoring {
@@ -1280,6 +1333,8 @@ impl Controller for Baseline {
         self.vgt_ramp = Ramp::default();
         self.dp_log = DpLimitLog::default();
         self.no_egr_flow = false;
+        self.vgt_beyond = VgtBeyondMap::default();
+        self.vgt_beyond.record(t0, u_vgt);
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -1307,6 +1362,28 @@ impl Controller for Baseline {
                 d.samples,
                 d.dp_max,
                 d.u_vgt_min
+            ));
+        }
+        let v = &self.vgt_beyond;
+        if v.samples > 0 {
+            let (lo, hi) = crate::model::U_VGT_RANGE;
+            let reach = |x: f64, what: &str| {
+                if x.is_nan() {
+                    String::new()
+                } else {
+                    format!(", {what} {x:.1} %")
+                }
+            };
+            notes.push(format!(
+                "the VGT command left {lo}-{hi} %, the range of the authors' data the published \
+                 VGT map (eq. (56)) was fitted on, at t = {} s ({:.1} %), at {} sample(s) in all{}{}: \
+                 the model extrapolates its VGT map there (unless this parameter set's map was \
+                 fitted on a wider range)",
+                Num((v.first_t * 100.0).round() / 100.0),
+                v.first_u,
+                v.samples,
+                reach(v.u_min, "down to"),
+                reach(v.u_max, "up to"),
             ));
         }
         let ev = self.windup_events();
@@ -1477,6 +1554,7 @@ impl Controller for Baseline {
             d.dp_max = d.dp_max.max(dp_kpa);
         }
         self.dp_log.active = by_dp;
+        self.vgt_beyond.record(m.t, u_vgt);
         let t = m.t;
         let egr_name = if egr_loop == InCharge::Limiter {
             "x_egr->u_egr (limiter)"
