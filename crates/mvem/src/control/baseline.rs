@@ -139,10 +139,12 @@ pub struct BaselineTuning {
     #[serde(deserialize_with = "pi_pair")]
     pub dp_vgt: (f64, f64),
     /// EGR command [%] below which the x_egr -> u_vgt loop leaves the VGT's selector (0: never,
-    /// the default; e.g. 0.01 for the valve's shut end, the authors' 0 %): with the valve shut
-    /// the VGT has no authority over x_egr, and the VGT is left to the lambda_O limiter (session
-    /// 41's conditional integration; on the default WHTC less pumping work but a larger x_egr
-    /// error, docs/control.md, "Session 41").
+    /// the default; 0.5 if on). With the valve shut the VGT has no authority over x_egr, and the
+    /// VGT is left to the lambda_O limiter (session 41's conditional integration; on the default
+    /// WHTC less pumping work but a larger x_egr error, docs/control.md, "Session 41"). A
+    /// threshold at the valve's very end (0.01) lets the valve's first creep off it hand the VGT
+    /// back to the x_egr loop next to the shut valve, session 38's unstable pair (WHTC 480 s);
+    /// 0.5 covers that creep (docs/control.md, "Session 42").
     pub vgt_release_below_egr: f64,
     /// Hysteresis band \[kPa\] of the x_egr -> u_vgt loop's release while the engine is
     /// motored and its exhaust back-pressure cannot drive EGR (0: off, the default; session
