@@ -651,7 +651,9 @@ const MAX_THREADS: usize = 1024;
 ///     far the valve may open beyond its position set-point where the set-point pair is out of
 ///     reach; 100: no limit), dp_vgt_limit, dp_vgt=[kp, ki] (the exhaust back-pressure limit on
 ///     the VGT, kPa), vgt_release_below_egr (the x_egr loop leaves the VGT alone below this EGR
-///     command; 0: never)); the others keep their defaults.
+///     command; 0: never), vgt_release_motored_band (the x_egr loop leaves the VGT alone while
+///     motored with p_em <= p_im, back once p_em - p_im exceeds this band, kPa; 0: never)); the
+///     others keep their defaults.
 /// params, model: as in simulate. duration: run only the first seconds of the cycle.
 /// margins: every so many seconds of the run, the loop margins of the air-path loops in feedback
 ///     at that sample (as `mvem closed-loop --margins S`; docs/control.md).

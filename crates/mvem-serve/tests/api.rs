@@ -79,7 +79,7 @@ fn health_models_and_page() {
         fields.len(),
         mvem::control::baseline::BaselineTuning::FIELDS.len()
     );
-    assert_eq!(fields.len(), 20);
+    assert_eq!(fields.len(), 21);
     assert_eq!(fields[2]["name"], "torque");
     assert_eq!(fields[2]["unit"], "mg/Nm, mg/(Nm s)");
     assert!(fields.iter().all(|f| tuning["defaults"]

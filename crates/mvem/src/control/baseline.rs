@@ -25,6 +25,8 @@
 //!   Optionally (`vgt_release_below_egr`, off by default) the x_egr loop leaves the VGT's
 //!   selector while the EGR valve is commanded shut, where it has no authority over x_egr
 //!   (session 41: conditional integration; the lambda_O limiter alone closes the VGT there).
+//!   Optionally (`vgt_release_motored_band`, off by default) the same while the engine is
+//!   motored with p_em <= p_im, where no EGR can flow (session 42).
 //! - Exhaust back-pressure limit (session 41): above `p_em - p_im = dp_vgt_limit` a PI on the
 //!   excess opens the VGT through a max selector over both VGT loops
 //!   (`u_vgt = max(min(u_vgt,x, u_vgt,lambda), u_vgt,dp)`), the closed end the engine's
@@ -137,11 +139,24 @@ pub struct BaselineTuning {
     #[serde(deserialize_with = "pi_pair")]
     pub dp_vgt: (f64, f64),
     /// EGR command [%] below which the x_egr -> u_vgt loop leaves the VGT's selector (0: never,
-    /// the default; e.g. 0.01 for the valve's shut end, the authors' 0 %): with the valve shut
-    /// the VGT has no authority over x_egr, and the VGT is left to the lambda_O limiter (session
-    /// 41's conditional integration; on the default WHTC less pumping work but a larger x_egr
-    /// error, docs/control.md, "Session 41").
+    /// the default; 0.5 if on). With the valve shut the VGT has no authority over x_egr, and the
+    /// VGT is left to the lambda_O limiter (session 41's conditional integration; on the default
+    /// WHTC less pumping work but a larger x_egr error, docs/control.md, "Session 41"). A
+    /// threshold at the valve's very end (0.01) lets the valve's first creep off it hand the VGT
+    /// back to the x_egr loop next to the shut valve, session 38's unstable pair (WHTC 480 s);
+    /// 0.5 covers that creep (docs/control.md, "Session 42").
     pub vgt_release_below_egr: f64,
+    /// Hysteresis band \[kPa\] of the x_egr -> u_vgt loop's release while the engine is
+    /// motored and its exhaust back-pressure cannot drive EGR (0: off, the default; session
+    /// 42). While the fuel is at its minimum (motoring, or a tip-out's fuel cut) and p_em <=
+    /// p_im no EGR flows (eqs (32), (35): no flow without a positive pressure difference) and
+    /// closing the VGT cannot make the exhaust outpush the boost of the spinning turbo, so the
+    /// loop leaves the VGT's min selector as with [`Self::vgt_release_below_egr`] (its PI
+    /// tracks the applied command); it comes back, without a bump, once the engine is fired or
+    /// p_em - p_im exceeds this band. Fired, the loop keeps the VGT even with p_em <= p_im:
+    /// there closing the VGT is what raises p_em above p_im (released, the loop would leave
+    /// x_egr at 0 for good at e.g. 1000 rpm / 157 mg; docs/control.md, "Session 42").
+    pub vgt_release_motored_band: f64,
 }
 
 /// A PI gain pair `[kp, ki]`: exactly two numbers (a TOML array of three is refused, as
@@ -182,6 +197,7 @@ impl Default for BaselineTuning {
             dp_vgt_limit: DP_VGT_LIMIT_DEFAULT,
             dp_vgt: (0.1, 1.0),
             vgt_release_below_egr: 0.0,
+            vgt_release_motored_band: 0.0,
         }
     }
 }
@@ -205,7 +221,7 @@ impl BaselineTuning {
     /// Name, unit and description of every field a user sets (all but the sample time `ts`),
     /// in declaration order: the explorer's tuning form and other front ends read them here. A
     /// PI pair's unit is that of kp, then of ki; its value is `[kp, ki]`.
-    pub const FIELDS: [VarMeta; 20] = [
+    pub const FIELDS: [VarMeta; 21] = [
         VarMeta {
             name: "lambda_limit",
             unit: "-",
@@ -318,12 +334,20 @@ impl BaselineTuning {
             description: "EGR command below which the x_egr loop leaves the VGT to the lambda_O \
                           limiter (no EGR to act on; 0: never)",
         },
+        VarMeta {
+            name: "vgt_release_motored_band",
+            unit: "kPa",
+            description: "while the engine is motored (fuel at its minimum) and p_em <= p_im (no \
+                          EGR flow possible) the x_egr loop leaves the VGT to the lambda_O \
+                          limiter; it returns once fired or p_em - p_im exceeds this band (0: \
+                          never leaves)",
+        },
     ];
 
     /// The interval each field of [`Self::FIELDS`] must lie in, in the same order (a PI pair's
     /// kp and ki each): what [`Self::validate`] checks besides the set-point floor, and what
     /// front ends show next to the field (the explorer's tuning form, from `/api/models`).
-    pub const BOUNDS: [(&'static str, Bounds); 20] = [
+    pub const BOUNDS: [(&'static str, Bounds); 21] = [
         (
             "lambda_limit",
             Bounds::closed(
@@ -420,10 +444,14 @@ impl BaselineTuning {
             "vgt_release_below_egr",
             Bounds::closed(0.0, 100.0, " % (the EGR valve's command range)"),
         ),
+        (
+            "vgt_release_motored_band",
+            Bounds::closed(0.0, 1e3, " kPa (a pressure difference)"),
+        ),
     ];
 
     /// The values of the fields of [`Self::FIELDS`], in its order: one, or a PI pair's two.
-    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 20] {
+    fn field_values(&self) -> [(&'static str, [f64; 2], usize); 21] {
         [
             ("lambda_limit", [self.lambda_limit, 0.0], 1),
             ("smoke_margin", [self.smoke_margin, 0.0], 1),
@@ -451,6 +479,11 @@ impl BaselineTuning {
             (
                 "vgt_release_below_egr",
                 [self.vgt_release_below_egr, 0.0],
+                1,
+            ),
+            (
+                "vgt_release_motored_band",
+                [self.vgt_release_motored_band, 0.0],
                 1,
             ),
         ]
@@ -996,6 +1029,11 @@ pub struct Baseline {
     vgt_ramp: Ramp,
     /// Where the exhaust back-pressure limit gave the VGT command ([`DpLimitLog`]).
     dp_log: DpLimitLog,
+    /// Where the applied VGT command left the authors' VGT range ([`VgtBeyondMap`]).
+    vgt_beyond: VgtBeyondMap,
+    /// Whether the x_egr -> u_vgt loop is out of the VGT's selector because p_em <= p_im
+    /// ([`BaselineTuning::vgt_release_motored_band`]; kept until p_em - p_im exceeds the band).
+    no_egr_flow: bool,
 }
 
 /// What the exhaust back-pressure limiter on the VGT ([`BaselineTuning::dp_vgt_limit`]) did
@@ -1015,6 +1053,51 @@ pub struct DpLimitLog {
     pub u_vgt_min: f64,
     /// Whether it gave the previous sample's command.
     active: bool,
+}
+
+/// Where the applied VGT command left the authors' VGT command range
+/// [`crate::model::U_VGT_RANGE`] (20-100 %), the range of the data the published VGT map (the
+/// effective area of eq. (56)) was fitted on: possible only where the parameter set's
+/// `input_saturation.u_vgt` reaches beyond it, and worth a warning there, since beyond it the
+/// model extrapolates that map (session 42). A parameter set does not record the range its own
+/// VGT map was fitted on; the warning names the authors'.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VgtBeyondMap {
+    /// Samples at which the VGT command was outside 20-100 %.
+    pub samples: usize,
+    /// Time of the first \[s\] (0 while `samples` is 0).
+    pub first_t: f64,
+    /// The VGT command there [%].
+    pub first_u: f64,
+    /// The most closed VGT command below 20 % [%] (NaN if none).
+    pub u_min: f64,
+    /// The most open VGT command above 100 % [%] (NaN if none).
+    pub u_max: f64,
+}
+
+impl VgtBeyondMap {
+    /// Record the VGT command `u` [%] applied at `t` \[s\].
+    fn record(&mut self, t: f64, u: f64) {
+        let (lo, hi) = crate::model::U_VGT_RANGE;
+        if (lo..=hi).contains(&u) {
+            return;
+        }
+        if self.samples == 0 {
+            *self = Self {
+                first_t: t,
+                first_u: u,
+                u_min: f64::NAN,
+                u_max: f64::NAN,
+                ..Self::default()
+            };
+        }
+        self.samples += 1;
+        if u < lo {
+            self.u_min = self.u_min.min(u);
+        } else {
+            self.u_max = self.u_max.max(u);
+        }
+    }
 }
 
 /// Shortest run of a command in one direction under one loop that counts as winding up to
@@ -1175,7 +1258,14 @@ impl Baseline {
             egr_ramp: Ramp::default(),
             vgt_ramp: Ramp::default(),
             dp_log: DpLimitLog::default(),
+            vgt_beyond: VgtBeyondMap::default(),
+            no_egr_flow: false,
         }
+    }
+
+    /// Where the applied VGT command left the authors' VGT range so far ([`VgtBeyondMap`]).
+    pub fn vgt_beyond_map(&self) -> &VgtBeyondMap {
+        &self.vgt_beyond
     }
 
     /// What the exhaust back-pressure limit on the VGT did so far ([`DpLimitLog`]).
@@ -1219,7 +1309,7 @@ impl Controller for Baseline {
         self.tuning.ts
     }
 
-    fn start(&mut self, _t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output {
+    fn start(&mut self, t0: f64, n_e: f64, m_ref: f64, motoring: bool) -> Output {
         let u = if !self.fuel_override.is_nan() {
             self.fuel_override
         } else if motoring {
@@ -1244,6 +1334,9 @@ impl Controller for Baseline {
         self.egr_ramp = Ramp::default();
         self.vgt_ramp = Ramp::default();
         self.dp_log = DpLimitLog::default();
+        self.no_egr_flow = false;
+        self.vgt_beyond = VgtBeyondMap::default();
+        self.vgt_beyond.record(t0, u_vgt);
         let (lambda_o_ref, x_egr_ref) = self.setpoints(n_e, u);
         Output {
             u_delta: u,
@@ -1271,6 +1364,28 @@ impl Controller for Baseline {
                 d.samples,
                 d.dp_max,
                 d.u_vgt_min
+            ));
+        }
+        let v = &self.vgt_beyond;
+        if v.samples > 0 {
+            let (lo, hi) = crate::model::U_VGT_RANGE;
+            let reach = |x: f64, what: &str| {
+                if x.is_nan() {
+                    String::new()
+                } else {
+                    format!(", {what} {x:.1} %")
+                }
+            };
+            notes.push(format!(
+                "the VGT command left {lo}-{hi} %, the range of the authors' data the published \
+                 VGT map (eq. (56)) was fitted on, at t = {} s ({:.1} %), at {} sample(s) in all{}{}: \
+                 the model extrapolates its VGT map there (unless this parameter set's map was \
+                 fitted on a wider range)",
+                Num((v.first_t * 100.0).round() / 100.0),
+                v.first_u,
+                v.samples,
+                reach(v.u_min, "down to"),
+                reach(v.u_max, "up to"),
             ));
         }
         let ev = self.windup_events();
@@ -1368,12 +1483,21 @@ impl Controller for Baseline {
         // shut the VGT has no authority over x_egr (no EGR flow whatever p_em), so the x_egr
         // loop leaves the VGT's selector (its command the open end; its PI tracks the applied
         // command) and the lambda_O limiter alone closes the VGT for air
-        let no_egr = u_egr < self.tuning.vgt_release_below_egr;
+        // The same while the engine is motored and the pressures cannot drive EGR (session 42,
+        // an option): with p_em <= p_im no EGR flows whatever the valve or the VGT (eqs (32),
+        // (35)), e.g. after a tip-out, while the boost of the spinning turbo outlasts the
+        // exhaust's energy; the loop comes back once fired or p_em - p_im exceeds the band.
+        // (Fired, closing the VGT raises p_em above p_im: the loop keeps its authority there.)
+        let dp_kpa = (m.p_em - m.p_im) / 1e3;
+        let band = self.tuning.vgt_release_motored_band;
+        let motored = u_delta <= u_min;
+        self.no_egr_flow =
+            band > 0.0 && motored && (dp_kpa <= 0.0 || (self.no_egr_flow && dp_kpa <= band));
+        let no_egr = u_egr < self.tuning.vgt_release_below_egr || self.no_egr_flow;
         let u_vgt_x = if no_egr { vmax } else { u_vgt_x };
         // the exhaust back-pressure limit (session 41): above dp_vgt_limit a PI opens the VGT
         // through a max selector over both VGT loops (below it the limiter takes no part and
         // starts from the applied command when the limit is next exceeded)
-        let dp_kpa = (m.p_em - m.p_im) / 1e3;
         let e_dp = dp_kpa - self.tuning.dp_vgt_limit;
         let dp_active = e_dp > 0.0;
         let u_vgt_sel = u_vgt_x.min(u_vgt_l);
@@ -1432,6 +1556,7 @@ impl Controller for Baseline {
             d.dp_max = d.dp_max.max(dp_kpa);
         }
         self.dp_log.active = by_dp;
+        self.vgt_beyond.record(m.t, u_vgt);
         let t = m.t;
         let egr_name = if egr_loop == InCharge::Limiter {
             "x_egr->u_egr (limiter)"
