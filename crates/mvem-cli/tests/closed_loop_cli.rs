@@ -834,10 +834,10 @@ fn setpoint_adjustments_are_the_cores_with_the_tunings_valve_limit() {
         // (printed numbers within half a unit of their last digit)
         let num = |s: &str| s.trim().parse::<f64>().unwrap_or_else(|_| panic!("{s:?}"));
         for (line, c) in lines.iter().zip(&cells) {
-            // "  N rpm, L x (y mg): u_egr <= X % ([set-point S %; ]reason)"
+            // "  N rpm, L x (y mg/cycle): u_egr <= X % ([set-point S %; ]reason)"
             let (n, rest) = line.split_once(" rpm, L ").unwrap();
             let (l, rest) = rest.split_once(" (").unwrap();
-            let (u, rest) = rest.split_once(" mg): u_egr <= ").unwrap();
+            let (u, rest) = rest.split_once(" mg/cycle): u_egr <= ").unwrap();
             let (lim, rest) = rest.split_once(" % (").unwrap();
             assert!((num(n) - c.n_e).abs() <= 0.5 + 1e-9, "{line}");
             assert!((num(l) - c.load).abs() <= 0.005 + 1e-9, "{line}");

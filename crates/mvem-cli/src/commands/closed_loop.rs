@@ -515,7 +515,7 @@ pub fn run(a: &Args) -> Result<()> {
                     format!("set-point {:.1} %; ", c.u_egr_max)
                 };
                 println!(
-                    "  {:.0} rpm, L {:.2} ({:.1} mg): u_egr <= {:.1} % ({set}{})",
+                    "  {:.0} rpm, L {:.2} ({:.1} mg/cycle): u_egr <= {:.1} % ({set}{})",
                     c.n_e, c.load, c.u_delta, c.u_egr_limit, c.reason
                 );
             }

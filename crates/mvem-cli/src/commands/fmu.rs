@@ -103,7 +103,7 @@ pub fn run(a: &Args) -> Result<()> {
     let d = Drive::from_array(INPUT_STARTS);
     mvem::dispatch!(&model, m => steady_state(m, &d).map(|_| ())).with_context(|| {
         format!(
-            "no steady state at the FMU's start inputs n_e = {} rpm, u_delta = {} mg, u_egr = {} %, u_vgt = {} %",
+            "no steady state at the FMU's start inputs n_e = {} rpm, u_delta = {} mg/cycle, u_egr = {} %, u_vgt = {} %",
             d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
         )
     })?;

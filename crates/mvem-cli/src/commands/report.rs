@@ -41,7 +41,7 @@ DIR/fig10_vgt_step_overshoot (u_vgt 30 -> 25 %: overshoot in W_c, positive DC ga
 DIR/fig11_12_model_orders (W_c of the 8-, 10- and 12-state models for both VGT steps), each as
 .png and .svg, and prints the step metrics. The paper's Fig. 8 point (1200 rpm, u_vgt 60 %) has
 no EGR flow with the published parameters (p_im >= p_em); the report checks that and uses
-(1200 rpm, 200 mg, u_vgt 40 %) and (1900 rpm, 180 mg, u_vgt 60 %) instead.")]
+(1200 rpm, 200 mg/cycle, u_vgt 40 %) and (1900 rpm, 180 mg/cycle, u_vgt 60 %) instead.")]
     Figs(FigsArgs),
     /// DC gain u_vgt -> W_c and RHP zeros of u_egr -> p_im over (u_vgt x u_egr) and (n_e x u_delta).
     #[command(after_help = "\
@@ -185,19 +185,19 @@ fn figs(a: &FigsArgs) -> Result<()> {
         let d = Drive::new(1200.0, u_delta, 50.0, 60.0);
         let line = mvem::dispatch!(&model, m => match steady_state(m, &d) {
             Ok(ss) => format!(
-                "  u_delta {u_delta:>5} mg: p_im {:.1} kPa, p_em {:.1} kPa, W_egr {:.2e} kg/s{}",
+                "  u_delta {u_delta:>5} mg/cycle: p_im {:.1} kPa, p_em {:.1} kPa, W_egr {:.2e} kg/s{}",
                 step::steady_value(m, &ss, "p_im").unwrap_or(f64::NAN) * 1e-3,
                 step::steady_value(m, &ss, "p_em").unwrap_or(f64::NAN) * 1e-3,
                 ss.signals.w_egr,
                 if ss.signals.w_egr <= 1e-9 { " (no EGR flow)" } else { "" }
             ),
-            Err(e) => format!("  u_delta {u_delta:>5} mg: {e}"),
+            Err(e) => format!("  u_delta {u_delta:>5} mg/cycle: {e}"),
         });
         let _ = writeln!(out, "{line}");
     }
     let _ = writeln!(
         out,
-        "The EGR steps below use (1200 rpm, 200 mg, u_vgt 40 %) and (1900 rpm, 180 mg, u_vgt 60 %).\n"
+        "The EGR steps below use (1200 rpm, 200 mg/cycle, u_vgt 40 %) and (1900 rpm, 180 mg/cycle, u_vgt 60 %).\n"
     );
 
     let mut cases: Vec<StepCase> = Vec::new();
@@ -220,7 +220,7 @@ fn figs(a: &FigsArgs) -> Result<()> {
     let mut fig = Figure::new(2);
     fig.panel_size = (760, 360);
     fig.title = Some(
-        "Figs 11-14 equivalent: VGT steps with the 8-, 10- and 12-state models (n_e 1500 rpm, u_delta 110 mg, u_egr 80 %)".into(),
+        "Figs 11-14 equivalent: VGT steps with the 8-, 10- and 12-state models (n_e 1500 rpm, u_delta 110 mg/cycle, u_egr 80 %)".into(),
     );
     let _ = writeln!(
         out,

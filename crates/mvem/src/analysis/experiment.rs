@@ -147,7 +147,7 @@ pub enum StepRunError {
 
 fn fmt_drive(d: &Drive) -> String {
     format!(
-        "n_e {} rpm, u_delta {} mg, u_egr {} %, u_vgt {} %",
+        "n_e {} rpm, u_delta {} mg/cycle, u_egr {} %, u_vgt {} %",
         d.n_e_rpm, d.u_delta_mg, d.u_egr_pct, d.u_vgt_pct
     )
 }
@@ -479,10 +479,10 @@ impl VgtStep {
         }
     }
 
-    /// A short label, e.g. `u_vgt 75->65 % at 1500 rpm, 110 mg, u_egr 80 %`.
+    /// A short label, e.g. `u_vgt 75->65 % at 1500 rpm, 110 mg/cycle, u_egr 80 %`.
     pub fn label(&self) -> String {
         format!(
-            "u_vgt {}->{} % at {} rpm, {} mg, u_egr {} %",
+            "u_vgt {}->{} % at {} rpm, {} mg/cycle, u_egr {} %",
             self.u_vgt_from, self.u_vgt_to, self.n_e_rpm, self.u_delta_mg, self.u_egr_pct
         )
     }

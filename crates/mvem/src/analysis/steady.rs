@@ -63,7 +63,7 @@ pub enum SteadyError {
     #[error("{0}")]
     Input(#[from] InputError),
     /// Neither Newton nor the settling simulations reached the tolerance.
-    #[error("no equilibrium found at n_e={} rpm, u_delta={} mg, u_egr={} %, u_vgt={} %: {reason} (best residual {residual:.3e} 1/s at {state})", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
+    #[error("no equilibrium found at n_e={} rpm, u_delta={} mg/cycle, u_egr={} %, u_vgt={} %: {reason} (best residual {residual:.3e} 1/s at {state})", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
     NoConvergence {
         /// Inputs.
         drive: Drive,
@@ -76,7 +76,7 @@ pub enum SteadyError {
     },
     /// The settling simulation was cancelled by the caller's token
     /// ([`crate::numerics::cancel`]): no verdict on the equilibrium.
-    #[error("cancelled while settling at n_e={} rpm, u_delta={} mg, u_egr={} %, u_vgt={} % (a cancellation request, e.g. Ctrl-C)", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
+    #[error("cancelled while settling at n_e={} rpm, u_delta={} mg/cycle, u_egr={} %, u_vgt={} % (a cancellation request, e.g. Ctrl-C)", .drive.n_e_rpm, .drive.u_delta_mg, .drive.u_egr_pct, .drive.u_vgt_pct)]
     Cancelled {
         /// Inputs.
         drive: Drive,

@@ -761,7 +761,9 @@ impl SetpointMaps {
                 let (ue, uv) = nominal_actuators(l);
                 let s =
                     steady_signals(model, &Drive::new(n, u, ue, uv), &mut guess).map_err(|e| {
-                        ControlError::Setup(format!("set-point maps at {n} rpm, {u:.1} mg: {e}"))
+                        ControlError::Setup(format!(
+                            "set-point maps at {n} rpm, {u:.1} mg/cycle: {e}"
+                        ))
                     })?;
                 m_row.push(s.m_e);
                 // floor <= LAMBDA_SETPOINT_MAX: checked by BaselineTuning::validate

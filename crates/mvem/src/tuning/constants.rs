@@ -486,7 +486,7 @@ impl InputRangesWidened {
     /// One line for the report and the command line.
     pub fn describe(&self) -> String {
         format!(
-            "input_saturation widened to the campaign: n_e {}-{} rpm (file {}-{}), u_delta {}-{} mg \
+            "input_saturation widened to the campaign: n_e {}-{} rpm (file {}-{}), u_delta {}-{} mg/cycle \
              (file {}-{}); the model would otherwise have run the campaign's points beyond the \
              file's ranges clamped (the authors' items 1-2 are their engine's ranges), and the \
              tuned file carries these",

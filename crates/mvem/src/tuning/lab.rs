@@ -190,7 +190,7 @@ impl Envelope {
         if !(ok(self.full_load_mg) && self.full_load_mg <= f_hi && least >= f_lo) {
             return Err(format!(
                 "full-load fuel {} mg/cycle/cylinder: the design's {least} (idle) to {} mg must \
-                 lie in the model's fuel range {f_lo}-{f_hi} mg (input_saturation.u_delta, item 2)",
+                 lie in the model's fuel range {f_lo}-{f_hi} mg/cycle (input_saturation.u_delta, item 2)",
                 self.full_load_mg, self.full_load_mg
             ));
         }
@@ -392,7 +392,7 @@ pub fn stationary(
             match crate::dispatch!(&m, m => stationary_truth(m, p, &d)) {
                 None => {
                     last = format!(
-                        "n_e {} r/min, u_delta {} mg: no physically valid equilibrium",
+                        "n_e {} r/min, u_delta {} mg/cycle: no physically valid equilibrium",
                         d.n_e_rpm, d.u_delta_mg
                     )
                 }
@@ -407,7 +407,7 @@ pub fn stationary(
                             .find(|k| k.name == c)
                             .expect("a stationary column");
                         last = format!(
-                            "n_e {} r/min, u_delta {} mg: {c} = {} {} at or within five noise \
+                            "n_e {} r/min, u_delta {} mg/cycle: {c} = {} {} at or within five noise \
                              standard deviations of the edge of the loader's plausible range \
                              [{}, {}] {} (docs/tuning-data.md)",
                             d.n_e_rpm,
