@@ -364,3 +364,43 @@ fn refine_dynamics_repeats_step_7_after_step_8() {
     // the repeat is a search of its own (from V_ic = 10 dm^3 again), which converges here
     assert!(again.converged, "{again:?}");
 }
+
+/// Steps 3 and 4 of the 8-state pipeline flag their estimates when their searches stop short,
+/// as steps 5, 7 and 8 do (session 42; before, an evaluation-limit stop of step 3 or 4 was a
+/// warning while its estimates read `converged: true`). Noise-free 8-state campaign (B, 2
+/// steps), the pipeline from the true parameters with step 3 only: with a limit of 3
+/// evaluations (below one Jacobian) its estimates are flagged naming the step; with 60 the
+/// search converges and they are not.
+#[test]
+fn step_3_stopped_at_its_limit_flags_its_estimates() {
+    let p = Params::published();
+    let lab8 = LabOptions {
+        model: ModelOrder::Eight,
+        ..lab12(Noise::NONE, &["B"], 2, 13)
+    };
+    let c = lab::campaign(&p, &lab8).unwrap().0;
+    let run = |limit: usize| {
+        let opts = PipelineOptions {
+            steps: [false, false, true, false, false],
+            step3_max_eval: limit,
+            ..PipelineOptions::default()
+        };
+        tune(&c, &p, &opts).unwrap().1
+    };
+    let short = run(3);
+    let s3: Vec<_> = short.parameters.values().filter(|e| e.step == 3).collect();
+    assert!(!s3.is_empty());
+    for e in &s3 {
+        assert!(!e.converged, "{e:?}");
+        assert!(
+            e.reason
+                .contains("step 3 stopped at its evaluation limit before converging"),
+            "{}",
+            e.reason
+        );
+    }
+    let full = run(60);
+    for e in full.parameters.values().filter(|e| e.step == 3) {
+        assert!(!e.reason.contains("step 3 stopped"), "{}", e.reason);
+    }
+}

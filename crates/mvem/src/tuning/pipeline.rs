@@ -1442,6 +1442,10 @@ fn run_step3(
     );
     r.uncertainty = own;
     r.uncertainty.extend(held);
+    // stopped at its evaluation limit, or by ftol/xtol farther from its optimum than the noise:
+    // flagged as steps 5, 7 and 8 are ([`flag_early_stop`])
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -1475,6 +1479,8 @@ fn run_step4(
             opts.fixed_jacobian,
         );
     }
+    let stop = r.early_stop();
+    flag_early_stop(&mut r.uncertainty, stop);
     est.extend(r.uncertainty.iter().cloned());
     Ok((tau, r))
 }

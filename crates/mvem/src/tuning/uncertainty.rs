@@ -92,7 +92,7 @@ pub struct ParamEstimate {
     /// Tuning step whose optimum gave the estimate (1-5; 6-8 the 12-state steps).
     pub step: u8,
     /// Whether the searches behind the estimate reached their optimum: false when it comes
-    /// from a step 5, 7 or 8 that stopped at its evaluation limit or before its optimum
+    /// from a step 3, 4, 5, 7 or 8 that stopped at its evaluation limit or before its optimum
     /// ([`super::complete::Step5Report::early_stop`],
     /// [`super::complete::CompleteReport::early_stop`]), or from steps 3-4 or 7 run on the
     /// static maps of such a step 5 or 8. Such an estimate is never reported identifiable
