@@ -49,12 +49,23 @@ impl Layout {
 /// `t` -> `t [ms]`, `p_im` -> `P_IM`), as [`parse_columns`] found them.
 type FileHeaders = BTreeMap<&'static str, String>;
 
-/// mvem's column `name` as an error names it: the file's header (`headers`; mvem's name where
-/// the file was not read by it), and mvem's name where they differ (the `column` and `renamed`
-/// of [`DataError::Value`]).
-fn label(headers: &FileHeaders, name: &str) -> (String, Option<String>) {
-    let h = headers.get(name).map_or(name, String::as_str);
-    (h.to_string(), renamed_from(h, name))
+/// The file's header of mvem's column `name` (`headers`; mvem's name where the file was not
+/// read by it), as [`value_error`] names the column.
+fn header_of<'a>(headers: &'a FileHeaders, name: &'a str) -> &'a str {
+    headers.get(name).map_or(name, String::as_str)
+}
+
+/// A [`DataError::Value`] at `line` of `path` in the column the file heads `header`, whose
+/// name in mvem is `name` (named too where the two differ: ``column `p_im [kPa]` (mvem's
+/// `p_im`)``).
+fn value_error(path: &Path, line: usize, header: &str, name: &str, message: String) -> DataError {
+    DataError::Value {
+        path: path.to_path_buf(),
+        line,
+        column: header.to_string(),
+        renamed: (header != name).then(|| name.to_string()),
+        message,
+    }
 }
 
 /// The units a column of mvem unit `base` may be given in: (name, scale, offset), the value in
@@ -633,13 +644,8 @@ fn column_units(
     let mut out = Vec::with_capacity(required.len());
     for (k, c) in required.iter().enumerate() {
         // the file's header (`p_im [barg]` found for `p_im`), as the value errors name it
-        let bad = |line: usize, message: String| DataError::Value {
-            path: path.to_path_buf(),
-            line,
-            column: headers[k].to_string(),
-            renamed: renamed_from(headers[k], c.name),
-            message,
-        };
+        let bad =
+            |line: usize, message: String| value_error(path, line, headers[k], c.name, message);
         // a gauge pressure in the header's brackets or the units row: refused even where
         // `[units]` declares the column (an unknown unit is otherwise left to it), since read
         // as absolute it is off by the ambient pressure, inside the plausible range at boost
@@ -825,12 +831,12 @@ fn parse_columns(
             line,
             column,
             field,
-        } => DataError::Value {
-            path: path.to_path_buf(),
+        } => value_error(
+            path,
             line,
-            column: headers[column].to_string(),
-            renamed: renamed_from(headers[column], names[column]),
-            message: if field.is_empty() {
+            headers[column],
+            names[column],
+            if field.is_empty() {
                 "missing value".into()
             } else if line == 2 {
                 // test-cell exports often put the units in a row under the header
@@ -842,7 +848,7 @@ fn parse_columns(
             } else {
                 format!("`{field}` is not a number")
             },
-        },
+        ),
     })?;
     let conv = column_units(path, required, &headers, layout, units_row.as_ref())?;
     let mut rows = Vec::with_capacity(read.len());
@@ -850,13 +856,7 @@ fn parse_columns(
     for (line, mut row) in read {
         for (((c, v), cv), h) in required.iter().zip(row.iter_mut()).zip(&conv).zip(&headers) {
             // the file's header (`p_im [kPa]` found for `p_im`), as the user sees it
-            let bad = |message: String| DataError::Value {
-                path: path.to_path_buf(),
-                line,
-                column: h.to_string(),
-                renamed: renamed_from(h, c.name),
-                message,
-            };
+            let bad = |message: String| value_error(path, line, h, c.name, message);
             if !v.is_finite() {
                 return Err(bad(format!("{v} is not finite")));
             }
@@ -906,12 +906,6 @@ fn parse_columns(
         conv,
         headers,
     })
-}
-
-/// mvem's name `name` of the column a file heads `header`, where the two differ (the
-/// [`DataError::Value`] message gives both).
-fn renamed_from(header: &str, name: &str) -> Option<String> {
-    (header != name).then(|| name.to_string())
 }
 
 /// The headers of `found` (with their 0-based positions) that are `h` with a unit in brackets
@@ -998,14 +992,13 @@ fn check_torque(
     let Some((k, message)) = torque_beyond_bmep(m_e, n_e, v_d) else {
         return Ok(());
     };
-    let (column, renamed) = label(headers, "M_e");
-    Err(DataError::Value {
-        path: path.to_path_buf(),
-        line: lines[k],
-        column,
-        renamed,
+    Err(value_error(
+        path,
+        lines[k],
+        header_of(headers, "M_e"),
+        "M_e",
         message,
-    })
+    ))
 }
 
 /// Load a stationary CSV file.
@@ -1106,19 +1099,18 @@ fn parse_dynamic(
     let given = |s: f64| crate::numerics::Num((s - offset) / scale);
     for (k, w) in rows.windows(2).enumerate() {
         if w[1][0] <= w[0][0] {
-            let (column, renamed) = label(&headers, "t");
-            return Err(DataError::Value {
-                path: path.to_path_buf(),
-                line: lines[k + 1],
-                column,
-                renamed,
-                message: format!(
+            return Err(value_error(
+                path,
+                lines[k + 1],
+                header_of(&headers, "t"),
+                "t",
+                format!(
                     "time {} {unit} does not increase (previous row {} {unit}): duplicate or \
                      unsorted timestamp",
                     given(w[1][0]),
                     given(w[0][0])
                 ),
-            });
+            ));
         }
     }
     let t = rows.iter().map(|r| r[0]).collect();
@@ -1325,21 +1317,20 @@ fn check_time_unit(
     let Some((row, why)) = times_look_like_ms(t, rate_hz) else {
         return Ok(());
     };
-    let (column, renamed) = label(headers, "t");
-    Err(DataError::Value {
-        path: path.to_path_buf(),
+    Err(value_error(
+        path,
         // the file's line of that sample (a units row or comments above count)
-        line: lines[row],
-        column,
-        renamed,
-        message: format!(
+        lines[row],
+        header_of(headers, "t"),
+        "t",
+        format!(
             "the time has no unit and reads as seconds, but {why}: logged in ms? Declare the \
              unit: `t = \"ms\"` in the manifest's [units] (`mvem campaign --init` drafts it \
              from a header `t [ms]`), or for this file alone a header `t [ms]` or a units row \
              with `ms` under the header (where other files are in seconds), or `t = \"s\"` if \
              these are seconds (docs/tuning-data.md)"
         ),
-    })
+    ))
 }
 
 /// Write a campaign directory atomically file by file (manifest last). The files hold the
