@@ -414,8 +414,9 @@ pub const PUBLISHED_V_D: f64 = 0.01274;
 pub const PUBLISHED_R_C: f64 = 0.04;
 
 /// The stop judgment of a report with the fields `step`, `converged`, `stopped_by`,
-/// `rel_offset`, `params`, `n_eval`, `gauss_newton_decrease`, `gauss_newton_t` ([`Step5Report`],
-/// [`CompleteReport`]): its `stop_note` and `early_stop` ([`SearchStop`]).
+/// `rel_offset`, `params`, `n_eval`, `gauss_newton_decrease`, `gauss_newton_t`, `uncertainty`
+/// ([`Step5Report`], [`CompleteReport`]): its `stop_note` and `early_stop` ([`SearchStop`]),
+/// and `flag_early_stop` of its estimates.
 macro_rules! search_end {
     ($report:ty) => {
         impl $report {
@@ -447,6 +448,16 @@ macro_rules! search_end {
             /// converged.
             pub fn early_stop(&self) -> Option<String> {
                 self.search_stop().early_stop()
+            }
+
+            /// Flag the estimates (`uncertainty`) as not converged, with [`Self::early_stop`]
+            /// as the reason, when the search did not reach its optimum.
+            pub fn flag_early_stop(&mut self) {
+                if let Some(why) = self.early_stop() {
+                    for (_, e) in &mut self.uncertainty {
+                        e.flag_not_converged(&why);
+                    }
+                }
             }
         }
     };

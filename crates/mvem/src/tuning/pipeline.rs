@@ -1313,8 +1313,7 @@ fn run_step5(
         &boxes,
         opts.fixed_jacobian,
     );
-    let stop = r.early_stop();
-    flag_early_stop(&mut r.uncertainty, stop);
+    r.flag_early_stop();
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -1443,9 +1442,8 @@ fn run_step3(
     r.uncertainty = own;
     r.uncertainty.extend(held);
     // stopped at its evaluation limit, or by ftol/xtol farther from its optimum than the noise:
-    // flagged as steps 5, 7 and 8 are ([`flag_early_stop`])
-    let stop = r.early_stop();
-    flag_early_stop(&mut r.uncertainty, stop);
+    // flagged as steps 5, 7 and 8 are
+    r.flag_early_stop();
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
 }
@@ -1479,8 +1477,7 @@ fn run_step4(
             opts.fixed_jacobian,
         );
     }
-    let stop = r.early_stop();
-    flag_early_stop(&mut r.uncertainty, stop);
+    r.flag_early_stop();
     est.extend(r.uncertainty.iter().cloned());
     Ok((tau, r))
 }
@@ -1635,16 +1632,6 @@ fn flag_not_converged(e: &mut [(String, ParamEstimate)], why: &str) {
     }
 }
 
-/// Flag the estimates `e` of a search that did not reach its optimum as not converged
-/// ([`flag_not_converged`]); `stop` is the `early_stop` of its report
-/// ([`Step5Report::early_stop`] for steps 5 and 8, [`CompleteReport::early_stop`] for step 7),
-/// `None` when it converged.
-fn flag_early_stop(e: &mut [(String, ParamEstimate)], stop: Option<String>) {
-    if let Some(why) = stop {
-        flag_not_converged(e, &why);
-    }
-}
-
 /// The reason of an estimate fitted on the static maps of a step-5 (or step-8) search that
 /// stopped short of its optimum (`stop`, its `early_stop`).
 fn on_maps_of(stop: &str) -> String {
@@ -1676,7 +1663,7 @@ fn flag_rests_on_unconverged_step5(
 /// `maps_stop`: the early stop of the last step-5 pass ([`Step5Report::early_stop`]), whose
 /// static maps step 7 runs on. With `refine_dynamics` step 7 runs again after step 8, on its
 /// maps. Each search's estimates are flagged as step 5's are when it did not reach its optimum
-/// ([`flag_early_stop`]), and step 7's also when its maps come from such a search.
+/// ([`Step5Report::flag_early_stop`]), and step 7's also when its maps come from such a search.
 fn tune_twelve(
     c: &Campaign,
     p: &mut Params,
@@ -1709,8 +1696,7 @@ fn tune_twelve(
         let th0 = theta_of(&static_params(ModelOrder::Twelve), p);
         let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
         *p = q;
-        let stop = r.early_stop();
-        flag_early_stop(&mut r.uncertainty, stop);
+        r.flag_early_stop();
         statics = Some(r);
     }
     // step 7 again on step 8's static maps, as step 3 after step 5
@@ -1781,9 +1767,10 @@ fn run_step7(
     )
     .map_err(at(7))?;
     *p = q;
-    let stop = r.early_stop();
-    flag_early_stop(&mut r.uncertainty, stop);
-    flag_early_stop(&mut r.uncertainty, maps_stop.map(on_maps_of));
+    r.flag_early_stop();
+    if let Some(stop) = maps_stop {
+        flag_not_converged(&mut r.uncertainty, &on_maps_of(stop));
+    }
     Ok(r)
 }
 
