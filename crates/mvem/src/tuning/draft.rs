@@ -110,10 +110,6 @@ struct Heading {
     /// Whether the files drafted head the column alike but not with the same text (`M_E [Nm]`
     /// in one, `M_E` in another): `[columns]` then gets the name without the brackets.
     mixed: bool,
-    /// Whether the files drafted give the column in different units, each file its own
-    /// ([`Heading::alike`]): `[units]` then declares none for it, the loader reading each
-    /// file's header or units row.
-    per_file: bool,
 }
 
 impl Heading {
@@ -135,7 +131,7 @@ impl Heading {
     /// unit, mvem's own or none being the same (where the files differ only in an unknown
     /// units-row unit, `[units]` declares mvem's unit, which serves both), or units that both
     /// files give themselves (in brackets or a units row: the loader reads each file's, and
-    /// `[units]` then declares none for the column, [`Heading::per_file`]).
+    /// `[units]` then declares none for the column).
     fn alike(&self, other: &Heading) -> bool {
         let named = self.header == other.header
             || (self.name() == other.name() && self.given && other.given);
@@ -257,7 +253,6 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                     given: false,
                     base: None,
                     mixed: false,
-                    per_file: false,
                 },
             );
         }
@@ -289,7 +284,6 @@ fn headings(f: &str, header: &[String]) -> (BTreeMap<&'static str, Heading>, Vec
                 given,
                 base,
                 mixed: false,
-                per_file: false,
             },
         );
     }
@@ -420,8 +414,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             for (name, g) in &heads {
                 let e = headed.entry(name).or_insert_with(|| (g.clone(), f.clone()));
                 e.0.mixed |= e.0.header != g.header;
-                // files that each give their own unit ([`Heading::alike`])
-                e.0.per_file |= e.0.unit != g.unit;
+                // files that may each give their own unit ([`Heading::alike`])
                 file_units
                     .entry(name)
                     .or_default()
@@ -587,10 +580,13 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
             renamed.insert(name.to_string(), h.to_string());
         }
     }
+    // whether the files drafted give the column `name` in different units, each its own
+    let units_differ =
+        |name: &str| (file_units.get(name)).is_some_and(|v| v.iter().any(|(_, u)| *u != v[0].1));
     // a column the files give in different units, each its own: no [units] entry (it would
     // contradict the files in another unit), the note says each file's
     let per_file = |name: &str, mvem_unit: &str| -> Option<String> {
-        let (g, _) = headed.get(name).filter(|(g, _)| g.per_file)?;
+        let (g, _) = headed.get(name).filter(|_| units_differ(name))?;
         let mut by_unit: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
         for (f, u) in file_units.get(name).into_iter().flatten() {
             by_unit.entry(u.unwrap_or(mvem_unit)).or_default().push(f);
@@ -676,7 +672,7 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     // a unit a header gives for a column whose values are not checked against a range above:
     // the time (`t [ms]`, `Time [ms]`), which the sample rates were computed in
     for (name, (g, _)) in &headed {
-        if g.per_file {
+        if units_differ(name) {
             if !values.contains_key(name) {
                 let mvem_unit = campaign_columns()
                     .find(|c| c.name == *name)
