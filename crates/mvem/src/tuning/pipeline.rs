@@ -586,6 +586,7 @@ pub fn tune(
     flag_vgt_area_map(&mut rep.parameters);
     flag_efficiency_ellipse_shape(&mut rep.parameters);
     flag_maps_known_only_as_a_whole(&mut rep.parameters);
+    flag_a3_on_the_psd_edge(&p.compressor.q_c, &mut rep.parameters);
     // steps 3-4 repeated on the static maps of a step 5 stopped short of its optimum
     let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
     if let Some(stop) = last5.and_then(Step5Report::early_stop) {
@@ -1070,6 +1071,27 @@ const MAP_COEFFICIENTS: [&[&str]; 5] = [
         "egr_valve.pi_egropt",
     ],
 ];
+
+/// The reason of a3 (`compressor.q_c[1][2]`, the off-diagonal of Q_c in eq. (62)) when its
+/// standard error is infinite because it lies on the edge of Q_c's positive semidefinite cone,
+/// |a3| = sqrt(a1 a2) (`q_c`: the final Q_c): the search moved a3 beyond the edge, where the
+/// projection of every evaluation (`steps::compressor::project_q_c`) clamps it, so a3 changed
+/// nothing and its Jacobian column was zero (step 8 on the small campaign of docs/tuning.md,
+/// session 43). The generic "not determined by the data" follows in parentheses.
+fn flag_a3_on_the_psd_edge(q_c: &[[f64; 2]; 2], parameters: &mut BTreeMap<String, ParamEstimate>) {
+    let (a1, a2, a3) = (q_c[0][0], q_c[1][1], q_c[0][1]);
+    let edge = (a1.max(0.0) * a2.max(0.0)).sqrt();
+    let Some(e) = parameters.get_mut("compressor.q_c[1][2]") else {
+        return;
+    };
+    if e.std_error.is_infinite() && a3.abs() >= edge * (1.0 - 1e-9) {
+        e.flag_first(&format!(
+            "a3 = {a3:.4} lies on the edge of Q_c's positive semidefinite cone, |a3| = \
+             sqrt(a1 a2) = {edge:.4} (eq. (62)): the search moved it beyond, where the projection \
+             of Q_c clamps it, so there it changes nothing and the data do not determine it"
+        ));
+    }
+}
 
 /// Flag every coefficient of a map ([`MAP_COEFFICIENTS`]) when any of that map's tuned
 /// coefficients is not identifiable (session 8: at least half; session 9: any, after a
@@ -2313,6 +2335,42 @@ mod tests {
             "1 of the 2 coefficients of its map are not identifiable (egr_valve.c_egr[1])"
         ));
         assert!(m["turbo.j_t"].identifiable && !m["intake_manifold.v_im"].identifiable);
+    }
+
+    #[test]
+    fn a3_on_the_edge_of_the_psd_cone_says_so() {
+        let est = |std_error: f64| ParamEstimate {
+            value: -16.3865,
+            std_error,
+            identifiable: false,
+            correlated_with: Vec::new(),
+            reason: "not determined by the data".into(),
+            step: 8,
+            converged: true,
+        };
+        // a1 = 5.92563, a2 = 45.31454: sqrt(a1 a2) = 16.3865 (step 8 of session 43)
+        let (a1, a2): (f64, f64) = (5.92563, 45.31454);
+        let edge = -(a1 * a2).sqrt();
+        let q = [[a1, edge], [edge, a2]];
+        let mut m = BTreeMap::from([("compressor.q_c[1][2]".to_string(), est(f64::INFINITY))]);
+        flag_a3_on_the_psd_edge(&q, &mut m);
+        let r = &m["compressor.q_c[1][2]"].reason;
+        assert!(
+            r.starts_with("a3 = -16.3865 lies on the edge of Q_c's positive semidefinite cone")
+                && r.contains("sqrt(a1 a2) = 16.3865")
+                && r.ends_with("(not determined by the data)"),
+            "{r}"
+        );
+        // inside the cone, or a finite standard error: left as it is
+        for (a3, se) in [(0.9 * edge, f64::INFINITY), (edge, 1.0)] {
+            let q = [[a1, a3], [a3, a2]];
+            let mut m = BTreeMap::from([("compressor.q_c[1][2]".to_string(), est(se))]);
+            flag_a3_on_the_psd_edge(&q, &mut m);
+            assert_eq!(
+                m["compressor.q_c[1][2]"].reason,
+                "not determined by the data"
+            );
+        }
     }
 
     /// The keys the flags look up are the report's keys: registry paths, elements 1-based (a
