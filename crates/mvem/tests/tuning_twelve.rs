@@ -404,3 +404,205 @@ fn step_3_stopped_at_its_limit_flags_its_estimates() {
         assert!(!e.reason.contains("step 3 stopped"), "{}", e.reason);
     }
 }
+
+/// The small noisy 12-state campaign of docs/tuning.md (sessions 42, 43): `mvem lab --model 12
+/// --sets A,B,C,I --max-steps 4 --n-stationary 15` (seed 1, realistic noise).
+fn small_noisy_12() -> mvem::tuning::data::Campaign {
+    let p = Params::published();
+    lab::campaign(&p, &lab12(Noise::REALISTIC, &["A", "B", "C", "I"], 4, 15))
+        .unwrap()
+        .0
+}
+
+/// `mvem tune --model 12 --max-evals 80 --restarts 0` on it (about 12 s with `--profile ci`),
+/// run once for the tests that read it.
+fn small_noisy_12_tuned() -> &'static (mvem::tuning::data::Campaign, Params, TuneReport) {
+    static RUN: std::sync::OnceLock<(mvem::tuning::data::Campaign, Params, TuneReport)> =
+        std::sync::OnceLock::new();
+    RUN.get_or_init(|| {
+        let c = small_noisy_12();
+        let opts = PipelineOptions {
+            model: ModelOrder::Twelve,
+            step5: Step5Options {
+                max_evaluations: 80,
+                restarts: 0,
+                ..Step5Options::default()
+            },
+            ..PipelineOptions::default()
+        };
+        let (q, rep) = tune(&c, &Params::published(), &opts).unwrap();
+        (c, q, rep)
+    })
+}
+
+/// Step 8 runs through step 5's machinery (session 43; before, `complete::step5` alone): on
+/// the small noisy campaign the 12-state model at step 8's start oscillates on set A (the
+/// 8-state steps do not), so step 8 runs a first pass without A, and its result oscillates on
+/// A, so A's rows leave its linearization. Its report says its standard errors are conditional.
+#[test]
+fn step_8_stages_and_linearizes_as_step_5_does() {
+    let (_, _, rep) = small_noisy_12_tuned();
+    let s8 = rep.twelve.as_ref().unwrap().statics.as_ref().unwrap();
+    // measured: a first pass without A (111 evaluations), discarded because A no longer
+    // simulates at its result, then every set from the start (223 evaluations in all)
+    assert_eq!(s8.first_pass_without, ["A"]);
+    assert_eq!(s8.first_pass_discarded_for, ["A"]);
+    assert!(
+        s8.first_pass_evaluations >= 80,
+        "{}",
+        s8.first_pass_evaluations
+    );
+    assert!(s8.n_eval > s8.first_pass_evaluations + 80, "{}", s8.n_eval);
+    assert_eq!(s8.linearized_without, ["A"]);
+    // the staging note names step 8
+    let note = s8.passes_note().unwrap();
+    assert!(
+        note.starts_with("step 8's first pass was discarded"),
+        "{note}"
+    );
+    let cond = s8.uncertainty_note.as_deref().unwrap();
+    assert!(cond.contains("step 8 are conditional on the parameters it holds fixed"));
+    // step 5 (8-state) neither staged nor left rows out; its standard errors are chained
+    let s5 = rep.step5.as_ref().unwrap();
+    assert!(s5.first_pass_without.is_empty() && s5.linearized_without.is_empty());
+    assert!(s5.uncertainty_note.is_none());
+    // the linearization without A has the rows of B, C, I and the stationary points
+    let lin = s8.linearization.as_ref().unwrap();
+    assert_eq!(lin.names.len(), 36);
+    assert!(lin.jacobian.nrows() < 2776, "{}", lin.jacobian.nrows());
+}
+
+/// In 12-state mode step 5's oscillation checks use the 8-state model its search simulates
+/// (session 43; before, `PipelineOptions::model`, the 12-state one). From the tuned 12-state
+/// parameters the 12-state model oscillates on A and the 8-state one does not: step 5 must
+/// run in one pass and step 8 in two.
+#[test]
+fn step_5_checks_oscillations_with_the_model_it_searches() {
+    use mvem::tuning::sensors::SensorLagMode;
+    use mvem::tuning::validate::dynamic_errors_with;
+    let (c, q, rep) = small_noisy_12_tuned();
+    let lags = rep.sensor_lags.unwrap();
+    let a = c.dataset("A").unwrap().1;
+    let windows = |m: ModelOrder| {
+        dynamic_errors_with(m, q, a, &c.stationary, None, &lags)
+            .unwrap()
+            .oscillations
+            .len()
+    };
+    // the premise: the two models disagree on A at these parameters
+    assert_eq!(windows(ModelOrder::Eight), 0);
+    assert!(windows(ModelOrder::Twelve) > 0);
+    let opts = PipelineOptions {
+        model: ModelOrder::Twelve,
+        steps: [false, false, false, false, true],
+        sensor_lags: SensorLagMode::Known(lags),
+        step5: Step5Options {
+            max_evaluations: 80,
+            restarts: 0,
+            ..Step5Options::default()
+        },
+        ..PipelineOptions::default()
+    };
+    let (_, again) = tune(c, q, &opts).unwrap();
+    let s5 = again.step5.as_ref().unwrap();
+    let s8 = again.twelve.as_ref().unwrap().statics.as_ref().unwrap();
+    assert!(
+        s5.first_pass_without.is_empty(),
+        "step 5 staged on the 12-state model's oscillation: {:?}",
+        s5.first_pass_without
+    );
+    assert_eq!(s8.first_pass_without, ["A"]);
+    assert_eq!(s8.linearized_without, ["A"]);
+}
+
+/// k_ic's standard error in step 8 was infinite on the small campaign (session 42), and so was
+/// every step-8 parameter's: a3's column of the Jacobian is zero there (a3 clamped to the edge
+/// of Q_c's PSD cone, |a3| = sqrt(a1 a2), so it changes nothing), and its NaN row of
+/// (J^T J)^+ spread to the whole covariance. Now a3 alone is not determined and k_ic's standard
+/// error is finite (measured 12.8 %).
+#[test]
+fn k_ic_has_a_finite_standard_error_in_step_8() {
+    let (_, _, rep) = small_noisy_12_tuned();
+    let s8 = rep.twelve.as_ref().unwrap().statics.as_ref().unwrap();
+    let lin = s8.linearization.as_ref().unwrap();
+    let col = |n: &str| {
+        let j = lin.names.iter().position(|x| x == n).unwrap();
+        lin.jacobian.column(j).norm()
+    };
+    assert_eq!(col("a3"), 0.0);
+    assert!(col("k_ic") > 0.0);
+    let k = &rep.parameters["intercooler.k_ic"];
+    let rel = k.std_error / k.value;
+    assert!(rel > 0.05 && rel < 0.3, "k_ic rel. SE {rel}");
+    // flagged for step 8's evaluation-limit stop only, not for want of information
+    assert!(!k.reason.contains("not determined"), "{}", k.reason);
+    let a3 = &rep.parameters["compressor.q_c[1][2]"];
+    assert!(a3.std_error.is_infinite() && !a3.identifiable);
+    // and says why: on the edge of Q_c's PSD cone, |a3| = sqrt(a1 a2)
+    assert!(
+        a3.reason
+            .starts_with("a3 = -16.3865 lies on the edge of Q_c's positive semidefinite")
+            && a3.reason.contains("(not determined by the data"),
+        "{}",
+        a3.reason
+    );
+    // every other step-8 estimate has a finite standard error
+    let finite = s8
+        .uncertainty
+        .iter()
+        .filter(|(_, e)| e.std_error.is_finite())
+        .count();
+    assert_eq!(finite, 35);
+}
+
+/// V_ic + V_im is reported as a combination with its standard error from step 7's
+/// covariance, var V_ic + var V_im + 2 cov (measured 26.6 +- 4.7 dm^3, 18 %, against 76 % and
+/// 88 % for V_ic and V_im alone, correlation -0.92; true 40 dm^3).
+#[test]
+fn v_ic_plus_v_im_is_reported_as_a_combination() {
+    let (_, _, rep) = small_noisy_12_tuned();
+    let k = rep
+        .combinations
+        .iter()
+        .find(|k| k.name == "intake.v_ic_plus_v_im")
+        .expect("V_ic + V_im combination");
+    let (v_ic, v_im) = (
+        &rep.parameters["intercooler.v_ic"],
+        &rep.parameters["intake_manifold.v_im"],
+    );
+    assert!((k.value - (v_ic.value + v_im.value)).abs() <= 1e-15 * k.value);
+    // by hand from the covariance of the last step-7 pass (the reported one)
+    let t = rep.twelve.as_ref().unwrap();
+    let lin = t
+        .dynamic_refined
+        .as_ref()
+        .unwrap()
+        .linearization
+        .as_ref()
+        .unwrap();
+    let (a, b) = (0, 1);
+    assert_eq!(
+        (lin.names[a].as_str(), lin.names[b].as_str()),
+        ("v_ic", "v_im")
+    );
+    let c = &lin.covariance;
+    let var = c[(a, a)] + c[(b, b)] + 2.0 * c[(a, b)];
+    assert!((k.std_error - var.sqrt()).abs() <= 1e-12 * k.std_error);
+    // the per-parameter standard errors are the same covariance's
+    assert!((v_ic.std_error - c[(a, a)].sqrt()).abs() <= 1e-12 * v_ic.std_error);
+    let rel = k.std_error / k.value;
+    assert!(rel < 0.25, "V_ic + V_im rel. SE {rel}");
+    for e in [v_ic, v_im] {
+        assert!(e.std_error / e.value > 3.0 * rel, "{e:?}");
+        assert!(e.reason.contains("V_ic + V_im = "), "{}", e.reason);
+    }
+    // step 7 stopped short here, on the maps of a step 8 stopped at its limit: the sum says so
+    // (it is 2.8 standard errors below the true 40 dm^3)
+    assert!(!v_ic.converged);
+    assert!(
+        k.description
+            .contains("V_ic and V_im are flagged not converged"),
+        "{}",
+        k.description
+    );
+}

@@ -518,25 +518,7 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
             r.eval_seconds,
             if r.at_bounds.is_empty() { "none".to_string() } else { r.at_bounds.join(", ") }
         );
-        if let Some(note) = r.passes_note() {
-            let _ = writeln!(
-                s,
-                "**Note:** {note}; `--step5-single-pass` turns this off, \
-                 `--step5-first-pass-max` limits the first pass.\n"
-            );
-        }
-        if !r.linearized_without.is_empty() {
-            let _ = writeln!(
-                s,
-                "**Standard errors without set(s) {}:** the tuned model oscillates there where \
-                 the engine does not, so their rows of the Jacobian (noise of a limit cycle's \
-                 phase) were left out of the covariance; the estimate itself used every set.\n",
-                r.linearized_without.join(", ")
-            );
-        }
-        if let Some(note) = r.stop_note() {
-            let _ = writeln!(s, "**Note:** {note}.\n");
-        }
+        search_notes(&mut s, r);
         table(&mut s, "Step 5: submodels (eq. (4))", &r.submodels);
         table(
             &mut s,
@@ -604,9 +586,7 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
                 "Step 8: cost (77) with k_ic, z_8 = W_ic, beta = 2.58: {:.4e} -> {:.4e}, {} evaluations, converged {} (stopped by: {}, relative offset {:.2e})\n",
                 r.cost_start, r.cost_end, r.n_eval, r.converged, r.stopped_by, r.rel_offset
             );
-            if let Some(note) = r.stop_note() {
-                let _ = writeln!(s, "**Note:** {note}.\n");
-            }
+            search_notes(&mut s, r);
             table(&mut s, "Step 8: submodels (eq. (4))", &r.submodels);
             table(
                 &mut s,
@@ -626,6 +606,34 @@ pub fn markdown(rep: &TuneReport, truth: Option<&Params>, cell_truth: &TestCell)
     }
     parameter_table(&mut s, rep, truth, cell_truth);
     s
+}
+
+/// The notes of a search of cost (77), step 5 or step 8 (the same machinery, the pipeline's
+/// `run_static_step`): its two passes, the sets left out of its standard errors, how it stopped,
+/// and what its standard errors do not cover.
+fn search_notes(s: &mut String, r: &mvem::tuning::complete::Step5Report) {
+    if let Some(note) = r.passes_note() {
+        let _ = writeln!(
+            s,
+            "**Note:** {note}; `--step5-single-pass` turns this off, \
+             `--step5-first-pass-max` limits the first pass.\n"
+        );
+    }
+    if !r.linearized_without.is_empty() {
+        let _ = writeln!(
+            s,
+            "**Standard errors without set(s) {}:** the tuned model oscillates there where \
+             the engine does not, so their rows of the Jacobian (noise of a limit cycle's \
+             phase) were left out of the covariance; the estimate itself used every set.\n",
+            r.linearized_without.join(", ")
+        );
+    }
+    if let Some(note) = r.stop_note() {
+        let _ = writeln!(s, "**Note:** {note}.\n");
+    }
+    if let Some(note) = &r.uncertainty_note {
+        let _ = writeln!(s, "**Note:** {note}.\n");
+    }
 }
 
 /// The uncertainty table: per tuned parameter (file path) value, standard error, whether it is

@@ -1565,6 +1565,10 @@ pub struct Step5Report {
     /// phase moves with every parameter, so those rows of the finite-difference Jacobian are
     /// noise, large enough to pass for information (standard errors too small). Empty: every set.
     pub linearized_without: Vec<String>,
+    /// What the standard errors do not cover, in words: step 8's are conditional on the
+    /// parameters it holds fixed (the pipeline's `run_static_step`); `None` for step 5, whose
+    /// standard errors carry the uncertainty of those parameters.
+    pub uncertainty_note: Option<String>,
     /// Restarts of the search that lowered the cost after ftol/xtol stopped it away from the
     /// optimum ([`Step5Options::restarts`]).
     pub restarts: usize,
@@ -1609,6 +1613,7 @@ impl Step5Report {
             first_pass_stopped_by: String::new(),
             first_pass_discarded_for: Vec::new(),
             linearized_without: Vec::new(),
+            uncertainty_note: None,
             restarts: 0,
             submodels: Vec::new(),
             dynamic: Vec::new(),
@@ -1630,22 +1635,26 @@ impl Step5Report {
         if self.first_pass_without.is_empty() {
             return None;
         }
+        // the model the search starts from: after steps 1-4 (step 5), or steps 1-7 (step 8)
+        let before = if self.step == 8 { "1-7" } else { "1-4" };
         let first = format!(
-            "the model after steps 1-4 oscillates on set(s) {} where the engine does not, so a \
-             first pass left them out ({} evaluations, stopped by: {})",
+            "the model after steps {before} oscillates on set(s) {} where the engine does not, so \
+             a first pass left them out ({} evaluations, stopped by: {})",
             self.first_pass_without.join(", "),
             self.first_pass_evaluations,
             self.first_pass_stopped_by
         );
+        let step = self.step;
         Some(if self.first_pass_discarded_for.is_empty() {
             format!(
-                "step 5 ran in two passes: {first}, and the second, on every set, started from \
-                 its result (counts include both)"
+                "step {step} ran in two passes: {first}, and the second, on every set, started \
+                 from its result (counts include both)"
             )
         } else {
             format!(
-                "step 5's first pass was discarded: {first}, but set(s) {} no longer simulate at \
-                 its result, so step 5 ran on every set from its start (counts include both)",
+                "step {step}'s first pass was discarded: {first}, but set(s) {} no longer \
+                 simulate at its result, so step {step} ran on every set from its start (counts \
+                 include both)",
                 self.first_pass_discarded_for.join(", ")
             )
         })
@@ -2053,6 +2062,7 @@ pub fn step5(
             first_pass_stopped_by: String::new(),
             first_pass_discarded_for: Vec::new(),
             linearized_without: Vec::new(),
+            uncertainty_note: None,
             restarts,
             submodels,
             dynamic,
@@ -2215,6 +2225,17 @@ mod tests {
         assert!(gone.contains("set(s) A, D no longer simulate"), "{gone}");
         assert!(gone.contains("from its start"), "{gone}");
         assert!(!gone.contains("started from its result"), "{gone}");
+        // step 8 (the same machinery, session 43) names itself and its start
+        r.step = 8;
+        let gone = r.passes_note().expect("a note");
+        assert!(
+            gone.starts_with("step 8's first pass was discarded: the model after steps 1-7"),
+            "{gone}"
+        );
+        assert!(gone.contains("so step 8 ran on every set"), "{gone}");
+        r.first_pass_discarded_for.clear();
+        let kept = r.passes_note().expect("a note");
+        assert!(kept.starts_with("step 8 ran in two passes"), "{kept}");
     }
 
     #[test]

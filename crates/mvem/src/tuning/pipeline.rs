@@ -34,7 +34,7 @@ use super::sensors::{SensorLagMode, SensorLags, MAX_LAG_S};
 use super::steps::{
     step1_with, step2, FitReport, Step1Report, Step1Start, Step2Start, StepError, SEM,
 };
-use super::twelve::{fit_k_ic, BETA_12, V_IC_START};
+use super::twelve::{fit_k_ic, intake_volume, BETA_12, V_IC_START};
 use super::uncertainty::{
     block_covariance, estimates_from_cov, fd_jacobian_named, function_std_error, joint_covariance,
     sensitivity, sigma_point_jacobian_named, step1_estimates, step2_estimates, toml_path,
@@ -543,7 +543,7 @@ pub fn tune(
         begin(6, false)?;
         let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
         let stop5 = last5.and_then(Step5Report::early_stop);
-        rep.twelve = Some(tune_twelve(c, &mut p, opts, stop5)?);
+        rep.twelve = Some(tune_twelve(c, &mut p, opts, stop5, &mut cov, &mut est)?);
     }
     // the last step run (0: none), which the checks of the result are reported under
     let last_step = opts
@@ -561,10 +561,8 @@ pub fn tune(
         },
     })?;
     if let Some(t) = &rep.twelve {
+        // step 8's estimates are in `est` already (run_static_step)
         for r in [&t.dynamic, &t.dynamic_refined].into_iter().flatten() {
-            est.extend(r.uncertainty.iter().cloned());
-        }
-        if let Some(r) = &t.statics {
             est.extend(r.uncertainty.iter().cloned());
         }
     }
@@ -588,6 +586,7 @@ pub fn tune(
     flag_vgt_area_map(&mut rep.parameters);
     flag_efficiency_ellipse_shape(&mut rep.parameters);
     flag_maps_known_only_as_a_whole(&mut rep.parameters);
+    flag_a3_on_the_psd_edge(&p.compressor.q_c, &mut rep.parameters);
     // steps 3-4 repeated on the static maps of a step 5 stopped short of its optimum
     let last5 = rep.step5_refined.as_ref().or(rep.step5.as_ref());
     if let Some(stop) = last5.and_then(Step5Report::early_stop) {
@@ -613,6 +612,37 @@ pub fn tune(
                 &cov,
                 &mut rep.parameters,
             ));
+    }
+    // V_ic + V_im from the last step-7 pass (the one whose values are reported)
+    let v_sum = rep.twelve.as_ref().and_then(|t| {
+        t.dynamic_refined
+            .as_ref()
+            .or(t.dynamic.as_ref())
+            .and_then(intake_volume)
+    });
+    if let Some(mut k) = v_sum {
+        let why = format!(
+            "V_ic + V_im = {:.4e} +- {:.2e} m^3 is determined (tune_report \"combinations\")",
+            k.value, k.std_error
+        );
+        let keys = ["intercooler.v_ic", "intake_manifold.v_im"];
+        // a sum of estimates flagged not converged (step 7 stopped short, or on the maps of a
+        // step 8 that did): its standard error does not cover that either
+        if keys
+            .iter()
+            .any(|key| rep.parameters.get(*key).is_some_and(|e| !e.converged))
+        {
+            k.description.push_str(
+                "; V_ic and V_im are flagged not converged (their reasons in the parameter \
+                 table), which this standard error does not cover either",
+            );
+        }
+        for key in keys {
+            if let Some(e) = rep.parameters.get_mut(key).filter(|e| !e.identifiable) {
+                e.reason = format!("{}; {why}", e.reason);
+            }
+        }
+        rep.combinations.push(k);
     }
     // constants the campaign contradicts (displacement, cylinders, heating value)
     rep.caveats
@@ -1042,6 +1072,27 @@ const MAP_COEFFICIENTS: [&[&str]; 5] = [
     ],
 ];
 
+/// The reason of a3 (`compressor.q_c[1][2]`, the off-diagonal of Q_c in eq. (62)) when its
+/// standard error is infinite because it lies on the edge of Q_c's positive semidefinite cone,
+/// |a3| = sqrt(a1 a2) (`q_c`: the final Q_c): the search moved a3 beyond the edge, where the
+/// projection of every evaluation (`steps::compressor::project_q_c`) clamps it, so a3 changed
+/// nothing and its Jacobian column was zero (step 8 on the small campaign of docs/tuning.md,
+/// session 43). The generic "not determined by the data" follows in parentheses.
+fn flag_a3_on_the_psd_edge(q_c: &[[f64; 2]; 2], parameters: &mut BTreeMap<String, ParamEstimate>) {
+    let (a1, a2, a3) = (q_c[0][0], q_c[1][1], q_c[0][1]);
+    let edge = (a1.max(0.0) * a2.max(0.0)).sqrt();
+    let Some(e) = parameters.get_mut("compressor.q_c[1][2]") else {
+        return;
+    };
+    if e.std_error.is_infinite() && a3.abs() >= edge * (1.0 - 1e-9) {
+        e.flag_first(&format!(
+            "a3 = {a3:.4} lies on the edge of Q_c's positive semidefinite cone, |a3| = \
+             sqrt(a1 a2) = {edge:.4} (eq. (62)): the search moved it beyond, where the projection \
+             of Q_c clamps it, so there it changes nothing and the data do not determine it"
+        ));
+    }
+}
+
 /// Flag every coefficient of a map ([`MAP_COEFFICIENTS`]) when any of that map's tuned
 /// coefficients is not identifiable (session 8: at least half; session 9: any, after a
 /// different engine's turbine-efficiency map with c_m3 flagged (rel. std. error 112 %) reported
@@ -1195,12 +1246,43 @@ fn flag_extrapolated_efficiency_peak(
 
 /// Step 5 from `th0` on `p` (replaced by the result), its uncertainty with that of the
 /// parameters it holds fixed ([`add_fixed`]) added to `cov` and `est` (flagged when the search
-/// stopped at its evaluation limit); the step's report and linearization.
+/// stopped at its evaluation limit); the step's report and linearization. See
+/// [`run_static_step`].
 fn run_step5(
     p: &mut Params,
     c: &Campaign,
     th0: &[f64],
     opts: &PipelineOptions,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
+) -> Result<(Step5Report, Option<Conditional>), PipelineError> {
+    run_static_step(p, c, th0, opts, &opts.step5, 5, cov, est)
+}
+
+/// The search of cost (77) (`complete::step5` with the options `so`) of step `step`: 5 (the
+/// 8-state model) or 8 (the 12-state model with k_ic, section 9.2.1), from `th0` on `p`
+/// (replaced by the result), with every safeguard of step 5 for both (session 43; before, step 8
+/// called `complete::step5` without them):
+///
+/// * a start whose model (`so.model`, the model the search simulates) oscillates on some of
+///   the static-tuning sets where the engine does not: a first pass without those sets, then
+///   all sets from its result ([`PipelineOptions::stage_oscillating`]);
+/// * the rows of the sets on which the result oscillates left out of the linearization
+///   ([`relinearize_rows`], [`Step5Report::linearized_without`]);
+/// * its estimates flagged when the search stopped short ([`Step5Report::flag_early_stop`]).
+///
+/// Step 5 adds the uncertainty of the parameters it holds fixed ([`add_fixed`]) and its
+/// covariance to `cov`; step 8's standard errors stay conditional on what it holds fixed
+/// (V_ic, V_im, V_em, J_t of step 7 are not in `cov`), which its report says
+/// ([`Step5Report::uncertainty_note`]). The estimates are added to `est`.
+#[allow(clippy::too_many_arguments)]
+fn run_static_step(
+    p: &mut Params,
+    c: &Campaign,
+    th0: &[f64],
+    opts: &PipelineOptions,
+    so: &Step5Options,
+    step: u8,
     cov: &mut NamedCov,
     est: &mut Vec<(String, ParamEstimate)>,
 ) -> Result<(Step5Report, Option<Conditional>), PipelineError> {
@@ -1212,15 +1294,17 @@ fn run_step5(
         .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
         .map(|(_, d)| d)
         .collect();
-    if sets.is_empty() && opts.step5.dynamic_row {
-        return Err(missing(5, "data set with role \"static\""));
+    if sets.is_empty() && so.dynamic_row {
+        return Err(missing(step, "data set with role \"static\""));
     }
+    // the model the search simulates: the oscillation checks must see the same one
+    let model = so.model;
     // a start that oscillates on some sets where the engine does not: a first pass without them
     let mut th0 = th0.to_vec();
     let mut first: Option<(Vec<String>, Step5Report, Vec<String>)> = None;
-    if opts.stage_oscillating && opts.step5.dynamic_row {
-        let lags = &opts.step5.sensor_lags;
-        let (at_start, _) = errors_on_sets(p, &sets, &c.stationary, opts.model, None, lags);
+    if opts.stage_oscillating && so.dynamic_row {
+        let lags = &so.sensor_lags;
+        let (at_start, _) = errors_on_sets(p, &sets, &c.stationary, model, None, lags);
         let osc = oscillating_names(&at_start);
         let calm: Vec<&DynamicData> = sets
             .iter()
@@ -1229,18 +1313,17 @@ fn run_step5(
             .collect();
         if !osc.is_empty() && !calm.is_empty() {
             let o1 = Step5Options {
-                max_evaluations: opts
-                    .step5
+                max_evaluations: so
                     .max_evaluations
                     .min(opts.stage_first_pass_max_evaluations),
-                ..opts.step5.clone()
+                ..so.clone()
             };
-            let (q1, r1) = step5(p, &c.stationary, &calm, &th0, &o1).map_err(at(5))?;
+            let (q1, r1) = step5(p, &c.stationary, &calm, &th0, &o1).map_err(at(step))?;
             // the first pass does not see the sets it leaves out and can move to where they
             // no longer simulate (no stable steady start, a failed solve): then cost (77) is
             // flat there (failure residuals) and the second pass would stay; discard it
             let at_first: Vec<String> =
-                errors_on_sets(&q1, &sets, &c.stationary, opts.model, None, lags)
+                errors_on_sets(&q1, &sets, &c.stationary, model, None, lags)
                     .0
                     .into_iter()
                     .map(|e| e.name)
@@ -1251,17 +1334,17 @@ fn run_step5(
                 .filter(|n| !at_first.contains(n))
                 .collect();
             if lost.is_empty() {
-                th0 = theta_of(&step5_bounds(p, &c.stationary, &th0, &opts.step5), &q1);
+                th0 = theta_of(&step5_bounds(p, &c.stationary, &th0, so), &q1);
             }
             first = Some((osc, r1, lost));
         }
     }
     // the box step 5 searches, for the variance bound of add_fixed
-    let boxes: Vec<(f64, f64)> = step5_bounds(p, &c.stationary, &th0, &opts.step5)
+    let boxes: Vec<(f64, f64)> = step5_bounds(p, &c.stationary, &th0, so)
         .iter()
         .map(|b| (b.lo, b.hi))
         .collect();
-    let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &opts.step5).map_err(at(5))?;
+    let (q, mut r) = step5(p, &c.stationary, &sets, &th0, so).map_err(at(step))?;
     if let Some((osc, r1, lost)) = first {
         r.first_pass_without = osc;
         r.first_pass_discarded_for = lost;
@@ -1274,25 +1357,20 @@ fn run_step5(
         r.restarts += r1.restarts;
     }
     *p = q;
-    let cost = Cost77::new(p, &c.stationary, &sets, &opts.step5);
+    let cost = Cost77::new(p, &c.stationary, &sets, so);
     // rows of the linearization: all, or those of the sets where the tuned model settles
-    let osc_end = if opts.step5.dynamic_row {
-        oscillating_sets(p, &sets, &c.stationary, opts.model)
+    let osc_end = if so.dynamic_row {
+        oscillating_sets(p, &sets, &c.stationary, model)
     } else {
         Vec::new()
     };
     let mut keep: Option<Vec<bool>> = (!osc_end.is_empty()).then(|| cost.rows_without(&osc_end));
     if let Some(k) = &keep {
-        let scales: Vec<f64> = step5_bounds(p, &c.stationary, &th0, &opts.step5)
+        let scales: Vec<f64> = step5_bounds(p, &c.stationary, &th0, so)
             .iter()
             .map(|b| b.scale)
             .collect();
         let blocks = kept_blocks(&cost.covariance_blocks(), k);
-        let step = if opts.model == ModelOrder::Twelve {
-            8
-        } else {
-            5
-        };
         if relinearize_rows(&mut r, k, &cost.residuals_at(p), &blocks, &scales, step) {
             r.linearized_without = osc_end;
         } else {
@@ -1300,22 +1378,37 @@ fn run_step5(
             keep = None;
         }
     }
-    let cond = add_fixed(
-        &mut r.uncertainty,
-        &r.linearization,
-        cov,
-        |q: &Params| match &keep {
-            Some(k) => select_rows(&cost.residuals_at(q), k),
-            None => cost.residuals_at(q),
-        },
-        p,
-        5,
-        &boxes,
-        opts.fixed_jacobian,
-    );
+    let cond = if step == 5 {
+        add_fixed(
+            &mut r.uncertainty,
+            &r.linearization,
+            cov,
+            |q: &Params| match &keep {
+                Some(k) => select_rows(&cost.residuals_at(q), k),
+                None => cost.residuals_at(q),
+            },
+            p,
+            step,
+            &boxes,
+            opts.fixed_jacobian,
+        )
+    } else {
+        r.uncertainty_note = Some(conditional_note(step));
+        None
+    };
     r.flag_early_stop();
     est.extend(r.uncertainty.iter().cloned());
     Ok((r, cond))
+}
+
+/// The note of a step whose standard errors are conditional on the parameters it holds fixed
+/// ([`Step5Report::uncertainty_note`]).
+fn conditional_note(step: u8) -> String {
+    format!(
+        "the standard errors of step {step} are conditional on the parameters it holds fixed \
+         (V_ic, V_im, V_em, J_t of step 7, the actuators of step 2, the sensor lags of step 3): \
+         their uncertainty is not included, unlike step 5's"
+    )
 }
 
 /// The entries of `r` where `keep` is true.
@@ -1664,14 +1757,16 @@ fn flag_rests_on_unconverged_step5(
 /// static maps step 7 runs on. With `refine_dynamics` step 7 runs again after step 8, on its
 /// maps. Each search's estimates are flagged as step 5's are when it did not reach its optimum
 /// ([`Step5Report::flag_early_stop`]), and step 7's also when its maps come from such a search.
+/// Step 8 runs through [`run_static_step`] as step 5 does; its estimates are added to `est`.
 fn tune_twelve(
     c: &Campaign,
     p: &mut Params,
     opts: &PipelineOptions,
     maps_stop: Option<String>,
+    cov: &mut NamedCov,
+    est: &mut Vec<(String, ParamEstimate)>,
 ) -> Result<TwelveReport, PipelineError> {
     let t = Instant::now();
-    let infos = &c.manifest.datasets;
     let (k, k_rep) = fit_k_ic(&c.stationary).map_err(at(6))?;
     p.intercooler.k_ic = k;
     let mut dynamic = None;
@@ -1682,21 +1777,13 @@ fn tune_twelve(
     let mut statics = None;
     if opts.steps[4] {
         begin(8, false)?;
-        let sets: Vec<_> = infos
-            .iter()
-            .zip(&c.dynamic)
-            .filter(|(i, _)| i.roles.contains(&Role::Static) && i.kind != StepKind::Actuator)
-            .map(|(_, d)| d)
-            .collect();
         let so = Step5Options {
             model: ModelOrder::Twelve,
             beta: BETA_12,
             ..opts.step5.clone()
         };
         let th0 = theta_of(&static_params(ModelOrder::Twelve), p);
-        let (q, mut r) = step5(p, &c.stationary, &sets, &th0, &so).map_err(at(8))?;
-        *p = q;
-        r.flag_early_stop();
+        let (r, _) = run_static_step(p, c, &th0, opts, &so, 8, cov, est)?;
         statics = Some(r);
     }
     // step 7 again on step 8's static maps, as step 3 after step 5
@@ -2248,6 +2335,42 @@ mod tests {
             "1 of the 2 coefficients of its map are not identifiable (egr_valve.c_egr[1])"
         ));
         assert!(m["turbo.j_t"].identifiable && !m["intake_manifold.v_im"].identifiable);
+    }
+
+    #[test]
+    fn a3_on_the_edge_of_the_psd_cone_says_so() {
+        let est = |std_error: f64| ParamEstimate {
+            value: -16.3865,
+            std_error,
+            identifiable: false,
+            correlated_with: Vec::new(),
+            reason: "not determined by the data".into(),
+            step: 8,
+            converged: true,
+        };
+        // a1 = 5.92563, a2 = 45.31454: sqrt(a1 a2) = 16.3865 (step 8 of session 43)
+        let (a1, a2): (f64, f64) = (5.92563, 45.31454);
+        let edge = -(a1 * a2).sqrt();
+        let q = [[a1, edge], [edge, a2]];
+        let mut m = BTreeMap::from([("compressor.q_c[1][2]".to_string(), est(f64::INFINITY))]);
+        flag_a3_on_the_psd_edge(&q, &mut m);
+        let r = &m["compressor.q_c[1][2]"].reason;
+        assert!(
+            r.starts_with("a3 = -16.3865 lies on the edge of Q_c's positive semidefinite cone")
+                && r.contains("sqrt(a1 a2) = 16.3865")
+                && r.ends_with("(not determined by the data)"),
+            "{r}"
+        );
+        // inside the cone, or a finite standard error: left as it is
+        for (a3, se) in [(0.9 * edge, f64::INFINITY), (edge, 1.0)] {
+            let q = [[a1, a3], [a3, a2]];
+            let mut m = BTreeMap::from([("compressor.q_c[1][2]".to_string(), est(se))]);
+            flag_a3_on_the_psd_edge(&q, &mut m);
+            assert_eq!(
+                m["compressor.q_c[1][2]"].reason,
+                "not determined by the data"
+            );
+        }
     }
 
     /// The keys the flags look up are the report's keys: registry paths, elements 1-based (a

@@ -14,8 +14,10 @@
 //!
 //! The pipeline ([`super::pipeline`]) runs them with `PipelineOptions::model` = 12.
 
+use super::complete::CompleteReport;
 use super::data::StationaryPoint;
 use super::steps::{rel_errors, FitReport, StepError};
+use super::uncertainty::Combination;
 use crate::components::intercooler;
 use crate::params::Params;
 
@@ -93,4 +95,38 @@ pub fn fit_k_ic(pts: &[StationaryPoint]) -> Result<(f64, FitReport), StepError> 
             n_eval: 0,
         },
     ))
+}
+
+/// V_ic + V_im [m^3], the intake-side volume in series with the small intercooler restriction,
+/// with its standard error from step 7's covariance (`r`, the report of `complete::fit_dynamic`
+/// on the 12-state model): `var(V_ic + V_im) = var V_ic + var V_im + 2 cov(V_ic, V_im)`.
+/// Under noise the data determine the sum while V_ic and V_im trade against each other
+/// (docs/tuning.md, "The 12-state model"). The covariance is step 7's own, conditional on the
+/// static parameters it holds fixed. `None` when the report has no linearization with both or
+/// the variance is not finite and positive.
+pub fn intake_volume(r: &CompleteReport) -> Option<Combination> {
+    let lin = r.linearization.as_ref()?;
+    let at = |n: &str| lin.names.iter().position(|x| x == n);
+    let (a, b) = (at("v_ic")?, at("v_im")?);
+    let value_of = |n: &str| r.params.iter().find(|(k, _)| k == n).map(|(_, v)| *v);
+    let (v_ic, v_im) = (value_of("v_ic")?, value_of("v_im")?);
+    let c = &lin.covariance;
+    let var = c[(a, a)] + c[(b, b)] + 2.0 * c[(a, b)];
+    if !(var.is_finite() && var > 0.0) {
+        return None;
+    }
+    let corr = c[(a, b)] / (c[(a, a)] * c[(b, b)]).sqrt();
+    Some(Combination {
+        name: "intake.v_ic_plus_v_im".into(),
+        description: format!(
+            "V_ic + V_im [m^3] (step {}: V_ic {v_ic:.4e}, V_im {v_im:.4e}, correlation \
+             {corr:.3}): the intake-side volume the data determine when V_ic and V_im trade \
+             against each other; standard error from var V_ic + var V_im + 2 cov, conditional on \
+             the static parameters",
+            r.step
+        ),
+        at: Vec::new(),
+        value: v_ic + v_im,
+        std_error: var.sqrt(),
+    })
 }

@@ -290,6 +290,14 @@ pub fn estimates(
 /// residual times its AR(1) inflation `(1 + rho)/(1 - rho)`. With one block of white residuals
 /// this is the Gauss-Newton covariance `s^2 (J^T J)^-1` (up to the degrees of freedom). Blocks
 /// are the rows of a cost with different noise levels (a data set's output, a submodel).
+///
+/// A parameter whose column of `jacobian` is zero (or not finite) has no effect on the
+/// residuals at the point: its variance is infinite (not determined) and its covariances are
+/// zero, and the others' covariance is that of the remaining columns (pseudo-inverse over the
+/// identifiable subspace). Before session 43 such a column made `(J^T J)^+` NaN in its row and
+/// column and the products spread the NaN to every entry, so one such parameter (a3 clamped to
+/// the edge of the PSD cone of Q_c, step 8 on a small noisy campaign) left every parameter of
+/// the step with an infinite standard error.
 pub fn block_covariance(
     jacobian: &DMatrix<f64>,
     residuals: &[f64],
@@ -305,10 +313,31 @@ pub fn block_covariance_and_step(
     residuals: &[f64],
     blocks: &[usize],
 ) -> (DMatrix<f64>, Vec<f64>) {
-    let (m, n) = jacobian.shape();
+    let n = jacobian.ncols();
+    // a zero (or non-finite) column has no entry in (J^T J)^+: param_stats leaves NaN there,
+    // which the products below would spread to every entry; such columns are set to zero and
+    // left out
+    let dead: Vec<bool> = (0..n)
+        .map(|j| {
+            let c = jacobian.column(j);
+            c.iter().any(|x| !x.is_finite()) || c.iter().all(|x| *x == 0.0)
+        })
+        .collect();
+    let mut live = jacobian.clone();
+    for (j, _) in dead.iter().enumerate().filter(|(_, d)| **d) {
+        live.column_mut(j).fill(0.0);
+    }
+    let jacobian = &live;
+    let m = jacobian.nrows();
     let st: ParamStats = param_stats(jacobian, residuals);
     // (J^T J)^+ = cov / sigma2 (pseudo-inverse over the identifiable subspace)
-    let inv = st.covariance.map(|c| c / st.sigma2);
+    let inv = DMatrix::from_fn(n, n, |a, b| {
+        if dead[a] || dead[b] {
+            0.0
+        } else {
+            st.covariance[(a, b)] / st.sigma2
+        }
+    });
     let mut w = vec![0.0; m];
     let mut start = 0;
     let mut lens: Vec<usize> = blocks.to_vec();
@@ -316,7 +345,9 @@ pub fn block_covariance_and_step(
     if used < m {
         lens.push(m - used);
     }
-    let dof = (m as f64 / m.saturating_sub(n).max(1) as f64).max(1.0);
+    // degrees of freedom of the columns that enter (a dead column uses none)
+    let n_live = dead.iter().filter(|d| !**d).count();
+    let dof = (m as f64 / m.saturating_sub(n_live).max(1) as f64).max(1.0);
     for len in lens {
         let end = (start + len).min(m);
         if end <= start {
@@ -346,7 +377,12 @@ pub fn block_covariance_and_step(
     }
     let g = jacobian.tr_mul(&nalgebra::DVector::from_column_slice(residuals));
     let step = (&inv * g).iter().map(|x| -x).collect();
-    (&inv * jsj * &inv, step)
+    let mut cov = &inv * jsj * &inv;
+    for (j, _) in dead.iter().enumerate().filter(|(_, d)| **d) {
+        // not determined by the data: infinite variance, no correlation (as joint_covariance)
+        cov[(j, j)] = f64::INFINITY;
+    }
+    (cov, step)
 }
 
 /// Estimates of the parameters `names` (see [`estimates`]) with residual `blocks` of different
@@ -912,6 +948,48 @@ pub fn toml_path(name: &str) -> Option<&'static str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A parameter with a zero column (no effect on the residuals: a3 clamped to the edge of
+    /// Q_c's PSD cone in step 8, session 43) is not determined, and the others keep the
+    /// covariance of their own columns; before, the NaN of its row of (J^T J)^+ spread to
+    /// every entry and every parameter read an infinite standard error.
+    #[test]
+    fn a_zero_column_leaves_the_other_parameters_their_covariance() {
+        // two parameters by hand: columns x = (1, 2, 3, 4, 5, 6) and 1, residuals +-0.1 in
+        // one block; the zero column between them
+        let m = 6;
+        let x: Vec<f64> = (1..=m).map(|i| i as f64).collect();
+        let res = [0.1, -0.1, 0.1, 0.1, -0.1, -0.1];
+        let j3 = DMatrix::from_fn(m, 3, |i, k| [x[i], 0.0, 1.0][k]);
+        let c = block_covariance(&j3, &res, &[]);
+        // by hand: J^T J = [[91, 21], [21, 6]], det 105, inverse [[6, -21], [-21, 91]] / 105;
+        // mean square 0.01, dof factor m / (m - 2) (the zero column uses no degree of
+        // freedom), lag-1 autocorrelation of the residuals -1/6, clamped to 0: covariance
+        // 0.01 * 1.5 * (J^T J)^-1
+        let s2 = 0.01 * 6.0 / 4.0;
+        let want = [[6.0, -21.0], [-21.0, 91.0]].map(|r| r.map(|v| s2 * v / 105.0));
+        for (a, ka) in [(0, 0), (1, 2)] {
+            for (b, kb) in [(0, 0), (1, 2)] {
+                let (got, w) = (c[(ka, kb)], want[a][b]);
+                assert!(
+                    (got - w).abs() <= 1e-12 * w.abs(),
+                    "{ka},{kb}: {got} vs {w}"
+                );
+            }
+        }
+        // the zero column: not determined, uncorrelated
+        assert_eq!(c[(1, 1)], f64::INFINITY);
+        assert!((0..3)
+            .filter(|&k| k != 1)
+            .all(|k| c[(1, k)] == 0.0 && c[(k, 1)] == 0.0));
+        let e = estimates_from_cov(&["a", "dead", "b"], &[1.0, 2.0, 3.0], &c, 8);
+        assert!(e[0].1.std_error.is_finite() && e[2].1.std_error.is_finite());
+        assert!(!e[1].1.identifiable && e[1].1.std_error == f64::INFINITY);
+        // and the same as without the column
+        let j2 = DMatrix::from_fn(m, 2, |i, k| [x[i], 1.0][k]);
+        let c2 = block_covariance(&j2, &res, &[]);
+        assert!((c2[(0, 1)] - c[(0, 2)]).abs() <= 1e-15);
+    }
 
     /// A residual function of V_im, V_em, J_t and eta_tmmax that is linear in them (J_f known
     /// exactly), plus a deterministic "rounding noise" of amplitude `noise` that changes with
