@@ -421,6 +421,19 @@ pub fn text(c: &StepCase) -> String {
         units.join(", "),
         common::unit(c.input.name())
     );
+    // what a `-` under rise or settling means (it was not said: the user could not tell a
+    // response that never settles from one the run stopped too early for)
+    let open = c.metrics.iter().any(|(_, r)| {
+        r.as_ref()
+            .is_ok_and(|m| m.rise_time.is_none() || m.settling_time.is_none())
+    });
+    if let (true, Some(t)) = (open, c.sol.columns.first().and_then(|t| t.last())) {
+        let _ = writeln!(
+            s,
+            "-: not within the run: rise to 90 % of the final change, or settling into its 2 % band, not reached by t = {} s (a longer --t-end shows it).",
+            mvem::numerics::Num(*t)
+        );
+    }
     s
 }
 
