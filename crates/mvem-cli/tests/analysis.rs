@@ -720,6 +720,17 @@ fn step_text_explains_what_is_not_reached() {
     // settled within 30 s: no `-`, no note
     let text = step("30");
     assert!(!text.contains("not within the run"), "{text}");
+    // an output listed twice is one row (it was two identical rows), in the order given
+    let a = "step --input u_vgt --to 65 --n-e 1500 --u-delta 110 --u-egr 80 --u-vgt 75 --outputs W_c,p_im,W_c --t-end 3";
+    let o = mvem(d.path(), &a.split(' ').collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    let rows: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|w| ["W_c", "p_im"].contains(w))
+        .collect();
+    assert_eq!(rows, ["W_c", "p_im"], "{text}");
 }
 
 #[test]

@@ -248,7 +248,15 @@ pub fn run(a: &Args) -> Result<()> {
     let outputs: Vec<String> = if a.outputs.is_empty() {
         DEFAULT_OUTPUTS.iter().map(|s| s.to_string()).collect()
     } else {
-        a.outputs.iter().map(|s| s.trim().to_string()).collect()
+        // each name once, in the order given (a name listed twice was a second, identical row
+        // of the table; the JSON, `mvem linearize --outputs` and the explorer's /api/step keep
+        // it once)
+        let mut seen = std::collections::HashSet::new();
+        a.outputs
+            .iter()
+            .map(|s| s.trim().to_string())
+            .filter(|s| seen.insert(s.clone()))
+            .collect()
     };
     let model = a.model.build()?;
     let case = common::with_spinner("simulating the step", || {
