@@ -1572,6 +1572,8 @@ def test_a_models_answer_of_the_wrong_shape_is_named(browser, server):
 @pytest.mark.parametrize("answer,text", [
     ("500", "server: /api/models: HTTP 500: database on fire"),
     ("shape", "server: the answer of /api/models lacks field params"),
+    # no answer: "server" once (it read "server: /api/models: server unreachable (...)")
+    ("network", "/api/models: server unreachable (Failed to fetch)"),
 ])
 def test_a_failed_models_answer_stays_in_the_status(browser, server, answer, text):
     """A failed /api/models (asked once, at the start: the menus lack what it lacked) stays in
@@ -1584,6 +1586,8 @@ def test_a_failed_models_answer_stays_in_the_status(browser, server, answer, tex
     pg.on("pageerror", lambda e: errors.append(str(e)))
     if answer == "500":
         pg.route("**/api/models", lambda route: route.fulfill(status=500, body="database on fire"))
+    elif answer == "network":
+        pg.route("**/api/models", lambda route: route.abort())
     else:
         pg.route("**/api/models", _drop("params"))
     pg.goto(server)

@@ -317,10 +317,11 @@ fn cycle_and_option_edge_cases_are_named() {
     let err = usage_error(d.path(), &["closed-loop", "--cycle", "WHTC", "--out", "x"]);
     assert!(err.contains("`--cycle whtc`, lower case"), "{err}");
 
-    // below the motoring torque: a warning with the row, time and values
+    // below the motoring torque: a warning with the file's line, time and values (the line
+    // after the comment and the header: "row 3" before, two lines off in the file)
     w(
         "brake.csv",
-        "t,n_e,M_ref\n0,1200,300\n5,1200,300\n6,1200,-2000\n8,1200,-2000\n",
+        "# braking\nt,n_e,M_ref\n0,1200,300\n5,1200,300\n6,1200,-2000\n8,1200,-2000\n",
     );
     let o = mvem(
         d.path(),
@@ -330,18 +331,22 @@ fn cycle_and_option_edge_cases_are_named() {
     assert!(
         stderr(&o).contains(
             "2 row(s) of the demand ask for less torque than the engine's motoring torque"
-        ) && stderr(&o).contains("row 3 (t = 6 s): -2000 Nm at 1200 rpm"),
+        ) && stderr(&o).contains("the first line 5 (t = 6 s): -2000 Nm at 1200 rpm"),
         "{}",
         stderr(&o)
     );
     // above full load at 1200 rpm: the fuel cap, not the smoke limit
-    w("heavy.csv", "t,n_e,M_ref\n0,1200,500\n5,1200,5000\n");
+    w(
+        "heavy.csv",
+        "t,n_e,M_ref\ns,rpm,Nm\n0,1200,500\n\n5,1200,5000\n",
+    );
     let err = usage_error(
         d.path(),
         &["closed-loop", "--cycle", "heavy.csv", "--out", "x"],
     );
     assert!(
-        err.contains("fuel-limited at the top of the u_delta range, 250 mg"),
+        err.contains("heavy.csv: demand: line 5 (t = 5 s): torque 5000 Nm at 1200 rpm")
+            && err.contains("fuel-limited at the top of the u_delta range, 250 mg"),
         "{err}"
     );
 
@@ -410,15 +415,16 @@ fn a_cycle_follows_the_parameter_sets_speed_range() {
     );
     std::fs::write(
         d.path().join("fast.csv"),
-        "t,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n15,2300,300\n",
+        "# a fast cycle\nt,n_e,M_ref\n0,1500,300\n2,1500,300\n3,2300,300\n15,2300,300\n",
     )
     .unwrap();
     let err = usage_error(
         d.path(),
         &["closed-loop", "--cycle", "fast.csv", "--out", "o"],
     );
+    // (the file's line: the third row is line 5, after the comment and the header)
     assert!(
-        err.contains("row 3 (t = 3 s)") && err.contains("[500, 2000]"),
+        err.contains("line 5 (t = 3 s): speed 2300 rpm") && err.contains("[500, 2000]"),
         "{err}"
     );
     let o = mvem(

@@ -1994,8 +1994,10 @@
       showCycleMode();
       refreshStatus();
     } catch (e) {
-      // (the answer's error names /api/models; an HTTP error or no answer is named here)
-      app.modelsError = `server: ${e.kind === "answer" ? "" : "/api/models: "}${e.message}`;
+      // (the answer's error names /api/models; an HTTP error or no answer is named here; no
+      // answer's message already says "server unreachable", so it is not prefixed "server: ")
+      app.modelsError = e.kind === "network" ? `/api/models: ${e.message}`
+        : `server: ${e.kind === "answer" ? "" : "/api/models: "}${e.message}`;
       refreshStatus();
     }
     buildSignalTable();

@@ -248,7 +248,15 @@ pub fn run(a: &Args) -> Result<()> {
     let outputs: Vec<String> = if a.outputs.is_empty() {
         DEFAULT_OUTPUTS.iter().map(|s| s.to_string()).collect()
     } else {
-        a.outputs.iter().map(|s| s.trim().to_string()).collect()
+        // each name once, in the order given (a name listed twice was a second, identical row
+        // of the table; the JSON, `mvem linearize --outputs` and the explorer's /api/step keep
+        // it once)
+        let mut seen = std::collections::HashSet::new();
+        a.outputs
+            .iter()
+            .map(|s| s.trim().to_string())
+            .filter(|s| seen.insert(s.clone()))
+            .collect()
     };
     let model = a.model.build()?;
     let case = common::with_spinner("simulating the step", || {
@@ -421,6 +429,19 @@ pub fn text(c: &StepCase) -> String {
         units.join(", "),
         common::unit(c.input.name())
     );
+    // what a `-` under rise or settling means (it was not said: the user could not tell a
+    // response that never settles from one the run stopped too early for)
+    let open = c.metrics.iter().any(|(_, r)| {
+        r.as_ref()
+            .is_ok_and(|m| m.rise_time.is_none() || m.settling_time.is_none())
+    });
+    if let (true, Some(t)) = (open, c.sol.columns.first().and_then(|t| t.last())) {
+        let _ = writeln!(
+            s,
+            "-: not within the run: rise to 90 % of the final change, or settling into its 2 % band, not reached by t = {} s (a longer --t-end shows it).",
+            mvem::numerics::Num(*t)
+        );
+    }
     s
 }
 

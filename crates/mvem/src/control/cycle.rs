@@ -294,6 +294,10 @@ pub struct Demand {
     n_e: Vec<f64>,
     m_ref: Vec<f64>,
     motoring: Vec<bool>,
+    /// The file's line (1-based) of each row, for a demand read from a file
+    /// ([`Demand::with_lines`]): the checks name it instead of the row's number, which differs
+    /// from the line by the header, a units row, comments and blank lines.
+    lines: Option<Vec<usize>>,
 }
 
 impl Demand {
@@ -346,7 +350,26 @@ impl Demand {
             n_e,
             m_ref,
             motoring,
+            lines: None,
         })
+    }
+
+    /// The same demand with the file's line (1-based) of each row, named by the checks
+    /// ([`Demand::check_speeds`], [`Demand::check_feasible`], [`Demand::below_motoring`]) as
+    /// "line L" instead of "row i". `lines` must have one entry per row (else it is ignored).
+    pub fn with_lines(mut self, lines: Vec<usize>) -> Self {
+        if lines.len() == self.t.len() {
+            self.lines = Some(lines);
+        }
+        self
+    }
+
+    /// Where row `i` (0-based) is: "line L" of the file it was read from, else "row i+1".
+    fn place(&self, i: usize) -> String {
+        match &self.lines {
+            Some(l) => format!("line {}", l[i]),
+            None => format!("row {}", i + 1),
+        }
     }
 
     /// The demand up to `t_end` \[s\]: its rows up to `t_end` (both rows of a step), then the
@@ -357,14 +380,23 @@ impl Demand {
         let mut n_e = self.n_e[..k].to_vec();
         let mut m_ref = self.m_ref[..k].to_vec();
         let mut motoring = self.motoring[..k].to_vec();
+        let mut lines = self.lines.as_ref().map(|l| l[..k].to_vec());
         if t.last() != Some(&t_end) {
             let p = self.at(t_end);
             t.push(t_end);
             n_e.push(p.n_e);
             m_ref.push(p.m_ref);
             motoring.push(p.motoring);
+            // (the cut lies before the next row: named by that row's line)
+            if let (Some(l), Some(all)) = (lines.as_mut(), self.lines.as_ref()) {
+                l.push(all[k.min(all.len() - 1)]);
+            }
         }
-        Self::new(t, n_e, m_ref, motoring)
+        let d = Self::new(t, n_e, m_ref, motoring)?;
+        Ok(match lines {
+            Some(l) => d.with_lines(l),
+            None => d,
+        })
     }
 
     /// First and last time \[s\].
@@ -393,15 +425,16 @@ impl Demand {
     }
 
     /// Check that every speed lies in `range` \[rpm\] (the engine's, [`MappingCurve::n_e_range`];
-    /// the message names the row, 1-based, and its time).
+    /// the message names the row, 1-based, or the file's line ([`Demand::with_lines`]), and its
+    /// time).
     pub fn check_speeds(&self, range: (f64, f64)) -> Result<(), ControlError> {
         let (lo, hi) = range;
         match self.n_e.iter().position(|n| !(lo..=hi).contains(n)) {
             None => Ok(()),
             Some(i) => Err(ControlError::Demand(format!(
-                "row {} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm \
+                "{} (t = {} s): speed {} rpm is outside the model's range [{lo}, {hi}] rpm \
                  (the parameter set's [input_saturation] n_e)",
-                i + 1,
+                self.place(i),
                 Num(self.t[i]),
                 Num(self.n_e[i])
             ))),
@@ -415,8 +448,8 @@ impl Demand {
             let m_max = curve.m_max_at(self.n_e[i]);
             if self.m_ref[i] > m_max * (1.0 + tol) {
                 return Err(ControlError::Demand(format!(
-                    "row {} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm ({}); the engine cannot follow this demand",
-                    i + 1,
+                    "{} (t = {} s): torque {} Nm at {:.0} rpm is above the engine's full-load torque {:.1} Nm ({}); the engine cannot follow this demand",
+                    self.place(i),
                     Num(self.t[i]),
                     Num((self.m_ref[i] * 10.0).round() / 10.0),
                     self.n_e[i],
@@ -438,10 +471,10 @@ impl Demand {
         let &i = below.first()?;
         Some(format!(
             "{} row(s) of the demand ask for less torque than the engine's motoring torque (at \
-             the minimum fuel; the engine gives that instead), the first row {} (t = {} s): {} Nm \
+             the minimum fuel; the engine gives that instead), the first {} (t = {} s): {} Nm \
              at {:.0} rpm, motoring torque {:.1} Nm",
             below.len(),
-            i + 1,
+            self.place(i),
             Num(self.t[i]),
             Num(self.m_ref[i]),
             self.n_e[i],

@@ -170,14 +170,16 @@ pub fn parse_demand_csv(text: &str, path: &Path) -> Result<Demand, IoError> {
     } else {
         "the header"
     };
-    Demand::new(t, n, m, vec![false; k]).map_err(|e| {
-        err(
-            path,
-            None,
-            None,
-            format!("{e} (rows counted after {after})"),
-        )
-    })
+    Demand::new(t, n, m, vec![false; k])
+        .map(|d| d.with_lines(lines))
+        .map_err(|e| {
+            err(
+                path,
+                None,
+                None,
+                format!("{e} (rows counted after {after})"),
+            )
+        })
 }
 
 /// Read a drive cycle (`path` only names it in messages): a normalized cycle when the header
@@ -232,6 +234,49 @@ mod tests {
         assert!(e.contains("c.csv: "), "{e}");
         let e = parse("t,n_e,M_ref\n0,1000,100\n1,1000\n").unwrap_err();
         assert!(e.contains("line 3"), "{e}");
+    }
+
+    /// The checks of a demand read from a file (the engine's speed range here) name the file's
+    /// line, as the reader's own errors do: the third row below is line 6 (a comment, the
+    /// header, a units row and a blank line before it; it was named "row 3"), also after a cut
+    /// by `--duration` ([`Demand::until`]); a demand built from arrays names its 1-based row.
+    #[test]
+    fn the_checks_of_a_file_name_its_lines() {
+        let d = parse("# my cycle\nt,n_e,M_ref\ns,rpm,Nm\n0,1000,100\n\n2,1000,100\n3,2500,100\n")
+            .unwrap();
+        let e = d.check_speeds((500.0, 2000.0)).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "demand: line 7 (t = 3 s): speed 2500 rpm is outside the model's range [500, 2000] \
+             rpm (the parameter set's [input_saturation] n_e)"
+        );
+        let e = d.check_speeds((1500.0, 2600.0)).unwrap_err().to_string();
+        assert!(
+            e.starts_with("demand: line 4 (t = 0 s): speed 1000 rpm"),
+            "{e}"
+        );
+        // cut between the second and the third row: the cut point (t = 2.5 s, 1750 rpm) is
+        // named by the line of the row after it
+        let cut = d.until(2.5).unwrap();
+        let e = cut.check_speeds((500.0, 1700.0)).unwrap_err().to_string();
+        assert!(
+            e.starts_with("demand: line 7 (t = 2.5 s): speed 1750 rpm"),
+            "{e}"
+        );
+        let e = cut.check_speeds((1001.0, 2000.0)).unwrap_err().to_string();
+        assert!(e.starts_with("demand: line 4 (t = 0 s)"), "{e}");
+        let arrays = Demand::new(
+            vec![0.0, 1.0],
+            vec![1000.0, 2500.0],
+            vec![0.0; 2],
+            vec![false; 2],
+        )
+        .unwrap();
+        let e = arrays
+            .check_speeds((500.0, 2000.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("demand: row 2 (t = 1 s)"), "{e}");
     }
 
     /// Two rows at one time are a step (session 41; before, "time must increase"), as in

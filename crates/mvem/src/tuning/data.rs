@@ -530,7 +530,9 @@ pub struct Manifest {
     /// virtual ([`super::sensors`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub true_sensor_lags_s: Option<[f64; 4]>,
-    /// Description of how the data were obtained (noise, seed, ...).
+    /// Description of how the data were obtained (noise, seed, ...); optional (empty when a
+    /// hand-written manifest leaves it out, and then not written back).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
     /// Header names of the CSV columns where they are not mvem's ([`ColumnNames`]): `[columns]`.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -2222,6 +2224,20 @@ mod tests {
         assert_eq!(parse_manifest(&written, p).unwrap(), m);
         let given = parse_manifest(&format!("{text}steps = 4\n"), p).unwrap();
         assert_eq!(given.datasets[0].steps, Some(4));
+    }
+
+    /// A hand-written manifest (the one `campaign --init` asks for where the files name mvem's
+    /// columns otherwise) may leave out `description`: it was refused, "missing field
+    /// `description`" at line 1, column 1, though nothing but the summary's title reads it.
+    #[test]
+    fn a_manifest_without_description_is_read() {
+        let text = "stationary = \"s.csv\"\n[columns]\np_im = \"MAP\"\n";
+        let p = Path::new("manifest.toml");
+        let m = parse_manifest(text, p).unwrap();
+        assert_eq!((m.description.as_str(), m.columns.len()), ("", 1));
+        let written = toml::to_string(&m).unwrap();
+        assert!(!written.contains("description"), "{written}");
+        assert_eq!(parse_manifest(&written, p).unwrap(), m);
     }
 
     #[test]

@@ -363,6 +363,9 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
     }
     let mut notes = Vec::new();
     let mut stationary: Option<String> = None;
+    // the file nearest to a stationary file (the fewest stationary columns missing): its name,
+    // the columns it lacks and its header, for the error when there is none
+    let mut nearest: Option<(String, Vec<String>, Vec<String>)> = None;
     let mut sets = Vec::new();
     // every value of each column over the files, for the unit guesses
     let mut values: BTreeMap<&'static str, (Column, Vec<f64>)> = BTreeMap::new();
@@ -389,6 +392,10 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let header = header_names(&text).unwrap_or_default();
         let (mut heads, mut head_notes) = headings(f, &header);
         head_notes.extend(units_from_row(f, &text, &mut heads));
+        let missing = lacks_stationary(&heads);
+        if nearest.as_ref().is_none_or(|n| missing.len() < n.1.len()) {
+            nearest = Some((f.clone(), missing, header.clone()));
+        }
         let clash = heads.iter().find_map(|(name, g)| {
             headed
                 .get(name)
@@ -549,15 +556,33 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         });
     }
     let Some(stationary) = stationary else {
+        // the nearest file: what it lacks and what it heads, so that a test cell's own names
+        // can be mapped ([columns] of a manifest written by hand); a file that has every
+        // column but was skipped says why in its note
+        let nearest = match &nearest {
+            Some((f, missing, header)) if !missing.is_empty() => format!(
+                "; nearest: {f}, which lacks {} among its columns {} (where it names them \
+                 otherwise, write manifest.toml by hand with a [columns] table of mvem's name \
+                 = the file's header, e.g. p_im = \"MAP\")",
+                missing.join(", "),
+                header.join(", "),
+            ),
+            Some((f, _, _)) => notes
+                .iter()
+                .find(|n| n.starts_with(&format!("{f}: skipped")))
+                .map_or(String::new(), |n| format!("; {n}")),
+            None => String::new(),
+        };
         return Err(DataError::Format {
             path: dir.to_path_buf(),
             message: format!(
-                "no stationary file among {} CSV files (one with the columns {} is needed; \
-                 docs/tuning-data.md)",
+                "no stationary file among {} CSV files (one with the columns {} is needed, \
+                 T_t optional; docs/tuning-data.md){nearest}",
                 files.len(),
                 STATIONARY_COLUMNS
                     .iter()
                     .map(|c| c.name)
+                    .filter(|n| *n != "T_t")
                     .collect::<Vec<_>>()
                     .join(", ")
             ),
@@ -887,6 +912,36 @@ mod tests {
         let empty = tempfile::tempdir().unwrap();
         let e = draft_manifest(empty.path()).unwrap_err().to_string();
         assert!(e.contains("no stationary file among 0 CSV files"), "{e}");
+    }
+
+    /// A test cell's stationary log under its own names: the draft's error names the nearest
+    /// file, the columns it lacks and its header, and how to map them (before, it listed the
+    /// columns needed, T_t among them, and no file: the user could not tell which file came
+    /// near or what to rename).
+    #[test]
+    fn no_stationary_file_names_the_nearest_and_what_it_lacks() {
+        let dir = tempfile::tempdir().unwrap();
+        let w = |name: &str, text: &str| std::fs::write(dir.path().join(name), text).unwrap();
+        w(
+            "steady_points.csv",
+            "n_e;u_delta;M_e;Boost [kPa];p_em [kPa];p_c [kPa];p_amb [kPa];T_amb [degC];\
+             T_im [degC];T_em [degC];T_c [degC];n_t;MAF [g/s];u_egr;u_vgt;x_egr\n\
+             1200;100;800;150;160;151;101;25;30;500;80;60000;250;30;60;0,1\n",
+        );
+        w("notes.csv", "a,b\n1,2\n");
+        let e = draft_manifest(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "no stationary file among 2 CSV files (one with the columns M_e, n_e, n_t, \
+                 p_amb, p_c, p_em, p_im, T_amb, T_c, T_em, T_im, u_egr, u_vgt, u_delta, W_c, \
+                 x_egr is needed, T_t optional; docs/tuning-data.md); nearest: \
+                 steady_points.csv, which lacks p_im, W_c among its columns n_e, u_delta, M_e, \
+                 Boost [kPa], p_em [kPa], p_c [kPa], p_amb [kPa], T_amb [degC], T_im [degC], \
+                 T_em [degC], T_c [degC], n_t, MAF [g/s], u_egr, u_vgt, x_egr (where it names \
+                 them otherwise, write manifest.toml by hand with a [columns] table"
+            ),
+            "{e}"
+        );
     }
 
     #[test]
