@@ -1228,11 +1228,14 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
     };
     let manifest = parse_manifest(&text, &mpath)?;
     let layout = Layout::of(&manifest);
-    let stationary = load_stationary_csv(&dir.join(&manifest.stationary), &layout)?;
+    let spath = dir.join(&manifest.stationary);
+    listed_file_exists(&spath, &mpath, "the stationary file (`stationary`)")?;
+    let stationary = load_stationary_csv(&spath, &layout)?;
     let v_d = displacement_bound(&stationary);
     let mut dynamic = Vec::with_capacity(manifest.datasets.len());
     for d in &manifest.datasets {
         let p = dir.join(&d.file);
+        listed_file_exists(&p, &mpath, &format!("data set `{}`'s `file`", d.name))?;
         let (set, time_unit_given, lines, headers) =
             parse_dynamic(&read(&p)?, &p, &d.name, d.kind, &layout)?;
         // the torque of a dynamic set against the displacement of the stationary points
@@ -1248,6 +1251,26 @@ pub fn load_campaign(dir: &Path) -> Result<Campaign, DataError> {
         manifest,
         stationary,
         dynamic,
+    })
+}
+
+/// A file the manifest lists must exist: where it does not, the error names the manifest and the
+/// entry (`what`) that lists it, not only the missing path.
+fn listed_file_exists(path: &Path, manifest: &Path, what: &str) -> Result<(), DataError> {
+    if path.is_file() {
+        return Ok(());
+    }
+    Err(DataError::Format {
+        path: manifest.to_path_buf(),
+        message: format!(
+            "{what} is {}, which {}",
+            path.display(),
+            if path.exists() {
+                "is not a file"
+            } else {
+                "does not exist"
+            }
+        ),
     })
 }
 
@@ -1787,6 +1810,42 @@ mod tests {
         let e = load_campaign(dir.path()).unwrap_err().to_string();
         assert!(e.contains("I.csv: line 2, column `M_e`: "), "{e}");
         assert!(e.contains("power logged in W?"), "{e}");
+    }
+
+    /// A file the manifest lists that is missing was the bare I/O error ("c2/missing.csv: No
+    /// such file or directory"), naming neither the manifest nor the entry (session 43).
+    #[test]
+    fn a_missing_listed_file_names_the_manifest_entry() {
+        let opts = crate::tuning::lab::LabOptions {
+            max_steps: Some(2),
+            n_stationary: 13,
+            sets: Some(vec!["I".into()]),
+            ..Default::default()
+        };
+        let (c, _) =
+            crate::tuning::lab::campaign(&crate::params::Params::published(), &opts).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        save_campaign(dir.path(), &c).unwrap();
+        assert!(load_campaign(dir.path()).is_ok());
+        let file = &c.manifest.datasets[0].file;
+        std::fs::remove_file(dir.path().join(file)).unwrap();
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        let want = format!(
+            "{}: data set `I`'s `file` is {}, which does not exist",
+            dir.path().join("manifest.toml").display(),
+            dir.path().join(file).display()
+        );
+        assert_eq!(e, want);
+        std::fs::create_dir(dir.path().join(file)).unwrap();
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        assert!(e.ends_with("which is not a file"), "{e}");
+        std::fs::remove_file(dir.path().join(&c.manifest.stationary)).unwrap();
+        let e = load_campaign(dir.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("manifest.toml: the stationary file (`stationary`) is ")
+                && e.ends_with("which does not exist"),
+            "{e}"
+        );
     }
 
     #[test]
