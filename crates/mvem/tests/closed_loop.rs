@@ -946,10 +946,12 @@ fn an_unreachable_setpoint_pair_holds_the_valve_at_its_position_set_point() {
 /// (`vgt_release_motored_band`, off by default). A fuel cut at 1000 rpm from 1 700 Nm (the
 /// demand steps below the motoring torque at 10.01 s): the spinning turbo's boost outlasts the
 /// exhaust's energy, p_em is below p_im and no EGR flows (0.2 s by default, where the closed VGT
-/// lifts p_em; 1.4 s released), while x_egr,s jumps from 0 to 0.143. By default the x_egr loop holds the VGT at its closed end (20 %)
+/// lifts p_em; 1.1 s released), while x_egr,s jumps from 0 to 0.143. By default the x_egr loop holds the VGT at its closed end (20 %)
 /// until 12 s and x_egr then overshoots its set-point (0.160 measured); released, the VGT is
-/// the lambda_O limiter's (70 % at 11 s) and the loop returns without a bump once p_em - p_im
-/// exceeds the band (x_egr without overshoot, within 5 % of x_egr,s 1.4 s sooner). Fired, the
+/// the lambda_O limiter's (wide open at 10.1-11.1 s, since session 43's torque PI no longer
+/// sends the fuel up to 28 mg after the cut, which brought lambda_O down to 11 near its bound
+/// 10 for a few samples; 70 % at 11 s before) and the loop returns without a bump once p_em - p_im
+/// exceeds the band (x_egr without overshoot, within 5 % of x_egr,s 1.7 s sooner; 1.4 s before session 43). Fired, the
 /// option does not act even with p_em <= p_im (the first 10 s are the default's to the bit:
 /// there closing the VGT is what raises p_em above p_im). docs/control.md, "Session 42".
 #[test]
@@ -1001,13 +1003,12 @@ fn the_vgt_is_left_to_the_lambda_limiter_while_motored_without_egr_flow() {
         let k = at(x);
         assert!(def[1][k] <= 20.5, "default, t = {x}: u_vgt {} %", def[1][k]);
     }
+    for x in [10.2, 10.5, 11.0] {
+        let k = at(x);
+        assert!(rel[1][k] > 99.0, "released, t = {x}: u_vgt {} %", rel[1][k]);
+    }
     assert!(
-        rel[1][at(11.0)] > 60.0,
-        "released: u_vgt {} %",
-        rel[1][at(11.0)]
-    );
-    assert!(
-        rel[1][at(11.5)] > 90.0,
+        rel[1][at(11.5)] > 85.0,
         "released: u_vgt {} %",
         rel[1][at(11.5)]
     );
@@ -1039,16 +1040,19 @@ fn the_vgt_is_left_to_the_lambda_limiter_while_motored_without_egr_flow() {
 }
 
 /// Session 42: with `vgt_release_below_egr = 0.01` (session 41's value) the WHTC has a fast
-/// instability at 480.01 s that the default has not: the valve command there is 0.099 %, just
+/// instability where the default has none: the valve command creeps off its shut end to just
 /// above the release threshold, so the x_egr -> u_vgt loop is back in the VGT's selector (x_egr
-/// 0 against x_egr,s 0.044) while the lambda_O loop holds the valve all but shut: the pair of
-/// session 38 (|z| 1.027 measured; the default's sample has the valve at 0 and the VGT at 20 %,
-/// no loop in feedback). A threshold of 0.5 % covers that sample (loops stable or not in feedback
-/// there) and keeps the option's pumping gain (mean p_em - p_im 7.3 % below the default's,
-/// asserted: 5 %) at an x_egr RMS error 1.5 % above the default's (asserted: within 3 %).
-/// docs/control.md, "Session 42".
+/// 0 against x_egr,s 0.14) while the lambda_O loop holds the valve all but shut: the pair of
+/// session 38. Since session 43 (the torque PI against the previous demand: a slightly
+/// different fuel trajectory) that sample of the 1 s margin grid is 598.01 s (valve 0.095 %,
+/// |z| 1.015 measured; the default's sample has the VGT at its 20 % end, the valve's lambda_O
+/// loop alone and stable, |z| 0.984); it was 480.01 s (valve 0.099 %, |z| 1.027; the default
+/// with no loop in feedback), where the valve now stays shut. A threshold of 0.5 % covers that
+/// sample (loops stable or not in feedback there) and keeps the option's pumping gain (mean
+/// p_em - p_im 7.4 % below the default's, asserted: 5 %) at an x_egr RMS error 1.5 % above the
+/// default's (asserted: within 3 %). docs/control.md, "Session 42" and "Session 43".
 #[test]
-fn a_release_threshold_above_the_valves_creep_ends_the_instability_at_480_s() {
+fn a_release_threshold_above_the_valves_creep_ends_the_instability_where_the_valve_creeps() {
     use mvem::control::drive::{run_cycle, CycleSource, Scheme};
     let m = model();
     let e8 = Engine8::published();
@@ -1059,8 +1063,9 @@ fn a_release_threshold_above_the_valves_creep_ends_the_instability_at_480_s() {
     let go =
         |t: BaselineTuning| run_cycle(&m, CycleSource::Whtc, Scheme::Baseline(t), None).unwrap();
     let (def, r001, r05) = (go(BaselineTuning::default()), go(with(0.01)), go(with(0.5)));
-    let t = 480.01;
-    assert!(pole_at(&e8, &def.traj, &BaselineTuning::default(), t).is_none());
+    let t = 598.01;
+    let at_def = pole_at(&e8, &def.traj, &BaselineTuning::default(), t);
+    assert!(at_def.is_none_or(|(z, _)| z < 1.0), "default: {at_def:?}");
     let (z, u_egr) = pole_at(&e8, &r001.traj, &with(0.01), t).expect("loops in feedback");
     assert!(
         z > 1.005 && (0.01..0.5).contains(&u_egr),
@@ -1073,4 +1078,133 @@ fn a_release_threshold_above_the_valves_creep_ends_the_instability_at_480_s() {
     let (sd, s5) = (&def.stats, &r05.stats);
     assert!(s5.pmep_mean_pa < 0.95 * sd.pmep_mean_pa);
     assert!(s5.x_egr_rms_error < 1.03 * sd.x_egr_rms_error);
+}
+
+/// Session 43: a step of the torque demand moves the fuel by the feed-forward's step; the torque
+/// PI does not kick at it. The torque measured at a sample answers the previous fuel command,
+/// given for the previous sample's demand, and the PI compares the two; before, it compared the
+/// new demand with that torque, read the whole step as a torque error for one sample (kp + ki
+/// Ts = 0.04 mg/Nm: -68 mg for a 1 700 Nm step), drove the fuel to its minimum at a step down
+/// and, when its tracking anti-windup had stored the clamped proportional part, sent it back up
+/// at the next sample: at a fuel cut from 1 700 Nm at 1000 rpm 1 -> 28 -> 9.7 -> 1 mg/cycle.
+/// At 1000, 1500 and 2000 rpm:
+/// - fuel cuts (a demand below the motoring torque): the fuel never rises (tolerance 1e-9 mg)
+///   and is at its minimum from the sample after the step at the latest (measured: from the
+///   step's own sample; before, 28-36 mg at the next sample);
+/// - every step: the fuel at the step's sample is the previous fuel plus the feed-forward's
+///   change, limited to [u_min, smoke limit], within 0.5 mg (the PI's error before the step
+///   is a steady one; before, 12-38 mg away at the steps down and the small tip-in, the
+///   large tip-ins at the smoke limit);
+/// - tip-ins: in the 0.2 s after the step the fuel falls only where the smoke limiter takes it
+///   down (never more than 0.05 mg below min(previous fuel, smoke limit); before, 5.6-12.3 mg
+///   below at the sample after the step).
+///
+/// Each of the 11 cases fails without the fix (checked with the PI's error against the new
+/// demand).
+///
+/// docs/control.md, "Session 43".
+#[test]
+fn a_torque_demand_step_moves_the_fuel_by_the_feed_forward_without_a_kick() {
+    use mvem::control::cycle::Demand;
+    let m = model();
+    let curve = MappingCurve::compute(&m, MappingOptions::default()).unwrap();
+    let tuning = BaselineTuning::default();
+    let base = Baseline::new(&m, &curve, tuning).unwrap();
+    let (u_min, u_max) = base.maps.u_delta_range;
+    let smoke = tuning.lambda_limit * (1.0 + tuning.smoke_margin);
+    let t_step = 5.0;
+    // (speed [rpm], torque before, torque after [Nm]), held 5 s, stepped at 5 s, held 1 s
+    let cuts = [
+        (1000.0, 1700.0, -500.0),
+        (1500.0, 1700.0, -500.0),
+        (2000.0, 1400.0, -500.0),
+    ];
+    let downs = [
+        (1000.0, 1700.0, 100.0),
+        (1500.0, 1700.0, 100.0),
+        (2000.0, 1400.0, 100.0),
+        (1500.0, 900.0, 600.0),
+    ];
+    let ups = [
+        (1000.0, 100.0, 1700.0),
+        (1500.0, 100.0, 1700.0),
+        (2000.0, 100.0, 1400.0),
+        (1500.0, 300.0, 600.0),
+    ];
+    let mut failures = Vec::new();
+    for &(n, from, to) in cuts.iter().chain(&downs).chain(&ups) {
+        let d = Demand::new(
+            vec![0.0, t_step, t_step, t_step + 1.0],
+            vec![n; 4],
+            vec![from, from, to, to],
+            vec![false; 4],
+        )
+        .unwrap();
+        let mut ctrl = base.clone();
+        let (traj, _) = run(m.clone(), &d, &mut ctrl, &plant_options()).unwrap();
+        let (t, u, lam) = (
+            traj.get("t").unwrap(),
+            traj.get("u_delta").unwrap(),
+            traj.get("lambda_O").unwrap(),
+        );
+        let k0 = t.iter().position(|&x| (x - t_step).abs() < 1e-9).unwrap();
+        let case = format!("{n} rpm, {from} -> {to} Nm");
+        // the smoke limiter's cap at sample k: the previous fuel at the measured lambda_O
+        let u_smoke = |k: usize| u[k - 1] * lam[k] / smoke;
+        // the step's sample: the previous fuel plus the feed-forward's change, limited
+        let d_ff = base.maps.fuel_for_torque(n, to) - base.maps.fuel_for_torque(n, from);
+        let hi = u_max.min(u_smoke(k0)).max(u_min);
+        let expected = (u[k0 - 1] + d_ff).clamp(u_min, hi);
+        eprintln!(
+            "{case}: fuel {:.2} -> {:.2} (expected {expected:.2}) -> {:.2} -> {:.2} mg",
+            u[k0 - 1],
+            u[k0],
+            u[k0 + 1],
+            u[k0 + 2]
+        );
+        if (u[k0] - expected).abs() > 0.5 {
+            failures.push(format!(
+                "{case}: fuel at the step {} mg, the feed-forward's step gives {expected} mg",
+                u[k0]
+            ));
+        }
+        if to < curve.m_motor_at(n) {
+            // a fuel cut: never up, at the minimum from the sample after the step
+            for k in k0..u.len() {
+                if u[k] > u[k - 1] + 1e-9 {
+                    failures.push(format!(
+                        "{case}: the fuel rises at t = {}: {} -> {} mg",
+                        t[k],
+                        u[k - 1],
+                        u[k]
+                    ));
+                    break;
+                }
+            }
+            if let Some(k) = (k0 + 1..u.len()).find(|&k| (u[k] - u_min).abs() > 1e-9) {
+                failures.push(format!(
+                    "{case}: fuel {} mg at t = {}, not the minimum {u_min} mg",
+                    u[k], t[k]
+                ));
+            }
+        }
+        if to > from {
+            // a tip-in: down only with the smoke limiter
+            for k in k0 + 1..=k0 + 20 {
+                let floor = u[k - 1].min(u_smoke(k));
+                if u[k] < floor - 0.05 {
+                    failures.push(format!(
+                        "{case}: fuel {} mg at t = {}, below the previous {} mg and the smoke \
+                         limit {} mg",
+                        u[k],
+                        t[k],
+                        u[k - 1],
+                        u_smoke(k)
+                    ));
+                    break;
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

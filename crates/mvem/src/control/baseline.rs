@@ -43,8 +43,10 @@
 //!
 //! ## Engine
 //!
-//! `u_delta = u_ff(n_e, M_ref) + PI(M_ref - M_e)` with `u_ff` the inverse of the model's steady
-//! torque map at the nominal actuator positions, M_e from the dynamometer's torque sensor; a smoke
+//! `u_delta = u_ff(n_e, M_ref) + PI(M_ref,prev - M_e)` with `u_ff` the inverse of the model's
+//! steady torque map at the nominal actuator positions, M_e from the dynamometer's torque sensor
+//! (the answer to the previous fuel command) and M_ref,prev the previous sample's demand (the
+//! one that command was given for: a step of the demand is the feed-forward's alone); a smoke
 //! limiter caps it at `u_delta lambda_O / (lambda_lim (1 + margin))` (lambda_O is inversely
 //! proportional to the fuel at a given air charge, eq. (15)), so lambda_O stays above
 //! lambda_lim (1.2) during turbo lag; motoring points get the minimum fuel.
@@ -1036,6 +1038,10 @@ pub struct Baseline {
     /// Whether the x_egr -> u_vgt loop is out of the VGT's selector because p_em <= p_im
     /// ([`BaselineTuning::vgt_release_motored_band`]; kept until p_em - p_im exceeds the band).
     no_egr_flow: bool,
+    /// The torque demand of the previous sample \[Nm\]: the demand the previous fuel command
+    /// was given for, which the torque measured now answers (the torque PI's reference;
+    /// docs/control.md, "Session 43").
+    m_ref_prev: f64,
 }
 
 /// What the exhaust back-pressure limiter on the VGT ([`BaselineTuning::dp_vgt_limit`]) did
@@ -1262,6 +1268,7 @@ impl Baseline {
             dp_log: DpLimitLog::default(),
             vgt_beyond: VgtBeyondMap::default(),
             no_egr_flow: false,
+            m_ref_prev: f64::NAN,
         }
     }
 
@@ -1325,6 +1332,7 @@ impl Controller for Baseline {
         let u_egr = u_egr.min(egr_hi).max(egr_lo);
         let u_vgt = u_vgt.min(self.u_vgt_max(l)).max(self.maps.u_vgt_range.0);
         self.torque.reset(0.0);
+        self.m_ref_prev = m_ref;
         self.x_vgt.reset(u_vgt);
         self.x_egr.reset(u_egr);
         self.lambda_egr.reset(u_egr);
@@ -1417,8 +1425,21 @@ impl Controller for Baseline {
     fn update(&mut self, m: &Measurement) -> Output {
         let dt = self.tuning.ts;
         let s = m.signals;
-        // engine: feed-forward + PI on the torque error, smoke limiter
-        let e_m = m.m_ref - s.m_e;
+        // engine: feed-forward + PI on the torque error, smoke limiter. The torque measured now
+        // is the engine's answer to the previous fuel command (M_e follows u_delta within the
+        // sample it is held over), which was given for the previous sample's demand: the PI
+        // compares the two (the feed-forward answers the demand's change). Against the new
+        // demand a step of the demand would read as a torque error for one sample and the PI
+        // would fight its own feed-forward: at a fuel cut the fuel went to its minimum, then up
+        // to 28 mg when the tracked integral came back (docs/control.md, "Session 43").
+        // (before a start: the present demand)
+        let m_ref_prev = if self.m_ref_prev.is_nan() {
+            m.m_ref
+        } else {
+            self.m_ref_prev
+        };
+        let e_m = m_ref_prev - s.m_e;
+        self.m_ref_prev = m.m_ref;
         let u_ff = self.maps.fuel_for_torque(m.n_e, m.m_ref);
         let u_smoke =
             s.u_delta * s.lambda_o / (self.tuning.lambda_limit * (1.0 + self.tuning.smoke_margin));
