@@ -570,12 +570,25 @@ pub const INPUT_OPTIONS: [&str; 4] = ["--n-e", "--u-delta", "--u-egr", "--u-vgt"
 /// Refuse non-finite inputs (usage error naming the option) and warn on stderr about values
 /// outside the model's input saturation ranges (which clamp them; `None`: none).
 pub fn check_drive(d: &Drive, ranges: Option<&InputRanges>) -> Result<()> {
+    check_drive_except(d, ranges, [false; 4])
+}
+
+/// [`check_drive`] without the range warning for the inputs marked in `other` (in
+/// [`Drive::to_array`] order): those a caller checks on its own, such as `mvem map`'s axes,
+/// whose values the point only holds a place for.
+pub fn check_drive_except(d: &Drive, ranges: Option<&InputRanges>, other: [bool; 4]) -> Result<()> {
     for (name, v) in INPUT_OPTIONS.iter().zip(d.to_array()) {
         if !v.is_finite() {
             return Err(usage(format!("{name} {v}: must be finite")));
         }
     }
-    for ((name, lo, hi), v) in ranges.into_iter().flatten().zip(d.to_array()) {
+    let given = d.to_array().into_iter().zip(other);
+    for ((name, lo, hi), (v, _)) in ranges
+        .into_iter()
+        .flatten()
+        .zip(given)
+        .filter(|(_, (_, other))| !other)
+    {
         if v < *lo || v > *hi {
             eprintln!(
                 "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the ranges are input_saturation of the parameter file)",

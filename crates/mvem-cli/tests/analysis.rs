@@ -1106,3 +1106,33 @@ fn bad_analysis_input_exits_2_with_a_clear_message() {
     // no output file is left by a failed run
     assert!(!d.path().join("m.png").exists());
 }
+
+/// An input on an --axis whose first value lies outside its saturation range was warned of
+/// twice: once per axis and once as the point's placeholder (session 43's user review). An
+/// input given by its option is still warned of once.
+#[test]
+fn map_warns_of_an_axis_out_of_range_once() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let mut all = vec!["map", "--n-e", "1500", "--u-delta", "110", "--out", "m.csv"];
+        all.extend_from_slice(args);
+        let o = mvem(d.path(), &all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        stderr(&o)
+    };
+    let err = run(&["--axis", "u_egr=0:100:3", "--axis", "u_vgt=10:100:3"]);
+    assert_eq!(err.matches("10 is outside").count(), 0, "{err}");
+    assert_eq!(
+        err.matches("warning: --axis u_vgt: 1 value(s) outside [20, 100] (e.g. 10)")
+            .count(),
+        1,
+        "{err}"
+    );
+    let err = run(&["--axis", "u_egr=0:100:3", "--u-vgt", "10"]);
+    assert_eq!(
+        err.matches("warning: u_vgt_pct = 10 is outside [20, 100]")
+            .count(),
+        1,
+        "{err}"
+    );
+}

@@ -130,6 +130,22 @@ type Table = (Vec<f64>, Vec<[f64; 4]>, Vec<usize>);
 /// count) is read by the csv crate, which names the line and column of every problem. Both read the same
 /// numbers (`str::parse` or an exact equivalent).
 pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoError> {
+    // an empty file (or one of blank lines and comments only) has no header to name a column of
+    if text
+        .trim_start_matches('\u{feff}')
+        .lines()
+        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'))
+    {
+        return Err(err(
+            path,
+            None,
+            None,
+            format!(
+                "the file is empty: expected a header ({}) and data rows",
+                INPUT_COLUMNS.join(",")
+            ),
+        ));
+    }
     let (times, rows, lines) = match plain_table(text) {
         Some(t) => t,
         None => csv_table(text, path)?,
@@ -478,6 +494,28 @@ mod tests {
 
     fn parse(s: &str) -> Result<InputSchedule, String> {
         parse_inputs_csv(s, Path::new("in.csv")).map_err(|e| e.to_string())
+    }
+
+    /// An empty file said "missing column `time_s`" (session 43's user review).
+    #[test]
+    fn an_empty_file_says_so() {
+        for text in ["", "\n\n", "# only a comment\n", "\u{feff}", "  \r\n"] {
+            let e = parse_inputs_csv(text, Path::new("in.csv"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("in.csv: the file is empty: expected a header (time_s,"),
+                "{text:?}: {e}"
+            );
+        }
+        // a header alone is no empty file
+        let e = parse_inputs_csv(
+            "time_s,n_e_rpm,u_delta_mg,u_egr_pct,u_vgt_pct\n",
+            Path::new("in.csv"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("no data rows"), "{e}");
     }
 
     #[test]
