@@ -129,7 +129,7 @@ fn planned_end(
     if off(t1 - t0) {
         warnings.push(format!(
             "the cycle ends at {} s, off the {} s sample grid from its start at {} s: ran the \
-             samples up to {} s, the last {} s of the cycle not",
+             samples up to {} s and left the last {} s of the cycle out",
             Num(t1),
             Num(ts),
             Num(t0),
@@ -307,4 +307,34 @@ fn clamped_speeds(
         Num(first.1),
         speeds.denormalize(first.1)
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::control::cycle::Demand;
+
+    /// A cycle whose end is off the sample grid runs the samples up to the grid's last point and
+    /// says so in a sentence (it read "..., the last 0.007 s of the cycle not": session 43).
+    #[test]
+    fn a_cycle_end_off_the_grid_is_said_in_a_sentence() {
+        let d = Demand::new(
+            vec![0.0, 1.007],
+            vec![1200.0, 1200.0],
+            vec![500.0, 500.0],
+            vec![false, false],
+        )
+        .unwrap();
+        let mut w = Vec::new();
+        let end = planned_end(&d, None, 0.01, &mut w).unwrap();
+        assert_eq!(end, 1.007);
+        assert_eq!(
+            w,
+            vec![
+                "the cycle ends at 1.007 s, off the 0.01 s sample grid from its start at 0 s: ran \
+                 the samples up to 1 s and left the last 0.007 s of the cycle out"
+                    .to_string()
+            ]
+        );
+    }
 }
