@@ -53,7 +53,7 @@ def test_a_failing_run_does_not_sink_the_others():
     inputs = [vgt_step(65.0), bad, vgt_step(60.0, n_e=1200.0)]
     runs = mvem.simulate_many(inputs, on_error="return", threads=2)
     assert isinstance(runs[1], ValueError)
-    assert str(runs[1]).startswith("run 1: inputs: row 1: u_delta_mg = NaN")
+    assert str(runs[1]).startswith("run 1: inputs: row 2: u_delta_mg = NaN")
     # the runs before and after the failed one are complete
     assert_same(runs[0], mvem.simulate(inputs[0]))
     assert_same(runs[2], mvem.simulate(inputs[2]))

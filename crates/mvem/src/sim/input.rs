@@ -41,14 +41,15 @@ pub struct InputSchedule {
     pub collinear_tol: [f64; 4],
 }
 
-/// A problem with schedule data.
+/// A problem with schedule data. The messages count rows from 1 (the second row is "row 2"), as
+/// the closed loop's demands do; the fields hold the 0-based index.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ScheduleError {
     /// No rows.
     #[error("input schedule has no rows")]
     Empty,
     /// A time or value is NaN or infinite.
-    #[error("row {row}: {column} = {value} is not finite")]
+    #[error("row {}: {column} = {value} is not finite", .row + 1)]
     NonFinite {
         /// 0-based row index.
         row: usize,
@@ -58,7 +59,7 @@ pub enum ScheduleError {
         value: f64,
     },
     /// Time decreases, or more than two rows share a time.
-    #[error("row {row}: time {t} s is not monotonic (previous {prev} s){detail}")]
+    #[error("row {}: time {t} s is not monotonic (previous {prev} s){detail}", .row + 1)]
     NonMonotonic {
         /// 0-based row index.
         row: usize,
@@ -497,10 +498,10 @@ mod tests {
         let e = InputSchedule::new(vec![0.0, 1.0], vec![[1.0; 4], [1.0, f64::NAN, 1.0, 1.0]]);
         assert_eq!(
             e.unwrap_err().to_string(),
-            "row 1: u_delta_mg = NaN is not finite"
+            "row 2: u_delta_mg = NaN is not finite"
         );
         let e = InputSchedule::new(vec![0.0, 2.0, 1.0], vec![[1.0; 4]; 3]).unwrap_err();
-        assert!(e.to_string().contains("row 2: time 1 s is not monotonic"));
+        assert!(e.to_string().contains("row 3: time 1 s is not monotonic"));
         let e = InputSchedule::new(vec![0.0, 1.0, 1.0, 1.0], vec![[1.0; 4]; 4]).unwrap_err();
         assert!(e.to_string().contains("more than two rows"));
     }
@@ -520,7 +521,7 @@ mod tests {
         let e = s.hold(1.5, [0.0; 4]).unwrap_err();
         assert!(e.to_string().contains("before the last row"), "{e}");
         let e = s.hold(3.0, [f64::NAN, 0.0, 0.0, 0.0]).unwrap_err();
-        assert_eq!(e.to_string(), "row 5: n_e_rpm = NaN is not finite");
+        assert_eq!(e.to_string(), "row 6: n_e_rpm = NaN is not finite");
         let before = [1.5, 2.0, 2.5].map(|t| s.at(t));
         s.drop_before(1.5);
         assert_eq!(s.times(), &[1.0, 2.0, 2.0]);
