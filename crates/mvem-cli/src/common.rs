@@ -582,14 +582,8 @@ pub fn check_drive_except(d: &Drive, ranges: Option<&InputRanges>, other: [bool;
             return Err(usage(format!("{name} {v}: must be finite")));
         }
     }
-    let given = d.to_array().into_iter().zip(other);
-    for ((name, lo, hi), (v, _)) in ranges
-        .into_iter()
-        .flatten()
-        .zip(given)
-        .filter(|(_, (_, other))| !other)
-    {
-        if v < *lo || v > *hi {
+    for (((name, lo, hi), v), other) in ranges.into_iter().flatten().zip(d.to_array()).zip(other) {
+        if !other && (v < *lo || v > *hi) {
             eprintln!(
                 "warning: {name} = {} is outside [{lo}, {hi}]; the authors' saturation clamps it (--semantics paper uses it as given; the ranges are input_saturation of the parameter file)",
                 mvem::numerics::Num(v)

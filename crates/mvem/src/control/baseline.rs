@@ -1040,8 +1040,8 @@ pub struct Baseline {
     no_egr_flow: bool,
     /// The torque demand of the previous sample \[Nm\]: the demand the previous fuel command
     /// was given for, which the torque measured now answers (the torque PI's reference;
-    /// docs/control.md, "Session 43").
-    m_ref_prev: f64,
+    /// docs/control.md, "Session 43"); `None` before the first sample.
+    m_ref_prev: Option<f64>,
 }
 
 /// What the exhaust back-pressure limiter on the VGT ([`BaselineTuning::dp_vgt_limit`]) did
@@ -1268,7 +1268,7 @@ impl Baseline {
             dp_log: DpLimitLog::default(),
             vgt_beyond: VgtBeyondMap::default(),
             no_egr_flow: false,
-            m_ref_prev: f64::NAN,
+            m_ref_prev: None,
         }
     }
 
@@ -1332,7 +1332,7 @@ impl Controller for Baseline {
         let u_egr = u_egr.min(egr_hi).max(egr_lo);
         let u_vgt = u_vgt.min(self.u_vgt_max(l)).max(self.maps.u_vgt_range.0);
         self.torque.reset(0.0);
-        self.m_ref_prev = m_ref;
+        self.m_ref_prev = Some(m_ref);
         self.x_vgt.reset(u_vgt);
         self.x_egr.reset(u_egr);
         self.lambda_egr.reset(u_egr);
@@ -1433,13 +1433,7 @@ impl Controller for Baseline {
         // would fight its own feed-forward: at a fuel cut the fuel went to its minimum, then up
         // to 28 mg when the tracked integral came back (docs/control.md, "Session 43").
         // (before a start: the present demand)
-        let m_ref_prev = if self.m_ref_prev.is_nan() {
-            m.m_ref
-        } else {
-            self.m_ref_prev
-        };
-        let e_m = m_ref_prev - s.m_e;
-        self.m_ref_prev = m.m_ref;
+        let e_m = self.m_ref_prev.replace(m.m_ref).unwrap_or(m.m_ref) - s.m_e;
         let u_ff = self.maps.fuel_for_torque(m.n_e, m.m_ref);
         let u_smoke =
             s.u_delta * s.lambda_o / (self.tuning.lambda_limit * (1.0 + self.tuning.smoke_margin));

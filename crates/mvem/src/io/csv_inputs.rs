@@ -130,12 +130,9 @@ type Table = (Vec<f64>, Vec<[f64; 4]>, Vec<usize>);
 /// count) is read by the csv crate, which names the line and column of every problem. Both read the same
 /// numbers (`str::parse` or an exact equivalent).
 pub fn parse_inputs_csv(text: &str, path: &Path) -> Result<InputSchedule, IoError> {
-    // an empty file (or one of blank lines and comments only) has no header to name a column of
-    if text
-        .trim_start_matches('\u{feff}')
-        .lines()
-        .all(|l| l.trim().is_empty() || l.trim_start().starts_with('#'))
-    {
+    // an empty file (or one of blank lines and comments only, after a byte-order mark) has no
+    // header to name a column of
+    if super::csv_columns::header_line(text.trim_start_matches('\u{feff}'), Some(b'#')).is_empty() {
         return Err(err(
             path,
             None,

@@ -1716,20 +1716,26 @@ mod tests {
         );
     }
 
-    /// Power logged in W and read as torque was caught only above 100 kW (the range of M_e);
-    /// below, the campaign loaded and step 1 fitted eta_igch to it (session 37). The torque's
-    /// BMEP for the displacement the air flows allow catches it, in the stationary file and in
-    /// the dynamic sets, while the published engine's campaign loads.
-    #[test]
-    fn power_in_w_read_as_torque_is_caught_below_100_kw() {
+    /// A virtual campaign of the engine `p` small enough for a unit test: the 13 ESC points and
+    /// set I with at most two steps.
+    fn small_lab_campaign(p: &crate::params::Params) -> Campaign {
         let opts = crate::tuning::lab::LabOptions {
             max_steps: Some(2),
             n_stationary: 13,
             sets: Some(vec!["I".into()]),
             ..Default::default()
         };
+        crate::tuning::lab::campaign(p, &opts).unwrap().0
+    }
+
+    /// Power logged in W and read as torque was caught only above 100 kW (the range of M_e);
+    /// below, the campaign loaded and step 1 fitted eta_igch to it (session 37). The torque's
+    /// BMEP for the displacement the air flows allow catches it, in the stationary file and in
+    /// the dynamic sets, while the published engine's campaign loads.
+    #[test]
+    fn power_in_w_read_as_torque_is_caught_below_100_kw() {
         let p = crate::params::Params::published();
-        let (c, _) = crate::tuning::lab::campaign(&p, &opts).unwrap();
+        let c = small_lab_campaign(&p);
         // the bound lies above the true displacement (volumetric efficiency 0.7, not ~0.9)
         let v_d = displacement_bound(&c.stationary).unwrap();
         assert!((1.0..1.5).contains(&(v_d / p.cylinder.v_d)), "{v_d}");
@@ -1816,14 +1822,7 @@ mod tests {
     /// such file or directory"), naming neither the manifest nor the entry (session 43).
     #[test]
     fn a_missing_listed_file_names_the_manifest_entry() {
-        let opts = crate::tuning::lab::LabOptions {
-            max_steps: Some(2),
-            n_stationary: 13,
-            sets: Some(vec!["I".into()]),
-            ..Default::default()
-        };
-        let (c, _) =
-            crate::tuning::lab::campaign(&crate::params::Params::published(), &opts).unwrap();
+        let c = small_lab_campaign(&crate::params::Params::published());
         let dir = tempfile::tempdir().unwrap();
         save_campaign(dir.path(), &c).unwrap();
         assert!(load_campaign(dir.path()).is_ok());

@@ -392,9 +392,12 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let header = header_names(&text).unwrap_or_default();
         let (mut heads, mut head_notes) = headings(f, &header);
         head_notes.extend(units_from_row(f, &text, &mut heads));
-        let missing = lacks_stationary(&heads);
-        if nearest.as_ref().is_none_or(|n| missing.len() < n.1.len()) {
-            nearest = Some((f.clone(), missing, header.clone()));
+        let st_missing = lacks_stationary(&heads);
+        if nearest
+            .as_ref()
+            .is_none_or(|n| st_missing.len() < n.1.len())
+        {
+            nearest = Some((f.clone(), st_missing.clone(), header.clone()));
         }
         let clash = heads.iter().find_map(|(name, g)| {
             headed
@@ -435,7 +438,6 @@ pub fn draft_manifest(dir: &Path) -> Result<ManifestDraft, DataError> {
         let lacks = |cols: &mut dyn Iterator<Item = &str>| -> Vec<String> {
             cols.filter(|n| !has(n)).map(str::to_string).collect()
         };
-        let st_missing = lacks_stationary(&heads);
         if st_missing.is_empty() {
             if stationary.is_none() {
                 stationary = Some(f.clone());
